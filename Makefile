@@ -1,0 +1,52 @@
+# Fenestra: set-up, tests, benchmark, reports, gates, training.
+SHELL := /bin/bash
+PY := .venv/bin/python
+PIP := .venv/bin/pip
+export PYOPENGL_PLATFORM ?= egl
+export MPLBACKEND ?= Agg
+
+.PHONY: help setup sysdeps test test-all bench smoke report gate train clean
+
+help:  ## list the targets
+	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
+
+sysdeps:  ## Debian packages for headless EGL rendering and mitsuba's LLVM backend (if missing)
+	@if ! ldconfig -p | grep -q 'libEGL.so.1' || ! ls /usr/lib/x86_64-linux-gnu/dri/*swrast* >/dev/null 2>&1 \
+	    || ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1; then \
+	  echo "installing libegl1 libgl1-mesa-dri libllvm19"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && $$SUDO apt-get install -y -qq libegl1 libgl1-mesa-dri libllvm19 >/dev/null; \
+	else echo "system packages present"; fi
+
+setup: sysdeps  ## virtualenv in .venv with every dependency, pinned
+	test -x $(PY) || python3 -m venv .venv
+	$(PIP) install -q --upgrade pip
+	$(PIP) install -q -e '.[dev]'
+	# pyrender 0.1.45 pins PyOpenGL==3.1.0; we run it on the pinned PyOpenGL 3.1.10 (EGL works,
+	# NumPy 2 compatible), so it is installed without its dependency pins (they are in pyproject).
+	$(PIP) install -q --no-deps pyrender==0.1.45
+	$(PY) -c "import fenestra.compat, pyrender, torchvision.ops; print('setup ok')"
+
+test:  ## fast tests (the CI test command)
+	$(PY) -m pytest -q -m "not slow"
+
+test-all:  ## every test, slow ones included
+	$(PY) -m pytest -q
+
+bench:  ## default profile: render, reconstruct with every strategy, report
+	$(PY) -m fenestra bench --profile default
+
+smoke:  ## smoke profile (what CI gates)
+	$(PY) -m fenestra bench --profile smoke --out out/bench/smoke
+
+gate: smoke  ## smoke profile, then the accuracy gates
+	$(PY) -m fenestra gate out/bench/smoke
+
+report:  ## regenerate the report of the newest default run
+	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1)
+
+train:  ## train the default CPU detector from scratch (reproduces the shipped weights)
+	$(PY) -m fenestra train --config pipeline/models/default.toml
+
+clean:
+	rm -rf out .pytest_cache

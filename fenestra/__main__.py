@@ -1,0 +1,3 @@
+from fenestra.cli import main
+
+main()

@@ -1,0 +1,39 @@
+"""The `fenestra` command line: each stage registers its own subcommands.
+
+    fenestra scenes list | show | make      (scenes/cli.py)
+    fenestra render                         (renders/cli.py)
+    fenestra reconstruct | train | evaluate-detector   (pipeline/cli.py)
+    fenestra bench | report | gate          (bench/cli.py, reports/)
+"""
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from fenestra.errors import FenestraError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Fenestra: single-photo facade window reconstruction, measured against exact IFC ground truth.")
+
+
+def _register() -> None:
+    import bench.cli
+    import pipeline.cli
+    import renders.cli
+    import scenes.cli
+
+    for module in (scenes.cli, renders.cli, pipeline.cli, bench.cli):
+        module.register(app)
+
+
+_register()
+
+
+def main() -> None:
+    """Entry point: run the app; user-facing errors become one line on stderr and exit code 2."""
+    try:
+        app()
+    except (FenestraError, FileNotFoundError, ValueError) as e:
+        typer.echo(f"error: {e}", err=True)
+        sys.exit(2)

@@ -1,0 +1,153 @@
+"""The one place that states Fenestra's conventions and tolerances.
+
+Every other module imports from here; tests in ``tests/test_conventions.py`` pin them.
+
+Units
+    Metres, degrees for reported angles, pixels for image quantities.
+World frame
+    The IFC model's, z up.
+Camera
+    OpenCV: x right, y down, z forward. A pose is world-to-camera ``R`` (3x3), ``t`` (3,):
+    ``X_cam = R @ X_world + t``. ``K`` is the 3x3 pinhole matrix.
+    pyrender and mitsuba use OpenGL-style cameras (x right, y up, z backward); convert only with
+    :func:`cv_to_gl_pose` / :data:`CV_TO_GL`.
+Pixels
+    The centre of pixel (u, v) is at coordinate (u, v); an image of width W spans [-0.5, W-0.5].
+    pyrender's ``IntrinsicsCamera`` puts pixel centres at half-integers: pass it
+    ``cx + PYRENDER_PIXEL_OFFSET`` and ``cy + PYRENDER_PIXEL_OFFSET``.
+Corner order
+    TL, TR, BR, BL in the image (clockwise on screen). In the window's own frame the same corners
+    are (0, h), (w, h), (w, 0), (0, 0)  -- x along the wall, y up, seen from outside -- so the
+    image TL corner is the window's top-left as seen from outside.
+Ground-truth window
+    The void rectangle on the wall's exterior face, from IfcWindow + its IfcOpeningElement.
+    Aspect ratio = width / height.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Corner names in the documented order.
+CORNER_NAMES: tuple[str, ...] = ("TL", "TR", "BR", "BL")
+
+# OpenCV camera axes -> OpenGL camera axes (flip y and z).
+CV_TO_GL = np.diag([1.0, -1.0, -1.0])
+
+# pyrender IntrinsicsCamera draws 0.5 px up-left of OpenCV's convention; add this to cx, cy.
+PYRENDER_PIXEL_OFFSET = 0.5
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Numerical tolerances used by checks and tests (units in the names)."""
+
+    gt_size_vs_ifc_m: float = 0.005  # loader width/height vs IfcWindow OverallWidth/Height
+    gt_right_angle_deg: float = 0.01  # ground-truth rectangle corners
+    gt_coplanar_m: float = 1e-6  # corners vs wall face plane
+    generator_roundtrip_m: float = 1e-6  # procedural house: loader vs generator parameters
+    projection_vs_mask_px: float = 0.1  # projected GT corners vs instance-map edges
+    distortion_roundtrip_px: float = 1e-3
+    backend_instance_iou: float = 0.99  # pyrender vs mitsuba instance maps
+    exact_aspect_rel: float = 1e-6  # aspect ratio from an exact synthetic quad
+    exact_rotation_deg: float = 1e-4  # pose from an exact synthetic quad
+    parallel_sides_deg: float = 0.05  # opposite image sides closer than this count as parallel
+    match_iou: float = 0.5  # detection <-> ground truth matching
+    recall_thresholds_px: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0)
+
+
+TOL = Tolerances()
+
+
+def check_K(K: np.ndarray) -> np.ndarray:
+    """Validate an intrinsics matrix; return it as float64 (3, 3).
+
+    Raises ValueError naming the bad value: wrong shape, non-finite, non-positive focal lengths,
+    or a last row other than (0, 0, 1).
+    """
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3):
+        raise ValueError(f"K must be 3x3, got shape {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise ValueError(f"K has non-finite entries: {K.tolist()}")
+    if K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise ValueError(f"K focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
+    if not np.allclose(K[2], [0.0, 0.0, 1.0]):
+        raise ValueError(f"K last row must be [0, 0, 1], got {K[2].tolist()}")
+    return K
+
+
+def make_K(fx: float, fy: float | None = None, cx: float = 0.0, cy: float = 0.0) -> np.ndarray:
+    """3x3 pinhole matrix from focal lengths (px) and principal point (px)."""
+    fy = fx if fy is None else fy
+    return check_K(np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]))
+
+
+def K_from_fov(width: int, height: int, hfov_deg: float) -> np.ndarray:
+    """Square-pixel K for an image of ``width`` x ``height`` px with horizontal FOV in degrees.
+
+    The principal point is the image centre, ((W-1)/2, (H-1)/2) under the pixel-centre convention.
+    """
+    if not 0.0 < hfov_deg < 180.0:
+        raise ValueError(f"hfov_deg must be in (0, 180), got {hfov_deg}")
+    f = 0.5 * width / np.tan(np.radians(hfov_deg) / 2.0)
+    return make_K(f, f, (width - 1) / 2.0, (height - 1) / 2.0)
+
+
+def project(K: np.ndarray, R: np.ndarray, t: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Pinhole projection of world points X (N, 3) m -> pixels (N, 2); no distortion.
+
+    Points behind the camera still project (with flipped sign); check depth separately.
+    """
+    X = np.asarray(X, dtype=np.float64).reshape(-1, 3)
+    Xc = X @ np.asarray(R, dtype=np.float64).T + np.asarray(t, dtype=np.float64).reshape(1, 3)
+    x = Xc @ np.asarray(K, dtype=np.float64).T
+    return x[:, :2] / x[:, 2:3]
+
+
+def camera_depths(R: np.ndarray, t: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Depth (camera z, m) of world points X (N, 3)."""
+    X = np.asarray(X, dtype=np.float64).reshape(-1, 3)
+    return X @ np.asarray(R)[2] + float(np.asarray(t).reshape(3)[2])
+
+
+def cv_to_gl_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """World-to-camera OpenCV pose -> 4x4 camera-to-world pose of an OpenGL camera (pyrender)."""
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    T = np.eye(4)
+    T[:3, :3] = R.T @ CV_TO_GL
+    T[:3, 3] = -R.T @ t
+    return T
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0),
+            roll_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV world-to-camera (R, t) for a camera at ``eye`` looking at ``target``.
+
+    ``up`` is the world direction that appears upward in the image (default world z); ``roll_deg``
+    rotates the camera about its optical axis (positive = image content turns clockwise).
+    """
+    eye = np.asarray(eye, dtype=np.float64)
+    z = np.asarray(target, dtype=np.float64) - eye
+    n = np.linalg.norm(z)
+    if n < 1e-12:
+        raise ValueError(f"look_at: eye {eye.tolist()} equals target")
+    z /= n
+    x = np.cross(z, -np.asarray(up, dtype=np.float64))
+    if np.linalg.norm(x) < 1e-9:
+        raise ValueError(f"look_at: view direction {z.tolist()} is parallel to up {list(up)}")
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z])
+    if roll_deg:
+        c, s = np.cos(np.radians(roll_deg)), np.sin(np.radians(roll_deg))
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ R
+    return R, -R @ eye
+
+
+def rotation_error_deg(R_est: np.ndarray, R_gt: np.ndarray) -> float:
+    """Geodesic angle (deg) between two rotation matrices."""
+    c = (np.trace(np.asarray(R_est) @ np.asarray(R_gt).T) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))

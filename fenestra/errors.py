@@ -1,0 +1,13 @@
+"""Errors a user can act on. The CLI prints them as one line and exits non-zero."""
+
+
+class FenestraError(Exception):
+    """Base class: a clear, one-line problem with the user's input (file, value, config)."""
+
+
+class SceneError(FenestraError):
+    """An IFC file that is missing, unreadable, corrupt, or has no usable windows."""
+
+
+class PipelineError(FenestraError):
+    """Bad input to the reconstruction pipeline (photo, K, masks)."""

@@ -1,0 +1,82 @@
+"""Data types of a loaded scene: element meshes and window ground truth (the scenes/ contract).
+
+Everything downstream (renders/, bench/) consumes these types; nothing here depends on IFC.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ElementMesh:
+    """One IFC element as a triangle mesh in world coordinates (metres, z up).
+
+    vertices: (N, 3) float64 m; faces: (M, 3) int64 indices into vertices;
+    rgba: (4,) float in [0, 1] from the IFC surface style (a class default when none).
+    """
+
+    global_id: str
+    ifc_class: str  # e.g. "IfcWall", "IfcWindow", "IfcSlab"
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    rgba: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class WindowGT:
+    """Exact ground truth of one window void.
+
+    corners_world: (4, 3) m, the opening's outline on the host wall's exterior face, ordered
+    TL, TR, BR, BL as seen from outside (x along the wall to the right, y = world up).
+    normal: (3,) unit outward normal of the exterior face. width/height in m (width = |TR - TL|).
+    """
+
+    id: str  # IfcWindow GlobalId
+    host_id: str  # host wall GlobalId
+    host_class: str
+    opening_id: str  # IfcOpeningElement GlobalId
+    name: str
+    corners_world: np.ndarray
+    normal: np.ndarray
+    width: float
+    height: float
+    ifc_overall_width: float | None  # IfcWindow.OverallWidth in metres (None if unset)
+    ifc_overall_height: float | None
+
+    @property
+    def center(self) -> np.ndarray:
+        return self.corners_world.mean(axis=0)
+
+    @property
+    def aspect_ratio(self) -> float:
+        return self.width / self.height
+
+
+@dataclass(frozen=True)
+class SkippedWindow:
+    """An IfcWindow with no ground truth, and why (e.g. hosted in a roof slab)."""
+
+    id: str
+    name: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A loaded house: its meshes and its windows' ground truth."""
+
+    name: str
+    path: str
+    schema: str
+    sha256: str
+    meshes: tuple[ElementMesh, ...]
+    windows: tuple[WindowGT, ...]
+    skipped: tuple[SkippedWindow, ...] = field(default_factory=tuple)
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) axis-aligned world bounds of all meshes, m."""
+        v = np.concatenate([m.vertices for m in self.meshes])
+        return np.stack([v.min(axis=0), v.max(axis=0)])
