@@ -1,0 +1,44 @@
+"""Data types passed between pipeline stages (the pipeline/ contract).
+
+pipeline/ is the system a user runs on one photo: it must not import bench/, renders/ or scenes/.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Detection:
+    """One detected window void. mask: (H, W) bool; box: (4,) x0, y0, x1, y1 px; score in [0, 1]."""
+
+    mask: np.ndarray
+    box: np.ndarray
+    score: float
+    label: str = "window"
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """Reconstruction of one detected window (one entry of windows.json).
+
+    Quads are (4, 2) px, TL TR BR BL, pixel centres at integers (see fenestra.conventions).
+    R (3, 3), t (3,) map the window frame (x along the wall, y up, z outward; origin at the
+    bottom-left corner; size aspect_ratio*height x height m) to the camera frame (OpenCV).
+    Fields are None when the stage failed; ``failure`` then names the stage and reason.
+    """
+
+    index: int
+    score: float
+    quad_mask: np.ndarray | None
+    quad_snapped: np.ndarray | None
+    aspect_ratio: float | None
+    aspect_case: str | None  # e.g. "general", "one_pair_parallel", "fronto_parallel"
+    focal_estimate_px: float | None
+    R: np.ndarray | None
+    t: np.ndarray | None
+    height_m: float  # the scale parameter used for the pose (default 1 m)
+    quad_reprojected: np.ndarray | None
+    failure: str | None
+    timings_ms: dict[str, float] = field(default_factory=dict)
