@@ -135,7 +135,7 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0
     if n < 1e-12:
         raise ValueError(f"look_at: eye {eye.tolist()} equals target")
     z /= n
-    x = np.cross(z, -np.asarray(up, dtype=np.float64))
+    x = np.cross(z, np.asarray(up, dtype=np.float64))
     if np.linalg.norm(x) < 1e-9:
         raise ValueError(f"look_at: view direction {z.tolist()} is parallel to up {list(up)}")
     x /= np.linalg.norm(x)
