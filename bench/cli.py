@@ -1,8 +1,89 @@
-"""CLI commands of bench/ (registered on the `fenestra` app by fenestra/cli.py)."""
+"""CLI commands of bench/ and reports/ (registered on the `fenestra` app by fenestra/cli.py).
+
+    fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report]
+    fenestra report RUN_DIR
+    fenestra gate RUN_DIR [--gates FILE] [--profile NAME]
+"""
 from __future__ import annotations
+
+import math
+from pathlib import Path
 
 import typer
 
 
+def _fmt(x, d: int = 2) -> str:
+    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{d}f}"
+
+
+def print_headline(results: dict) -> None:
+    """The headline table of a summary's results, with rich."""
+    from rich.console import Console  # noqa: PLC0415
+    from rich.table import Table  # noqa: PLC0415
+
+    from bench.results import headline_table  # noqa: PLC0415
+
+    t = Table(title="per method (evaluable windows)")
+    rows = headline_table(results)
+    for col in ("method", "evaluable", "detected", "mask med px", "snap med px", "snap p90 px",
+                "reproj med px", "R@2px snap", "aspect p90", "rot med deg"):
+        t.add_column(col, justify="left" if col == "method" else "right")
+    for r in rows:
+        t.add_row(r["method"], str(r["n_evaluable"]), _fmt(r["detected"]), _fmt(r["mask_med_px"]),
+                  _fmt(r["snap_med_px"]), _fmt(r["snap_p90_px"]), _fmt(r["reproj_med_px"]),
+                  _fmt(r["recall_2px_snap"]), _fmt(r["aspect_p90_rel"], 3), _fmt(r["rot_med_deg"]))
+    Console().print(t)
+
+
+def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile name (bench/profiles) or TOML path"),
+          out: Path = typer.Option(None, "--out", "-o", help="run folder (default out/bench/<profile>-<hash>)"),
+          workers: int = typer.Option(0, "--workers", "-j", help="worker processes (0: all cores)"),
+          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report")) -> None:
+    """Render (cached), reconstruct with every strategy, measure, summarise, report."""
+    from bench.profiles import load_profile  # noqa: PLC0415
+    from bench.results import load_summary  # noqa: PLC0415
+    from bench.runner import run_benchmark  # noqa: PLC0415
+
+    if workers < 0:
+        raise ValueError(f"--workers must be >= 0, got {workers}")
+    info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
+                         report=not no_report)
+    summary = load_summary(info.run_dir)
+    typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
+    typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))
+    if info.skipped_detectors:
+        typer.echo("skipped detectors: " + "; ".join(f"{k}: {v}" for k, v in info.skipped_detectors.items()))
+    print_headline(summary["results"])
+    typer.echo(f"results: {info.run_dir / 'results.parquet'}")
+    if not no_report:
+        typer.echo(f"report: {info.run_dir / 'report.html'} (and report.md)")
+
+
+def report(run_dir: Path = typer.Argument(..., help="a run folder with results.parquet")) -> None:
+    """Regenerate report.html and report.md (+ figures/) of a run from its results."""
+    from reports.build import build_report  # noqa: PLC0415
+
+    html, md = build_report(run_dir)
+    typer.echo(f"report: {html}\nmarkdown: {md}")
+
+
+def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.parquet and summary.json"),
+         gates: Path = typer.Option(None, "--gates", help="gates TOML (default bench/gates.toml)"),
+         profile: str = typer.Option(None, "--profile", help="check against this profile's gates")) -> None:
+    """Check a run against accuracy gates; exit 1 naming each violated metric, value and bound."""
+    from bench.gates import DEFAULT_GATES, check  # noqa: PLC0415
+
+    violations = check(run_dir, gates or DEFAULT_GATES, profile=profile)
+    if violations:
+        for v in violations:
+            typer.echo(f"GATE FAILED {v}", err=True)
+        typer.echo(f"{len(violations)} gate violation(s)", err=True)
+        raise typer.Exit(1)
+    typer.echo("all gates passed")
+
+
 def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app."""
+    app.command("bench")(bench)
+    app.command("report")(report)
+    app.command("gate")(gate)

@@ -1,8 +1,109 @@
-"""CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py)."""
+"""CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py).
+
+    fenestra reconstruct PHOTO (--K K.json | --fx F [--fy --cx --cy]) [--masks MASKS.png]
+        [--detector NAME] [--snapper NAME] [--pose lm|ippe] [--height M] [--width M]
+        [--substitute STYLE] --out DIR
+
+writes DIR/windows.json and, through pipeline.export, model.ifc, model.obj, overlay.png, ...
+Also registers the detectors' commands (`fenestra train`, `fenestra evaluate-detector`).
+"""
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Optional
+
+import cv2
+import numpy as np
 import typer
+
+from fenestra.errors import PipelineError
+
+
+def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
+                    fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
+                    masks: Optional[Path] = None, detector: str = "default", snapper: str = "harris",
+                    pose: str = "lm", height: float = 1.0, width: Optional[float] = None,
+                    substitute: Optional[str] = None, export: bool = True) -> dict:
+    """The `reconstruct` command as a function: returns the windows.json dict it wrote."""
+    from pipeline.io import K_from_values, read_instance_map, read_K, read_photo  # noqa: PLC0415
+    from pipeline.reconstruct import (ReconstructConfig, detections_from_instance_map,  # noqa: PLC0415
+                                      reconstruct, windows_to_json)
+
+    image = read_photo(photo)
+    size = (image.shape[1], image.shape[0])
+    if K_json is not None and fx is not None:
+        raise PipelineError("give either --K or --fx, not both")
+    if K_json is not None:
+        K = read_K(K_json, size)
+    elif fx is not None:
+        K = K_from_values(fx, fy, cx, cy, size)
+    else:
+        raise PipelineError("intrinsics needed: --K K.json or --fx F [--fy --cx --cy]")
+    cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width)
+    if masks is not None:
+        detections = detections_from_instance_map(read_instance_map(masks, size))
+    else:
+        from pipeline.detectors import detect  # noqa: PLC0415
+
+        detections = detect(detector, cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
+    results = reconstruct(image, K, detections, cfg)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = windows_to_json(results, K=K, image_size=size, config=cfg)
+    (out / "windows.json").write_text(json.dumps(doc, indent=2))
+    if export:
+        try:
+            from pipeline.export import write_outputs  # noqa: PLC0415
+        except ImportError as e:  # the export module is optional for the geometry core
+            typer.echo(f"note: export skipped ({e})", err=True)
+        else:
+            write_outputs(out, image, K, results, substitute=substitute)
+    return doc
+
+
+def format_table(doc: dict) -> str:
+    """A short plain-text table: one line per window, then the median per-stage timing."""
+    lines = [f"{'#':>3} {'score':>5} {'aspect':>7} {'case':<17} {'dist_m':>7} failure"]
+    for w in doc["windows"]:
+        ar = f"{w['aspect_ratio']:.4f}" if w["aspect_ratio"] is not None else "-"
+        dist = f"{np.linalg.norm(w['t']):.2f}" if w["t"] is not None else "-"
+        lines.append(f"{w['index']:>3} {w['score']:>5.2f} {ar:>7} {w['aspect_case'] or '-':<17} {dist:>7} "
+                     f"{w['failure'] or ''}")
+    stages = ("quad", "snap", "aspect", "pose")
+    med = {s: np.median([w["timings_ms"][s] for w in doc["windows"] if s in w["timings_ms"]] or [np.nan])
+           for s in stages}
+    lines.append("median ms/window: " + "  ".join(f"{s} {med[s]:.2f}" for s in stages))
+    return "\n".join(lines)
 
 
 def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app."""
+
+    @app.command("reconstruct")
+    def reconstruct_cmd(
+        photo: Path = typer.Argument(..., help="the photo (any format OpenCV reads)"),
+        out: Path = typer.Option(..., "--out", help="output folder"),
+        K_json: Optional[Path] = typer.Option(None, "--K", help='intrinsics JSON: {"K": 3x3} or fx/fy/cx/cy'),
+        fx: Optional[float] = typer.Option(None, "--fx", help="focal length, px"),
+        fy: Optional[float] = typer.Option(None, "--fy", help="focal length y, px (default fx)"),
+        cx: Optional[float] = typer.Option(None, "--cx", help="principal point x, px (default image centre)"),
+        cy: Optional[float] = typer.Option(None, "--cy", help="principal point y, px (default image centre)"),
+        masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector"),
+        detector: str = typer.Option("default", "--detector", help="detector registry name (without --masks)"),
+        snapper: str = typer.Option("harris", "--snapper", help="none | harris | hough | linefit | subpix"),
+        pose: str = typer.Option("lm", "--pose", help="lm | ippe"),
+        height: float = typer.Option(1.0, "--height", help="window height, m (the scale parameter)"),
+        width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
+        substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
+    ) -> None:
+        """Reconstruct the windows of one photo: windows.json, IFC, OBJ, overlay."""
+        doc = run_reconstruct(photo, out, K_json, fx, fy, cx, cy, masks, detector, snapper, pose,
+                              height, width, substitute)
+        typer.echo(format_table(doc))
+        typer.echo(f"wrote {out / 'windows.json'}")
+
+    try:
+        from pipeline.detectors import cli as detectors_cli  # noqa: PLC0415
+    except ImportError:
+        return
+    detectors_cli.register(app)

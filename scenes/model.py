@@ -23,6 +23,9 @@ class ElementMesh:
     vertices: np.ndarray
     faces: np.ndarray
     rgba: tuple[float, float, float, float]
+    # Optional per-face colours (M, 4) float in [0, 1] when the element has several surface styles
+    # (e.g. a window's frame and its glass; alpha = 1 - IFC transparency). None: use ``rgba``.
+    face_rgba: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,12 @@ class WindowGT:
     height: float
     ifc_overall_width: float | None  # IfcWindow.OverallWidth in metres (None if unset)
     ifc_overall_height: float | None
+    # "rectangle": corners_world are the void's own 4 corners. "non_rectangular" (e.g. FZK-Haus's
+    # round gable windows): corners_world is the void's bounding rectangle in the wall plane and
+    # outline_world (K, 3) m holds the true outline on the exterior face.
+    shape: str = "rectangle"
+    outline_world: np.ndarray | None = None
+    notes: str = ""  # e.g. that the void overlaps another opening of the same wall
 
     @property
     def center(self) -> np.ndarray:

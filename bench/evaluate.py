@@ -1,0 +1,253 @@
+"""Evaluate one rendered view: detect, match, reconstruct with every method, measure every error.
+
+The unit of work of the runner's process pool. Input: a view folder of the data contract
+(``image.png``, ``instances.png``, ``view.json``); output: one row per ground-truth window per
+method combination (never dropped: missed, failed and non-evaluable windows keep a row with a
+reason), the time spent per stage, and COCO-style masks for detection AP.
+
+The pipeline is fed exactly what a user would give it: the RGB image and K (plus the instance map
+for the oracle detectors, which stand in for a perfect or imperfect network).
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bench import matching, metrics
+from bench.profiles import EvalSpec
+from fenestra.conventions import TOL, camera_depths
+
+ORACLES = ("oracle", "oracle-degraded")
+NAN = float("nan")
+
+
+@dataclass(frozen=True)
+class Method:
+    """One method combination: detector x corner snapper x pose solver."""
+
+    detector: str
+    snapper: str
+    pose: str
+
+    @property
+    def name(self) -> str:
+        return f"{self.detector}/{self.snapper}/{self.pose}"
+
+
+@dataclass(frozen=True)
+class ViewTask:
+    """Everything a worker needs to evaluate one view (picklable)."""
+
+    view_dir: str
+    house: str
+    renderer: str
+    methods: tuple[Method, ...]
+    evaluation: EvalSpec
+    height_m: float = 1.0
+    detector_options: tuple[tuple[str, tuple[tuple[str, object], ...]], ...] = ()
+
+
+@dataclass
+class ViewOutcome:
+    """Rows (list of dicts), seconds per stage, and COCO material for detection AP."""
+
+    rows: list[dict]
+    stage_s: dict[str, float]
+    coco_gt: list[dict] = field(default_factory=list)  # {"view", "instance_id", "rle", "bbox", "area"}
+    coco_dt: dict[str, list[dict]] = field(default_factory=dict)  # detector -> {"view","rle","bbox","score"}
+    n_false_positives: dict[str, int] = field(default_factory=dict)
+
+
+def read_view(view_dir: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(image (H, W, 3) uint8 RGB, instances (H, W) int32, view.json dict) of a view folder."""
+    from pipeline.detectors.dataset import read_image, read_instances  # noqa: PLC0415
+
+    d = Path(view_dir)
+    meta = json.loads((d / "view.json").read_text())
+    missing = [k for k in ("K", "width", "height", "R", "t", "windows") if k not in meta]
+    if missing:
+        raise ValueError(f"{d / 'view.json'} lacks key(s) {missing}")
+    return read_image(d / "image.png"), read_instances(d / "instances.png"), meta
+
+
+def window_conditions(win: dict, meta: dict, instances: np.ndarray, spec: EvalSpec) -> dict:
+    """View conditions of one GT window and whether it is evaluable (and if not, why).
+
+    Keys: incidence_deg, distance_m, visible_fraction, n_corners_visible, corners_in_frame,
+    window_px (shortest projected side, px), window_area_px (projected quad area, px^2),
+    mask_px (visible pixels in instances.png), gt_width_m, gt_height_m, gt_aspect,
+    evaluable (bool), eval_reason ("" or occluded / out_of_frame / too_small / grazing /
+    behind_camera / not_rendered).
+    """
+    W, H = int(meta["width"]), int(meta["height"])
+    q = np.asarray(win["corners_px"], dtype=np.float64)
+    Cw = np.asarray(win["corners_world"], dtype=np.float64)
+    sides = np.linalg.norm(q - np.roll(q, -1, axis=0), axis=1)
+    x, y = q[:, 0], q[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    in_frame = bool(np.all((x >= -0.5) & (x <= W - 0.5) & (y >= -0.5) & (y <= H - 0.5)))
+    depth_ok = bool(np.all(camera_depths(meta["R"], meta["t"], Cw) > 0))
+    width = float(np.linalg.norm(Cw[1] - Cw[0]))
+    height = float(np.linalg.norm(Cw[0] - Cw[3]))
+    mask_px = int(np.count_nonzero(instances == int(win["instance_id"])))
+    c = {
+        "incidence_deg": float(win.get("incidence_deg", NAN)),
+        "distance_m": float(win.get("distance_m", NAN)),
+        "visible_fraction": float(win.get("visible_fraction", NAN)),
+        "n_corners_visible": int(sum(bool(v) for v in win.get("corner_visible", [True] * 4))),
+        "corners_in_frame": in_frame,
+        "window_px": float(sides.min()),
+        "window_area_px": area,
+        "mask_px": mask_px,
+        "gt_width_m": width,
+        "gt_height_m": height,
+        "gt_aspect": width / height,
+    }
+    reason = ""
+    if not depth_ok:
+        reason = "behind_camera"
+    elif mask_px == 0:
+        reason = "not_rendered"
+    elif spec.require_corners_in_frame and not in_frame:
+        reason = "out_of_frame"
+    elif not c["visible_fraction"] >= spec.min_visible_fraction:
+        reason = "occluded"
+    elif c["window_px"] < spec.min_window_px:
+        reason = "too_small"
+    elif c["incidence_deg"] > spec.max_incidence_deg:
+        reason = "grazing"
+    c["evaluable"] = reason == ""
+    c["eval_reason"] = reason
+    return c
+
+
+_ERROR_COLUMNS = (
+    "corner_err_px_mask", "corner_err_px_mask_max", "corner_err_px_snap", "corner_err_px_snap_max",
+    "corner_err_px_reproj", "corner_err_px_reproj_max", "snap_gain_px", "aspect_est",
+    "aspect_err_rel", "rot_err_deg", "normal_err_deg", "trans_err_m", "iou_2d", "iou_2d_mask",
+    "iou_2d_reproj", "match_iou", "det_score",
+)
+
+
+def _errors(res, win: dict, meta: dict) -> dict:
+    """Every error of one WindowResult against its GT window (NaN where a stage produced nothing)."""
+    out = {k: NAN for k in _ERROR_COLUMNS}
+    gt_q = np.asarray(win["corners_px"], dtype=np.float64)
+    for stage, quad in (("mask", res.quad_mask), ("snap", res.quad_snapped),
+                        ("reproj", res.quad_reprojected)):
+        if quad is not None and np.all(np.isfinite(quad)):
+            e = metrics.corner_errors_px(quad, gt_q)
+            out[f"corner_err_px_{stage}"] = float(e.mean())
+            out[f"corner_err_px_{stage}_max"] = float(e.max())
+    out["snap_gain_px"] = out["corner_err_px_mask"] - out["corner_err_px_snap"]
+    if res.quad_snapped is not None and np.all(np.isfinite(res.quad_snapped)):
+        out["iou_2d"] = metrics.quad_iou(res.quad_snapped, gt_q)
+    if res.quad_mask is not None and np.all(np.isfinite(res.quad_mask)):
+        out["iou_2d_mask"] = metrics.quad_iou(res.quad_mask, gt_q)
+    if res.quad_reprojected is not None and np.all(np.isfinite(res.quad_reprojected)):
+        out["iou_2d_reproj"] = metrics.quad_iou(res.quad_reprojected, gt_q)
+    Cw = np.asarray(win["corners_world"], dtype=np.float64)
+    w_gt = float(np.linalg.norm(Cw[1] - Cw[0]))
+    h_gt = float(np.linalg.norm(Cw[0] - Cw[3]))
+    if res.aspect_ratio is not None and math.isfinite(res.aspect_ratio):
+        out["aspect_est"] = float(res.aspect_ratio)
+        out["aspect_err_rel"] = metrics.aspect_error_rel(res.aspect_ratio, w_gt / h_gt)
+    if res.R is not None and res.t is not None:
+        R_gt, t_gt = metrics.gt_window_pose(meta["R"], meta["t"], Cw)
+        out["rot_err_deg"] = metrics.rotation_error_deg(res.R, R_gt)
+        out["normal_err_deg"] = metrics.normal_error_deg(res.R, R_gt)
+        out["trans_err_m"] = metrics.translation_error_m(res.t, res.height_m, t_gt, h_gt)
+    return out
+
+
+def _rle(mask: np.ndarray) -> dict:
+    """COCO RLE of a bool mask (H, W), counts as str (JSON/pickle friendly)."""
+    from pycocotools import mask as mask_utils  # noqa: PLC0415
+
+    r = mask_utils.encode(np.asfortranarray(mask.astype(np.uint8)))
+    r["counts"] = r["counts"].decode("ascii")
+    return r
+
+
+def _detector_options(task: ViewTask, name: str) -> dict:
+    for det, opts in task.detector_options:
+        if det == name:
+            return dict(opts)
+    return {}
+
+
+def evaluate_view(task: ViewTask) -> ViewOutcome:
+    """Rows for every (GT window x method) of one view; see the module docstring."""
+    from pipeline.detectors import detect  # noqa: PLC0415
+    from pipeline.reconstruct import ReconstructConfig, reconstruct  # noqa: PLC0415
+
+    stage_s: dict[str, float] = {}
+
+    def tick(stage: str, t0: float) -> float:
+        t1 = time.perf_counter()
+        stage_s[stage] = stage_s.get(stage, 0.0) + t1 - t0
+        return t1
+
+    t0 = time.perf_counter()
+    image, instances, meta = read_view(task.view_dir)
+    image_bgr = np.ascontiguousarray(image[:, :, ::-1])  # reconstruct() takes BGR, like cv2.imread
+    K = np.asarray(meta["K"], dtype=np.float64)
+    view = Path(task.view_dir).name
+    wins = meta["windows"]
+    conds = [window_conditions(w, meta, instances, task.evaluation) for w in wins]
+    gt_masks = [instances == int(w["instance_id"]) for w in wins]
+    base = [{"house": task.house, "renderer": task.renderer, "view": view, "window_id": w["id"],
+             "instance_id": int(w["instance_id"]), **c} for w, c in zip(wins, conds)]
+    out = ViewOutcome(rows=[], stage_s=stage_s)
+    for w, m in zip(wins, gt_masks):
+        if m.any():
+            ys, xs = np.nonzero(m)
+            out.coco_gt.append({"view": f"{task.house}/{view}", "rle": _rle(m), "area": int(m.sum()),
+                                "bbox": [float(xs.min() - 0.5), float(ys.min() - 0.5),
+                                         float(xs.max() - xs.min() + 1), float(ys.max() - ys.min() + 1)]})
+    t0 = tick("load", t0)
+
+    for det_name in dict.fromkeys(m.detector for m in task.methods):
+        inst = instances if det_name in ORACLES else None
+        dets = detect(det_name, image, instances=inst, **_detector_options(task, det_name))
+        t0 = tick("detect", t0)
+        out.coco_dt[det_name] = [{"view": f"{task.house}/{view}", "rle": _rle(d.mask),
+                                  "score": float(d.score),
+                                  "bbox": [float(d.box[0]), float(d.box[1]),
+                                           float(d.box[2] - d.box[0]), float(d.box[3] - d.box[1])]}
+                                 for d in dets]
+        iou = matching.iou_matrix([d.mask for d in dets], gt_masks)
+        mt = matching.match(iou, TOL.match_iou)
+        out.n_false_positives[det_name] = len(mt.false_positives)
+        det_for_gt = mt.det_for_gt()
+        matched = sorted(det_for_gt.items())  # [(gt_index, (det_index, iou))]
+        t0 = tick("match", t0)
+        for method in (m for m in task.methods if m.detector == det_name):
+            cfg = ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=task.height_m)
+            results = reconstruct(image_bgr, K, [dets[d] for _, (d, _) in matched], cfg) if matched else []
+            t0 = tick("reconstruct", t0)
+            by_gt = {matched[r.index][0]: r for r in results}
+            for r in results:
+                for k, ms in r.timings_ms.items():
+                    stage_s[f"reconstruct.{k}"] = stage_s.get(f"reconstruct.{k}", 0.0) + ms / 1000.0
+            for g, (w, b) in enumerate(zip(wins, base)):
+                row = {**b, "detector": method.detector, "snapper": method.snapper,
+                       "pose": method.pose, "method": method.name}
+                if g not in det_for_gt:
+                    row.update({k: NAN for k in _ERROR_COLUMNS}, status="missed", reason="missed",
+                               aspect_case=None)
+                else:
+                    res = by_gt[g]
+                    row.update(_errors(res, w, meta), aspect_case=res.aspect_case,
+                               status="ok" if res.failure is None else "failed",
+                               reason="" if res.failure is None else f"failed: {res.failure}")
+                    row["match_iou"] = det_for_gt[g][1]
+                    row["det_score"] = float(dets[det_for_gt[g][0]].score)
+                out.rows.append(row)
+            t0 = tick("metrics", t0)
+    return out

@@ -1,0 +1,128 @@
+"""Accuracy gates: floors and ceilings on a run's summary numbers (``bench/gates.toml``).
+
+    [[gate]]
+    profile = "smoke"                       # applies to runs of this profile
+    method = "oracle/*/*"                   # fnmatch pattern over method names (detector/snapper/pose)
+    metric = "corner_err_px_snap.median"    # dotted path into summary.json results[method]
+    max = 1.0                               # and/or min = ...
+
+Every method matching the pattern must satisfy the bound. A NaN/missing value, or a pattern that
+matches no method of the run, is a violation too: a gate never passes by finding nothing.
+"""
+from __future__ import annotations
+
+import fnmatch
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.results import load_results, load_summary, summarize
+from fenestra.errors import FenestraError
+
+DEFAULT_GATES = Path(__file__).parent / "gates.toml"
+
+
+class GateError(FenestraError):
+    """A gates file that is missing or malformed."""
+
+
+@dataclass(frozen=True)
+class Gate:
+    """One bound on one metric for the methods matching ``method`` in runs of ``profile``."""
+
+    profile: str
+    method: str
+    metric: str
+    min: float | None = None
+    max: float | None = None
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A gate that failed: the method, the metric, its value and the bound it broke."""
+
+    profile: str
+    method: str
+    metric: str
+    value: float | None
+    bound: str  # e.g. "<= 1.0", ">= 0.9", "a method matching 'x/*/*'"
+
+    def __str__(self) -> str:
+        v = "missing" if self.value is None or not math.isfinite(self.value) else f"{self.value:.4g}"
+        return f"{self.method}: {self.metric} = {v}, bound {self.bound} (profile {self.profile})"
+
+
+def load_gates(path: str | Path = DEFAULT_GATES) -> list[Gate]:
+    """Gates from a TOML file of [[gate]] tables; GateError naming the bad entry or key."""
+    p = Path(path)
+    if not p.is_file():
+        raise GateError(f"gates file {p} does not exist")
+    try:
+        data = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise GateError(f"{p}: not valid TOML: {e}") from e
+    extra = sorted(set(data) - {"gate"})
+    if extra:
+        raise GateError(f"{p}: unknown top-level key(s) {extra}; use [[gate]] tables")
+    gates = []
+    allowed = {"profile", "method", "metric", "min", "max"}
+    for i, g in enumerate(data.get("gate", [])):
+        bad = sorted(set(g) - allowed)
+        if bad:
+            raise GateError(f"{p}: gate #{i + 1} has unknown key(s) {bad}; allowed {sorted(allowed)}")
+        for k in ("profile", "method", "metric"):
+            if not isinstance(g.get(k), str) or not g[k]:
+                raise GateError(f"{p}: gate #{i + 1} needs a string '{k}', got {g.get(k)!r}")
+        for k in ("min", "max"):
+            if k in g and (isinstance(g[k], bool) or not isinstance(g[k], (int, float))):
+                raise GateError(f"{p}: gate #{i + 1} key '{k}' must be a number, got {g[k]!r}")
+        if "min" not in g and "max" not in g:
+            raise GateError(f"{p}: gate #{i + 1} ({g['metric']}) has neither 'min' nor 'max'")
+        gates.append(Gate(g["profile"], g["method"], g["metric"],
+                          float(g["min"]) if "min" in g else None,
+                          float(g["max"]) if "max" in g else None))
+    return gates
+
+
+def metric_value(method_summary: dict, metric: str) -> float | None:
+    """Value at a dotted path ("corner_err_px_snap.recall.2") of one method's summary; None if absent."""
+    v = method_summary
+    for part in metric.split("."):
+        if not isinstance(v, dict) or part not in v:
+            return None
+        v = v[part]
+    return None if v is None or isinstance(v, dict) else float(v)
+
+
+def check_results(results: dict, profile: str, gates: list[Gate]) -> list[Violation]:
+    """Violations of ``gates`` (those for ``profile``) by a summary's results {method: {...}}."""
+    out = []
+    for g in (g for g in gates if g.profile == profile):
+        methods = [m for m in results if fnmatch.fnmatchcase(m, g.method)]
+        if not methods:
+            out.append(Violation(profile, g.method, g.metric, None, f"a method matching {g.method!r}"))
+        for m in methods:
+            v = metric_value(results[m], g.metric)
+            finite = v is not None and math.isfinite(v)
+            if g.min is not None and not (finite and v >= g.min):
+                out.append(Violation(profile, m, g.metric, v, f">= {g.min:g}"))
+            if g.max is not None and not (finite and v <= g.max):
+                out.append(Violation(profile, m, g.metric, v, f"<= {g.max:g}"))
+    return out
+
+
+def check(run_dir: str | Path, gates: list[Gate] | str | Path = DEFAULT_GATES,
+          profile: str | None = None) -> list[Violation]:
+    """Violations of a run folder: its results table re-summarised, its profile from summary.json.
+
+    ``profile`` overrides the run's profile name (e.g. to gate a custom run against smoke bounds).
+    """
+    if not isinstance(gates, list):
+        gates = load_gates(gates)
+    run_dir = Path(run_dir)
+    if profile is None:
+        profile = load_summary(run_dir)["metadata"].get("profile")
+    if not any(g.profile == profile for g in gates):
+        raise GateError(f"no gates for profile {profile!r}; gated profiles: {sorted({g.profile for g in gates})}")
+    return check_results(summarize(load_results(run_dir)), profile, gates)

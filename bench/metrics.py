@@ -1,0 +1,168 @@
+"""Error metrics of the benchmark: pure functions, numpy in, floats out (bop_toolkit style).
+
+Every function states shapes and units. Quads are (4, 2) px ordered TL, TR, BR, BL with pixel
+centres at integer coordinates (see :mod:`fenestra.conventions`). Poses map the *window frame*
+(x along TL->TR, y along BL->TL i.e. up, z outward towards the viewer, origin at the bottom-left
+corner) to the OpenCV camera frame.
+
+Missing values: functions that summarise many errors treat NaN as "no estimate" (a failure):
+it never counts as recalled and is excluded from medians (reported separately as a rate).
+"""
+from __future__ import annotations
+
+import numpy as np
+from shapely.geometry import Polygon
+
+from fenestra.conventions import TOL, rotation_error_deg
+
+__all__ = [
+    "corner_errors_px", "mean_corner_error_px", "aspect_error_rel", "gt_window_pose",
+    "rotation_error_deg", "normal_error_deg", "translation_error_m", "quad_iou", "mask_iou",
+    "recall_at", "error_stats",
+]
+
+
+def _quad(q: np.ndarray, name: str) -> np.ndarray:
+    """Validate a quad: (4, 2) finite float64 px, else ValueError naming ``name``."""
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape != (4, 2):
+        raise ValueError(f"{name} must have shape (4, 2) (TL, TR, BR, BL px), got {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError(f"{name} has non-finite entries: {q.tolist()}")
+    return q
+
+
+def _rotation(R: np.ndarray, name: str) -> np.ndarray:
+    """Validate a rotation matrix: (3, 3), finite, orthonormal with det +1 (to 1e-6)."""
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape != (3, 3):
+        raise ValueError(f"{name} must have shape (3, 3), got {R.shape}")
+    if not np.all(np.isfinite(R)):
+        raise ValueError(f"{name} has non-finite entries: {R.tolist()}")
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError(f"{name} is not a rotation matrix (R R^T != I or det < 0): {R.tolist()}")
+    return R
+
+
+def corner_errors_px(quad_est: np.ndarray, quad_gt: np.ndarray) -> np.ndarray:
+    """Euclidean distance (px) between corresponding corners. (4, 2), (4, 2) -> (4,) px."""
+    e = _quad(quad_est, "quad_est")
+    g = _quad(quad_gt, "quad_gt")
+    return np.linalg.norm(e - g, axis=1)
+
+
+def mean_corner_error_px(quad_est: np.ndarray, quad_gt: np.ndarray) -> float:
+    """Mean over the four corners of :func:`corner_errors_px` (px)."""
+    return float(corner_errors_px(quad_est, quad_gt).mean())
+
+
+def aspect_error_rel(aspect_est: float, aspect_gt: float) -> float:
+    """Relative aspect-ratio (width/height) error |est - gt| / gt, unitless."""
+    if not np.isfinite(aspect_gt) or aspect_gt <= 0:
+        raise ValueError(f"aspect_gt must be a positive finite number, got {aspect_gt}")
+    if not np.isfinite(aspect_est):
+        raise ValueError(f"aspect_est must be finite, got {aspect_est}")
+    return float(abs(aspect_est - aspect_gt) / aspect_gt)
+
+
+def gt_window_pose(R: np.ndarray, t: np.ndarray, corners_world: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Ground-truth window-frame-to-camera pose from the view pose and the GT corners.
+
+    R (3, 3), t (3,) m: the view's world-to-camera pose. corners_world (4, 3) m: TL, TR, BR, BL.
+    Window frame: x along TL->TR, y along BL->TL, z = x cross y (outward), origin at BL.
+    Returns (R_wc (3, 3), t_wc (3,) m) with X_cam = R_wc @ X_window + t_wc.
+    """
+    R = _rotation(R, "R")
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    C = np.asarray(corners_world, dtype=np.float64)
+    if C.shape != (4, 3):
+        raise ValueError(f"corners_world must have shape (4, 3), got {C.shape}")
+    x = C[1] - C[0]
+    y = C[0] - C[3]
+    if np.linalg.norm(x) < 1e-9 or np.linalg.norm(y) < 1e-9:
+        raise ValueError(f"corners_world is degenerate (zero width or height): {C.tolist()}")
+    x /= np.linalg.norm(x)
+    y -= x * (x @ y)  # Gram-Schmidt: exact GT is already orthogonal to well under 1e-6
+    y /= np.linalg.norm(y)
+    z = np.cross(x, y)
+    R_window_to_world = np.stack([x, y, z], axis=1)
+    return R @ R_window_to_world, R @ C[3] + t
+
+
+def normal_error_deg(R_est: np.ndarray, R_gt: np.ndarray) -> float:
+    """Angle (deg) between the window normals (third columns, window z in camera) of two poses."""
+    n1 = _rotation(R_est, "R_est")[:, 2]
+    n2 = _rotation(R_gt, "R_gt")[:, 2]
+    return float(np.degrees(np.arccos(np.clip(n1 @ n2, -1.0, 1.0))))
+
+
+def translation_error_m(t_est: np.ndarray, height_used_m: float, t_gt: np.ndarray,
+                        height_gt_m: float) -> float:
+    """Translation error (m) after fixing the unknown single-image scale with the true height.
+
+    t_est (3,) is in units where the window is ``height_used_m`` tall (the pipeline's scale
+    parameter); it is rescaled by height_gt_m / height_used_m before comparing with t_gt (3,) m.
+    """
+    if not (np.isfinite(height_used_m) and height_used_m > 0):
+        raise ValueError(f"height_used_m must be positive, got {height_used_m}")
+    if not (np.isfinite(height_gt_m) and height_gt_m > 0):
+        raise ValueError(f"height_gt_m must be positive, got {height_gt_m}")
+    t_est = np.asarray(t_est, dtype=np.float64).reshape(3)
+    t_gt = np.asarray(t_gt, dtype=np.float64).reshape(3)
+    return float(np.linalg.norm(t_est * (height_gt_m / height_used_m) - t_gt))
+
+
+def _polygon(q: np.ndarray) -> Polygon:
+    """Shapely polygon of a quad; a self-intersecting (bow-tie) quad is repaired by buffer(0)."""
+    p = Polygon(q)
+    return p if p.is_valid else p.buffer(0)
+
+
+def quad_iou(quad_a: np.ndarray, quad_b: np.ndarray) -> float:
+    """Intersection over union of two quads' areas (4, 2) px, in [0, 1] (0 if both are empty)."""
+    a = _polygon(_quad(quad_a, "quad_a"))
+    b = _polygon(_quad(quad_b, "quad_b"))
+    union = a.union(b).area
+    return float(a.intersection(b).area / union) if union > 0 else 0.0
+
+
+def mask_iou(mask_a: np.ndarray, mask_b: np.ndarray) -> float:
+    """Intersection over union of two boolean masks (H, W); 0 if both are empty."""
+    a = np.asarray(mask_a, dtype=bool)
+    b = np.asarray(mask_b, dtype=bool)
+    if a.shape != b.shape or a.ndim != 2:
+        raise ValueError(f"masks must be 2-D with equal shapes, got {a.shape} and {b.shape}")
+    union = np.count_nonzero(a | b)
+    return float(np.count_nonzero(a & b) / union) if union else 0.0
+
+
+def recall_at(errors: np.ndarray, thresholds: tuple[float, ...] = TOL.recall_thresholds_px
+              ) -> dict[float, float]:
+    """Fraction of errors (N,) at or below each threshold; NaN (no estimate) counts as a miss.
+
+    Returns {threshold: fraction in [0, 1]}; every fraction is NaN when N == 0.
+    """
+    e = np.asarray(errors, dtype=np.float64).reshape(-1)
+    if e.size == 0:
+        return {float(th): float("nan") for th in thresholds}
+    ok = np.where(np.isnan(e), np.inf, e)
+    return {float(th): float(np.mean(ok <= th)) for th in thresholds}
+
+
+def error_stats(errors: np.ndarray) -> dict[str, float]:
+    """Median, p90, max, mean over the finite errors (N,), plus count n and failure rate.
+
+    ``n`` counts all entries, ``n_valid`` the finite ones; ``fail_rate`` = 1 - n_valid / n.
+    Statistics are NaN when no entry is finite.
+    """
+    e = np.asarray(errors, dtype=np.float64).reshape(-1)
+    v = e[np.isfinite(e)]
+    out = {"n": int(e.size), "n_valid": int(v.size),
+           "fail_rate": float(1.0 - v.size / e.size) if e.size else float("nan")}
+    if v.size:
+        out.update(median=float(np.median(v)), p90=float(np.percentile(v, 90)),
+                   max=float(v.max()), mean=float(v.mean()))
+    else:
+        out.update(median=float("nan"), p90=float("nan"), max=float("nan"), mean=float("nan"))
+    return out

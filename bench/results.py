@@ -1,0 +1,188 @@
+"""Results tables and summary.json of a benchmark run.
+
+A run folder holds ``results.parquet`` and ``results.csv`` (one row per view x GT window x method
+combination, errors with their unit in the column name) and ``summary.json``::
+
+    {"metadata": {commit, versions, seed, profile, config, config_hash, wall_time_s, stage_time_s, ...},
+     "results": {method: {n_gt, n_evaluable, detection_rate, failure_rate,
+                          corner_err_px_{mask,snap,reproj}: {median, p90, max, mean, n, n_valid,
+                                                             fail_rate, recall: {"1": .., "2": ..}},
+                          aspect_err_rel / rot_err_deg / normal_err_deg / trans_err_m / iou_2d: {...}}},
+     "detection": {detector: {bbox_AP, bbox_AP50, segm_AP, segm_AP50, ...}}}
+
+Statistics are over *evaluable* rows (see bench.evaluate.window_conditions). Medians/p90 are
+over windows with an estimate; recall counts a missed or failed window as not recalled.
+"""
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import platform
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench.metrics import error_stats, recall_at
+from fenestra.conventions import TOL
+
+RESULTS_PARQUET = "results.parquet"
+RESULTS_CSV = "results.csv"
+SUMMARY_JSON = "summary.json"
+
+CORNER_STAGES = ("mask", "snap", "reproj")
+STAGE_LABELS = {"mask": "mask-fit", "snap": "snapped", "reproj": "reprojected"}
+OTHER_ERRORS = ("aspect_err_rel", "rot_err_deg", "normal_err_deg", "trans_err_m", "iou_2d")
+REQUIRED_COLUMNS = ("method", "detector", "snapper", "pose", "evaluable", "status",
+                    *(f"corner_err_px_{s}" for s in CORNER_STAGES), *OTHER_ERRORS)
+VERSIONED_PACKAGES = ("numpy", "scipy", "opencv-python-headless", "ifcopenshell", "trimesh",
+                      "torch", "torchvision", "mitsuba", "pyrender", "shapely", "pandas",
+                      "pycocotools")
+
+
+def check_table(df: pd.DataFrame, where: str = "results") -> pd.DataFrame:
+    """Raise ValueError naming the missing columns if ``df`` is not a results table."""
+    missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(f"{where} lacks column(s) {missing}")
+    return df
+
+
+def write_results(df: pd.DataFrame, run_dir: str | Path) -> tuple[Path, Path]:
+    """Write results.parquet and results.csv into run_dir; return their paths."""
+    check_table(df)
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    pq, csv = run_dir / RESULTS_PARQUET, run_dir / RESULTS_CSV
+    df.to_parquet(pq, index=False)
+    df.to_csv(csv, index=False)
+    return pq, csv
+
+
+def load_results(run_dir: str | Path) -> pd.DataFrame:
+    """The results table of a run folder (Parquet, else CSV)."""
+    run_dir = Path(run_dir)
+    if (run_dir / RESULTS_PARQUET).is_file():
+        df = pd.read_parquet(run_dir / RESULTS_PARQUET)
+    elif (run_dir / RESULTS_CSV).is_file():
+        df = pd.read_csv(run_dir / RESULTS_CSV)
+    else:
+        raise FileNotFoundError(f"{run_dir} has no {RESULTS_PARQUET} or {RESULTS_CSV}: not a run folder")
+    return check_table(df, str(run_dir))
+
+
+def load_summary(run_dir: str | Path) -> dict:
+    """summary.json of a run folder."""
+    p = Path(run_dir) / SUMMARY_JSON
+    if not p.is_file():
+        raise FileNotFoundError(f"{run_dir} has no {SUMMARY_JSON}")
+    return json.loads(p.read_text())
+
+
+def _stats_with_recall(errors: np.ndarray) -> dict:
+    s = error_stats(errors)
+    s["recall"] = {f"{k:g}": v for k, v in recall_at(errors, TOL.recall_thresholds_px).items()}
+    return s
+
+
+def summarize_method(df: pd.DataFrame) -> dict:
+    """Summary of one method's rows (any rows; only evaluable ones are counted)."""
+    ev = df[df["evaluable"].astype(bool)]
+    n = len(ev)
+    detected = int((ev["status"] != "missed").sum())
+    failed = int((ev["status"] == "failed").sum())
+    out: dict = {
+        "n_gt": int(len(df)),
+        "n_evaluable": n,
+        "n_detected": detected,
+        "detection_rate": detected / n if n else float("nan"),
+        "failure_rate": failed / detected if detected else float("nan"),
+    }
+    for s in CORNER_STAGES:
+        out[f"corner_err_px_{s}"] = _stats_with_recall(ev[f"corner_err_px_{s}"].to_numpy(float))
+    for col in OTHER_ERRORS:
+        out[col] = error_stats(ev[col].to_numpy(float))
+    return out
+
+
+def summarize(df: pd.DataFrame) -> dict[str, dict]:
+    """{method: summarize_method(rows)} for every method of a results table, sorted by name."""
+    check_table(df)
+    return {m: summarize_method(g) for m, g in sorted(df.groupby("method"), key=lambda kv: kv[0])}
+
+
+def _commit() -> str | None:
+    """The current commit hash, read from .git files (no git process), or None."""
+    root = Path(__file__).resolve().parent.parent / ".git"
+    try:
+        head = (root / "HEAD").read_text().strip()
+        if not head.startswith("ref:"):
+            return head
+        ref = head.split(" ", 1)[1]
+        p = root / ref
+        if p.is_file():
+            return p.read_text().strip()
+        packed = root / "packed-refs"
+        for line in packed.read_text().splitlines() if packed.is_file() else []:
+            if line.endswith(" " + ref):
+                return line.split(" ", 1)[0]
+    except OSError:
+        return None
+    return None
+
+
+def versions() -> dict[str, str | None]:
+    """Installed versions of the packages that affect results, plus Python's."""
+    out: dict[str, str | None] = {"python": platform.python_version()}
+    for pkg in VERSIONED_PACKAGES:
+        try:
+            out[pkg] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def make_metadata(profile: dict, config_hash: str, seed: int, wall_time_s: float,
+                  stage_time_s: dict[str, float], **extra) -> dict:
+    """The metadata block of summary.json."""
+    return {"commit": _commit(), "versions": versions(), "seed": seed,
+            "profile": profile.get("name"), "config": profile, "config_hash": config_hash,
+            "wall_time_s": wall_time_s, "stage_time_s": stage_time_s, **extra}
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return None if not np.isfinite(x) else float(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def write_summary(run_dir: str | Path, metadata: dict, results: dict,
+                  detection: dict | None = None) -> Path:
+    """Write summary.json (NaN written as null); return its path."""
+    p = Path(run_dir) / SUMMARY_JSON
+    doc = {"metadata": metadata, "results": results, "detection": detection or {}}
+    p.write_text(json.dumps(_jsonable(doc), indent=2))
+    return p
+
+
+def headline_table(results: dict) -> list[dict]:
+    """One flat dict per method: the numbers the CLI prints and the report leads with."""
+    rows = []
+    for m, r in results.items():
+        snap = r["corner_err_px_snap"]
+        rows.append({
+            "method": m, "n_evaluable": r["n_evaluable"], "detected": r["detection_rate"],
+            "mask_med_px": r["corner_err_px_mask"]["median"], "snap_med_px": snap["median"],
+            "snap_p90_px": snap["p90"], "reproj_med_px": r["corner_err_px_reproj"]["median"],
+            "recall_2px_snap": snap["recall"]["2"], "aspect_p90_rel": r["aspect_err_rel"]["p90"],
+            "rot_med_deg": r["rot_err_deg"]["median"],
+        })
+    return rows

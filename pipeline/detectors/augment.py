@@ -1,0 +1,85 @@
+"""Domain randomisation for detector training: geometric (scale, crop, flip) and photometric
+(colour jitter, blur, noise, JPEG) augmentation, seeded by a numpy Generator.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class AugmentConfig:
+    """Augmentation ranges. Scales are image-size factors; colours in [0, 255] units."""
+
+    scale_range: tuple[float, float] = (0.5, 1.3)
+    hflip_prob: float = 0.5
+    brightness: float = 0.3  # multiply by U(1-b, 1+b)
+    contrast: float = 0.3
+    saturation: float = 0.4
+    hue_deg: float = 12.0
+    gamma: float = 0.25
+    blur_prob: float = 0.3
+    blur_sigma_max: float = 1.5
+    noise_prob: float = 0.5
+    noise_std_max: float = 8.0
+    jpeg_prob: float = 0.4
+    jpeg_quality: tuple[int, int] = (35, 95)
+    grey_prob: float = 0.05
+
+
+def random_scale_crop(image: np.ndarray, instances: np.ndarray, crop_hw: tuple[int, int],
+                      cfg: AugmentConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Rescale by a random factor, take a random crop (H, W) = crop_hw (replicate-padded if
+    needed), flip horizontally at random. Returns image (h, w, 3) uint8, instances (h, w) int32."""
+    s = rng.uniform(*cfg.scale_range)
+    H, W = instances.shape
+    nh, nw = max(8, int(round(H * s))), max(8, int(round(W * s)))
+    img = cv2.resize(image, (nw, nh), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+    inst = cv2.resize(instances.astype(np.int32), (nw, nh), interpolation=cv2.INTER_NEAREST)
+    ch, cw = crop_hw
+    ph, pw = max(0, ch - nh), max(0, cw - nw)
+    if ph or pw:
+        img = cv2.copyMakeBorder(img, 0, ph, 0, pw, cv2.BORDER_REFLECT)
+        inst = cv2.copyMakeBorder(inst, 0, ph, 0, pw, cv2.BORDER_CONSTANT, value=0)
+    # Prefer crops that contain windows: pick a centre on a window pixel half of the time.
+    y0 = int(rng.integers(0, img.shape[0] - ch + 1))
+    x0 = int(rng.integers(0, img.shape[1] - cw + 1))
+    if rng.random() < 0.5:
+        ys, xs = np.nonzero(inst)
+        if ys.size:
+            i = int(rng.integers(ys.size))
+            y0 = int(np.clip(ys[i] - ch // 2, 0, img.shape[0] - ch))
+            x0 = int(np.clip(xs[i] - cw // 2, 0, img.shape[1] - cw))
+    img, inst = img[y0:y0 + ch, x0:x0 + cw], inst[y0:y0 + ch, x0:x0 + cw]
+    if rng.random() < cfg.hflip_prob:
+        img, inst = img[:, ::-1], inst[:, ::-1]
+    return np.ascontiguousarray(img), np.ascontiguousarray(inst)
+
+
+def photometric(image: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator) -> np.ndarray:
+    """Colour jitter, gamma, grey, blur, sensor noise, JPEG artefacts on an RGB uint8 image."""
+    img = image.astype(np.float32)
+    img = img * rng.uniform(1 - cfg.brightness, 1 + cfg.brightness)
+    mean = img.mean()
+    img = (img - mean) * rng.uniform(1 - cfg.contrast, 1 + cfg.contrast) + mean
+    img = np.clip(img, 0, 255)
+    hsv = cv2.cvtColor(img.astype(np.uint8), cv2.COLOR_RGB2HSV).astype(np.float32)
+    hsv[..., 0] = (hsv[..., 0] + rng.uniform(-cfg.hue_deg, cfg.hue_deg) / 2.0) % 180.0
+    hsv[..., 1] = np.clip(hsv[..., 1] * rng.uniform(1 - cfg.saturation, 1 + cfg.saturation), 0, 255)
+    img = cv2.cvtColor(hsv.astype(np.uint8), cv2.COLOR_HSV2RGB).astype(np.float32)
+    img = 255.0 * (img / 255.0) ** np.exp(rng.uniform(-cfg.gamma, cfg.gamma))
+    if rng.random() < cfg.grey_prob:
+        img = np.repeat(img.mean(axis=2, keepdims=True), 3, axis=2)
+    if rng.random() < cfg.blur_prob:
+        img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.3, cfg.blur_sigma_max))
+    if rng.random() < cfg.noise_prob:
+        img = img + rng.normal(0.0, rng.uniform(0, cfg.noise_std_max), img.shape)
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    if rng.random() < cfg.jpeg_prob:
+        q = int(rng.integers(cfg.jpeg_quality[0], cfg.jpeg_quality[1] + 1))
+        ok, buf = cv2.imencode(".jpg", img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, q])
+        if ok:
+            img = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]
+    return np.ascontiguousarray(img)

@@ -1,0 +1,81 @@
+"""Read rendered dataset folders (DESIGN.md data contract) for detector training and evaluation.
+
+A dataset folder holds ``views/NNNNNN/image.png`` (RGB), ``views/NNNNNN/instances.png`` (uint16,
+0 = no window, k = the window with ``instance_id`` k), ``views/NNNNNN/view.json`` and a
+``coco.json`` with RLE masks. Only the files are read: pipeline/ never imports renders/.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fenestra.errors import FenestraError
+
+
+class DatasetError(FenestraError):
+    """A dataset folder that does not follow the data contract."""
+
+
+@dataclass(frozen=True)
+class ViewFiles:
+    """Paths of one rendered view."""
+
+    name: str  # e.g. "000012"
+    image: Path
+    instances: Path
+    view_json: Path
+
+
+def list_views(dataset_dir: str | Path) -> list[ViewFiles]:
+    """All views of a dataset folder, sorted by name; raises DatasetError if there are none."""
+    root = Path(dataset_dir)
+    views_dir = root / "views"
+    if not views_dir.is_dir():
+        raise DatasetError(f"{root} is not a dataset folder: no views/ directory inside")
+    out = []
+    for d in sorted(p for p in views_dir.iterdir() if p.is_dir()):
+        img, inst = d / "image.png", d / "instances.png"
+        if img.is_file() and inst.is_file():
+            out.append(ViewFiles(d.name, img, inst, d / "view.json"))
+    if not out:
+        raise DatasetError(f"{views_dir} has no view folders with image.png and instances.png")
+    return out
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """RGB image (H, W, 3) uint8 from a PNG/JPEG file (alpha dropped, grey expanded)."""
+    raw = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if raw is None:
+        raise DatasetError(f"cannot read image {path}")
+    return cv2.cvtColor(raw, cv2.COLOR_BGR2RGB)
+
+
+def read_instances(path: str | Path) -> np.ndarray:
+    """Instance map (H, W) int32 from a 16-bit PNG; 0 = no window."""
+    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if raw is None:
+        raise DatasetError(f"cannot read instance map {path}")
+    if raw.ndim != 2:
+        raise DatasetError(f"instance map {path} must be single-channel, got shape {raw.shape}")
+    return raw.astype(np.int32)
+
+
+def load_coco(dataset_dir: str | Path) -> dict:
+    """The dataset's coco.json as a dict; raises DatasetError if missing."""
+    p = Path(dataset_dir) / "coco.json"
+    if not p.is_file():
+        raise DatasetError(f"{dataset_dir} has no coco.json")
+    return json.loads(p.read_text())
+
+
+def coco_image_path(dataset_dir: str | Path, image_entry: dict) -> Path:
+    """Path of a coco.json image entry's file (file_name relative to the dataset folder)."""
+    root = Path(dataset_dir)
+    p = root / image_entry["file_name"]
+    if not p.is_file():
+        raise DatasetError(f"coco.json image {image_entry.get('id')} file {p} does not exist")
+    return p

@@ -1,0 +1,126 @@
+"""COCO evaluation (pycocotools COCOeval, bbox and segm) of a detector on a rendered dataset.
+
+Ground truth is the dataset's own coco.json (written by the renderer), never recomputed here.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import time
+from pathlib import Path
+
+import numpy as np
+from pycocotools import mask as mask_utils
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
+
+from pipeline.detectors import get_detector
+from pipeline.detectors.dataset import DatasetError, coco_image_path, load_coco, read_image, read_instances
+from pipeline.types import Detection
+
+STAT_NAMES = ("AP", "AP50", "AP75", "APs", "APm", "APl")
+
+# The paper's Table 2 (Mask R-CNN on its real-photo test set; not comparable one-to-one with
+# synthetic renders, printed for orientation).
+PAPER_TABLE2 = {"bbox": {"AP": 61.9, "AP50": 92.8, "AP75": 81.1},
+                "segm": {"AP": 72.5, "AP50": 92.8, "AP75": 88.7}}
+
+
+def detection_to_coco(det: Detection, image_id: int, category_id: int = 1) -> dict:
+    """One COCO result entry (RLE segmentation, xywh bbox in pixel-edge coordinates)."""
+    rle = mask_utils.encode(np.asfortranarray(det.mask.astype(np.uint8)))
+    rle["counts"] = rle["counts"].decode("ascii")
+    x0, y0, x1, y1 = (float(v) for v in det.box)
+    return {"image_id": int(image_id), "category_id": int(category_id), "segmentation": rle,
+            "bbox": [x0 + 0.5, y0 + 0.5, x1 - x0, y1 - y0], "score": float(det.score)}
+
+
+def coco_stats(gt: dict, results: list[dict], iou_type: str) -> dict[str, float]:
+    """AP, AP50, AP75, APs, APm, APl in percent (NaN where COCO reports -1: no GT in the range)."""
+    if iou_type not in ("bbox", "segm"):
+        raise ValueError(f"iou_type must be 'bbox' or 'segm', got {iou_type!r}")
+    with contextlib.redirect_stdout(io.StringIO()):
+        coco_gt = COCO()
+        coco_gt.dataset = gt
+        coco_gt.createIndex()
+        coco_dt = coco_gt.loadRes(results) if results else None
+        if coco_dt is None:
+            return {k: 0.0 for k in STAT_NAMES}
+        ev = COCOeval(coco_gt, coco_dt, iou_type)
+        ev.evaluate()
+        ev.accumulate()
+        ev.summarize()
+    return {k: (float(v) * 100.0 if v >= 0 else float("nan")) for k, v in zip(STAT_NAMES, ev.stats[:6])}
+
+
+def _gt_for_coco(coco: dict) -> dict:
+    """coco.json made safe for COCOeval: areas and bboxes filled in from the RLE when missing."""
+    gt = {"images": coco["images"], "categories": coco.get("categories") or [{"id": 1, "name": "window"}],
+          "annotations": []}
+    for i, a in enumerate(coco.get("annotations", [])):
+        a = dict(a)
+        a.setdefault("id", i + 1)
+        a.setdefault("iscrowd", 0)
+        seg = a["segmentation"]
+        if isinstance(seg, dict) and isinstance(seg.get("counts"), list):
+            seg = mask_utils.frPyObjects(seg, *seg["size"])
+            a["segmentation"] = {"size": seg["size"], "counts": seg["counts"].decode("ascii")}
+        if "area" not in a or "bbox" not in a:
+            rle = dict(a["segmentation"])
+            rle["counts"] = rle["counts"].encode("ascii") if isinstance(rle["counts"], str) else rle["counts"]
+            a.setdefault("area", float(mask_utils.area(rle)))
+            a.setdefault("bbox", [float(v) for v in mask_utils.toBbox(rle)])
+        gt["annotations"].append(a)
+    return gt
+
+
+def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None = None,
+             min_score: float = 0.05, **options: object) -> dict:
+    """COCO bbox/segm metrics of ``detector_name`` on a dataset folder.
+
+    Returns {"detector", "dataset", "n_images", "n_gt", "n_det", "ms_per_image_median",
+    "bbox": {AP, AP50, ...}, "segm": {...}, "paper_table2": ...}; metrics in percent.
+    options are passed to the detector's factory (e.g. weights=PATH).
+    """
+    dataset_dir = Path(dataset_dir)
+    coco = load_coco(dataset_dir)
+    images = coco.get("images", [])
+    if not images:
+        raise DatasetError(f"{dataset_dir}/coco.json lists no images")
+    if max_images is not None:
+        images = images[:max_images]
+        ids = {im["id"] for im in images}
+        coco = {**coco, "images": images, "annotations": [a for a in coco["annotations"] if a["image_id"] in ids]}
+    cat = (coco.get("categories") or [{"id": 1}])[0]["id"]
+    detector = get_detector(detector_name, **options)
+    oracle = detector_name.startswith("oracle")
+    results, times = [], []
+    for im in images:
+        path = coco_image_path(dataset_dir, im)
+        image = read_image(path)
+        per_image = {"instances": read_instances(path.parent / "instances.png")} if oracle else {}
+        t0 = time.perf_counter()
+        dets = detector(image, **per_image)
+        times.append((time.perf_counter() - t0) * 1000.0)
+        results += [detection_to_coco(d, im["id"], cat) for d in dets if d.score >= min_score]
+    gt = _gt_for_coco(coco)
+    return {"detector": detector_name, "dataset": str(dataset_dir), "n_images": len(images),
+            "n_gt": len(gt["annotations"]), "n_det": len(results),
+            "ms_per_image_median": float(np.median(times)),
+            "bbox": coco_stats(gt, results, "bbox"), "segm": coco_stats(gt, results, "segm"),
+            "paper_table2": PAPER_TABLE2}
+
+
+def format_table(result: dict) -> str:
+    """The metrics beside the paper's Table 2 (measured there on real photos), as text."""
+    lines = [f"detector {result['detector']} on {result['dataset']}: {result['n_images']} images, "
+             f"{result['n_gt']} windows, {result['n_det']} detections, "
+             f"{result['ms_per_image_median']:.0f} ms/image (median)",
+             f"{'':6}{'':>6}" + "".join(f"{k:>7}" for k in STAT_NAMES)]
+    for iou in ("bbox", "segm"):
+        lines.append(f"{iou:6}{'ours':>6}" + "".join(f"{result[iou][k]:7.1f}" for k in STAT_NAMES))
+        paper = PAPER_TABLE2[iou]
+        lines.append(f"{'':6}{'paper':>6}" + "".join(f"{paper[k]:7.1f}" if k in paper else f"{'-':>7}"
+                                                   for k in STAT_NAMES))
+    lines.append("paper = Table 2, Mask R-CNN measured on real photos (not synthetic renders)")
+    return "\n".join(lines)

@@ -1,0 +1,142 @@
+"""Oracle detectors: exact masks from an instance map, and a degraded copy imitating a network.
+
+``oracle`` isolates the downstream stages from detection errors; ``oracle-degraded`` gives them the
+kind of mask a Mask R-CNN head produces (a 28x28 soft mask inside a slightly wrong box, upsampled:
+rounded corners, wobbly edges) with a known, seeded amount of error.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from pipeline.types import Detection
+
+
+def check_instances(instances: np.ndarray | None, image_shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """Validate an instance map (H, W) of non-negative ints; return it as int64."""
+    if instances is None:
+        raise ValueError("oracle detectors need instances= an (H, W) instance map (0 = none)")
+    inst = np.asarray(instances)
+    if inst.ndim != 2:
+        raise ValueError(f"instances must be (H, W), got shape {inst.shape}")
+    if not np.issubdtype(inst.dtype, np.integer):
+        raise ValueError(f"instances must be an integer array, got dtype {inst.dtype}")
+    if image_shape is not None and tuple(inst.shape) != tuple(image_shape[:2]):
+        raise ValueError(f"instances shape {inst.shape} does not match image shape {tuple(image_shape[:2])}")
+    if inst.size and inst.min() < 0:
+        raise ValueError(f"instances must be >= 0, got min {inst.min()}")
+    return inst.astype(np.int64)
+
+
+def mask_box(mask: np.ndarray) -> np.ndarray:
+    """Box (4,) x0, y0, x1, y1 of a non-empty bool mask, in px on the pixel-edge outline.
+
+    With pixel centres at integers (fenestra.conventions), a mask covering columns c0..c1 spans
+    x0 = c0 - 0.5 to x1 = c1 + 0.5; so x1 - x0 is the width in pixels (COCO's bbox w).
+    """
+    ys, xs = np.nonzero(mask)
+    if xs.size == 0:
+        raise ValueError("mask_box: empty mask")
+    return np.array([xs.min() - 0.5, ys.min() - 0.5, xs.max() + 0.5, ys.max() + 0.5])
+
+
+def oracle_detections(instances: np.ndarray) -> list[Detection]:
+    """One Detection (score 1) per non-zero id of an instance map (H, W), ordered by id."""
+    inst = check_instances(instances)
+    dets = []
+    for k in np.unique(inst):
+        if k == 0:
+            continue
+        m = inst == k
+        dets.append(Detection(mask=m, box=mask_box(m), score=1.0))
+    return dets
+
+
+@dataclass(frozen=True)
+class DegradeConfig:
+    """How ``oracle-degraded`` spoils the true mask (all lengths relative to the box size).
+
+    mask_res: side of the low-resolution mask grid (Mask R-CNN: 28).
+    box_jitter: std of each box edge's shift, as a fraction of the box width/height (proposal error).
+    box_margin: the grid covers the box grown by this fraction on each side (as a RoI around it).
+    blur_cells: Gaussian blur sigma in grid cells (soft edges; thresholding at 0.5 rounds corners).
+    edge_noise: amplitude of smooth random noise added to the soft mask (boundary wobble).
+    seed: base seed; instance k uses seed + k, so results do not depend on the other windows.
+    """
+
+    mask_res: int = 28
+    box_jitter: float = 0.02
+    box_margin: float = 0.1
+    blur_cells: float = 1.0
+    edge_noise: float = 0.15
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.mask_res < 4:
+            raise ValueError(f"mask_res must be >= 4, got {self.mask_res}")
+        for name in ("box_jitter", "box_margin", "blur_cells", "edge_noise"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+
+
+def _degrade_one(mask: np.ndarray, cfg: DegradeConfig, rng: np.random.Generator) -> np.ndarray:
+    """Degraded copy (H, W) bool of one true mask, imitating a RoI mask head."""
+    H, W = mask.shape
+    x0, y0, x1, y1 = mask_box(mask)
+    bw, bh = x1 - x0, y1 - y0
+    # The RoI: the box grown by the margin, edges jittered like a regressed proposal.
+    jit = rng.normal(0.0, cfg.box_jitter, 4) * np.array([bw, bh, bw, bh])
+    rx0 = x0 - cfg.box_margin * bw + jit[0]
+    ry0 = y0 - cfg.box_margin * bh + jit[1]
+    rx1 = x1 + cfg.box_margin * bw + jit[2]
+    ry1 = y1 + cfg.box_margin * bh + jit[3]
+    n = cfg.mask_res
+    # Sample the true mask on an n x n grid of cell centres over the RoI (area-averaged: 4x4 taps).
+    sub = 4
+    t = (np.arange(n * sub) + 0.5) / (n * sub)
+    xs = rx0 + t * (rx1 - rx0)
+    ys = ry0 + t * (ry1 - ry0)
+    mapx, mapy = np.meshgrid(xs.astype(np.float32), ys.astype(np.float32))
+    fine = cv2.remap(mask.astype(np.float32), mapx, mapy, cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    grid = fine.reshape(n, sub, n, sub).mean(axis=(1, 3))
+    if cfg.blur_cells > 0:
+        grid = cv2.GaussianBlur(grid, (0, 0), cfg.blur_cells)
+    if cfg.edge_noise > 0:
+        noise = cv2.GaussianBlur(rng.normal(0.0, 1.0, (n, n)).astype(np.float32), (0, 0), 2.0)
+        noise /= max(float(noise.std()), 1e-6)
+        grid = grid + cfg.edge_noise * noise
+    # Paste back: bilinear upsampling of the grid to the image pixels the RoI covers, threshold 0.5.
+    c0, c1 = max(0, int(np.floor(rx0))), min(W, int(np.ceil(rx1)) + 1)
+    r0, r1 = max(0, int(np.floor(ry0))), min(H, int(np.ceil(ry1)) + 1)
+    out = np.zeros((H, W), dtype=bool)
+    if c1 <= c0 or r1 <= r0:
+        return out
+    gx = ((np.arange(c0, c1) - rx0) / (rx1 - rx0) * n - 0.5).astype(np.float32)
+    gy = ((np.arange(r0, r1) - ry0) / (ry1 - ry0) * n - 0.5).astype(np.float32)
+    gmx, gmy = np.meshgrid(gx, gy)
+    soft = cv2.remap(grid.astype(np.float32), gmx, gmy, cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    out[r0:r1, c0:c1] = soft >= 0.5
+    return out
+
+
+def degraded_detections(instances: np.ndarray, config: DegradeConfig = DegradeConfig()) -> list[Detection]:
+    """Degraded oracle: per id of the instance map, a Mask R-CNN-like mask (score 1), by id.
+
+    Deterministic for a given config.seed. Instances whose degraded mask comes out empty are
+    dropped (a miss), as a network would miss them.
+    """
+    inst = check_instances(instances)
+    dets = []
+    for k in np.unique(inst):
+        if k == 0:
+            continue
+        rng = np.random.default_rng([config.seed, int(k)])
+        m = _degrade_one(inst == k, config, rng)
+        if m.any():
+            dets.append(Detection(mask=m, box=mask_box(m), score=1.0))
+    return dets

@@ -1,0 +1,248 @@
+"""Train a window-void detector on rendered dataset folders.
+
+    fenestra train --config pipeline/models/default.toml            # WinNet, CPU, shipped weights
+    fenestra train --config pipeline/models/maskrcnn.toml --data D  # Mask R-CNN (GPU advised)
+
+Deterministic for a given seed and thread count; progress on stdout; the loss of every logged
+iteration in a CSV beside the weights (``<out>.loss.csv``). A run can be continued in chunks: the
+optimizer state is kept in ``<out>.state.pt`` and ``resume = true`` picks it up.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import sys
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from pipeline.detectors.augment import AugmentConfig, photometric, random_scale_crop
+from pipeline.detectors.dataset import list_views, read_image, read_instances
+
+ARCHS = ("winnet", "maskrcnn")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that determines a training run (paths relative to the working directory).
+
+    data: dataset folders; views: at most this many views per folder (None: all, evenly spaced).
+    iterations, batch_size, crop_hw (px), lr (peak, one-cycle cosine), weight_decay.
+    winnet_widths: WinNet channels per level; core_shrink_px/frac: the core target (see winnet).
+    maskrcnn_min_size/max_size: Mask R-CNN's internal resize (small for CPU smoke runs).
+    """
+
+    arch: str = "winnet"
+    data: tuple[str, ...] = ()
+    out: str = "pipeline/models/default.pt"
+    views: int | None = None
+    seed: int = 0
+    threads: int = 2
+    iterations: int = 3000
+    batch_size: int = 8
+    crop_hw: tuple[int, int] = (256, 256)
+    lr: float = 3e-3
+    weight_decay: float = 1e-4
+    warmup: int = 100
+    winnet_widths: tuple[int, ...] = (16, 32, 64, 96, 128)
+    core_shrink_px: float = 3.0
+    core_shrink_frac: float = 0.15
+    maskrcnn_min_size: int = 480
+    maskrcnn_max_size: int = 640
+    log_every: int = 10
+    save_every: int = 200
+    resume: bool = False
+    augment: AugmentConfig = field(default_factory=AugmentConfig)
+
+    def __post_init__(self) -> None:
+        if self.arch not in ARCHS:
+            raise ValueError(f"arch must be one of {ARCHS}, got {self.arch!r}")
+        for name in ("iterations", "batch_size", "threads", "log_every", "save_every"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.lr <= 0 or not math.isfinite(self.lr):
+            raise ValueError(f"lr must be positive, got {self.lr}")
+        if any(c < 32 or c % 32 for c in self.crop_hw):
+            raise ValueError(f"crop_hw must be multiples of 32 and >= 32, got {self.crop_hw}")
+
+
+def load_config(path: str | Path | None = None, **overrides: object) -> TrainConfig:
+    """TrainConfig from a TOML file ([train] keys, optional [augment] table) plus overrides."""
+    raw: dict = {}
+    if path is not None:
+        p = Path(path)
+        if not p.is_file():
+            raise FileNotFoundError(f"training config {p} does not exist")
+        raw = tomllib.loads(p.read_text())
+    train = dict(raw.get("train", {}))
+    aug = dict(raw.get("augment", {}))
+    unknown = set(train) - {f.name for f in dataclasses.fields(TrainConfig)}
+    unknown |= {f"augment.{k}" for k in set(aug) - {f.name for f in dataclasses.fields(AugmentConfig)}}
+    if unknown:
+        raise ValueError(f"unknown keys in {path}: {sorted(unknown)}")
+    train.update({k: v for k, v in overrides.items() if v is not None})
+    for k in ("data", "crop_hw", "winnet_widths"):
+        if k in train:
+            train[k] = tuple(train[k])
+    for k in ("scale_range", "jpeg_quality"):
+        if k in aug:
+            aug[k] = tuple(aug[k])
+    return TrainConfig(**train, augment=AugmentConfig(**aug))
+
+
+def load_views(dirs: tuple[str, ...], max_views: int | None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(image (H, W, 3) uint8, instances (H, W) int32) of the views in each dataset folder."""
+    if not dirs:
+        raise ValueError("no training data: give dataset folders (config `data` or --data DIR)")
+    out = []
+    for d in dirs:
+        views = list_views(d)
+        if max_views is not None and len(views) > max_views:
+            views = [views[i] for i in np.linspace(0, len(views) - 1, max_views).round().astype(int)]
+        for v in views:
+            out.append((read_image(v.image), read_instances(v.instances)))
+        print(f"loaded {len(views)} views from {d}", flush=True)
+    return out
+
+
+def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
+    """One augmented batch: images (B, 3, h, w) normalised, targets (B, 2, h, w) {0, 1} [void, core]."""
+    from pipeline.detectors.winnet import core_targets, to_tensor  # noqa: PLC0415
+
+    imgs, tgts = [], []
+    for _ in range(cfg.batch_size):
+        image, inst = data[int(rng.integers(len(data)))]
+        img, ins = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+        imgs.append(photometric(img, cfg.augment, rng))
+        tgts.append(np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]))
+    return to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32))
+
+
+def winnet_loss(logits: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
+    """BCE + soft Dice per map; returns the parts and their sum under "loss"."""
+    bce = F.binary_cross_entropy_with_logits(logits, target, reduction="none").mean(dim=(0, 2, 3))
+    p = torch.sigmoid(logits)
+    inter = (p * target).sum(dim=(0, 2, 3))
+    dice = 1.0 - (2 * inter + 1.0) / (p.sum(dim=(0, 2, 3)) + target.sum(dim=(0, 2, 3)) + 1.0)
+    parts = {"void_bce": bce[0], "core_bce": bce[1], "void_dice": dice[0], "core_dice": dice[1]}
+    parts["loss"] = sum(parts.values())
+    return parts
+
+
+def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
+    """One augmented batch for torchvision Mask R-CNN: (list of (3, h, w) [0,1] tensors, targets)."""
+    from pipeline.detectors.maskrcnn import maskrcnn_targets  # noqa: PLC0415
+
+    imgs, tgts = [], []
+    while len(imgs) < cfg.batch_size:
+        image, inst = data[int(rng.integers(len(data)))]
+        img, ins = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+        ids = [k for k in np.unique(ins) if k]
+        ins = np.where(np.isin(ins, [k for k in ids if (ins == k).sum() >= 16]), ins, 0)
+        if not ins.any():
+            continue  # torchvision accepts empty targets, but they teach little
+        imgs.append(torch.from_numpy(photometric(img, cfg.augment, rng)).permute(2, 0, 1).float() / 255.0)
+        tgts.append(maskrcnn_targets(ins))
+    return imgs, tgts
+
+
+def _lr_at(it: int, cfg: TrainConfig) -> float:
+    """Linear warm-up, then cosine decay to 1% of the peak."""
+    if it < cfg.warmup:
+        return cfg.lr * (it + 1) / cfg.warmup
+    f = (it - cfg.warmup) / max(1, cfg.iterations - cfg.warmup)
+    return cfg.lr * (0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(1.0, f))))
+
+
+def _build(cfg: TrainConfig):
+    if cfg.arch == "winnet":
+        from pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
+
+        model = WinNet(WinNetConfig(cfg.winnet_widths))
+        opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    else:
+        from pipeline.detectors.maskrcnn import build_maskrcnn  # noqa: PLC0415
+
+        model = build_maskrcnn(cfg.maskrcnn_min_size, cfg.maskrcnn_max_size)
+        params = [p for p in model.parameters() if p.requires_grad]
+        opt = torch.optim.SGD(params, lr=cfg.lr, momentum=0.9, weight_decay=cfg.weight_decay)
+    return model, opt
+
+
+def checkpoint(model: torch.nn.Module, cfg: TrainConfig, meta: dict) -> dict:
+    """The shipped file's contents: arch, architecture parameters, fp16 weights, config, metadata."""
+    if cfg.arch == "winnet":
+        from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
+
+        sd = {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
+        return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
+                "post": dataclasses.asdict(PostConfig()), "train_config": dataclasses.asdict(cfg), "meta": meta}
+    return {"arch": "maskrcnn", "model_kw": {"min_size": cfg.maskrcnn_min_size, "max_size": cfg.maskrcnn_max_size},
+            "state_dict": model.state_dict(), "train_config": dataclasses.asdict(cfg), "meta": meta}
+
+
+def train(cfg: TrainConfig, log=print) -> Path:
+    """Run training; write weights to cfg.out, losses to <out>.loss.csv; return the weights path."""
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    out = Path(cfg.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    state_path, csv_path = out.with_suffix(".state.pt"), out.with_suffix(".loss.csv")
+    data = load_views(cfg.data, cfg.views)
+    model, opt = _build(cfg)
+    start, elapsed0 = 0, 0.0
+    rng = np.random.default_rng(cfg.seed)
+    if cfg.resume and state_path.is_file():
+        st = torch.load(state_path, map_location="cpu", weights_only=False)
+        model.load_state_dict(st["model"])
+        opt.load_state_dict(st["opt"])
+        start, elapsed0 = st["iteration"], st["elapsed_s"]
+        rng.bit_generator.state = st["rng"]
+        torch.set_rng_state(st["torch_rng"])
+        log(f"resumed at iteration {start}")
+    elif csv_path.exists():
+        csv_path.unlink()
+    model.train()
+    t0 = time.perf_counter()
+    new_csv = not csv_path.exists()
+    with open(csv_path, "a", newline="") as fh:
+        writer = csv.writer(fh)
+        for it in range(start, cfg.iterations):
+            lr = _lr_at(it, cfg)
+            for g in opt.param_groups:
+                g["lr"] = lr
+            if cfg.arch == "winnet":
+                x, y = winnet_batch(data, cfg, rng)
+                parts = winnet_loss(model(x), y)
+            else:
+                imgs, tgts = maskrcnn_batch(data, cfg, rng)
+                parts = model(imgs, tgts)
+                parts["loss"] = sum(parts.values())
+            opt.zero_grad()
+            parts["loss"].backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+            opt.step()
+            elapsed = elapsed0 + time.perf_counter() - t0
+            if new_csv:
+                writer.writerow(["iteration", "elapsed_s", "lr", *parts])
+                new_csv = False
+            if it % cfg.log_every == 0 or it == cfg.iterations - 1:
+                writer.writerow([it, f"{elapsed:.1f}", f"{lr:.6g}", *(f"{float(v.detach()):.5f}" for v in parts.values())])
+                fh.flush()
+                log(f"it {it:5d}/{cfg.iterations} {elapsed:7.0f}s lr {lr:.2e} " +
+                    " ".join(f"{k} {float(v.detach()):.4f}" for k, v in parts.items()))
+            if (it + 1) % cfg.save_every == 0 or it == cfg.iterations - 1:
+                torch.save({"model": model.state_dict(), "opt": opt.state_dict(), "iteration": it + 1,
+                            "elapsed_s": elapsed, "rng": rng.bit_generator.state,
+                            "torch_rng": torch.get_rng_state()}, state_path)
+                meta = {"iterations_done": it + 1, "train_seconds": round(elapsed, 1),
+                        "torch": torch.__version__, "threads": cfg.threads, "n_train_views": len(data),
+                        "python": sys.version.split()[0]}
+                torch.save(checkpoint(model, cfg, meta), out)
+    return out

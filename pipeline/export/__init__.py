@@ -1,0 +1,120 @@
+"""Pipeline outputs: IFC4 with photo texture, OBJ/MTL, GLB, overlay, inpainted texture, substitution.
+
+    from pipeline.export import write_outputs
+    paths = write_outputs("out/photo1", image, K, results, substitute="sash-cross")
+    # {"ifc", "texture", "obj", "mtl", "glb", "overlay", "inpainted", "manifest"[, "substituted"]}
+
+Frames, units and texture conventions: pipeline/export/geometry.py.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fenestra.conventions import check_K
+from fenestra.errors import PipelineError
+from pipeline.catalogue import WindowStyle, get_style, window_mesh
+from pipeline.export.geometry import CAMERA_TO_EXPORT, PlacedWindow, place, texture_layout
+from pipeline.export.ifc import write_ifc
+from pipeline.export.inpaint import check_image, inpaint_voids
+from pipeline.export.mesh import model_parts, write_glb, write_obj
+from pipeline.export.overlay import draw_overlay
+from pipeline.types import WindowResult
+
+DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
+
+
+def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE
+                  ) -> tuple[list[PlacedWindow], list[dict]]:
+    """(exportable windows, skipped [{"index", "reason"}]) -- failed results never raise.
+
+    Skipped: upstream failures, unusable poses (see geometry.place), voids too small for the style.
+    """
+    placed, skipped = [], []
+    for i, r in enumerate(results):
+        pw = place(r)
+        if not isinstance(pw, str):
+            try:
+                window_mesh(style, pw.width_m, pw.height_m)
+            except ValueError as e:
+                pw = str(e)
+        if isinstance(pw, str):
+            skipped.append({"index": int(getattr(r, "index", i)), "reason": pw})
+        else:
+            placed.append(pw)
+    return placed, skipped
+
+
+def _write_png(path: Path, image: np.ndarray) -> Path:
+    if not cv2.imwrite(str(path), image):
+        raise PipelineError(f"could not write {path}")
+    return path
+
+
+def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
+                  substitute: str | WindowStyle | None = None) -> dict[str, Path]:
+    """Write every output for one photo into ``out_dir``; return {kind: path}.
+
+    image (H, W, 3) uint8 BGR; K (3, 3); results from the reconstruction. Written: model.ifc,
+    texture.png (inpainted photo, padded), inpainted.png (photo size), model.obj + model.mtl,
+    model.glb, overlay.png, export.json (manifest: exported and skipped windows, with reasons, and
+    export timings), and substituted.png when ``substitute`` names a catalogue style (which then
+    also shapes the IFC/OBJ/GLB windows).
+    """
+    t_start = time.perf_counter()
+    image = check_image(image)
+    K = check_K(K)
+    if not isinstance(results, (list, tuple)):
+        raise PipelineError(f"results must be a list of WindowResult, got {type(results).__name__}")
+    style = get_style(substitute if substitute is not None else DEFAULT_STYLE)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    placed, skipped = split_results(list(results), style)
+    timings: dict[str, float] = {}
+
+    def _timed(name, fn, *args, **kw):
+        t0 = time.perf_counter()
+        value = fn(*args, **kw)
+        timings[name] = 1000.0 * (time.perf_counter() - t0)
+        return value
+
+    inpainted, _ = _timed("inpaint_ms", inpaint_voids, image, list(results))
+    layout = texture_layout(K, image.shape, placed)
+    texture = layout.pad(inpainted)
+    paths = {"inpainted": _write_png(out / "inpainted.png", inpainted),
+             "texture": _write_png(out / "texture.png", texture)}
+    ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K, placed, layout, "texture.png", style)
+    paths["ifc"] = out / "model.ifc"
+    parts = model_parts(K, placed, layout, style)
+    paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
+    if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
+        paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture[:, :, ::-1], style)
+    paths["overlay"] = _write_png(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results)))
+    if substitute is not None:
+        from pipeline.substitute import composite  # noqa: PLC0415
+
+        paths["substituted"] = _write_png(out / "substituted.png",
+                                          _timed("substitute_ms", composite, inpainted, K, placed, style))
+    timings["total_ms"] = 1000.0 * (time.perf_counter() - t_start)
+    manifest = {
+        "style": style.name,
+        "world_frame": {"camera_to_export": CAMERA_TO_EXPORT.tolist(),
+                        "note": "export world = OpenCV camera frame turned z-up; camera at the origin, looking along +y"},
+        "texture": {"file": "texture.png", "pad_left": layout.pad_left, "pad_top": layout.pad_top,
+                    "pad_right": layout.pad_right, "pad_bottom": layout.pad_bottom,
+                    "width": layout.width, "height": layout.height},
+        "exported": [{"index": pw.index, "width_m": pw.width_m, "height_m": pw.height_m, **ids[pw.index]}
+                     for pw in placed],
+        "skipped": skipped,
+        "timings_ms": timings,
+    }
+    paths["manifest"] = out / "export.json"
+    paths["manifest"].write_text(json.dumps(manifest, indent=2))
+    return paths
+
+
+__all__ = ["write_outputs", "split_results", "DEFAULT_STYLE"]

@@ -1,0 +1,294 @@
+"""Mask -> quadrilateral, as in the paper: local line fits on the outline, keep the four best.
+
+Steps (:func:`mask_to_quad`):
+
+1. Check the mask (empty, tiny, touching the image border, several blobs): each gives an explicit
+   ``failure`` reason instead of a crash.
+2. Take the outer contour (``cv2.findContours``, ``CHAIN_APPROX_NONE``): the centres of the mask's
+   border pixels, in order around the blob.
+3. At every outline point fit a line (principal component) through its ~``window_pts`` neighbours
+   along the outline (fewer for small masks: at most a sixth of the outline).
+4. Greedily keep the four candidate lines that explain most outline points (distance below
+   ``inlier_px``), removing the points each chosen line explains and refusing a candidate whose
+   support overlaps a chosen line's (so one long edge is never chosen twice).
+5. Refit each line to the outline points nearest to it, order the four lines around the contour,
+   shift each one outward by the half-pixel that separates a border pixel's centre from the mask's
+   true edge (see :func:`edge_offset_px`), intersect neighbours -> quad, corners TL, TR, BR, BL.
+6. Check the quad explains the outline (a disc or a triangle fails with ``not_quadrilateral``).
+
+Pixel convention (``fenestra.conventions``): the centre of pixel (u, v) is at (u, v). A rasterised
+mask contains the pixels whose centres lie inside the polygon, so on a straight edge the border
+pixels' centres lie on average ``0.5 * max(|n_x|, |n_y|)`` px inside the true edge (n: the edge's
+unit normal): the outline is one pixel per column (rows for steep edges) and the edge cuts each
+column at a uniformly distributed fraction of a pixel above that pixel's centre.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class QuadParams:
+    """Parameters of :func:`mask_to_quad` (pixels unless stated).
+
+    window_pts: outline points in each local line fit (the paper: ~100); capped at a sixth of the
+        outline so small masks still get one fit per side.
+    inlier_px: an outline point within this distance of a line is explained by it.
+    max_candidates: local fits considered as candidate lines (every k-th outline point).
+    max_overlap: a candidate sharing more than this fraction of its inliers with a chosen line is
+        a copy of that line and is refused.
+    min_area_px: masks smaller than this fail with ``too_small``.
+    min_explained: the four lines must explain at least this fraction of the outline.
+    min_side_frac: each line must explain at least this fraction of the outline.
+    speck_px: extra connected components up to this size are ignored (noise specks); larger ones
+        make the mask fail with ``multiple_blobs``.
+    allow_border: if False, a mask touching the image border fails with ``touches_border``
+        (the window is cut by the image, its true corners are unknown).
+    """
+
+    window_pts: int = 100
+    inlier_px: float = 1.5
+    max_candidates: int = 256
+    max_overlap: float = 0.3
+    min_area_px: int = 64
+    min_explained: float = 0.85
+    min_side_frac: float = 0.04
+    speck_px: int = 4
+    allow_border: bool = False
+
+
+@dataclass(frozen=True)
+class QuadResult:
+    """Result of :func:`mask_to_quad`.
+
+    quad: (4, 2) float64 px, TL TR BR BL (clockwise on screen), or None on failure.
+    lines: (4, 3) float64, each row (n_x, n_y, c) of the side line n . p = c with |n| = 1 and n
+        pointing out of the mask, in order top, right, bottom, left; None on failure.
+    explained: fraction of outline points within ``inlier_px`` of a chosen line (0 if not fitted).
+    failure: None, or ``"<code>: <detail>"`` with code in empty_mask, too_small, touches_border,
+        multiple_blobs, not_quadrilateral.
+    """
+
+    quad: np.ndarray | None
+    lines: np.ndarray | None
+    explained: float
+    failure: str | None
+
+
+def _fail(reason: str, explained: float = 0.0) -> QuadResult:
+    return QuadResult(quad=None, lines=None, explained=explained, failure=reason)
+
+
+def edge_offset_px(normal: np.ndarray) -> float:
+    """Mean distance (px) from border-pixel centres to the true edge with unit ``normal`` (2,)."""
+    return 0.5 * float(max(abs(normal[0]), abs(normal[1])))
+
+
+def check_mask(mask: np.ndarray, params: QuadParams = QuadParams()) -> tuple[np.ndarray | None, tuple[int, int], str | None]:
+    """Validate a (H, W) mask; return (blob crop as uint8 0/1, crop origin (x0, y0), failure reason).
+
+    On success the reason is None and the crop holds the single blob with a one-pixel background
+    margin where the image allows; on failure the crop is None. Raises ValueError for a mask that
+    is not 2-D (a programming error, not a bad detection).
+    """
+    mask = np.asarray(mask)
+    if mask.ndim != 2:
+        raise ValueError(f"mask must be 2-D (H, W), got shape {mask.shape}")
+    full = (mask != 0).astype(np.uint8)
+    x, y, w, h = cv2.boundingRect(full)
+    if w == 0 or h == 0:
+        return None, (0, 0), "empty_mask: no foreground pixel"
+    H, W = full.shape
+    x0, y0 = max(x - 1, 0), max(y - 1, 0)
+    m = full[y0:min(y + h + 1, H), x0:min(x + w + 1, W)]
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+    sizes = stats[1:, cv2.CC_STAT_AREA]
+    big = np.flatnonzero(sizes > params.speck_px)
+    if len(big) > 1:
+        top = sorted(sizes[big].tolist(), reverse=True)[:4]
+        return None, (x0, y0), (f"multiple_blobs: {len(big)} components larger than "
+                                f"{params.speck_px} px (largest: {top} px)")
+    keep = 1 + int(np.argmax(sizes))
+    area = int(sizes[keep - 1])
+    if area < params.min_area_px:
+        return None, (x0, y0), f"too_small: {area} px < min_area_px={params.min_area_px}"
+    if len(sizes) > 1:
+        m = (labels == keep).astype(np.uint8)
+    bx, by, bw, bh = stats[keep, :4]
+    bx, by = bx + x0, by + y0
+    sides = [name for name, touch in (("top", by == 0), ("bottom", by + bh == H), ("left", bx == 0),
+                                      ("right", bx + bw == W)) if touch]
+    if sides and not params.allow_border:
+        return None, (x0, y0), f"touches_border: mask reaches the image {', '.join(sides)} edge"
+    return m, (x0, y0), None
+
+
+def outline(m: np.ndarray) -> np.ndarray:
+    """Ordered outer contour of a single-blob uint8 mask: (N, 2) float64 pixel centres (x, y)."""
+    contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    c = max(contours, key=len)
+    return c.reshape(-1, 2).astype(np.float64)
+
+
+def local_lines(P: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Principal-component line through each point's ``window`` circular neighbours.
+
+    P: (N, 2) ordered outline. Returns normals (N, 2) unit and offsets (N,) with n . p = c.
+    Uses running sums, O(N).
+    """
+    N = len(P)
+    h = max(1, window // 2)
+    Pp = np.concatenate([P[N - h:], P, P[:h]]) if h < N else np.tile(P, (3, 1))[N - h:2 * N + h]
+    x, y = Pp[:, 0], Pp[:, 1]
+    S = np.zeros((len(Pp) + 1, 5))
+    S[1:] = np.cumsum(np.stack([x, y, x * x, x * y, y * y], axis=1), axis=0)
+    n = 2 * h + 1
+    W = (S[n:n + N] - S[:N]) / n
+    mx, my = W[:, 0], W[:, 1]
+    cxx, cxy, cyy = W[:, 2] - mx * mx, W[:, 3] - mx * my, W[:, 4] - my * my
+    theta = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)  # principal direction angle
+    normals = np.stack([-np.sin(theta), np.cos(theta)], axis=1)
+    return normals, normals[:, 0] * mx + normals[:, 1] * my
+
+
+def fit_line(P: np.ndarray) -> np.ndarray:
+    """Total-least-squares line (n_x, n_y, c) through points P (N, 2), N >= 2."""
+    m = P.mean(axis=0)
+    _, _, vt = np.linalg.svd(P - m, full_matrices=False)
+    n = vt[-1]
+    return np.array([n[0], n[1], n @ m])
+
+
+def intersect(l1: np.ndarray, l2: np.ndarray) -> np.ndarray:
+    """Intersection (2,) of lines (n_x, n_y, c); inf if parallel."""
+    A = np.array([l1[:2], l2[:2]])
+    det = np.linalg.det(A)
+    if abs(det) < 1e-12:
+        return np.array([np.inf, np.inf])
+    return np.linalg.solve(A, np.array([l1[2], l2[2]]))
+
+
+def order_corners(quad: np.ndarray) -> np.ndarray:
+    """Reorder a convex quad's corners (4, 2) as TL, TR, BR, BL (clockwise on screen, y down).
+
+    TL starts the top side: the side whose midpoint is highest in the image.
+    """
+    q = np.asarray(quad, dtype=np.float64)
+    x, y = q[:, 0], q[:, 1]
+    area2 = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)  # > 0: clockwise on screen
+    if area2 < 0:
+        q = q[::-1]
+    mid_y = (q[:, 1] + np.roll(q, -1, axis=0)[:, 1]) / 2.0
+    return np.roll(q, -int(np.argmin(mid_y)), axis=0)
+
+
+def _choose_lines(P: np.ndarray, params: QuadParams) -> np.ndarray | None:
+    """Greedy choice of four candidate lines; returns (4, 3) lines or None if fewer found."""
+    N = len(P)
+    window = int(min(params.window_pts, max(5, N // 6)))
+    normals, offsets = local_lines(P, window)
+    step = max(1, N // params.max_candidates)
+    cand = np.arange(0, N, step)
+    # (N, C) inlier table as 0/1 floats: counting inliers becomes a matrix-vector product
+    D = (np.abs(P @ normals[cand].T - offsets[cand]) < params.inlier_px).astype(np.float32)
+    remaining = np.ones(N, dtype=np.float32)
+    allowed = np.ones(len(cand), dtype=bool)
+    support = np.maximum(D.sum(axis=0), 1.0)
+    chosen = []
+    for _ in range(4):
+        counts = np.where(allowed, remaining @ D, -1.0)
+        best = int(np.argmax(counts))
+        if counts[best] <= 0:
+            return None
+        inl = D[:, best]
+        chosen.append(np.array([*normals[cand[best]], offsets[cand[best]]]))
+        remaining *= 1.0 - inl
+        overlap = (inl @ D) / support
+        allowed &= overlap <= params.max_overlap
+        allowed[best] = False
+    return np.array(chosen)
+
+
+def _refit(P: np.ndarray, lines: np.ndarray, radius: float, iters: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Refit each line to the outline points nearest to it (within ``radius``).
+
+    Returns lines (4, 3) and the assignment (N,) of each point to a line index, -1 for none.
+    """
+    assign = np.full(len(P), -1)
+    for _ in range(iters):
+        d = np.abs(P @ lines[:, :2].T - lines[:, 2])  # (N, 4)
+        nearest = np.argmin(d, axis=1)
+        assign = np.where(d[np.arange(len(P)), nearest] < radius, nearest, -1)
+        new = lines.copy()
+        for k in range(4):
+            pts = P[assign == k]
+            if len(pts) >= 3:
+                new[k] = fit_line(pts)
+        lines = new
+    return lines, assign
+
+
+def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadResult:
+    """Fit the window quadrilateral to a binary mask (H, W) (bool or 0/non-zero).
+
+    Returns a :class:`QuadResult`; failures are reported in ``failure``, never raised (except a
+    mask that is not 2-D: ValueError).
+    """
+    m, origin, reason = check_mask(mask, params)
+    if reason is not None:
+        return _fail(reason)
+    P = outline(m) + np.asarray(origin, dtype=np.float64)
+    N = len(P)
+    lines = _choose_lines(P, params)
+    if lines is None:
+        return _fail("not_quadrilateral: fewer than four distinct lines on the outline")
+    lines, assign = _refit(P, lines, radius=params.inlier_px)
+    counts = np.bincount(assign[assign >= 0], minlength=4)
+    explained = float(counts.sum()) / N
+    if explained < params.min_explained:
+        return _fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
+                     f"< min_explained={params.min_explained:.0%}", explained)
+    if counts.min() < params.min_side_frac * N:
+        return _fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
+                     f"< min_side_frac={params.min_side_frac:.0%}", explained)
+    # order the lines around the contour: circular mean of the outline index of their points
+    ang = 2.0 * np.pi * np.arange(N) / N
+    pos = [np.angle(np.exp(1j * ang[assign == k]).mean()) for k in range(4)]
+    lines = lines[np.argsort(pos)]
+    # orient normals outward (away from the blob's centroid) and shift by the half-pixel offset
+    centre = P.mean(axis=0)
+    for k in range(4):
+        if lines[k, :2] @ centre > lines[k, 2]:
+            lines[k] = -lines[k]
+        lines[k, 2] += edge_offset_px(lines[k, :2])
+    corners = np.array([intersect(lines[k], lines[(k + 1) % 4]) for k in range(4)])
+    if not np.all(np.isfinite(corners)):
+        return _fail("not_quadrilateral: two neighbouring sides are parallel", explained)
+    # each corner must lie near the outline (a triangle's fourth 'side' puts a corner far away)
+    size = np.sqrt(float(m.sum()))
+    gap = np.min(np.linalg.norm(P[None] - corners[:, None], axis=2), axis=1)
+    if gap.max() > max(4.0, 0.15 * size):
+        return _fail(f"not_quadrilateral: a corner lies {gap.max():.1f} px from the outline", explained)
+    quad = order_corners(corners)
+    if not _is_convex(quad):
+        return _fail("not_quadrilateral: the four lines give a non-convex quad", explained)
+    return QuadResult(quad=quad, lines=_lines_in_corner_order(lines, quad), explained=explained, failure=None)
+
+
+def _lines_in_corner_order(lines: np.ndarray, quad: np.ndarray) -> np.ndarray:
+    """Lines reordered top, right, bottom, left: side k passes through quad[k] and quad[k+1]."""
+    out = np.empty_like(lines)
+    for k in range(4):
+        mid = (quad[k] + quad[(k + 1) % 4]) / 2.0
+        out[k] = lines[int(np.argmin(np.abs(lines[:, :2] @ mid - lines[:, 2])))]
+    return out
+
+
+def _is_convex(quad: np.ndarray) -> bool:
+    """True if the (4, 2) quad turns the same way at every corner."""
+    e = np.roll(quad, -1, axis=0) - quad
+    cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+    return bool(np.all(cross > 0) or np.all(cross < 0))

@@ -1,0 +1,182 @@
+"""One photo + detections -> one WindowResult per detection: quad, snapping, aspect ratio, pose.
+
+    results = reconstruct(image_bgr, K, detections, ReconstructConfig(snapper="linefit"))
+    json.dump(windows_to_json(results), f)
+
+Each stage's failure is recorded in the result's ``failure`` (``"<stage>: <reason>"``) and the
+remaining windows carry on; only malformed arguments (wrong shapes, unknown strategy) raise.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from fenestra.conventions import check_K
+from fenestra.errors import PipelineError
+from pipeline.aspect import aspect_ratio
+from pipeline.pose import POSE_SOLVERS, estimate_pose
+from pipeline.quad import QuadParams, mask_to_quad
+from pipeline.snappers import SNAPPERS
+from pipeline.types import Detection, WindowResult
+
+STAGES = ("quad", "snap", "aspect", "pose")
+
+
+@dataclass(frozen=True)
+class ReconstructConfig:
+    """Strategy choices and parameters of :func:`reconstruct`.
+
+    snapper: a key of ``pipeline.snappers.SNAPPERS``; snapper_params: its dataclass (None: defaults).
+    pose: a key of ``pipeline.pose.POSE_SOLVERS``.
+    height_m / width_m: the scale parameter (the window's height, or its width if given), m.
+    fallback_focal_px: focal length used when K is None and the quad cannot give one.
+    quad: parameters of the mask -> quad stage.
+    """
+
+    snapper: str = "harris"
+    pose: str = "lm"
+    height_m: float = 1.0
+    width_m: float | None = None
+    fallback_focal_px: float | None = None
+    snapper_params: object | None = None
+    quad: QuadParams = field(default_factory=QuadParams)
+
+    def __post_init__(self) -> None:
+        if self.snapper not in SNAPPERS:
+            raise ValueError(f"unknown snapper {self.snapper!r}; choose from {sorted(SNAPPERS)}")
+        if self.pose not in POSE_SOLVERS:
+            raise ValueError(f"unknown pose solver {self.pose!r}; choose from {sorted(POSE_SOLVERS)}")
+        for name in ("height_m", "width_m"):
+            v = getattr(self, name)
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive, got {v}")
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """(H, W) float32 gray from an (H, W, 3) uint8 BGR image (or an (H, W) one, returned as float32)."""
+    img = np.asarray(image)
+    if img.ndim == 2:
+        return img.astype(np.float32)
+    if img.ndim != 3 or img.shape[2] not in (3, 4):
+        raise ValueError(f"image must be (H, W, 3) BGR or (H, W) gray, got shape {img.shape}")
+    return cv2.cvtColor(img[:, :, :3], cv2.COLOR_BGR2GRAY).astype(np.float32)
+
+
+def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failure: str | None = None,
+            **stages) -> WindowResult:
+    """A WindowResult with the stages reached so far (``stages``: WindowResult fields); rest None."""
+    fields = dict(quad_mask=None, quad_snapped=None, aspect_ratio=None, aspect_case=None,
+                  focal_estimate_px=None, R=None, t=None, quad_reprojected=None, height_m=cfg.height_m)
+    fields.update(stages)
+    return WindowResult(index=i, score=float(det.score), failure=failure, timings_ms=dict(timings), **fields)
+
+
+def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detection,
+                    cfg: ReconstructConfig) -> WindowResult:
+    """Run quad -> snap -> aspect -> pose on one detection; failures go into the result."""
+    timings: dict[str, float] = {}
+    H, W = gray.shape
+    if np.asarray(det.mask).shape != (H, W):
+        return _result(i, det, cfg, timings, f"quad: mask shape {np.asarray(det.mask).shape} != image {(H, W)}")
+    t0 = time.perf_counter()
+    qr = mask_to_quad(det.mask, cfg.quad)
+    timings["quad"] = (time.perf_counter() - t0) * 1e3
+    if qr.failure:
+        return _result(i, det, cfg, timings, f"quad: {qr.failure}")
+    t0 = time.perf_counter()
+    s = SNAPPERS[cfg.snapper]
+    snapped, _ = s.snap(gray, qr.quad, cfg.snapper_params or s.params())
+    timings["snap"] = (time.perf_counter() - t0) * 1e3
+    done = dict(quad_mask=qr.quad, quad_snapped=snapped)
+    t0 = time.perf_counter()
+    try:
+        pp = ((W - 1) / 2.0, (H - 1) / 2.0)
+        ar = aspect_ratio(snapped, K, principal_point=pp, fallback_focal_px=cfg.fallback_focal_px)
+    except (PipelineError, ValueError) as e:
+        timings["aspect"] = (time.perf_counter() - t0) * 1e3
+        return _result(i, det, cfg, timings, f"aspect: {e}", **done)
+    timings["aspect"] = (time.perf_counter() - t0) * 1e3
+    done.update(aspect_ratio=ar.ratio, aspect_case=ar.case,
+                focal_estimate_px=ar.focal_px if ar.focal_source != "K" else None)
+    if K is None:
+        if ar.focal_px is None:
+            return _result(i, det, cfg, timings, "pose: no K and no focal length (fronto-parallel quad); "
+                                                 "give K or fallback_focal_px", **done)
+        K_used = np.array([[ar.focal_px, 0.0, pp[0]], [0.0, ar.focal_px, pp[1]], [0.0, 0.0, 1.0]])
+    else:
+        K_used = K
+    t0 = time.perf_counter()
+    try:
+        pr = estimate_pose(snapped, K_used, ar.ratio, cfg.height_m, cfg.width_m, cfg.pose)
+    except (PipelineError, ValueError) as e:
+        timings["pose"] = (time.perf_counter() - t0) * 1e3
+        return _result(i, det, cfg, timings, f"pose: {e}", **done)
+    timings["pose"] = (time.perf_counter() - t0) * 1e3
+    return _result(i, det, cfg, timings, None, R=pr.R, t=pr.t, quad_reprojected=pr.reprojected,
+                   height_m=pr.height_m, **done)
+
+
+def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
+                cfg: ReconstructConfig = ReconstructConfig()) -> list[WindowResult]:
+    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **BGR**, as cv2.imread gives).
+
+    K: (3, 3) intrinsics, or None for an unknown focal length (square pixels, principal point at
+    the image centre; f estimated per window by Zhang & He). Returns one WindowResult per
+    detection, in order, with per-stage timings (ms) in ``timings_ms`` (quad, snap, aspect, pose).
+    """
+    gray = to_gray(image)
+    K = None if K is None else check_K(K)
+    return [reconstruct_one(i, gray, K, d, cfg) for i, d in enumerate(detections)]
+
+
+def detections_from_instance_map(instances: np.ndarray) -> list[Detection]:
+    """One Detection per non-zero id of an (H, W) integer instance map, in increasing id order.
+
+    Score 1, label ``"window:<id>"``; box (x0, y0, x1, y1) px of the id's pixels. An id with two
+    separate blobs still gives one Detection: mask_to_quad then reports ``multiple_blobs``.
+    """
+    inst = np.asarray(instances)
+    if inst.ndim != 2 or not np.issubdtype(inst.dtype, np.integer):
+        raise ValueError(f"instance map must be a 2-D integer array, got shape {inst.shape}, dtype {inst.dtype}")
+    dets = []
+    for iid in np.unique(inst):
+        if iid == 0:
+            continue
+        m = inst == iid
+        ys, xs = np.nonzero(m)
+        box = np.array([xs.min(), ys.min(), xs.max(), ys.max()], dtype=np.float64)
+        dets.append(Detection(mask=m, box=box, score=1.0, label=f"window:{int(iid)}"))
+    return dets
+
+
+def _list(a: np.ndarray | None):
+    return None if a is None else np.asarray(a, dtype=np.float64).tolist()
+
+
+def window_to_dict(r: WindowResult) -> dict:
+    """One windows.json entry (DESIGN.md: Pipeline output)."""
+    return {
+        "index": r.index, "score": r.score,
+        "quad_mask": _list(r.quad_mask), "quad_snapped": _list(r.quad_snapped),
+        "aspect_ratio": r.aspect_ratio, "aspect_case": r.aspect_case,
+        "focal_estimate_px": r.focal_estimate_px,
+        "R": _list(r.R), "t": _list(None if r.t is None else np.asarray(r.t).reshape(3)),
+        "height_m": r.height_m,
+        "width_m": None if r.aspect_ratio is None or r.R is None else r.aspect_ratio * r.height_m,
+        "quad_reprojected": _list(r.quad_reprojected),
+        "failure": r.failure, "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
+    }
+
+
+def windows_to_json(results: list[WindowResult], K: np.ndarray | None = None,
+                    image_size: tuple[int, int] | None = None, config: ReconstructConfig | None = None) -> dict:
+    """windows.json as a dict: ``{"K", "image_size": [W, H], "config", "windows": [...]}``."""
+    cfg = None
+    if config is not None:
+        cfg = {"snapper": config.snapper, "pose": config.pose, "height_m": config.height_m,
+               "width_m": config.width_m, "fallback_focal_px": config.fallback_focal_px}
+    return {"K": _list(K), "image_size": None if image_size is None else list(image_size),
+            "config": cfg, "windows": [window_to_dict(r) for r in results]}

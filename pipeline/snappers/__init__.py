@@ -1,0 +1,40 @@
+"""Corner snapping strategies: registry ``SNAPPERS`` (name -> Snapper).
+
+Every strategy has the same interface::
+
+    quad, info = SNAPPERS[name].snap(gray, quad, params)
+
+gray: (H, W) uint8 or float32 image; quad: (4, 2) px TL TR BR BL (pixel centres at integers);
+params: the strategy's frozen dataclass (``SNAPPERS[name].params()`` gives the defaults).
+Returns the snapped quad (4, 2) float64 and a dict of diagnostics (e.g. which corners moved).
+Use :func:`snap` to look a strategy up by name with default parameters.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.snappers.base import Snapper
+from pipeline.snappers.harris import HARRIS
+from pipeline.snappers.hough import HOUGH
+from pipeline.snappers.linefit import LINEFIT
+from pipeline.snappers.none import NONE
+from pipeline.snappers.subpix import SUBPIX
+
+SNAPPERS: dict[str, Snapper] = {
+    "none": NONE,
+    "harris": HARRIS,
+    "hough": HOUGH,
+    "linefit": LINEFIT,
+    "subpix": SUBPIX,
+}
+
+
+def snap(name: str, gray: np.ndarray, quad: np.ndarray, params=None) -> tuple[np.ndarray, dict]:
+    """Snap ``quad`` with strategy ``name`` (default parameters unless ``params`` is given)."""
+    if name not in SNAPPERS:
+        raise ValueError(f"unknown snapper {name!r}; choose from {sorted(SNAPPERS)}")
+    s = SNAPPERS[name]
+    return s.snap(gray, quad, s.params() if params is None else params)
+
+
+__all__ = ["SNAPPERS", "Snapper", "snap"]

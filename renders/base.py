@@ -1,0 +1,38 @@
+"""What every renderer backend takes and returns (the renders/ backend contract)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from renders.camera import Camera
+from renders.gt import WindowView
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Backend settings. seed picks the look (palette, sun, sky); spp/max_depth are for mitsuba."""
+
+    seed: int = 0
+    shadows: bool = True
+    spp: int = 16
+    max_depth: int = 3
+    variant: str = "auto"  # mitsuba: "auto" (llvm_ad_rgb if available, else scalar_rgb) or a name
+
+    def __post_init__(self) -> None:
+        if self.spp < 1:
+            raise ValueError(f"spp must be >= 1, got {self.spp}")
+        if self.max_depth < 1:
+            raise ValueError(f"max_depth must be >= 1, got {self.max_depth}")
+
+
+@dataclass(frozen=True, eq=False)
+class RenderOutput:
+    """One rendered view. rgb (H, W, 3) uint8; instances (H, W) uint16 (0 = none, i+1 = window i);
+    depth (H, W) float32 camera z in m (0 = sky); windows: per-window ground truth."""
+
+    camera: Camera
+    rgb: np.ndarray
+    instances: np.ndarray
+    depth: np.ndarray
+    windows: tuple[WindowView, ...]

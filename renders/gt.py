@@ -1,0 +1,161 @@
+"""Exact per-view ground truth of window voids: instance map, corners, visibility.
+
+The instance map is defined at pixel centres: pixel (u, v) belongs to window i when the ray
+through (u, v) hits window i's void rectangle (on the wall's exterior face) before any other
+geometry, where a window's own element (frame, glass) never hides its own void. The void
+rectangles are rasterised here analytically (pixel-centre inside test, ray/plane depth); the
+occluders come from a renderer's exact (non-antialiased) depth + element-id pass.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from renders.camera import Camera
+from scenes.model import WindowGT
+
+OCCLUSION_EPS_M = 0.01  # an occluder must be this much nearer than the void to hide it
+NEAR_M = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class WindowView:
+    """Ground truth of one window in one view (a ``windows`` entry of view.json)."""
+
+    id: str
+    instance_id: int
+    corners_world: np.ndarray  # (4, 3) m
+    corners_px: np.ndarray  # (4, 2) px, distortion included, may lie outside the image
+    corner_visible: tuple[bool, bool, bool, bool]
+    visible_fraction: float
+    visible_px: int
+    incidence_deg: float
+    distance_m: float
+
+    def to_dict(self) -> dict:
+        return {"id": self.id, "instance_id": self.instance_id, "corners_world": self.corners_world.tolist(),
+                "corners_px": self.corners_px.tolist(), "corner_visible": list(self.corner_visible),
+                "visible_fraction": self.visible_fraction, "visible_px": self.visible_px,
+                "incidence_deg": self.incidence_deg, "distance_m": self.distance_m}
+
+
+def clip_near(Xc: np.ndarray, near: float = NEAR_M) -> np.ndarray:
+    """Clip a convex polygon in camera coordinates (N, 3) to z >= near (Sutherland-Hodgman)."""
+    out = []
+    n = len(Xc)
+    for i in range(n):
+        a, b = Xc[i], Xc[(i + 1) % n]
+        ina, inb = a[2] >= near, b[2] >= near
+        if ina:
+            out.append(a)
+        if ina != inb:
+            s = (near - a[2]) / (b[2] - a[2])
+            out.append(a + s * (b - a))
+    return np.array(out).reshape(-1, 3)
+
+
+def polygon_area(p: np.ndarray) -> float:
+    """Unsigned shoelace area of a polygon (N, 2)."""
+    x, y = p[:, 0], p[:, 1]
+    return float(abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))) / 2)
+
+
+def inside_convex(poly: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Boolean mask of points (u, v) (any shape) inside or on a convex polygon (N, 2), either winding."""
+    sign = np.sign(np.dot(poly[:, 0], np.roll(poly[:, 1], -1)) - np.dot(poly[:, 1], np.roll(poly[:, 0], -1)))
+    ok = np.ones(np.broadcast(u, v).shape, bool)
+    for i in range(len(poly)):
+        a, b = poly[i], poly[(i + 1) % len(poly)]
+        ok &= sign * ((b[0] - a[0]) * (v - a[1]) - (b[1] - a[1]) * (u - a[0])) >= 0
+    return ok
+
+
+def void_instances(cam: Camera, windows: tuple[WindowGT, ...], occ_depth: np.ndarray, occ_elem: np.ndarray,
+                   window_elem: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Instance map of window voids for a pinhole camera.
+
+    occ_depth: (H, W) float32 camera z (m) of the nearest surface of all geometry, 0 = nothing;
+    occ_elem: (H, W) int, the element code hit there (0 = non-window geometry);
+    window_elem: (n_windows,) element code of each window's own element (-1 if it has none).
+    Returns instances (H, W) uint16 (0 = none, i+1 = window i) and void depth (H, W) float32.
+    """
+    if cam.dist is not None:
+        raise ValueError("void_instances needs a pinhole camera (use camera.canvas())")
+    H, W = cam.height, cam.width
+    inst = np.zeros((H, W), np.uint16)
+    zbuf = np.full((H, W), np.inf, np.float32)
+    Kinv = np.linalg.inv(cam.K)
+    for i, w in enumerate(windows):
+        Xc = w.corners_world @ cam.R.T + cam.t
+        poly3 = clip_near(Xc)
+        if len(poly3) < 3:
+            continue
+        q = poly3 @ cam.K.T
+        p = q[:, :2] / q[:, 2:3]
+        x0, y0 = np.maximum(np.floor(p.min(axis=0)), 0).astype(int)
+        x1, y1 = np.minimum(np.ceil(p.max(axis=0)), [W - 1, H - 1]).astype(int)
+        if x1 < x0 or y1 < y0:
+            continue
+        uu, vv = np.meshgrid(np.arange(x0, x1 + 1, dtype=np.float64), np.arange(y0, y1 + 1, dtype=np.float64))
+        m = inside_convex(p, uu, vv)
+        n_c = cam.R @ w.normal
+        d = float(n_c @ Xc[0])
+        ray_dot = (Kinv[0, 0] * uu + Kinv[0, 1] * vv + Kinv[0, 2]) * n_c[0] + (Kinv[1, 1] * vv + Kinv[1, 2]) * n_c[1] + n_c[2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = (d / ray_dot).astype(np.float32)
+        od = occ_depth[y0:y1 + 1, x0:x1 + 1]
+        oe = occ_elem[y0:y1 + 1, x0:x1 + 1]
+        free = (od <= 0) | (od >= z - OCCLUSION_EPS_M) | (oe == window_elem[i])
+        zb = zbuf[y0:y1 + 1, x0:x1 + 1]
+        m &= free & (z > 0) & (z < zb)
+        zb[m] = z[m]
+        inst[y0:y1 + 1, x0:x1 + 1][m] = i + 1
+    zbuf[inst == 0] = 0
+    return inst, zbuf
+
+
+def void_area_px(camera: Camera, corners_world: np.ndarray, samples_per_edge: int = 32) -> float:
+    """Area (px^2) of a void's image on an unbounded sensor (near-clipped, distortion included)."""
+    Xc = corners_world @ camera.R.T + camera.t
+    dense = np.concatenate([Xc[i] + np.linspace(0, 1, samples_per_edge, endpoint=False)[:, None] * (Xc[(i + 1) % 4] - Xc[i])
+                            for i in range(4)])
+    dense = clip_near(dense, near=0.05)
+    if len(dense) < 3:
+        return 0.0
+    Xw = (dense - camera.t) @ camera.R  # back to world for Camera.project
+    return polygon_area(camera.project(Xw))
+
+
+def window_views(camera: Camera, windows: tuple[WindowGT, ...], instances: np.ndarray, depth_canvas: np.ndarray,
+                 elem_canvas: np.ndarray, window_elem: np.ndarray) -> tuple[WindowView, ...]:
+    """Per-window ground truth for a rendered view.
+
+    instances: final (H, W) map of ``camera``; depth_canvas / elem_canvas: the occluder pass of
+    ``camera.canvas()`` (used for corner occlusion tests at the pinhole corner positions).
+    """
+    canvas = camera.canvas()
+    counts = np.bincount(instances.ravel(), minlength=len(windows) + 1)
+    C = camera.center
+    out = []
+    for i, w in enumerate(windows):
+        px = camera.project(w.corners_world)
+        z = camera.depths(w.corners_world)
+        pin = canvas.project(w.corners_world)
+        vis = []
+        for k in range(4):
+            ok = z[k] > 0 and -0.5 <= px[k, 0] <= camera.width - 0.5 and -0.5 <= px[k, 1] <= camera.height - 0.5
+            if ok:
+                u = int(np.clip(np.rint(pin[k, 0]), 0, canvas.width - 1))
+                v = int(np.clip(np.rint(pin[k, 1]), 0, canvas.height - 1))
+                od, oe = depth_canvas[v, u], elem_canvas[v, u]
+                ok = bool(od <= 0 or od >= z[k] - OCCLUSION_EPS_M or oe == window_elem[i])
+            vis.append(bool(ok))
+        area = void_area_px(camera, w.corners_world)
+        frac = float(min(1.0, counts[i + 1] / area)) if area > 0 else 0.0
+        to_cam = C - w.center
+        dist = float(np.linalg.norm(to_cam))
+        inc = float(np.degrees(np.arccos(np.clip(to_cam @ w.normal / dist, -1, 1))))
+        out.append(WindowView(w.id, i + 1, np.asarray(w.corners_world, float), px, tuple(vis), frac,
+                              int(counts[i + 1]), inc, dist))
+    return tuple(out)

@@ -1,0 +1,297 @@
+"""Report of a benchmark run, regenerated from its results alone.
+
+    from reports.build import build_report
+    html, md = build_report("out/bench/smoke")    # or: fenestra report out/bench/smoke
+
+Writes ``report.md`` with PNG plots beside it (``figures/``) and a self-contained ``report.html``
+(the same content, images embedded as base64). Inputs: results.parquet (or .csv) and, when present,
+summary.json (metadata and detection AP); summary statistics are recomputed from the table.
+"""
+from __future__ import annotations
+
+import base64
+import html as html_lib
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.stats import wilcoxon
+
+from bench.results import CORNER_STAGES, STAGE_LABELS, load_results, summarize
+from reports import plots
+
+PAIR_KEY = ("house", "view", "window_id")
+
+
+# ---------------------------------------------------------------- numbers
+
+def paired_comparison(df: pd.DataFrame, a: str, b: str, column: str = "corner_err_px_snap"
+                      ) -> dict:
+    """Paired statistics of methods a and b on the same evaluable windows with both estimates.
+
+    Returns {"n", "median_a", "median_b", "median_diff" (a - b, per window), "a_better" (fraction
+    of windows where a < b), "p_value" (two-sided Wilcoxon signed-rank; NaN if n < 5 or all
+    differences are zero)}.
+    """
+    ev = df[df["evaluable"].astype(bool)]
+    key = [k for k in PAIR_KEY if k in ev.columns]
+    A = ev[ev["method"] == a].set_index(key)[column]
+    B = ev[ev["method"] == b].set_index(key)[column]
+    j = pd.concat([A.rename("a"), B.rename("b")], axis=1, join="inner").dropna()
+    d = (j["a"] - j["b"]).to_numpy(float)
+    p = float("nan")
+    if d.size >= 5 and np.any(d != 0):
+        p = float(wilcoxon(j["a"], j["b"], zero_method="wilcox").pvalue)
+    return {"n": int(d.size), "median_a": float(j["a"].median()) if d.size else float("nan"),
+            "median_b": float(j["b"].median()) if d.size else float("nan"),
+            "median_diff": float(np.median(d)) if d.size else float("nan"),
+            "a_better": float(np.mean(d < 0)) if d.size else float("nan"), "p_value": p}
+
+
+def best_method(results: dict, column: str = "corner_err_px_snap", methods=None) -> str | None:
+    """Method with the lowest median of ``column`` (ties: higher detection rate, then name)."""
+    cands = [(r[column]["median"], -np.nan_to_num(r["detection_rate"]), m)
+             for m, r in results.items() if methods is None or m in methods]
+    cands = [c for c in cands if c[0] is not None and np.isfinite(c[0])]
+    return min(cands)[2] if cands else None
+
+
+def comparison_rows(df: pd.DataFrame, results: dict, column: str = "corner_err_px_snap") -> list[dict]:
+    """Each method against the best one (lowest median ``column``) on the same windows."""
+    best = best_method(results, column)
+    if best is None:
+        return []
+    rows = []
+    for m in results:
+        if m == best:
+            continue
+        c = paired_comparison(df, m, best, column)
+        rows.append({"method": m, "vs": best, **c})
+    return sorted(rows, key=lambda r: (np.nan_to_num(r["median_a"], nan=np.inf), r["method"]))
+
+
+def _fmt(x, digits: int = 2) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    if abs(x) != 0 and (abs(x) < 10 ** -digits or abs(x) >= 1e5):
+        return f"{x:.1e}"
+    return f"{x:.{digits}f}"
+
+
+def _md_table(header: list[str], rows: list[list]) -> str:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(_fmt(v) if not isinstance(v, str) else v for v in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def headline_rows(results: dict) -> tuple[list[str], list[list]]:
+    header = ["method", "evaluable", "detected", "failed", "mask med px", "snap med px",
+              "snap p90 px", "snap max px", "reproj med px", "R@1px", "R@2px", "R@5px",
+              "aspect p90", "rot med deg", "normal med deg", "trans med m"]
+    rows = []
+    for m, r in results.items():
+        s = r["corner_err_px_snap"]
+        rows.append([m, r["n_evaluable"], r["detection_rate"], r["failure_rate"],
+                     r["corner_err_px_mask"]["median"], s["median"], s["p90"], s["max"],
+                     r["corner_err_px_reproj"]["median"], s["recall"]["1"], s["recall"]["2"],
+                     s["recall"]["5"], r["aspect_err_rel"]["p90"], r["rot_err_deg"]["median"],
+                     r["normal_err_deg"]["median"], r["trans_err_m"]["median"]])
+    return header, rows
+
+
+def _where_gap(df: pd.DataFrame, a: str, b: str) -> str | None:
+    """Sentence on the condition bin where method a's median snapped error beats b's the most."""
+    ev = df[df["evaluable"].astype(bool)]
+    best = None
+    for cond, label, log in plots.CONDITIONS:
+        edges = plots.condition_edges(ev[cond].to_numpy(float), log, n_bins=4)
+        ga, gb = ev[ev["method"] == a], ev[ev["method"] == b]
+        _, ma, ca = plots.binned_medians(ga[cond].to_numpy(float), ga["corner_err_px_snap"].to_numpy(float), edges, 5)
+        _, mb, _ = plots.binned_medians(gb[cond].to_numpy(float), gb["corner_err_px_snap"].to_numpy(float), edges, 5)
+        for i in range(len(ma)):
+            if np.isfinite(ma[i]) and np.isfinite(mb[i]):
+                gap = mb[i] - ma[i]
+                if best is None or gap > best[0]:
+                    best = (gap, label, edges[i], edges[i + 1], ma[i], mb[i], ca[i])
+    if best is None or best[0] <= 0:
+        return None
+    gap, label, lo, hi, ma, mb, n = best
+    return (f"The gap is largest for {label} in [{_fmt(lo, 1)}, {_fmt(hi, 1)}] ({n} windows): "
+            f"{_fmt(ma)} px against {_fmt(mb)} px.")
+
+
+def narrative(df: pd.DataFrame, results: dict) -> list[str]:
+    """A few sentences saying what the numbers mean, generated from them."""
+    out = []
+    ev = df[df["evaluable"].astype(bool)]
+    n_rows, n_ev = len(df), len(ev)
+    reasons = df.loc[~df["evaluable"].astype(bool), "eval_reason"].value_counts().to_dict() \
+        if "eval_reason" in df.columns else {}
+    out.append(f"{n_rows} rows ({df['method'].nunique()} method combinations); {n_ev} are evaluable"
+               + (f", the rest are not ({', '.join(f'{k}: {v}' for k, v in reasons.items())})."
+                  if reasons else "."))
+    for det in sorted(df["detector"].unique()):
+        ms = [m for m in results if m.startswith(det + "/")]
+        best = best_method(results, methods=ms)
+        if best is None:
+            out.append(f"With detector {det}, no method produced a snapped quad.")
+            continue
+        r = results[best]
+        snapper = best.split("/")[1]
+        text = (f"With detector **{det}**, the best snapper is **{snapper}** ({best}): median "
+                f"snapped corner error {_fmt(r['corner_err_px_snap']['median'])} px "
+                f"(mask-fit alone {_fmt(r['corner_err_px_mask']['median'])} px), "
+                f"{_fmt(100 * (r['corner_err_px_snap']['recall']['2'] or 0), 0)}% of evaluable windows within 2 px, "
+                f"{_fmt(100 * r['detection_rate'], 0)}% detected.")
+        pose = best.split("/")[2]
+        others = [m for m in ms if m.split("/")[2] == pose and m != best]
+        worst = max(others, key=lambda m: np.nan_to_num(results[m]["corner_err_px_snap"]["median"],
+                                                         nan=np.inf), default=None)
+        if worst is not None:
+            c = paired_comparison(df, best, worst)
+            text += (f" The worst snapper, {worst.split('/')[1]}, has median "
+                     f"{_fmt(c['median_b'])} px on the same {c['n']} windows (paired median "
+                     f"difference {_fmt(c['median_diff'])} px, {best.split('/')[1]} better on "
+                     f"{_fmt(100 * c['a_better'], 0)}% of them, Wilcoxon p = {_fmt(c['p_value'], 3)}).")
+            where = _where_gap(df, best, worst)
+            if where:
+                text += " " + where
+        out.append(text)
+        rot_best = min(ms, key=lambda m: np.nan_to_num(results[m]["rot_err_deg"]["median"], nan=np.inf))
+        rr = results[rot_best]
+        out.append(f"Pose with {det}: the lowest median rotation error is {_fmt(rr['rot_err_deg']['median'])} deg "
+                   f"(p90 {_fmt(rr['rot_err_deg']['p90'])} deg, normal {_fmt(rr['normal_err_deg']['median'])} deg) "
+                   f"for {rot_best}; aspect ratio p90 relative error there is {_fmt(rr['aspect_err_rel']['p90'], 3)}.")
+    return out
+
+
+# ---------------------------------------------------------------- documents
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
+
+
+def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
+    """Every figure of the report as PNGs in fig_dir; {section: [paths]}."""
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    figs = {"fig8": [plots.figure8(df, m, fig_dir / f"fig8_{_safe(m)}.png")
+                     for m in sorted(df["method"].unique())]}
+    figs["recall"] = [plots.recall_curves(df, fig_dir / "recall_curves.png")]
+    figs["conditions"] = [plots.error_vs_conditions(df, fig_dir / "error_vs_conditions.png")]
+    figs["aspect_rotation"] = [plots.aspect_rotation(df, fig_dir / "aspect_rotation.png")]
+    return figs
+
+
+def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict) -> list[tuple]:
+    """Report content as ("h", text) / ("p", text) / ("table", header, rows) / ("img", path)."""
+    meta = (summary or {}).get("metadata", {})
+    s: list[tuple] = [("h1", f"Fenestra benchmark report: {meta.get('profile', df['profile'].iloc[0] if 'profile' in df else '?')}")]
+    if meta:
+        st = meta.get("stage_time_s") or {}
+        s.append(("p", f"Commit {meta.get('commit') or 'unknown'}, seed {meta.get('seed')}, "
+                       f"config hash {meta.get('config_hash')}, wall time {_fmt(meta.get('wall_time_s'), 1)} s "
+                       f"({', '.join(f'{k} {_fmt(v, 1)} s' for k, v in st.items())})."))
+        if meta.get("skipped_detectors"):
+            s.append(("p", "Skipped detectors: " + "; ".join(f"{k} ({v})" for k, v in meta["skipped_detectors"].items())))
+    s.append(("h2", "What this means"))
+    s += [("p", t) for t in narrative(df, results)]
+    s.append(("h2", "Strategy comparison"))
+    s.append(("p", "Statistics over evaluable windows. Medians over windows with an estimate; recall (R@x px, "
+                   "snapped corners) counts missed and failed windows as not recalled."))
+    s.append(("table", *headline_rows(results)))
+    comp = comparison_rows(df, results)
+    if comp:
+        s.append(("h3", f"Paired against the best method ({comp[0]['vs']}), snapped corner error on the same windows"))
+        s.append(("table", ["method", "n paired", "median px", "best median px", "median diff px",
+                            "method better on", "Wilcoxon p"],
+                  [[r["method"], r["n"], r["median_a"], r["median_b"], r["median_diff"], r["a_better"],
+                    r["p_value"]] for r in comp]))
+    det = (summary or {}).get("detection") or {}
+    if det:
+        s.append(("h2", "Detection (COCO)"))
+        s.append(("table", ["detector", "bbox AP", "bbox AP50", "segm AP", "segm AP50", "segm AP75",
+                            "detections", "false positives", "GT instances"],
+                  [[d, v.get("bbox_AP"), v.get("bbox_AP50"), v.get("segm_AP"), v.get("segm_AP50"),
+                    v.get("segm_AP75"), v.get("n_detections"), v.get("false_positives"), v.get("n_gt")]
+                   for d, v in det.items()]))
+    s.append(("h2", "Recall curves"))
+    s += [("img", p) for p in figs["recall"]]
+    s.append(("h2", "Error against view conditions"))
+    s += [("img", p) for p in figs["conditions"]]
+    s.append(("h2", "Aspect ratio and rotation errors"))
+    s += [("img", p) for p in figs["aspect_rotation"]]
+    s.append(("h2", "Figure 8 per strategy: corner error at mask-fit, snapped, reprojected"))
+    s += [("img", p) for p in figs["fig8"]]
+    if "eval_reason" in df.columns:
+        s.append(("h2", "Rows by outcome"))
+        tab = df.assign(outcome=np.where(df["evaluable"].astype(bool), df["status"], "not evaluable: " + df["eval_reason"].astype(str)))
+        counts = tab.groupby(["method", "outcome"]).size().unstack(fill_value=0)
+        s.append(("table", ["method", *counts.columns], [[m, *map(int, r)] for m, r in counts.iterrows()]))
+    return s
+
+
+def _to_md(sections: list[tuple], base: Path) -> str:
+    out = []
+    for sec in sections:
+        kind = sec[0]
+        if kind in ("h1", "h2", "h3"):
+            out.append("#" * int(kind[1]) + " " + sec[1])
+        elif kind == "p":
+            out.append(sec[1])
+        elif kind == "table":
+            out.append(_md_table(sec[1], sec[2]))
+        elif kind == "img":
+            out.append(f"![{sec[1].stem}]({sec[1].relative_to(base).as_posix()})")
+    return "\n\n".join(out) + "\n"
+
+
+def _to_html(sections: list[tuple]) -> str:
+    esc = html_lib.escape
+    body = []
+    for sec in sections:
+        kind = sec[0]
+        if kind in ("h1", "h2", "h3"):
+            body.append(f"<{kind}>{esc(sec[1])}</{kind}>")
+        elif kind == "p":
+            body.append("<p>" + re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", esc(sec[1])) + "</p>")
+        elif kind == "table":
+            head = "".join(f"<th>{esc(h)}</th>" for h in sec[1])
+            rows = "".join("<tr>" + "".join(f"<td>{esc(v if isinstance(v, str) else _fmt(v))}</td>" for v in r)
+                           + "</tr>" for r in sec[2])
+            body.append(f"<table><tr>{head}</tr>{rows}</table>")
+        elif kind == "img":
+            b64 = base64.b64encode(sec[1].read_bytes()).decode("ascii")
+            body.append(f'<img alt="{esc(sec[1].stem)}" src="data:image/png;base64,{b64}">')
+    style = ("body{font-family:sans-serif;max-width:1300px;margin:2em auto;color:#222}"
+             "table{border-collapse:collapse;font-size:12px;margin:1em 0}"
+             "td,th{border:1px solid #ccc;padding:3px 6px;text-align:right}"
+             "td:first-child,th:first-child{text-align:left}img{max-width:100%}")
+    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Fenestra report</title>"
+            f"<style>{style}</style></head><body>{''.join(body)}</body></html>\n")
+
+
+def build_report(run_dir: str | Path) -> tuple[Path, Path]:
+    """Write report.html (self-contained) and report.md + figures/ into run_dir; return paths."""
+    import json  # noqa: PLC0415
+
+    run_dir = Path(run_dir)
+    df = load_results(run_dir)
+    if df.empty:
+        raise ValueError(f"{run_dir}: the results table is empty")
+    summary_path = run_dir / "summary.json"
+    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else None
+    results = summarize(df)
+    figs = make_figures(df, run_dir / "figures")
+    sections = _sections(df, results, summary, figs)
+    md, html = run_dir / "report.md", run_dir / "report.html"
+    md.write_text(_to_md(sections, run_dir))
+    html.write_text(_to_html(sections))
+    return html, md
+
+
+__all__ = ["build_report", "paired_comparison", "comparison_rows", "narrative", "best_method",
+           "CORNER_STAGES", "STAGE_LABELS"]

@@ -1,0 +1,155 @@
+"""Matplotlib figures of a results table (one function per figure; PNG path in, PNG path out).
+
+All figures use evaluable rows only (see bench.evaluate.window_conditions). Missed or failed
+windows are not silently dropped: histograms count them in an explicit "no estimate" bar and
+recall curves count them as not recalled.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+os.environ.setdefault("MPLBACKEND", "Agg")
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from bench.results import CORNER_STAGES, STAGE_LABELS  # noqa: E402
+
+HIST_MAX_PX = 20.0  # histogram range; larger errors go to the overflow bar
+STAGE_COLOURS = {"mask": "#888888", "snap": "#1f77b4", "reproj": "#d62728"}
+CONDITIONS = (("incidence_deg", "incidence angle (deg)", False),
+              ("distance_m", "distance (m)", False),
+              ("window_px", "window size: shortest side (px)", True))
+
+
+def _evaluable(df: pd.DataFrame) -> pd.DataFrame:
+    return df[df["evaluable"].astype(bool)]
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def figure8(df: pd.DataFrame, method: str, path: Path) -> Path:
+    """The paper's Figure 8 for one method: corner-error histograms at mask-fit, snapped, reprojected.
+
+    Bars of 0.5 px over [0, HIST_MAX_PX]; one overflow bar for larger errors and one for windows
+    with no estimate (missed or failed at or before that stage).
+    """
+    d = _evaluable(df[df["method"] == method])
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), sharey=True)
+    bins = np.arange(0.0, HIST_MAX_PX + 0.5, 0.5)
+    for ax, stage in zip(axes, CORNER_STAGES):
+        e = d[f"corner_err_px_{stage}"].to_numpy(float)
+        fin = e[np.isfinite(e)]
+        ax.hist(np.minimum(fin, HIST_MAX_PX - 1e-9), bins=bins, color=STAGE_COLOURS[stage])
+        over, none = int((fin > HIST_MAX_PX).sum()), int((~np.isfinite(e)).sum())
+        ax.bar([HIST_MAX_PX + 2.0, HIST_MAX_PX + 5.5], [over, none], width=1.5,
+               color=["#444444", "#bbbbbb"])
+        ax.set_xticks([0, 5, 10, 15, HIST_MAX_PX + 2.0, HIST_MAX_PX + 5.5],
+                      ["0", "5", "10", "15", f">{HIST_MAX_PX:g}", "none"])
+        med = float(np.median(fin)) if fin.size else float("nan")
+        ax.set_title(f"{STAGE_LABELS[stage]}: median {med:.2f} px (n={e.size})", fontsize=10)
+        ax.set_xlabel("mean corner error (px)")
+    axes[0].set_ylabel("windows")
+    fig.suptitle(f"Corner error per stage: {method}", fontsize=11)
+    return _save(fig, path)
+
+
+def _ecdf(e: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """Fraction of e (NaN = not recalled) at or below each x."""
+    e = np.where(np.isfinite(e), e, np.inf)
+    return (e[None, :] <= xs[:, None]).mean(axis=1) if e.size else np.full(xs.shape, np.nan)
+
+
+def recall_curves(df: pd.DataFrame, path: Path) -> Path:
+    """Recall (fraction of evaluable windows within x px) against x, one panel per stage."""
+    d = _evaluable(df)
+    xs = np.linspace(0.0, HIST_MAX_PX, 201)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharey=True)
+    for ax, stage in zip(axes, CORNER_STAGES):
+        for m, g in sorted(d.groupby("method"), key=lambda kv: kv[0]):
+            ax.plot(xs, _ecdf(g[f"corner_err_px_{stage}"].to_numpy(float), xs), label=m, lw=1.4)
+        for th in (1, 2, 5, 10):
+            ax.axvline(th, color="#dddddd", lw=0.8, zorder=0)
+        ax.set_title(STAGE_LABELS[stage])
+        ax.set_xlabel("corner error threshold (px)")
+        ax.set_ylim(0, 1.0)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("recall (fraction of evaluable windows)")
+    axes[-1].legend(fontsize=7, loc="lower right")
+    return _save(fig, path)
+
+
+def binned_medians(x: np.ndarray, y: np.ndarray, edges: np.ndarray, min_count: int = 3
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(bin centres, median of finite y per bin (NaN if < min_count), counts) of y against x."""
+    idx = np.digitize(x, edges) - 1
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    med = np.full(centres.shape, np.nan)
+    cnt = np.zeros(centres.shape, int)
+    for b in range(len(centres)):
+        v = y[(idx == b) & np.isfinite(y)]
+        cnt[b] = v.size
+        if v.size >= min_count:
+            med[b] = np.median(v)
+    return centres, med, cnt
+
+
+def condition_edges(x: np.ndarray, log: bool, n_bins: int = 8) -> np.ndarray:
+    """Bin edges over the finite range of x (log-spaced if log)."""
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return np.array([0.0, 1.0])
+    lo, hi = float(x.min()), float(x.max())
+    if hi <= lo:
+        hi = lo + 1.0
+    if log and lo > 0:
+        return np.geomspace(lo, hi * (1 + 1e-9), n_bins + 1)
+    return np.linspace(lo, hi + 1e-9 * abs(hi), n_bins + 1)
+
+
+def error_vs_conditions(df: pd.DataFrame, path: Path, column: str = "corner_err_px_snap") -> Path:
+    """Binned medians of an error against incidence angle, distance and window pixel size."""
+    d = _evaluable(df)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharey=True)
+    for ax, (cond, label, log) in zip(axes, CONDITIONS):
+        edges = condition_edges(d[cond].to_numpy(float), log)
+        for m, g in sorted(d.groupby("method"), key=lambda kv: kv[0]):
+            c, med, _ = binned_medians(g[cond].to_numpy(float), g[column].to_numpy(float), edges)
+            ax.plot(c, med, marker="o", ms=3, lw=1.2, label=m)
+        if log:
+            ax.set_xscale("log")
+            ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel(f"median {column}")
+    axes[-1].legend(fontsize=7)
+    fig.suptitle(f"Median {column} against view conditions (bins with >= 3 windows)", fontsize=11)
+    return _save(fig, path)
+
+
+def aspect_rotation(df: pd.DataFrame, path: Path) -> Path:
+    """Box plots of relative aspect error and rotation error per method (evaluable, finite)."""
+    d = _evaluable(df)
+    methods = sorted(d["method"].unique())
+    fig, axes = plt.subplots(1, 2, figsize=(13, 0.45 * len(methods) + 1.8))
+    for ax, (col, label) in zip(axes, (("aspect_err_rel", "aspect ratio error (relative)"),
+                                       ("rot_err_deg", "rotation error (deg)"))):
+        data = [d.loc[d["method"] == m, col].dropna().to_numpy(float) for m in methods]
+        data = [v if v.size else np.array([np.nan]) for v in data]
+        ax.boxplot(data, orientation="horizontal", whis=(10, 90), showfliers=False)
+        ax.set_yticks(range(1, len(methods) + 1), methods, fontsize=8)
+        ax.set_xscale("symlog", linthresh=0.01 if col == "aspect_err_rel" else 0.1)
+        ax.set_xlabel(label + " - whiskers p10/p90")
+        ax.grid(alpha=0.3, axis="x")
+    return _save(fig, path)

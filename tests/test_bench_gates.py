@@ -1,0 +1,124 @@
+"""bench.gates and bench.results on a synthetic results table (bench.synthetic: known answers).
+
+The end-to-end gate test with a deliberately broken snapper on real renders is in
+tests/test_bench_runner.py.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bench import gates, results
+from bench.profiles import ProfileError, available_profiles, load_profile, profile_from_dict
+from bench.synthetic import synthetic_results
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("run")
+    df = synthetic_results(n_windows=120, seed=1)
+    results.write_results(df, d)
+    results.write_summary(d, {"profile": "synthetic"}, results.summarize(df))
+    return d
+
+
+GATES = [
+    gates.Gate("synthetic", "oracle/*/*", "corner_err_px_snap.median", max=2.0),
+    gates.Gate("synthetic", "oracle/*/*", "corner_err_px_snap.recall.5", min=0.8),
+    gates.Gate("synthetic", "oracle/*/*", "detection_rate", min=0.9),
+]
+
+
+def test_summary_matches_independent_computation(run_dir):
+    df = results.load_results(run_dir)
+    s = results.load_summary(run_dir)["results"]["oracle/good/lm"]
+    ev = df[(df.method == "oracle/good/lm") & df.evaluable]
+    e = ev.corner_err_px_snap.to_numpy()
+    assert s["n_evaluable"] == len(ev)
+    assert s["corner_err_px_snap"]["median"] == pytest.approx(np.nanmedian(e))
+    assert s["corner_err_px_snap"]["recall"]["2"] == pytest.approx(np.sum(e <= 2) / len(e))
+    assert s["detection_rate"] == pytest.approx(np.mean(ev.status != "missed"))
+    # snapped error = 0.5 x lognormal(median 2 px): median close to 1 px
+    assert 0.8 < s["corner_err_px_snap"]["median"] < 1.2
+
+
+def test_gates_pass_good_fail_bad(run_dir):
+    v = gates.check(run_dir, GATES)
+    failed = {(x.method, x.metric) for x in v}
+    assert ("oracle/bad/lm", "corner_err_px_snap.median") in failed
+    assert ("oracle/bad/lm", "corner_err_px_snap.recall.5") in failed
+    assert not any(x.method == "oracle/good/lm" for x in v)
+    bad = next(x for x in v if x.metric == "corner_err_px_snap.median")
+    assert bad.value > 3.0 and "<= 2" in str(bad) and "oracle/bad/lm" in str(bad)
+
+
+def test_gate_matching_nothing_is_a_violation(run_dir):
+    v = gates.check(run_dir, [gates.Gate("synthetic", "maskrcnn/*/*", "detection_rate", min=0.5)])
+    assert len(v) == 1 and v[0].value is None and "maskrcnn" in str(v[0])
+    with pytest.raises(gates.GateError, match="no gates for profile 'synthetic'"):
+        gates.check(run_dir, [gates.Gate("smoke", "*", "detection_rate", min=0.5)])
+
+
+def test_gates_file_errors_name_the_entry(tmp_path):
+    p = tmp_path / "g.toml"
+    p.write_text('[[gate]]\nprofile = "smoke"\nmethod = "*"\nmetric = "x"\nmaxx = 1\n')
+    with pytest.raises(gates.GateError, match="gate #1.*'maxx'"):
+        gates.load_gates(p)
+    p.write_text('[[gate]]\nprofile = "smoke"\nmethod = "*"\nmetric = "x"\n')
+    with pytest.raises(gates.GateError, match="neither 'min' nor 'max'"):
+        gates.load_gates(p)
+
+
+def test_bundled_gates_file_loads():
+    g = gates.load_gates()
+    assert g and all(x.profile in available_profiles() for x in g)
+
+
+def test_gate_cli_exit_codes(run_dir, tmp_path):
+    p = tmp_path / "g.toml"
+    p.write_text('[[gate]]\nprofile = "synthetic"\nmethod = "oracle/*/*"\n'
+                 'metric = "corner_err_px_snap.median"\nmax = 2.0\n')
+    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1
+    assert "oracle/bad/lm: corner_err_px_snap.median =" in r.stderr and "<= 2" in r.stderr
+    p.write_text(p.read_text().replace("max = 2.0", "max = 50.0"))
+    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+
+
+def test_results_table_needs_columns(tmp_path):
+    df = synthetic_results(n_windows=4).drop(columns=["rot_err_deg"])
+    with pytest.raises(ValueError, match="rot_err_deg"):
+        results.write_results(df, tmp_path)
+
+
+def test_summary_json_has_no_nan(run_dir):
+    text = (run_dir / "summary.json").read_text()
+    assert "NaN" not in text
+    json.loads(text)
+
+
+def test_profiles_load_and_validate():
+    for name in ("smoke", "default", "photoreal"):
+        p = load_profile(name)
+        assert p.name == name and len(p.config_hash()) == 8
+    assert load_profile("smoke").render.renderer == "pyrender"
+    assert load_profile("photoreal").render.renderer == "mitsuba"
+    with pytest.raises(ProfileError, match="unknown key\\(s\\) \\['view'\\]"):
+        profile_from_dict({"name": "x", "render": {"view": 3}})
+    with pytest.raises(ProfileError, match="'views_per_house' has bad value 'many'"):
+        profile_from_dict({"name": "x", "render": {"views_per_house": "many"}})
+    with pytest.raises(ProfileError, match="render.views_per_house has bad value 0"):
+        profile_from_dict({"name": "x", "render": {"views_per_house": 0}})
+    with pytest.raises(ProfileError, match="unknown profile 'nope'"):
+        load_profile("nope")
+    # the hash changes with anything that changes results, not with the description
+    a = profile_from_dict({"name": "x", "description": "a"})
+    assert a.config_hash() == profile_from_dict({"name": "x", "description": "b"}).config_hash()
+    assert a.config_hash() != profile_from_dict({"name": "x", "seed": 1}).config_hash()

@@ -1,0 +1,448 @@
+"""pipeline/export, pipeline/substitute, pipeline/catalogue against an independent synthetic view.
+
+Ground truth: a planar facade with window voids, photographed by a known camera. The photo is made
+here with cv2.warpPerspective of a metric facade canvas (the plane homography K [r1 r2 t]); quads
+are the void corners projected with K by this file's own pinhole formula. Nothing below uses the
+exporters' geometry helpers to produce expected values.
+"""
+from __future__ import annotations
+
+import json
+
+import cv2
+import ifcopenshell
+import ifcopenshell.geom
+import ifcopenshell.util.placement
+import ifcopenshell.validate
+import numpy as np
+import pytest
+import trimesh
+
+from fenestra.conventions import K_from_fov, look_at
+from fenestra.errors import PipelineError
+from pipeline.catalogue import CATALOGUE, window_mesh
+from pipeline.export import write_outputs
+from pipeline.substitute import substitute
+from pipeline.types import WindowResult
+
+IMG_W, IMG_H = 640, 480
+K = K_from_fov(IMG_W, IMG_H, 65.0)
+# Camera pose w.r.t. the facade frame (x along the wall, y up, z outward), OpenCV convention.
+R_F, T_F = look_at([1.8, 1.0, 6.5], [0.8, 0.8, 0.0], up=(0.0, 1.0, 0.0))
+# Voids on the facade: (x0, y0, w, h) m. The third one's reconstruction "fails".
+VOIDS = [(0.0, 0.0, 1.2, 1.5), (2.2, 0.2, 1.0, 1.3), (-2.0, 0.0, 1.0, 1.5)]
+# export world -> camera: x_C = x_E, y_C = -z_E, z_C = y_E (the documented z-up mapping, inverted)
+EXPORT_TO_CAMERA = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+
+
+def pinhole(X_cam: np.ndarray, K: np.ndarray = K) -> np.ndarray:
+    """Camera-frame points (N, 3) -> pixels (N, 2), this test's own projection."""
+    x = np.asarray(X_cam, dtype=np.float64) @ K.T
+    return x[:, :2] / x[:, 2:3]
+
+
+def void_corners_facade(x0, y0, w, h) -> np.ndarray:
+    """TL TR BR BL on the facade, (4, 3) m."""
+    return np.array([[x0, y0 + h, 0], [x0 + w, y0 + h, 0], [x0 + w, y0, 0], [x0, y0, 0]], dtype=np.float64)
+
+
+def gt_quad(i: int) -> np.ndarray:
+    return pinhole(void_corners_facade(*VOIDS[i]) @ R_F.T + T_F)
+
+
+def quad_mask(quad: np.ndarray) -> np.ndarray:
+    m = np.zeros((IMG_H, IMG_W), dtype=np.uint8)
+    cv2.fillPoly(m, [np.round(quad * 16).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
+    return m.astype(bool)
+
+
+def synthetic_photo() -> np.ndarray:
+    """The facade (bricks with noise, dark voids) seen by the camera: (H, W, 3) uint8 BGR."""
+    rng = np.random.default_rng(0)
+    s, xmin, ymax, xs, ys = 100.0, -4.0, 5.0, 12.0, 9.0  # px per m, canvas extent (m)
+    cw, ch = int(xs * s), int(ys * s)
+    canvas = np.empty((ch, cw, 3), dtype=np.float64)
+    canvas[:] = (90, 120, 170)
+    yy, xx = np.mgrid[0:ch, 0:cw]
+    canvas[(yy % 8 == 0) | ((xx + 12 * ((yy // 8) % 2)) % 24 == 0)] = (200, 200, 205)  # mortar
+    canvas += rng.normal(0, 12, canvas.shape)
+    for x0, y0, w, h in VOIDS:
+        a0, a1 = int((x0 - xmin) * s), int((x0 + w - xmin) * s)
+        b0, b1 = int((ymax - y0 - h) * s), int((ymax - y0) * s)
+        canvas[b0:b1, a0:a1] = (45, 40, 35) + rng.normal(0, 5, (b1 - b0, a1 - a0, 3))
+    canvas = np.clip(canvas, 0, 255).astype(np.uint8)
+    A = np.array([[1 / s, 0, xmin + 0.5 / s], [0, -1 / s, ymax - 0.5 / s], [0, 0, 1.0]])
+    Hm = K @ np.column_stack([R_F[:, 0], R_F[:, 1], T_F]) @ A
+    return cv2.warpPerspective(canvas, Hm, (IMG_W, IMG_H), flags=cv2.INTER_LINEAR)
+
+
+def window_result(i: int, height_m: float) -> WindowResult:
+    """The exact reconstruction of void i, with its pose solved at scale ``height_m``."""
+    x0, y0, w, h = VOIDS[i]
+    k = height_m / h  # scale of the pose's metric frame relative to the true one
+    R = R_F
+    t = k * (T_F + R_F @ np.array([x0, y0, 0.0]))
+    q = gt_quad(i)
+    return WindowResult(i, 0.95, q + 0.3, q, w / h, "general", None, R, t, height_m, q, None)
+
+
+def all_results() -> list[WindowResult]:
+    good = [window_result(0, 1.0), window_result(1, 1.3)]  # window 0 at the 1 m default scale
+    failed = WindowResult(2, 0.8, gt_quad(2), gt_quad(2), None, None, None, None, None, 1.0, None,
+                          "pose: solvePnP did not converge")
+    bad_R = WindowResult(3, 0.5, None, None, 1.0, "general", None, 2.0 * np.eye(3), np.array([0, 0, 5.0]),
+                         1.0, None, None)
+    behind = WindowResult(4, 0.5, None, None, 1.0, "general", None, np.eye(3), np.array([0, 0, -5.0]),
+                          1.0, None, None)
+    return good + [failed, bad_R, behind]
+
+
+@pytest.fixture(scope="module")
+def photo() -> np.ndarray:
+    return synthetic_photo()
+
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory, photo):
+    out = tmp_path_factory.mktemp("export")
+    paths = write_outputs(out, photo, K, all_results(), substitute="two-by-two-mullion")
+    return paths, json.loads(paths["manifest"].read_text())
+
+
+@pytest.fixture(scope="module")
+def ifc(outputs):
+    return ifcopenshell.open(str(outputs[0]["ifc"]))
+
+
+def test_outputs_written_and_failed_windows_reported(outputs):
+    paths, manifest = outputs
+    for key in ("ifc", "texture", "obj", "mtl", "glb", "overlay", "inpainted", "substituted", "manifest"):
+        assert paths[key].is_file() and paths[key].stat().st_size > 0, key
+    assert [e["index"] for e in manifest["exported"]] == [0, 1]
+    skipped = {e["index"]: e["reason"] for e in manifest["skipped"]}
+    assert set(skipped) == {2, 3, 4}
+    assert "solvePnP" in skipped[2] and "rotation" in skipped[3] and "in front" in skipped[4]
+
+
+def test_ifc_reopens_and_every_product_geometry_iterates(ifc):
+    assert ifc.schema == "IFC4"
+    assert len(ifc.by_type("IfcWindow")) == 2 and len(ifc.by_type("IfcWall")) == 2
+    assert len(ifc.by_type("IfcRelVoidsElement")) == 2 and len(ifc.by_type("IfcRelFillsElement")) == 2
+    expected = {p.GlobalId for p in ifc.by_type("IfcProduct") if p.Representation is not None}
+    settings = ifcopenshell.geom.settings()
+    settings.set("use-world-coords", True)
+    it = ifcopenshell.geom.iterator(settings, ifc, 1)
+    assert it.initialize()
+    got = set()
+    while True:
+        shape = it.get()
+        assert len(shape.geometry.faces) > 0, shape.guid
+        got.add(shape.guid)
+        if not it.next():
+            break
+    assert {p.GlobalId for p in ifc.by_type("IfcWall") + ifc.by_type("IfcWindow")} <= got
+    assert expected - got <= {o.GlobalId for o in ifc.by_type("IfcOpeningElement")}  # iterator may skip openings
+    for product in ifc.by_type("IfcProduct"):  # ... so build every product's shape one by one too
+        if product.Representation is not None:
+            shape = ifcopenshell.geom.create_shape(settings, product)
+            assert len(shape.geometry.faces) > 0, product
+
+
+def test_ifc_is_schema_valid(ifc):
+    logger = ifcopenshell.validate.json_logger()
+    ifcopenshell.validate.validate(ifc, logger, express_rules=True)
+    assert logger.statements == []
+
+
+def _window_corners_px(window) -> np.ndarray:
+    M = ifcopenshell.util.placement.get_local_placement(window.ObjectPlacement)
+    w, h = window.OverallWidth, window.OverallHeight
+    local = np.array([[0, h, 0, 1], [w, h, 0, 1], [w, 0, 0, 1], [0, 0, 0, 1]], dtype=np.float64)
+    world = (local @ M.T)[:, :3]
+    return pinhole(world @ EXPORT_TO_CAMERA.T)
+
+
+def test_ifc_window_placement_and_size_match_pose(ifc):
+    by_name = {wnd.Name.split()[1]: wnd for wnd in ifc.by_type("IfcWindow")}
+    for i, height_m in ((0, 1.0), (1, 1.3)):
+        wnd = by_name[str(i)]
+        assert wnd.OverallHeight == pytest.approx(height_m, abs=1e-9)
+        assert wnd.OverallWidth / wnd.OverallHeight == pytest.approx(VOIDS[i][2] / VOIDS[i][3], rel=1e-9)
+        assert np.abs(_window_corners_px(wnd) - gt_quad(i)).max() < 0.5
+        # Exact in practice, not just within the 0.5 px requirement.
+        assert np.abs(_window_corners_px(wnd) - gt_quad(i)).max() < 1e-6
+
+
+def _iterated_meshes(ifc, ifc_class):
+    settings = ifcopenshell.geom.settings()
+    settings.set("use-world-coords", True)
+    meshes = {}
+    for product in ifc.by_type(ifc_class):
+        shape = ifcopenshell.geom.create_shape(settings, product)
+        meshes[product.Name.split()[1]] = (np.asarray(shape.geometry.verts).reshape(-1, 3),
+                                           np.asarray(shape.geometry.faces).reshape(-1, 3))
+    return meshes
+
+
+def test_ifc_window_rerendered_covers_void(ifc):
+    for name, (V, F) in _iterated_meshes(ifc, "IfcWindow").items():
+        px = pinhole(V @ EXPORT_TO_CAMERA.T)
+        render = np.zeros((IMG_H, IMG_W), dtype=np.uint8)
+        for tri in F:
+            cv2.fillPoly(render, [np.round(px[tri] * 16).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
+        gt = quad_mask(gt_quad(int(name)))
+        iou = (gt & render.astype(bool)).sum() / (gt | render.astype(bool)).sum()
+        assert iou >= 0.95, (name, iou)
+
+
+def test_ifc_wall_has_void_cut_and_photo_texture(ifc, outputs):
+    paths, manifest = outputs
+    # The iterated wall is the holed fragment: void + 1 m margin, 0.30 m thick, minus the void box.
+    for name, (V, F) in _iterated_meshes(ifc, "IfcWall").items():
+        i = int(name)
+        k = (1.0 if i == 0 else 1.3) / VOIDS[i][3]
+        x0, y0, w, h = VOIDS[i]
+        cam = V @ EXPORT_TO_CAMERA.T
+        facade = ((cam / k - T_F) @ R_F)  # back to the true facade frame (R_F orthonormal)
+        assert facade[:, 0].min() == pytest.approx(x0 - 1.0 / k, abs=1e-6)
+        assert facade[:, 2].min() == pytest.approx(-0.30 / k, abs=1e-6)
+        tri_area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+        front = np.all(np.abs(facade[F][:, :, 2]) < 1e-6, axis=1)
+        assert tri_area[front].sum() == pytest.approx((w + 2 / k) * (h + 2 / k) * k * k - w * h * k * k, rel=1e-6)
+    styles = ifc.by_type("IfcSurfaceStyleWithTextures")
+    assert len(styles) == 1 and styles[0].Textures[0].URLReference == "texture.png"
+    assert (paths["ifc"].parent / "texture.png").is_file()
+
+
+def test_ifc_texture_coordinates_reproduce_projection(ifc, outputs):
+    paths, manifest = outputs
+    tex = manifest["texture"]
+    texture = cv2.imread(str(paths["texture"]))
+    assert texture.shape[:2] == (tex["height"], tex["width"])
+    maps = ifc.by_type("IfcIndexedTriangleTextureMap")
+    assert len(maps) == 2
+    checked = 0
+    for m in maps:
+        faceset = m.MappedTo
+        wall = next(p for p in ifc.by_type("IfcWall")
+                    if faceset in p.Representation.Representations[0].Items)
+        M = ifcopenshell.util.placement.get_local_placement(wall.ObjectPlacement)
+        local = np.asarray(faceset.Coordinates.CoordList)
+        uv = np.asarray(m.TexCoords.TexCoordsList)
+        assert uv.min() >= 0.0 and uv.max() <= 1.0
+        for tri_xyz, tri_uv in zip(faceset.CoordIndex, m.TexCoordIndex):
+            for a, b in zip(tri_xyz, tri_uv):
+                p = local[a - 1]
+                if abs(p[2]) > 1e-9:
+                    continue  # only the exterior face is seen in the photo
+                world = M[:3, :3] @ p + M[:3, 3]
+                expected = pinhole((world @ EXPORT_TO_CAMERA.T)[None])[0]
+                s, t = uv[b - 1]
+                got = np.array([s * tex["width"] - 0.5 - tex["pad_left"],
+                                (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
+                assert np.abs(got - expected).max() < 1e-3
+                checked += 1
+    assert checked >= 2 * 6  # at least the two exterior-face triangles of each wall
+    # The texture's photo region is the inpainted photo.
+    inpainted = cv2.imread(str(paths["inpainted"]))
+    crop = texture[tex["pad_top"]:tex["pad_top"] + IMG_H, tex["pad_left"]:tex["pad_left"] + IMG_W]
+    assert np.array_equal(crop, inpainted)
+
+
+def test_inpainting_fills_every_void_and_keeps_the_rest(outputs, photo):
+    inpainted = cv2.imread(str(outputs[0]["inpainted"]))
+    far = ~cv2.dilate(np.any([quad_mask(gt_quad(i)) for i in range(3)], axis=0).astype(np.uint8),
+                      np.ones((31, 31), np.uint8)).astype(bool)
+    assert np.array_equal(inpainted[far], photo[far])
+    wall_level = np.median(photo[far].astype(float), axis=0)
+    for i in range(3):  # the failed window's void is inpainted too
+        inside = cv2.erode(quad_mask(gt_quad(i)).astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+        before = np.abs(photo[inside].astype(float).mean(axis=0) - wall_level).max()
+        after = np.abs(inpainted[inside].astype(float).mean(axis=0) - wall_level).max()
+        assert after < 0.3 * before, (i, before, after)
+
+
+def test_obj_and_glb_reload_with_trimesh(outputs):
+    paths, _ = outputs
+    for key in ("obj", "glb"):
+        scene = trimesh.load(str(paths[key]), force="scene")
+        meshes = list(scene.geometry.values())
+        walls = [m for m in meshes if m.visual.kind == "texture" and getattr(m.visual, "uv", None) is not None
+                 and len(m.visual.uv)]
+        assert sum(len(m.vertices) for m in walls) == 2 * 16, key  # two holed wall fragments
+        for m in walls:
+            assert m.visual.uv.min() >= 0.0 and m.visual.uv.max() <= 1.0
+            image = getattr(m.visual.material, "baseColorTexture", None) or getattr(m.visual.material, "image", None)
+            assert image is not None and image.size == (IMG_W, IMG_H), key  # the texture came along
+        n_vertices = sum(len(m.vertices) for m in meshes)
+        # 2 walls x 16 + frames and glass (8 per box) of a 2x2 window: 6 + 1 boxes each; OBJ may split/merge.
+        assert 2 * 16 <= n_vertices <= 2 * (16 + 7 * 8) * 3, (key, n_vertices)
+        lo, hi = np.min([m.bounds[0] for m in meshes], axis=0), np.max([m.bounds[1] for m in meshes], axis=0)
+        assert np.all(np.isfinite(lo)) and np.all(hi - lo < 20.0)
+
+
+def test_glb_and_obj_agree_on_wall_uvs(outputs):
+    """glTF stores v downwards; after trimesh's reload both formats must map each vertex alike."""
+    rows = {}
+    for key in ("obj", "glb"):
+        scene = trimesh.load(str(outputs[0][key]), force="scene")
+        walls = [m for m in scene.dump() if m.visual.kind == "texture" and getattr(m.visual, "uv", None) is not None
+                 and len(m.visual.uv)]
+        r = np.round(np.concatenate([np.column_stack([m.vertices, m.visual.uv]) for m in walls]), 4)
+        rows[key] = r[np.lexsort(r.T[::-1])]
+    assert rows["obj"].shape == rows["glb"].shape
+    assert np.abs(rows["obj"] - rows["glb"]).max() < 1e-3
+
+
+def test_obj_wall_uvs_reproduce_projection(outputs):
+    paths, manifest = outputs
+    tex = manifest["texture"]
+    lines = paths["obj"].read_text().splitlines()
+    V = np.array([list(map(float, line.split()[1:])) for line in lines if line.startswith("v ")])
+    VT = np.array([list(map(float, line.split()[1:])) for line in lines if line.startswith("vt ")])
+    pairs = {tuple(map(int, c.split("/"))) for line in lines if line.startswith("f ") and "/" in line
+             for c in line.split()[1:]}
+    errs = []
+    for vi, ti in pairs:
+        cam = EXPORT_TO_CAMERA @ V[vi - 1]
+        expected = pinhole(cam[None])[0]
+        s, t = VT[ti - 1]
+        got = np.array([s * tex["width"] - 0.5 - tex["pad_left"], (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
+        # exterior-face vertices only: those whose facade depth is 0 (checked against the true facade)
+        for i, k in ((0, 1.0 / VOIDS[0][3]), (1, 1.0)):
+            facade = (cam / k - T_F) @ R_F
+            if abs(facade[2]) < 1e-5 and VOIDS[i][0] - 1 / k - 1e-5 <= facade[0] <= VOIDS[i][0] + VOIDS[i][2] + 1 / k + 1e-5:
+                errs.append(np.abs(got - expected).max())
+                break
+    assert len(errs) >= 16 and max(errs) < 0.01  # OBJ stores 6 decimals
+
+
+def _far_from_windows(margin_px: float) -> np.ndarray:
+    """Pixels farther than margin_px from the good voids and the failed one, outside the legend."""
+    near = np.zeros((IMG_H, IMG_W), dtype=np.uint8)
+    for i in range(3):
+        near |= quad_mask(gt_quad(i)).astype(np.uint8)
+    dist = cv2.distanceTransform(1 - near, cv2.DIST_L2, 5)
+    far = dist > margin_px
+    far[:120, :260] = False  # legend
+    return far
+
+
+def test_overlay_draws_on_the_windows_only(outputs, photo):
+    overlay = cv2.imread(str(outputs[0]["overlay"]))
+    assert overlay.shape == photo.shape
+    for i in range(3):
+        edge = quad_mask(gt_quad(i)) & ~cv2.erode(quad_mask(gt_quad(i)).astype(np.uint8),
+                                                 np.ones((5, 5), np.uint8)).astype(bool)
+        assert np.mean(np.any(overlay[edge] != photo[edge], axis=1)) > 0.5, i
+    far = _far_from_windows(120.0)
+    assert far.sum() > 0.2 * far.size
+    assert np.array_equal(overlay[far], photo[far])
+
+
+def test_substitution_renders_into_void(outputs, photo):
+    sub = cv2.imread(str(outputs[0]["substituted"]))
+    inpainted = cv2.imread(str(outputs[0]["inpainted"]))
+    assert sub.shape == photo.shape
+    for i in (0, 1):
+        inside = cv2.erode(quad_mask(gt_quad(i)).astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+        changed = np.any(np.abs(sub.astype(int) - inpainted.astype(int)) > 3, axis=2)
+        assert changed[inside].mean() > 0.95, i
+        # The new frame is white: the void's border ring becomes bright.
+        ring = inside & ~cv2.erode(inside.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+        assert sub[ring].mean() > 180
+    far = _far_from_windows(10.0)
+    assert np.array_equal(sub[far], photo[far])
+    # the failed window (2) is inpainted but gets no substituted window
+    inside2 = cv2.erode(quad_mask(gt_quad(2)).astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+    assert np.array_equal(sub[inside2], inpainted[inside2])
+
+
+def test_substitute_single_window_matches_silhouette(photo):
+    r = window_result(1, 1.3)
+    gt = quad_mask(gt_quad(1))
+    # Over the untouched photo the changed pixels are exactly the rendered window's silhouette.
+    changed = np.any(substitute(photo, K, r, "dark-frame", background=photo) != photo, axis=2)
+    iou = (changed & gt).sum() / (changed | gt).sum()
+    assert iou > 0.95, iou
+    # Default: the void is inpainted first, so only the void and a few px around it change.
+    changed = np.any(substitute(photo, K, r, "dark-frame") != photo, axis=2)
+    assert changed[gt].mean() > 0.95
+    near = cv2.dilate(gt.astype(np.uint8), np.ones((15, 15), np.uint8)).astype(bool)
+    assert not changed[~near].any()
+    with pytest.raises(PipelineError, match="solvePnP"):
+        substitute(photo, K, all_results()[2], "dark-frame")
+    with pytest.raises(ValueError, match="no-such-style"):
+        substitute(photo, K, r, "no-such-style")
+
+
+@pytest.mark.parametrize("name", sorted(CATALOGUE))
+def test_catalogue_geometry_fills_the_void(name):
+    w, h = 1.1, 1.4
+    mesh = window_mesh(name, w, h)
+    style = CATALOGUE[name]
+    assert np.allclose(mesh.vertices.min(axis=0), [0, 0, -style.frame_depth_m])
+    assert np.allclose(mesh.vertices.max(axis=0), [w, h, 0])
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    parts = tm.split(only_watertight=False)
+    assert all(p.is_watertight and p.volume > 0 for p in parts)  # closed boxes, outward normals
+    assert set(mesh.part) == {"frame", "glass"}
+    n_boxes = 4 + style.mullions + style.transoms + 1
+    assert len(mesh.faces) == 12 * n_boxes
+
+
+def test_bad_inputs_raise_clear_errors(tmp_path, photo):
+    with pytest.raises(ValueError, match="too small"):
+        window_mesh("sash-cross", 0.1, 1.0)
+    with pytest.raises(ValueError, match="positive"):
+        window_mesh("sash-cross", -1.0, 1.0)
+    with pytest.raises(PipelineError, match="shape"):
+        write_outputs(tmp_path, photo[:, :, :2], K, [])
+    with pytest.raises(ValueError, match="K"):
+        write_outputs(tmp_path, photo, np.eye(2), [])
+    with pytest.raises(ValueError, match="no-such-style"):
+        write_outputs(tmp_path, photo, K, [], substitute="no-such-style")
+    # A void too small for the style's frame is skipped, not a crash.
+    tiny = WindowResult(5, 0.5, None, None, 0.05, "general", None, R_F, T_F, 1.0, None, None)
+    # No usable window at all: still a valid (empty) model, every window reported.
+    paths = write_outputs(tmp_path / "none", photo, K, all_results()[2:] + [tiny], substitute="sash-cross")
+    skipped = {e["index"]: e["reason"] for e in json.loads(paths["manifest"].read_text())["skipped"]}
+    assert set(skipped) == {2, 3, 4, 5} and "too small" in skipped[5]
+    assert "glb" not in paths and paths["substituted"].is_file()
+    assert len(ifcopenshell.open(str(paths["ifc"])).by_type("IfcWindow")) == 0
+
+
+def test_texture_is_padded_when_the_wall_leaves_the_photo(tmp_path, photo):
+    """Zoomed in 2.5x: the 1 m wall margin projects outside the photo; the texture grows instead of
+    clipping, so every wall vertex's UV still reproduces its projection and lies in [0, 1]."""
+    K_zoom = K.copy()
+    K_zoom[0, 0] *= 2.5
+    K_zoom[1, 1] *= 2.5
+    x0, y0, w, h = VOIDS[0]
+    q = pinhole(void_corners_facade(*VOIDS[0]) @ R_F.T + T_F, K_zoom)
+    r = WindowResult(0, 0.9, q, q, w / h, "general", None, R_F, T_F + R_F @ [x0, y0, 0.0], h, q, None)
+    paths = write_outputs(tmp_path, photo, K_zoom, [r])
+    tex = json.loads(paths["manifest"].read_text())["texture"]
+    assert tex["pad_left"] + tex["pad_right"] + tex["pad_top"] + tex["pad_bottom"] > 0
+    texture = cv2.imread(str(paths["texture"]))
+    assert texture.shape[:2] == (tex["height"], tex["width"])
+    lines = paths["obj"].read_text().splitlines()
+    V = np.array([list(map(float, line.split()[1:])) for line in lines if line.startswith("v ")])
+    VT = np.array([list(map(float, line.split()[1:])) for line in lines if line.startswith("vt ")])
+    assert VT.min() >= 0.0 and VT.max() <= 1.0
+    pairs = {tuple(map(int, c.split("/"))) for line in lines if line.startswith("f ") and "/" in line
+             for c in line.split()[1:]}
+    corners = []
+    for vi, ti in pairs:
+        cam = EXPORT_TO_CAMERA @ V[vi - 1]
+        facade = (cam - T_F) @ R_F
+        if abs(facade[2]) > 1e-5:
+            continue
+        s_, t_ = VT[ti - 1]
+        got = np.array([s_ * tex["width"] - 0.5 - tex["pad_left"], (1 - t_) * tex["height"] - 0.5 - tex["pad_top"]])
+        expected = pinhole(cam[None], K_zoom)[0]
+        assert np.abs(got - expected).max() < 0.01
+        corners.append(expected)
+    corners = np.array(corners)
+    outside = (corners[:, 0] < -0.5) | (corners[:, 0] > IMG_W - 0.5) | (corners[:, 1] < -0.5) | (corners[:, 1] > IMG_H - 0.5)
+    assert outside.any()  # the case under test really happens

@@ -1,0 +1,131 @@
+"""End to end on a synthetic photo: instance map -> windows.json; input files; CLI; import isolation."""
+import ast
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fenestra.conventions import make_K, rotation_error_deg
+from fenestra.errors import PipelineError
+from pipeline.io import read_instance_map, read_K, read_photo
+from pipeline.reconstruct import ReconstructConfig, detections_from_instance_map, reconstruct, windows_to_json
+from pipeline.synthetic import coverage, pixel_centre_mask, view_window
+
+K = make_K(800.0, 800.0, 319.5, 239.5)
+SHAPE = (480, 640)
+PIPELINE = Path(__file__).resolve().parent.parent / "pipeline"
+
+
+def scene():
+    """Two 1.0 x 1.4 m windows on a wall; returns (BGR image, instance map, ground-truth views)."""
+    img, inst, views = np.full(SHAPE, 200.0), np.zeros(SHAPE, np.uint16), []
+    for i, off in enumerate([(-150.0, 0.0), (150.0, 20.0)]):
+        sw = view_window(K, 1.0, 1.4, 25.0, 5.0, 2.0, 6.0, off)
+        img += (40.0 - 200.0) * coverage(sw.corners_px, SHAPE)
+        inst[pixel_centre_mask(sw.corners_px, SHAPE)] = i + 1
+        views.append(sw)
+    bgr = np.repeat(np.clip(np.round(img), 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
+    return bgr, inst, views
+
+
+def test_reconstruct_linefit_exact_scene():
+    bgr, inst, views = scene()
+    res = reconstruct(bgr, K, detections_from_instance_map(inst), ReconstructConfig(snapper="linefit", height_m=1.4))
+    assert len(res) == 2
+    for r, sw in zip(res, views):
+        assert r.failure is None
+        assert np.linalg.norm(r.quad_snapped - sw.corners_px, axis=1).max() < 0.05
+        assert abs(r.aspect_ratio / (1.0 / 1.4) - 1) < 1e-3
+        assert rotation_error_deg(r.R, sw.R) < 0.3
+        assert np.linalg.norm(r.t - sw.t) < 0.01 * np.linalg.norm(sw.t)
+        assert set(r.timings_ms) == {"quad", "snap", "aspect", "pose"}
+    doc = json.loads(json.dumps(windows_to_json(res, K=K, image_size=(640, 480))))
+    w = doc["windows"][0]
+    for key in ("quad_mask", "quad_snapped", "aspect_ratio", "aspect_case", "R", "t", "quad_reprojected",
+                "failure", "timings_ms"):
+        assert key in w
+    assert np.asarray(w["quad_snapped"]).shape == (4, 2) and w["failure"] is None
+
+
+def test_unknown_focal_reconstruct():
+    bgr, inst, views = scene()
+    res = reconstruct(bgr, None, detections_from_instance_map(inst), ReconstructConfig(snapper="linefit"))
+    for r in res:
+        assert r.failure is None and abs(r.focal_estimate_px / 800.0 - 1) < 0.05
+
+
+def test_two_blobs_one_id_is_a_failure_not_a_crash():
+    bgr, inst, _ = scene()
+    inst[inst == 2] = 1  # both windows carry id 1
+    inst[300:340, 300:340] = 3  # a square window, fine
+    res = reconstruct(bgr, K, detections_from_instance_map(inst))
+    assert res[0].failure.startswith("quad: multiple_blobs") and res[0].R is None
+    assert res[1].failure is None
+
+
+def test_empty_mask_and_wrong_shape_mask():
+    from pipeline.types import Detection
+    bgr, _, _ = scene()
+    dets = [Detection(np.zeros(SHAPE, bool), np.zeros(4), 0.9), Detection(np.zeros((10, 10), bool), np.zeros(4), 0.9)]
+    res = reconstruct(bgr, K, dets)
+    assert res[0].failure.startswith("quad: empty_mask") and "mask shape" in res[1].failure
+    with pytest.raises(ValueError, match="unknown snapper"):
+        ReconstructConfig(snapper="magic")
+    with pytest.raises(ValueError, match="K must be 3x3"):
+        reconstruct(bgr, np.eye(4), dets)
+
+
+def test_io_errors(tmp_path):
+    bad = tmp_path / "photo.png"
+    bad.write_bytes(b"not a png")
+    with pytest.raises(PipelineError, match="photo.png"):
+        read_photo(bad)
+    with pytest.raises(PipelineError, match="not found"):
+        read_photo(tmp_path / "missing.jpg")
+    kf = tmp_path / "K.json"
+    kf.write_text(json.dumps({"K": [[800, 0, 320], [0, 800, 240]]}))
+    with pytest.raises(PipelineError, match=r"K must be 3x3, got shape \(2, 3\)"):
+        read_K(kf)
+    kf.write_text(json.dumps({"fx": 700}))
+    assert np.allclose(read_K(kf, (640, 480)), make_K(700, 700, 319.5, 239.5))
+    kf.write_text(json.dumps({"fx": -5, "cx": 1, "cy": 1}))
+    with pytest.raises(PipelineError, match="fx=-5"):
+        read_K(kf)
+    m = tmp_path / "inst.png"
+    cv2.imwrite(str(m), np.zeros((20, 30), np.uint16))
+    with pytest.raises(PipelineError, match="30x20 but the photo is 640x480"):
+        read_instance_map(m, (640, 480))
+    assert read_instance_map(m, (30, 20)).dtype == np.uint16
+
+
+def test_cli_reconstruct(tmp_path):
+    from fenestra.cli import app
+    bgr, inst, _ = scene()
+    cv2.imwrite(str(tmp_path / "photo.png"), bgr)
+    cv2.imwrite(str(tmp_path / "inst.png"), inst)
+    (tmp_path / "K.json").write_text(json.dumps({"K": K.tolist()}))
+    out = tmp_path / "out"
+    r = CliRunner().invoke(app, ["reconstruct", str(tmp_path / "photo.png"), "--K", str(tmp_path / "K.json"),
+                                 "--masks", str(tmp_path / "inst.png"), "--snapper", "linefit",
+                                 "--pose", "ippe", "--height", "1.4", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "windows.json").read_text())
+    assert len(doc["windows"]) == 2 and all(w["failure"] is None for w in doc["windows"])
+    assert "median ms/window" in r.output
+    assert (out / "model.ifc").is_file() and (out / "overlay.png").is_file()
+
+
+def test_pipeline_does_not_import_harness_packages():
+    forbidden = {"bench", "renders", "scenes"}
+    for path in PIPELINE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names = [node.module]
+            for n in names:
+                assert n.split(".")[0] not in forbidden, f"{path} imports {n}"

@@ -1,0 +1,80 @@
+"""Corner snappers on antialiased renders of exactly known quads (exact area coverage + noise)."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fenestra.conventions import make_K
+from pipeline.quad import mask_to_quad
+from pipeline.snappers import SNAPPERS, snap
+from pipeline.synthetic import pixel_centre_mask, render_window_image, view_window
+
+K = make_K(800.0, 800.0, 319.5, 239.5)
+SHAPE = (480, 640)
+# per-strategy bound on the median corner error (px) over the test views, with noise sigma = 2
+MEDIAN_BOUND_PX = {"none": 0.3, "harris": 2.0, "hough": 0.6, "linefit": 0.05, "subpix": 0.5}
+
+
+def cases(n, seed, noise):
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        sw = view_window(K, rng.uniform(0.6, 1.8), rng.uniform(0.8, 1.8), rng.uniform(-45, 45),
+                         rng.uniform(-25, 25), rng.uniform(-10, 10), rng.uniform(5, 9),
+                         tuple(rng.uniform(-80, 80, 2)))
+        gray = render_window_image(sw.corners_px, SHAPE, noise_sigma=noise, seed=i)[:, :, 0]
+        start = mask_to_quad(pixel_centre_mask(sw.corners_px, SHAPE)).quad
+        yield sw.corners_px, gray, start
+
+
+def test_registry_names_and_params():
+    assert set(SNAPPERS) == {"none", "harris", "hough", "linefit", "subpix"}
+    for name, s in SNAPPERS.items():
+        p = s.params()
+        assert dataclasses.is_dataclass(p) and p.__dataclass_params__.frozen
+        assert s.name == name and s.snap.__doc__
+
+
+@pytest.mark.parametrize("name", sorted(SNAPPERS))
+def test_snapper_corner_error(name):
+    errs = []
+    for truth, gray, start in cases(8, seed=1, noise=2.0):
+        q, info = snap(name, gray, start)
+        assert q.shape == (4, 2) and len(info["moved"]) == 4
+        errs.append(np.linalg.norm(q - truth, axis=1))
+    errs = np.concatenate(errs)
+    assert np.median(errs) < MEDIAN_BOUND_PX[name], (name, np.median(errs), errs.max())
+
+
+def test_linefit_subpixel_on_clean_edges():
+    # start 1-2 px off the truth: linefit must land within 0.1 px on clean antialiased edges
+    rng = np.random.default_rng(7)
+    for truth, gray, _ in cases(10, seed=2, noise=0.0):
+        start = truth + rng.uniform(-2.0, 2.0, truth.shape)
+        q, _ = snap("linefit", gray, start)
+        assert np.linalg.norm(q - truth, axis=1).max() <= 0.1
+
+
+def test_linefit_with_noise_beats_mask_quad():
+    e_mask, e_fit = [], []
+    for truth, gray, start in cases(8, seed=3, noise=4.0):
+        e_mask.append(np.linalg.norm(start - truth, axis=1))
+        e_fit.append(np.linalg.norm(snap("linefit", gray, start)[0] - truth, axis=1))
+    assert np.median(e_fit) < 0.1 and np.median(e_fit) < np.median(e_mask)
+
+
+def test_snap_bad_input():
+    gray = np.zeros((50, 50), np.uint8)
+    with pytest.raises(ValueError, match="unknown snapper 'sift'"):
+        snap("sift", gray, np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="shape"):
+        snap("harris", gray, np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="2-D"):
+        snap("linefit", np.zeros((50, 50, 3)), np.zeros((4, 2)))
+
+
+@pytest.mark.parametrize("name", sorted(SNAPPERS))
+def test_flat_image_keeps_corners(name):
+    # nothing to snap to: every strategy must keep the input corners (no crash, no wild jump)
+    quad = np.array([[20.0, 20.0], [80.0, 22.0], [78.0, 70.0], [21.0, 68.0]])
+    q, _ = snap(name, np.full((100, 100), 128, np.uint8), quad)
+    assert np.allclose(q, quad)
