@@ -110,13 +110,17 @@ def render_hash(profile: Profile, house: str) -> str:
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:8]
 
 
-def render_house(profile: Profile, house: str, index: int) -> Path:
-    """Render one house's views with renders/ (reused when already rendered); dataset folder."""
+def render_house(profile: Profile, house: str, index: int, renders_dir: Path | None = None) -> Path:
+    """Render one house's views with renders/ (reused when already rendered); dataset folder.
+
+    Folder: ``<renders_dir>/<house>-<render hash>`` (default renders_dir: out/renders).
+    """
     from renders.dataset import render_dataset  # noqa: PLC0415
 
     from bench.render_adapter import dataset_config  # noqa: PLC0415
 
-    out = OUT_ROOT / "renders" / f"{house.replace(':', '-')}-{render_hash(profile, house)}"
+    root = Path(renders_dir) if renders_dir is not None else OUT_ROOT / "renders"
+    out = root / f"{house.replace(':', '-')}-{render_hash(profile, house)}"
     done = out / ".complete"
     if done.is_file() and (out / "views").is_dir():
         return out
@@ -196,9 +200,13 @@ def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[st
 
 
 def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: int | None = None,
-                  progress: bool = True, report: bool = True, methods: tuple[Method, ...] | None = None
-                  ) -> RunInfo:
-    """Run a profile end to end; see the module docstring. Returns a RunInfo."""
+                  progress: bool = True, report: bool = True, methods: tuple[Method, ...] | None = None,
+                  renders_dir: str | Path | None = None) -> RunInfo:
+    """Run a profile end to end; see the module docstring. Returns a RunInfo.
+
+    methods: override the profile's method combinations (e.g. a test's extra snapper);
+    renders_dir: where cached renders live (default out/renders).
+    """
     t_start = time.perf_counter()
     run_dir = Path(out_dir) if out_dir else default_run_dir(profile)
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -209,7 +217,7 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
     stage_s: dict[str, float] = {}
 
     t0 = time.perf_counter()
-    datasets = [(h, render_house(profile, h, i)) for i, h in enumerate(house_list(profile))]
+    datasets = [(h, render_house(profile, h, i, renders_dir)) for i, h in enumerate(house_list(profile))]
     stage_s["render"] = time.perf_counter() - t0
 
     tasks = _tasks(datasets, profile, methods)

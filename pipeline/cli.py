@@ -5,6 +5,9 @@
         [--substitute STYLE] --out DIR
 
 writes DIR/windows.json and, through pipeline.export, model.ifc, model.obj, overlay.png, ...
+When K.json carries lens distortion (``"distortion": [k1, k2, p1, p2, k3]``, OpenCV), the photo is
+undistorted with the same K first (cv2.undistort) and everything downstream (masks, quads, the
+overlay and the texture) lives in that undistorted image; windows.json says ``"undistorted": true``.
 Also registers the detectors' commands (`fenestra train`, `fenestra evaluate-detector`).
 """
 from __future__ import annotations
@@ -26,7 +29,8 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                     pose: str = "lm", height: float = 1.0, width: Optional[float] = None,
                     substitute: Optional[str] = None, export: bool = True) -> dict:
     """The `reconstruct` command as a function: returns the windows.json dict it wrote."""
-    from pipeline.io import K_from_values, read_instance_map, read_K, read_photo  # noqa: PLC0415
+    from pipeline.io import (Camera, K_from_values, read_camera, read_instance_map,  # noqa: PLC0415
+                             read_photo, undistort_photo)
     from pipeline.reconstruct import (ReconstructConfig, detections_from_instance_map,  # noqa: PLC0415
                                       reconstruct, windows_to_json)
 
@@ -35,11 +39,13 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     if K_json is not None and fx is not None:
         raise PipelineError("give either --K or --fx, not both")
     if K_json is not None:
-        K = read_K(K_json, size)
+        camera = read_camera(K_json, size)
     elif fx is not None:
-        K = K_from_values(fx, fy, cx, cy, size)
+        camera = Camera(K=K_from_values(fx, fy, cx, cy, size))
     else:
         raise PipelineError("intrinsics needed: --K K.json or --fx F [--fy --cx --cy]")
+    K = camera.K
+    image = undistort_photo(image, camera)  # masks (--masks) are taken to be in this frame
     cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width)
     if masks is not None:
         detections = detections_from_instance_map(read_instance_map(masks, size))
@@ -50,6 +56,8 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     results = reconstruct(image, K, detections, cfg)
     out.mkdir(parents=True, exist_ok=True)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
+    doc["undistorted"] = camera.has_distortion
+    doc["distortion"] = None if camera.distortion is None else camera.distortion.tolist()
     (out / "windows.json").write_text(json.dumps(doc, indent=2))
     if export:
         try:
@@ -83,12 +91,15 @@ def register(app: typer.Typer) -> None:
     def reconstruct_cmd(
         photo: Path = typer.Argument(..., help="the photo (any format OpenCV reads)"),
         out: Path = typer.Option(..., "--out", help="output folder"),
-        K_json: Optional[Path] = typer.Option(None, "--K", help='intrinsics JSON: {"K": 3x3} or fx/fy/cx/cy'),
+        K_json: Optional[Path] = typer.Option(None, "--K", help='intrinsics JSON: {"K": 3x3} or fx/fy/cx/cy, optionally with '
+                                              '"distortion": [k1, k2, p1, p2, k3] (OpenCV): the photo is then '
+                                              'undistorted with the same K before anything else'),
         fx: Optional[float] = typer.Option(None, "--fx", help="focal length, px"),
         fy: Optional[float] = typer.Option(None, "--fy", help="focal length y, px (default fx)"),
         cx: Optional[float] = typer.Option(None, "--cx", help="principal point x, px (default image centre)"),
         cy: Optional[float] = typer.Option(None, "--cy", help="principal point y, px (default image centre)"),
-        masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector"),
+        masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector; with "
+                                              "lens distortion in --K it must be in the undistorted photo's frame"),
         detector: str = typer.Option("default", "--detector", help="detector registry name (without --masks)"),
         snapper: str = typer.Option("harris", "--snapper", help="none | harris | hough | linefit | subpix"),
         pose: str = typer.Option("lm", "--pose", help="lm | ippe"),
@@ -100,6 +111,8 @@ def register(app: typer.Typer) -> None:
         doc = run_reconstruct(photo, out, K_json, fx, fy, cx, cy, masks, detector, snapper, pose,
                               height, width, substitute)
         typer.echo(format_table(doc))
+        if doc.get("undistorted"):
+            typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")
         typer.echo(f"wrote {out / 'windows.json'}")
 
     try:

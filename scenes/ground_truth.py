@@ -22,6 +22,9 @@ wall (``IfcRelVoidsElement``; ``IfcWall`` and subtypes, ``IfcCurtainWall``):
    corners; anything else (FZK-Haus's round gable windows) gets its bounding rectangle and
    ``shape="non_rectangular"``.
 
+5. ``notes`` names any other opening of the same wall that overlaps the void (the visible hole is
+   then their union: NiedriHa's Wind-074 and its neighbouring door, by 2.9 mm).
+
 Windows hosted elsewhere (a roof or slab: the Duplex skylights) or whose geometry does not fit the
 above go to ``Scene.skipped`` with the reason; none is dropped silently.
 """

@@ -43,7 +43,8 @@ def test_expected_corners_by_construction():
         u = (b - a) / np.linalg.norm(b - a)
         bl = w.corners_world[3]
         # BL on the exterior face line, inside the wall, at the sill above the storey floor
-        assert abs(np.cross(u, bl[:2] - a)) < 1e-9
+        d = bl[:2] - a
+        assert abs(u[0] * d[1] - u[1] * d[0]) < 1e-9
         assert 0 < (bl[:2] - a) @ u < np.linalg.norm(b - a) - w.width
         assert bl[2] == pytest.approx(w.storey * spec.storey_height + w.sill)
         assert np.linalg.norm(w.corners_world[1] - w.corners_world[0]) == pytest.approx(w.width)

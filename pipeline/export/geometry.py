@@ -32,6 +32,8 @@ CAMERA_TO_EXPORT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
 
 WALL_MARGIN_M = 1.0  # wall fragment extends this far beyond the void on every side
 WALL_THICKNESS_M = 0.30
+WALL_CELL_FRACTION = 0.05  # facade grid cell, as a fraction of the camera distance
+WALL_MAX_CELLS = 64  # ... but at most this many cells along the wall's longer side
 MAX_PAD_FRACTION = 1.0  # texture padding per side, at most this fraction of the photo size
 
 
@@ -100,47 +102,77 @@ def wall_outline(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> np.ndarra
     return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
 
 
-def wall_box_mesh(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M,
-                  thickness_m: float = WALL_THICKNESS_M) -> tuple[np.ndarray, np.ndarray]:
-    """The wall fragment as a closed box (no hole), window frame: (8, 3) vertices, (12, 3) faces.
+def _spans(lo: float, a: float, b: float, hi: float, cell_m: float) -> np.ndarray:
+    """Sorted breakpoints covering [lo, a], [a, b], [b, hi], each split into cells <= cell_m."""
+    parts = [np.linspace(p, q, max(1, int(np.ceil((q - p) / cell_m))) + 1) for p, q in ((lo, a), (a, b), (b, hi))]
+    return np.concatenate([parts[0], parts[1][1:], parts[2][1:]])
 
-    Exterior face at z = 0, interior face at z = -thickness_m. The IFC exporter cuts the void with
-    an IfcOpeningElement; the OBJ/GLB exporter uses :func:`wall_holed_mesh` instead.
+
+def wall_cell_m(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> float:
+    """Grid cell size (m) for the wall's facade: WALL_CELL_FRACTION of the nearest corner's depth.
+
+    Why a grid: texture coordinates are the photo projection of each vertex, which is not affine
+    on a slanted plane; renderers interpolate them affinely in 3D, so one big triangle would smear
+    the photo by pixels (measured: 1-4 px on a 20-degree slanted view). Cells of 5 % of the depth
+    keep it under ~0.05 px (measured with tests/test_pipeline_export.py, pyrender re-render).
     """
-    from pipeline.catalogue import box_mesh  # noqa: PLC0415  (catalogue is a sibling module)
+    depth = pw.to_camera(np.column_stack([wall_outline(pw, margin_m), np.zeros(4)]))[:, 2]
+    near = depth[depth > 1e-6].min() if np.any(depth > 1e-6) else pw.height_m
+    span = max(pw.width_m, pw.height_m) + 2 * margin_m
+    return float(max(WALL_CELL_FRACTION * near, span / WALL_MAX_CELLS))
 
-    o = wall_outline(pw, margin_m)
-    return box_mesh([o[0, 0], o[0, 1], -thickness_m], [o[2, 0], o[2, 1], 0.0])
 
+def wall_mesh(pw: PlacedWindow, hole: bool, margin_m: float = WALL_MARGIN_M,
+              thickness_m: float = WALL_THICKNESS_M, cell_m: float | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The wall fragment as a closed, gridded triangle mesh in the window frame: (N, 3) m, (M, 3).
 
-def wall_holed_mesh(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M,
-                    thickness_m: float = WALL_THICKNESS_M) -> tuple[np.ndarray, np.ndarray]:
-    """The wall fragment with the void cut out, window frame: (16, 3) vertices, (32, 3) faces.
-
-    Vertices 0..3 outer ring and 4..7 void ring on the facade (z = 0), 8..15 the same at
-    z = -thickness_m. Faces wind counter-clockwise seen from outside the solid.
+    Exterior face at z = 0, interior face at z = -thickness_m, outline = void + margin_m on every
+    side; the void's edges are grid lines. ``hole=True`` leaves the void out (OBJ/GLB, with reveal
+    faces); ``hole=False`` gives a solid slab (IFC, where an IfcOpeningElement cuts the void).
+    Faces wind counter-clockwise seen from outside the solid.
     """
-    o = wall_outline(pw, margin_m)
-    w, h = pw.width_m, pw.height_m
-    inner = np.array([[0, 0], [w, 0], [w, h], [0, h]], dtype=np.float64)
-    ring = np.concatenate([o, inner])  # (8, 2)
-    front = np.column_stack([ring, np.zeros(8)])
-    back = np.column_stack([ring, np.full(8, -thickness_m)])
-    V = np.concatenate([front, back])
+    cell = wall_cell_m(pw, margin_m) if cell_m is None else float(cell_m)
+    w, h, m = pw.width_m, pw.height_m, margin_m
+    xs, ys = _spans(-m, 0.0, w, w + m, cell), _spans(-m, 0.0, h, h + m, cell)
+    nx, ny = len(xs), len(ys)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")  # (nx, ny)
+    V = np.concatenate([np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)]) for z in (0.0, -thickness_m)])
+
+    def vid(layer: int, i: int, j: int) -> int:
+        return layer * nx * ny + i * ny + j
+
+    ia, ib = int(np.argmin(np.abs(xs))), int(np.argmin(np.abs(xs - w)))
+    ja, jb = int(np.argmin(np.abs(ys))), int(np.argmin(np.abs(ys - h)))
+    quads = []  # (4 vertex ids, outward normal)
+    for i in range(nx - 1):
+        for j in range(ny - 1):
+            if hole and ia <= i < ib and ja <= j < jb:
+                continue
+            for layer, n in ((0, (0, 0, 1)), (1, (0, 0, -1))):
+                quads.append(([vid(layer, i, j), vid(layer, i + 1, j), vid(layer, i + 1, j + 1), vid(layer, i, j + 1)], n))
+
+    def strip(edge: list[tuple[int, int]], n):  # side faces along a chain of grid points
+        for (i0, j0), (i1, j1) in zip(edge[:-1], edge[1:]):
+            quads.append(([vid(0, i0, j0), vid(0, i1, j1), vid(1, i1, j1), vid(1, i0, j0)], n))
+
+    strip([(i, 0) for i in range(nx)], (0, -1, 0))
+    strip([(i, ny - 1) for i in range(nx)], (0, 1, 0))
+    strip([(0, j) for j in range(ny)], (-1, 0, 0))
+    strip([(nx - 1, j) for j in range(ny)], (1, 0, 0))
+    if hole:  # reveals face into the void
+        strip([(i, ja) for i in range(ia, ib + 1)], (0, 1, 0))
+        strip([(i, jb) for i in range(ia, ib + 1)], (0, -1, 0))
+        strip([(ia, j) for j in range(ja, jb + 1)], (1, 0, 0))
+        strip([(ib, j) for j in range(ja, jb + 1)], (-1, 0, 0))
     faces = []
-    for i in range(4):  # front annulus: quad (outer i, outer i+1, inner i+1, inner i)
-        j = (i + 1) % 4
-        faces += [[i, j, 4 + j], [i, 4 + j, 4 + i]]
-    for i in range(4):  # back annulus, reversed
-        j = (i + 1) % 4
-        faces += [[8 + i, 12 + j, 8 + j], [8 + i, 12 + i, 12 + j]]
-    for i in range(4):  # outer sides (normals point away from the wall)
-        j = (i + 1) % 4
-        faces += [[i, 8 + i, 8 + j], [i, 8 + j, j]]
-    for i in range(4):  # void reveals (normals point into the void)
-        j = (i + 1) % 4
-        faces += [[4 + i, 4 + j, 12 + j], [4 + i, 12 + j, 12 + i]]
-    return V, np.array(faces, dtype=np.int64)
+    for (a, b, c, d), n in quads:
+        for tri in ((a, b, c), (a, c, d)):
+            normal = np.cross(V[tri[1]] - V[tri[0]], V[tri[2]] - V[tri[0]])
+            faces.append(tri if normal @ np.asarray(n, dtype=np.float64) > 0 else tri[::-1])
+    F = np.array(faces, dtype=np.int64)
+    used, inverse = np.unique(F, return_inverse=True)
+    return V[used], inverse.reshape(-1, 3)
 
 
 @dataclass(frozen=True)

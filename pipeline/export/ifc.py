@@ -3,7 +3,7 @@
 World frame and units: see pipeline/export/geometry.py (metres; camera at the origin, z up,
 looking along +y). Per exported window the file holds
 
-    IfcWall            closed IfcTriangulatedFaceSet box (void + 1 m margin, 0.30 m thick) with an
+    IfcWall            closed, gridded IfcTriangulatedFaceSet slab (void + 1 m margin, 0.30 m thick) with an
                        IfcIndexedTriangleTextureMap into texture.png (IfcImageTexture, relative URL),
                        styled by an IfcSurfaceStyle with IfcSurfaceStyleWithTextures
     IfcOpeningElement  the void box, voiding the wall (IfcRelVoidsElement)
@@ -30,7 +30,7 @@ import numpy as np
 
 from pipeline.catalogue import WindowStyle, box_mesh, get_style, window_mesh
 from pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
-                                      facade_pixels, wall_box_mesh)
+                                      facade_pixels, wall_mesh)
 
 OPENING_OVERSHOOT_M = 0.01  # the opening box pokes out of both wall faces (clean booleans)
 
@@ -95,7 +95,7 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
     for pw in placed:
         T = pw.export_matrix()
         # Wall: textured closed box; texture coordinates from the facade position of each vertex.
-        V, F = wall_box_mesh(pw, margin_m, thickness_m)
+        V, F = wall_mesh(pw, False, margin_m, thickness_m)
         wall_items = _faceset(f, V, F)
         uv = layout.uv(facade_pixels(K, pw, V[:, :2]))
         tex_vertices = f.createIfcTextureVertexList([tuple(map(float, p)) for p in uv])

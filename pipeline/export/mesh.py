@@ -13,7 +13,7 @@ import numpy as np
 
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
-                                      facade_pixels, wall_holed_mesh)
+                                      facade_pixels, wall_mesh)
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ def model_parts(K: np.ndarray, placed: list[PlacedWindow], layout: TextureLayout
     style = get_style(style)
     parts = []
     for pw in placed:
-        V, F = wall_holed_mesh(pw, margin_m, thickness_m)
+        V, F = wall_mesh(pw, True, margin_m, thickness_m)
         uv = layout.uv(facade_pixels(K, pw, V[:, :2]))
         parts.append(MeshPart(f"wall_{pw.index}", "photo", pw.to_export(V), F, uv))
         mesh = window_mesh(style, pw.width_m, pw.height_m)

@@ -1,0 +1,168 @@
+"""The dataset writer: sampled views of a scene rendered to the DESIGN.md data contract.
+
+    out/renders/<scene>-<renderer>-<hash>/
+        config.json  sampling.json  coco.json
+        views/000000/image.png  instances.png (16-bit)  view.json
+
+The folder name is a hash of everything that changes the output (scene sha256, sampler config,
+renderer + settings, sensor config, seed, number of views), so re-running a config reuses the
+views already there. Python API: :func:`render_dataset`, :func:`load_view`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from renders.backends import RENDERERS, make_renderer
+from renders.base import RenderOutput, RenderSettings
+from renders.sampler import SamplerConfig, sample_views
+from renders.sensor import SensorConfig, apply_sensor
+from scenes.model import Scene
+
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    """What to render. scene: bundled name or IFC path (or pass a Scene to render_dataset)."""
+
+    scene: str
+    n_views: int = 20
+    seed: int = 0
+    renderer: str = "pyrender"
+    sampler: SamplerConfig = field(default_factory=SamplerConfig)
+    settings: RenderSettings = field(default_factory=RenderSettings)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    out_root: str = "out/renders"
+
+    def __post_init__(self) -> None:
+        if self.n_views < 1:
+            raise ValueError(f"n_views must be >= 1, got {self.n_views}")
+        if self.renderer not in RENDERERS:
+            raise ValueError(f"unknown renderer {self.renderer!r}; choose one of {sorted(RENDERERS)}")
+
+
+def config_hash(config: DatasetConfig, scene: Scene) -> str:
+    """12 hex digits identifying the output of (config, scene); out_root excluded."""
+    d = dataclasses.asdict(config)
+    d.pop("out_root")
+    d["settings"]["seed"] = config.seed
+    d["scene_sha256"] = scene.sha256
+    d["format"] = FORMAT_VERSION
+    return hashlib.sha256(json.dumps(d, sort_keys=True, default=list).encode()).hexdigest()[:12]
+
+
+def dataset_dir(config: DatasetConfig, scene: Scene) -> Path:
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in scene.name)
+    return Path(config.out_root) / f"{safe}-{config.renderer}-{config_hash(config, scene)}"
+
+
+def write_view(view_dir: Path, out: RenderOutput, meta: dict) -> None:
+    """Write image.png, instances.png (16-bit) and view.json of one view (atomically: json last)."""
+    view_dir.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(view_dir / "image.png"), out.rgb[..., ::-1])
+    cv2.imwrite(str(view_dir / "instances.png"), out.instances.astype(np.uint16))
+    tmp = view_dir / "view.json.tmp"
+    tmp.write_text(json.dumps(meta, indent=1))
+    tmp.replace(view_dir / "view.json")
+
+
+def load_view(view_dir: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(image (H, W, 3) uint8 RGB, instances (H, W) uint16, view.json dict) of one view folder."""
+    view_dir = Path(view_dir)
+    if not (view_dir / "view.json").is_file():
+        raise FileNotFoundError(f"{view_dir}: no view.json (not a rendered view folder)")
+    img = cv2.imread(str(view_dir / "image.png"), cv2.IMREAD_COLOR)[..., ::-1].copy()
+    inst = cv2.imread(str(view_dir / "instances.png"), cv2.IMREAD_UNCHANGED)
+    if inst is None or inst.dtype != np.uint16:
+        raise ValueError(f"{view_dir / 'instances.png'}: expected a 16-bit PNG")
+    return img, inst, json.loads((view_dir / "view.json").read_text())
+
+
+def coco_from_views(root: Path, n_views: int) -> dict:
+    """COCO instance annotations (RLE masks) of the views under root/views."""
+    from pycocotools import mask as mask_utils
+
+    images, anns = [], []
+    for i in range(n_views):
+        vdir = root / "views" / f"{i:06d}"
+        _, inst, meta = load_view(vdir)
+        images.append({"id": i, "file_name": f"views/{i:06d}/image.png", "width": meta["width"], "height": meta["height"]})
+        for w in meta["windows"]:
+            m = inst == w["instance_id"]
+            if not m.any():
+                continue
+            rle = mask_utils.encode(np.asfortranarray(m.astype(np.uint8)))
+            bbox = mask_utils.toBbox(rle).tolist()
+            rle["counts"] = rle["counts"].decode("ascii")
+            anns.append({"id": len(anns) + 1, "image_id": i, "category_id": 1, "segmentation": rle,
+                         "area": float(m.sum()), "bbox": bbox, "iscrowd": 0, "window_id": w["id"],
+                         "visible_fraction": w["visible_fraction"]})
+    return {"images": images, "annotations": anns, "categories": [{"id": 1, "name": "window"}]}
+
+
+def _load_scene(config: DatasetConfig) -> Scene:
+    from scenes import load_scene
+
+    return load_scene(config.scene)
+
+
+def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: bool = True) -> Path:
+    """Render (or reuse) the dataset of ``config``; return its folder.
+
+    Views already written by an earlier run of the same config are kept, missing ones rendered.
+    """
+    scene = _load_scene(config) if scene is None else scene
+    root = dataset_dir(config, scene)
+    root.mkdir(parents=True, exist_ok=True)
+    (root / "config.json").write_text(json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
+                                                  "scene_sha256": scene.sha256}, indent=1, default=list))
+    missing = [i for i in range(config.n_views) if not (root / "views" / f"{i:06d}" / "view.json").is_file()]
+    stats = {"rendered": 0, "reused": config.n_views - len(missing), "seconds": 0.0}
+    if missing:
+        settings = dataclasses.replace(config.settings, seed=config.seed)
+        renderer = make_renderer(config.renderer, scene, settings)
+        try:
+            occ = getattr(renderer, "occluders", None)
+            vis = None
+            if occ is not None:
+                from renders.raster import ground_truth
+
+                vis = lambda cam: ground_truth(occ, cam)[2]  # noqa: E731
+            sampling = sample_views(scene, config.sampler, config.n_views, config.seed, visibility=vis)
+            (root / "sampling.json").write_text(json.dumps({"rejected": sampling.rejected, "tries": sampling.tries,
+                                                            "accepted": len(sampling.views)}, indent=1))
+            t0 = time.perf_counter()
+            for i in _progress(missing, progress, f"render {scene.name} ({config.renderer})"):
+                spec = sampling.views[i]
+                out = renderer.render(spec.camera)
+                if config.sensor.active:
+                    rgb = apply_sensor(out.rgb, config.sensor, np.random.default_rng([config.seed, i]))
+                    out = dataclasses.replace(out, rgb=rgb)
+                meta = {**spec.camera.to_dict(), "renderer": config.renderer, "seed": config.seed, "view_index": i,
+                        "mode": spec.mode, "targets": list(spec.targets), "scene": scene.name,
+                        "scene_sha256": scene.sha256, "windows": [w.to_dict() for w in out.windows]}
+                write_view(root / "views" / f"{i:06d}", out, meta)
+            stats["seconds"] = time.perf_counter() - t0
+            stats["rendered"] = len(missing)
+        finally:
+            renderer.close()
+    (root / "coco.json").write_text(json.dumps(coco_from_views(root, config.n_views)))
+    (root / "stats.json").write_text(json.dumps(stats))
+    return root
+
+
+def _progress(items, enabled: bool, label: str):
+    if not enabled:
+        yield from items
+        return
+    from rich.progress import track
+
+    yield from track(items, description=label)

@@ -1,0 +1,134 @@
+"""`fenestra scenes ...` through the real command line (subprocess), good and bad input."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fenestra.errors import SceneError
+from scenes.generate import HouseSpec, make_house
+from scenes.loader import load_scene
+from scenes.registry import BUNDLED, resolve
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def fenestra(*args: str, cache: Path | None = None) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYOPENGL_PLATFORM="egl")
+    if cache is not None:
+        env["FENESTRA_CACHE"] = str(cache)
+    return subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_show_fzk_haus_json():
+    r = fenestra("scenes", "show", "fzk-haus", "--json")
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    assert len(data["windows"]) == 11 and data["skipped"] == []
+    sizes = sorted((round(w["width"], 6), round(w["height"], 6)) for w in data["windows"])
+    assert sizes == [(1.0, 1.0)] * 2 + [(2.0, 1.2)] * 9
+    w = data["windows"][0]
+    assert len(w["corners_world"]) == 4 and len(w["normal"]) == 3 and w["host_id"]
+
+
+def test_show_duplex_reports_skylights():
+    r = fenestra("scenes", "show", "duplex", "--json")
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    assert len(data["windows"]) == 22
+    assert len(data["skipped"]) == 2 and all("IfcRoof" in s["reason"] for s in data["skipped"])
+
+
+def test_show_table_for_humans():
+    r = fenestra("scenes", "show", "duplex")
+    assert r.returncode == 0, r.stderr
+    assert "22 windows" in r.stdout and r.stdout.count("skipped") == 2
+
+
+def test_make_then_show(tmp_path):
+    out = tmp_path / "h.ifc"
+    r = fenestra("scenes", "make", str(out), "--seed", "4", "--rotation-deg", "30",
+                 "--footprint", "0,0;8,0;8,6;0,6", "--json")
+    assert r.returncode == 0, r.stderr
+    made = json.loads(r.stdout)
+    r = fenestra("scenes", "show", str(out), "--json", cache=tmp_path / "c")
+    assert r.returncode == 0, r.stderr
+    shown = {w["id"]: w for w in json.loads(r.stdout)["windows"]}
+    assert len(shown) == len(made["windows"]) == 4
+    for w in made["windows"]:
+        got, want = np.array(shown[w["id"]]["corners_world"]), np.array(w["corners_world"])
+        assert np.abs(got - want).max() <= 1e-6
+
+
+def _bad(tmp_path, name: str, text: bytes) -> Path:
+    p = tmp_path / name
+    p.write_bytes(text)
+    return p
+
+
+def _assert_cli_error(tmp_path, path: Path, *words: str) -> None:
+    r = fenestra("scenes", "show", str(path), cache=tmp_path / "c")
+    assert r.returncode != 0
+    msg = r.stderr.strip()
+    assert msg.startswith("error:") and len(msg.splitlines()) == 1, msg
+    for word in words:
+        assert word in msg, msg
+
+
+def test_missing_file(tmp_path):
+    _assert_cli_error(tmp_path, tmp_path / "nope.ifc", "nope.ifc", "no such file")
+
+
+def test_unknown_name():
+    r = fenestra("scenes", "show", "no-such-house")
+    assert r.returncode != 0 and "unknown scene 'no-such-house'" in r.stderr
+
+
+def test_truncated_ifc(tmp_path):
+    data = BUNDLED["fzk-haus"].read_bytes()
+    p = _bad(tmp_path, "trunc.ifc", data[: len(data) // 3])
+    _assert_cli_error(tmp_path, p, "trunc.ifc", "truncated")
+
+
+def test_corrupt_ifc(tmp_path):
+    p = _bad(tmp_path, "junk.ifc", b"this is not an IFC file\n")
+    _assert_cli_error(tmp_path, p, "junk.ifc", "not an IFC")
+
+
+def test_garbled_body(tmp_path):
+    text = b"ISO-10303-21;\nHEADER;\nGARBAGE\nEND-ISO-10303-21;\n"
+    _assert_cli_error(tmp_path, _bad(tmp_path, "garbled.ifc", text), "garbled.ifc", "unreadable")
+
+
+def test_ifc_without_windows(tmp_path):
+    house = make_house(HouseSpec(windows_per_wall=0), tmp_path / "blind.ifc")
+    assert house.windows == ()
+    _assert_cli_error(tmp_path, Path(house.path), "blind.ifc", "no IfcWindow")
+
+
+def test_window_without_opening(tmp_path):
+    import ifcopenshell
+    house = make_house(HouseSpec(seed=1), tmp_path / "h.ifc")
+    f = ifcopenshell.open(house.path)
+    victim = f.by_type("IfcWindow")[0]
+    f.remove(victim.FillsVoids[0])
+    f.write(str(tmp_path / "loose.ifc"))
+    _assert_cli_error(tmp_path, tmp_path / "loose.ifc", "loose.ifc", victim.GlobalId,
+                      "fills no opening")
+    # non-strict loading keeps the house and lists the window as skipped
+    s = load_scene(tmp_path / "loose.ifc", cache_dir=tmp_path / "c2", strict=False)
+    assert [k.id for k in s.skipped] == [victim.GlobalId] and len(s.windows) == 4
+
+
+def test_resolve_errors_are_scene_errors(tmp_path):
+    with pytest.raises(SceneError, match="unknown scene 'fzk'"):
+        resolve("fzk")
+    with pytest.raises(SceneError, match="not a file"):
+        resolve(tmp_path)
+    assert resolve("samplehouse4") == BUNDLED["samplehouse4"]
