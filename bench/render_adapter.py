@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.profiles import Profile
+from bench.profiles import Profile, ProfileError
 
 PROCEDURAL_DIR = Path("out") / "scenes"
 
@@ -36,6 +36,44 @@ def house_path(house: str) -> str:
     return str(p)
 
 
-def dataset_config(profile: Profile, house: str, index: int, out: Path):
-    """The renders/ dataset config for one house of a profile, writing into ``out``."""
-    raise NotImplementedError("renders.dataset is not available yet")
+OPTION_SECTIONS = ("sampler", "settings", "sensor")
+
+
+def _section(cls, opts: dict, where: str):
+    """cls(**opts) with unknown keys / bad values reported as ProfileError naming them."""
+    import dataclasses  # noqa: PLC0415
+
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(opts) - names)
+    if unknown:
+        raise ProfileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(names)}")
+    try:
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in opts.items()})
+    except (TypeError, ValueError) as e:
+        raise ProfileError(f"{where}: {e}") from e
+
+
+def dataset_config(profile: Profile, house: str, renders_dir: Path):
+    """renders.dataset.DatasetConfig for one house of a profile, rendering under ``renders_dir``.
+
+    ``[render.options.sampler|settings|sensor]`` tables of the profile go to SamplerConfig,
+    RenderSettings and SensorConfig; width/height always come from ``[render]``.
+    """
+    from renders.base import RenderSettings  # noqa: PLC0415
+    from renders.dataset import DatasetConfig  # noqa: PLC0415
+    from renders.sampler import SamplerConfig  # noqa: PLC0415
+    from renders.sensor import SensorConfig  # noqa: PLC0415
+
+    opts = dict(profile.render.options)
+    unknown = sorted(set(opts) - set(OPTION_SECTIONS))
+    if unknown:
+        raise ProfileError(f"profile {profile.name!r} [render.options]: unknown table(s) {unknown}; "
+                           f"allowed: {list(OPTION_SECTIONS)}")
+    where = f"profile {profile.name!r} [render.options.%s]"
+    sampler = {**opts.get("sampler", {}), "width": profile.render.width, "height": profile.render.height}
+    return DatasetConfig(scene=house_path(house), n_views=profile.render.views_per_house,
+                         seed=profile.seed, renderer=profile.render.renderer,
+                         sampler=_section(SamplerConfig, sampler, where % "sampler"),
+                         settings=_section(RenderSettings, opts.get("settings", {}), where % "settings"),
+                         sensor=_section(SensorConfig, opts.get("sensor", {}), where % "sensor"),
+                         out_root=str(renders_dir))

@@ -6,13 +6,11 @@
 Views are evaluated in a process pool (``workers``), with a rich progress bar. Every ground-truth
 window gets one row per method combination (see bench.evaluate). The run folder (default
 ``out/bench/<profile>-<config hash>``) receives results.parquet/.csv, summary.json and the report;
-renders go to ``out/renders/<house>-<render hash>`` and are reused by later runs.
+renders go to ``out/renders`` (renders.dataset names and reuses them by config hash).
 """
 from __future__ import annotations
 
-import hashlib
 import itertools
-import json
 import multiprocessing as mp
 import os
 import time
@@ -104,29 +102,18 @@ def house_list(profile: Profile) -> list[str]:
     return houses + [f"procedural:{seed + i}" for i in range(profile.scenes.procedural)]
 
 
-def render_hash(profile: Profile, house: str) -> str:
-    """8 hex digits of everything that changes a house's renders."""
-    d = {"house": house, "seed": profile.seed, "render": profile.to_dict()["render"]}
-    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:8]
+def render_house(profile: Profile, house: str, renders_dir: Path | None = None,
+                 progress: bool = True) -> Path:
+    """Render one house's views with renders.dataset (which reuses views already rendered).
 
-
-def render_house(profile: Profile, house: str, index: int, renders_dir: Path | None = None) -> Path:
-    """Render one house's views with renders/ (reused when already rendered); dataset folder.
-
-    Folder: ``<renders_dir>/<house>-<render hash>`` (default renders_dir: out/renders).
+    Returns the dataset folder (under ``renders_dir``, default out/renders).
     """
     from renders.dataset import render_dataset  # noqa: PLC0415
 
     from bench.render_adapter import dataset_config  # noqa: PLC0415
 
     root = Path(renders_dir) if renders_dir is not None else OUT_ROOT / "renders"
-    out = root / f"{house.replace(':', '-')}-{render_hash(profile, house)}"
-    done = out / ".complete"
-    if done.is_file() and (out / "views").is_dir():
-        return out
-    path = Path(render_dataset(dataset_config(profile, house, index, out)))
-    done.write_text(json.dumps(profile.to_dict()["render"]))
-    return path
+    return Path(render_dataset(dataset_config(profile, house, root), progress=progress))
 
 
 # ---------------------------------------------------------------- evaluation
@@ -217,7 +204,7 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
     stage_s: dict[str, float] = {}
 
     t0 = time.perf_counter()
-    datasets = [(h, render_house(profile, h, i, renders_dir)) for i, h in enumerate(house_list(profile))]
+    datasets = [(h, render_house(profile, h, renders_dir, progress)) for h in house_list(profile)]
     stage_s["render"] = time.perf_counter() - t0
 
     tasks = _tasks(datasets, profile, methods)

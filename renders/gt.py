@@ -15,7 +15,6 @@ import numpy as np
 from renders.camera import Camera
 from scenes.model import WindowGT
 
-OCCLUSION_EPS_M = 0.01  # an occluder must be this much nearer than the void to hide it
 NEAR_M = 1e-3
 
 
@@ -71,20 +70,37 @@ def inside_convex(poly: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return ok
 
 
+def occlusion_eps_m(z: np.ndarray) -> np.ndarray:
+    """How much nearer (m) than a void an occluder must be to hide it, at void depth z (m):
+    above the 24-bit depth-buffer precision, well below any real protrusion (sills: cm)."""
+    return 0.002 + 2e-4 * z
+
+
 def void_instances(cam: Camera, windows: tuple[WindowGT, ...], occ_depth: np.ndarray, occ_elem: np.ndarray,
-                   window_elem: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                   window_elem: np.ndarray, sample_xy: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Instance map of window voids for a pinhole camera.
 
     occ_depth: (H, W) float32 camera z (m) of the nearest surface of all geometry, 0 = nothing;
     occ_elem: (H, W) int, the element code hit there (0 = non-window geometry);
     window_elem: (n_windows,) element code of each window's own element (-1 if it has none).
-    Returns instances (H, W) uint16 (0 = none, i+1 = window i) and void depth (H, W) float32.
+    sample_xy: optional float maps (Ho, Wo) of where each output pixel samples this camera's image
+    (a distorted camera's inverse map): voids are then tested exactly at those points and
+    occluders looked up at the nearest pixel. Default: the pixel centres of this camera.
+    Returns instances uint16 (0 = none, i+1 = window i) and void depth float32 (0 = none).
     """
     if cam.dist is not None:
         raise ValueError("void_instances needs a pinhole camera (use camera.canvas())")
     H, W = cam.height, cam.width
-    inst = np.zeros((H, W), np.uint16)
-    zbuf = np.full((H, W), np.inf, np.float32)
+    if sample_xy is None:
+        shape = (H, W)
+    else:
+        shape = sample_xy[0].shape
+        sx, sy = sample_xy[0].astype(np.float64), sample_xy[1].astype(np.float64)
+        ix = np.clip(np.rint(sx), 0, W - 1).astype(np.int64)
+        iy = np.clip(np.rint(sy), 0, H - 1).astype(np.int64)
+    inst = np.zeros(shape, np.uint16)
+    zbuf = np.full(shape, np.inf, np.float32)
     Kinv = np.linalg.inv(cam.K)
     for i, w in enumerate(windows):
         Xc = w.corners_world @ cam.R.T + cam.t
@@ -93,24 +109,34 @@ def void_instances(cam: Camera, windows: tuple[WindowGT, ...], occ_depth: np.nda
             continue
         q = poly3 @ cam.K.T
         p = q[:, :2] / q[:, 2:3]
-        x0, y0 = np.maximum(np.floor(p.min(axis=0)), 0).astype(int)
-        x1, y1 = np.minimum(np.ceil(p.max(axis=0)), [W - 1, H - 1]).astype(int)
-        if x1 < x0 or y1 < y0:
-            continue
-        uu, vv = np.meshgrid(np.arange(x0, x1 + 1, dtype=np.float64), np.arange(y0, y1 + 1, dtype=np.float64))
+        if sample_xy is None:
+            x0, y0 = np.maximum(np.floor(p.min(axis=0)), 0).astype(int)
+            x1, y1 = np.minimum(np.ceil(p.max(axis=0)), [W - 1, H - 1]).astype(int)
+            if x1 < x0 or y1 < y0:
+                continue
+            sel = (slice(y0, y1 + 1), slice(x0, x1 + 1))
+            uu, vv = np.meshgrid(np.arange(x0, x1 + 1, dtype=np.float64), np.arange(y0, y1 + 1, dtype=np.float64))
+            od, oe = occ_depth[sel], occ_elem[sel]
+        else:
+            lo, hi = p.min(axis=0), p.max(axis=0)
+            rows = np.nonzero(((sy >= lo[1]) & (sy <= hi[1]) & (sx >= lo[0]) & (sx <= hi[0])).any(axis=1))[0]
+            cols = np.nonzero(((sy >= lo[1]) & (sy <= hi[1]) & (sx >= lo[0]) & (sx <= hi[0])).any(axis=0))[0]
+            if len(rows) == 0:
+                continue
+            sel = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+            uu, vv = sx[sel], sy[sel]
+            od, oe = occ_depth[iy[sel], ix[sel]], occ_elem[iy[sel], ix[sel]]
         m = inside_convex(p, uu, vv)
         n_c = cam.R @ w.normal
         d = float(n_c @ Xc[0])
         ray_dot = (Kinv[0, 0] * uu + Kinv[0, 1] * vv + Kinv[0, 2]) * n_c[0] + (Kinv[1, 1] * vv + Kinv[1, 2]) * n_c[1] + n_c[2]
         with np.errstate(divide="ignore", invalid="ignore"):
             z = (d / ray_dot).astype(np.float32)
-        od = occ_depth[y0:y1 + 1, x0:x1 + 1]
-        oe = occ_elem[y0:y1 + 1, x0:x1 + 1]
-        free = (od <= 0) | (od >= z - OCCLUSION_EPS_M) | (oe == window_elem[i])
-        zb = zbuf[y0:y1 + 1, x0:x1 + 1]
+        free = (od <= 0) | (od >= z - occlusion_eps_m(z)) | (oe == window_elem[i])
+        zb = zbuf[sel]
         m &= free & (z > 0) & (z < zb)
         zb[m] = z[m]
-        inst[y0:y1 + 1, x0:x1 + 1][m] = i + 1
+        inst[sel][m] = i + 1
     zbuf[inst == 0] = 0
     return inst, zbuf
 
@@ -149,7 +175,7 @@ def window_views(camera: Camera, windows: tuple[WindowGT, ...], instances: np.nd
                 u = int(np.clip(np.rint(pin[k, 0]), 0, canvas.width - 1))
                 v = int(np.clip(np.rint(pin[k, 1]), 0, canvas.height - 1))
                 od, oe = depth_canvas[v, u], elem_canvas[v, u]
-                ok = bool(od <= 0 or od >= z[k] - OCCLUSION_EPS_M or oe == window_elem[i])
+                ok = bool(od <= 0 or od >= z[k] - occlusion_eps_m(z[k]) or oe == window_elem[i])
             vis.append(bool(ok))
         area = void_area_px(camera, w.corners_world)
         frac = float(min(1.0, counts[i + 1] / area)) if area > 0 else 0.0

@@ -27,7 +27,7 @@ from renders.materials import (Look, face_normals, group_scene, ground_z, lighti
                                sun_direction)
 from scenes.model import Scene
 
-ZNEAR, ZFAR = 0.05, 2000.0
+ZNEAR, ZFAR = 0.1, 2000.0
 SHADE_LEVELS = 16  # shadow-ratio quantisation levels
 
 
@@ -156,7 +156,8 @@ class OccluderPass:
             for v, f in vfs:
                 V.append(v); F.append(f + off); off += len(v)  # noqa: E702
             prim = pr.Primitive(positions=np.concatenate(V).astype(np.float32),
-                                indices=np.concatenate(F).astype(np.uint32), mode=4)
+                                indices=np.concatenate(F).astype(np.uint32), mode=4,
+                                material=pr.MetallicRoughnessMaterial(doubleSided=True))  # IFC winding varies
             node = self._scene.add(pr.Mesh([prim]))
             self._seg[node] = np.array([code % 256, code // 256, b], np.uint8)
         self._cam_node = None
@@ -210,8 +211,8 @@ def ground_truth(occ: OccluderPass, camera: Camera):
     """Instance map (H, W) uint16, depth (H, W) float32, per-window views and the canvas pass."""
     canvas = camera.canvas()
     depth_c, code_c, shade_c = occ.render_full(canvas)
-    inst_c, _ = void_instances(canvas, occ.scene.windows, depth_c, code_c, occ.window_codes)
-    inst = distort_image(camera, inst_c, nearest=True)
+    maps = None if camera.dist is None else camera.canvas_maps()
+    inst, _ = void_instances(canvas, occ.scene.windows, depth_c, code_c, occ.window_codes, maps)
     depth = distort_image(camera, depth_c, nearest=True)
     wins = window_views(camera, occ.scene.windows, inst, depth_c, code_c, occ.window_codes)
     return inst, depth, wins, (depth_c, shade_c)
