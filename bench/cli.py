@@ -32,7 +32,7 @@ def print_headline(results: dict) -> None:
         t.add_row(r["method"], str(r["n_evaluable"]), _fmt(r["detected"]), _fmt(r["mask_med_px"]),
                   _fmt(r["snap_med_px"]), _fmt(r["snap_p90_px"]), _fmt(r["reproj_med_px"]),
                   _fmt(r["recall_2px_snap"]), _fmt(r["aspect_p90_rel"], 3), _fmt(r["rot_med_deg"]))
-    Console().print(t)
+    Console(width=max(150, Console().width)).print(t)
 
 
 def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile name (bench/profiles) or TOML path"),
@@ -69,9 +69,19 @@ def report(run_dir: Path = typer.Argument(..., help="a run folder with results.p
 
 def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.parquet and summary.json"),
          gates: Path = typer.Option(None, "--gates", help="gates TOML (default bench/gates.toml)"),
-         profile: str = typer.Option(None, "--profile", help="check against this profile's gates")) -> None:
+         profile: str = typer.Option(None, "--profile", help="check against this profile's gates"),
+         suggest: bool = typer.Option(False, "--suggest", help="print gates.toml text from this run's numbers instead"),
+         margin: float = typer.Option(0.5, "--margin", help="with --suggest: relative margin on ceilings")) -> None:
     """Check a run against accuracy gates; exit 1 naming each violated metric, value and bound."""
-    from bench.gates import DEFAULT_GATES, check  # noqa: PLC0415
+    from bench.gates import DEFAULT_GATES, check, suggest_gates  # noqa: PLC0415
+    from bench.results import load_results, load_summary, summarize  # noqa: PLC0415
+
+    if suggest:
+        if margin < 0:
+            raise ValueError(f"--margin must be >= 0, got {margin}")
+        name = profile or load_summary(run_dir)["metadata"].get("profile")
+        typer.echo(suggest_gates(summarize(load_results(run_dir)), name, margin), nl=False)
+        return
 
     violations = check(run_dir, gates or DEFAULT_GATES, profile=profile)
     if violations:

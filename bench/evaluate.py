@@ -81,8 +81,11 @@ def window_conditions(win: dict, meta: dict, instances: np.ndarray, spec: EvalSp
     Keys: incidence_deg, distance_m, visible_fraction, n_corners_visible, corners_in_frame,
     window_px (shortest projected side, px), window_area_px (projected quad area, px^2),
     mask_px (visible pixels in instances.png), gt_width_m, gt_height_m, gt_aspect,
-    evaluable (bool), eval_reason ("" or occluded / out_of_frame / too_small / grazing /
-    behind_camera / not_rendered).
+    evaluable (bool), eval_reason: "" when evaluable, else the first that applies of
+    behind_camera (a corner at depth <= 0), back_facing (incidence >= 90 deg), hidden (no pixel
+    in instances.png, corners in the image), outside_image (no pixel, corners outside),
+    out_of_frame (a corner outside the image), occluded (visible_fraction below the profile's
+    minimum), too_small (shortest side below min_window_px), grazing (incidence above maximum).
     """
     W, H = int(meta["width"]), int(meta["height"])
     q = np.asarray(win["corners_px"], dtype=np.float64)
@@ -108,11 +111,14 @@ def window_conditions(win: dict, meta: dict, instances: np.ndarray, spec: EvalSp
         "gt_height_m": height,
         "gt_aspect": width / height,
     }
+    any_in = bool(np.any((x >= -0.5) & (x <= W - 0.5) & (y >= -0.5) & (y <= H - 0.5)))
     reason = ""
     if not depth_ok:
         reason = "behind_camera"
+    elif c["incidence_deg"] >= 90.0:
+        reason = "back_facing"
     elif mask_px == 0:
-        reason = "not_rendered"
+        reason = "hidden" if any_in else "outside_image"
     elif spec.require_corners_in_frame and not in_frame:
         reason = "out_of_frame"
     elif not c["visible_fraction"] >= spec.min_visible_fraction:

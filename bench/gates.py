@@ -126,3 +126,53 @@ def check(run_dir: str | Path, gates: list[Gate] | str | Path = DEFAULT_GATES,
     if not any(g.profile == profile for g in gates):
         raise GateError(f"no gates for profile {profile!r}; gated profiles: {sorted({g.profile for g in gates})}")
     return check_results(summarize(load_results(run_dir)), profile, gates)
+
+
+# ---------------------------------------------------------------- suggesting gates from a run
+
+# (metric, "max" | "min", absolute slack): ceilings on errors are measured * (1 + margin) + slack;
+# ceilings on rates are measured + slack; floors are measured - slack (rates clipped to [0, 1]).
+GROUP_METRICS = (
+    ("detection_rate", "min", 0.05), ("failure_rate", "max", 0.1),
+    ("corner_err_px_mask.median", "max", 0.1), ("corner_err_px_snap.median", "max", 0.1),
+    ("corner_err_px_snap.p90", "max", 0.2), ("corner_err_px_snap.recall.2", "min", 0.1),
+)
+METHOD_METRICS = (
+    ("corner_err_px_snap.median", "max", 0.1), ("corner_err_px_snap.recall.2", "min", 0.1),
+    ("aspect_err_rel.p90", "max", 0.01), ("rot_err_deg.median", "max", 0.25),
+)
+
+
+def _bound(kind: str, values: list[float], margin: float, slack: float, rate: bool) -> float | None:
+    vals = [v for v in values if v is not None and math.isfinite(v)]
+    if not vals:
+        return None
+    if kind == "max":
+        return min(max(vals) + slack, 1.0) if rate else max(vals) * (1.0 + margin) + slack
+    return max(min(vals) - slack, 0.0)
+
+
+def suggest_gates(results: dict, profile: str, margin: float = 0.5) -> str:
+    """gates.toml text from a run's results: per detector ("det/*/*", worst snapper) and per
+    detector x snapper ("det/snapper/*", worst pose), measured values and margin in comments."""
+    groups: dict[str, list[str]] = {}
+    for m in results:
+        det, snapper, _ = m.split("/")
+        groups.setdefault(f"{det}/*/*", []).append(m)
+        groups.setdefault(f"{det}/{snapper}/*", []).append(m)
+    lines = [f"# Accuracy gates, suggested from measured {profile!r} numbers with margin {margin:.0%}:",
+             "# error ceilings = worst measured * (1 + margin) + slack; rate ceilings = worst + slack;",
+             "# floors = worst measured - slack (slacks: bench/gates.py GROUP_METRICS, METHOD_METRICS).",
+             "# 'det/*/*' bounds every snapper of a detector (so a new or broken snapper is gated too)."]
+    for pattern, methods in sorted(groups.items(), key=lambda kv: (kv[0].count("*") != 2, kv[0])):
+        for metric, kind, slack in (GROUP_METRICS if pattern.endswith("/*/*") else METHOD_METRICS):
+            vals = [metric_value(results[m], metric) for m in methods]
+            b = _bound(kind, vals, margin, slack, rate=metric.endswith("rate") or ".recall." in metric)
+            if b is None:
+                continue
+            fin = [v for v in vals if v is not None and math.isfinite(v)]
+            lines += ["", "[[gate]]", f"# measured over {len(methods)} method(s): "
+                      f"{min(fin):.4g} .. {max(fin):.4g}",
+                      f'profile = "{profile}"', f'method = "{pattern}"', f'metric = "{metric}"',
+                      f"{kind} = {b:.4g}"]
+    return "\n".join(lines) + "\n"

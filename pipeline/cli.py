@@ -92,8 +92,8 @@ def register(app: typer.Typer) -> None:
         photo: Path = typer.Argument(..., help="the photo (any format OpenCV reads)"),
         out: Path = typer.Option(..., "--out", help="output folder"),
         K_json: Optional[Path] = typer.Option(None, "--K", help='intrinsics JSON: {"K": 3x3} or fx/fy/cx/cy, optionally with '
-                                              '"distortion": [k1, k2, p1, p2, k3] (OpenCV): the photo is then '
-                                              'undistorted with the same K before anything else'),
+                                              '"distortion": OpenCV coefficients k1, k2, p1, p2, k3 (a list): the '
+                                              'photo is then undistorted with the same K before anything else'),
         fx: Optional[float] = typer.Option(None, "--fx", help="focal length, px"),
         fy: Optional[float] = typer.Option(None, "--fy", help="focal length y, px (default fx)"),
         cx: Optional[float] = typer.Option(None, "--cx", help="principal point x, px (default image centre)"),

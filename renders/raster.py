@@ -155,9 +155,11 @@ class OccluderPass:
             V, F, off = [], [], 0
             for v, f in vfs:
                 V.append(v); F.append(f + off); off += len(v)  # noqa: E702
+            F = np.concatenate(F)
+            # pyrender culls back faces in SEG mode whatever the material says, and IFC winding
+            # varies: draw every triangle in both windings.
             prim = pr.Primitive(positions=np.concatenate(V).astype(np.float32),
-                                indices=np.concatenate(F).astype(np.uint32), mode=4,
-                                material=pr.MetallicRoughnessMaterial(doubleSided=True))  # IFC winding varies
+                                indices=np.concatenate([F, F[:, ::-1]]).astype(np.uint32), mode=4)
             node = self._scene.add(pr.Mesh([prim]))
             self._seg[node] = np.array([code % 256, code // 256, b], np.uint8)
         self._cam_node = None

@@ -69,7 +69,7 @@ def test_every_gt_window_gets_a_row_per_method(view_dir):
     assert len(out.rows) == 4 * 2
     by = {(r["window_id"], r["pose"]): r for r in out.rows}
     assert by[("W3", "lm")]["eval_reason"] == "out_of_frame" and not by[("W3", "lm")]["evaluable"]
-    assert by[("W4", "lm")]["status"] == "missed" and by[("W4", "lm")]["eval_reason"] == "not_rendered"
+    assert by[("W4", "lm")]["status"] == "missed" and by[("W4", "lm")]["eval_reason"] == "hidden"
     assert np.isnan(by[("W4", "lm")]["corner_err_px_snap"])
     for w in ("W1", "W2"):
         r = by[(w, "lm")]

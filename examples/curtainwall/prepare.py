@@ -83,11 +83,13 @@ def main() -> None:
         inst = pane_instances(glass_mask(rgba), a.scale, a.min_area_px)
         cv2.imwrite(str(a.out / f"panes{n}.png"), inst)
         print(f"img{n}.jpg {img.shape[1]}x{img.shape[0]}, panes{n}.png: {int(inst.max())} panes")
-    K = {"K": scaled_K(a.scale), "distortion": DISTORTION, "width": round(1536 * a.scale),
-         "height": round(2048 * a.scale),
-         "source": "Glass Curtain Wall Installation Dataset user guide (1536x2048 px), "
-                   f"scaled by {a.scale} with c' = (c + 0.5) s - 0.5"}
-    (a.out / "K.json").write_text(json.dumps(K, indent=2) + "\n")
+    rows = ",\n        ".join(json.dumps(r) for r in scaled_K(a.scale))
+    note = ("Glass Curtain Wall Installation Dataset user guide calibration (1536x2048 px), "
+            f"scaled by {a.scale:g}: f' = s f, c' = (c + 0.5) s - 0.5")
+    (a.out / "K.json").write_text(
+        f'{{\n  "K": [{rows}],\n  "distortion": {json.dumps(DISTORTION)},\n'
+        f'  "width": {round(1536 * a.scale)},\n  "height": {round(2048 * a.scale)},\n'
+        f'  "source": {json.dumps(note)}\n}}\n')
 
 
 if __name__ == "__main__":

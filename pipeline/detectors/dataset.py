@@ -46,6 +46,26 @@ def list_views(dataset_dir: str | Path) -> list[ViewFiles]:
     return out
 
 
+def find_datasets(paths) -> list[Path]:
+    """Dataset folders (those with a views/ directory) among ``paths`` and up to 2 levels below.
+
+    Lets a config name a root such as ``out/detector-data/train`` holding many rendered datasets.
+    Raises DatasetError naming a path that is missing or holds no dataset.
+    """
+    found: list[Path] = []
+    for p in (Path(x) for x in paths):
+        if not p.is_dir():
+            raise DatasetError(f"dataset path {p} does not exist")
+        if (p / "views").is_dir():
+            found.append(p)
+            continue
+        below = sorted({v.parent for v in list(p.glob("*/views")) + list(p.glob("*/*/views")) if v.is_dir()})
+        if not below:
+            raise DatasetError(f"{p} holds no dataset folder (no views/ inside it or below it)")
+        found += below
+    return found
+
+
 def read_image(path: str | Path) -> np.ndarray:
     """RGB image (H, W, 3) uint8 from a PNG/JPEG file (alpha dropped, grey expanded)."""
     raw = cv2.imread(str(path), cv2.IMREAD_COLOR)

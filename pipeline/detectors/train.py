@@ -23,7 +23,7 @@ import torch
 import torch.nn.functional as F
 
 from pipeline.detectors.augment import AugmentConfig, photometric, random_scale_crop
-from pipeline.detectors.dataset import list_views, read_image, read_instances
+from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
 
 ARCHS = ("winnet", "maskrcnn")
 
@@ -32,7 +32,7 @@ ARCHS = ("winnet", "maskrcnn")
 class TrainConfig:
     """Everything that determines a training run (paths relative to the working directory).
 
-    data: dataset folders; views: at most this many views per folder (None: all, evenly spaced).
+    data: dataset folders, or roots holding them (see dataset.find_datasets); views: at most this many views per folder (None: all, evenly spaced).
     iterations, batch_size, crop_hw (px), lr (peak, one-cycle cosine), weight_decay.
     winnet_widths: WinNet channels per level; core_shrink_px/frac: the core target (see winnet).
     maskrcnn_min_size/max_size: Mask R-CNN's internal resize (small for CPU smoke runs).
@@ -101,12 +101,13 @@ def load_views(dirs: tuple[str, ...], max_views: int | None) -> list[tuple[np.nd
     if not dirs:
         raise ValueError("no training data: give dataset folders (config `data` or --data DIR)")
     out = []
-    for d in dirs:
+    for d in find_datasets(dirs):
         views = list_views(d)
         if max_views is not None and len(views) > max_views:
             views = [views[i] for i in np.linspace(0, len(views) - 1, max_views).round().astype(int)]
         for v in views:
-            out.append((read_image(v.image), read_instances(v.instances)))
+            inst = read_instances(v.instances)
+            out.append((read_image(v.image), inst.astype(np.uint16 if inst.max() < 65536 else np.int32)))
         print(f"loaded {len(views)} views from {d}", flush=True)
     return out
 

@@ -1,0 +1,152 @@
+"""renders/: mitsuba camera convention, backend agreement, dataset determinism, sampler, sensor."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from fenestra.conventions import TOL, look_at, make_K
+from renders.base import RenderSettings
+from renders.camera import Camera
+from renders.dataset import DatasetConfig, load_view, render_dataset
+from renders.sampler import SamplerConfig, sample_views
+from renders.sensor import REALISTIC, SensorConfig, apply_sensor
+from renders.synthetic import wall_scene
+
+SMALL = SamplerConfig(width=160, height=120, street_fraction=0.3, distance_m=(3.0, 8.0))
+
+
+def test_mitsuba_camera_matches_projection():
+    """An emitting quad, box pixel filter: pixel values = coverage; area and centroid pin the camera."""
+    from renders.gt import polygon_area
+    from renders.photoreal import import_mitsuba, mesh_object, mitsuba_sensor
+
+    mi = import_mitsuba()
+    W, H = 160, 120
+    R, t = look_at([0.3, -4, 1.9], [0.6, 0, 1.5], roll_deg=7)
+    cam = Camera(make_K(150, 150, 70.3, 66.8), W, H, R, t)  # off-centre principal point
+    quad = np.array([[0, 0, 2], [1.2, 0, 2.2], [1.1, 0, 1.1], [0.1, 0, 1.0]])
+    scene = mi.load_dict({"type": "scene", "integrator": {"type": "direct"},
+                          "q": mesh_object(mi, "q", quad, np.array([[0, 2, 1], [0, 3, 2]]), {"type": "diffuse"},
+                                           emitter={"type": "area", "radiance": {"type": "rgb", "value": 1.0}})})
+    img = np.array(mi.render(scene, sensor=mi.load_dict(mitsuba_sensor(mi, cam, 256, "box"))))[..., 0]
+    px = cam.project(quad)
+    x, y = px[:, 0], px[:, 1]
+    x1, y1 = np.roll(x, -1), np.roll(y, -1)
+    cr = x * y1 - x1 * y
+    A = cr.sum() / 2
+    uu, vv = np.meshgrid(np.arange(W), np.arange(H))
+    cx, cy = (img * uu).sum() / img.sum(), (img * vv).sum() / img.sum()
+    assert abs(img.sum() - polygon_area(px)) < 0.01 * polygon_area(px)
+    assert abs(cx - ((x + x1) * cr).sum() / (6 * A)) < TOL.projection_vs_mask_px
+    assert abs(cy - ((y + y1) * cr).sum() / (6 * A)) < TOL.projection_vs_mask_px
+
+
+def test_backends_agree_and_mitsuba_renders_daylight():
+    from renders.backends import make_renderer
+
+    scene = wall_scene(sill_top=1.2)
+    R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
+    cam = Camera.from_fov(160, 120, 60, R, t)
+    outs = {}
+    for name in ("pyrender", "mitsuba"):
+        r = make_renderer(name, scene, RenderSettings(seed=1, spp=4))
+        try:
+            outs[name] = r.render(cam)
+        finally:
+            r.close()
+    a, b = outs["pyrender"].instances, outs["mitsuba"].instances
+    for i in range(1, len(scene.windows) + 1):
+        inter, union = ((a == i) & (b == i)).sum(), ((a == i) | (b == i)).sum()
+        assert union > 0 and inter / union >= TOL.backend_instance_iou
+    rgb = outs["mitsuba"].rgb
+    assert rgb.shape == (120, 160, 3) and rgb.dtype == np.uint8
+    assert rgb[:10].mean(axis=(0, 1))[2] > rgb[:10].mean(axis=(0, 1))[0]  # blue sky at the top
+    assert rgb.std() > 20  # not a flat image
+    with pytest.raises(ValueError, match="unknown renderer"):
+        make_renderer("povray", scene)
+
+
+def test_sampler_is_deterministic_and_counts_rejections():
+    scene = wall_scene()
+    a = sample_views(scene, SMALL, 6, seed=3)
+    b = sample_views(scene, SMALL, 6, seed=3)
+    c = sample_views(scene, SMALL, 6, seed=4)
+    for va, vb in zip(a.views, b.views):
+        np.testing.assert_array_equal(va.camera.R, vb.camera.R)
+    assert not np.allclose(a.views[0].camera.t, c.views[0].camera.t)
+    assert a.tries == 6 + sum(a.rejected.values())
+    for v in a.views:  # every accepted target is in front and inside the frame
+        for wid in v.targets:
+            w = next(w for w in scene.windows if w.id == wid)
+            px = v.camera.project(w.corners_world)
+            assert np.all(v.camera.depths(w.corners_world) > 0)
+            assert np.all((px >= -0.5) & (px <= [159.5, 119.5]))
+    tight = SamplerConfig(width=160, height=120, hfov_deg=(10, 10), distance_m=(2, 2), max_tries=5)
+    with pytest.raises(ValueError, match="outside_frame"):
+        sample_views(scene, tight, 3, seed=0)
+    with pytest.raises(ValueError, match="hfov_deg"):
+        SamplerConfig(hfov_deg=(70, 50))
+
+
+def test_dataset_same_seed_same_files_and_reuse(tmp_path):
+    scene = wall_scene(sill_top=1.2)
+    cfg = DatasetConfig(scene="test-wall", n_views=3, seed=5, sampler=SMALL, out_root=str(tmp_path / "a"))
+    root_a = render_dataset(cfg, scene=scene, progress=False)
+    root_b = render_dataset(DatasetConfig(**{**cfg.__dict__, "out_root": str(tmp_path / "b")}), scene=scene,
+                            progress=False)
+    for i in range(3):
+        for f in ("image.png", "instances.png", "view.json"):
+            assert (root_a / "views" / f"{i:06d}" / f).read_bytes() == (root_b / "views" / f"{i:06d}" / f).read_bytes()
+    img, inst, meta = load_view(root_a / "views" / "000000")
+    assert img.shape == (120, 160, 3) and inst.dtype == np.uint16
+    assert set(meta) >= {"K", "width", "height", "R", "t", "distortion", "renderer", "seed", "windows"}
+    w = meta["windows"][0]
+    assert set(w) >= {"id", "instance_id", "corners_world", "corners_px", "corner_visible", "visible_fraction",
+                      "incidence_deg", "distance_m"}
+    coco = json.loads((root_a / "coco.json").read_text())
+    assert coco["categories"] == [{"id": 1, "name": "window"}] and len(coco["images"]) == 3
+    from pycocotools import mask as mask_utils
+
+    ann = coco["annotations"][0]
+    _, inst0, meta0 = load_view(root_a / "views" / f"{ann['image_id']:06d}")
+    wid = next(x["instance_id"] for x in meta0["windows"] if x["id"] == ann["window_id"])
+    np.testing.assert_array_equal(mask_utils.decode(ann["segmentation"]).astype(bool), inst0 == wid)
+    # same config again: everything reused
+    assert render_dataset(cfg, scene=scene, progress=False) == root_a
+    assert json.loads((root_a / "stats.json").read_text())["reused"] == 3
+    # a different seed: a different folder and different cameras
+    root_c = render_dataset(DatasetConfig(**{**cfg.__dict__, "seed": 6}), scene=scene, progress=False)
+    assert root_c != root_a
+    assert load_view(root_c / "views" / "000000")[2]["t"] != meta["t"]
+
+
+def test_sensor_changes_images_only():
+    rgb = np.full((40, 50, 3), 120, np.uint8)
+    out = apply_sensor(rgb, REALISTIC, np.random.default_rng(0))
+    assert out.shape == rgb.shape and out.dtype == np.uint8 and not np.array_equal(out, rgb)
+    assert np.array_equal(rgb, np.full((40, 50, 3), 120, np.uint8))  # input untouched
+    assert np.array_equal(apply_sensor(rgb, SensorConfig(), np.random.default_rng(0)), rgb)
+    with pytest.raises(ValueError, match="uint8"):
+        apply_sensor(rgb.astype(np.float32), REALISTIC, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="jpeg_quality"):
+        SensorConfig(jpeg_quality=(0, 120))
+
+
+def test_fzk_haus_views_have_consistent_ground_truth():
+    from renders.raster import RasterRenderer
+    from scenes import load_scene
+
+    scene = load_scene("fzk-haus")
+    res = sample_views(scene, SamplerConfig(width=320, height=240, street_fraction=0.5), 3, seed=0)
+    with RasterRenderer(scene) as r:
+        for v in res.views:
+            out = r.render(v.camera)
+            ids = set(np.unique(out.instances)) - {0}
+            assert ids <= set(range(1, len(scene.windows) + 1))
+            for w in out.windows:
+                assert 0.0 <= w.visible_fraction <= 1.0
+                assert w.visible_px == int((out.instances == w.instance_id).sum())
+            t = next(w for w in out.windows if w.id == v.targets[0])
+            assert t.visible_px > 0
