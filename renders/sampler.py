@@ -18,7 +18,7 @@ from renders.gt import WindowView
 from renders.materials import ground_z
 from scenes.model import Scene
 
-REJECT_REASONS = ("below_ground", "behind_camera", "outside_frame", "low_visibility")
+REJECT_REASONS = ("below_ground", "behind_camera", "facing_away", "outside_frame", "low_visibility")
 
 
 def _range(name: str, r) -> tuple[float, float]:
@@ -125,6 +125,11 @@ def propose(scene: Scene, cfg: SamplerConfig, rng: np.random.Generator, gz: floa
     return ViewSpec(cam, "street" if street else "window", (w.id,))
 
 
+def faces_camera(cam: Camera, w) -> bool:
+    """True when the camera is on the outer side of the window's wall face."""
+    return float((cam.center - w.center) @ w.normal) > 0
+
+
 def in_frame(cam: Camera, corners_world: np.ndarray) -> tuple[bool, bool]:
     """(all corners in front of the camera, all corners inside the image)."""
     if np.any(cam.depths(corners_world) <= 0.05):
@@ -142,12 +147,16 @@ def check(view: ViewSpec, scene: Scene, cfg: SamplerConfig, gz: float,
         return None, "below_ground"
     by_id = {w.id: w for w in scene.windows}
     if view.mode == "street":
-        flags = {w.id: in_frame(cam, w.corners_world) for w in scene.windows}
+        flags = {w.id: in_frame(cam, w.corners_world) for w in scene.windows if faces_camera(cam, w)}
         cands = [i for i, (front, inside) in flags.items() if front and inside]
         if not cands:
+            if view.targets[0] not in flags:
+                return None, "facing_away"
             front, _ = flags[view.targets[0]]
             return None, "outside_frame" if front else "behind_camera"
     else:
+        if not faces_camera(cam, by_id[view.targets[0]]):
+            return None, "facing_away"
         front, inside = in_frame(cam, by_id[view.targets[0]].corners_world)
         if not front:
             return None, "behind_camera"

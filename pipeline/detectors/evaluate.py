@@ -15,7 +15,8 @@ from pycocotools.coco import COCO
 from pycocotools.cocoeval import COCOeval
 
 from pipeline.detectors import get_detector
-from pipeline.detectors.dataset import DatasetError, coco_image_path, load_coco, read_image, read_instances
+from pipeline.detectors.dataset import (DatasetError, coco_image_path, find_datasets, load_coco, read_image,
+                                        read_instances)
 from pipeline.types import Detection
 
 STAT_NAMES = ("AP", "AP50", "AP75", "APs", "APm", "APl")
@@ -74,29 +75,46 @@ def _gt_for_coco(coco: dict) -> dict:
     return gt
 
 
+def merged_coco(dataset_dirs: list[Path]) -> tuple[dict, dict[int, Path]]:
+    """One COCO dict over several dataset folders (image/annotation ids renumbered from 1) and
+    image id -> image path."""
+    images, anns, paths, cats = [], [], {}, None
+    for d in dataset_dirs:
+        coco = load_coco(d)
+        cats = cats or coco.get("categories") or [{"id": 1, "name": "window"}]
+        remap = {}
+        for im in coco.get("images", []):
+            remap[im["id"]] = len(images) + 1
+            paths[len(images) + 1] = coco_image_path(d, im)
+            images.append({**im, "id": len(images) + 1})
+        for a in coco.get("annotations", []):
+            anns.append({**a, "id": len(anns) + 1, "image_id": remap[a["image_id"]]})
+    if not images:
+        raise DatasetError(f"no images listed in the coco.json of {[str(d) for d in dataset_dirs]}")
+    return {"images": images, "annotations": anns, "categories": cats}, paths
+
+
 def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None = None,
              min_score: float = 0.05, **options: object) -> dict:
-    """COCO bbox/segm metrics of ``detector_name`` on a dataset folder.
+    """COCO bbox/segm metrics of ``detector_name`` on a dataset folder (or a root holding several).
 
     Returns {"detector", "dataset", "n_images", "n_gt", "n_det", "ms_per_image_median",
     "bbox": {AP, AP50, ...}, "segm": {...}, "paper_table2": ...}; metrics in percent.
     options are passed to the detector's factory (e.g. weights=PATH).
     """
     dataset_dir = Path(dataset_dir)
-    coco = load_coco(dataset_dir)
-    images = coco.get("images", [])
-    if not images:
-        raise DatasetError(f"{dataset_dir}/coco.json lists no images")
+    coco, paths = merged_coco(find_datasets([dataset_dir]))
+    images = coco["images"]
     if max_images is not None:
         images = images[:max_images]
         ids = {im["id"] for im in images}
         coco = {**coco, "images": images, "annotations": [a for a in coco["annotations"] if a["image_id"] in ids]}
-    cat = (coco.get("categories") or [{"id": 1}])[0]["id"]
+    cat = coco["categories"][0]["id"]
     detector = get_detector(detector_name, **options)
     oracle = detector_name.startswith("oracle")
     results, times = [], []
     for im in images:
-        path = coco_image_path(dataset_dir, im)
+        path = paths[im["id"]]
         image = read_image(path)
         per_image = {"instances": read_instances(path.parent / "instances.png")} if oracle else {}
         t0 = time.perf_counter()
