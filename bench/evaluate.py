@@ -23,6 +23,8 @@ from bench.profiles import EvalSpec
 from fenestra.conventions import TOL, camera_depths
 
 ORACLES = ("oracle", "oracle-degraded")
+AP_SCORE_MIN = 0.05  # detections kept for COCO AP
+MATCH_SCORE_MIN = 0.5  # detections passed on to matching and reconstruction
 NAN = float("nan")
 
 
@@ -220,13 +222,17 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
 
     for det_name in dict.fromkeys(m.detector for m in task.methods):
         inst = instances if det_name in ORACLES else None
-        dets = detect(det_name, image, instances=inst, **_detector_options(task, det_name))
+        # every candidate down to AP_SCORE_MIN feeds detection AP; reconstruction gets the
+        # detections a user would (score >= MATCH_SCORE_MIN, the detectors' default threshold)
+        cands = detect(det_name, image, score_threshold=AP_SCORE_MIN, instances=inst,
+                       **_detector_options(task, det_name))
+        dets = [d for d in cands if d.score >= MATCH_SCORE_MIN]
         t0 = tick("detect", t0)
         out.coco_dt[det_name] = [{"view": f"{task.house}/{view}", "rle": _rle(d.mask),
                                   "score": float(d.score),
                                   "bbox": [float(d.box[0]), float(d.box[1]),
                                            float(d.box[2] - d.box[0]), float(d.box[3] - d.box[1])]}
-                                 for d in dets]
+                                 for d in cands]
         iou = matching.iou_matrix([d.mask for d in dets], gt_masks)
         mt = matching.match(iou, TOL.match_iou)
         out.n_false_positives[det_name] = len(mt.false_positives)

@@ -1,20 +1,22 @@
-"""pyrender (OpenGL over EGL) backend: daylight RGB, exact window-void instance maps, depth.
+"""OpenGL (EGL, via pyrender's headless context) backend: daylight RGB, exact window-void
+instance maps, depth.
 
-Two offscreen renderers live for the renderer's lifetime:
-- the RGB renderer (pyrender's 4x MSAA): textured material groups, sun + fill light, shadows,
-  composited over a sky gradient;
-- the occluder renderer, with multisampling switched off, draws every element in a flat colour
-  that encodes its element code; its depth and codes feed :func:`renders.gt.void_instances`, which
-  rasterises the void rectangles exactly at pixel centres.
-Use as a context manager or call ``close()`` (a live OffscreenRenderer at exit can segfault).
+Geometry is uploaded once per renderer into vertex buffers (one buffer set per pass, merged by
+material: one draw range per material group) and every view only sets a camera matrix:
+- the RGB pass (4x MSAA): a per-pixel sky gradient behind textured material groups with baked
+  daylight (sky ambient + sun, per face); sun shadows come from a shadow map rendered once per
+  scene and tested per sample in the fragment shader;
+- the occluder pass, single-sampled, draws every element in a flat colour that encodes its
+  element code; its depth and codes feed :func:`renders.gt.void_instances`, which rasterises
+  the void rectangles exactly at pixel centres.
+Draw order is fixed (sorted groups), so coplanar faces resolve the same way in every context and
+the same seed gives byte-identical images. pyrender is only used for its EGL context.
+Use as a context manager or call ``close()`` (a live EGL context at exit can segfault).
 """
 from __future__ import annotations
 
 import atexit
-from contextlib import contextmanager
-from typing import Callable
-
-import cv2
+import ctypes
 
 import numpy as np
 
@@ -23,34 +25,31 @@ from fenestra.conventions import PYRENDER_PIXEL_OFFSET, cv_to_gl_pose
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
 from renders.gt import void_instances, window_views
-from renders.materials import (Look, face_normals, group_scene, ground_z, lighting, sample_look, sky_colour,
-                               sun_direction)
+from renders.materials import Look, face_normals, group_scene, ground_z, lighting, sample_look, sky_colour, sun_direction
 from scenes.model import Scene
 
 ZNEAR, ZFAR = 0.1, 2000.0
 SHADE_LEVELS = 16  # shadow-ratio quantisation levels
+MSAA_SAMPLES = 4
+SHADOW_TINT = (0.92, 0.96, 1.08)
 
 
-@contextmanager
-def _single_sample(pyrender):
-    """While active, pyrender creates its framebuffers without multisampling (exact flat colours)."""
-    mod = pyrender.renderer
-    orig = mod.glRenderbufferStorageMultisample
-    mod.glRenderbufferStorageMultisample = lambda tgt, samples, fmt, w, h: orig(tgt, 0, fmt, w, h)
-    try:
-        yield
-    finally:
-        mod.glRenderbufferStorageMultisample = orig
+def gl_projection(K: np.ndarray, width: int, height: int, znear: float = ZNEAR, zfar: float = ZFAR) -> np.ndarray:
+    """4x4 OpenGL projection of a pinhole K (pyrender IntrinsicsCamera's, pixel offset applied)."""
+    cx, cy = K[0, 2] + PYRENDER_PIXEL_OFFSET, K[1, 2] + PYRENDER_PIXEL_OFFSET
+    P = np.zeros((4, 4))
+    P[0, 0], P[1, 1] = 2.0 * K[0, 0] / width, 2.0 * K[1, 1] / height
+    P[0, 2], P[1, 2] = 1.0 - 2.0 * cx / width, 2.0 * cy / height - 1.0
+    P[3, 2] = -1.0
+    P[2, 2], P[2, 3] = (zfar + znear) / (znear - zfar), 2 * zfar * znear / (znear - zfar)
+    return P
 
 
-def pyrender_camera(pyrender, cam: Camera):
-    """pyrender IntrinsicsCamera + 4x4 OpenGL pose for a pinhole Camera (pixel offset applied)."""
+def gl_view_projection(cam: Camera) -> np.ndarray:
+    """4x4 world -> clip matrix of a pinhole Camera."""
     if cam.dist is not None:
-        raise ValueError("pyrender draws pinhole cameras only; pass camera.canvas()")
-    K = cam.K
-    pc = pyrender.IntrinsicsCamera(K[0, 0], K[1, 1], K[0, 2] + PYRENDER_PIXEL_OFFSET, K[1, 2] + PYRENDER_PIXEL_OFFSET,
-                                   znear=ZNEAR, zfar=ZFAR)
-    return pc, cv_to_gl_pose(cam.R, cam.t)
+        raise ValueError("the raster passes draw pinhole cameras only; pass camera.canvas()")
+    return gl_projection(cam.K, cam.width, cam.height) @ np.linalg.inv(cv_to_gl_pose(cam.R, cam.t))
 
 
 def element_codes(scene: Scene) -> tuple[dict[str, int], np.ndarray]:
@@ -68,12 +67,86 @@ def ground_quad(scene: Scene, half_size_m: float = 200.0) -> tuple[np.ndarray, n
     return v, np.array([[0, 1, 2], [0, 2, 3]])
 
 
-class GLContext:
-    """One process-wide EGL context (pyrender OffscreenRenderer) shared by all backends.
+# ------------------------------------------------------------------------------------ GL plumbing
+_MESH_VS = """#version 330 core
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec2 texcoord;
+layout(location = 2) in vec4 colour;
+uniform mat4 PV;
+out vec3 wpos;
+out vec2 uv;
+out vec4 col;
+void main() { gl_Position = PV * vec4(position, 1.0); wpos = position; uv = texcoord; col = colour; }
+"""
+# col.rgb: baked light multiplier; col.a: quantised shadow ratio (>= 1: never shaded)
+_MESH_FS = """#version 330 core
+in vec3 wpos;
+in vec2 uv;
+in vec4 col;
+uniform sampler2D tex;
+uniform int textured;
+uniform vec3 base;
+uniform sampler2D shadow_map;
+uniform int shadows;
+uniform mat4 sun_from_world;
+uniform float radius;
+uniform int size;
+uniform float bias;
+uniform vec3 tint;
+out vec4 frag;
+void main() {
+    vec3 c = base * col.rgb;
+    if (textured != 0) c *= texture(tex, uv).rgb;
+    if (shadows != 0 && col.a < 1.0) {
+        vec3 s = (sun_from_world * vec4(wpos, 1.0)).xyz;
+        ivec2 ij = ivec2(floor(vec2((s.x / radius + 1.0) * 0.5 * float(size) - 0.5,
+                                    (1.0 - s.y / radius) * 0.5 * float(size) - 0.5) + 0.5));
+        if (all(greaterThanEqual(ij, ivec2(0))) && all(lessThan(ij, ivec2(size)))) {
+            float d = texelFetch(shadow_map, ij, 0).r;
+            if (d > 0.0 && -s.z > d + bias) c *= col.a * tint;
+        }
+    }
+    frag = vec4(clamp(c, 0.0, 1.0), 1.0);
+}
+"""
+_CODE_VS = """#version 330 core
+layout(location = 0) in vec3 position;
+layout(location = 2) in vec4 colour;
+uniform mat4 PV;
+flat out vec4 col;
+void main() { gl_Position = PV * vec4(position, 1.0); col = colour; }
+"""
+_CODE_FS = """#version 330 core
+flat in vec4 col;
+out vec4 frag;
+void main() { frag = col; }
+"""
+# full-screen sky: world direction of pixel (u, v) = Minv (u, v, 1); u, v OpenCV pixel coordinates
+_SKY_VS = """#version 330 core
+void main() {
+    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2)) * 2.0 - 1.0;
+    gl_Position = vec4(p, 1.0, 1.0);
+}
+"""
+_SKY_FS = """#version 330 core
+uniform mat3 Minv;
+uniform float height;
+uniform vec3 horizon;
+uniform vec3 zenith;
+out vec4 frag;
+void main() {
+    vec3 d = normalize(Minv * vec3(gl_FragCoord.x - 0.5, height - 0.5 - gl_FragCoord.y, 1.0));
+    float w = pow(clamp(d.z, 0.0, 1.0), 0.6);
+    frag = vec4(clamp((1.0 - w) * horizon + w * zenith, 0.0, 1.0), 1.0);
+}
+"""
 
-    pyrender's EGL teardown terminates the display, so two OffscreenRenderers cannot be closed
-    independently; instead each user gets its own pyrender ``Renderer`` (framebuffers, shaders,
-    uploaded meshes) inside this single context. Reference counted; closed with its last user.
+
+class GLContext:
+    """One process-wide EGL context (from a pyrender OffscreenRenderer) shared by all passes.
+
+    pyrender's EGL teardown terminates the display, so the context is reference counted and
+    closed with its last user. Programs are compiled once per context.
     """
 
     _shared: "GLContext | None" = None
@@ -82,6 +155,8 @@ class GLContext:
         self.pr = import_pyrender()
         self.osr = self.pr.OffscreenRenderer(64, 64)
         self.users = 0
+        self._programs: dict[str, int] = {}
+        self.fbs = _Framebuffers()
 
     @classmethod
     def acquire(cls) -> "GLContext":
@@ -90,30 +165,22 @@ class GLContext:
         cls._shared.users += 1
         return cls._shared
 
-    def new_renderer(self, single_sample: bool):
-        r = self.pr.renderer.Renderer(64, 64)
-        r._fenestra_single_sample = single_sample
-        return r
-
-    def render(self, renderer, scene, width: int, height: int, flags, seg_node_map=None):
-        """Render ``scene`` with one of this context's renderers at width x height."""
-        plat = self.osr._platform
-        plat.make_current()
-        try:
-            renderer.viewport_width, renderer.viewport_height = width, height
-            flags |= self.pr.RenderFlags.OFFSCREEN
-            if renderer._fenestra_single_sample:
-                with _single_sample(self.pr):
-                    return renderer.render(scene, flags, seg_node_map)
-            return renderer.render(scene, flags, seg_node_map)
-        finally:
-            plat.make_uncurrent()
-
-    def release(self, renderer) -> None:
-        """Free one renderer's GL resources; close the context when its last user is gone."""
+    def make_current(self) -> None:
         self.osr._platform.make_current()
-        renderer.delete()
-        self.osr._platform.make_uncurrent()
+
+    def program(self, name: str) -> int:
+        from OpenGL.GL import GL_FRAGMENT_SHADER, GL_VERTEX_SHADER
+        from OpenGL.GL.shaders import compileProgram, compileShader
+
+        if name not in self._programs:
+            vs, fs = {"mesh": (_MESH_VS, _MESH_FS), "code": (_CODE_VS, _CODE_FS), "sky": (_SKY_VS, _SKY_FS)}[name]
+            # validate=False: core profile needs a bound VAO to validate, and none is bound yet
+            self._programs[name] = int(compileProgram(compileShader(vs, GL_VERTEX_SHADER),
+                                                      compileShader(fs, GL_FRAGMENT_SHADER), validate=False))
+        return self._programs[name]
+
+    def release(self) -> None:
+        """One user is done; close the context when the last one is gone."""
         self.users -= 1
         if self.users <= 0 and GLContext._shared is self:
             self.osr.delete()
@@ -127,20 +194,181 @@ def _close_shared_context() -> None:
         GLContext._shared = None
 
 
+def _uniform(prog: int, name: str):
+    from OpenGL.GL import glGetUniformLocation
+
+    return glGetUniformLocation(prog, name)
+
+
+class _Geometry:
+    """Triangles uploaded once: positions (N, 3), uvs (N, 2), colours (N, 4) float32 and uint32
+    indices, drawn as ranges ``(first index, count, texture id or 0, base rgb)`` in list order."""
+
+    def __init__(self, positions, uvs, colours, indices, ranges):
+        from OpenGL import GL
+
+        self.vao = GL.glGenVertexArrays(1)
+        GL.glBindVertexArray(self.vao)
+        self.buffers = list(GL.glGenBuffers(4))
+        for loc, (buf, arr) in enumerate(zip(self.buffers[:3], (positions, uvs, colours))):
+            arr = np.ascontiguousarray(arr, np.float32)
+            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, buf)
+            GL.glBufferData(GL.GL_ARRAY_BUFFER, arr.nbytes, arr, GL.GL_STATIC_DRAW)
+            GL.glEnableVertexAttribArray(loc)
+            GL.glVertexAttribPointer(loc, arr.shape[1], GL.GL_FLOAT, GL.GL_FALSE, 0, ctypes.c_void_p(0))
+        idx = np.ascontiguousarray(indices, np.uint32).ravel()
+        GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, self.buffers[3])
+        GL.glBufferData(GL.GL_ELEMENT_ARRAY_BUFFER, idx.nbytes, idx, GL.GL_STATIC_DRAW)
+        GL.glBindVertexArray(0)
+        self.ranges = ranges
+        self.textures: list[int] = []
+
+    def draw(self, prog: int | None = None) -> None:
+        from OpenGL import GL
+
+        GL.glBindVertexArray(self.vao)
+        for first, count, tex, base in self.ranges:
+            if prog is not None:
+                GL.glUniform1i(_uniform(prog, "textured"), int(tex != 0))
+                GL.glUniform3f(_uniform(prog, "base"), *base)
+                GL.glActiveTexture(GL.GL_TEXTURE0)
+                GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
+            GL.glDrawElements(GL.GL_TRIANGLES, count, GL.GL_UNSIGNED_INT, ctypes.c_void_p(4 * first))
+        GL.glBindVertexArray(0)
+
+    def delete(self) -> None:
+        from OpenGL import GL
+
+        GL.glDeleteBuffers(len(self.buffers), self.buffers)
+        GL.glDeleteVertexArrays(1, [self.vao])
+        if self.textures:
+            GL.glDeleteTextures(len(self.textures), self.textures)
+
+
+def _texture_rgb(img: np.ndarray) -> int:
+    """Upload an (H, W, 3) uint8 texture, mipmapped and repeating (pyrender's orientation: row 0 of
+    the image at v = 1)."""
+    from OpenGL import GL
+
+    tex = GL.glGenTextures(1)
+    GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
+    GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+    data = np.ascontiguousarray(img[::-1], np.uint8)
+    GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_RGB, img.shape[1], img.shape[0], 0, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, data)
+    GL.glGenerateMipmap(GL.GL_TEXTURE_2D)
+    GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, GL.GL_LINEAR)
+    GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR_MIPMAP_LINEAR)
+    GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_WRAP_S, GL.GL_REPEAT)
+    GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_WRAP_T, GL.GL_REPEAT)
+    GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+    return int(tex)
+
+
+def _texture_float(img: np.ndarray) -> int:
+    """Upload an (H, W) float32 map as a nearest-sampled R32F texture (texel (x, y) = img[y, x])."""
+    from OpenGL import GL
+
+    tex = GL.glGenTextures(1)
+    GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
+    GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 4)
+    data = np.ascontiguousarray(img, np.float32)
+    GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_R32F, img.shape[1], img.shape[0], 0, GL.GL_RED, GL.GL_FLOAT, data)
+    for p, v in ((GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST), (GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST),
+                 (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, p, v)
+    GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+    return int(tex)
+
+
+class _Framebuffers:
+    """Offscreen framebuffers (RGBA8 + 24-bit depth renderbuffers) by (width, height, samples)."""
+
+    def __init__(self):
+        self._fbs: dict[tuple[int, int, int], tuple[int, list[int]]] = {}
+
+    def bind(self, width: int, height: int, samples: int = 0, target=None) -> int:
+        from OpenGL import GL
+
+        key = (width, height, samples)
+        if key not in self._fbs:
+            if len(self._fbs) >= 6:  # canvases of distorted cameras vary in size: keep a few
+                self.delete()
+            rbs = [int(x) for x in GL.glGenRenderbuffers(2)]
+            for rb, fmt in zip(rbs, (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24)):
+                GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
+                GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, fmt, width, height)
+            fb = int(GL.glGenFramebuffers(1))
+            GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, fb)
+            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, rbs[0])
+            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
+            if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
+                raise RuntimeError(f"incomplete framebuffer {key}")
+            self._fbs[key] = (fb, rbs)
+        fb = self._fbs[key][0]
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER if target is None else target, fb)
+        return fb
+
+    def delete(self) -> None:
+        from OpenGL import GL
+
+        for fb, rbs in self._fbs.values():
+            GL.glDeleteFramebuffers(1, [fb])
+            GL.glDeleteRenderbuffers(2, rbs)
+        self._fbs.clear()
+
+
+def _begin(width: int, height: int) -> None:
+    from OpenGL import GL
+
+    GL.glViewport(0, 0, width, height)
+    GL.glEnable(GL.GL_DEPTH_TEST)
+    GL.glDepthMask(GL.GL_TRUE)
+    GL.glDepthFunc(GL.GL_LESS)
+    GL.glDisable(GL.GL_CULL_FACE)  # IFC winding varies: every triangle is two-sided
+    GL.glDisable(GL.GL_BLEND)
+    GL.glClearColor(0.0, 0.0, 0.0, 0.0)
+    GL.glClearDepth(1.0)
+    GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+
+
+def _read_rgba(width: int, height: int, channels: int = 4) -> np.ndarray:
+    """(H, W, channels) uint8 of the bound read framebuffer, top row first."""
+    from OpenGL import GL
+
+    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+    fmt = GL.GL_RGBA if channels == 4 else GL.GL_RGB
+    buf = GL.glReadPixels(0, 0, width, height, fmt, GL.GL_UNSIGNED_BYTE)
+    return np.frombuffer(buf, np.uint8).reshape(height, width, channels)[::-1]
+
+
+def _read_depth(width: int, height: int) -> np.ndarray:
+    """(H, W) float32 window depth in [0, 1] of the bound read framebuffer, top row first."""
+    from OpenGL import GL
+
+    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 4)
+    buf = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+    return np.frombuffer(buf, np.float32).reshape(height, width)[::-1]
+
+
+def _encode(k: np.ndarray) -> np.ndarray:
+    """uint8 levels -> floats that any float-to-unorm8 conversion (rounding or truncating) maps back."""
+    return (np.asarray(k, np.float32) + 0.25) / 255.0
+
+
 class OccluderPass:
     """Exact depth + element-code images (no antialiasing) of a scene, for ground truth.
 
     The colour of a pixel encodes the element code (window i's element = i + 1, other geometry 0)
     in R + 256 G; B is 1 + 254 * the face's shadow ratio when ``shade`` is given (else 255).
+    All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order.
     """
 
-    def __init__(self, scene: Scene, shade: Callable[[np.ndarray], np.ndarray] | None = None):
-        self.pr = pr = import_pyrender()
+    def __init__(self, scene: Scene, shade=None):
+        from OpenGL import GL
+
         self.scene = scene
         self.codes, self.window_codes = element_codes(scene)
-        self._scene = pr.Scene(bg_color=(0, 0, 0, 0))
-        self._seg = {}
-        parts: dict[tuple[int, int], list] = {}
+        parts: dict[tuple[int, int], list[np.ndarray]] = {}
         gv, gf = ground_quad(scene)
         items = [(self.codes.get(m.global_id, 0), m.vertices, m.faces) for m in scene.meshes] + [(0, gv, gf)]
         for code, v, f in items:
@@ -148,39 +376,49 @@ class OccluderPass:
                 bins = np.full(len(f), 255)
             else:
                 q = np.rint(SHADE_LEVELS * np.clip(shade(face_normals(v, f)), 0, 1)) / SHADE_LEVELS
-                bins = 1 + np.rint(254 * q).astype(int)  # few distinct bins: few draw calls
+                bins = 1 + np.rint(254 * q).astype(int)
             for b in np.unique(bins):
-                parts.setdefault((code, int(b)), []).append((v, f[bins == b]))
-        for (code, b), vfs in sorted(parts.items()):
-            V, F, off = [], [], 0
-            for v, f in vfs:
-                V.append(v); F.append(f + off); off += len(v)  # noqa: E702
-            F = np.concatenate(F)
-            # pyrender culls back faces in SEG mode whatever the material says, and IFC winding
-            # varies: draw every triangle in both windings.
-            prim = pr.Primitive(positions=np.concatenate(V).astype(np.float32),
-                                indices=np.concatenate([F, F[:, ::-1]]).astype(np.uint32), mode=4)
-            node = self._scene.add(pr.Mesh([prim]))
-            self._seg[node] = np.array([code % 256, code // 256, b], np.uint8)
-        self._cam_node = None
+                parts.setdefault((code, int(b)), []).append(np.asarray(v, np.float64)[f[bins == b]].reshape(-1, 3))
+        P, C = [], []
+        for (code, b), tris in sorted(parts.items()):
+            p = np.concatenate(tris)
+            P.append(p)
+            C.append(np.broadcast_to(_encode([code % 256, code // 256, b, 255]), (len(p), 4)))
+        P = np.concatenate(P).astype(np.float32)
         self._gl = GLContext.acquire()
-        self._renderer = self._gl.new_renderer(single_sample=True)
+        self._gl.make_current()
+        self._geom = _Geometry(P, np.zeros((len(P), 2), np.float32), np.concatenate(C),
+                               np.arange(len(P), dtype=np.uint32), [(0, len(P), 0, (1.0, 1.0, 1.0))])
+        GL.glFinish()
 
-    def _set_camera(self, camera, pose) -> None:
-        if self._cam_node is not None:
-            self._scene.remove_node(self._cam_node)
-        self._cam_node = self._scene.add(camera, pose=pose)
+    def _draw(self, PV: np.ndarray, width: int, height: int) -> None:
+        from OpenGL import GL
+
+        gl = self._gl
+        gl.make_current()
+        gl.fbs.bind(width, height, 0)
+        _begin(width, height)
+        prog = gl.program("code")
+        GL.glUseProgram(prog)
+        GL.glUniformMatrix4fv(_uniform(prog, "PV"), 1, GL.GL_TRUE, PV.astype(np.float32))
+        self._geom.draw()
+        GL.glUseProgram(0)
 
     def render_full(self, cam: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing), element codes (H, W) int32
         (-1 = nothing) and the B channel (H, W) uint8 (shadow-ratio bin, 0 = nothing)."""
-        pc, pose = pyrender_camera(self.pr, cam)
-        self._set_camera(pc, pose)
-        col, depth = self._gl.render(self._renderer, self._scene, cam.width, cam.height,
-                                     self.pr.RenderFlags.SEG, self._seg)
+        W, H = cam.width, cam.height
+        self._draw(gl_view_projection(cam), W, H)
+        col = _read_rgba(W, H)
+        d = _read_depth(W, H)
         code = col[..., 0].astype(np.int32) + 256 * col[..., 1].astype(np.int32)
         code[col[..., 2] == 0] = -1
-        return depth.astype(np.float32), code, col[..., 2]
+        # window depth -> camera z (float32, pyrender's formula)
+        n, f = ZNEAR, ZFAR
+        hit = d < 1.0
+        depth = np.zeros((H, W), np.float32)
+        depth[hit] = (2.0 * n * f) / (f + n - (2.0 * d[hit] - 1.0) * (f - n))
+        return depth, code, np.ascontiguousarray(col[..., 2])
 
     def render(self, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing) and element codes (H, W) int32."""
@@ -192,21 +430,23 @@ class OccluderPass:
 
         pose: 4x4 OpenGL camera-to-world (looks along its -z); covers +-half_extent m.
         """
-        oc = self.pr.OrthographicCamera(xmag=half_extent, ymag=half_extent, znear=0.01, zfar=far)
-        self._set_camera(oc, pose)
-        _, d = self._gl.render(self._renderer, self._scene, size, size, self.pr.RenderFlags.SEG, self._seg)
-        # pyrender linearises depth with the perspective formula; undo it for the orthographic camera.
         n, f = 0.01, far
-        out = np.zeros_like(d)
-        hit = d > 0
-        ndc = (f + n - 2 * n * f / d[hit]) / (f - n)
-        out[hit] = (ndc * (f - n) + (f + n)) / 2
+        P = np.zeros((4, 4))
+        P[0, 0] = P[1, 1] = 1.0 / half_extent
+        P[2, 2], P[2, 3], P[3, 3] = 2.0 / (n - f), (f + n) / (n - f), 1.0
+        self._draw(P @ np.linalg.inv(pose), size, size)
+        d = _read_depth(size, size)
+        out = np.zeros((size, size), np.float32)
+        hit = d < 1.0
+        out[hit] = ((2.0 * d[hit] - 1.0) * (f - n) + (f + n)) / 2
         return out
 
     def close(self) -> None:
-        if self._renderer is not None:
-            self._gl.release(self._renderer)
-            self._renderer = None
+        if self._geom is not None:
+            self._gl.make_current()
+            self._geom.delete()
+            self._geom = None
+            self._gl.release()
 
 
 def ground_truth(occ: OccluderPass, camera: Camera):
@@ -220,18 +460,12 @@ def ground_truth(occ: OccluderPass, camera: Camera):
     return inst, depth, wins, (depth_c, shade_c)
 
 
-def sky_image(cam: Camera, look: Look, step: int = 8) -> np.ndarray:
-    """(H, W, 3) float32 sky gradient seen by a pinhole camera (computed on a coarse grid)."""
-    W, H = cam.width, cam.height
-    us, vs = np.meshgrid(np.arange(0, W + step, step, dtype=np.float64), np.arange(0, H + step, step, dtype=np.float64))
-    rays = np.stack([us, vs, np.ones_like(us)], -1) @ np.linalg.inv(cam.K).T @ cam.R  # world dirs
-    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
-    coarse = sky_colour(rays, look).astype(np.float32)
-    return cv2.resize(coarse, (us.shape[1] * step, us.shape[0] * step), interpolation=cv2.INTER_LINEAR)[:H, :W]
-
-
 class SunShadow:
-    """A sun shadow map rendered once per scene; tells which camera pixels lie in shadow."""
+    """A sun shadow map rendered once per scene; tells which points lie in shadow.
+
+    The raster RGB pass applies the same test per sample in its fragment shader
+    (``sun_from_world``, ``radius``, ``size``, ``bias``); :meth:`in_shadow` is the numpy version.
+    """
 
     def __init__(self, occ: OccluderPass, sun: np.ndarray, size: int = 2048, bias_m: float = 0.04):
         lo, hi = occ.scene.bounds()
@@ -246,6 +480,8 @@ class SunShadow:
         pose[:3, :3], pose[:3, 3] = self.axes, self.origin
         self.size, self.bias = size, bias_m
         self.map = occ.render_ortho_depth(pose, self.radius, 4 * self.radius, size)
+        self.sun_from_world = np.eye(4)
+        self.sun_from_world[:3, :3], self.sun_from_world[:3, 3] = self.axes.T, -self.axes.T @ self.origin
 
     def in_shadow(self, cam: Camera, depth: np.ndarray) -> np.ndarray:
         """(H, W) bool for a pinhole camera's exact depth map (m, 0 = sky)."""
@@ -268,79 +504,119 @@ class SunShadow:
         return ok & (occ_d > 0) & (sz > occ_d + self.bias)
 
 
+def shadow_ratio_levels(ratio: np.ndarray) -> np.ndarray:
+    """Shadow ratio (M,) in [0, 1] -> the value the occluder pass's B channel encodes ((b-1)/254)."""
+    q = np.rint(SHADE_LEVELS * np.clip(ratio, 0, 1)) / SHADE_LEVELS
+    return np.rint(254 * q) / 254
+
+
 class RasterRenderer:
-    """pyrender backend: ``render(camera) -> RenderOutput``; one set of GL resources reused.
+    """OpenGL backend: ``render(camera) -> RenderOutput``; geometry uploaded once, reused.
 
     RGB: textured material groups with baked daylight (sky ambient + sun, per face) drawn unlit
-    with 4x MSAA, sun shadows from a shadow map applied per pixel, over a sky gradient.
+    with 4x MSAA over a per-pixel sky gradient; a face in the sun's shadow (shadow map test per
+    sample) keeps its quantised shadow ratio of the light, tinted blue.
     """
 
     name = "pyrender"
 
     def __init__(self, scene: Scene, settings: RenderSettings = RenderSettings()):
-        self.pr = pr = import_pyrender()
+        from OpenGL import GL
+
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
         self.look = look = sample_look(rng)
         self.groups = group_scene(scene, look, rng)
-        self._scene = pr.Scene(bg_color=(0, 0, 0, 0))
-        for g in self.groups:
-            m = g.material
-            mult, _ = lighting(face_normals(g.vertices, g.faces), look)
-            colour = np.ones((len(g.vertices), 4), np.float32)
-            colour[g.faces.ravel(), :3] = np.repeat(mult, 3, axis=0)
-            kw = dict(baseColorFactor=(*m.rgb, 1.0), metallicFactor=0.0, roughnessFactor=1.0, doubleSided=True)
-            if m.texture is not None:
-                kw["baseColorTexture"] = pr.Texture(source=m.texture, source_channels="RGB")
-            prim = pr.Primitive(positions=g.vertices.astype(np.float32), texcoord_0=g.uvs.astype(np.float32),
-                                color_0=colour, indices=g.faces.astype(np.uint32),
-                                material=pr.MetallicRoughnessMaterial(**kw), mode=4)
-            self._scene.add(pr.Mesh([prim]))
-        self._cam_node = None
         self.occluders = OccluderPass(scene, shade=lambda n: lighting(n, look)[1])
         self.shadow = SunShadow(self.occluders, sun_direction(look)) if settings.shadows else None
         self._gl = GLContext.acquire()
-        self._renderer = self._gl.new_renderer(single_sample=False)
-        self._shadow_tint = np.array([0.92, 0.96, 1.08], np.float32)
+        self._gl.make_current()
+        P, UV, C, I, ranges, textures = [], [], [], [], [], []
+        off = first = 0
+        for g in self.groups:
+            m = g.material
+            mult, ratio = lighting(face_normals(g.vertices, g.faces), look)
+            r = shadow_ratio_levels(ratio)
+            colour = np.ones((len(g.vertices), 4), np.float32)
+            colour[g.faces.ravel(), :3] = np.repeat(mult, 3, axis=0)
+            colour[g.faces.ravel(), 3] = np.repeat(np.where(r < 1, r, 2.0), 3)  # >= 1: never shaded
+            tex = 0
+            if m.texture is not None:
+                tex = _texture_rgb(m.texture)
+                textures.append(tex)
+            P.append(g.vertices); UV.append(g.uvs); C.append(colour); I.append(g.faces.ravel() + off)  # noqa: E702
+            ranges.append((first, g.faces.size, tex, tuple(float(x) for x in m.rgb)))
+            off += len(g.vertices)
+            first += g.faces.size
+        self._geom = _Geometry(np.concatenate(P), np.concatenate(UV), np.concatenate(C), np.concatenate(I), ranges)
+        self._geom.textures = textures
+        self._shadow_tex = _texture_float(self.shadow.map) if self.shadow is not None else 0
+        self._empty_vao = GL.glGenVertexArrays(1)
+        GL.glFinish()
 
-    def render_rgb(self, camera: Camera, gt_canvas=None) -> np.ndarray:
-        """(H, W, 3) uint8 antialiased daylight image for the camera (distortion applied).
+    def render_rgb(self, camera: Camera) -> np.ndarray:
+        """(H, W, 3) uint8 antialiased daylight image for the camera (distortion applied)."""
+        from OpenGL import GL
 
-        gt_canvas: (depth, shade) of the occluder pass for ``camera.canvas()`` if already made.
-        """
-        pr = self.pr
+        gl, look, sh = self._gl, self.look, self.shadow
         canvas = camera.canvas()
-        pc, pose = pyrender_camera(pr, canvas)
-        if self._cam_node is not None:
-            self._scene.remove_node(self._cam_node)
-        self._cam_node = self._scene.add(pc, pose=pose)
-        rgba, _ = self._gl.render(self._renderer, self._scene, canvas.width, canvas.height,
-                                  pr.RenderFlags.RGBA | pr.RenderFlags.FLAT)
-        img = rgba[..., :3].astype(np.float32) * (1.0 / 255.0)
-        if self.shadow is not None:
-            if gt_canvas is None:
-                d, _, b = self.occluders.render_full(canvas)
-            else:
-                d, b = gt_canvas
-            sh = self.shadow.in_shadow(canvas, d) & (b < 255)
-            ratio = (b.astype(np.float32) - 1.0) / 254.0
-            img[sh] *= ratio[sh, None] * self._shadow_tint
-        see_sky = rgba[..., 3] < 255
-        if see_sky.any():
-            a = rgba[see_sky, 3:4].astype(np.float32) * (1.0 / 255.0)
-            img[see_sky] += (1.0 - a) * sky_image(canvas, self.look)[see_sky]
-        rgb = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        W, H = canvas.width, canvas.height
+        gl.make_current()
+        msaa = gl.fbs.bind(W, H, MSAA_SAMPLES)
+        _begin(W, H)
+        GL.glEnable(GL.GL_MULTISAMPLE)
+        # sky behind everything
+        prog = gl.program("sky")
+        GL.glUseProgram(prog)
+        GL.glUniformMatrix3fv(_uniform(prog, "Minv"), 1, GL.GL_TRUE, (canvas.R.T @ np.linalg.inv(canvas.K)).astype(np.float32))
+        GL.glUniform1f(_uniform(prog, "height"), float(H))
+        GL.glUniform3f(_uniform(prog, "horizon"), *look.sky_horizon)
+        GL.glUniform3f(_uniform(prog, "zenith"), *look.sky_zenith)
+        GL.glDisable(GL.GL_DEPTH_TEST)
+        GL.glBindVertexArray(self._empty_vao)
+        GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
+        GL.glBindVertexArray(0)
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        # the house and the ground
+        prog = gl.program("mesh")
+        GL.glUseProgram(prog)
+        GL.glUniformMatrix4fv(_uniform(prog, "PV"), 1, GL.GL_TRUE, gl_view_projection(canvas).astype(np.float32))
+        GL.glUniform1i(_uniform(prog, "tex"), 0)
+        GL.glUniform1i(_uniform(prog, "shadow_map"), 1)
+        GL.glUniform1i(_uniform(prog, "shadows"), int(sh is not None))
+        if sh is not None:
+            GL.glActiveTexture(GL.GL_TEXTURE1)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, self._shadow_tex)
+            GL.glUniformMatrix4fv(_uniform(prog, "sun_from_world"), 1, GL.GL_TRUE, sh.sun_from_world.astype(np.float32))
+            GL.glUniform1f(_uniform(prog, "radius"), sh.radius)
+            GL.glUniform1i(_uniform(prog, "size"), sh.size)
+            GL.glUniform1f(_uniform(prog, "bias"), sh.bias)
+            GL.glUniform3f(_uniform(prog, "tint"), *SHADOW_TINT)
+        self._geom.draw(prog)
+        GL.glUseProgram(0)
+        # resolve the samples and read back
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, msaa)
+        resolved = gl.fbs.bind(W, H, 0, GL.GL_DRAW_FRAMEBUFFER)
+        GL.glBlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, resolved)
+        rgb = np.ascontiguousarray(_read_rgba(W, H, 3))
         return distort_image(camera, rgb, nearest=False)
 
     def render(self, camera: Camera) -> RenderOutput:
-        inst, depth, wins, gt_canvas = ground_truth(self.occluders, camera)
-        rgb = self.render_rgb(camera, gt_canvas)
-        return RenderOutput(camera, rgb, inst, depth, wins)
+        inst, depth, wins, _ = ground_truth(self.occluders, camera)
+        return RenderOutput(camera, self.render_rgb(camera), inst, depth, wins)
 
     def close(self) -> None:
-        if self._renderer is not None:
-            self._gl.release(self._renderer)
-            self._renderer = None
+        from OpenGL import GL
+
+        if self._geom is not None:
+            self._gl.make_current()
+            self._geom.delete()
+            if self._shadow_tex:
+                GL.glDeleteTextures(1, [self._shadow_tex])
+            GL.glDeleteVertexArrays(1, [self._empty_vao])
+            self._geom = None
+            self._gl.release()
         self.occluders.close()
 
     def __enter__(self):

@@ -31,9 +31,36 @@ def _evaluable(df: pd.DataFrame) -> pd.DataFrame:
     return df[df["evaluable"].astype(bool)]
 
 
+LINESTYLES = ("-", "--", ":", "-.")
+
+
+def main_pose(df: pd.DataFrame) -> str:
+    """The pose solver the curves show ("lm", the paper's, if present; else the first)."""
+    poses = sorted(df["pose"].unique())
+    return "lm" if "lm" in poses else poses[0]
+
+
+def line_styles(df: pd.DataFrame) -> dict[str, dict]:
+    """{method: matplotlib kwargs}: colour by snapper, line style by detector."""
+    snappers = sorted(df["snapper"].unique())
+    detectors = sorted(df["detector"].unique())
+    cmap = plt.get_cmap("tab10" if len(snappers) <= 10 else "tab20")
+    out = {}
+    for m, d, s in df[["method", "detector", "snapper"]].drop_duplicates().itertuples(index=False):
+        out[m] = {"color": cmap(snappers.index(s) % cmap.N),
+                  "linestyle": LINESTYLES[detectors.index(d) % len(LINESTYLES)], "label": m}
+    return out
+
+
+def _legend_right(fig, ax) -> None:
+    h, lab = ax.get_legend_handles_labels()
+    if h:
+        fig.legend(h, lab, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
+
+
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=100, bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -70,22 +97,29 @@ def _ecdf(e: np.ndarray, xs: np.ndarray) -> np.ndarray:
     return (e[None, :] <= xs[:, None]).mean(axis=1) if e.size else np.full(xs.shape, np.nan)
 
 
-def recall_curves(df: pd.DataFrame, path: Path) -> Path:
-    """Recall (fraction of evaluable windows within x px) against x, one panel per stage."""
+def recall_curves(df: pd.DataFrame, path: Path, max_px: float = 10.0) -> Path:
+    """Recall (fraction of evaluable windows within x px) against x, one panel per stage.
+
+    Colour = snapper, line style = detector; pose solver: :func:`main_pose` only (mask-fit and
+    snapped corners do not depend on it). Missed/failed windows count as not recalled.
+    """
     d = _evaluable(df)
-    xs = np.linspace(0.0, HIST_MAX_PX, 201)
+    pose = main_pose(d)
+    styles = line_styles(d)
+    d = d[d["pose"] == pose]
+    xs = np.linspace(0.0, max_px, 201)
     fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharey=True)
     for ax, stage in zip(axes, CORNER_STAGES):
         for m, g in sorted(d.groupby("method"), key=lambda kv: kv[0]):
-            ax.plot(xs, _ecdf(g[f"corner_err_px_{stage}"].to_numpy(float), xs), label=m, lw=1.4)
+            ax.plot(xs, _ecdf(g[f"corner_err_px_{stage}"].to_numpy(float), xs), lw=1.4, **styles[m])
         for th in (1, 2, 5, 10):
             ax.axvline(th, color="#dddddd", lw=0.8, zorder=0)
-        ax.set_title(STAGE_LABELS[stage])
+        ax.set_title(f"{STAGE_LABELS[stage]} (pose {pose})" if stage == "reproj" else STAGE_LABELS[stage])
         ax.set_xlabel("corner error threshold (px)")
         ax.set_ylim(0, 1.0)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("recall (fraction of evaluable windows)")
-    axes[-1].legend(fontsize=7, loc="lower right")
+    _legend_right(fig, axes[-1])
     return _save(fig, path)
 
 
@@ -120,12 +154,14 @@ def condition_edges(x: np.ndarray, log: bool, n_bins: int = 8) -> np.ndarray:
 def error_vs_conditions(df: pd.DataFrame, path: Path, column: str = "corner_err_px_snap") -> Path:
     """Binned medians of an error against incidence angle, distance and window pixel size."""
     d = _evaluable(df)
+    styles = line_styles(d)
+    d = d[d["pose"] == main_pose(d)]
     fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharey=True)
     for ax, (cond, label, log) in zip(axes, CONDITIONS):
         edges = condition_edges(d[cond].to_numpy(float), log)
         for m, g in sorted(d.groupby("method"), key=lambda kv: kv[0]):
             c, med, _ = binned_medians(g[cond].to_numpy(float), g[column].to_numpy(float), edges)
-            ax.plot(c, med, marker="o", ms=3, lw=1.2, label=m)
+            ax.plot(c, med, marker="o", ms=3, lw=1.2, **styles[m])
         if log:
             ax.set_xscale("log")
             ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
@@ -133,7 +169,7 @@ def error_vs_conditions(df: pd.DataFrame, path: Path, column: str = "corner_err_
         ax.set_xlabel(label)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel(f"median {column}")
-    axes[-1].legend(fontsize=7)
+    _legend_right(fig, axes[-1])
     fig.suptitle(f"Median {column} against view conditions (bins with >= 3 windows)", fontsize=11)
     return _save(fig, path)
 
@@ -143,13 +179,16 @@ def aspect_rotation(df: pd.DataFrame, path: Path) -> Path:
     d = _evaluable(df)
     methods = sorted(d["method"].unique())
     fig, axes = plt.subplots(1, 2, figsize=(13, 0.45 * len(methods) + 1.8))
+    floors = {"aspect_err_rel": 1e-4, "rot_err_deg": 1e-2}  # log axis: smaller values drawn at the floor
     for ax, (col, label) in zip(axes, (("aspect_err_rel", "aspect ratio error (relative)"),
                                        ("rot_err_deg", "rotation error (deg)"))):
-        data = [d.loc[d["method"] == m, col].dropna().to_numpy(float) for m in methods]
+        data = [np.maximum(d.loc[d["method"] == m, col].dropna().to_numpy(float), floors[col])
+                for m in methods]
         data = [v if v.size else np.array([np.nan]) for v in data]
         ax.boxplot(data, orientation="horizontal", whis=(10, 90), showfliers=False)
         ax.set_yticks(range(1, len(methods) + 1), methods, fontsize=8)
-        ax.set_xscale("symlog", linthresh=0.01 if col == "aspect_err_rel" else 0.1)
-        ax.set_xlabel(label + " - whiskers p10/p90")
+        ax.set_xscale("log")
+        ax.set_xlim(left=floors[col])
+        ax.set_xlabel(f"{label}, log scale; box p25-p75, whiskers p10/p90")
         ax.grid(alpha=0.3, axis="x")
     return _save(fig, path)

@@ -122,3 +122,30 @@ def test_profiles_load_and_validate():
     a = profile_from_dict({"name": "x", "description": "a"})
     assert a.config_hash() == profile_from_dict({"name": "x", "description": "b"}).config_hash()
     assert a.config_hash() != profile_from_dict({"name": "x", "seed": 1}).config_hash()
+
+
+def test_suggested_gates_pass_their_own_run_and_catch_a_worse_one(run_dir, tmp_path):
+    summary = results.summarize(results.load_results(run_dir))
+    text = gates.suggest_gates(summary, "synthetic", margin=0.5)
+    p = tmp_path / "g.toml"
+    p.write_text(text)
+    g = gates.load_gates(p)
+    assert {x.method for x in g} >= {"oracle/*/*", "oracle/good/*", "oracle/bad/*"}
+    assert gates.check(run_dir, g) == []
+    # the same windows with every snapped error doubled break the snapped-error ceilings
+    worse = results.load_results(run_dir)
+    worse["corner_err_px_snap"] *= 2.0
+    v = gates.check_results(results.summarize(worse), "synthetic", g)
+    assert any(x.metric == "corner_err_px_snap.median" and x.method == "oracle/good/lm" for x in v)
+
+
+@pytest.mark.slow
+def test_cli_bench_smoke_then_gate(tmp_path):
+    out = tmp_path / "smoke"
+    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--out", str(out)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "wall time" in r.stdout and "report:" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(out)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr

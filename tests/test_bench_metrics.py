@@ -159,3 +159,23 @@ def test_matching_empty_and_bad_input():
         matching.iou_matrix([np.zeros((5, 5), bool)], [_box_mask(0, 0, 5, 5)])
     with pytest.raises(ValueError, match="min_iou.*1.5"):
         matching.match(np.zeros((1, 1)), 1.5)
+
+
+def test_detection_ap_hand_values():
+    """COCO AP on hand-made masks: exact detections -> 1; half the windows found -> 51/101
+    (COCO's 101-point interpolation: precision 1 up to recall 0.5, 0 beyond)."""
+    from bench.detection_ap import coco_ap
+    from bench.evaluate import _rle
+
+    gts, dts = [], []
+    for i in range(4):
+        m = _box_mask(5 * i, 0, 5 * i + 4, 6)
+        ys, xs = np.nonzero(m)
+        g = {"view": "v", "rle": _rle(m), "area": int(m.sum()),
+             "bbox": [xs.min() - 0.5, ys.min() - 0.5, np.ptp(xs) + 1.0, np.ptp(ys) + 1.0]}
+        gts.append(g)
+        dts.append({"view": "v", "rle": g["rle"], "bbox": g["bbox"], "score": 1.0})
+    assert coco_ap(gts, dts)["segm_AP"] == pytest.approx(1.0)
+    assert coco_ap(gts, dts)["bbox_AP"] == pytest.approx(1.0)
+    assert coco_ap(gts, dts[:2])["segm_AP"] == pytest.approx(51 / 101)
+    assert coco_ap(gts, [])["segm_AP"] == 0.0
