@@ -36,27 +36,32 @@ class QuadParams:
 
     window_pts: outline points in each local line fit (the paper: ~100); capped at a sixth of the
         outline so small masks still get one fit per side.
-    inlier_px: an outline point within this distance of a line is explained by it.
+    inlier_px: an outline point within this distance of a line is explained by it; for large
+        masks the distance grows to ``inlier_rel`` x sqrt(mask area) (a network's mask boundary
+        wobbles in proportion to the window size).
     max_candidates: local fits considered as candidate lines (every k-th outline point).
     max_overlap: a candidate sharing more than this fraction of its inliers with a chosen line is
         a copy of that line and is refused.
     min_area_px: masks smaller than this fail with ``too_small``.
     min_explained: the four lines must explain at least this fraction of the outline.
     min_side_frac: each line must explain at least this fraction of the outline.
-    speck_px: extra connected components up to this size are ignored (noise specks); larger ones
-        make the mask fail with ``multiple_blobs``.
+    speck_px, speck_rel: extra connected components up to max(speck_px, speck_rel x the largest
+        component) are ignored (noise specks, as a network's masks have); larger ones make the
+        mask fail with ``multiple_blobs`` (e.g. two windows in one mask).
     allow_border: if False, a mask touching the image border fails with ``touches_border``
         (the window is cut by the image, its true corners are unknown).
     """
 
     window_pts: int = 100
     inlier_px: float = 1.5
+    inlier_rel: float = 0.015
     max_candidates: int = 256
     max_overlap: float = 0.3
     min_area_px: int = 64
-    min_explained: float = 0.85
+    min_explained: float = 0.6
     min_side_frac: float = 0.04
     speck_px: int = 4
+    speck_rel: float = 0.05
     allow_border: bool = False
 
 
@@ -106,11 +111,12 @@ def check_mask(mask: np.ndarray, params: QuadParams = QuadParams()) -> tuple[np.
     m = full[y0:min(y + h + 1, H), x0:min(x + w + 1, W)]
     _, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
     sizes = stats[1:, cv2.CC_STAT_AREA]
-    big = np.flatnonzero(sizes > params.speck_px)
+    speck = max(params.speck_px, params.speck_rel * float(sizes.max()))
+    big = np.flatnonzero(sizes > speck)
     if len(big) > 1:
         top = sorted(sizes[big].tolist(), reverse=True)[:4]
         return None, (x0, y0), (f"multiple_blobs: {len(big)} components larger than "
-                                f"{params.speck_px} px (largest: {top} px)")
+                                f"{speck:.0f} px (largest: {top} px)")
     keep = 1 + int(np.argmax(sizes))
     area = int(sizes[keep - 1])
     if area < params.min_area_px:
@@ -185,7 +191,7 @@ def order_corners(quad: np.ndarray) -> np.ndarray:
     return np.roll(q, -int(np.argmin(mid_y)), axis=0)
 
 
-def _choose_lines(P: np.ndarray, params: QuadParams) -> np.ndarray | None:
+def _choose_lines(P: np.ndarray, params: QuadParams, inlier_px: float) -> np.ndarray | None:
     """Greedy choice of four candidate lines; returns (4, 3) lines or None if fewer found."""
     N = len(P)
     window = int(min(params.window_pts, max(5, N // 6)))
@@ -193,7 +199,7 @@ def _choose_lines(P: np.ndarray, params: QuadParams) -> np.ndarray | None:
     step = max(1, N // params.max_candidates)
     cand = np.arange(0, N, step)
     # (N, C) inlier table as 0/1 floats: counting inliers becomes a matrix-vector product
-    D = (np.abs(P @ normals[cand].T - offsets[cand]) < params.inlier_px).astype(np.float32)
+    D = (np.abs(P @ normals[cand].T - offsets[cand]) < inlier_px).astype(np.float32)
     remaining = np.ones(N, dtype=np.float32)
     allowed = np.ones(len(cand), dtype=bool)
     support = np.maximum(D.sum(axis=0), 1.0)
@@ -242,10 +248,11 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
         return _fail(reason)
     P = outline(m) + np.asarray(origin, dtype=np.float64)
     N = len(P)
-    lines = _choose_lines(P, params)
+    inlier_px = max(params.inlier_px, params.inlier_rel * float(np.sqrt(np.count_nonzero(m))))
+    lines = _choose_lines(P, params, inlier_px)
     if lines is None:
         return _fail("not_quadrilateral: fewer than four distinct lines on the outline")
-    lines, assign = _refit(P, lines, radius=params.inlier_px)
+    lines, assign = _refit(P, lines, radius=inlier_px)
     counts = np.bincount(assign[assign >= 0], minlength=4)
     explained = float(counts.sum()) / N
     if explained < params.min_explained:

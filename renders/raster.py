@@ -73,14 +73,20 @@ layout(location = 0) in vec3 position;
 layout(location = 1) in vec2 texcoord;
 layout(location = 2) in vec4 colour;
 uniform mat4 PV;
-out vec3 wpos;
+uniform mat4 sun_from_world;
+out vec3 spos;
 out vec2 uv;
 out vec4 col;
-void main() { gl_Position = PV * vec4(position, 1.0); wpos = position; uv = texcoord; col = colour; }
+void main() {
+    gl_Position = PV * vec4(position, 1.0);
+    spos = (sun_from_world * vec4(position, 1.0)).xyz;  // affine: interpolates exactly
+    uv = texcoord;
+    col = colour;
+}
 """
 # col.rgb: baked light multiplier; col.a: quantised shadow ratio (>= 1: never shaded)
 _MESH_FS = """#version 330 core
-in vec3 wpos;
+in vec3 spos;
 in vec2 uv;
 in vec4 col;
 uniform sampler2D tex;
@@ -88,8 +94,8 @@ uniform int textured;
 uniform vec3 base;
 uniform sampler2D shadow_map;
 uniform int shadows;
-uniform mat4 sun_from_world;
 uniform float radius;
+uniform float far;
 uniform int size;
 uniform float bias;
 uniform vec3 tint;
@@ -98,11 +104,11 @@ void main() {
     vec3 c = base * col.rgb;
     if (textured != 0) c *= texture(tex, uv).rgb;
     if (shadows != 0 && col.a < 1.0) {
-        vec3 s = (sun_from_world * vec4(wpos, 1.0)).xyz;
+        vec3 s = spos;
         ivec2 ij = ivec2(floor(vec2((s.x / radius + 1.0) * 0.5 * float(size) - 0.5,
                                     (1.0 - s.y / radius) * 0.5 * float(size) - 0.5) + 0.5));
         if (all(greaterThanEqual(ij, ivec2(0))) && all(lessThan(ij, ivec2(size)))) {
-            float d = texelFetch(shadow_map, ij, 0).r;
+            float d = texelFetch(shadow_map, ij, 0).r * far;
             if (d > 0.0 && -s.z > d + bias) c *= col.a * tint;
         }
     }
@@ -142,6 +148,35 @@ void main() {
 """
 
 
+# FXAA (Lottes' FXAA 3 "console" variant): along a luma edge, average 2 or 4 taps along the
+# edge direction; elsewhere the pixel is left as rendered
+_FXAA_FS = """#version 330 core
+uniform sampler2D img;
+out vec4 frag;
+void main() {
+    vec2 inv = 1.0 / vec2(textureSize(img, 0));
+    vec2 p = gl_FragCoord.xy * inv;
+    vec3 nw = texture(img, p + vec2(-1.0, -1.0) * inv).rgb;
+    vec3 ne = texture(img, p + vec2(1.0, -1.0) * inv).rgb;
+    vec3 sw = texture(img, p + vec2(-1.0, 1.0) * inv).rgb;
+    vec3 se = texture(img, p + vec2(1.0, 1.0) * inv).rgb;
+    vec3 m = texture(img, p).rgb;
+    vec3 w = vec3(0.299, 0.587, 0.114);
+    float lnw = dot(nw, w), lne = dot(ne, w), lsw = dot(sw, w), lse = dot(se, w), lm = dot(m, w);
+    float lmin = min(lm, min(min(lnw, lne), min(lsw, lse)));
+    float lmax = max(lm, max(max(lnw, lne), max(lsw, lse)));
+    vec2 dir = vec2(-((lnw + lne) - (lsw + lse)), (lnw + lsw) - (lne + lse));
+    float reduce = max((lnw + lne + lsw + lse) * (0.25 / 8.0), 1.0 / 128.0);
+    float rcp = 1.0 / (min(abs(dir.x), abs(dir.y)) + reduce);
+    dir = clamp(dir * rcp, vec2(-8.0), vec2(8.0)) * inv;
+    vec3 a = 0.5 * (texture(img, p + dir * (1.0 / 3.0 - 0.5)).rgb + texture(img, p + dir * (2.0 / 3.0 - 0.5)).rgb);
+    vec3 b = a * 0.5 + 0.25 * (texture(img, p - dir * 0.5).rgb + texture(img, p + dir * 0.5).rgb);
+    float lb = dot(b, w);
+    frag = vec4((lb < lmin || lb > lmax) ? a : b, 1.0);
+}
+"""
+
+
 class GLContext:
     """One process-wide EGL context (from a pyrender OffscreenRenderer) shared by all passes.
 
@@ -173,7 +208,8 @@ class GLContext:
         from OpenGL.GL.shaders import compileProgram, compileShader
 
         if name not in self._programs:
-            vs, fs = {"mesh": (_MESH_VS, _MESH_FS), "code": (_CODE_VS, _CODE_FS), "sky": (_SKY_VS, _SKY_FS)}[name]
+            vs, fs = {"mesh": (_MESH_VS, _MESH_FS), "code": (_CODE_VS, _CODE_FS), "sky": (_SKY_VS, _SKY_FS),
+                      "fxaa": (_SKY_VS, _FXAA_FS)}[name]
             # validate=False: core profile needs a bound VAO to validate, and none is bound yet
             self._programs[name] = int(compileProgram(compileShader(vs, GL_VERTEX_SHADER),
                                                       compileShader(fs, GL_FRAGMENT_SHADER), validate=False))
@@ -264,15 +300,15 @@ def _texture_rgb(img: np.ndarray) -> int:
     return int(tex)
 
 
-def _texture_float(img: np.ndarray) -> int:
-    """Upload an (H, W) float32 map as a nearest-sampled R32F texture (texel (x, y) = img[y, x])."""
+def _texture_u16(img: np.ndarray) -> int:
+    """Upload an (H, W) uint16 map as a nearest-sampled R16 texture (texel (x, y) = img[y, x])."""
     from OpenGL import GL
 
     tex = GL.glGenTextures(1)
     GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
-    GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 4)
-    data = np.ascontiguousarray(img, np.float32)
-    GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_R32F, img.shape[1], img.shape[0], 0, GL.GL_RED, GL.GL_FLOAT, data)
+    GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 2)
+    data = np.ascontiguousarray(img, np.uint16)
+    GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_R16, img.shape[1], img.shape[0], 0, GL.GL_RED, GL.GL_UNSIGNED_SHORT, data)
     for p, v in ((GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST), (GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST),
                  (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
         GL.glTexParameteri(GL.GL_TEXTURE_2D, p, v)
@@ -281,17 +317,18 @@ def _texture_float(img: np.ndarray) -> int:
 
 
 class _Framebuffers:
-    """Offscreen framebuffers (RGBA8 + 24-bit depth renderbuffers) by (width, height, samples)."""
+    """Offscreen framebuffers (RGBA8 colour + 24-bit depth) by (width, height, samples, texture):
+    colour in a renderbuffer, or in a texture (single-sampled, for post filters)."""
 
     def __init__(self):
-        self._fbs: dict[tuple[int, int, int], tuple[int, list[int]]] = {}
+        self._fbs: dict[tuple[int, int, int, bool], tuple[int, list[int], int]] = {}
 
-    def bind(self, width: int, height: int, samples: int = 0, target=None) -> int:
+    def bind(self, width: int, height: int, samples: int = 0, target=None, texture: bool = False) -> int:
         from OpenGL import GL
 
-        key = (width, height, samples)
+        key = (width, height, samples, texture)
         if key not in self._fbs:
-            if len(self._fbs) >= 6:  # canvases of distorted cameras vary in size: keep a few
+            if len(self._fbs) >= 8:  # canvases of distorted cameras vary in size: keep a few
                 self.delete()
             rbs = [int(x) for x in GL.glGenRenderbuffers(2)]
             for rb, fmt in zip(rbs, (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24)):
@@ -299,21 +336,38 @@ class _Framebuffers:
                 GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, fmt, width, height)
             fb = int(GL.glGenFramebuffers(1))
             GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, fb)
-            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, rbs[0])
+            tex = 0
+            if texture:
+                tex = int(GL.glGenTextures(1))
+                GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
+                GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA8, width, height, 0, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, None)
+                for p, v in ((GL.GL_TEXTURE_MAG_FILTER, GL.GL_LINEAR), (GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR),
+                             (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
+                    GL.glTexParameteri(GL.GL_TEXTURE_2D, p, v)
+                GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+                GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_TEXTURE_2D, tex, 0)
+            else:
+                GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, rbs[0])
             GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
             if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"incomplete framebuffer {key}")
-            self._fbs[key] = (fb, rbs)
+            self._fbs[key] = (fb, rbs, tex)
         fb = self._fbs[key][0]
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER if target is None else target, fb)
         return fb
 
+    def texture(self, width: int, height: int) -> int:
+        """The colour texture of the (width, height) texture framebuffer (after bind)."""
+        return self._fbs[(width, height, 0, True)][2]
+
     def delete(self) -> None:
         from OpenGL import GL
 
-        for fb, rbs in self._fbs.values():
+        for fb, rbs, tex in self._fbs.values():
             GL.glDeleteFramebuffers(1, [fb])
             GL.glDeleteRenderbuffers(2, rbs)
+            if tex:
+                GL.glDeleteTextures(1, [tex])
         self._fbs.clear()
 
 
@@ -479,9 +533,15 @@ class SunShadow:
         pose = np.eye(4)
         pose[:3, :3], pose[:3, 3] = self.axes, self.origin
         self.size, self.bias = size, bias_m
-        self.map = occ.render_ortho_depth(pose, self.radius, 4 * self.radius, size)
+        self.far = 4 * self.radius
+        self.map = occ.render_ortho_depth(pose, self.radius, self.far, size)
         self.sun_from_world = np.eye(4)
         self.sun_from_world[:3, :3], self.sun_from_world[:3, 3] = self.axes.T, -self.axes.T @ self.origin
+
+    def map_u16(self) -> np.ndarray:
+        """The map quantised for the GPU: uint16 levels of ``far / 65535`` m (0 = nothing),
+        rounded up so that a surface never shadows itself; ~1 mm steps, far below the bias."""
+        return np.minimum(np.ceil(self.map / self.far * 65535.0), 65535).astype(np.uint16)
 
     def in_shadow(self, cam: Camera, depth: np.ndarray) -> np.ndarray:
         """(H, W) bool for a pinhole camera's exact depth map (m, 0 = sky)."""
@@ -550,7 +610,7 @@ class RasterRenderer:
             first += g.faces.size
         self._geom = _Geometry(np.concatenate(P), np.concatenate(UV), np.concatenate(C), np.concatenate(I), ranges)
         self._geom.textures = textures
-        self._shadow_tex = _texture_float(self.shadow.map) if self.shadow is not None else 0
+        self._shadow_tex = _texture_u16(self.shadow.map_u16()) if self.shadow is not None else 0
         self._empty_vao = GL.glGenVertexArrays(1)
         GL.glFinish()
 
@@ -589,6 +649,7 @@ class RasterRenderer:
             GL.glBindTexture(GL.GL_TEXTURE_2D, self._shadow_tex)
             GL.glUniformMatrix4fv(_uniform(prog, "sun_from_world"), 1, GL.GL_TRUE, sh.sun_from_world.astype(np.float32))
             GL.glUniform1f(_uniform(prog, "radius"), sh.radius)
+            GL.glUniform1f(_uniform(prog, "far"), sh.far)
             GL.glUniform1i(_uniform(prog, "size"), sh.size)
             GL.glUniform1f(_uniform(prog, "bias"), sh.bias)
             GL.glUniform3f(_uniform(prog, "tint"), *SHADOW_TINT)
