@@ -18,10 +18,13 @@ class RenderSettings:
     spp: int = 16
     max_depth: int = 3
     variant: str = "auto"  # mitsuba: "auto" (llvm_ad_rgb if available, else scalar_rgb) or a name
+    antialias: str = "fxaa"  # raster: "fxaa" (post filter, fast), "msaa4" (4x multisampling, ~2.5x slower), "none"
 
     def __post_init__(self) -> None:
         if self.spp < 1:
             raise ValueError(f"spp must be >= 1, got {self.spp}")
+        if self.antialias not in ("fxaa", "msaa4", "none"):
+            raise ValueError(f"antialias must be 'fxaa', 'msaa4' or 'none', got {self.antialias!r}")
         if self.max_depth < 1:
             raise ValueError(f"max_depth must be >= 1, got {self.max_depth}")
 

@@ -1,6 +1,7 @@
 """Render-speed benchmark (prints figures; not a test).
 
     PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark [--scene fzk-haus] [--views 30] [--mitsuba-views 3]
+        [--antialias fxaa|msaa4|none]
 
 Warm-up views first, then the median seconds per view of ``renderer.render(camera)`` (RGB +
 instances + depth + ground truth; file writing excluded), printed as JSON with versions.
@@ -42,6 +43,7 @@ def main() -> None:
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--width", type=int, default=640)
     ap.add_argument("--height", type=int, default=480)
+    ap.add_argument("--antialias", default="fxaa", choices=("fxaa", "msaa4", "none"), help="raster antialiasing")
     a = ap.parse_args()
     import mitsuba
     import pyrender  # noqa: F401
@@ -54,7 +56,8 @@ def main() -> None:
     cfg = SamplerConfig(width=a.width, height=a.height)
     views = sample_views(scene, cfg, a.views + 2, seed=0).views
     out = {"scene": a.scene, "size": [a.width, a.height], "python": platform.python_version(),
-           "mitsuba": mitsuba.__version__, "results": [bench("pyrender", scene, views, RenderSettings(seed=0))]}
+           "mitsuba": mitsuba.__version__, "antialias": a.antialias,
+           "results": [bench("pyrender", scene, views, RenderSettings(seed=0, antialias=a.antialias))]}
     if a.mitsuba_views > 0:
         out["results"].append(bench("mitsuba", scene, views[: a.mitsuba_views + 1], RenderSettings(seed=0, spp=a.spp),
                                     warmup=1))

@@ -26,7 +26,7 @@ from renders.sampler import SamplerConfig, sample_views
 from renders.sensor import SensorConfig, apply_sensor
 from scenes.model import Scene
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: GL raster backend rewrite (shader shadows, per-pixel sky, FXAA default)
 
 
 @dataclass(frozen=True)

@@ -144,6 +144,12 @@ def void_instances(cam: Camera, windows: tuple[WindowGT, ...], occ_depth: np.nda
 def void_area_px(camera: Camera, corners_world: np.ndarray, samples_per_edge: int = 32) -> float:
     """Area (px^2) of a void's image on an unbounded sensor (near-clipped, distortion included)."""
     Xc = corners_world @ camera.R.T + camera.t
+    if camera.dist is None:  # straight edges stay straight: the clipped corners are exact
+        poly = clip_near(Xc, near=0.05)
+        if len(poly) < 3:
+            return 0.0
+        q = poly @ camera.K.T
+        return polygon_area(q[:, :2] / q[:, 2:3])
     dense = np.concatenate([Xc[i] + np.linspace(0, 1, samples_per_edge, endpoint=False)[:, None] * (Xc[(i + 1) % 4] - Xc[i])
                             for i in range(4)])
     dense = clip_near(dense, near=0.05)
@@ -164,10 +170,13 @@ def window_views(camera: Camera, windows: tuple[WindowGT, ...], instances: np.nd
     counts = np.bincount(instances.ravel(), minlength=len(windows) + 1)
     C = camera.center
     out = []
+    if not windows:
+        return ()
+    allc = np.concatenate([w.corners_world for w in windows])  # (4 n, 3): one projection call each
+    px_all, z_all = camera.project(allc), camera.depths(allc)
+    pin_all = px_all if camera.dist is None else canvas.project(allc)
     for i, w in enumerate(windows):
-        px = camera.project(w.corners_world)
-        z = camera.depths(w.corners_world)
-        pin = canvas.project(w.corners_world)
+        px, z, pin = px_all[4 * i:4 * i + 4].copy(), z_all[4 * i:4 * i + 4], pin_all[4 * i:4 * i + 4]
         vis = []
         for k in range(4):
             ok = z[k] > 0 and -0.5 <= px[k, 0] <= camera.width - 0.5 and -0.5 <= px[k, 1] <= camera.height - 0.5

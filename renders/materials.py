@@ -33,7 +33,8 @@ class MaterialSpec:
 @dataclass(frozen=True, eq=False)
 class MaterialGroup:
     """Triangles sharing one material. vertices (N, 3) m (unshared per face), faces (M, 3),
-    uvs (N, 2) in texture repeats; element_ids: GlobalIds of the merged elements."""
+    uvs (N, 2) in texture repeats; element_ids: GlobalIds of the merged elements;
+    face_element: (M,) int, each face's index into element_ids."""
 
     material: MaterialSpec
     vertices: np.ndarray
@@ -41,6 +42,7 @@ class MaterialGroup:
     uvs: np.ndarray
     element_ids: tuple[str, ...]
     is_window: bool
+    face_element: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -261,19 +263,21 @@ def group_scene(scene: Scene, look: Look, rng: np.random.Generator, ground_size_
     groups = []
     for key in sorted(buckets):
         mat = make_material(key, look, rng)
-        V, F, UV, ids = [], [], [], []
+        V, F, UV, ids, FE = [], [], [], [], []
         off = 0
         for m in buckets[key]:
             v, f, uv = planar_uvs(m.vertices, m.faces, mat.tile_m)
-            V.append(v); F.append(f + off); UV.append(uv); ids.append(m.global_id)  # noqa: E702
+            V.append(v); F.append(f + off); UV.append(uv); FE.append(np.full(len(f), len(ids)))  # noqa: E702
+            ids.append(m.global_id)
             off += len(v)
         groups.append(MaterialGroup(mat, np.concatenate(V), np.concatenate(F), np.concatenate(UV), tuple(ids),
-                                    is_window=key in ("frame", "glass")))
+                                    is_window=key in ("frame", "glass"), face_element=np.concatenate(FE)))
     c = scene.bounds().mean(axis=0)
     z, h = ground_z(scene) - 0.002, ground_size_m / 2
     gv = np.array([[c[0] - h, c[1] - h, z], [c[0] + h, c[1] - h, z], [c[0] + h, c[1] + h, z], [c[0] - h, c[1] + h, z]])
     gmat = make_material("ground", look, rng)
-    groups.append(MaterialGroup(gmat, gv, np.array([[0, 1, 2], [0, 2, 3]]), gv[:, :2] / gmat.tile_m, ("ground",), False))
+    groups.append(MaterialGroup(gmat, gv, np.array([[0, 1, 2], [0, 2, 3]]), gv[:, :2] / gmat.tile_m, ("ground",), False,
+                                np.zeros(2, int)))
     return groups
 
 

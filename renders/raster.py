@@ -1,16 +1,19 @@
 """OpenGL (EGL, via pyrender's headless context) backend: daylight RGB, exact window-void
 instance maps, depth.
 
-Geometry is uploaded once per renderer into vertex buffers (one buffer set per pass, merged by
-material: one draw range per material group) and every view only sets a camera matrix:
-- the RGB pass (4x MSAA): a per-pixel sky gradient behind textured material groups with baked
-  daylight (sky ambient + sun, per face); sun shadows come from a shadow map rendered once per
-  scene and tested per sample in the fragment shader;
+Geometry is uploaded once per renderer into vertex buffers (merged by material: one draw range
+per material group) and every view only sets a camera matrix:
+- the RGB pass: textured material groups with baked daylight (sky ambient + sun, per face), a
+  per-pixel sky gradient where nothing was drawn; sun shadows come from a shadow map rendered once
+  per scene and tested per fragment in the shader. Antialiasing (RenderSettings.antialias): FXAA
+  post filter (default) or 4x MSAA (~2.5x slower on llvmpipe) or none;
 - the occluder pass, single-sampled, draws every element in a flat colour that encodes its
   element code; its depth and codes feed :func:`renders.gt.void_instances`, which rasterises
-  the void rectangles exactly at pixel centres.
-Draw order is fixed (sorted groups), so coplanar faces resolve the same way in every context and
-the same seed gives byte-identical images. pyrender is only used for its EGL context.
+  the void rectangles exactly at pixel centres. Without MSAA the RGB pass writes it as a second
+  render target (same triangles, same depth); :class:`OccluderPass` draws it on its own.
+Draw order is fixed (sorted groups, never pyrender's set order), so coincident faces resolve the
+same way in every GL context and the same seed gives byte-identical images. pyrender is only used
+for its headless EGL context (llvmpipe here).
 Use as a context manager or call ``close()`` (a live EGL context at exit can segfault).
 """
 from __future__ import annotations
@@ -25,7 +28,7 @@ from fenestra.conventions import PYRENDER_PIXEL_OFFSET, cv_to_gl_pose
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
 from renders.gt import void_instances, window_views
-from renders.materials import Look, face_normals, group_scene, ground_z, lighting, sample_look, sky_colour, sun_direction
+from renders.materials import face_normals, group_scene, ground_z, lighting, sample_look, sun_direction
 from scenes.model import Scene
 
 ZNEAR, ZFAR = 0.1, 2000.0
@@ -72,13 +75,16 @@ _MESH_VS = """#version 330 core
 layout(location = 0) in vec3 position;
 layout(location = 1) in vec2 texcoord;
 layout(location = 2) in vec4 colour;
+layout(location = 3) in vec4 code;
 uniform mat4 PV;
 uniform mat4 sun_from_world;
 out vec3 spos;
 out vec2 uv;
 out vec4 col;
+flat out vec4 vcode;
 void main() {
     gl_Position = PV * vec4(position, 1.0);
+    vcode = code;
     spos = (sun_from_world * vec4(position, 1.0)).xyz;  // affine: interpolates exactly
     uv = texcoord;
     col = colour;
@@ -89,6 +95,7 @@ _MESH_FS = """#version 330 core
 in vec3 spos;
 in vec2 uv;
 in vec4 col;
+flat in vec4 vcode;
 uniform sampler2D tex;
 uniform int textured;
 uniform vec3 base;
@@ -99,8 +106,10 @@ uniform float far;
 uniform int size;
 uniform float bias;
 uniform vec3 tint;
-out vec4 frag;
+layout(location = 0) out vec4 frag;
+layout(location = 1) out vec4 code_out;  // the occluder pass's colour (element code, shade bin)
 void main() {
+    code_out = vcode;
     vec3 c = base * col.rgb;
     if (textured != 0) c *= texture(tex, uv).rgb;
     if (shadows != 0 && col.a < 1.0) {
@@ -148,23 +157,26 @@ void main() {
 """
 
 
-# FXAA (Lottes' FXAA 3 "console" variant): along a luma edge, average 2 or 4 taps along the
-# edge direction; elsewhere the pixel is left as rendered
+# FXAA (Lottes' FXAA 3 "console" variant): where the local luma contrast exceeds FXAA's edge
+# threshold, average 2 or 4 taps along the edge direction; elsewhere the pixel is left as rendered
 _FXAA_FS = """#version 330 core
 uniform sampler2D img;
 out vec4 frag;
 void main() {
-    vec2 inv = 1.0 / vec2(textureSize(img, 0));
+    ivec2 size = textureSize(img, 0);
+    vec2 inv = 1.0 / vec2(size);
     vec2 p = gl_FragCoord.xy * inv;
-    vec3 nw = texture(img, p + vec2(-1.0, -1.0) * inv).rgb;
-    vec3 ne = texture(img, p + vec2(1.0, -1.0) * inv).rgb;
-    vec3 sw = texture(img, p + vec2(-1.0, 1.0) * inv).rgb;
-    vec3 se = texture(img, p + vec2(1.0, 1.0) * inv).rgb;
-    vec3 m = texture(img, p).rgb;
+    ivec2 ij = ivec2(gl_FragCoord.xy), lo = max(ij - 1, ivec2(0)), hi = min(ij + 1, size - 1);
+    vec3 nw = texelFetch(img, ivec2(lo.x, lo.y), 0).rgb;  // the four diagonal neighbours, clamped
+    vec3 ne = texelFetch(img, ivec2(hi.x, lo.y), 0).rgb;
+    vec3 sw = texelFetch(img, ivec2(lo.x, hi.y), 0).rgb;
+    vec3 se = texelFetch(img, ivec2(hi.x, hi.y), 0).rgb;
+    vec3 m = texelFetch(img, ij, 0).rgb;
     vec3 w = vec3(0.299, 0.587, 0.114);
     float lnw = dot(nw, w), lne = dot(ne, w), lsw = dot(sw, w), lse = dot(se, w), lm = dot(m, w);
     float lmin = min(lm, min(min(lnw, lne), min(lsw, lse)));
     float lmax = max(lm, max(max(lnw, lne), max(lsw, lse)));
+    if (lmax - lmin < max(1.0 / 32.0, lmax / 8.0)) { frag = vec4(m, 1.0); return; }  // no edge here
     vec2 dir = vec2(-((lnw + lne) - (lsw + lse)), (lnw + lsw) - (lne + lse));
     float reduce = max((lnw + lne + lsw + lse) * (0.25 / 8.0), 1.0 / 128.0);
     float rcp = 1.0 / (min(abs(dir.x), abs(dir.y)) + reduce);
@@ -237,23 +249,25 @@ def _uniform(prog: int, name: str):
 
 
 class _Geometry:
-    """Triangles uploaded once: positions (N, 3), uvs (N, 2), colours (N, 4) float32 and uint32
-    indices, drawn as ranges ``(first index, count, texture id or 0, base rgb)`` in list order."""
+    """Triangles uploaded once: positions (N, 3), uvs (N, 2), colours (N, 4), optional codes
+    (N, 4) float32 (attribute locations 0-3) and uint32 indices, drawn as ranges
+    ``(first index, count, texture id or 0, base rgb)`` in list order."""
 
-    def __init__(self, positions, uvs, colours, indices, ranges):
+    def __init__(self, positions, uvs, colours, indices, ranges, codes=None):
         from OpenGL import GL
 
         self.vao = GL.glGenVertexArrays(1)
         GL.glBindVertexArray(self.vao)
-        self.buffers = list(GL.glGenBuffers(4))
-        for loc, (buf, arr) in enumerate(zip(self.buffers[:3], (positions, uvs, colours))):
+        attrs = (positions, uvs, colours) if codes is None else (positions, uvs, colours, codes)
+        self.buffers = [int(b) for b in GL.glGenBuffers(len(attrs) + 1)]
+        for loc, (buf, arr) in enumerate(zip(self.buffers[:-1], attrs)):
             arr = np.ascontiguousarray(arr, np.float32)
             GL.glBindBuffer(GL.GL_ARRAY_BUFFER, buf)
             GL.glBufferData(GL.GL_ARRAY_BUFFER, arr.nbytes, arr, GL.GL_STATIC_DRAW)
             GL.glEnableVertexAttribArray(loc)
             GL.glVertexAttribPointer(loc, arr.shape[1], GL.GL_FLOAT, GL.GL_FALSE, 0, ctypes.c_void_p(0))
         idx = np.ascontiguousarray(indices, np.uint32).ravel()
-        GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, self.buffers[3])
+        GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, self.buffers[-1])
         GL.glBufferData(GL.GL_ELEMENT_ARRAY_BUFFER, idx.nbytes, idx, GL.GL_STATIC_DRAW)
         GL.glBindVertexArray(0)
         self.ranges = ranges
@@ -308,7 +322,8 @@ def _texture_u16(img: np.ndarray) -> int:
     GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
     GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 2)
     data = np.ascontiguousarray(img, np.uint16)
-    GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_R16, img.shape[1], img.shape[0], 0, GL.GL_RED, GL.GL_UNSIGNED_SHORT, data)
+    GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_R16, img.shape[1], img.shape[0], 0, GL.GL_RED, GL.GL_UNSIGNED_SHORT,
+                    data)
     for p, v in ((GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST), (GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST),
                  (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
         GL.glTexParameteri(GL.GL_TEXTURE_2D, p, v)
@@ -321,17 +336,21 @@ class _Framebuffers:
     colour in a renderbuffer, or in a texture (single-sampled, for post filters)."""
 
     def __init__(self):
-        self._fbs: dict[tuple[int, int, int, bool], tuple[int, list[int], int]] = {}
+        self._fbs: dict[tuple, tuple[int, list[int], int]] = {}
 
-    def bind(self, width: int, height: int, samples: int = 0, target=None, texture: bool = False) -> int:
+    def bind(self, width: int, height: int, samples: int = 0, target=None, texture: bool = False,
+             tag: str = "", codes: bool = False) -> int:
+        """Bind (creating it if needed) the framebuffer of this size, kind and user tag; return it.
+        codes: add a second RGBA8 colour attachment (COLOR_ATTACHMENT1) for element codes."""
         from OpenGL import GL
 
-        key = (width, height, samples, texture)
+        key = (width, height, samples, texture, tag, codes)
         if key not in self._fbs:
-            if len(self._fbs) >= 8:  # canvases of distorted cameras vary in size: keep a few
-                self.delete()
-            rbs = [int(x) for x in GL.glGenRenderbuffers(2)]
-            for rb, fmt in zip(rbs, (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24)):
+            if len(self._fbs) >= 8:  # canvases of distorted cameras vary in size: keep this size only
+                self.delete(keep=(width, height))
+            fmts = (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24) + ((GL.GL_RGBA8,) if codes else ())
+            rbs = [int(x) for x in GL.glGenRenderbuffers(len(fmts))]
+            for rb, fmt in zip(rbs, fmts):
                 GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
                 GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, fmt, width, height)
             fb = int(GL.glGenFramebuffers(1))
@@ -340,7 +359,8 @@ class _Framebuffers:
             if texture:
                 tex = int(GL.glGenTextures(1))
                 GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
-                GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA8, width, height, 0, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, None)
+                GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA8, width, height, 0, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE,
+                                None)
                 for p, v in ((GL.GL_TEXTURE_MAG_FILTER, GL.GL_LINEAR), (GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR),
                              (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
                     GL.glTexParameteri(GL.GL_TEXTURE_2D, p, v)
@@ -349,6 +369,8 @@ class _Framebuffers:
             else:
                 GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, rbs[0])
             GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
+            if codes:
+                GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT1, GL.GL_RENDERBUFFER, rbs[2])
             if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"incomplete framebuffer {key}")
             self._fbs[key] = (fb, rbs, tex)
@@ -356,19 +378,20 @@ class _Framebuffers:
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER if target is None else target, fb)
         return fb
 
-    def texture(self, width: int, height: int) -> int:
+    def texture(self, width: int, height: int, codes: bool = False) -> int:
         """The colour texture of the (width, height) texture framebuffer (after bind)."""
-        return self._fbs[(width, height, 0, True)][2]
+        return self._fbs[(width, height, 0, True, "", codes)][2]
 
-    def delete(self) -> None:
+    def delete(self, keep: tuple[int, int] | None = None) -> None:
+        """Delete the framebuffers (but those of size ``keep``)."""
         from OpenGL import GL
 
-        for fb, rbs, tex in self._fbs.values():
+        for key in [k for k in self._fbs if k[:2] != keep]:
+            fb, rbs, tex = self._fbs.pop(key)
             GL.glDeleteFramebuffers(1, [fb])
-            GL.glDeleteRenderbuffers(2, rbs)
+            GL.glDeleteRenderbuffers(len(rbs), rbs)
             if tex:
                 GL.glDeleteTextures(1, [tex])
-        self._fbs.clear()
 
 
 def _begin(width: int, height: int) -> None:
@@ -445,34 +468,30 @@ class OccluderPass:
                                np.arange(len(P), dtype=np.uint32), [(0, len(P), 0, (1.0, 1.0, 1.0))])
         GL.glFinish()
 
-    def _draw(self, PV: np.ndarray, width: int, height: int) -> None:
+    def _draw(self, PV: np.ndarray, width: int, height: int) -> int:
+        """Issue the pass (GL renders it asynchronously); return its framebuffer."""
         from OpenGL import GL
 
         gl = self._gl
         gl.make_current()
-        gl.fbs.bind(width, height, 0)
+        fb = gl.fbs.bind(width, height, 0, tag="occluders")
         _begin(width, height)
         prog = gl.program("code")
         GL.glUseProgram(prog)
         GL.glUniformMatrix4fv(_uniform(prog, "PV"), 1, GL.GL_TRUE, PV.astype(np.float32))
         self._geom.draw()
         GL.glUseProgram(0)
+        GL.glFlush()
+        return fb
 
     def render_full(self, cam: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing), element codes (H, W) int32
         (-1 = nothing) and the B channel (H, W) uint8 (shadow-ratio bin, 0 = nothing)."""
-        W, H = cam.width, cam.height
-        self._draw(gl_view_projection(cam), W, H)
-        col = _read_rgba(W, H)
-        d = _read_depth(W, H)
-        code = col[..., 0].astype(np.int32) + 256 * col[..., 1].astype(np.int32)
-        code[col[..., 2] == 0] = -1
-        # window depth -> camera z (float32, pyrender's formula)
-        n, f = ZNEAR, ZFAR
-        hit = d < 1.0
-        depth = np.zeros((H, W), np.float32)
-        depth[hit] = (2.0 * n * f) / (f + n - (2.0 * d[hit] - 1.0) * (f - n))
-        return depth, code, np.ascontiguousarray(col[..., 2])
+        return self._read(cam, self._draw(gl_view_projection(cam), cam.width, cam.height))
+
+    def _read(self, cam: Camera, fb: int, attachment: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self._gl.make_current()
+        return read_occluder_pass(fb, cam.width, cam.height, attachment)
 
     def render(self, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing) and element codes (H, W) int32."""
@@ -484,11 +503,14 @@ class OccluderPass:
 
         pose: 4x4 OpenGL camera-to-world (looks along its -z); covers +-half_extent m.
         """
+        from OpenGL import GL
+
         n, f = 0.01, far
         P = np.zeros((4, 4))
         P[0, 0] = P[1, 1] = 1.0 / half_extent
         P[2, 2], P[2, 3], P[3, 3] = 2.0 / (n - f), (f + n) / (n - f), 1.0
-        self._draw(P @ np.linalg.inv(pose), size, size)
+        fb = self._draw(P @ np.linalg.inv(pose), size, size)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
         d = _read_depth(size, size)
         out = np.zeros((size, size), np.float32)
         hit = d < 1.0
@@ -503,10 +525,34 @@ class OccluderPass:
             self._gl.release()
 
 
+def read_occluder_pass(fb: int, W: int, H: int, attachment: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read a finished occluder pass (colour attachment ``attachment`` + depth of ``fb``):
+    depth (H, W) float32 m (0 = nothing), element codes (H, W) int32 (-1 = nothing), B channel uint8."""
+    from OpenGL import GL
+
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
+    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0 + attachment)
+    col = _read_rgba(W, H)
+    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
+    d = _read_depth(W, H)
+    rgba = np.ascontiguousarray(col).view(np.uint32)[..., 0]  # little endian: R + 256 G + 65536 B ...
+    code = (rgba & 0xFFFF).astype(np.int32)
+    shade = np.ascontiguousarray(col[..., 2])
+    code[shade == 0] = -1
+    # window depth -> camera z (float32, pyrender's formula); 0 where nothing was drawn
+    n, f = np.float32(ZNEAR), np.float32(ZFAR)
+    depth = (2 * n * f) / (f + n - (2 * d - 1) * (f - n))
+    depth[d >= 1] = 0
+    return depth, code, shade
+
+
 def ground_truth(occ: OccluderPass, camera: Camera):
     """Instance map (H, W) uint16, depth (H, W) float32, per-window views and the canvas pass."""
+    return _ground_truth(occ, camera, *occ.render_full(camera.canvas()))
+
+
+def _ground_truth(occ: OccluderPass, camera: Camera, depth_c, code_c, shade_c):
     canvas = camera.canvas()
-    depth_c, code_c, shade_c = occ.render_full(canvas)
     maps = None if camera.dist is None else camera.canvas_maps()
     inst, _ = void_instances(canvas, occ.scene.windows, depth_c, code_c, occ.window_codes, maps)
     depth = distort_image(camera, depth_c, nearest=True)
@@ -570,12 +616,24 @@ def shadow_ratio_levels(ratio: np.ndarray) -> np.ndarray:
     return np.rint(254 * q) / 254
 
 
+DRAW_FIRST = ("brick", "plaster", "roof")  # material names, drawn in this order before the rest
+
+
+def draw_priority(g) -> int:
+    """Draw order of a material group: walls and roof first (early depth rejection of what they
+    hide), the ground last; ties keep ``group_scene``'s order (sort is stable)."""
+    name = g.material.name
+    if name in DRAW_FIRST:
+        return DRAW_FIRST.index(name)
+    return len(DRAW_FIRST) + (name == "ground")
+
+
 class RasterRenderer:
     """OpenGL backend: ``render(camera) -> RenderOutput``; geometry uploaded once, reused.
 
     RGB: textured material groups with baked daylight (sky ambient + sun, per face) drawn unlit
-    with 4x MSAA over a per-pixel sky gradient; a face in the sun's shadow (shadow map test per
-    sample) keeps its quantised shadow ratio of the light, tinted blue.
+    over a per-pixel sky gradient, antialiased as ``settings.antialias`` says; a face in the sun's
+    shadow (shadow map test per fragment) keeps its quantised shadow ratio of the light, tinted blue.
     """
 
     name = "pyrender"
@@ -593,10 +651,16 @@ class RasterRenderer:
         self._gl.make_current()
         P, UV, C, I, ranges, textures = [], [], [], [], [], []
         off = first = 0
-        for g in self.groups:
+        codes = []  # per vertex: the occluder pass's colour, for the single-sample passes (MRT)
+        for g in sorted(self.groups, key=draw_priority):  # big occluders first: less overdraw
             m = g.material
             mult, ratio = lighting(face_normals(g.vertices, g.faces), look)
             r = shadow_ratio_levels(ratio)
+            fcode = np.array([self.occluders.codes.get(e, 0) for e in g.element_ids])[g.face_element]
+            enc = np.zeros((len(g.vertices), 4), np.float32)
+            enc[g.faces.ravel()] = np.repeat(_encode(np.stack([fcode % 256, fcode // 256, 1 + np.rint(254 * r),
+                                                               np.full(len(r), 255)], axis=1)), 3, axis=0)
+            codes.append(enc)
             colour = np.ones((len(g.vertices), 4), np.float32)
             colour[g.faces.ravel(), :3] = np.repeat(mult, 3, axis=0)
             colour[g.faces.ravel(), 3] = np.repeat(np.where(r < 1, r, 2.0), 3)  # >= 1: never shaded
@@ -608,7 +672,8 @@ class RasterRenderer:
             ranges.append((first, g.faces.size, tex, tuple(float(x) for x in m.rgb)))
             off += len(g.vertices)
             first += g.faces.size
-        self._geom = _Geometry(np.concatenate(P), np.concatenate(UV), np.concatenate(C), np.concatenate(I), ranges)
+        self._geom = _Geometry(np.concatenate(P), np.concatenate(UV), np.concatenate(C), np.concatenate(I), ranges,
+                               codes=np.concatenate(codes))
         self._geom.textures = textures
         self._shadow_tex = _texture_u16(self.shadow.map_u16()) if self.shadow is not None else 0
         self._empty_vao = GL.glGenVertexArrays(1)
@@ -616,27 +681,34 @@ class RasterRenderer:
 
     def render_rgb(self, camera: Camera) -> np.ndarray:
         """(H, W, 3) uint8 antialiased daylight image for the camera (distortion applied)."""
+        return self._read_rgb(camera, self._draw_rgb(camera))
+
+    def _read_rgb(self, camera: Camera, fb: int) -> np.ndarray:
         from OpenGL import GL
 
-        gl, look, sh = self._gl, self.look, self.shadow
+        canvas = camera.canvas()
+        self._gl.make_current()
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
+        rgb = np.ascontiguousarray(_read_rgba(canvas.width, canvas.height, 3))
+        return distort_image(camera, rgb, nearest=False)
+
+    def _draw_rgb(self, camera: Camera) -> int:
+        """Issue the RGB pass of ``camera.canvas()`` (GL renders it asynchronously); return the
+        framebuffer to read it from."""
+        from OpenGL import GL
+
+        gl, look, sh, aa = self._gl, self.look, self.shadow, self.settings.antialias
         canvas = camera.canvas()
         W, H = canvas.width, canvas.height
         gl.make_current()
-        msaa = gl.fbs.bind(W, H, MSAA_SAMPLES)
+        samples = MSAA_SAMPLES if aa == "msaa4" else 0
+        codes = samples == 0  # single-sampled: the occluder pass comes along as a second target
+        fb = gl.fbs.bind(W, H, samples, texture=aa == "fxaa", codes=codes)
+        self._codes_fb = fb if codes else None
+        if codes:
+            GL.glDrawBuffers(2, [GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1])
         _begin(W, H)
-        GL.glEnable(GL.GL_MULTISAMPLE)
-        # sky behind everything
-        prog = gl.program("sky")
-        GL.glUseProgram(prog)
-        GL.glUniformMatrix3fv(_uniform(prog, "Minv"), 1, GL.GL_TRUE, (canvas.R.T @ np.linalg.inv(canvas.K)).astype(np.float32))
-        GL.glUniform1f(_uniform(prog, "height"), float(H))
-        GL.glUniform3f(_uniform(prog, "horizon"), *look.sky_horizon)
-        GL.glUniform3f(_uniform(prog, "zenith"), *look.sky_zenith)
-        GL.glDisable(GL.GL_DEPTH_TEST)
-        GL.glBindVertexArray(self._empty_vao)
-        GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
-        GL.glBindVertexArray(0)
-        GL.glEnable(GL.GL_DEPTH_TEST)
+        (GL.glEnable if samples else GL.glDisable)(GL.GL_MULTISAMPLE)
         # the house and the ground
         prog = gl.program("mesh")
         GL.glUseProgram(prog)
@@ -654,18 +726,53 @@ class RasterRenderer:
             GL.glUniform1f(_uniform(prog, "bias"), sh.bias)
             GL.glUniform3f(_uniform(prog, "tint"), *SHADOW_TINT)
         self._geom.draw(prog)
+        if codes:
+            GL.glDrawBuffers(1, [GL.GL_COLOR_ATTACHMENT0])
+        # the sky where nothing was drawn (depth still at the far plane): shaded only there
+        prog = gl.program("sky")
+        GL.glUseProgram(prog)
+        Minv = (canvas.R.T @ np.linalg.inv(canvas.K)).astype(np.float32)  # pixel (u, v, 1) -> world ray
+        GL.glUniformMatrix3fv(_uniform(prog, "Minv"), 1, GL.GL_TRUE, Minv)
+        GL.glUniform1f(_uniform(prog, "height"), float(H))
+        GL.glUniform3f(_uniform(prog, "horizon"), *look.sky_horizon)
+        GL.glUniform3f(_uniform(prog, "zenith"), *look.sky_zenith)
+        GL.glDepthFunc(GL.GL_LEQUAL)
+        GL.glDepthMask(GL.GL_FALSE)
+        GL.glBindVertexArray(self._empty_vao)
+        GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_LESS)
+        if aa == "msaa4":  # resolve the samples
+            ms, fb = fb, gl.fbs.bind(W, H, 0, GL.GL_DRAW_FRAMEBUFFER)  # (binding may create it)
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, ms)
+            GL.glBlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+        elif aa == "fxaa":  # post filter the rendered texture into a plain framebuffer
+            fb = gl.fbs.bind(W, H, 0)
+            GL.glDisable(GL.GL_DEPTH_TEST)
+            prog = gl.program("fxaa")
+            GL.glUseProgram(prog)
+            GL.glUniform1i(_uniform(prog, "img"), 0)
+            GL.glActiveTexture(GL.GL_TEXTURE0)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, gl.fbs.texture(W, H, codes))
+            GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+            GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glBindVertexArray(0)
         GL.glUseProgram(0)
-        # resolve the samples and read back
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, msaa)
-        resolved = gl.fbs.bind(W, H, 0, GL.GL_DRAW_FRAMEBUFFER)
-        GL.glBlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, resolved)
-        rgb = np.ascontiguousarray(_read_rgba(W, H, 3))
-        return distort_image(camera, rgb, nearest=False)
+        GL.glFlush()
+        return fb
 
     def render(self, camera: Camera) -> RenderOutput:
-        inst, depth, wins, _ = ground_truth(self.occluders, camera)
-        return RenderOutput(camera, self.render_rgb(camera), inst, depth, wins)
+        occ, canvas = self.occluders, camera.canvas()
+        if self.settings.antialias == "msaa4":  # the occluder pass separately, single-sampled
+            occ_pass = occ.render_full(canvas)
+            fb = self._draw_rgb(camera)
+        else:  # the RGB pass wrote the occluder pass's codes and depth too
+            fb = self._draw_rgb(camera)
+            self._gl.make_current()
+            occ_pass = read_occluder_pass(self._codes_fb, canvas.width, canvas.height, attachment=1)
+        inst, depth, wins, _ = _ground_truth(occ, camera, *occ_pass)
+        return RenderOutput(camera, self._read_rgb(camera, fb), inst, depth, wins)
 
     def close(self) -> None:
         from OpenGL import GL
