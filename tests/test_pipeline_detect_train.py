@@ -36,7 +36,7 @@ def test_config_rejects_unknown_keys(tmp_path):
 
 def test_winnet_tiny_training_loss_decreases(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
-    cfg = load_config("pipeline/models/default.toml", data=(str(ds),), out=str(tmp_path / "w.pt"),
+    cfg = load_config("pipeline/models/default.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
                       iterations=30, batch_size=3, crop_hw=(64, 96), log_every=1, warmup=5, lr=3e-3)
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
@@ -51,7 +51,7 @@ def test_winnet_tiny_training_loss_decreases(tmp_path):
 @pytest.mark.slow
 def test_maskrcnn_reduced_cpu_training(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=4, seed=2)
-    cfg = load_config("pipeline/models/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"),
+    cfg = load_config("pipeline/models/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"), state_dir=str(tmp_path),
                       iterations=2, batch_size=1, crop_hw=(96, 128), maskrcnn_min_size=96,
                       maskrcnn_max_size=128, log_every=1, warmup=1, lr=0.005)
     path = train(cfg, log=lambda *_: None)

@@ -20,7 +20,7 @@ def register(app: typer.Typer) -> None:
         data: Optional[list[Path]] = typer.Option(None, help="dataset folder(s); replaces the config's `data`"),
         out: Optional[Path] = typer.Option(None, help="weights file to write (default: the config's `out`)"),
         iterations: Optional[int] = typer.Option(None, help="override the number of iterations"),
-        resume: bool = typer.Option(False, help="continue from <out>.state.pt if present"),
+        resume: bool = typer.Option(False, help="continue from out/train/<name>.state.pt if present"),
     ) -> None:
         """Train a window-void detector (WinNet or Mask R-CNN) on rendered dataset folders."""
         from pipeline.detectors.train import load_config, train  # noqa: PLC0415

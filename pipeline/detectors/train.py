@@ -5,7 +5,7 @@
 
 Deterministic for a given seed and thread count; progress on stdout; the loss of every logged
 iteration in a CSV beside the weights (``<out>.loss.csv``). A run can be continued in chunks: the
-optimizer state is kept in ``<out>.state.pt`` and ``resume = true`` picks it up.
+optimizer state is kept in ``<state_dir>/<name>.state.pt`` (out/train) and ``resume = true`` picks it up.
 """
 from __future__ import annotations
 
@@ -58,6 +58,7 @@ class TrainConfig:
     log_every: int = 10
     save_every: int = 200
     resume: bool = False
+    state_dir: str = "out/train"  # optimizer state for resume (generated: kept out of source folders)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
 
     def __post_init__(self) -> None:
@@ -194,7 +195,9 @@ def train(cfg: TrainConfig, log=print) -> Path:
     torch.manual_seed(cfg.seed)
     out = Path(cfg.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    state_path, csv_path = out.with_suffix(".state.pt"), out.with_suffix(".loss.csv")
+    csv_path = out.with_suffix(".loss.csv")
+    state_path = Path(cfg.state_dir) / f"{out.stem}.state.pt"
+    state_path.parent.mkdir(parents=True, exist_ok=True)
     data = load_views(cfg.data, cfg.views)
     model, opt = _build(cfg)
     start, elapsed0 = 0, 0.0

@@ -1,0 +1,78 @@
+"""Choose WinNet's post-processing thresholds on TRAINING-house views (never the held-out house).
+
+    python -m pipeline.detectors.tune --data out/detector-data/train --views-per-dataset 3 \
+        [--weights pipeline/models/default.pt] [--write]
+
+Runs the network once per view, then scores each PostConfig of a small grid with COCOeval (segm AP);
+--write stores the best one in the weights file (key "post"), which the `default` detector uses.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import itertools
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
+from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
+from pipeline.detectors.evaluate import coco_stats, detection_to_coco
+from pipeline.detectors.winnet import PostConfig, instances_from_maps, predict_maps
+from pycocotools import mask as mask_utils
+
+
+def _gt(images: list[tuple[int, np.ndarray]]) -> dict:
+    anns = []
+    for i, inst in images:
+        for k in np.unique(inst):
+            if k:
+                rle = mask_utils.encode(np.asfortranarray((inst == k).astype(np.uint8)))
+                anns.append({"id": len(anns) + 1, "image_id": i, "category_id": 1, "iscrowd": 0,
+                             "area": float(mask_utils.area(rle)), "bbox": mask_utils.toBbox(rle).tolist(),
+                             "segmentation": {"size": rle["size"], "counts": rle["counts"].decode("ascii")}})
+    H, W = images[0][1].shape
+    return {"images": [{"id": i, "width": W, "height": H} for i, _ in images], "annotations": anns,
+            "categories": [{"id": 1, "name": "window"}]}
+
+
+def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[dict, PostConfig]]:
+    """(segm stats, PostConfig) for every grid point, best segm AP first."""
+    model, _ = load_winnet(weights)
+    maps, insts = [], []
+    for d in find_datasets([data]):
+        vs = list_views(d)
+        for v in [vs[j] for j in np.linspace(0, len(vs) - 1, views_per_dataset).round().astype(int)]:
+            maps.append(predict_maps(model, read_image(v.image)))
+            insts.append((len(insts) + 1, read_instances(v.instances)))
+    gt = _gt(insts)
+    out = []
+    for vt, ct in itertools.product((0.4, 0.5, 0.6), (0.3, 0.5, 0.7)):
+        post = PostConfig(void_threshold=vt, core_threshold=ct)
+        res = [detection_to_coco(det, i, 1) for (i, _), (v, c) in zip(insts, maps)
+               for det in instances_from_maps(v, c, post) if det.score >= 0.05]
+        out.append((coco_stats(gt, res, "segm"), post))
+        print(f"void {vt} core {ct}: segm AP {out[-1][0]['AP']:.1f} AP50 {out[-1][0]['AP50']:.1f}", flush=True)
+    return sorted(out, key=lambda r: -r[0]["AP"])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", type=Path, required=True)
+    ap.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
+    ap.add_argument("--views-per-dataset", type=int, default=3)
+    ap.add_argument("--write", action="store_true")
+    a = ap.parse_args()
+    torch.set_num_threads(2)
+    best_stats, best = tune(a.weights, a.data, a.views_per_dataset)[0]
+    print(f"best: {best} (segm AP {best_stats['AP']:.1f})")
+    if a.write:
+        ckpt = torch.load(a.weights, map_location="cpu", weights_only=False)
+        ckpt["post"] = dataclasses.asdict(best)
+        torch.save(ckpt, a.weights)
+        print(f"wrote post-processing config into {a.weights}")
+
+
+if __name__ == "__main__":
+    main()
