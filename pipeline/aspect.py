@@ -61,6 +61,10 @@ def _check_quad(quad: np.ndarray) -> np.ndarray:
         raise ValueError(f"quad must have shape (4, 2) (TL, TR, BR, BL), got {q.shape}")
     if not np.all(np.isfinite(q)):
         raise ValueError(f"quad has non-finite corners: {q.tolist()}")
+    sides = np.linalg.norm(q - np.roll(q, -1, axis=0), axis=1)
+    if sides.min() < 1e-9:
+        raise AspectError(f"degenerate quad (two corners coincide, side lengths "
+                          f"{np.round(sides, 3).tolist()} px): {q.tolist()}")
     return q
 
 

@@ -60,3 +60,30 @@ def test_maskrcnn_reduced_cpu_training(tmp_path):
     img = read_image(ds / "views" / "000000" / "image.png")
     dets = detect("maskrcnn", img, score_threshold=0.0, weights=path)
     assert all(d.mask.shape == img.shape[:2] and 0 <= d.score <= 1 for d in dets)
+
+
+def test_shadow_band_darkens_rows_keeps_labels_and_is_off_by_default():
+    from dataclasses import replace
+
+    from pipeline.detectors.augment import AugmentConfig, shadow_band
+
+    img = np.full((64, 80, 3), 200, np.uint8)
+    inst = np.zeros((64, 80), np.int32)
+    inst[30:50, 20:60] = 1
+    rng = np.random.default_rng(0)
+    state = rng.bit_generator.state
+    assert shadow_band(img, inst, AugmentConfig(), rng) is img  # shadow_prob 0: untouched,
+    assert rng.bit_generator.state == state                    # and no random draw
+    out = shadow_band(img, inst, replace(AugmentConfig(), shadow_prob=1.0), rng)
+    dark = out.mean(axis=(1, 2)) < 199
+    assert dark.any() and not dark.all()
+    assert np.ptp(out, axis=1).max() == 0  # a full-width horizontal band
+
+
+def test_detectors_package_imports_torch_lazily():
+    import subprocess
+    import sys
+
+    code = "import sys, pipeline.detectors, fenestra.cli; print('torch' in sys.modules)"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.strip() == "False"

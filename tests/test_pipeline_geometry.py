@@ -117,3 +117,11 @@ def test_pose_bad_input():
         estimate_pose(sw.corners_px, K, -1.0)
     with pytest.raises(PoseError):  # corners mirrored: the window would face away from the camera
         estimate_pose(sw.corners_px[::-1], K, sw.width_m / sw.height_m, solver="lm")
+
+
+def test_aspect_rejects_quad_with_coincident_corners():
+    from pipeline.aspect import AspectError, aspect_ratio
+
+    quad = np.array([[10.0, 10.0], [10.0, 10.0], [50.0, 60.0], [10.0, 60.0]])
+    with pytest.raises(AspectError, match="coincide"):
+        aspect_ratio(quad, K=np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]]))

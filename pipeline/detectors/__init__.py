@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import torch
 
 from fenestra.errors import FenestraError
 from pipeline.detectors.oracle import DegradeConfig, check_instances, degraded_detections, oracle_detections
@@ -46,6 +45,8 @@ def set_cpu_threads(n: int | None = None) -> None:
     """Use at most n (default: all, capped at 4) torch CPU threads for inference."""
     import os  # noqa: PLC0415
 
+    import torch  # noqa: PLC0415  (lazy: torch costs ~1.5 s to import)
+
     torch.set_num_threads(n or max(1, min(4, os.cpu_count() or 1)))
 
 
@@ -66,6 +67,8 @@ def _oracle_degraded(config: DegradeConfig = DegradeConfig()) -> Detector:
 
 def load_winnet(weights: str | Path | None = None):
     """(model, PostConfig) from a WinNet checkpoint (default: the shipped pipeline/models/default.pt)."""
+    import torch  # noqa: PLC0415
+
     from pipeline.detectors.winnet import PostConfig, WinNet, WinNetConfig  # noqa: PLC0415
 
     path = Path(weights) if weights is not None else DEFAULT_WEIGHTS

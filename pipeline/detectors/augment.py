@@ -27,6 +27,8 @@ class AugmentConfig:
     jpeg_prob: float = 0.4
     jpeg_quality: tuple[int, int] = (35, 95)
     grey_prob: float = 0.05
+    shadow_prob: float = 0.0  # dark horizontal band (eave shadow) over the top of a window
+    shadow_strength: tuple[float, float] = (0.15, 0.6)  # brightness factor inside the band
 
 
 def random_scale_crop(image: np.ndarray, instances: np.ndarray, crop_hw: tuple[int, int],
@@ -83,3 +85,36 @@ def photometric(image: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator)
         if ok:
             img = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]
     return np.ascontiguousarray(img)
+
+
+def shadow_band(image: np.ndarray, instances: np.ndarray, cfg: AugmentConfig,
+                rng: np.random.Generator) -> np.ndarray:
+    """With probability cfg.shadow_prob, darken a full-width horizontal band, like an eave's shadow.
+
+    Most bands start above a random window's top edge and end inside the window (hiding that edge);
+    a quarter lie anywhere, so a dark band alone does not mean "window below". The labels are
+    unchanged. image (h, w, 3) uint8, instances (h, w) int; returns a new image.
+    """
+    if cfg.shadow_prob <= 0 or rng.random() >= cfg.shadow_prob:  # no draw when off: same stream
+        return image
+    h = image.shape[0]
+    ids = np.unique(instances)
+    ids = ids[ids > 0]
+    if ids.size and rng.random() < 0.75:
+        ys = np.nonzero(np.any(instances == ids[int(rng.integers(ids.size))], axis=1))[0]
+        top, height = int(ys[0]), int(ys[-1] - ys[0] + 1)
+        y1 = top + int(rng.uniform(0.0, 0.6) * height)
+        y0 = top - int(rng.uniform(3, 40))
+    else:
+        y0 = int(rng.integers(0, h))
+        y1 = y0 + int(rng.uniform(5, 60))
+    y0, y1 = max(0, y0), min(h, max(y1, y0 + 2))
+    if y1 <= y0:
+        return image
+    f = np.ones(h, dtype=np.float32)
+    f[y0:y1] = rng.uniform(*cfg.shadow_strength)
+    soft = int(rng.integers(0, 6))
+    if soft:  # soft lower edge (penumbra)
+        f = cv2.GaussianBlur(f[:, None], (1, 2 * soft + 1), 0)[:, 0]
+    out = image.astype(np.float32) * f[:, None, None]
+    return np.clip(out, 0, 255).astype(np.uint8)

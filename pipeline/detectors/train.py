@@ -22,7 +22,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from pipeline.detectors.augment import AugmentConfig, photometric, random_scale_crop
+from pipeline.detectors.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
 from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
 
 ARCHS = ("winnet", "maskrcnn")
@@ -91,7 +91,7 @@ def load_config(path: str | Path | None = None, **overrides: object) -> TrainCon
     for k in ("data", "crop_hw", "winnet_widths"):
         if k in train:
             train[k] = tuple(train[k])
-    for k in ("scale_range", "jpeg_quality"):
+    for k in ("scale_range", "jpeg_quality", "shadow_strength"):
         if k in aug:
             aug[k] = tuple(aug[k])
     return TrainConfig(**train, augment=AugmentConfig(**aug))
@@ -121,7 +121,7 @@ def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     for _ in range(cfg.batch_size):
         image, inst = data[int(rng.integers(len(data)))]
         img, ins = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
-        imgs.append(photometric(img, cfg.augment, rng))
+        imgs.append(photometric(shadow_band(img, ins, cfg.augment, rng), cfg.augment, rng))
         tgts.append(np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]))
     return to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32))
 

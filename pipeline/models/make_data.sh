@@ -3,7 +3,8 @@
 # (renders/dataset.py; each call writes a hashed dataset folder under the given root).
 #
 # Split: TRAIN on fzk-haus, duplex, jasmin-sun, niedriha + procedural houses (scenes make, seeds
-#        101..108). HELD OUT: samplehouse4, never seen in training.
+#        101..108, varied 111..126). VALIDATION: varied procedural houses 201..204 (out/detector-data/val).
+#        HELD OUT: samplehouse4, never seen in training, evaluated once per shipped model.
 # Domain randomisation: every chunk has its own seed, so its own look (palette, textures, sun, sky);
 #        half the chunks add the realistic sensor model (noise, blur, JPEG), some radial distortion;
 #        a path-traced (mitsuba) chunk per training house.
@@ -45,6 +46,50 @@ for i in 1 2 3 4 5 6 7 8; do
       --windows-per-wall $((1 + (i / 2) % 3)) --rotation-deg $((i * 17))
   render "$ifc" 20 $((3000 + s)) pyrender "$ROOT/train"
   render "$ifc" 20 $((4000 + s)) pyrender "$ROOT/train" --sensor
+done
+
+# Varied procedural houses (added for the second default model): strip windows of extreme aspect
+# ratio close under the ceiling slab, small windows, tall glazed openings, deep reveals, other
+# footprints, 2.5-3.2 m storeys. Written with scenes.generate.make_house (the `scenes make` CLI has
+# no width/height-range options). Seeds 111..126 train; seeds 201..204 are the VALIDATION split
+# (never trained on; used to choose models and thresholds instead of the held-out house).
+$PY - "$ROOT/procedural" <<'PYEOF'
+import sys
+from pathlib import Path
+from scenes.generate import HouseSpec, make_house
+root = Path(sys.argv[1])
+STYLES = {  # width_range, height_range (m), windows per wall, storey height, wall thickness, reveal
+    "strip": ((1.4, 3.6), (0.3, 0.7), 2, 2.6, 0.3, 0.1),
+    "small": ((0.3, 0.7), (0.3, 0.8), 4, 3.0, 0.35, 0.15),
+    "tall":  ((0.5, 1.1), (1.5, 2.4), 3, 3.2, 0.3, 0.05),
+    "mixed": ((0.4, 2.6), (0.4, 1.9), 3, 2.8, 0.5, 0.3),
+}
+FOOTPRINTS = [((0, 0), (12, 0), (12, 8), (0, 8)),
+              ((0, 0), (16, 0), (16, 6), (0, 6)),
+              ((0, 0), (10, 0), (13, 4), (10, 8), (0, 8)),
+              ((0.0, 0.0), (9.0, 0.0), (11.5, 4.5), (7.0, 9.0), (-1.5, 6.5))]
+for seed in list(range(111, 127)) + list(range(201, 205)):
+    name = list(STYLES)[seed % 4]
+    wr, hr, n, sh, th, rev = STYLES[name]
+    spec = HouseSpec(seed=seed, footprint=FOOTPRINTS[(seed // 4) % 4], storeys=1 + seed % 3,
+                     storey_height=sh, wall_thickness=th, reveal_depth=rev, rotation_deg=(seed * 23) % 90,
+                     windows_per_wall=1 + (seed // 2) % n, width_range=wr, height_range=hr)
+    out = root / f"varied-{seed}.ifc"
+    if not out.exists():
+        h = make_house(spec, out)
+        print(f"{out}: {name}, {len(h.windows)} windows")
+PYEOF
+for s in $(seq 111 126); do
+  ifc="$ROOT/procedural/varied-$s.ifc"
+  render "$ifc" 20 $((5000 + s)) pyrender "$ROOT/train" --sensor --k1 0.1
+  render "$ifc" 20 $((6000 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
+  [ $((s % 2)) -eq 0 ] && render "$ifc" 8 $((7000 + s)) mitsuba "$ROOT/train" --spp 16
+done
+for s in 201 202 203 204; do  # validation split
+  ifc="$ROOT/procedural/varied-$s.ifc"
+  render "$ifc" 20 $((8000 + s)) pyrender "$ROOT/val"
+  render "$ifc" 20 $((8100 + s)) pyrender "$ROOT/val" --sensor --distance-max 22 --azimuth-max 70
+  render "$ifc" 6 $((8200 + s)) mitsuba "$ROOT/val" --spp 16
 done
 
 # Held-out house: raster (4 looks, 2 with the sensor model) and path-traced.
