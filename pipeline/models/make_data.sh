@@ -7,8 +7,10 @@
 #        HELD OUT: samplehouse4, never seen in training, evaluated once per shipped model.
 # Domain randomisation: every chunk has its own seed, so its own look (palette, textures, sun, sky);
 #        half the chunks add the realistic sensor model (noise, blur, JPEG), some radial distortion;
-#        a path-traced (mitsuba) chunk per training house.
-# Usage:  bash pipeline/models/make_data.sh [ROOT=out/detector-data]   (about 10 min on 2 cores)
+#        a path-traced (mitsuba) chunk per bundled house and per second varied house; far (<= 22 m)
+#        and grazing (<= 70 deg) cameras for the varied houses.
+# Usage:  bash pipeline/models/make_data.sh [ROOT=out/detector-data]   (about 18 min on 2 cores;
+#         reruns reuse rendered views)
 # Then:   make train      (= fenestra train --config pipeline/models/default.toml)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -83,7 +85,7 @@ for s in $(seq 111 126); do
   ifc="$ROOT/procedural/varied-$s.ifc"
   render "$ifc" 20 $((5000 + s)) pyrender "$ROOT/train" --sensor --k1 0.1
   render "$ifc" 20 $((6000 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
-  [ $((s % 2)) -eq 0 ] && render "$ifc" 8 $((7000 + s)) mitsuba "$ROOT/train" --spp 16
+  if [ $((s % 2)) -eq 0 ]; then render "$ifc" 8 $((7000 + s)) mitsuba "$ROOT/train" --spp 16; fi
 done
 for s in 201 202 203 204; do  # validation split
   ifc="$ROOT/procedural/varied-$s.ifc"
