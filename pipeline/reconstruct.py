@@ -3,6 +3,12 @@
     results = reconstruct(image_bgr, K, detections, ReconstructConfig(snapper="linefit"))
     json.dump(windows_to_json(results), f)
 
+To run several configs on the same detections, fit the quads (the costly stage) once:
+
+    quads = fit_quads(detections, QuadParams(), image_bgr.shape[:2])
+    for cfg in configs:
+        results = reconstruct_from_quads(to_gray(image_bgr), K, detections, quads, cfg)
+
 Each stage's failure is recorded in the result's ``failure`` (``"<stage>: <reason>"``) and the
 remaining windows carry on; only malformed arguments (wrong shapes, unknown strategy) raise.
 """
@@ -18,7 +24,7 @@ from fenestra.conventions import check_K
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
 from pipeline.pose import POSE_SOLVERS, estimate_pose
-from pipeline.quad import QuadParams, mask_to_quad
+from pipeline.quad import QuadParams, QuadResult, mask_to_quad
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult
 
@@ -74,16 +80,51 @@ def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failu
     return WindowResult(index=i, score=float(det.score), failure=failure, timings_ms=dict(timings), **fields)
 
 
+@dataclass(frozen=True)
+class QuadFit:
+    """The mask -> quad stage of one detection, fitted once and reusable across configs.
+
+    result: the :class:`~pipeline.quad.QuadResult`, or None when the detection's mask does not
+    match the image shape (not fitted); ms: the measured fit time (ms), reported as the ``quad``
+    timing of every WindowResult built from it.
+    """
+
+    result: QuadResult | None
+    ms: float = 0.0
+
+
+def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
+              image_shape: tuple[int, int] | None = None) -> list[QuadFit]:
+    """Fit the quad of every detection (mask -> quad), in order, for :func:`reconstruct_from_quads`.
+
+    image_shape: (H, W); a detection whose mask has another shape is not fitted (result None).
+    """
+    fits = []
+    for det in detections:
+        if image_shape is not None and np.asarray(det.mask).shape != tuple(image_shape):
+            fits.append(QuadFit(None, 0.0))
+            continue
+        t0 = time.perf_counter()
+        qr = mask_to_quad(det.mask, params)
+        fits.append(QuadFit(qr, (time.perf_counter() - t0) * 1e3))
+    return fits
+
+
 def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detection,
-                    cfg: ReconstructConfig) -> WindowResult:
-    """Run quad -> snap -> aspect -> pose on one detection; failures go into the result."""
+                    cfg: ReconstructConfig, fit: QuadFit | None = None) -> WindowResult:
+    """Run quad -> snap -> aspect -> pose on one detection; failures go into the result.
+
+    fit: the detection's already fitted quad (from :func:`fit_quads` with ``cfg.quad``), or None
+    to fit it here.
+    """
     timings: dict[str, float] = {}
     H, W = gray.shape
     if np.asarray(det.mask).shape != (H, W):
         return _result(i, det, cfg, timings, f"quad: mask shape {np.asarray(det.mask).shape} != image {(H, W)}")
-    t0 = time.perf_counter()
-    qr = mask_to_quad(det.mask, cfg.quad)
-    timings["quad"] = (time.perf_counter() - t0) * 1e3
+    if fit is None or fit.result is None:
+        fit = fit_quads([det], cfg.quad)[0]
+    qr = fit.result
+    timings["quad"] = fit.ms
     if qr.failure:
         return _result(i, det, cfg, timings, f"quad: {qr.failure}")
     t0 = time.perf_counter()
@@ -119,6 +160,22 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
                    height_m=pr.height_m, **done)
 
 
+def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
+                           quads: list[QuadFit], cfg: ReconstructConfig = ReconstructConfig()
+                           ) -> list[WindowResult]:
+    """:func:`reconstruct` with the quads already fitted: ``quads = fit_quads(detections, cfg.quad,
+    image_shape)``, one per detection, in order (so one fit serves every snapper x pose config).
+
+    image: as for :func:`reconstruct`, or an (H, W) gray image (e.g. :func:`to_gray`'s, computed
+    once). The ``quad`` timing of each result is the measured time of its (shared) fit.
+    """
+    if len(quads) != len(detections):
+        raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
+    gray = to_gray(image)
+    K = None if K is None else check_K(K)
+    return [reconstruct_one(i, gray, K, d, cfg, q) for i, (d, q) in enumerate(zip(detections, quads))]
+
+
 def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                 cfg: ReconstructConfig = ReconstructConfig()) -> list[WindowResult]:
     """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **BGR**, as cv2.imread gives).
@@ -128,8 +185,7 @@ def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detect
     detection, in order, with per-stage timings (ms) in ``timings_ms`` (quad, snap, aspect, pose).
     """
     gray = to_gray(image)
-    K = None if K is None else check_K(K)
-    return [reconstruct_one(i, gray, K, d, cfg) for i, d in enumerate(detections)]
+    return reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg)
 
 
 def detections_from_instance_map(instances: np.ndarray) -> list[Detection]:
