@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from bench.results import load_results, load_summary, summarize
+from fenestra.config import read_toml
 from fenestra.errors import FenestraError
 
 DEFAULT_GATES = Path(__file__).parent / "gates.toml"
@@ -56,12 +56,7 @@ class Violation:
 def load_gates(path: str | Path = DEFAULT_GATES) -> list[Gate]:
     """Gates from a TOML file of [[gate]] tables; GateError naming the bad entry or key."""
     p = Path(path)
-    if not p.is_file():
-        raise GateError(f"gates file {p} does not exist")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise GateError(f"{p}: not valid TOML: {e}") from e
+    data = read_toml(p, GateError, "gates file")
     extra = sorted(set(data) - {"gate"})
     if extra:
         raise GateError(f"{p}: unknown top-level key(s) {extra}; use [[gate]] tables")

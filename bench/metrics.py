@@ -13,23 +13,13 @@ from __future__ import annotations
 import numpy as np
 from shapely.geometry import Polygon
 
-from fenestra.conventions import TOL, rotation_error_deg
+from fenestra.conventions import TOL, check_quad, rotation_error_deg
 
 __all__ = [
     "corner_errors_px", "mean_corner_error_px", "aspect_error_rel", "gt_window_pose",
     "rotation_error_deg", "normal_error_deg", "translation_error_m", "quad_iou", "mask_iou",
     "recall_at", "error_stats",
 ]
-
-
-def _quad(q: np.ndarray, name: str) -> np.ndarray:
-    """Validate a quad: (4, 2) finite float64 px, else ValueError naming ``name``."""
-    q = np.asarray(q, dtype=np.float64)
-    if q.shape != (4, 2):
-        raise ValueError(f"{name} must have shape (4, 2) (TL, TR, BR, BL px), got {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError(f"{name} has non-finite entries: {q.tolist()}")
-    return q
 
 
 def _rotation(R: np.ndarray, name: str) -> np.ndarray:
@@ -46,8 +36,8 @@ def _rotation(R: np.ndarray, name: str) -> np.ndarray:
 
 def corner_errors_px(quad_est: np.ndarray, quad_gt: np.ndarray) -> np.ndarray:
     """Euclidean distance (px) between corresponding corners. (4, 2), (4, 2) -> (4,) px."""
-    e = _quad(quad_est, "quad_est")
-    g = _quad(quad_gt, "quad_gt")
+    e = check_quad(quad_est, "quad_est")
+    g = check_quad(quad_gt, "quad_gt")
     return np.linalg.norm(e - g, axis=1)
 
 
@@ -121,8 +111,8 @@ def _polygon(q: np.ndarray) -> Polygon:
 
 def quad_iou(quad_a: np.ndarray, quad_b: np.ndarray) -> float:
     """Intersection over union of two quads' areas (4, 2) px, in [0, 1] (0 if both are empty)."""
-    a = _polygon(_quad(quad_a, "quad_a"))
-    b = _polygon(_quad(quad_b, "quad_b"))
+    a = _polygon(check_quad(quad_a, "quad_a"))
+    b = _polygon(check_quad(quad_b, "quad_b"))
     union = a.union(b).area
     return float(a.intersection(b).area / union) if union > 0 else 0.0
 

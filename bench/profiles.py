@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from fenestra.config import read_toml
 from fenestra.errors import FenestraError
 
 PROFILE_DIR = Path(__file__).parent / "profiles"
@@ -185,10 +185,4 @@ def load_profile(name_or_path: str | Path) -> Profile:
         p = PROFILE_DIR / f"{name_or_path}.toml"
         if not p.is_file():
             raise ProfileError(f"unknown profile {str(name_or_path)!r}; bundled: {available_profiles()}")
-    if not p.is_file():
-        raise ProfileError(f"profile file {p} does not exist")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ProfileError(f"{p}: not valid TOML: {e}") from e
-    return profile_from_dict(data, where=str(p))
+    return profile_from_dict(read_toml(p, ProfileError, "profile file"), where=str(p))

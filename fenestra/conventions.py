@@ -78,6 +78,19 @@ def check_K(K: np.ndarray) -> np.ndarray:
     return K
 
 
+def check_quad(quad: np.ndarray, name: str = "quad") -> np.ndarray:
+    """Validate an image quadrilateral: (4, 2) finite px, TL TR BR BL; return it as float64.
+
+    Raises ValueError naming ``name`` and the bad value.
+    """
+    q = np.asarray(quad, dtype=np.float64)
+    if q.shape != (4, 2):
+        raise ValueError(f"{name} must have shape (4, 2) (TL, TR, BR, BL px), got {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError(f"{name} has non-finite entries: {q.tolist()}")
+    return q
+
+
 def make_K(fx: float, fy: float | None = None, cx: float = 0.0, cy: float = 0.0) -> np.ndarray:
     """3x3 pinhole matrix from focal lengths (px) and principal point (px)."""
     fy = fx if fy is None else fy

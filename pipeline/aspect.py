@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fenestra.conventions import TOL, check_K
+from fenestra.conventions import TOL, check_K, check_quad
 from fenestra.errors import PipelineError
 
 CASES = ("general", "one_pair_parallel", "fronto_parallel")
@@ -56,11 +56,7 @@ class AspectResult:
 
 
 def _check_quad(quad: np.ndarray) -> np.ndarray:
-    q = np.asarray(quad, dtype=np.float64)
-    if q.shape != (4, 2):
-        raise ValueError(f"quad must have shape (4, 2) (TL, TR, BR, BL), got {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError(f"quad has non-finite corners: {q.tolist()}")
+    q = check_quad(quad)
     sides = np.linalg.norm(q - np.roll(q, -1, axis=0), axis=1)
     if sides.min() < 1e-9:
         raise AspectError(f"degenerate quad (two corners coincide, side lengths "

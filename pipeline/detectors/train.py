@@ -14,7 +14,6 @@ import dataclasses
 import math
 import sys
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,6 +21,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from fenestra.config import read_toml
 from pipeline.detectors.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
 from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
 
@@ -77,10 +77,7 @@ def load_config(path: str | Path | None = None, **overrides: object) -> TrainCon
     """TrainConfig from a TOML file ([train] keys, optional [augment] table) plus overrides."""
     raw: dict = {}
     if path is not None:
-        p = Path(path)
-        if not p.is_file():
-            raise FileNotFoundError(f"training config {p} does not exist")
-        raw = tomllib.loads(p.read_text())
+        raw = read_toml(path, ValueError, "training config")
     train = dict(raw.get("train", {}))
     aug = dict(raw.get("augment", {}))
     unknown = set(train) - {f.name for f in dataclasses.fields(TrainConfig)}

@@ -6,6 +6,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from fenestra.conventions import check_quad
+
 
 @dataclass(frozen=True)
 class Snapper:
@@ -21,10 +23,7 @@ def check_inputs(gray: np.ndarray, quad: np.ndarray) -> tuple[np.ndarray, np.nda
     g = np.asarray(gray)
     if g.ndim != 2:
         raise ValueError(f"gray image must be 2-D (H, W), got shape {g.shape}")
-    q = np.asarray(quad, dtype=np.float64)
-    if q.shape != (4, 2) or not np.all(np.isfinite(q)):
-        raise ValueError(f"quad must be finite with shape (4, 2), got {np.asarray(quad).tolist()}")
-    return g.astype(np.float32, copy=False), q
+    return g.astype(np.float32, copy=False), check_quad(quad)
 
 
 def line_through(a: np.ndarray, b: np.ndarray) -> np.ndarray:
