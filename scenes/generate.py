@@ -12,9 +12,24 @@ Geometry (all boxes, written with ``ifcopenshell.api``):
   each an IfcOpeningElement box through the wall (0.1 m beyond both faces) filled by an IfcWindow
   box ``frame_depth`` deep, set back ``reveal_depth`` from the exterior face.
 - Floor slab per storey and a flat roof slab; surface styles on every element.
+- Optional (all off by default; off, the file holds exactly today's elements and windows):
+  ``roof_overhang`` m: the roof slab is the footprint offset outward by that distance (each edge
+  moved along its outward normal). ``fascia_height`` m: one IfcMember box per roof edge, 0.04 m
+  thick, just outside the roof's outer edge, from the roof's top down by ``fascia_height`` (below
+  the slab when taller than it), in a seeded dark colour. ``glazed_doors``: that many storey-0
+  walls get an IfcDoor (glass style) in place of their first window (j = 0): same offset and
+  width (clipped to 0.8-2.0 m inside the slot), from the floor to a seeded 2.0-2.4 m.
+  ``curtain_walls``: that many walls (seeded, longer ones likelier) get no windows; instead, per
+  storey, an unfilled opening (0.1 m above the floor to 0.1 m below the top, corner margin + 0.2 m
+  from both ends) glazed by IfcPlate panels (0.02 m, glass style, flush with the exterior face;
+  2 rows, seeded panel width 1.0-1.8 m) and IfcMember mullions/transoms (0.06 x 0.12 m, protruding
+  0.03 m, seeded grey) aggregated into an IfcCurtainWall. Doors and curtain walls are NOT windows:
+  the loader's ground truth (IfcWindow fillings only) leaves them out, so they are negatives.
+  Every random choice of these options uses ``default_rng([seed, 7])``, never the window stream.
 Expected ground truth of a window: its opening's rectangle on the exterior face line:
 x from ``offset`` to ``offset + width`` along the wall edge, z from ``sill`` to ``sill + height``
-above the storey's floor.
+above the storey's floor. Doors and curtain-wall voids are recorded the same way
+(:class:`ExpectedOpening`, sill = height of the void's bottom above the storey floor).
 """
 from __future__ import annotations
 
@@ -23,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+FASCIA_THICKNESS = 0.04  # m
 DEFAULT_FOOTPRINT: tuple[tuple[float, float], ...] = (
     (0.0, 0.0), (9.0, 0.0), (11.5, 4.5), (7.0, 9.0), (-1.5, 6.5))  # 4 of 5 walls not axis-aligned
 
@@ -43,6 +59,10 @@ class HouseSpec:
     width_range: tuple[float, float] = (0.5, 2.2)
     height_range: tuple[float, float] = (0.5, 1.8)
     slab_thickness: float = 0.2
+    roof_overhang: float = 0.0  # roof slab = footprint offset outward by this, 0-2 m
+    fascia_height: float = 0.0  # dark band around the roof edge, from its top down, 0-1 m
+    glazed_doors: int = 0  # storey-0 walls whose first window becomes a glazed IfcDoor
+    curtain_walls: int = 0  # walls glazed by an IfcPlate/IfcMember grid instead of windows
 
 
 @dataclass(frozen=True)
@@ -61,6 +81,28 @@ class ExpectedWindow:
 
 
 @dataclass(frozen=True)
+class ExpectedOpening:
+    """A glazed door or a curtain-wall void (no window ground truth): corners (4, 3) m TL TR BR BL
+    on the exterior face, as for :class:`ExpectedWindow`; sill = bottom above the storey floor."""
+
+    name: str
+    wall_index: int
+    storey: int
+    width: float
+    height: float
+    sill: float
+    corners_world: np.ndarray
+    normal: np.ndarray
+    element_id: str = ""  # IfcDoor GlobalId (doors) / IfcOpeningElement GlobalId (curtain walls)
+
+    def to_json(self) -> dict:
+        return {"id": self.element_id, "name": self.name, "wall": self.wall_index,
+                "storey": self.storey, "width": self.width, "height": self.height,
+                "sill": self.sill, "normal": self.normal.tolist(),
+                "corners_world": self.corners_world.tolist()}
+
+
+@dataclass(frozen=True)
 class GeneratedHouse:
     """What :func:`make_house` wrote: the spec, the file, and each window's expected void."""
 
@@ -68,6 +110,8 @@ class GeneratedHouse:
     path: str
     footprint_world: np.ndarray  # (N, 2) m, counter-clockwise, rotated
     windows: tuple[ExpectedWindow, ...] = field(default_factory=tuple)
+    doors: tuple[ExpectedOpening, ...] = field(default_factory=tuple)
+    curtain_walls: tuple[ExpectedOpening, ...] = field(default_factory=tuple)  # one per storey
 
     def to_json(self) -> dict:
         return {"path": self.path, "seed": self.spec.seed,
@@ -75,7 +119,9 @@ class GeneratedHouse:
                 "windows": [{"id": w.window_id, "name": w.name, "wall": w.wall_index,
                              "storey": w.storey, "width": w.width, "height": w.height,
                              "sill": w.sill, "normal": w.normal.tolist(),
-                             "corners_world": w.corners_world.tolist()} for w in self.windows]}
+                             "corners_world": w.corners_world.tolist()} for w in self.windows],
+                "doors": [d.to_json() for d in self.doors],
+                "curtain_walls": [c.to_json() for c in self.curtain_walls]}
 
 
 # --------------------------------------------------------------------------- pure geometry
@@ -148,6 +194,134 @@ def plan_windows(spec: HouseSpec, poly: np.ndarray) -> list[ExpectedWindow]:
     return out
 
 
+def offset_polygon(poly: np.ndarray, d: float) -> np.ndarray:
+    """Convex CCW polygon (N, 2) m with every edge moved outward (along its outward normal, the
+    right of a CCW edge) by d m -> (N, 2): vertex i = intersection of offset edges i-1 and i."""
+    e = np.roll(poly, -1, axis=0) - poly
+    n = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
+    c = np.einsum("ij,ij->i", n, poly) + d  # offset line i: n_i . p = c_i
+    A = np.stack([np.roll(n, 1, axis=0), n], axis=1)  # (N, 2, 2): rows n_{i-1}, n_i
+    b = np.stack([np.roll(c, 1), c], axis=1)[..., None]
+    return np.linalg.solve(A, b)[..., 0]
+
+
+def face_rect(a: np.ndarray, u: np.ndarray, z0: float, off: float, sill: float, w: float,
+              h: float) -> np.ndarray:
+    """Corners (4, 3) m TL TR BR BL of a rectangle on the exterior face line of a wall starting at
+    a (2,) with unit direction u (3,): x from off to off + w along u, z from z0 + sill up by h."""
+    ez = np.array([0.0, 0.0, 1.0])
+    bl = np.append(a, z0) + off * u + sill * ez
+    return np.stack([bl + h * ez, bl + w * u + h * ez, bl + w * u, bl])
+
+
+def check_options(spec: HouseSpec, n_walls: int) -> None:
+    """ValueError naming the field and value for an out-of-range optional part."""
+    if not 0.0 <= spec.roof_overhang <= 2.0:
+        raise ValueError(f"roof_overhang must be in [0, 2] m, got {spec.roof_overhang}")
+    if not 0.0 <= spec.fascia_height <= 1.0:
+        raise ValueError(f"fascia_height must be in [0, 1] m, got {spec.fascia_height}")
+    if spec.glazed_doors < 0:
+        raise ValueError(f"glazed_doors must be >= 0, got {spec.glazed_doors}")
+    if spec.glazed_doors and spec.storey_height < 2.3:
+        raise ValueError(f"glazed_doors={spec.glazed_doors} needs storey_height >= 2.3 m, got "
+                         f"{spec.storey_height}")
+    if not 0 <= spec.curtain_walls <= n_walls:
+        raise ValueError(f"curtain_walls must be in [0, {n_walls}] (the number of walls), got "
+                         f"{spec.curtain_walls}")
+
+
+def choose_curtain_walls(spec: HouseSpec, poly: np.ndarray, rng: np.random.Generator
+                         ) -> list[int]:
+    """Indices of the ``spec.curtain_walls`` walls glazed as curtain walls: a seeded choice
+    weighted by wall length among walls leaving >= 1 m between the corner margins + 0.2 m."""
+    if spec.curtain_walls == 0:
+        return []
+    lengths = np.linalg.norm(np.roll(poly, -1, axis=0) - poly, axis=1)
+    free = lengths - corner_margins(poly, spec.wall_thickness).sum(axis=1) - 0.4
+    ok = np.flatnonzero(free >= 1.0)
+    if spec.curtain_walls > len(ok):
+        raise ValueError(f"curtain_walls={spec.curtain_walls} but only {len(ok)} walls are long "
+                         "enough (>= 1 m between the corner margins)")
+    p = lengths[ok] / lengths[ok].sum()
+    return sorted(int(i) for i in rng.choice(ok, size=spec.curtain_walls, replace=False, p=p))
+
+
+def plan_doors(spec: HouseSpec, poly: np.ndarray, plan: list[ExpectedWindow], skip: list[int],
+               rng: np.random.Generator) -> list[tuple[ExpectedOpening, str]]:
+    """Glazed doors, each with the name of the window it replaces (its wall's W{i}-0-0).
+
+    Candidates: walls not in ``skip`` with a storey-0 window in slot j = 0 whose slot fits 0.8 m
+    + 0.3 m. The door keeps the window's offset and width (width clipped to [0.8, 2.0] m, the
+    offset moved left if needed to stay 0.15 m inside the slot); sill 0, seeded height (m)."""
+    if spec.glazed_doors == 0:
+        return []
+    margins = corner_margins(poly, spec.wall_thickness)
+    first = {w.wall_index: w for w in plan if w.name == f"W{w.wall_index}-0-0"}
+    cand = []
+    for i, w in sorted(first.items()):
+        length = float(np.linalg.norm(poly[(i + 1) % len(poly)] - poly[i]))
+        slot = (length - margins[i].sum()) / max(spec.windows_per_wall, 1)
+        if i not in skip and slot - 0.3 >= 0.8:
+            cand.append((i, slot))
+    if spec.glazed_doors > len(cand):
+        raise ValueError(f"glazed_doors={spec.glazed_doors} but only {len(cand)} walls have a "
+                         "ground-floor window slot wide enough for a door")
+    picks = sorted(rng.choice(len(cand), size=spec.glazed_doors, replace=False))
+    out = []
+    for c in picks:
+        i, slot = cand[c]
+        w, a, b = first[i], poly[i], poly[(i + 1) % len(poly)]
+        u = np.append((b - a) / np.linalg.norm(b - a), 0.0)
+        width = float(np.clip(w.width, 0.8, min(2.0, slot - 0.3)))
+        off = min(float((w.corners_world[3][:2] - a) @ u[:2]), margins[i, 0] + slot - 0.15 - width)
+        h = float(np.round(rng.uniform(2.0, min(2.4, spec.storey_height - 0.3)), 3))
+        corners = face_rect(a, u, 0.0, off, 0.0, width, h)
+        out.append((ExpectedOpening(name=f"D{i}", wall_index=i, storey=0, width=width, height=h,
+                                    sill=0.0, corners_world=corners, normal=w.normal), w.name))
+    return out
+
+
+def plan_curtain_walls(spec: HouseSpec, poly: np.ndarray, walls: list[int]
+                       ) -> list[ExpectedOpening]:
+    """The curtain-wall void of each wall in ``walls`` on every storey: from corner margin + 0.2 m
+    to length - margin - 0.2 m along the wall, 0.1 m above the floor to 0.1 m below the top."""
+    margins = corner_margins(poly, spec.wall_thickness)
+    out = []
+    for i in walls:
+        a, b = poly[i], poly[(i + 1) % len(poly)]
+        length = float(np.linalg.norm(b - a))
+        u = np.append((b - a) / length, 0.0)
+        off, width = margins[i, 0] + 0.2, length - margins[i].sum() - 0.4
+        h = spec.storey_height - 0.2
+        for k in range(spec.storeys):
+            out.append(ExpectedOpening(
+                name=f"CW{i}-{k}", wall_index=i, storey=k, width=width, height=h, sill=0.1,
+                corners_world=face_rect(a, u, k * spec.storey_height, off, 0.1, width, h),
+                normal=np.array([u[1], -u[0], 0.0])))
+    return out
+
+
+Rect = tuple[float, float, float, float]  # (x, z, w, h) m
+
+
+def curtain_grid(width: float, height: float, panel_width: float
+                 ) -> tuple[list[Rect], list[Rect]]:
+    """Panels and members of a curtain-wall void width x height m, in void coordinates (x along
+    the wall, z up from the void's bottom), each (x, z, w, h) m.
+
+    Panels: round(width / panel_width) (>= 1) equal columns x 2 equal rows, tiling the void.
+    Members (0.06 m wide): a vertical one at every column line, a horizontal one at the bottom,
+    middle and top, all inside the void (edge members flush with its sides)."""
+    m = 0.06
+    nc = max(1, int(round(width / panel_width)))
+    cw, rh = width / nc, height / 2
+    panels = [(j * cw, r * rh, cw, rh) for r in range(2) for j in range(nc)]
+    xs = np.clip(np.arange(nc + 1) * cw - m / 2, 0.0, width - m)
+    zs = np.clip(np.arange(3) * rh - m / 2, 0.0, height - m)
+    members = [(float(x), 0.0, m, height) for x in xs] + [(0.0, float(z), width, m) for z in zs]
+    return panels, members
+
+
 # --------------------------------------------------------------------------- IFC writing
 def _placement(origin3: np.ndarray, x_dir3: np.ndarray) -> np.ndarray:
     """4x4 matrix: local x = x_dir (horizontal), local y = z-up x x_dir (inward), z up."""
@@ -171,7 +345,20 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
     if not 0 <= spec.reveal_depth < spec.wall_thickness - spec.frame_depth:
         raise ValueError(f"reveal_depth {spec.reveal_depth} must leave room for the frame")
     poly = rotate_xy(check_footprint(spec.footprint), spec.rotation_deg)
+    check_options(spec, len(poly))
     plan = plan_windows(spec, poly)
+    rng = np.random.default_rng([spec.seed, 7])  # optional parts only: plan's stream is untouched
+    cw_walls = choose_curtain_walls(spec, poly, rng)
+    panel_w = {i: float(rng.uniform(1.0, 1.8)) for i in cw_walls}
+    grey = float(rng.uniform(0.08, 0.45)) if cw_walls else 0.0
+    door_plan = plan_doors(spec, poly, plan, cw_walls, rng)
+    fascia_rgb = rng.uniform(0.05, 0.35, 3).tolist() if spec.fascia_height > 0 else None
+    replaced = {name for _, name in door_plan}
+    plan = [w for w in plan if w.wall_index not in cw_walls and w.name not in replaced]
+    doors_at = {d.wall_index: d for d, _ in door_plan}  # all on storey 0
+    curtains = plan_curtain_walls(spec, poly, cw_walls)
+    curtain_at = {(c.wall_index, c.storey): c for c in curtains}
+
     api = ifcopenshell.api.run
     f = ifcopenshell.file(schema="IFC4")
     project = api("root.create_entity", f, ifc_class="IfcProject", name="Fenestra procedural house")
@@ -193,11 +380,16 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
 
     styles = {"wall": style("wall", (0.86, 0.80, 0.70)), "slab": style("slab", (0.6, 0.6, 0.6)),
               "window": style("glass", (0.3, 0.5, 0.7), 0.6)}
+    if cw_walls:
+        styles["mullion"] = style("mullion", (grey, grey, grey))
+    if fascia_rgb is not None:
+        styles["fascia"] = style("fascia", fascia_rgb)
 
     def element(ifc_class, name, storey_ent, matrix, rep, style_key=None):
         el = api("root.create_entity", f, ifc_class=ifc_class, name=name)
         api("geometry.edit_object_placement", f, product=el, matrix=matrix)
-        api("geometry.assign_representation", f, product=el, representation=rep)
+        if rep is not None:
+            api("geometry.assign_representation", f, product=el, representation=rep)
         if style_key:
             api("style.assign_representation_styles", f, shape_representation=rep,
                 styles=[styles[style_key]])
@@ -206,7 +398,27 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
         return el
 
     t, H = spec.wall_thickness, spec.storey_height
+
+    def box(ifc_class, name, storey_ent, origin, u, off, z, w, h, depth, setback, style_key):
+        """Box w x h x depth m (x along u, z up, y inward) at off (m) along u from origin (3,),
+        z m up, its outer face setback m inward; styled and contained in storey_ent."""
+        rep = api("geometry.add_wall_representation", f, context=body, length=w, height=h,
+                  thickness=depth)
+        inward = np.cross([0.0, 0.0, 1.0], u)
+        return element(ifc_class, name, storey_ent,
+                       _placement(origin + off * u + np.array([0, 0, z]) + setback * inward, u),
+                       rep, style_key)
+
+    def void(wall, name, origin, u, off, sill, w, h):
+        """IfcOpeningElement w x h m through ``wall`` (0.1 m beyond both faces), x from off."""
+        opening = box("IfcOpeningElement", name, None, origin, u, off, sill, w, h, t + 0.2, -0.1,
+                      None)
+        api("feature.add_feature", f, feature=opening, element=wall)
+        return opening
+
     windows_out: list[ExpectedWindow] = []
+    doors_out: list[ExpectedOpening] = []
+    curtains_out: list[ExpectedOpening] = []
     by_wall = {(w.wall_index, w.storey): [] for w in plan}
     for w in plan:
         by_wall[(w.wall_index, w.storey)].append(w)
@@ -229,30 +441,55 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
                       height=H, thickness=t)
             wall = element("IfcWall", f"Wall {i}-{k}", storey, _placement(origin, u), rep, "wall")
             for w in by_wall.get((i, k), []):
-                bl = w.corners_world[3]
-                off = float((bl - origin) @ u)
-                o_rep = api("geometry.add_wall_representation", f, context=body, length=w.width,
-                            height=w.height, thickness=t + 0.2)
-                opening = element("IfcOpeningElement", f"Opening {w.name}", None,
-                                  _placement(origin + off * u + np.array([0, 0, w.sill])
-                                             + 0.1 * np.append(-np.cross([0, 0, 1.0], u)[:2], 0), u),
-                                  o_rep)
-                api("feature.add_feature", f, feature=opening, element=wall)
-                w_rep = api("geometry.add_wall_representation", f, context=body, length=w.width,
-                            height=w.height, thickness=spec.frame_depth)
-                inward = np.cross([0.0, 0.0, 1.0], u)
-                win = element("IfcWindow", w.name, storey,
-                              _placement(origin + off * u + np.array([0, 0, w.sill])
-                                         + spec.reveal_depth * inward, u), w_rep, "window")
+                off = float((w.corners_world[3] - origin) @ u)
+                opening = void(wall, f"Opening {w.name}", origin, u, off, w.sill, w.width, w.height)
+                win = box("IfcWindow", w.name, storey, origin, u, off, w.sill, w.width, w.height,
+                          spec.frame_depth, spec.reveal_depth, "window")
                 win.OverallWidth, win.OverallHeight = w.width, w.height
                 api("feature.add_filling", f, opening=opening, element=win)
                 windows_out.append(ExpectedWindow(**{**w.__dict__, "window_id": win.GlobalId}))
+            d = doors_at.get(i) if k == 0 else None
+            if d is not None:
+                off = float((d.corners_world[3] - origin) @ u)
+                opening = void(wall, f"Opening {d.name}", origin, u, off, 0.0, d.width, d.height)
+                door = box("IfcDoor", d.name, storey, origin, u, off, 0.0, d.width, d.height,
+                           spec.frame_depth, spec.reveal_depth, "window")
+                door.OverallWidth, door.OverallHeight = d.width, d.height
+                api("feature.add_filling", f, opening=opening, element=door)
+                doors_out.append(ExpectedOpening(**{**d.__dict__, "element_id": door.GlobalId}))
+            c = curtain_at.get((i, k))
+            if c is not None:  # unfilled opening glazed by plates and members (no IfcWindow)
+                off = float((c.corners_world[3] - origin) @ u)
+                opening = void(wall, f"Opening {c.name}", origin, u, off, c.sill, c.width, c.height)
+                panels, members = curtain_grid(c.width, c.height, panel_w[i])
+                parts = [box("IfcPlate", f"{c.name} panel {n}", None, origin, u, off + x,
+                             c.sill + z, pw, ph, 0.02, 0.0, "window")
+                         for n, (x, z, pw, ph) in enumerate(panels)]
+                parts += [box("IfcMember", f"{c.name} member {n}", None, origin, u, off + x,
+                              c.sill + z, mw, mh, 0.12, -0.03, "mullion")
+                          for n, (x, z, mw, mh) in enumerate(members)]
+                cwall = element("IfcCurtainWall", c.name, storey, _placement(origin, u), None)
+                api("aggregate.assign_object", f, products=parts, relating_object=cwall)
+                curtains_out.append(ExpectedOpening(**{**c.__dict__,
+                                                       "element_id": opening.GlobalId}))
+    top = spec.storeys * H
+    roof = poly if spec.roof_overhang == 0 else offset_polygon(poly, spec.roof_overhang)
     roof_rep = api("geometry.add_slab_representation", f, context=body,
-                   depth=spec.slab_thickness, polyline=[tuple(p) for p in poly])
-    element("IfcSlab", "Roof", storey, _placement(np.array([0, 0, spec.storeys * H]),
+                   depth=spec.slab_thickness, polyline=[tuple(p) for p in roof])
+    element("IfcSlab", "Roof", storey, _placement(np.array([0, 0, top]),
                                                   np.array([1.0, 0, 0])), roof_rep, "slab")
+    if spec.fascia_height > 0:  # boxes just outside the roof edge, inner face on it
+        outer = offset_polygon(poly, spec.roof_overhang + FASCIA_THICKNESS)
+        for i in range(len(outer)):
+            a, b = outer[i], outer[(i + 1) % len(outer)]
+            length = float(np.linalg.norm(b - a))
+            box("IfcMember", f"Fascia {i}", storey,
+                np.append(a, top + spec.slab_thickness - spec.fascia_height),
+                np.append((b - a) / length, 0.0), 0.0, 0.0, length, spec.fascia_height,
+                FASCIA_THICKNESS, 0.0, "fascia")
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     f.write(str(out_path))
     return GeneratedHouse(spec=spec, path=str(out_path), footprint_world=poly,
-                          windows=tuple(windows_out))
+                          windows=tuple(windows_out), doors=tuple(doors_out),
+                          curtain_walls=tuple(curtains_out))

@@ -53,7 +53,7 @@ def test_maskrcnn_reduced_cpu_training(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=4, seed=2)
     cfg = load_config("pipeline/models/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"), state_dir=str(tmp_path),
                       iterations=2, batch_size=1, crop_hw=(96, 128), maskrcnn_min_size=96,
-                      maskrcnn_max_size=128, log_every=1, warmup=1, lr=0.005)
+                      maskrcnn_max_size=128, log_every=1, warmup=1, lr=0.005, device="cpu", amp=False, workers=0)
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
     assert len(rows) == 2 and all(np.isfinite(float(r["loss"])) for r in rows)
@@ -87,3 +87,24 @@ def test_detectors_package_imports_torch_lazily():
     code = "import sys, pipeline.detectors, fenestra.cli; print('torch' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
+
+
+def test_batches_are_the_same_with_worker_processes(tmp_path):
+    from dataclasses import replace
+
+    from pipeline.detectors.train import batches, load_views
+
+    ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=3)
+    cfg = load_config("pipeline/models/default.toml", data=(str(ds),), iterations=5, batch_size=2,
+                      crop_hw=(64, 96))
+    data = load_views(cfg.data, None)
+    serial = list(batches(data, cfg, start=1))
+    forked = list(batches(data, replace(cfg, workers=2), start=1))
+    assert [it for it, _ in serial] == [it for it, _ in forked] == [1, 2, 3, 4]
+    for (_, (x0, y0)), (_, (x1, y1)) in zip(serial, forked):
+        assert x0.equal(x1) and y0.equal(y1)
+    assert not serial[0][1][0].equal(serial[1][1][0])  # iterations differ from each other
+    with pytest.raises(ValueError, match="amp"):
+        replace(cfg, amp=True)
+    with pytest.raises(ValueError, match="device"):
+        replace(cfg, device="tpu")

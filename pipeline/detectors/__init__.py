@@ -83,10 +83,11 @@ def load_winnet(weights: str | Path | None = None):
     return model.eval(), PostConfig(**ckpt.get("post", {}))
 
 
-def _default(weights: str | Path | None = None, threads: int | None = None) -> Detector:
+def _default(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
     from pipeline.detectors.winnet import instances_from_maps, predict_maps  # noqa: PLC0415
 
     model, post = load_winnet(weights)
+    model.to(device)
     set_cpu_threads(threads)
 
     def run(image: np.ndarray, **_: object) -> list[Detection]:
@@ -94,10 +95,10 @@ def _default(weights: str | Path | None = None, threads: int | None = None) -> D
     return run
 
 
-def _maskrcnn(weights: str | Path | None = None, threads: int | None = None) -> Detector:
+def _maskrcnn(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
     from pipeline.detectors.maskrcnn import load_maskrcnn, maskrcnn_detect  # noqa: PLC0415
 
-    model = load_maskrcnn(weights)
+    model = load_maskrcnn(weights, device)
     set_cpu_threads(threads)
 
     def run(image: np.ndarray, **_: object) -> list[Detection]:

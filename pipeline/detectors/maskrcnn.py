@@ -28,8 +28,8 @@ def build_maskrcnn(min_size: int = 480, max_size: int = 640) -> torch.nn.Module:
                                  min_size=min_size, max_size=max_size)
 
 
-def load_maskrcnn(weights: str | Path | None = None) -> torch.nn.Module:
-    """Mask R-CNN with trained weights (default pipeline/models/maskrcnn.pt), in eval mode."""
+def load_maskrcnn(weights: str | Path | None = None, device: str = "cpu") -> torch.nn.Module:
+    """Mask R-CNN with trained weights (default pipeline/models/maskrcnn.pt), in eval mode on device."""
     path = Path(weights) if weights is not None else DEFAULT_MASKRCNN_WEIGHTS
     if not path.is_file():
         raise FenestraError(f"no Mask R-CNN weights at {path}: {TRAIN_HINT}")
@@ -38,7 +38,7 @@ def load_maskrcnn(weights: str | Path | None = None) -> torch.nn.Module:
         raise FenestraError(f"{path} holds a {ckpt.get('arch')!r} model, not 'maskrcnn'")
     model = build_maskrcnn(**ckpt.get("model_kw", {}))
     model.load_state_dict(ckpt["state_dict"])
-    return model.eval()
+    return model.eval().to(device)
 
 
 def maskrcnn_targets(instances: np.ndarray) -> dict[str, torch.Tensor]:
@@ -57,8 +57,9 @@ def maskrcnn_targets(instances: np.ndarray) -> dict[str, torch.Tensor]:
 @torch.no_grad()
 def maskrcnn_detect(model: torch.nn.Module, image: np.ndarray) -> list[Detection]:
     """Detections (all scores) from Mask R-CNN for one RGB image (H, W, 3) uint8, best first."""
-    x = torch.from_numpy(np.ascontiguousarray(image)).permute(2, 0, 1).float() / 255.0
-    out = model([x])[0]
+    device = next(model.parameters()).device
+    x = torch.from_numpy(np.ascontiguousarray(image)).to(device).permute(2, 0, 1).float() / 255.0
+    out = {k: v.cpu() for k, v in model([x])[0].items()}
     dets = []
     for score, m in zip(out["scores"].numpy(), out["masks"][:, 0].numpy()):
         mask = m >= 0.5

@@ -3,15 +3,21 @@
     fenestra train --config pipeline/models/default.toml            # WinNet, CPU, shipped weights
     fenestra train --config pipeline/models/maskrcnn.toml --data D  # Mask R-CNN (GPU advised)
 
-Deterministic for a given seed and thread count; progress on stdout; the loss of every logged
-iteration in a CSV beside the weights (``<out>.loss.csv``). A run can be continued in chunks: the
-optimizer state is kept in ``<state_dir>/<name>.state.pt`` (out/train) and ``resume = true`` picks it up.
+Deterministic for a given seed, thread count and device: the batch of iteration ``it`` is drawn with
+``np.random.default_rng([seed, it])``, so ``workers`` > 0 (batches made ahead in worker processes,
+for a GPU that would otherwise wait) gives the same batches as ``workers = 0``. Progress on stdout;
+the loss of every logged iteration in a CSV beside the weights (``<out>.loss.csv``). A run can be
+continued in chunks: the optimizer state is kept in ``<state_dir>/<name>.state.pt`` (out/train) and
+``resume = true`` picks it up. ``device = "cuda"`` (and ``amp = true``: bfloat16 autocast) is for
+the GPU machine; the shipped WinNet is trained on the CPU.
 """
 from __future__ import annotations
 
+import collections
 import csv
 import dataclasses
 import math
+import multiprocessing
 import sys
 import time
 from dataclasses import dataclass, field
@@ -26,6 +32,7 @@ from pipeline.detectors.augment import AugmentConfig, photometric, random_scale_
 from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
 
 ARCHS = ("winnet", "maskrcnn")
+DEVICES = ("cpu", "cuda")
 
 
 @dataclass(frozen=True)
@@ -36,6 +43,7 @@ class TrainConfig:
     iterations, batch_size, crop_hw (px), lr (peak, one-cycle cosine), weight_decay.
     winnet_widths: WinNet channels per level; core_shrink_px/frac: the core target (see winnet).
     maskrcnn_min_size/max_size: Mask R-CNN's internal resize (small for CPU smoke runs).
+    device: "cpu" or "cuda"; amp: bfloat16 autocast (cuda only); workers: processes making batches ahead.
     """
 
     arch: str = "winnet"
@@ -58,6 +66,9 @@ class TrainConfig:
     log_every: int = 10
     save_every: int = 200
     resume: bool = False
+    device: str = "cpu"
+    amp: bool = False
+    workers: int = 0
     state_dir: str = "out/train"  # optimizer state for resume (generated: kept out of source folders)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
 
@@ -67,6 +78,12 @@ class TrainConfig:
         for name in ("iterations", "batch_size", "threads", "log_every", "save_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.device not in DEVICES:
+            raise ValueError(f"device must be one of {DEVICES}, got {self.device!r}")
+        if self.amp and self.device != "cuda":
+            raise ValueError("amp (bfloat16 autocast) needs device = 'cuda'")
+        if self.workers < 0:
+            raise ValueError(f"workers must be >= 0, got {self.workers}")
         if self.lr <= 0 or not math.isfinite(self.lr):
             raise ValueError(f"lr must be positive, got {self.lr}")
         if any(c < 32 or c % 32 for c in self.crop_hw):
@@ -94,7 +111,7 @@ def load_config(path: str | Path | None = None, **overrides: object) -> TrainCon
     return TrainConfig(**train, augment=AugmentConfig(**aug))
 
 
-def load_views(dirs: tuple[str, ...], max_views: int | None) -> list[tuple[np.ndarray, np.ndarray]]:
+def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[tuple[np.ndarray, np.ndarray]]:
     """(image (H, W, 3) uint8, instances (H, W) int32) of the views in each dataset folder."""
     if not dirs:
         raise ValueError("no training data: give dataset folders (config `data` or --data DIR)")
@@ -106,7 +123,7 @@ def load_views(dirs: tuple[str, ...], max_views: int | None) -> list[tuple[np.nd
         for v in views:
             inst = read_instances(v.instances)
             out.append((read_image(v.image), inst.astype(np.uint16 if inst.max() < 65536 else np.int32)))
-        print(f"loaded {len(views)} views from {d}", flush=True)
+        log(f"loaded {len(views)} views from {d}")
     return out
 
 
@@ -151,6 +168,53 @@ def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     return imgs, tgts
 
 
+def make_batch(data, cfg: TrainConfig, it: int):
+    """The batch of iteration ``it`` (same for any number of workers): see winnet_batch, maskrcnn_batch."""
+    rng = np.random.default_rng([cfg.seed, it])
+    return (winnet_batch if cfg.arch == "winnet" else maskrcnn_batch)(data, cfg, rng)
+
+
+_WORKER_DATA: list = []  # the training views, loaded once per worker process
+
+
+def _worker_init(cfg: TrainConfig) -> None:
+    import cv2  # noqa: PLC0415
+
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    _WORKER_DATA[:] = load_views(cfg.data, cfg.views, log=lambda *_: None)
+
+
+def _worker_batch(cfg: TrainConfig, it: int):
+    return make_batch(_WORKER_DATA, cfg, it)
+
+
+def batches(data, cfg: TrainConfig, start: int):
+    """Yield (it, batch) for it in [start, iterations); with cfg.workers > 0, made ahead in spawned
+    processes that load the views themselves (at most 2 x workers batches in flight). Spawned, not
+    forked: a fork of a process that has run OpenMP work hangs in its first OpenMP region."""
+    if cfg.workers == 0:
+        for it in range(start, cfg.iterations):
+            yield it, make_batch(data, cfg, it)
+        return
+    with multiprocessing.get_context("spawn").Pool(cfg.workers, _worker_init, (cfg,)) as pool:
+        pending: collections.deque = collections.deque()
+        nxt = start
+        while nxt < cfg.iterations or pending:
+            while nxt < cfg.iterations and len(pending) < 2 * cfg.workers:
+                pending.append((nxt, pool.apply_async(_worker_batch, (cfg, nxt))))
+                nxt += 1
+            it, res = pending.popleft()
+            yield it, res.get()
+
+
+def _to_device(batch, arch: str, device: str):
+    if arch == "winnet":
+        return tuple(t.to(device, non_blocking=True) for t in batch)
+    imgs, tgts = batch
+    return [i.to(device) for i in imgs], [{k: v.to(device) for k, v in t.items()} for t in tgts]
+
+
 def _lr_at(it: int, cfg: TrainConfig) -> float:
     """Linear warm-up, then cosine decay to 1% of the peak."""
     if it < cfg.warmup:
@@ -179,11 +243,15 @@ def checkpoint(model: torch.nn.Module, cfg: TrainConfig, meta: dict) -> dict:
     if cfg.arch == "winnet":
         from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
 
-        sd = {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
+        sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
         return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
                 "post": dataclasses.asdict(PostConfig()), "train_config": dataclasses.asdict(cfg), "meta": meta}
     return {"arch": "maskrcnn", "model_kw": {"min_size": cfg.maskrcnn_min_size, "max_size": cfg.maskrcnn_max_size},
-            "state_dict": model.state_dict(), "train_config": dataclasses.asdict(cfg), "meta": meta}
+            "state_dict": {k: v.cpu() for k, v in model.state_dict().items()}, "train_config": dataclasses.asdict(cfg), "meta": meta}
+
+
+def _device_name(device: str) -> str:
+    return torch.cuda.get_device_name(0) if device == "cuda" else "cpu"
 
 
 def train(cfg: TrainConfig, log=print) -> Path:
@@ -195,16 +263,15 @@ def train(cfg: TrainConfig, log=print) -> Path:
     csv_path = out.with_suffix(".loss.csv")
     state_path = Path(cfg.state_dir) / f"{out.stem}.state.pt"
     state_path.parent.mkdir(parents=True, exist_ok=True)
-    data = load_views(cfg.data, cfg.views)
+    data = load_views(cfg.data, cfg.views, log=log)
     model, opt = _build(cfg)
+    model.to(cfg.device)
     start, elapsed0 = 0, 0.0
-    rng = np.random.default_rng(cfg.seed)
     if cfg.resume and state_path.is_file():
-        st = torch.load(state_path, map_location="cpu", weights_only=False)
+        st = torch.load(state_path, map_location=cfg.device, weights_only=False)
         model.load_state_dict(st["model"])
         opt.load_state_dict(st["opt"])
         start, elapsed0 = st["iteration"], st["elapsed_s"]
-        rng.bit_generator.state = st["rng"]
         torch.set_rng_state(st["torch_rng"])
         log(f"resumed at iteration {start}")
     elif csv_path.exists():
@@ -214,17 +281,17 @@ def train(cfg: TrainConfig, log=print) -> Path:
     new_csv = not csv_path.exists()
     with open(csv_path, "a", newline="") as fh:
         writer = csv.writer(fh)
-        for it in range(start, cfg.iterations):
+        for it, batch in batches(data, cfg, start):
             lr = _lr_at(it, cfg)
             for g in opt.param_groups:
                 g["lr"] = lr
-            if cfg.arch == "winnet":
-                x, y = winnet_batch(data, cfg, rng)
-                parts = winnet_loss(model(x), y)
-            else:
-                imgs, tgts = maskrcnn_batch(data, cfg, rng)
-                parts = model(imgs, tgts)
-                parts["loss"] = sum(parts.values())
+            with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cfg.amp):
+                if cfg.arch == "winnet":
+                    x, y = _to_device(batch, cfg.arch, cfg.device)
+                    parts = winnet_loss(model(x).float(), y)
+                else:
+                    parts = model(*_to_device(batch, cfg.arch, cfg.device))
+                    parts["loss"] = sum(parts.values())
             opt.zero_grad()
             parts["loss"].backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
@@ -240,10 +307,10 @@ def train(cfg: TrainConfig, log=print) -> Path:
                     " ".join(f"{k} {float(v.detach()):.4f}" for k, v in parts.items()))
             if (it + 1) % cfg.save_every == 0 or it == cfg.iterations - 1:
                 torch.save({"model": model.state_dict(), "opt": opt.state_dict(), "iteration": it + 1,
-                            "elapsed_s": elapsed, "rng": rng.bit_generator.state,
-                            "torch_rng": torch.get_rng_state()}, state_path)
+                            "elapsed_s": elapsed, "torch_rng": torch.get_rng_state()}, state_path)
                 meta = {"iterations_done": it + 1, "train_seconds": round(elapsed, 1),
-                        "torch": torch.__version__, "threads": cfg.threads, "n_train_views": len(data),
+                        "torch": torch.__version__, "threads": cfg.threads, "device": _device_name(cfg.device),
+                        "n_train_views": len(data),
                         "python": sys.version.split()[0]}
                 torch.save(checkpoint(model, cfg, meta), out)
     return out

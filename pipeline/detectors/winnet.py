@@ -159,5 +159,5 @@ def predict_maps(model: WinNet, image: np.ndarray) -> tuple[np.ndarray, np.ndarr
     """Void and core probability maps (H, W) float32 for one RGB image (H, W, 3) uint8."""
     model.eval()
     x, H, W = pad_to_stride(to_tensor(image))
-    p = torch.sigmoid(model(x))[0, :, :H, :W].numpy()
+    p = torch.sigmoid(model(x.to(next(model.parameters()).device)))[0, :, :H, :W].cpu().numpy()
     return p[0], p[1]

@@ -80,12 +80,46 @@ for seed in list(range(111, 127)) + list(range(201, 205)):
     if not out.exists():
         h = make_house(spec, out)
         print(f"{out}: {name}, {len(h.windows)} windows")
+# Facade-feature houses (third default model): the same styles plus roof overhangs with a dark
+# fascia band and eave shadow over the top windows, glazed doors and glazed curtain walls (IfcDoor /
+# IfcPlate: unlabelled glazing, i.e. negatives). Seeds 131..146 train, 205..208 validation.
+from dataclasses import replace
+for seed in list(range(131, 147)) + list(range(205, 209)):
+    name = list(STYLES)[seed % 4]
+    wr, hr, n, sh, th, rev = STYLES[name]
+    base = HouseSpec(seed=seed, footprint=FOOTPRINTS[(seed // 4) % 4], storeys=1 + seed % 2,
+                     storey_height=max(sh, 2.6), wall_thickness=th, reveal_depth=rev,
+                     rotation_deg=(seed * 31) % 90, windows_per_wall=1 + (seed // 2) % n,
+                     width_range=wr, height_range=hr,
+                     roof_overhang=(0.3, 0.5, 0.8, 1.1)[(seed // 3) % 4],
+                     fascia_height=(0.25, 0.4, 0.6)[seed % 3])
+    out = root / f"facade-{seed}.ifc"
+    if out.exists():
+        continue
+    for doors, cws in ((1 + seed % 2, seed % 2 == 0), (1, seed % 2 == 0), (1, False), (0, False)):
+        try:  # fewer doors / no curtain wall where the house has no suitable wall for them
+            h = make_house(replace(base, glazed_doors=doors, curtain_walls=int(cws)), out)
+            break
+        except ValueError as e:
+            print(f"{out.name}: {e}; trying fewer features")
+    print(f"{out}: {name}, {len(h.windows)} windows, {len(h.doors)} doors, {len(h.curtain_walls)} curtain-wall bays")
 PYEOF
 for s in $(seq 111 126); do
   ifc="$ROOT/procedural/varied-$s.ifc"
   render "$ifc" 20 $((5000 + s)) pyrender "$ROOT/train" --sensor --k1 0.1
   render "$ifc" 20 $((6000 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
   if [ $((s % 2)) -eq 0 ]; then render "$ifc" 8 $((7000 + s)) mitsuba "$ROOT/train" --spp 16; fi
+done
+for s in $(seq 131 146); do
+  ifc="$ROOT/procedural/facade-$s.ifc"
+  render "$ifc" 20 $((5500 + s)) pyrender "$ROOT/train" --sensor
+  render "$ifc" 20 $((6500 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
+  if [ $((s % 2)) -eq 1 ]; then render "$ifc" 8 $((7500 + s)) mitsuba "$ROOT/train" --spp 16; fi
+done
+for s in 205 206 207 208; do  # validation split, facade features
+  ifc="$ROOT/procedural/facade-$s.ifc"
+  render "$ifc" 20 $((8500 + s)) pyrender "$ROOT/val"
+  render "$ifc" 6 $((8700 + s)) mitsuba "$ROOT/val" --spp 16
 done
 for s in 201 202 203 204; do  # validation split
   ifc="$ROOT/procedural/varied-$s.ifc"
