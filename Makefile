@@ -45,8 +45,11 @@ gate: smoke  ## smoke profile, then the accuracy gates
 report:  ## regenerate the report of the newest default run
 	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1)
 
-train:  ## train the default CPU detector from scratch (reproduces the shipped weights)
+train:  ## render the detector data, train the default CPU detector from scratch (reproduces the shipped weights), evaluate it
+	PY=$(PY) bash pipeline/models/make_data.sh out/detector-data
 	$(PY) -m fenestra train --config pipeline/models/default.toml
+	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
+	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
 
 clean:
 	rm -rf out .pytest_cache

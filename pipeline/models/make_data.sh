@@ -3,13 +3,15 @@
 # (renders/dataset.py; each call writes a hashed dataset folder under the given root).
 #
 # Split: TRAIN on fzk-haus, duplex, jasmin-sun, niedriha + procedural houses (scenes make, seeds
-#        101..108, varied 111..126). VALIDATION: varied procedural houses 201..204 (out/detector-data/val).
-#        HELD OUT: samplehouse4, never seen in training, evaluated once per shipped model.
+#        101..108, varied 111..126, facade-feature 131..146). VALIDATION: procedural houses varied
+#        201..204 and facade 205..208 (out/detector-data/val). HELD OUT: samplehouse4, never seen in
+#        training, evaluated once per shipped model.
 # Domain randomisation: every chunk has its own seed, so its own look (palette, textures, sun, sky);
 #        half the chunks add the realistic sensor model (noise, blur, JPEG), some radial distortion;
 #        a path-traced (mitsuba) chunk per bundled house and per second varied house; far (<= 22 m)
-#        and grazing (<= 70 deg) cameras for the varied houses.
-# Usage:  bash pipeline/models/make_data.sh [ROOT=out/detector-data]   (about 18 min on 2 cores;
+#        and grazing (<= 70 deg) cameras for the varied houses; facade-feature houses add roof
+#        overhangs with dark fascias, glazed doors and curtain walls (unlabelled glazing: negatives).
+# Usage:  bash pipeline/models/make_data.sh [ROOT=out/detector-data]   (about 30 min on 2 cores;
 #         reruns reuse rendered views)
 # Then:   make train      (= fenestra train --config pipeline/models/default.toml)
 set -euo pipefail
