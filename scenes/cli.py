@@ -103,6 +103,10 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
              storey_height: float = typer.Option(3.0, help="m"),
              wall_thickness: float = typer.Option(0.3, help="m"),
              windows_per_wall: int = typer.Option(1, help="windows per wall and storey"),
+             roof_overhang: float = typer.Option(0.0, help="roof beyond the walls (m)"),
+             fascia_height: float = typer.Option(0.0, help="dark band at the roof edge (m)"),
+             glazed_doors: int = typer.Option(0, help="ground-floor walls with a glazed door (not a window)"),
+             curtain_walls: int = typer.Option(0, help="walls glazed as curtain walls (no windows)"),
              json_out: bool = typer.Option(False, "--json", help="print the expected GT as JSON"),
              ) -> None:
     """Write a procedural IFC4 house with known window voids; print its expected ground truth."""
@@ -111,12 +115,15 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
     kw = {} if footprint is None else {"footprint": tuple(parse_footprint(footprint))}
     spec = HouseSpec(seed=seed, storeys=storeys, rotation_deg=rotation_deg,
                      storey_height=storey_height, wall_thickness=wall_thickness,
-                     windows_per_wall=windows_per_wall, **kw)
+                     windows_per_wall=windows_per_wall, roof_overhang=roof_overhang,
+                     fascia_height=fascia_height, glazed_doors=glazed_doors,
+                     curtain_walls=curtain_walls, **kw)
     house = make_house(spec, out)
     if json_out:
         typer.echo(json.dumps(house.to_json(), indent=1))
     else:
-        typer.echo(f"wrote {out}: {len(house.windows)} windows, {len(spec.footprint)} walls "
+        typer.echo(f"wrote {out}: {len(house.windows)} windows, {len(house.doors)} glazed doors, "
+                   f"{len(house.curtain_walls)} curtain-wall bays, {len(spec.footprint)} walls "
                    f"x {spec.storeys} storeys")
 
 

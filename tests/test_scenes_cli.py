@@ -66,6 +66,22 @@ def test_make_then_show(tmp_path):
         assert np.abs(got - want).max() <= 1e-6
 
 
+def test_make_with_facade_features_and_a_bad_value(tmp_path):
+    out = tmp_path / "f.ifc"
+    r = fenestra("scenes", "make", str(out), "--seed", "3", "--footprint", "0,0;10,0;10,7;0,7",
+                 "--windows-per-wall", "2", "--roof-overhang", "0.5", "--fascia-height", "0.3",
+                 "--glazed-doors", "1", "--curtain-walls", "1", "--json")
+    assert r.returncode == 0, r.stderr
+    made = json.loads(r.stdout)
+    assert len(made["doors"]) == 1 and len(made["curtain_walls"]) == 1
+    cw_wall = made["curtain_walls"][0]["wall"]
+    assert all(w["wall"] != cw_wall for w in made["windows"])
+    r = fenestra("scenes", "make", str(tmp_path / "g.ifc"), "--curtain-walls", "9")
+    assert r.returncode != 0
+    msg = r.stderr.strip()
+    assert msg.startswith("error:") and len(msg.splitlines()) == 1 and "curtain_walls" in msg, msg
+
+
 def _bad(tmp_path, name: str, text: bytes) -> Path:
     p = tmp_path / name
     p.write_bytes(text)

@@ -1,6 +1,6 @@
-"""Choose WinNet's post-processing thresholds on TRAINING-house views (never the held-out house).
+"""Choose WinNet's post-processing thresholds on VALIDATION views (never the held-out house).
 
-    python -m pipeline.detectors.tune --data out/detector-data/train --views-per-dataset 3 \
+    python -m pipeline.detectors.tune --data out/detector-data/val --views-per-dataset 5 \
         [--weights pipeline/models/default.pt] [--write]
 
 Runs the network once per view, then scores each PostConfig of a small grid with COCOeval (segm AP);
