@@ -66,24 +66,9 @@ class HouseSpec:
 
 
 @dataclass(frozen=True)
-class ExpectedWindow:
-    """Ground truth by construction: corners (4, 3) m TL TR BR BL on the exterior face."""
-
-    name: str
-    wall_index: int
-    storey: int
-    width: float
-    height: float
-    sill: float
-    corners_world: np.ndarray
-    normal: np.ndarray
-    window_id: str = ""
-
-
-@dataclass(frozen=True)
 class ExpectedOpening:
-    """A glazed door or a curtain-wall void (no window ground truth): corners (4, 3) m TL TR BR BL
-    on the exterior face, as for :class:`ExpectedWindow`; sill = bottom above the storey floor."""
+    """Ground truth by construction of a window, glazed door or curtain-wall void: corners (4, 3) m
+    TL TR BR BL on the exterior face; sill = the void's bottom above the storey floor."""
 
     name: str
     wall_index: int
@@ -93,13 +78,21 @@ class ExpectedOpening:
     sill: float
     corners_world: np.ndarray
     normal: np.ndarray
-    element_id: str = ""  # IfcDoor GlobalId (doors) / IfcOpeningElement GlobalId (curtain walls)
+    element_id: str = ""  # GlobalId: IfcWindow (windows), IfcDoor (doors), IfcOpeningElement (curtain walls)
+
+    @property
+    def window_id(self) -> str:
+        """The IfcWindow GlobalId (windows): the id the loader's ground truth uses."""
+        return self.element_id
 
     def to_json(self) -> dict:
         return {"id": self.element_id, "name": self.name, "wall": self.wall_index,
                 "storey": self.storey, "width": self.width, "height": self.height,
                 "sill": self.sill, "normal": self.normal.tolist(),
                 "corners_world": self.corners_world.tolist()}
+
+
+ExpectedWindow = ExpectedOpening  # a window is an opening filled by an IfcWindow
 
 
 @dataclass(frozen=True)
@@ -116,10 +109,7 @@ class GeneratedHouse:
     def to_json(self) -> dict:
         return {"path": self.path, "seed": self.spec.seed,
                 "footprint": self.footprint_world.tolist(),
-                "windows": [{"id": w.window_id, "name": w.name, "wall": w.wall_index,
-                             "storey": w.storey, "width": w.width, "height": w.height,
-                             "sill": w.sill, "normal": w.normal.tolist(),
-                             "corners_world": w.corners_world.tolist()} for w in self.windows],
+                "windows": [w.to_json() for w in self.windows],
                 "doors": [d.to_json() for d in self.doors],
                 "curtain_walls": [c.to_json() for c in self.curtain_walls]}
 
@@ -447,7 +437,7 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
                           spec.frame_depth, spec.reveal_depth, "window")
                 win.OverallWidth, win.OverallHeight = w.width, w.height
                 api("feature.add_filling", f, opening=opening, element=win)
-                windows_out.append(ExpectedWindow(**{**w.__dict__, "window_id": win.GlobalId}))
+                windows_out.append(ExpectedWindow(**{**w.__dict__, "element_id": win.GlobalId}))
             d = doors_at.get(i) if k == 0 else None
             if d is not None:
                 off = float((d.corners_world[3] - origin) @ u)
