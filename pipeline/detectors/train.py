@@ -111,8 +111,8 @@ def load_config(path: str | Path | None = None, **overrides: object) -> TrainCon
     return TrainConfig(**train, augment=AugmentConfig(**aug))
 
 
-def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(image (H, W, 3) uint8, instances (H, W) int32) of the views in each dataset folder."""
+def select_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list:
+    """The training views (dataset.ViewFiles) of each dataset folder: all, or max_views evenly spaced."""
     if not dirs:
         raise ValueError("no training data: give dataset folders (config `data` or --data DIR)")
     out = []
@@ -120,11 +120,23 @@ def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[
         views = list_views(d)
         if max_views is not None and len(views) > max_views:
             views = [views[i] for i in np.linspace(0, len(views) - 1, max_views).round().astype(int)]
-        for v in views:
-            inst = read_instances(v.instances)
-            out.append((read_image(v.image), inst.astype(np.uint16 if inst.max() < 65536 else np.int32)))
-        log(f"loaded {len(views)} views from {d}")
+        out += views
+        log(f"{len(views)} views from {d}")
     return out
+
+
+def read_views(views: list) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(image (H, W, 3) uint8, instances (H, W) uint16/int32) of each view."""
+    out = []
+    for v in views:
+        inst = read_instances(v.instances)
+        out.append((read_image(v.image), inst.astype(np.uint16 if inst.max() < 65536 else np.int32)))
+    return out
+
+
+def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[tuple[np.ndarray, np.ndarray]]:
+    """read_views(select_views(...)): the training views' images and instance maps."""
+    return read_views(select_views(dirs, max_views, log))
 
 
 def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
@@ -190,8 +202,9 @@ def _worker_batch(cfg: TrainConfig, it: int):
 
 
 def batches(data, cfg: TrainConfig, start: int):
-    """Yield (it, batch) for it in [start, iterations); with cfg.workers > 0, made ahead in spawned
-    processes that load the views themselves (at most 2 x workers batches in flight). Spawned, not
+    """Yield (it, batch) for it in [start, iterations) from data (load_views); with cfg.workers > 0,
+    data is not used: batches are made ahead in spawned processes that load the views themselves
+    (at most 2 x workers batches in flight). Spawned, not
     forked: a fork of a process that has run OpenMP work hangs in its first OpenMP region."""
     if cfg.workers == 0:
         for it in range(start, cfg.iterations):
@@ -210,7 +223,7 @@ def batches(data, cfg: TrainConfig, start: int):
 
 def _to_device(batch, arch: str, device: str):
     if arch == "winnet":
-        return tuple(t.to(device, non_blocking=True) for t in batch)
+        return tuple(t.to(device) for t in batch)
     imgs, tgts = batch
     return [i.to(device) for i in imgs], [{k: v.to(device) for k, v in t.items()} for t in tgts]
 
@@ -263,7 +276,8 @@ def train(cfg: TrainConfig, log=print) -> Path:
     csv_path = out.with_suffix(".loss.csv")
     state_path = Path(cfg.state_dir) / f"{out.stem}.state.pt"
     state_path.parent.mkdir(parents=True, exist_ok=True)
-    data = load_views(cfg.data, cfg.views, log=log)
+    views = select_views(cfg.data, cfg.views, log=log)
+    data = read_views(views) if cfg.workers == 0 else []  # workers read their own copies
     model, opt = _build(cfg)
     model.to(cfg.device)
     start, elapsed0 = 0, 0.0
@@ -310,7 +324,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
                             "elapsed_s": elapsed, "torch_rng": torch.get_rng_state()}, state_path)
                 meta = {"iterations_done": it + 1, "train_seconds": round(elapsed, 1),
                         "torch": torch.__version__, "threads": cfg.threads, "device": _device_name(cfg.device),
-                        "n_train_views": len(data),
+                        "n_train_views": len(views),
                         "python": sys.version.split()[0]}
                 torch.save(checkpoint(model, cfg, meta), out)
     return out
