@@ -104,8 +104,6 @@ def test_batches_are_the_same_with_worker_processes(tmp_path):
     for (_, (x0, y0)), (_, (x1, y1)) in zip(serial, forked):
         assert x0.equal(x1) and y0.equal(y1)
     assert not serial[0][1][0].equal(serial[1][1][0])  # iterations differ from each other
-    with pytest.raises(ValueError, match="amp"):
-        replace(cfg, amp=True)
     with pytest.raises(ValueError, match="device"):
         replace(cfg, device="tpu")
 

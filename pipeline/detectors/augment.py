@@ -70,14 +70,14 @@ def photometric(image: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator)
     hsv = cv2.cvtColor(img.astype(np.uint8), cv2.COLOR_RGB2HSV).astype(np.float32)
     hsv[..., 0] = (hsv[..., 0] + rng.uniform(-cfg.hue_deg, cfg.hue_deg) / 2.0) % 180.0
     hsv[..., 1] = np.clip(hsv[..., 1] * rng.uniform(1 - cfg.saturation, 1 + cfg.saturation), 0, 255)
-    img = cv2.cvtColor(hsv.astype(np.uint8), cv2.COLOR_HSV2RGB).astype(np.float32)
-    img = 255.0 * (img / 255.0) ** np.exp(rng.uniform(-cfg.gamma, cfg.gamma))
+    lut = (255.0 * (np.arange(256) / 255.0) ** np.exp(rng.uniform(-cfg.gamma, cfg.gamma))).astype(np.float32)
+    img = lut[cv2.cvtColor(hsv.astype(np.uint8), cv2.COLOR_HSV2RGB)]  # gamma, via a lookup table
     if rng.random() < cfg.grey_prob:
         img = np.repeat(img.mean(axis=2, keepdims=True), 3, axis=2)
     if rng.random() < cfg.blur_prob:
         img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.3, cfg.blur_sigma_max))
     if rng.random() < cfg.noise_prob:
-        img = img + rng.normal(0.0, rng.uniform(0, cfg.noise_std_max), img.shape)
+        img = img + np.float32(rng.uniform(0, cfg.noise_std_max)) * rng.standard_normal(img.shape, dtype=np.float32)
     img = np.clip(img, 0, 255).astype(np.uint8)
     if rng.random() < cfg.jpeg_prob:
         q = int(rng.integers(cfg.jpeg_quality[0], cfg.jpeg_quality[1] + 1))

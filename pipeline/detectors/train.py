@@ -8,8 +8,10 @@ Deterministic for a given seed, thread count and device: the batch of iteration 
 for a GPU that would otherwise wait) gives the same batches as ``workers = 0``. Progress on stdout;
 the loss of every logged iteration in a CSV beside the weights (``<out>.loss.csv``). A run can be
 continued in chunks: the optimizer state is kept in ``<state_dir>/<name>.state.pt`` (out/train) and
-``resume = true`` picks it up. ``device = "cuda"`` (and ``amp = true``: bfloat16 autocast) is for
-the GPU machine; the shipped WinNet is trained on the CPU.
+``resume = true`` picks it up. ``amp = true`` (bfloat16 autocast) and ``channels_last`` speed up both
+the GPU machine (``device = "cuda"``) and CPUs with native bfloat16 (AMX / AVX512-BF16): on this
+project's 2-core CPU a WinNet step takes ~0.12 s with both instead of ~0.34 s without. The shipped
+WinNet is trained on the CPU.
 """
 from __future__ import annotations
 
@@ -43,7 +45,9 @@ class TrainConfig:
     iterations, batch_size, crop_hw (px), lr (peak, one-cycle cosine), weight_decay.
     winnet_widths: WinNet channels per level; core_shrink_px/frac: the core target (see winnet).
     maskrcnn_min_size/max_size: Mask R-CNN's internal resize (small for CPU smoke runs).
-    device: "cpu" or "cuda"; amp: bfloat16 autocast (cuda only); workers: processes making batches ahead.
+    device: "cpu" or "cuda"; amp: bfloat16 autocast (fast on CUDA and on CPUs with AMX/AVX512-BF16, slow
+    emulation elsewhere); channels_last: NHWC memory layout (faster convolutions on CPU and GPU);
+    workers: processes making batches ahead.
     """
 
     arch: str = "winnet"
@@ -68,6 +72,7 @@ class TrainConfig:
     resume: bool = False
     device: str = "cpu"
     amp: bool = False
+    channels_last: bool = False
     workers: int = 0
     state_dir: str = "out/train"  # optimizer state for resume (generated: kept out of source folders)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
@@ -80,8 +85,6 @@ class TrainConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.device not in DEVICES:
             raise ValueError(f"device must be one of {DEVICES}, got {self.device!r}")
-        if self.amp and self.device != "cuda":
-            raise ValueError("amp (bfloat16 autocast) needs device = 'cuda'")
         if self.workers < 0:
             raise ValueError(f"workers must be >= 0, got {self.workers}")
         if self.lr <= 0 or not math.isfinite(self.lr):
@@ -280,6 +283,10 @@ def train(cfg: TrainConfig, log=print) -> Path:
     data = read_views(views) if cfg.workers == 0 else []  # workers read their own copies
     model, opt = _build(cfg)
     model.to(cfg.device)
+    if cfg.channels_last:
+        model.to(memory_format=torch.channels_last)
+    if cfg.amp and cfg.device == "cpu" and not torch.backends.mkldnn.is_available():
+        log("warning: amp on a CPU without oneDNN: bfloat16 is emulated and slow")
     start, elapsed0 = 0, 0.0
     if cfg.resume and state_path.is_file():
         st = torch.load(state_path, map_location=cfg.device, weights_only=False)
@@ -299,9 +306,11 @@ def train(cfg: TrainConfig, log=print) -> Path:
             lr = _lr_at(it, cfg)
             for g in opt.param_groups:
                 g["lr"] = lr
-            with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cfg.amp):
+            with torch.autocast(cfg.device, dtype=torch.bfloat16, enabled=cfg.amp):
                 if cfg.arch == "winnet":
                     x, y = _to_device(batch, cfg.arch, cfg.device)
+                    if cfg.channels_last:
+                        x = x.contiguous(memory_format=torch.channels_last)
                     parts = winnet_loss(model(x).float(), y)
                 else:
                     parts = model(*_to_device(batch, cfg.arch, cfg.device))

@@ -69,12 +69,13 @@ class WinNet(nn.Module):
 
 
 def to_tensor(images: np.ndarray) -> torch.Tensor:
-    """(B, H, W, 3) or (H, W, 3) uint8 RGB -> normalised float tensor (B, 3, H, W)."""
-    a = np.asarray(images, dtype=np.float32)
+    """(B, H, W, 3) or (H, W, 3) uint8 RGB -> normalised float32 tensor (B, 3, H, W), contiguous."""
+    a = np.ascontiguousarray(images)
     if a.ndim == 3:
         a = a[None]
-    a = (a - MEAN) / STD
-    return torch.from_numpy(np.ascontiguousarray(a.transpose(0, 3, 1, 2)))
+    t = torch.from_numpy(a).permute(0, 3, 1, 2).float()
+    t = (t - torch.from_numpy(MEAN).view(1, 3, 1, 1)) / torch.from_numpy(STD).view(1, 3, 1, 1)
+    return t.contiguous()
 
 
 def pad_to_stride(t: torch.Tensor, stride: int = STRIDE) -> tuple[torch.Tensor, int, int]:
@@ -159,5 +160,6 @@ def predict_maps(model: WinNet, image: np.ndarray) -> tuple[np.ndarray, np.ndarr
     """Void and core probability maps (H, W) float32 for one RGB image (H, W, 3) uint8."""
     model.eval()
     x, H, W = pad_to_stride(to_tensor(image))
-    p = torch.sigmoid(model(x.to(next(model.parameters()).device)))[0, :, :H, :W].cpu().numpy()
+    x = x.to(next(model.parameters()).device).contiguous(memory_format=torch.channels_last)
+    p = torch.sigmoid(model(x).float())[0, :, :H, :W].cpu().numpy()
     return p[0], p[1]
