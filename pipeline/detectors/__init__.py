@@ -78,7 +78,7 @@ def load_winnet(weights: str | Path | None = None):
     ckpt = torch.load(path, map_location="cpu", weights_only=False)
     if ckpt.get("arch") != "winnet":
         raise FenestraError(f"{path} holds a {ckpt.get('arch')!r} model, not 'winnet'")
-    model = WinNet(WinNetConfig(tuple(ckpt["widths"]), ckpt.get("full_res_width", 0)))
+    model = WinNet(WinNetConfig(tuple(ckpt["widths"])))
     model.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
     model.to(memory_format=torch.channels_last)  # NHWC: ~1.3x faster convolutions on CPU
     return model.eval(), PostConfig(**ckpt.get("post", {}))

@@ -43,8 +43,7 @@ class TrainConfig:
 
     data: dataset folders, or roots holding them (see dataset.find_datasets); views: at most this many views per folder (None: all, evenly spaced).
     iterations, batch_size, crop_hw (px), lr (peak, one-cycle cosine), weight_decay.
-    winnet_widths: WinNet channels per level; winnet_full_res_width: its full-resolution level (0: none);
-    core_shrink_px/frac: the core target (see winnet).
+    winnet_widths: WinNet channels per level; core_shrink_px/frac: the core target (see winnet).
     maskrcnn_min_size/max_size: Mask R-CNN's internal resize (small for CPU smoke runs).
     device: "cpu" or "cuda"; amp: bfloat16 autocast (fast on CUDA and on CPUs with AMX/AVX512-BF16, slow
     emulation elsewhere); channels_last: NHWC memory layout (faster convolutions on CPU and GPU);
@@ -64,7 +63,6 @@ class TrainConfig:
     weight_decay: float = 1e-4
     warmup: int = 100
     winnet_widths: tuple[int, ...] = (16, 32, 64, 96, 128)
-    winnet_full_res_width: int = 0
     core_shrink_px: float = 3.0
     core_shrink_frac: float = 0.15
     maskrcnn_min_size: int = 480
@@ -245,7 +243,7 @@ def _build(cfg: TrainConfig):
     if cfg.arch == "winnet":
         from pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
 
-        model = WinNet(WinNetConfig(cfg.winnet_widths, cfg.winnet_full_res_width))
+        model = WinNet(WinNetConfig(cfg.winnet_widths))
         opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     else:
         from pipeline.detectors.maskrcnn import build_maskrcnn  # noqa: PLC0415
@@ -262,8 +260,7 @@ def checkpoint(model: torch.nn.Module, cfg: TrainConfig, meta: dict) -> dict:
         from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
 
         sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
-        return {"arch": "winnet", "widths": list(cfg.winnet_widths), "full_res_width": cfg.winnet_full_res_width,
-                "state_dict": sd,
+        return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
                 "post": dataclasses.asdict(PostConfig()), "train_config": dataclasses.asdict(cfg), "meta": meta}
     return {"arch": "maskrcnn", "model_kw": {"min_size": cfg.maskrcnn_min_size, "max_size": cfg.maskrcnn_max_size},
             "state_dict": {k: v.cpu() for k, v in model.state_dict().items()}, "train_config": dataclasses.asdict(cfg), "meta": meta}

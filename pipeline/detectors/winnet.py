@@ -38,16 +38,9 @@ def _block(cin: int, cout: int, stride: int = 1, dilation: int = 1) -> nn.Sequen
 
 @dataclass(frozen=True)
 class WinNetConfig:
-    """Architecture: channel widths per level (stride 2, 4, 8, 16, 32). full_res_width > 0 adds a
-    light full-resolution level of that width (one 3x3 conv + ReLU on the image, one on the
-    upsampled stride-2 features joined with it; no batch norm, which costs most at full
-    resolution), so the outline is drawn at stride 1 instead of upsampled from stride 2.
-    Timed ad hoc on the 2-core CPU (bfloat16 training step, batch 8 of 256x256; fp32 640x480 forward):
-    width 8 costs 1.26x per training step and +15 ms per view; two conv-BN-ReLU blocks of width 8
-    cost 2.4x per step, so they are not offered."""
+    """Architecture: channel widths per level (stride 2, 4, 8, 16, 32)."""
 
     widths: tuple[int, ...] = (16, 24, 48, 64, 96)
-    full_res_width: int = 0
 
 
 class WinNet(nn.Module):
@@ -59,14 +52,10 @@ class WinNet(nn.Module):
         self.enc = nn.ModuleList([_block(3, w[0], 2)] + [_block(w[i - 1], w[i], 2, 2 if i >= 3 else 1)
                                                           for i in range(1, len(w))])
         self.dec = nn.ModuleList([_block(w[i + 1] + w[i], w[i]) for i in range(len(w) - 2, -1, -1)])
-        f = config.full_res_width
-        self.full_enc = nn.Sequential(nn.Conv2d(3, f, 3, 1, 1), nn.ReLU(inplace=True)) if f else None
-        self.full_dec = nn.Sequential(nn.Conv2d(w[0] + f, f, 3, 1, 1), nn.ReLU(inplace=True)) if f else None
-        self.head = nn.Conv2d(f or w[0], 2, 1)
+        self.head = nn.Conv2d(w[0], 2, 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         size = x.shape[-2:]
-        full = self.full_enc(x) if self.full_enc is not None else None
         skips = []
         for layer in self.enc:
             x = layer(x)
@@ -76,10 +65,7 @@ class WinNet(nn.Module):
             s = skips.pop()
             x = F.interpolate(x, size=s.shape[-2:], mode="bilinear", align_corners=False)
             x = layer(torch.cat([x, s], dim=1))
-        if full is None:
-            return F.interpolate(self.head(x), size=size, mode="bilinear", align_corners=False)
-        x = F.interpolate(x, size=size, mode="bilinear", align_corners=False)
-        return self.head(self.full_dec(torch.cat([x, full], dim=1)))
+        return F.interpolate(self.head(x), size=size, mode="bilinear", align_corners=False)
 
 
 def to_tensor(images: np.ndarray) -> torch.Tensor:
