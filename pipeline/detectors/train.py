@@ -10,8 +10,8 @@ the loss of every logged iteration in a CSV beside the weights (``<out>.loss.csv
 continued in chunks: the optimizer state is kept in ``<state_dir>/<name>.state.pt`` (out/train) and
 ``resume = true`` picks it up. ``amp = true`` (bfloat16 autocast) and ``channels_last`` speed up both
 the GPU machine (``device = "cuda"``) and CPUs with native bfloat16 (AMX / AVX512-BF16): on this
-project's 2-core CPU a WinNet step takes ~0.12 s with both instead of ~0.34 s without. The shipped
-WinNet is trained on the CPU.
+project's 2-core CPU a step of the shipped WinNet takes ~0.16 s with both instead of ~0.45 s without
+(see pipeline/models/README.md). The shipped WinNet is trained on the CPU.
 """
 from __future__ import annotations
 
@@ -285,8 +285,9 @@ def train(cfg: TrainConfig, log=print) -> Path:
     model.to(cfg.device)
     if cfg.channels_last:
         model.to(memory_format=torch.channels_last)
-    if cfg.amp and cfg.device == "cpu" and not torch.backends.mkldnn.is_available():
-        log("warning: amp on a CPU without oneDNN: bfloat16 is emulated and slow")
+    if cfg.amp and cfg.device == "cpu" and not torch.ops.mkldnn._is_mkldnn_bf16_supported():
+        log("warning: amp = true on a CPU without native bfloat16 (AMX/AVX512-BF16): it is emulated and "
+            "slow; set amp = false in the config")
     start, elapsed0 = 0, 0.0
     if cfg.resume and state_path.is_file():
         st = torch.load(state_path, map_location=cfg.device, weights_only=False)
