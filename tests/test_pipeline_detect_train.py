@@ -122,3 +122,17 @@ def test_training_is_reproducible_for_a_seed(tmp_path):
     a, b, c = weights
     assert all(a[k].equal(b[k]) for k in a)
     assert not all(a[k].equal(c[k]) for k in a)  # another seed: other weights
+
+
+def test_steptime_times_every_variant(tmp_path):
+    """The step-timing command behind the model card's figures runs each variant (bf16 on the CPU too)."""
+    from pipeline.detectors.steptime import VARIANTS, step_ms
+    from pipeline.detectors.train import load_views, make_batch
+
+    ds = write_toy_dataset(tmp_path / "toy", n_views=2, seed=5)
+    cfg = load_config("pipeline/models/default.toml", data=(str(ds),), batch_size=2, crop_hw=(64, 64))
+    data = load_views(cfg.data, None)
+    batches = [make_batch(data, cfg, it) for it in range(2)]
+    for amp, channels_last in VARIANTS.values():
+        ms = step_ms(cfg, batches, amp, channels_last, steps=3)
+        assert np.isfinite(ms) and ms > 0

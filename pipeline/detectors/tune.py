@@ -1,7 +1,7 @@
 """Choose WinNet's post-processing thresholds on VALIDATION views (never the held-out house).
 
     python -m pipeline.detectors.tune --data out/detector-data/val --views-per-dataset 5 \
-        [--weights pipeline/models/default.pt] [--write]
+        [--weights pipeline/models/default.pt] [--write]      # --views-per-dataset 0: every view
 
 Runs the network once per view, then scores each PostConfig of a small grid with COCOeval (segm AP);
 --write stores the best one in the weights file (key "post"), which the `default` detector uses.
@@ -38,12 +38,14 @@ def _gt(images: list[tuple[int, np.ndarray]]) -> dict:
 
 
 def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[dict, PostConfig]]:
-    """(segm stats, PostConfig) for every grid point, best segm AP first."""
+    """(segm stats, PostConfig) for every grid point, best segm AP first (views_per_dataset 0: all)."""
     model, _ = load_winnet(weights)
     maps, insts = [], []
     for d in find_datasets([data]):
         vs = list_views(d)
-        for v in [vs[j] for j in np.linspace(0, len(vs) - 1, views_per_dataset).round().astype(int)]:
+        if views_per_dataset > 0:
+            vs = [vs[j] for j in np.linspace(0, len(vs) - 1, views_per_dataset).round().astype(int)]
+        for v in vs:
             maps.append(predict_maps(model, read_image(v.image)))
             insts.append((len(insts) + 1, read_instances(v.instances)))
     gt = _gt(insts)
