@@ -136,3 +136,34 @@ def test_steptime_times_every_variant(tmp_path):
     for amp, channels_last in VARIANTS.values():
         ms = step_ms(cfg, batches, amp, channels_last, steps=3)
         assert np.isfinite(ms) and ms > 0
+
+
+def test_gpu_search_variants_are_the_default_config_with_their_overrides(tmp_path):
+    """gpu_winnet_search.sh (CONFIGS_ONLY=1) writes each variant as the default config with exactly
+    its listed keys replaced; an unknown variant is refused by name."""
+    import dataclasses
+    import os
+    import subprocess
+
+    script = "pipeline/models/gpu_winnet_search.sh"
+    env = {**os.environ, "CONFIGS_ONLY": "1"}
+    subprocess.run(["bash", script, str(tmp_path), "base", "seed1", "scalelo", "crop384", "c224"],
+                   check=True, env=env)
+    default = load_config("pipeline/models/default.toml")
+    expect = {"base": {"iterations": 10000, "crop_hw": (256, 256)},
+              "seed1": {"iterations": 10000, "crop_hw": (256, 256), "seed": 1},
+              "scalelo": {"iterations": 10000, "crop_hw": (256, 256)},
+              "crop384": {"iterations": 5000, "crop_hw": (384, 384)},
+              "c224": {"iterations": 16000, "crop_hw": (224, 224)}}
+    for name, changed in expect.items():
+        cfg = load_config(tmp_path / f"{name}.toml")
+        assert cfg.device == "cuda" and cfg.out == f"{tmp_path}/{name}.pt"
+        for k in ("arch", "batch_size", "lr", "winnet_widths", "amp", "channels_last", "data"):
+            assert getattr(cfg, k) == getattr(default, k), (name, k)
+        for k, v in changed.items():
+            assert getattr(cfg, k) == v, (name, k)
+        scale = (0.25, 1.0) if name == "scalelo" else default.augment.scale_range
+        assert cfg.augment.scale_range == scale
+        assert dataclasses.replace(cfg.augment, scale_range=default.augment.scale_range) == default.augment
+    bad = subprocess.run(["bash", script, str(tmp_path), "nonesuch"], env=env, capture_output=True, text=True)
+    assert bad.returncode != 0 and "unknown variant nonesuch" in bad.stderr

@@ -1,7 +1,7 @@
 """Time one training step of a config on this machine: batch making, and the network step with and
 without bfloat16 autocast and channels-last layout (the figures quoted in pipeline/models/README.md).
 
-    python -m pipeline.detectors.steptime --config pipeline/models/default.toml [--widths 16,32,64,96,128]
+    python -m pipeline.detectors.steptime --config pipeline/models/default.toml [--widths 16,32,64,96,128] [--crop 256]
 
 Reads one view per training dataset folder, makes 7 batches (times the last 6), runs 8 steps per variant from a fresh
 model and prints the median of the last 6 (ms). Medians only: the machine is shared and noisy.
@@ -47,8 +47,9 @@ def main() -> None:
     ap.add_argument("--config", default="pipeline/models/default.toml")
     ap.add_argument("--widths", action="append", default=[],
                     help="comma-separated WinNet widths to time instead of the config's (repeatable)")
+    ap.add_argument("--crop", type=int, help="square crop side (px) instead of the config's crop_hw")
     a = ap.parse_args()
-    cfg = load_config(a.config)
+    cfg = load_config(a.config, crop_hw=(a.crop, a.crop) if a.crop else None)
     if cfg.arch != "winnet":
         raise SystemExit(f"steptime times WinNet configs; {a.config} has arch {cfg.arch!r}")
     torch.set_num_threads(cfg.threads)
