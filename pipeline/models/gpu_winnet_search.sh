@@ -40,7 +40,11 @@ for v in $VARIANTS; do
 done
 [ "${CONFIGS_ONLY:-0}" = 1 ] && exit 0
 mkdir -p "$OUTD/loho"
-mv out/detector-data/train/fzk-haus-* "$OUTD/loho/"
+cp -r out/detector-data/train/fzk-haus-* "$OUTD/loho/"  # a copy: the data folder is left as it is
+TRAIN=()
+for d in out/detector-data/train/*/; do
+  case "$(basename "$d")" in fzk-haus-*) ;; *) TRAIN+=(--data "${d%/}") ;; esac
+done
 $PY - "$OUTD/loho" <<'PY'
 import json, pathlib, sys  # the packed train split keeps every 2nd view: list only those present
 for c in pathlib.Path(sys.argv[1]).glob("*/coco.json"):
@@ -52,7 +56,7 @@ for c in pathlib.Path(sys.argv[1]).glob("*/coco.json"):
 PY
 for v in $VARIANTS; do
   cfg="$OUTD/$v.toml"
-  ( $PY -m fenestra train --config "$cfg" --workers "$WORKERS" > "$OUTD/$v.train.log" 2>&1
+  ( $PY -m fenestra train --config "$cfg" "${TRAIN[@]}" --workers "$WORKERS" > "$OUTD/$v.train.log" 2>&1
     for split in out/detector-data/val "$OUTD/loho"; do
       $PY -m fenestra evaluate-detector --weights "$OUTD/$v.pt" --device cuda --data "$split" \
           --json "$OUTD/$v-$(basename "$split").json" > /dev/null
