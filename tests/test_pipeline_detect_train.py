@@ -1,5 +1,6 @@
 """Training runs on CPU: WinNet loss goes down; Mask R-CNN trains at a reduced size and loads."""
 import csv
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -167,3 +168,31 @@ def test_gpu_search_variants_are_the_default_config_with_their_overrides(tmp_pat
         assert dataclasses.replace(cfg.augment, scale_range=default.augment.scale_range) == default.augment
     bad = subprocess.run(["bash", script, str(tmp_path), "nonesuch"], env=env, capture_output=True, text=True)
     assert bad.returncode != 0 and "unknown variant nonesuch" in bad.stderr
+
+
+def test_pack_data_keeps_every_nth_train_view_and_lists_only_those(tmp_path, monkeypatch):
+    """pack_data.py: a packed train folder holds every train_step-th view, its coco.json lists exactly
+    those views with their annotations, and the unpacked folder evaluates as it is."""
+    import json
+    import subprocess
+    import sys
+    import tarfile
+
+    from pipeline.detectors.evaluate import evaluate
+
+    monkeypatch.chdir(tmp_path)
+    ds = write_toy_dataset("data/train/toy", n_views=5, seed=3)
+    full = json.loads((ds / "coco.json").read_text())
+    script = Path(__file__).resolve().parents[1] / "pipeline/models/pack_data.py"
+    subprocess.run([sys.executable, str(script), "p.tar.xz", "--train-step", "2", "data/train"], check=True)
+    with tarfile.open("p.tar.xz") as tf:
+        tf.extractall("unpacked", filter="data")
+    packed = Path("unpacked/data/train/toy")
+    coco = json.loads((packed / "coco.json").read_text())
+    views = sorted(p.name for p in (packed / "views").iterdir())
+    assert views == sorted(p.name for p in (ds / "views").iterdir())[::2]
+    assert [im["file_name"] for im in coco["images"]] == [f"views/{v}/image.png" for v in views]
+    ids = {im["id"] for im in coco["images"]}
+    assert coco["annotations"] == [a for a in full["annotations"] if a["image_id"] in ids]
+    result = evaluate("oracle", packed)
+    assert result["n_images"] == len(views) and result["segm"]["AP"] == pytest.approx(100.0)

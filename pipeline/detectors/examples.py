@@ -57,14 +57,17 @@ def main() -> None:
     ap.add_argument("--data", type=Path, required=True)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("-n", type=int, default=3)
+    ap.add_argument("--weights", type=Path, help="weights file (default: the detector's shipped one)")
     a = ap.parse_args()
-    rows = view_scores(a.detector, a.data)
+    opts = {"weights": a.weights} if a.weights else {}
+    rows = view_scores(a.detector, a.data, **opts)
     ious = np.array([r[0] for r in rows])
     print(f"{len(rows)} views; worst-window IoU per view: median {np.median(ious):.3f}, "
-          f"views with a window under IoU 0.5: {(ious < 0.5).sum()}")
+          f"views with a window under IoU 0.5: {(ious < 0.5).sum()}, "
+          f"views with >= 2 more detections than windows: {sum(r[2] >= r[1] + 2 for r in rows)}")
     for i, (iou, ngt, ndet, ip, sp) in enumerate(rows[:a.n]):
         out = a.out / f"worst{i + 1}_{ip.parent.parent.parent.name[:20]}_{ip.parent.name}.jpg"
-        draw(a.detector, ip, sp, out)
+        draw(a.detector, ip, sp, out, **opts)
         print(f"{out}: worst IoU {iou:.2f}, {ngt} windows, {ndet} detections")
 
 

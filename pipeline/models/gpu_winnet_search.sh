@@ -11,7 +11,7 @@
 # Each variant is the default config with the keys below replaced (iterations and crop given
 # explicitly, so the variants do not move when default.toml does), device cuda, and its own batch-
 # making worker processes (the machine's 16 cores are shared among the variants run together).
-# CONFIGS_ONLY=1 writes the variants' configs to OUT_DIR and stops (tests/test_detector_train.py).
+# CONFIGS_ONLY=1 writes the variants' configs to OUT_DIR and stops (tests/test_pipeline_detect_train.py).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUTD=$1; shift
@@ -45,15 +45,6 @@ TRAIN=()
 for d in out/detector-data/train/*/; do
   case "$(basename "$d")" in fzk-haus-*) ;; *) TRAIN+=(--data "${d%/}") ;; esac
 done
-$PY - "$OUTD/loho" <<'PY'
-import json, pathlib, sys  # the packed train split keeps every 2nd view: list only those present
-for c in pathlib.Path(sys.argv[1]).glob("*/coco.json"):
-    d = json.loads(c.read_text())
-    d["images"] = [im for im in d["images"] if (c.parent / im["file_name"]).exists()]
-    keep = {im["id"] for im in d["images"]}
-    d["annotations"] = [a for a in d["annotations"] if a["image_id"] in keep]
-    c.write_text(json.dumps(d))
-PY
 for v in $VARIANTS; do
   cfg="$OUTD/$v.toml"
   ( $PY -m fenestra train --config "$cfg" "${TRAIN[@]}" --workers "$WORKERS" > "$OUTD/$v.train.log" 2>&1

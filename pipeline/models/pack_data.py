@@ -5,12 +5,14 @@
 Each view's image.png is stored as JPEG bytes under the same name (OpenCV decodes by content, so
 pipeline/detectors/dataset.py reads it unchanged), instances.png and coco.json as they are;
 view.json is left out (training and evaluation do not read it). Under a path containing "/train"
-only every ``train-step``-th view is kept. Unpack with ``tar -xJf OUT.tar.xz`` in the repo root.
+only every ``train-step``-th view is kept, and its coco.json then lists only the kept views (so the
+packed folder can be evaluated as it is). Unpack with ``tar -xJf OUT.tar.xz`` in the repo root.
 """
 from __future__ import annotations
 
 import argparse
 import io
+import json
 import tarfile
 from pathlib import Path
 
@@ -23,6 +25,13 @@ def _add(tf: tarfile.TarFile, name: str, data: bytes) -> None:
     tf.addfile(info, io.BytesIO(data))
 
 
+def kept_coco(coco: dict, file_names: set[str]) -> dict:
+    """The COCO dict restricted to the images whose file_name is in file_names (and their annotations)."""
+    images = [im for im in coco["images"] if im["file_name"] in file_names]
+    ids = {im["id"] for im in images}
+    return {**coco, "images": images, "annotations": [a for a in coco["annotations"] if a["image_id"] in ids]}
+
+
 def pack(out: Path, roots: list[Path], train_step: int = 1, jpeg_quality: int = 88) -> int:
     """Write the tar.xz; return the number of views packed."""
     n = 0
@@ -30,10 +39,10 @@ def pack(out: Path, roots: list[Path], train_step: int = 1, jpeg_quality: int = 
         for root in roots:
             for ds in sorted({p.parent for p in root.glob("**/views")}):
                 step = train_step if "/train" in str(ds) else 1
-                _add(tf, f"{ds}/coco.json", (ds / "coco.json").read_bytes())
-                for i, v in enumerate(sorted((ds / "views").iterdir())):
-                    if i % step:
-                        continue
+                views = sorted((ds / "views").iterdir())[::step]
+                _add(tf, f"{ds}/coco.json", json.dumps(kept_coco(json.loads((ds / "coco.json").read_text()),
+                                                                 {f"views/{v.name}/image.png" for v in views})).encode())
+                for v in views:
                     ok, jpg = cv2.imencode(".jpg", cv2.imread(str(v / "image.png")),
                                            [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
                     _add(tf, f"{v}/image.png", jpg.tobytes())
