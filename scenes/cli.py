@@ -107,6 +107,9 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
              fascia_height: float = typer.Option(0.0, help="dark band at the roof edge (m)"),
              glazed_doors: int = typer.Option(0, help="ground-floor walls with a glazed door (not a window)"),
              curtain_walls: int = typer.Option(0, help="walls glazed as curtain walls (no windows)"),
+             curtain_wall_width: float = typer.Option(
+                 0.0, help="0: a curtain wall fills its wall; else a strip this wide (m), other windows kept"),
+             curtain_wall_rows: int = typer.Option(2, help="panel rows of a curtain wall (1-4)"),
              json_out: bool = typer.Option(False, "--json", help="print the expected GT as JSON"),
              ) -> None:
     """Write a procedural IFC4 house with known window voids; print its expected ground truth."""
@@ -117,7 +120,8 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
                      storey_height=storey_height, wall_thickness=wall_thickness,
                      windows_per_wall=windows_per_wall, roof_overhang=roof_overhang,
                      fascia_height=fascia_height, glazed_doors=glazed_doors,
-                     curtain_walls=curtain_walls, **kw)
+                     curtain_walls=curtain_walls, curtain_wall_width=curtain_wall_width,
+                     curtain_wall_rows=curtain_wall_rows, **kw)
     house = make_house(spec, out)
     if json_out:
         typer.echo(json.dumps(house.to_json(), indent=1))

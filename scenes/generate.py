@@ -22,10 +22,13 @@ Geometry (all boxes, written with ``ifcopenshell.api``):
   ``curtain_walls``: that many walls (seeded, longer ones likelier) get no windows; instead, per
   storey, an unfilled opening (0.1 m above the floor to 0.1 m below the top, corner margin + 0.2 m
   from both ends) glazed by IfcPlate panels (0.02 m, glass style, flush with the exterior face;
-  2 rows, seeded panel width 1.0-1.8 m) and IfcMember mullions/transoms (0.06 x 0.12 m, protruding
-  0.03 m, seeded grey) aggregated into an IfcCurtainWall. Doors and curtain walls are NOT windows:
+  ``curtain_wall_rows`` rows, default 2, seeded panel width 1.0-1.8 m) and IfcMember mullions/transoms (0.06 x 0.12 m, protruding
+  0.03 m, seeded grey) aggregated into an IfcCurtainWall. ``curtain_wall_width`` > 0 m makes it a
+  strip of that width (clipped to the free length) instead, at the wall's start, its end or a
+  place between (seeded, stream ``[seed, 8]``); only the windows overlapping it (0.3 m clearance)
+  are dropped. Doors and curtain walls are NOT windows:
   the loader's ground truth (IfcWindow fillings only) leaves them out, so they are negatives.
-  Every random choice of these options uses ``default_rng([seed, 7])``, never the window stream.
+  The other random choices of these options use ``default_rng([seed, 7])``, never the window stream.
 Expected ground truth of a window: its opening's rectangle on the exterior face line:
 x from ``offset`` to ``offset + width`` along the wall edge, z from ``sill`` to ``sill + height``
 above the storey's floor. Doors and curtain-wall voids are recorded the same way
@@ -63,6 +66,8 @@ class HouseSpec:
     fascia_height: float = 0.0  # dark band around the roof edge, from its top down, 0-1 m
     glazed_doors: int = 0  # storey-0 walls whose first window becomes a glazed IfcDoor
     curtain_walls: int = 0  # walls glazed by an IfcPlate/IfcMember grid instead of windows
+    curtain_wall_width: float = 0.0  # m; 0: the wall's whole free length, else a strip this wide
+    curtain_wall_rows: int = 2  # panel rows of a curtain wall, 1-4
 
 
 @dataclass(frozen=True)
@@ -218,6 +223,11 @@ def check_options(spec: HouseSpec, n_walls: int) -> None:
     if not 0 <= spec.curtain_walls <= n_walls:
         raise ValueError(f"curtain_walls must be in [0, {n_walls}] (the number of walls), got "
                          f"{spec.curtain_walls}")
+    if spec.curtain_wall_width != 0.0 and not 0.5 <= spec.curtain_wall_width <= 50.0:
+        raise ValueError(f"curtain_wall_width must be 0 (whole wall) or in [0.5, 50] m, got "
+                         f"{spec.curtain_wall_width}")
+    if not 1 <= spec.curtain_wall_rows <= 4:
+        raise ValueError(f"curtain_wall_rows must be in [1, 4], got {spec.curtain_wall_rows}")
 
 
 def choose_curtain_walls(spec: HouseSpec, poly: np.ndarray, rng: np.random.Generator
@@ -274,14 +284,24 @@ def plan_doors(spec: HouseSpec, poly: np.ndarray, plan: list[ExpectedWindow], sk
 def plan_curtain_walls(spec: HouseSpec, poly: np.ndarray, walls: list[int]
                        ) -> list[ExpectedOpening]:
     """The curtain-wall void of each wall in ``walls`` on every storey: from corner margin + 0.2 m
-    to length - margin - 0.2 m along the wall, 0.1 m above the floor to 0.1 m below the top."""
+    to length - margin - 0.2 m along the wall, 0.1 m above the floor to 0.1 m below the top.
+
+    With ``spec.curtain_wall_width`` > 0 the void is a strip that wide (clipped to that free
+    length) at the free length's start, its end or a uniform place between (seeded per wall with
+    ``default_rng([seed, 8])``, a stream of its own: houses without strips are unchanged)."""
     margins = corner_margins(poly, spec.wall_thickness)
+    rng = np.random.default_rng([spec.seed, 8])
     out = []
     for i in walls:
         a, b = poly[i], poly[(i + 1) % len(poly)]
         length = float(np.linalg.norm(b - a))
         u = np.append((b - a) / length, 0.0)
         off, width = margins[i, 0] + 0.2, length - margins[i].sum() - 0.4
+        if spec.curtain_wall_width > 0:
+            strip = min(spec.curtain_wall_width, width)
+            place = int(rng.integers(3))  # 0 start, 1 end, 2 uniform between
+            off += (0.0, width - strip, float(rng.uniform(0.0, width - strip)))[place]
+            width = strip
         h = spec.storey_height - 0.2
         for k in range(spec.storeys):
             out.append(ExpectedOpening(
@@ -291,23 +311,32 @@ def plan_curtain_walls(spec: HouseSpec, poly: np.ndarray, walls: list[int]
     return out
 
 
+def _overlaps(a: ExpectedOpening, b: ExpectedOpening, clearance: float) -> bool:
+    """Do two openings on the same wall overlap along it, with ``clearance`` m added (corners)?"""
+    u = a.corners_world[1] - a.corners_world[0]
+    u = u / np.linalg.norm(u)
+    xa = sorted(float(p @ u) for p in a.corners_world[:2])
+    xb = sorted(float(p @ u) for p in b.corners_world[:2])
+    return xa[0] < xb[1] + clearance and xb[0] < xa[1] + clearance
+
+
 Rect = tuple[float, float, float, float]  # (x, z, w, h) m
 
 
-def curtain_grid(width: float, height: float, panel_width: float
+def curtain_grid(width: float, height: float, panel_width: float, rows: int = 2
                  ) -> tuple[list[Rect], list[Rect]]:
     """Panels and members of a curtain-wall void width x height m, in void coordinates (x along
     the wall, z up from the void's bottom), each (x, z, w, h) m.
 
-    Panels: round(width / panel_width) (>= 1) equal columns x 2 equal rows, tiling the void.
-    Members (0.06 m wide): a vertical one at every column line, a horizontal one at the bottom,
-    middle and top, all inside the void (edge members flush with its sides)."""
+    Panels: round(width / panel_width) (>= 1) equal columns x ``rows`` equal rows, tiling the void.
+    Members (0.06 m wide): a vertical one at every column line, a horizontal one at every row line
+    (bottom and top included), all inside the void (edge members flush with its sides)."""
     m = 0.06
     nc = max(1, int(round(width / panel_width)))
-    cw, rh = width / nc, height / 2
-    panels = [(j * cw, r * rh, cw, rh) for r in range(2) for j in range(nc)]
+    cw, rh = width / nc, height / rows
+    panels = [(j * cw, r * rh, cw, rh) for r in range(rows) for j in range(nc)]
     xs = np.clip(np.arange(nc + 1) * cw - m / 2, 0.0, width - m)
-    zs = np.clip(np.arange(3) * rh - m / 2, 0.0, height - m)
+    zs = np.clip(np.arange(rows + 1) * rh - m / 2, 0.0, height - m)
     members = [(float(x), 0.0, m, height) for x in xs] + [(0.0, float(z), width, m) for z in zs]
     return panels, members
 
@@ -344,9 +373,10 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
     door_plan = plan_doors(spec, poly, plan, cw_walls, rng)
     fascia_rgb = rng.uniform(0.05, 0.35, 3).tolist() if spec.fascia_height > 0 else None
     replaced = {name for _, name in door_plan}
-    plan = [w for w in plan if w.wall_index not in cw_walls and w.name not in replaced]
     doors_at = {d.wall_index: d for d, _ in door_plan}  # all on storey 0
     curtains = plan_curtain_walls(spec, poly, cw_walls)
+    plan = [w for w in plan if w.name not in replaced
+            and not any(_overlaps(w, c, 0.3) for c in curtains if c.wall_index == w.wall_index)]
     curtain_at = {(c.wall_index, c.storey): c for c in curtains}
 
     api = ifcopenshell.api.run
@@ -451,7 +481,7 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
             if c is not None:  # unfilled opening glazed by plates and members (no IfcWindow)
                 off = float((c.corners_world[3] - origin) @ u)
                 opening = void(wall, f"Opening {c.name}", origin, u, off, c.sill, c.width, c.height)
-                panels, members = curtain_grid(c.width, c.height, panel_w[i])
+                panels, members = curtain_grid(c.width, c.height, panel_w[i], spec.curtain_wall_rows)
                 parts = [box("IfcPlate", f"{c.name} panel {n}", None, origin, u, off + x,
                              c.sill + z, pw, ph, 0.02, 0.0, "window")
                          for n, (x, z, pw, ph) in enumerate(panels)]

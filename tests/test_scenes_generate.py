@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fenestra.conventions import TOL
-from scenes.generate import (DEFAULT_FOOTPRINT, HouseSpec, check_footprint, make_house,
+from scenes.generate import (DEFAULT_FOOTPRINT, HouseSpec, check_footprint, corner_margins, make_house,
                              offset_polygon, plan_windows, rotate_xy)
 from scenes.loader import load_scene
 
@@ -236,3 +236,41 @@ def test_offset_polygon_moves_every_edge_outward():
 def test_bad_options_are_rejected(kw, word, tmp_path):
     with pytest.raises(ValueError, match=word):
         make_house(HouseSpec(**kw), tmp_path / "x.ifc")
+
+
+def test_curtain_wall_strip_keeps_other_windows(tmp_path):
+    """A 1.6 m curtain-wall strip with 3 panel rows: on its wall, inside the free length, only the
+    windows overlapping it (0.3 m clearance) dropped; the loaded ground truth has no window on it."""
+    spec = HouseSpec(seed=11, storeys=2, windows_per_wall=3, width_range=(0.4, 0.8),
+                     curtain_walls=1, curtain_wall_width=1.6, curtain_wall_rows=3)
+    house = make_house(spec, tmp_path / "strip.ifc")
+    poly = rotate_xy(check_footprint(spec.footprint), spec.rotation_deg)
+    edges = _edges(poly)
+    (i,) = {c.wall_index for c in house.curtain_walls}
+    a, u, n, length = edges[i]
+    margin = corner_margins(poly, spec.wall_thickness)[i]
+    plain = plan_windows(HouseSpec(seed=11, storeys=2, windows_per_wall=3, width_range=(0.4, 0.8)),
+                         poly)
+    made = {w.name for w in house.windows}
+    c = house.curtain_walls[0]
+    x0 = float((c.corners_world[3, :2] - a) @ u)
+    assert c.width == pytest.approx(1.6)
+    assert margin[0] + 0.2 - 1e-9 <= x0 and x0 + c.width <= length - margin[1] - 0.2 + 1e-9
+    kept_on_wall = 0
+    for w in plain:  # independent interval test along the wall
+        xs = sorted(float((p[:2] - a) @ u) for p in w.corners_world[:2])
+        hit = w.wall_index == i and xs[0] < x0 + c.width + 0.3 and x0 < xs[1] + 0.3
+        assert (w.name in made) == (not hit), w.name
+        kept_on_wall += w.wall_index == i and not hit
+    assert kept_on_wall > 0  # a strip, not the whole wall
+    scene = load_scene(tmp_path / "strip.ifc", cache_dir=tmp_path / "cache")
+    assert len(scene.windows) == len(made)
+    plates = [m for m in scene.meshes if m.ifc_class == "IfcPlate"]
+    assert len(plates) % (3 * spec.storeys) == 0  # 3 rows per storey
+    for g in scene.windows:
+        if _on_wall(g.corners_world, edges[i]):
+            assert not _overlap(g.corners_world, c.corners_world, u)
+    with pytest.raises(ValueError, match="curtain_wall_rows"):
+        make_house(HouseSpec(curtain_walls=1, curtain_wall_rows=0), tmp_path / "bad.ifc")
+    with pytest.raises(ValueError, match="curtain_wall_width"):
+        make_house(HouseSpec(curtain_walls=1, curtain_wall_width=0.2), tmp_path / "bad.ifc")
