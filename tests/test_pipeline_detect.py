@@ -6,7 +6,7 @@ import pytest
 
 from fenestra.errors import FenestraError
 from pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
-from pipeline.detectors.evaluate import evaluate
+from pipeline.detectors.evaluate import coco_stats, detection_to_coco, evaluate, rescored_by_overlap
 from pipeline.detectors.toy import write_toy_dataset
 from pipeline.types import Detection
 
@@ -94,6 +94,31 @@ def test_coco_eval_of_oracle_is_100(tmp_path):
     d = evaluate("oracle-degraded", ds)
     assert d["segm"]["AP50"] == pytest.approx(100.0)
     assert d["segm"]["AP"] < 100.0 and d["bbox"]["AP"] < 100.0
+
+
+def test_recall_and_perfect_ranking_against_hand_computed_ap():
+    """3 windows in 2 images; exact masks for two (scores 0.8, 0.6), one missed, and a false
+    positive scored 0.9. Ranked FP, TP, TP: precision envelope 2/3 up to recall 2/3, so COCO's
+    101-point AP = 67 * (2/3) / 101 at every IoU; ranked by overlap: 67 * 1 / 101; R50 = 2/3."""
+    from pipeline.detectors.tune import _gt
+
+    def rect(r0, c0):
+        m = np.zeros((60, 80), bool)
+        m[r0:r0 + 10, c0:c0 + 12] = True
+        return m
+
+    inst1, inst2 = np.zeros((60, 80), np.uint16), np.zeros((60, 80), np.uint16)
+    inst1[rect(5, 5)] = 1
+    inst2[rect(5, 5)], inst2[rect(30, 40)] = 1, 2
+    gt = _gt([(1, inst1), (2, inst2)])
+    dets = [(1, rect(5, 5), 0.6), (1, rect(40, 60), 0.9), (2, rect(30, 40), 0.8)]
+    res = [detection_to_coco(Detection(mask=m, box=np.array([0, 0, 1, 1], float), score=s), i)
+           for i, m, s in dets]
+    got, best = coco_stats(gt, res, "segm"), coco_stats(gt, rescored_by_overlap(gt, res, "segm"), "segm")
+    assert got["AP"] == pytest.approx(100 * 67 * (2 / 3) / 101, abs=1e-6)
+    assert got["AP50"] == pytest.approx(got["AP"], abs=1e-9)
+    assert best["AP"] == pytest.approx(100 * 67 / 101, abs=1e-6)
+    assert got["R50"] == pytest.approx(100 * 2 / 3) and best["R50"] == pytest.approx(100 * 2 / 3)
 
 
 def test_default_detector_loads_shipped_weights():
