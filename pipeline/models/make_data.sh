@@ -105,31 +105,6 @@ for seed in list(range(131, 147)) + list(range(205, 209)):
         except ValueError as e:
             print(f"{out.name}: {e}; trying fewer features")
     print(f"{out}: {name}, {len(h.windows)} windows, {len(h.doors)} doors, {len(h.curtain_walls)} curtain-wall bays")
-# Curtain-wall-strip houses (fourth default model): the facade-feature houses' styles, each with a
-# curtain-wall *strip* 1.2-4.5 m wide (seeded) with 1-3 panel rows at a wall's start, end or
-# between, that wall's other windows kept; every house has one (negatives). Seeds 151..162 train,
-# 209..212 validation. Added after the held-out analysis (see the model card's caveat).
-for seed in list(range(151, 163)) + list(range(209, 213)):
-    name = list(STYLES)[seed % 4]
-    wr, hr, n, sh, th, rev = STYLES[name]
-    base = HouseSpec(seed=seed, footprint=FOOTPRINTS[(seed // 4) % 4], storeys=1 + seed % 2,
-                     storey_height=max(sh, 2.6), wall_thickness=th, reveal_depth=rev,
-                     rotation_deg=(seed * 37) % 90, windows_per_wall=1 + (seed // 2) % n,
-                     width_range=wr, height_range=hr,
-                     roof_overhang=(0.0, 0.3, 0.6, 0.9)[(seed // 3) % 4],
-                     fascia_height=(0.0, 0.3, 0.5)[seed % 3], curtain_walls=1,
-                     curtain_wall_width=round(1.2 + 3.3 * ((seed * 0.618) % 1.0), 2),
-                     curtain_wall_rows=1 + (seed // 2) % 3)
-    out = root / f"strip-{seed}.ifc"
-    if out.exists():
-        continue
-    for doors in (1, 0):
-        try:
-            h = make_house(replace(base, glazed_doors=doors), out)
-            break
-        except ValueError as e:
-            print(f"{out.name}: {e}; trying fewer features")
-    print(f"{out}: {name}, {len(h.windows)} windows, {len(h.doors)} doors, strip {base.curtain_wall_width} m x {base.curtain_wall_rows} rows")
 PYEOF
 for s in $(seq 111 126); do
   ifc="$ROOT/procedural/varied-$s.ifc"
@@ -142,17 +117,6 @@ for s in $(seq 131 146); do
   render "$ifc" 20 $((5500 + s)) pyrender "$ROOT/train" --sensor
   render "$ifc" 20 $((6500 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
   if [ $((s % 2)) -eq 1 ]; then render "$ifc" 8 $((7500 + s)) mitsuba "$ROOT/train" --spp 16; fi
-done
-for s in $(seq 151 162); do
-  ifc="$ROOT/procedural/strip-$s.ifc"
-  render "$ifc" 20 $((5700 + s)) pyrender "$ROOT/train" --sensor
-  render "$ifc" 20 $((6700 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
-  if [ $((s % 2)) -eq 0 ]; then render "$ifc" 8 $((7700 + s)) mitsuba "$ROOT/train" --spp 16; fi
-done
-for s in 209 210 211 212; do  # validation split, curtain-wall strips
-  ifc="$ROOT/procedural/strip-$s.ifc"
-  render "$ifc" 20 $((8600 + s)) pyrender "$ROOT/val"
-  render "$ifc" 6 $((8800 + s)) mitsuba "$ROOT/val" --spp 16
 done
 for s in 205 206 207 208; do  # validation split, facade features
   ifc="$ROOT/procedural/facade-$s.ifc"
