@@ -22,12 +22,12 @@ Geometry (all boxes, written with ``ifcopenshell.api``):
   ``curtain_walls``: that many walls (seeded, longer ones likelier) get no windows; instead, per
   storey, an unfilled opening (0.1 m above the floor to 0.1 m below the top, corner margin + 0.2 m
   from both ends) glazed by IfcPlate panels (0.02 m, glass style, flush with the exterior face;
-  ``curtain_wall_rows`` rows, default 2, seeded panel width 1.0-1.8 m) and IfcMember mullions/transoms (0.06 x 0.12 m, protruding
-  0.03 m, seeded grey) aggregated into an IfcCurtainWall. ``curtain_wall_width`` > 0 m makes it a
-  strip of that width (clipped to the free length) instead, at the wall's start, its end or a
-  place between (seeded, stream ``[seed, 8]``); only the windows overlapping it (0.3 m clearance)
-  are dropped. Doors and curtain walls are NOT windows:
-  the loader's ground truth (IfcWindow fillings only) leaves them out, so they are negatives.
+  ``curtain_wall_rows`` rows, default 2, seeded panel width 1.0-1.8 m) and IfcMember
+  mullions/transoms (0.06 x 0.12 m, protruding 0.03 m, seeded grey) aggregated into an
+  IfcCurtainWall. ``curtain_wall_width`` > 0 m makes it a strip of that width (clipped to the free
+  length) instead, at the wall's start, its end or a place between (seeded, stream ``[seed, 8]``);
+  only the windows overlapping it (0.3 m clearance) are dropped. Doors and curtain walls are NOT
+  windows: the loader's ground truth (IfcWindow fillings only) leaves them out, so they are negatives.
   The other random choices of these options use ``default_rng([seed, 7])``, never the window stream.
 Expected ground truth of a window: its opening's rectangle on the exterior face line:
 x from ``offset`` to ``offset + width`` along the wall edge, z from ``sill`` to ``sill + height``
@@ -481,7 +481,8 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
             if c is not None:  # unfilled opening glazed by plates and members (no IfcWindow)
                 off = float((c.corners_world[3] - origin) @ u)
                 opening = void(wall, f"Opening {c.name}", origin, u, off, c.sill, c.width, c.height)
-                panels, members = curtain_grid(c.width, c.height, panel_w[i], spec.curtain_wall_rows)
+                panels, members = curtain_grid(c.width, c.height, panel_w[i],
+                                               spec.curtain_wall_rows)
                 parts = [box("IfcPlate", f"{c.name} panel {n}", None, origin, u, off + x,
                              c.sill + z, pw, ph, 0.02, 0.0, "window")
                          for n, (x, z, pw, ph) in enumerate(panels)]

@@ -6,7 +6,8 @@ import pytest
 
 from fenestra.errors import FenestraError
 from pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
-from pipeline.detectors.evaluate import coco_stats, detection_to_coco, evaluate, rescored_by_overlap
+from pipeline.detectors.evaluate import (best_overlaps, coco_stats, detection_to_coco, evaluate,
+                                         rescored_by_overlap)
 from pipeline.detectors.toy import write_toy_dataset
 from pipeline.types import Detection
 
@@ -114,7 +115,9 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     dets = [(1, rect(5, 5), 0.6), (1, rect(40, 60), 0.9), (2, rect(30, 40), 0.8)]
     res = [detection_to_coco(Detection(mask=m, box=np.array([0, 0, 1, 1], float), score=s), i)
            for i, m, s in dets]
-    got, best = coco_stats(gt, res, "segm"), coco_stats(gt, rescored_by_overlap(gt, res, "segm"), "segm")
+    overlaps = best_overlaps(gt, res, "segm")
+    assert np.allclose(overlaps, [1.0, 0.0, 1.0])
+    got, best = coco_stats(gt, res, "segm"), coco_stats(gt, rescored_by_overlap(res, overlaps), "segm")
     assert got["AP"] == pytest.approx(100 * 67 * (2 / 3) / 101, abs=1e-6)
     assert got["AP50"] == pytest.approx(got["AP"], abs=1e-9)
     assert best["AP"] == pytest.approx(100 * 67 / 101, abs=1e-6)

@@ -76,8 +76,8 @@ def test_make_with_facade_features_and_a_bad_value(tmp_path):
     assert len(made["doors"]) == 1 and len(made["curtain_walls"]) == 1
     cw_wall = made["curtain_walls"][0]["wall"]
     assert all(w["wall"] != cw_wall for w in made["windows"])
-    r = fenestra("scenes", "make", str(tmp_path / "s.ifc"), "--seed", "3", "--footprint", "0,0;10,0;10,7;0,7",
-                 "--windows-per-wall", "2", "--curtain-walls", "1", "--curtain-wall-width", "1.5",
+    r = fenestra("scenes", "make", str(tmp_path / "s.ifc"), "--seed", "3",
+                 "--footprint", "0,0;10,0;10,7;0,7", "--windows-per-wall", "2", "--curtain-walls", "1", "--curtain-wall-width", "1.5",
                  "--curtain-wall-rows", "3", "--json")
     assert r.returncode == 0, r.stderr
     strip = json.loads(r.stdout)
