@@ -77,8 +77,10 @@ def read_view(view_dir: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:
     return read_image(d / "image.png"), read_instances(d / "instances.png"), meta
 
 
-def window_conditions(win: dict, meta: dict, instances: np.ndarray, spec: EvalSpec) -> dict:
+def window_conditions(win: dict, meta: dict, mask_px: int, spec: EvalSpec) -> dict:
     """View conditions of one GT window and whether it is evaluable (and if not, why).
+
+    mask_px: the window's visible pixels in instances.png.
 
     Keys: incidence_deg, distance_m, visible_fraction, n_corners_visible, corners_in_frame,
     window_px (shortest projected side, px), window_area_px (projected quad area, px^2),
@@ -99,7 +101,7 @@ def window_conditions(win: dict, meta: dict, instances: np.ndarray, spec: EvalSp
     depth_ok = bool(np.all(camera_depths(meta["R"], meta["t"], Cw) > 0))
     width = float(np.linalg.norm(Cw[1] - Cw[0]))
     height = float(np.linalg.norm(Cw[0] - Cw[3]))
-    mask_px = int(np.count_nonzero(instances == int(win["instance_id"])))
+    mask_px = int(mask_px)
     c = {
         "incidence_deg": float(win.get("incidence_deg", NAN)),
         "distance_m": float(win.get("distance_m", NAN)),
@@ -207,17 +209,15 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
     K = np.asarray(meta["K"], dtype=np.float64)
     view = Path(task.view_dir).name
     wins = meta["windows"]
-    conds = [window_conditions(w, meta, instances, task.evaluation) for w in wins]
-    gt_masks = [instances == int(w["instance_id"]) for w in wins]
+    gt_masks = matching.instance_masks(instances, [int(w["instance_id"]) for w in wins])
+    conds = [window_conditions(w, meta, m.area, task.evaluation) for w, m in zip(wins, gt_masks)]
     base = [{"house": task.house, "renderer": task.renderer, "view": view, "window_id": w["id"],
              "instance_id": int(w["instance_id"]), **c} for w, c in zip(wins, conds)]
     out = ViewOutcome(rows=[], stage_s=stage_s)
-    for w, m in zip(wins, gt_masks):
-        if m.any():
-            ys, xs = np.nonzero(m)
-            out.coco_gt.append({"view": f"{task.house}/{view}", "rle": _rle(m), "area": int(m.sum()),
-                                "bbox": [float(xs.min() - 0.5), float(ys.min() - 0.5),
-                                         float(xs.max() - xs.min() + 1), float(ys.max() - ys.min() + 1)]})
+    for m in gt_masks:
+        if m.area:
+            out.coco_gt.append({"view": f"{task.house}/{view}", "rle": _rle(m.dense()), "area": m.area,
+                                "bbox": [m.c0 - 0.5, m.r0 - 0.5, float(m.c1 - m.c0), float(m.r1 - m.r0)]})
     t0 = tick("load", t0)
     gray = to_gray(image_bgr)  # once per view, shared by every method
     t0 = tick("reconstruct", t0)

@@ -91,12 +91,40 @@ def test_window_conditions_reasons(view_dir):
     meta = json.loads((view_dir / "view.json").read_text())
     inst = cv2.imread(str(view_dir / "instances.png"), cv2.IMREAD_UNCHANGED).astype(np.int32)
     w1 = meta["windows"][0]
-    c = window_conditions(w1, meta, inst, EvalSpec())
+    px = int(np.count_nonzero(inst == w1["instance_id"]))
+    c = window_conditions(w1, meta, px, EvalSpec())
     assert c["evaluable"] and c["corners_in_frame"]
     assert c["gt_aspect"] == pytest.approx(1.2 / 1.4)
     # independent check of the size columns: pixel count of the mask vs polygon area
     assert c["mask_px"] == pytest.approx(c["window_area_px"], rel=0.02)
     strict = EvalSpec(min_window_px=1000.0)
-    assert window_conditions(w1, meta, inst, strict)["eval_reason"] == "too_small"
+    assert window_conditions(w1, meta, px, strict)["eval_reason"] == "too_small"
     part = dict(w1, visible_fraction=0.5)
-    assert window_conditions(part, meta, inst, EvalSpec())["eval_reason"] == "occluded"
+    assert window_conditions(part, meta, px, EvalSpec())["eval_reason"] == "occluded"
+
+
+def test_rows_identical_with_dense_reference_matching(view_dir, monkeypatch):
+    """The sparse IoU (crops of overlapping boxes) gives the rows of full-image dense matching."""
+    from bench import matching
+
+    methods = [Method("oracle", "none", "lm"), Method("oracle-degraded", "linefit", "ippe")]
+    sparse = _run(view_dir, methods).rows
+
+    def dense_iou(det, gt):
+        d = [m.dense() if isinstance(m, matching.SparseMask) else np.asarray(m, bool) for m in det]
+        g = [m.dense() if isinstance(m, matching.SparseMask) else np.asarray(m, bool) for m in gt]
+        out = np.zeros((len(d), len(g)))
+        for i, a in enumerate(d):
+            for j, b in enumerate(g):
+                u = np.sum(a | b)
+                out[i, j] = np.float32(np.sum(a & b)) / np.float32(max(u, 1)) if u else 0.0
+        return out
+
+    monkeypatch.setattr(matching, "iou_matrix", dense_iou)
+    dense = _run(view_dir, methods).rows
+    assert len(sparse) == len(dense) == 8
+    for a, b in zip(sparse, dense):
+        assert a.keys() == b.keys()
+        for k in a:
+            same = (a[k] == b[k]) or (isinstance(a[k], float) and np.isnan(a[k]) and np.isnan(b[k]))
+            assert same, (k, a[k], b[k])

@@ -179,3 +179,44 @@ def test_detection_ap_hand_values():
     assert coco_ap(gts, dts)["bbox_AP"] == pytest.approx(1.0)
     assert coco_ap(gts, dts[:2])["segm_AP"] == pytest.approx(51 / 101)
     assert coco_ap(gts, [])["segm_AP"] == 0.0
+
+
+def _dense_iou(det: list[np.ndarray], gt: list[np.ndarray]) -> np.ndarray:
+    """Reference IoU: full-image masks, every pair, float32 ratio (the implementation replaced)."""
+    out = np.zeros((len(det), len(gt)))
+    for i, d in enumerate(det):
+        for j, g in enumerate(gt):
+            inter, union = np.sum(d & g), np.sum(d | g)
+            out[i, j] = np.float32(inter) / np.float32(max(union, 1)) if union else 0.0
+    return out
+
+
+def test_sparse_iou_equals_dense_reference_bit_for_bit():
+    """Random blobby masks, overlapping and not, empty ones included: identical IoU to the last bit."""
+    rng = np.random.default_rng(3)
+    H, W = 90, 120
+    inst = np.zeros((H, W), np.int32)
+    for k in range(1, 9):
+        x0, y0 = rng.integers(0, W - 10), rng.integers(0, H - 10)
+        inst[y0:y0 + rng.integers(3, 30), x0:x0 + rng.integers(3, 40)] = k
+    inst[rng.random((H, W)) < 0.02] = 0  # holes
+    ids = [1, 2, 3, 4, 5, 6, 7, 8, 40]  # 40 is absent from the map: an empty mask
+    gt_dense = [inst == k for k in ids]
+    det_dense = [np.roll(m, (int(rng.integers(-4, 5)), int(rng.integers(-4, 5))), axis=(0, 1))
+                 for m in gt_dense[:6]] + [np.zeros((H, W), bool), rng.random((H, W)) < 0.3]
+    gt_sparse = matching.instance_masks(inst, ids)
+    assert [m.area for m in gt_sparse] == [int(m.sum()) for m in gt_dense]
+    for s, d in zip(gt_sparse, gt_dense):
+        assert np.array_equal(s.dense(), d)
+    ref = _dense_iou(det_dense, gt_dense)
+    got = matching.iou_matrix(det_dense, gt_sparse)
+    assert np.array_equal(got, ref)
+    assert np.array_equal(matching.iou_matrix(det_dense, gt_dense), ref)
+    assert (ref > 0).sum() >= 6  # the test exercises overlapping pairs, not only empty ones
+
+
+def test_instance_masks_bad_input():
+    with pytest.raises(ValueError, match="ids must be >= 1.*0"):
+        matching.instance_masks(np.zeros((4, 4), np.int32), [0, 1])
+    with pytest.raises(ValueError, match="integer map"):
+        matching.instance_masks(np.zeros((4, 4), np.float32), [1])
