@@ -1,6 +1,6 @@
 """CLI commands of bench/ and reports/ (registered on the `fenestra` app by fenestra/cli.py).
 
-    fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report]
+    fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report] [--executor local|ray]
     fenestra report RUN_DIR
     fenestra gate RUN_DIR [--gates FILE] [--profile NAME]
 """
@@ -38,16 +38,26 @@ def print_headline(results: dict) -> None:
 def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile name (bench/profiles) or TOML path"),
           out: Path = typer.Option(None, "--out", "-o", help="run folder (default out/bench/<profile>-<hash>)"),
           workers: int = typer.Option(0, "--workers", "-j", help="worker processes (0: all cores)"),
-          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report")) -> None:
+          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report"),
+          executor: str = typer.Option("local", "--executor", "-x",
+                                       help="where views are rendered and evaluated: local (process pool) or ray"),
+          ray_address: str = typer.Option(None, "--ray-address",
+                                          help="ray: a running cluster (auto, or HOST:PORT); default a local one"),
+          shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard")) -> None:
     """Render (cached), reconstruct with every strategy, measure, summarise, report."""
+    from bench.executors import get_executor  # noqa: PLC0415
     from bench.profiles import load_profile  # noqa: PLC0415
     from bench.results import load_summary  # noqa: PLC0415
     from bench.runner import run_benchmark  # noqa: PLC0415
 
     if workers < 0:
         raise ValueError(f"--workers must be >= 0, got {workers}")
+    if shard_views < 1:
+        raise ValueError(f"--shard-views must be >= 1, got {shard_views}")
+    get_executor(executor)  # an unknown name fails before anything is rendered
+    opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
     info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                         report=not no_report)
+                         report=not no_report, executor=executor, executor_options=opts)
     summary = load_summary(info.run_dir)
     typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
     typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))

@@ -3,7 +3,8 @@
     from bench.runner import run_benchmark
     run_dir = run_benchmark(load_profile("smoke"), workers=2)
 
-Views are evaluated in a process pool (``workers``), with a rich progress bar. Every ground-truth
+Views are rendered and evaluated by an executor (bench.executors: a local process pool of
+``workers`` processes, or a Ray cluster), with a rich progress bar. Every ground-truth
 window gets one row per method combination (see bench.evaluate). The run folder (default
 ``out/bench/<profile>-<config hash>``) receives results.parquet/.csv, summary.json and the report;
 renders go to ``out/renders`` (renders.dataset names and reuses them by config hash).
@@ -11,17 +12,16 @@ renders go to ``out/renders`` (renders.dataset names and reuses them by config h
 from __future__ import annotations
 
 import itertools
-import multiprocessing as mp
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from bench import results as res
-from bench.evaluate import Method, ViewOutcome, ViewTask, evaluate_view
+from bench.evaluate import Method, ViewOutcome
+from bench.executors import HousePlan, Plan, get_executor
 from bench.profiles import ALL, Profile
 from fenestra.errors import FenestraError
 
@@ -102,64 +102,19 @@ def house_list(profile: Profile) -> list[str]:
     return houses + [f"procedural:{seed + i}" for i in range(profile.scenes.procedural)]
 
 
-def render_house(profile: Profile, house: str, renders_dir: Path | None = None,
-                 progress: bool = True) -> Path:
-    """Render one house's views with renders.dataset (which reuses views already rendered).
+# ---------------------------------------------------------------- evaluation
 
-    Returns the dataset folder (under ``renders_dir``, default out/renders).
-    """
-    from renders.dataset import render_dataset  # noqa: PLC0415
-
+def make_plan(profile: Profile, methods: tuple[Method, ...], renders_dir: str | Path | None,
+              run_dir: Path) -> Plan:
+    """The executor's plan: each house's dataset config (procedural IFCs generated here), methods."""
     from bench.render_adapter import dataset_config  # noqa: PLC0415
 
     root = Path(renders_dir) if renders_dir is not None else OUT_ROOT / "renders"
-    return Path(render_dataset(dataset_config(profile, house, root), progress=progress))
-
-
-# ---------------------------------------------------------------- evaluation
-
-def _tasks(datasets: list[tuple[str, Path]], profile: Profile,
-           methods: tuple[Method, ...]) -> list[ViewTask]:
     opts = tuple((d, tuple(LEARNED_DETECTOR_OPTIONS.items()))
                  for d in dict.fromkeys(m.detector for m in methods)
                  if d not in ("oracle", "oracle-degraded"))
-    tasks = []
-    for house, ds in datasets:
-        for v in sorted(p for p in (ds / "views").iterdir() if (p / "view.json").is_file()):
-            tasks.append(ViewTask(view_dir=str(v), house=house, renderer=profile.render.renderer,
-                                  methods=methods, evaluation=profile.evaluation,
-                                  height_m=profile.methods.height_m, detector_options=opts))
-    return tasks
-
-
-def _init_worker() -> None:
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    import cv2  # noqa: PLC0415
-
-    cv2.setNumThreads(1)
-
-
-def evaluate_all(tasks: list[ViewTask], workers: int, progress: bool = True) -> list[ViewOutcome]:
-    """evaluate_view over all tasks, in order; a process pool when workers > 1."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn, TimeRemainingColumn  # noqa: PLC0415
-
-    cols = ("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
-            TimeElapsedColumn(), TimeRemainingColumn())
-    outcomes: list[ViewOutcome] = []
-    with Progress(*cols, disable=not progress, transient=False) as bar:
-        job = bar.add_task("evaluating views", total=len(tasks))
-        if workers <= 1:
-            _init_worker()
-            for t in tasks:
-                outcomes.append(evaluate_view(t))
-                bar.advance(job)
-            return outcomes
-        ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
-        with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as pool:
-            for o in pool.map(evaluate_view, tasks, chunksize=1):
-                outcomes.append(o)
-                bar.advance(job)
-    return outcomes
+    houses = tuple(HousePlan(h, dataset_config(profile, h, root)) for h in house_list(profile))
+    return Plan(houses=houses, profile=profile, methods=methods, detector_options=opts, run_dir=str(run_dir))
 
 
 def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
@@ -168,6 +123,17 @@ def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
         for k, v in o.stage_s.items():
             total[k] = total.get(k, 0.0) + v
     return dict(sorted(total.items()))
+
+
+def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) -> dict[str, dict]:
+    """Per-view and per-window milliseconds of every CPU stage (``cpu.*``): regressions show there.
+
+    n_windows: ground-truth windows (one row each per method). Returns {"stage_ms_per_view": {...},
+    "stage_ms_per_window": {...}}.
+    """
+    cpu = {k[4:]: v for k, v in stage_s.items() if k.startswith("cpu.")}
+    return {"stage_ms_per_view": {k: 1000.0 * v / max(1, n_views) for k, v in cpu.items()},
+            "stage_ms_per_window": {k: 1000.0 * v / max(1, n_windows) for k, v in cpu.items()}}
 
 
 def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[str, dict]:
@@ -188,11 +154,14 @@ def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[st
 
 def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: int | None = None,
                   progress: bool = True, report: bool = True, methods: tuple[Method, ...] | None = None,
-                  renders_dir: str | Path | None = None) -> RunInfo:
+                  renders_dir: str | Path | None = None, executor: str = "local",
+                  executor_options: dict | None = None) -> RunInfo:
     """Run a profile end to end; see the module docstring. Returns a RunInfo.
 
     methods: override the profile's method combinations (e.g. a test's extra snapper);
-    renders_dir: where cached renders live (default out/renders).
+    renders_dir: where cached renders live (default out/renders);
+    executor: a key of bench.executors.EXECUTORS ("local" process pool, "ray" cluster), with
+    executor_options (ray: address, shard_views).
     """
     t_start = time.perf_counter()
     run_dir = Path(out_dir) if out_dir else default_run_dir(profile)
@@ -201,18 +170,8 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
     skipped: dict[str, str] = {}
     if methods is None:
         methods, skipped = plan_methods(profile)
-    stage_s: dict[str, float] = {}
-
-    t0 = time.perf_counter()
-    datasets = [(h, render_house(profile, h, renders_dir, progress)) for h in house_list(profile)]
-    stage_s["render"] = time.perf_counter() - t0
-
-    tasks = _tasks(datasets, profile, methods)
-    if not tasks:
-        raise FenestraError(f"profile {profile.name!r} rendered no views")
-    t0 = time.perf_counter()
-    outcomes = evaluate_all(tasks, workers, progress)
-    stage_s["evaluate_wall"] = time.perf_counter() - t0
+    plan = make_plan(profile, methods, renders_dir, run_dir)
+    outcomes, stage_s, datasets = get_executor(executor)(plan, workers, progress, **(executor_options or {}))
     stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
 
     t0 = time.perf_counter()
@@ -223,7 +182,8 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
     stage_s["summarize"] = time.perf_counter() - t0
     wall = time.perf_counter() - t_start
     meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
-                             workers=workers, n_views=len(tasks), n_rows=len(df),
+                             workers=workers, executor=executor, n_views=len(outcomes), n_rows=len(df),
+                             **per_unit_timings(stage_s, len(outcomes), len(df) // max(1, len(methods))),
                              methods=[m.name for m in methods], skipped_detectors=skipped,
                              datasets={h: str(p) for h, p in datasets})
     res.write_summary(run_dir, meta, res.summarize(df), det)
@@ -236,4 +196,4 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
         meta["stage_time_s"] = stage_s
         meta["wall_time_s"] = time.perf_counter() - t_start
         res.write_summary(run_dir, meta, res.summarize(df), det)
-    return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(tasks), len(df))
+    return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -108,23 +109,37 @@ def coco_from_views(root: Path, n_views: int) -> dict:
     return {"images": images, "annotations": anns, "categories": [{"id": 1, "name": "window"}]}
 
 
+def _write_shared(path: Path, text: str) -> None:
+    """Write a dataset-wide file atomically (shards of one dataset write the same content)."""
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
 def _load_scene(config: DatasetConfig) -> Scene:
     from scenes import load_scene
 
     return load_scene(config.scene)
 
 
-def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: bool = True) -> Path:
+def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: bool = True,
+                   only: range | None = None) -> Path:
     """Render (or reuse) the dataset of ``config``; return its folder.
 
     Views already written by an earlier run of the same config are kept, missing ones rendered.
+    only: render just these view indices (a shard of a distributed run: the views are identical to
+    those of a whole run); the dataset-wide files (coco.json, stats.json) are then left to a
+    later call without ``only``.
     """
     scene = _load_scene(config) if scene is None else scene
     root = dataset_dir(config, scene)
     root.mkdir(parents=True, exist_ok=True)
-    (root / "config.json").write_text(json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
-                                                  "scene_sha256": scene.sha256}, indent=1, default=list))
-    missing = [i for i in range(config.n_views) if not (root / "views" / f"{i:06d}" / "view.json").is_file()]
+    indices = range(config.n_views) if only is None else only
+    if indices.start < 0 or indices.stop > config.n_views:
+        raise ValueError(f"only={indices} is outside the dataset's views 0..{config.n_views - 1}")
+    _write_shared(root / "config.json", json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
+                                                    "scene_sha256": scene.sha256}, indent=1, default=list))
+    missing = [i for i in indices if not (root / "views" / f"{i:06d}" / "view.json").is_file()]
     stats = {"rendered": 0, "reused": config.n_views - len(missing), "seconds": 0.0}
     if missing:
         settings = dataclasses.replace(config.settings, seed=config.seed)
@@ -137,8 +152,9 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
 
                 vis = lambda cam: ground_truth(occ, cam)[2]  # noqa: E731
             sampling = sample_views(scene, config.sampler, config.n_views, config.seed, visibility=vis)
-            (root / "sampling.json").write_text(json.dumps({"rejected": sampling.rejected, "tries": sampling.tries,
-                                                            "accepted": len(sampling.views)}, indent=1))
+            _write_shared(root / "sampling.json", json.dumps(
+                {"rejected": sampling.rejected, "tries": sampling.tries, "accepted": len(sampling.views)},
+                indent=1))
             t0 = time.perf_counter()
             for i in _progress(missing, progress, f"render {scene.name} ({config.renderer})"):
                 spec = sampling.views[i]
@@ -154,8 +170,9 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
             stats["rendered"] = len(missing)
         finally:
             renderer.close()
-    (root / "coco.json").write_text(json.dumps(coco_from_views(root, config.n_views)))
-    (root / "stats.json").write_text(json.dumps(stats))
+    if only is None:
+        (root / "coco.json").write_text(json.dumps(coco_from_views(root, config.n_views)))
+        (root / "stats.json").write_text(json.dumps(stats))
     return root
 
 

@@ -58,9 +58,12 @@ def _legend_right(fig, ax) -> None:
         fig.legend(h, lab, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
 
 
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=100, bbox_inches="tight")
+def _save(fig, path: Path, tight: bool = True) -> Path:
+    """Write fig as PNG (100 dpi) and close it. tight: lay out and crop to the drawn content
+    (two extra layout passes, most of a figure's cost); False for figures with a fixed layout."""
+    if tight:
+        fig.tight_layout()
+    fig.savefig(path, dpi=100, bbox_inches="tight" if tight else None)
     plt.close(fig)
     return path
 
@@ -77,7 +80,8 @@ def figure8(df: pd.DataFrame, method: str, path: Path) -> Path:
     for ax, stage in zip(axes, CORNER_STAGES):
         e = d[f"corner_err_px_{stage}"].to_numpy(float)
         fin = e[np.isfinite(e)]
-        ax.hist(np.minimum(fin, HIST_MAX_PX - 1e-9), bins=bins, color=STAGE_COLOURS[stage])
+        ax.hist(np.minimum(fin, HIST_MAX_PX - 1e-9), bins=bins, color=STAGE_COLOURS[stage],
+                histtype="stepfilled")  # one patch, not one per bar: 3x faster to draw
         over, none = int((fin > HIST_MAX_PX).sum()), int((~np.isfinite(e)).sum())
         ax.bar([HIST_MAX_PX + 2.0, HIST_MAX_PX + 5.5], [over, none], width=1.5,
                color=["#444444", "#bbbbbb"])
@@ -88,7 +92,8 @@ def figure8(df: pd.DataFrame, method: str, path: Path) -> Path:
         ax.set_xlabel("mean corner error (px)")
     axes[0].set_ylabel("windows")
     fig.suptitle(f"Corner error per stage: {method}", fontsize=11)
-    return _save(fig, path)
+    fig.subplots_adjust(left=0.06, right=0.99, bottom=0.17, top=0.82, wspace=0.06)  # one per method: fixed
+    return _save(fig, path, tight=False)
 
 
 def _ecdf(e: np.ndarray, xs: np.ndarray) -> np.ndarray:

@@ -1,0 +1,288 @@
+"""Executors: how the bench spreads its views over processes (``local``) or machines (``ray``).
+
+    outcomes, stage_s = EXECUTORS["local"](plan, workers=2, progress=True)
+
+Both executors take the same :class:`Plan` (each house's dataset config, the methods, the
+evaluation settings) and return the ViewOutcomes in one canonical order (house order, then view
+index), so a results table never depends on the executor or on the number of workers.
+
+``local``
+    renders every house in this process (cached under the renders folder), then evaluates the
+    views in a process pool of ``workers`` processes.
+``ray``
+    splits each house's views into shards of ``shard_views`` views. A Ray actor per worker (one
+    CPU each) renders a shard's views into the same render cache (its own renderer, pyrender
+    imported inside the worker), evaluates them and writes the shard's outcomes to
+    ``<run>/shards/<key>.pkl`` (atomically); the driver merges the shards in canonical order.
+    A shard file written by an interrupted run with the same code, config and methods is
+    reused, as cached views are. Connects to a running cluster (``address``, e.g. "auto" or
+    "127.0.0.1:6379") or starts a local one with ``workers`` CPUs.
+
+Every worker runs with ``THREADS_PER_WORKER`` BLAS/OpenMP/OpenCV/torch threads, set before numpy
+is imported, so N workers never oversubscribe N cores.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import multiprocessing as mp
+import os
+import pickle
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator
+
+from bench.evaluate import Method, ViewOutcome, ViewTask, evaluate_view
+from bench.profiles import Profile
+from fenestra.errors import FenestraError
+
+THREADS_PER_WORKER = 1
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+CODE_PACKAGES = ("bench", "pipeline", "renders", "scenes", "fenestra")  # what outcomes depend on
+
+
+@dataclass(frozen=True)
+class HousePlan:
+    """One house of a run: its name (bundled, IFC path or procedural:<seed>) and dataset config."""
+
+    house: str
+    dataset: object  # renders.dataset.DatasetConfig (kept untyped: no renders import at module load)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Everything an executor needs (picklable): houses, methods, profile settings, run folder."""
+
+    houses: tuple[HousePlan, ...]
+    profile: Profile
+    methods: tuple[Method, ...]
+    detector_options: tuple
+    run_dir: str
+
+
+def thread_env(threads: int = THREADS_PER_WORKER) -> dict[str, str]:
+    """Environment variables that cap BLAS/OpenMP threads of a worker process."""
+    return {k: str(threads) for k in THREAD_ENV}
+
+
+@contextlib.contextmanager
+def _environ(env: dict[str, str]) -> Iterator[None]:
+    """Set environment variables for the block (spawned workers inherit them), then restore."""
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def init_worker(threads: int = THREADS_PER_WORKER) -> None:
+    """Cap this process's OpenCV threads (BLAS/OpenMP ones come from :func:`thread_env`)."""
+    os.environ.update(thread_env(threads))
+    import cv2  # noqa: PLC0415
+
+    cv2.setNumThreads(threads)
+
+
+def view_tasks(plan: Plan, house: str, dataset_dir: Path, indices: range | None = None) -> list[ViewTask]:
+    """ViewTasks of one rendered house (all its views, or the given view indices), in index order."""
+    views = sorted(p for p in (Path(dataset_dir) / "views").iterdir() if (p / "view.json").is_file())
+    if indices is not None:
+        views = [p for p in views if int(p.name) in indices]
+    return [ViewTask(view_dir=str(v), house=house, renderer=plan.profile.render.renderer,
+                     methods=plan.methods, evaluation=plan.profile.evaluation,
+                     height_m=plan.profile.methods.height_m, detector_options=plan.detector_options)
+            for v in views]
+
+
+def _progress(enabled: bool):
+    """A rich progress bar (a context manager; disabled: prints nothing)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn, TimeRemainingColumn  # noqa: PLC0415
+
+    return Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), TimeRemainingColumn(), disable=not enabled, transient=False)
+
+
+# ---------------------------------------------------------------- local
+
+def evaluate_local(tasks: list[ViewTask], workers: int, progress: bool = True) -> list[ViewOutcome]:
+    """evaluate_view over all tasks, in order; a spawned process pool when workers > 1."""
+    outcomes: list[ViewOutcome] = []
+    with _progress(progress) as bar:
+        job = bar.add_task("evaluating views", total=len(tasks))
+        if workers <= 1:
+            init_worker()
+            for t in tasks:
+                outcomes.append(evaluate_view(t))
+                bar.advance(job)
+            return outcomes
+        ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
+        with _environ(thread_env()), ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker) as pool:
+            for o in pool.map(evaluate_view, tasks, chunksize=1):
+                outcomes.append(o)
+                bar.advance(job)
+    return outcomes
+
+
+def run_local(plan: Plan, workers: int, progress: bool = True, **_: object
+              ) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
+    """Render every house here, then evaluate in a process pool; (outcomes, stage seconds, datasets)."""
+    from renders.dataset import render_dataset  # noqa: PLC0415
+
+    t0 = time.perf_counter()
+    datasets = [(h.house, Path(render_dataset(h.dataset, progress=progress))) for h in plan.houses]
+    stage_s = {"render": time.perf_counter() - t0}
+    tasks = [t for house, ds in datasets for t in view_tasks(plan, house, ds)]
+    if not tasks:
+        raise FenestraError(f"profile {plan.profile.name!r} rendered no views")
+    t0 = time.perf_counter()
+    outcomes = evaluate_local(tasks, workers, progress)
+    stage_s["evaluate_wall"] = time.perf_counter() - t0
+    return outcomes, stage_s, datasets
+
+
+# ---------------------------------------------------------------- ray
+
+@dataclass(frozen=True)
+class Shard:
+    """A block of one house's views, and where its outcomes go."""
+
+    house_index: int
+    house: HousePlan
+    views: range
+    out: str
+
+
+def code_version() -> str:
+    """12 hex digits of the source of the packages outcomes depend on (shard cache key)."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for pkg in CODE_PACKAGES:
+        for f in sorted((root / pkg).rglob("*")):
+            if f.suffix in (".py", ".toml", ".pt") and "__pycache__" not in f.parts:
+                h.update(str(f.relative_to(root)).encode())
+                h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def plan_shards(plan: Plan, shard_views: int) -> list[Shard]:
+    """Shards of every house, in canonical order; each named by a hash of what changes it."""
+    if shard_views < 1:
+        raise ValueError(f"shard_views must be >= 1, got {shard_views}")
+    version = code_version()
+    shards = []
+    for i, h in enumerate(plan.houses):
+        n = h.dataset.n_views
+        for start in range(0, n, shard_views):
+            views = range(start, min(n, start + shard_views))
+            key = hashlib.sha256(repr((version, h.dataset, plan.profile.evaluation, plan.profile.methods.height_m,
+                                       plan.methods, plan.detector_options, views.start, views.stop))
+                                 .encode()).hexdigest()[:16]
+            shards.append(Shard(i, h, views, str(Path(plan.run_dir) / "shards" / f"{key}.pkl")))
+    return shards
+
+
+def run_shard(plan: Plan, shard: Shard) -> str:
+    """Render and evaluate one shard; write its (house, dataset dir, outcomes) pickle atomically."""
+    from renders.dataset import render_dataset  # noqa: PLC0415  (pyrender: inside the worker)
+
+    t0 = time.perf_counter()
+    ds = Path(render_dataset(shard.house.dataset, progress=False, only=shard.views))
+    render_s = time.perf_counter() - t0
+    outcomes = [evaluate_view(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
+    out = Path(shard.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(pickle.dumps({"dataset": str(ds), "outcomes": outcomes, "render_s": render_s}))
+    tmp.replace(out)
+    return str(out)
+
+
+def _load_shard(path: str) -> dict | None:
+    """A shard file's content, or None if absent or unreadable (then it is recomputed)."""
+    try:
+        with open(path, "rb") as f:
+            return pickle.load(f)
+    except (OSError, pickle.UnpicklingError, EOFError):
+        return None
+
+
+class _ShardWorker:
+    """Body of the Ray actor: one per worker CPU, reused for many shards."""
+
+    def __init__(self) -> None:
+        init_worker()
+
+    def run(self, plan: Plan, shard: Shard) -> str:
+        return run_shard(plan, shard)
+
+
+def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None = None,
+            shard_views: int = 20, **_: object) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
+    """Render and evaluate shards on Ray actors, merge in canonical order (see the module docstring)."""
+    try:
+        import ray  # noqa: PLC0415
+    except ImportError as e:  # pragma: no cover - ray is a pinned dependency
+        raise FenestraError("the ray executor needs the `ray` package (make setup installs it)") from e
+    from ray.util import ActorPool  # noqa: PLC0415
+
+    shards = plan_shards(plan, shard_views)
+    done = {s.out: _load_shard(s.out) for s in shards}
+    todo = [s for s in shards if done[s.out] is None]
+    t0 = time.perf_counter()
+    if todo:
+        root = str(Path(__file__).resolve().parent.parent)
+        env = {**thread_env(), "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])),
+               "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
+        started = not ray.is_initialized()
+        if started:
+            kw = {"address": address} if address else {"num_cpus": workers, "include_dashboard": False}
+            ray.init(**kw, runtime_env={"env_vars": env}, log_to_driver=False, logging_level="ERROR")
+        try:
+            n_actors = max(1, min(len(todo), workers if not address else int(ray.cluster_resources().get("CPU", 1))))
+            actor = ray.remote(num_cpus=1)(_ShardWorker)
+            pool = ActorPool([actor.remote() for _ in range(n_actors)])
+            with _progress(progress) as bar:
+                job = bar.add_task(f"shards on {n_actors} Ray workers", total=len(todo))
+                for path in pool.map_unordered(lambda a, s: a.run.remote(plan, s), todo):
+                    done[path] = _load_shard(path)
+                    bar.advance(job)
+        finally:
+            if started:
+                ray.shutdown()
+    stage_s = {"shards_wall": time.perf_counter() - t0, "shards_reused": float(len(shards) - len(todo))}
+    missing = [s.out for s in shards if done[s.out] is None]
+    if missing:
+        raise FenestraError(f"{len(missing)} shard(s) produced no readable result, e.g. {missing[0]}")
+    stage_s["cpu.render"] = sum(done[s.out]["render_s"] for s in todo)
+    # the dataset-wide files (coco.json) once every shard of a house is there: no view is re-rendered
+    from renders.dataset import render_dataset  # noqa: PLC0415
+
+    datasets = [(h.house, Path(render_dataset(h.dataset, progress=False))) for h in plan.houses]
+    outcomes = [o for s in shards for o in done[s.out]["outcomes"]]
+    if not outcomes:
+        raise FenestraError(f"profile {plan.profile.name!r} rendered no views")
+    return outcomes, stage_s, datasets
+
+
+EXECUTORS: dict[str, Callable[..., tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]]] = {
+    "local": run_local,
+    "ray": run_ray,
+}
+
+
+def get_executor(name: str) -> Callable:
+    """EXECUTORS[name], or a FenestraError listing the registered ones."""
+    if name not in EXECUTORS:
+        raise FenestraError(f"unknown executor {name!r}; choose from {sorted(EXECUTORS)}")
+    return EXECUTORS[name]
+
+
+__all__ = ["EXECUTORS", "HousePlan", "Plan", "Shard", "get_executor", "plan_shards", "run_shard",
+           "thread_env", "view_tasks"]
