@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke report gate train clean
+.PHONY: help setup sysdeps test test-all bench smoke report gate train timing clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -41,6 +41,9 @@ smoke:  ## smoke profile (what CI gates)
 
 gate: smoke  ## smoke profile, then the accuracy gates
 	$(PY) -m fenestra gate out/bench/smoke
+
+timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s)
+	$(PY) -m bench.timing --json out/timing.json
 
 report:  ## regenerate the report of the newest default run
 	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1)

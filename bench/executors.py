@@ -7,8 +7,8 @@ evaluation settings) and return the ViewOutcomes in one canonical order (house o
 index), so a results table never depends on the executor or on the number of workers.
 
 ``local``
-    renders every house in this process (cached under the renders folder), then evaluates the
-    views in a process pool of ``workers`` processes.
+    renders the houses in a process pool of ``workers`` processes (one house per task, cached
+    under the renders folder), then evaluates the views in a pool of as many.
 ``ray``
     splits each house's views into shards of ``shard_views`` views. A Ray actor per worker (one
     CPU each) renders a shard's views into the same render cache (its own renderer, pyrender
@@ -130,13 +130,36 @@ def evaluate_local(tasks: list[ViewTask], workers: int, progress: bool = True) -
     return outcomes
 
 
+def _render_house(house: HousePlan) -> str:
+    """Render (or reuse) one house's dataset; its folder (a process-pool task)."""
+    from renders.dataset import render_dataset  # noqa: PLC0415  (pyrender: inside the worker)
+
+    return str(render_dataset(house.dataset, progress=False))
+
+
+def render_local(houses: tuple[HousePlan, ...], workers: int, progress: bool = True) -> list[Path]:
+    """Every house's dataset folder, rendering houses in parallel (one renderer per process)."""
+    if workers <= 1 or len(houses) <= 1:
+        from renders.dataset import render_dataset  # noqa: PLC0415
+
+        return [Path(render_dataset(h.dataset, progress=progress)) for h in houses]
+    out = []
+    with _progress(progress) as bar:
+        job = bar.add_task("rendering houses", total=len(houses))
+        ctx = mp.get_context("spawn")
+        with ProcessPoolExecutor(min(workers, len(houses)), mp_context=ctx) as pool:
+            for d in pool.map(_render_house, houses, chunksize=1):
+                out.append(Path(d))
+                bar.advance(job)
+    return out
+
+
 def run_local(plan: Plan, workers: int, progress: bool = True, **_: object
               ) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
-    """Render every house here, then evaluate in a process pool; (outcomes, stage seconds, datasets)."""
-    from renders.dataset import render_dataset  # noqa: PLC0415
-
+    """Render the houses in a process pool, then evaluate the views in one; (outcomes, stage
+    seconds, datasets)."""
     t0 = time.perf_counter()
-    datasets = [(h.house, Path(render_dataset(h.dataset, progress=progress))) for h in plan.houses]
+    datasets = list(zip((h.house for h in plan.houses), render_local(plan.houses, workers, progress)))
     stage_s = {"render": time.perf_counter() - t0}
     tasks = [t for house, ds in datasets for t in view_tasks(plan, house, ds)]
     if not tasks:

@@ -1,0 +1,93 @@
+"""Where the benchmark's time goes, as a fresh clone measures it (prints figures; not a test).
+
+    .venv/bin/python -m bench.timing [--profile default] [--executor local] [--json out/timing.json]
+
+Runs ``fenestra bench`` twice in a fresh, empty working folder (so no cached render, scene or
+result of this checkout is reused): first cold (procedural houses generated, every view rendered),
+then again with the renders it just cached. Then the render throughput of ``fenestra render`` at
+the margin: (time for 60 views - time for 10 views) / 50, so start-up does not count. Prints one
+JSON document: wall times, each stage's CPU seconds and share, matching's share of the CPU time,
+per-view and per-window stage milliseconds, the machine's load average before and after, versions.
+The README's timing figures come from this command.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def _fenestra(args: list[str], cwd: Path) -> float:
+    """Run ``python -m fenestra ARGS`` in cwd; its wall seconds (raises on failure)."""
+    t0 = time.perf_counter()
+    env = {**os.environ, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"), "MPLBACKEND": "Agg"}
+    r = subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=cwd, env=env, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"fenestra {' '.join(args)} failed ({r.returncode}): {r.stderr[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def stage_split(summary: dict) -> dict:
+    """CPU seconds per evaluation stage and each one's share of their total (from summary.json)."""
+    st = summary["metadata"]["stage_time_s"]
+    cpu = {k[4:]: v for k, v in st.items() if k.startswith("cpu.") and "." not in k[4:]}
+    total = sum(cpu.values())
+    return {"cpu_s": cpu, "cpu_total_s": total,
+            "share": {k: v / total for k, v in cpu.items()} if total > 0 else {}}
+
+
+def bench_run(profile: str, executor: str, cwd: Path, label: str) -> dict:
+    """One ``fenestra bench`` run in cwd: wall seconds and the stage figures of its summary."""
+    run = cwd / "out" / "bench" / label
+    wall = _fenestra(["bench", "--profile", profile, "--out", str(run), "--executor", executor], cwd)
+    summary = json.loads((run / "summary.json").read_text())
+    meta = summary["metadata"]
+    return {"wall_s": wall, "bench_wall_s": meta["wall_time_s"], "n_views": meta["n_views"],
+            "n_rows": meta["n_rows"], "stage_time_s": meta["stage_time_s"], **stage_split(summary),
+            "stage_ms_per_view": meta.get("stage_ms_per_view"),
+            "stage_ms_per_window": meta.get("stage_ms_per_window")}
+
+
+def render_margin(cwd: Path, scene: str = "fzk-haus", few: int = 10, many: int = 60) -> dict:
+    """Views per second of ``fenestra render`` at the margin (many - few views, fresh folders)."""
+    t = {n: _fenestra(["render", "--scene", scene, "--views", str(n), "--out", str(cwd / f"render-{n}")], cwd)
+         for n in (few, many)}
+    per_view = (t[many] - t[few]) / (many - few)
+    return {"scene": scene, "wall_s": {str(k): v for k, v in t.items()}, "s_per_view": per_view,
+            "views_per_s": 1.0 / per_view if per_view > 0 else float("inf")}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default="default")
+    ap.add_argument("--executor", default="local")
+    ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    ap.add_argument("--skip-render", action="store_true", help="skip the render-throughput part")
+    a = ap.parse_args(argv)
+    from bench.results import versions  # noqa: PLC0415
+
+    out = {"profile": a.profile, "executor": a.executor, "cpus": os.cpu_count(),
+           "load_before": os.getloadavg(), "machine": platform.platform(), "versions": versions()}
+    with tempfile.TemporaryDirectory(prefix="fenestra-timing-") as tmp:
+        cwd = Path(tmp)
+        out["cold"] = bench_run(a.profile, a.executor, cwd, "cold")
+        out["cached_renders"] = bench_run(a.profile, a.executor, cwd, "cached")
+        if not a.skip_render:
+            out["render"] = render_margin(cwd)
+    out["load_after"] = os.getloadavg()
+    text = json.dumps(out, indent=1)
+    print(text)
+    if a.json:
+        a.json.parent.mkdir(parents=True, exist_ok=True)
+        a.json.write_text(text)
+    return out
+
+
+if __name__ == "__main__":
+    main()
