@@ -144,8 +144,11 @@ _ERROR_COLUMNS = (
 )
 
 
-def _errors(res, win: dict, meta: dict) -> dict:
-    """Every error of one WindowResult against its GT window (NaN where a stage produced nothing)."""
+def _errors(res, win: dict, gt_pose: tuple[np.ndarray, np.ndarray]) -> dict:
+    """Every error of one WindowResult against its GT window (NaN where a stage produced nothing).
+
+    gt_pose: the window's true (R, t), metrics.gt_window_pose (computed once per view and window).
+    """
     out = {k: NAN for k in _ERROR_COLUMNS}
     gt_q = np.asarray(win["corners_px"], dtype=np.float64)
     for stage, quad in (("mask", res.quad_mask), ("snap", res.quad_snapped),
@@ -168,7 +171,7 @@ def _errors(res, win: dict, meta: dict) -> dict:
         out["aspect_est"] = float(res.aspect_ratio)
         out["aspect_err_rel"] = metrics.aspect_error_rel(res.aspect_ratio, w_gt / h_gt)
     if res.R is not None and res.t is not None:
-        R_gt, t_gt = metrics.gt_window_pose(meta["R"], meta["t"], Cw)
+        R_gt, t_gt = gt_pose
         out["rot_err_deg"] = metrics.rotation_error_deg(res.R, R_gt)
         out["normal_err_deg"] = metrics.normal_error_deg(res.R, R_gt)
         out["trans_err_m"] = metrics.translation_error_m(res.t, res.height_m, t_gt, h_gt)
@@ -214,6 +217,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
     base = [{"house": task.house, "renderer": task.renderer, "view": view, "window_id": w["id"],
              "instance_id": int(w["instance_id"]), **c} for w, c in zip(wins, conds)]
     out = ViewOutcome(rows=[], stage_s=stage_s)
+    gt_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     for m in gt_masks:
         if m.area:
             out.coco_gt.append({"view": f"{task.house}/{view}", "rle": _rle(m.dense()), "area": m.area,
@@ -264,7 +268,9 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
                                aspect_case=None)
                 else:
                     res = by_gt[g]
-                    row.update(_errors(res, w, meta), aspect_case=res.aspect_case,
+                    if g not in gt_poses:  # the same for every method
+                        gt_poses[g] = metrics.gt_window_pose(meta["R"], meta["t"], w["corners_world"])
+                    row.update(_errors(res, w, gt_poses[g]), aspect_case=res.aspect_case,
                                status="ok" if res.failure is None else "failed",
                                reason="" if res.failure is None else f"failed: {res.failure}")
                     row["match_iou"] = det_for_gt[g][1]
