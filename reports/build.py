@@ -226,6 +226,16 @@ def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict)
     s += [("img", p) for p in figs["aspect_rotation"]]
     s.append(("h2", "Figure 8 per strategy: corner error at mask-fit, snapped, reprojected"))
     s += [("img", p) for p in figs["fig8"]]
+    timing = meta.get("stage_ms_per_view") or {}
+    if timing:
+        per_win = meta.get("stage_ms_per_window") or {}
+        s.append(("h2", "Where the time goes"))
+        s.append(("p", f"CPU milliseconds per stage (summed over worker processes; executor "
+                       f"{meta.get('executor', 'local')}, {meta.get('workers')} workers), per view and per "
+                       "ground-truth window: a regression in any stage shows here. The reconstruct.* rows break "
+                       "reconstruct down by the pipeline's own timings_ms (wall clock)."))
+        s.append(("table", ["stage", "ms per view", "ms per window"],
+                  [[k, v, per_win.get(k)] for k, v in sorted(timing.items(), key=lambda kv: -kv[1])]))
     if "eval_reason" in df.columns:
         s.append(("h2", "Rows by outcome"))
         tab = df.assign(outcome=np.where(df["evaluable"].astype(bool), df["status"], "not evaluable: " + df["eval_reason"].astype(str)))
