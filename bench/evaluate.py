@@ -220,7 +220,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
     gt_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     for m in gt_masks:
         if m.area:
-            out.coco_gt.append({"view": f"{task.house}/{view}", "rle": _rle(m.dense()), "area": m.area,
+            out.coco_gt.append({"view": f"{task.house}/{view}", "rle": m.rle(), "area": m.area,
                                 "bbox": [m.c0 - 0.5, m.r0 - 0.5, float(m.c1 - m.c0), float(m.r1 - m.r0)]})
     t0 = tick("load", t0)
     gray = to_gray(image_bgr)  # once per view, shared by every method

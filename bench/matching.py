@@ -69,6 +69,26 @@ class SparseMask:
         crop = m[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
         return cls(crop, int(rows[0]), int(cols[0]), tuple(m.shape), int(np.count_nonzero(crop)))
 
+    def rle(self) -> dict:
+        """COCO RLE of the full-image mask ({"size": [H, W], "counts": str}), built from the crop
+        without allocating the full image: runs in column-major order, starting with background."""
+        from pycocotools import mask as mask_utils  # noqa: PLC0415
+
+        H, W = self.shape
+        cols, rows = np.nonzero(self.crop.T)  # column by column: ascending column-major index
+        flat = (cols + self.c0).astype(np.int64) * H + rows + self.r0
+        if flat.size == 0:
+            counts = [H * W]
+        else:
+            brk = np.flatnonzero(np.diff(flat) != 1)
+            starts = np.concatenate([flat[:1], flat[brk + 1]])
+            ends = np.concatenate([flat[brk], flat[-1:]]) + 1
+            gaps = starts - np.concatenate([[0], ends[:-1]])
+            tail = H * W - int(ends[-1])
+            counts = np.stack([gaps, ends - starts], axis=1).ravel().tolist() + ([tail] if tail else [])
+        r = mask_utils.frPyObjects({"size": [H, W], "counts": counts}, H, W)
+        return {"size": [H, W], "counts": r["counts"].decode("ascii")}
+
     def dense(self) -> np.ndarray:
         """The full (H, W) bool mask (allocates H x W: for export and RLE only)."""
         out = np.zeros(self.shape, dtype=bool)

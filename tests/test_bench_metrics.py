@@ -220,3 +220,19 @@ def test_instance_masks_bad_input():
         matching.instance_masks(np.zeros((4, 4), np.int32), [0, 1])
     with pytest.raises(ValueError, match="integer map"):
         matching.instance_masks(np.zeros((4, 4), np.float32), [1])
+
+
+def test_sparse_rle_equals_pycocotools_encode_of_the_dense_mask():
+    from pycocotools import mask as mask_utils
+
+    rng = np.random.default_rng(5)
+    H, W = 37, 53
+    inst = np.zeros((H, W), np.int32)
+    inst[3:20, 10:30] = 1
+    inst[rng.random((H, W)) < 0.1] = 0  # holes: many short runs
+    inst[0:H, 52] = 2  # touches the last column and both image edges
+    inst[0, 0] = 3  # a single pixel at the first index
+    for m, k in zip(matching.instance_masks(inst, [1, 2, 3, 9]), [1, 2, 3, 9]):
+        ref = mask_utils.encode(np.asfortranarray((inst == k).astype(np.uint8)))
+        got = m.rle()
+        assert got["size"] == [H, W] and got["counts"] == ref["counts"].decode("ascii"), k
