@@ -1,6 +1,6 @@
 """Where the benchmark's time goes, as a fresh clone measures it (prints figures; not a test).
 
-    .venv/bin/python -m bench.timing [--profile default] [--executor local] [--json out/timing.json]
+    .venv/bin/python -m bench.timing [--profile default] [--executor local] [--json out/timing.json] [--ray]
 
 Runs ``fenestra bench`` twice in a fresh, empty working folder (so no cached render, scene or
 result of this checkout is reused): first cold (procedural houses generated, every view rendered),
@@ -8,6 +8,7 @@ then again with the renders it just cached. Then the render throughput of ``fene
 the margin: (time for 60 views - time for 10 views) / 50, so start-up does not count. Prints one
 JSON document: wall times, each stage's CPU seconds and share, matching's share of the CPU time,
 per-view and per-window stage milliseconds, the machine's load average before and after, versions.
+With ``--ray``, the cached-render run again on a local Ray cluster (a third run, its own folder).
 The README's timing figures come from this command.
 """
 from __future__ import annotations
@@ -69,6 +70,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--executor", default="local")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
     ap.add_argument("--skip-render", action="store_true", help="skip the render-throughput part")
+    ap.add_argument("--ray", action="store_true",
+                    help="also run the cached-render bench on a local Ray cluster (as many CPUs as cores) "
+                         "and report its wall time against the local executor's")
     a = ap.parse_args(argv)
     from bench.results import versions  # noqa: PLC0415
 
@@ -78,6 +82,9 @@ def main(argv: list[str] | None = None) -> dict:
         cwd = Path(tmp)
         out["cold"] = bench_run(a.profile, a.executor, cwd, "cold")
         out["cached_renders"] = bench_run(a.profile, a.executor, cwd, "cached")
+        if a.ray:
+            out["ray_cached_renders"] = bench_run(a.profile, "ray", cwd, "ray")
+            out["ray_over_local_wall"] = out["ray_cached_renders"]["wall_s"] / out["cached_renders"]["wall_s"]
         if not a.skip_render:
             out["render"] = render_margin(cwd)
     out["load_after"] = os.getloadavg()
