@@ -36,8 +36,10 @@ above the storey's floor. Doors and curtain-wall voids are recorded the same way
 """
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -350,8 +352,38 @@ def _placement(origin3: np.ndarray, x_dir3: np.ndarray) -> np.ndarray:
     return m
 
 
+IFC_TIMESTAMP = "2000-01-01T00:00:00"  # the header's time stamp: not the time of generation
+
+
+@contextlib.contextmanager
+def _seeded_guids(seed: int) -> Iterator[None]:
+    """Within the block, ifcopenshell.guid.new draws GlobalIds from a generator seeded by ``seed``,
+    so a spec always gives the same window ids (results tables comparable across clones)."""
+    import uuid
+
+    import ifcopenshell.guid
+
+    rng = np.random.default_rng([seed, 11])
+    original = ifcopenshell.guid.new
+    ifcopenshell.guid.new = lambda: ifcopenshell.guid.compress(uuid.UUID(bytes=rng.bytes(16), version=4).hex)
+    try:
+        yield
+    finally:
+        ifcopenshell.guid.new = original
+
+
 def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
-    """Write the IFC4 house of ``spec`` to out_path; return its expected ground truth."""
+    """Write the IFC4 house of ``spec`` to out_path; return its expected ground truth.
+
+    The same spec gives the same entities, geometry and GlobalIds (seeded) and header; only the
+    order of references inside unordered IFC SETs may differ between processes (ifcopenshell
+    keeps them in Python sets), so two files of one spec can differ in bytes, not in content.
+    """
+    with _seeded_guids(spec.seed):
+        return _make_house(spec, out_path)
+
+
+def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
     import ifcopenshell
     import ifcopenshell.api
 
@@ -510,6 +542,7 @@ def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
                 FASCIA_THICKNESS, 0.0, "fascia")
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
+    f.header.file_name.time_stamp = IFC_TIMESTAMP
     f.write(str(out_path))
     return GeneratedHouse(spec=spec, path=str(out_path), footprint_world=poly,
                           windows=tuple(windows_out), doors=tuple(doors_out),

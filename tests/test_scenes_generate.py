@@ -272,3 +272,16 @@ def test_curtain_wall_strip_keeps_other_windows(tmp_path):
     for g in scene.windows:
         if _on_wall(g.corners_world, edges[i]):
             assert not _overlap(g.corners_world, c.corners_world, u)
+
+
+def test_same_spec_same_global_ids(tmp_path):
+    """GlobalIds are drawn from the spec's seed: two generations give the same window ids."""
+    import ifcopenshell
+
+    spec = HouseSpec(seed=4, storeys=1, windows_per_wall=1)
+    a, b = make_house(spec, tmp_path / "a.ifc"), make_house(spec, tmp_path / "b.ifc")
+    assert [w.element_id for w in a.windows] == [w.element_id for w in b.windows]
+    ids = [sorted(e.GlobalId for e in ifcopenshell.open(str(p)).by_type("IfcRoot")) for p in (a.path, b.path)]
+    assert ids[0] == ids[1] and len(set(ids[0])) == len(ids[0]) > 10
+    other = make_house(HouseSpec(seed=5, storeys=1, windows_per_wall=1), tmp_path / "c.ifc")
+    assert not set(w.element_id for w in other.windows) & set(w.element_id for w in a.windows)
