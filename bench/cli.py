@@ -1,6 +1,7 @@
 """CLI commands of bench/ and reports/ (registered on the `fenestra` app by fenestra/cli.py).
 
     fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report]
+    fenestra bench --profile real [--data DIR --format coco|yolo|labelmap|curtainwall] [--sim RUN_DIR]
     fenestra report RUN_DIR
     fenestra gate RUN_DIR [--gates FILE] [--profile NAME]
 """
@@ -38,16 +39,27 @@ def print_headline(results: dict) -> None:
 def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile name (bench/profiles) or TOML path"),
           out: Path = typer.Option(None, "--out", "-o", help="run folder (default out/bench/<profile>-<hash>)"),
           workers: int = typer.Option(0, "--workers", "-j", help="worker processes (0: all cores)"),
-          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report")) -> None:
+          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report"),
+          data: Path = typer.Option(None, "--data", help="real profiles: your labelled photo folder instead of the profile's datasets"),
+          fmt: str = typer.Option("coco", "--format", help="with --data: coco | yolo | labelmap | curtainwall"),
+          sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table")) -> None:
     """Render (cached), reconstruct with every strategy, measure, summarise, report."""
     from bench.profiles import load_profile  # noqa: PLC0415
+    from bench.real.profile import is_real_profile  # noqa: PLC0415
     from bench.results import load_summary  # noqa: PLC0415
     from bench.runner import run_benchmark  # noqa: PLC0415
 
     if workers < 0:
         raise ValueError(f"--workers must be >= 0, got {workers}")
-    info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                         report=not no_report)
+    if is_real_profile(profile):
+        from bench.real.runner import run_real_profile  # noqa: PLC0415
+
+        info = run_real_profile(profile, out, data, fmt, sim, report=not no_report)
+    elif data is not None or sim is not None:
+        raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
+    else:
+        info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
+                             report=not no_report)
     summary = load_summary(info.run_dir)
     typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
     typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))

@@ -287,6 +287,10 @@ def build_report(run_dir: str | Path) -> tuple[Path, Path]:
     results = summarize(df)
     figs = make_figures(df, run_dir / "figures")
     sections = _sections(df, results, summary, figs)
+    from reports.real import real_sections  # noqa: PLC0415
+
+    at = next(i for i, sec in enumerate(sections) if sec[:2] == ("h2", "Strategy comparison"))
+    sections[at:at] = real_sections(run_dir, results, summary)
     md, html = run_dir / "report.md", run_dir / "report.html"
     md.write_text(_to_md(sections, run_dir))
     html.write_text(_to_html(sections))

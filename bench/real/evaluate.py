@@ -77,7 +77,8 @@ def window_base(view: RealView, w: RealWindow, spec: RealEvalSpec) -> dict:
             "window_id": w.id, "instance_id": -1, "incidence_deg": NAN, "distance_m": NAN,
             "visible_fraction": NAN, "window_px": px, "gt_aspect": NAN if w.aspect is None else w.aspect,
             "has_quad": w.quad is not None, "has_box": w.box is not None, "has_mask": w.mask is not None,
-            "known_K": view.K is not None, "evaluable": reason == "", "eval_reason": reason}
+            "has_aspect": w.aspect is not None, "has_size": w.size_m is not None and view.coplanar,
+            "has_pose": False, "known_K": view.K is not None, "evaluable": reason == "", "eval_reason": reason}
 
 
 def window_errors(res, w: RealWindow) -> dict:
@@ -127,7 +128,7 @@ def gt_coco(view: RealView) -> list[dict]:
         m = None if w.mask is None else np.asarray(w.mask, dtype=bool)
         out.append({"view": f"{view.dataset}/{view.name}", "bbox": [b[0] + 0.5, b[1] + 0.5, b[2] - b[0], b[3] - b[1]],
                     "area": float(m.sum()) if m is not None else float((b[2] - b[0]) * (b[3] - b[1])),
-                    "rle": None if m is None else _rle(m), "size": list(view.image.shape[:2])})
+                    "rle": None if m is None else _rle(m)})
     return out
 
 

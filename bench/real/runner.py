@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from bench import results as res
@@ -46,52 +46,63 @@ def available_datasets(profile: RealProfile) -> tuple[list, dict[str, str]]:
     return ok, skipped
 
 
-def detection_ap(outcomes: list[ViewOutcome]) -> dict[str, dict]:
-    """Per detector, COCO bbox (and segm where every window has a mask) AP/AP50/AP75 and recall
-    at IoU 0.5 (R50) as fractions, over the views it ran on (pipeline.detectors.evaluate)."""
+@dataclass(frozen=True)
+class LabelledOutcome:
+    """A view's ViewOutcome with its dataset, COCO image key ("dataset/name") and size (H, W)."""
+
+    dataset: str
+    key: str
+    size: tuple[int, int]
+    outcome: ViewOutcome
+
+
+def coco_ap_of(done: list[LabelledOutcome], det: str) -> dict:
+    """COCO bbox (and segm where every window has a mask) AP/AP50/AP75/R50 of one detector, as
+    fractions, over the views it ran on (pipeline.detectors.evaluate.coco_stats); NaN = absent."""
     from pipeline.detectors.evaluate import coco_stats  # noqa: PLC0415
 
-    out = {}
-    for det in dict.fromkeys(d for o in outcomes for d in o.coco_dt):
-        ran = [o for o in outcomes if det in o.coco_dt]
-        gt = coco_dict([g for o in ran for g in o.coco_gt])
-        vid = {im["file_name"]: im["id"] for im in gt["images"]}
-        dt = [{"image_id": vid[d["view"]], "category_id": 1, "score": d["score"], "bbox": d["bbox"],
-               "segmentation": d["rle"]} for o in ran for d in o.coco_dt[det]]
-        types = ("bbox", "segm") if all(g["rle"] is not None for o in ran for g in o.coco_gt) else ("bbox",)
-        stats = {f"{t}_{k}": v / 100.0 for t in types for k, v in coco_stats(gt, dt, t).items()}
-        stats.update({f"segm_{k}": float("nan") for k in ("AP", "AP50", "AP75", "R50") if "segm" not in types})
-        out[det] = {**stats, "n_detections": len(dt), "n_gt": len(gt["annotations"]),
-                    "false_positives": sum(o.n_false_positives.get(det, 0) for o in ran)}
+    ran = [d for d in done if det in d.outcome.coco_dt]
+    gt = coco_dict(ran)
+    vid = {im["file_name"]: im["id"] for im in gt["images"]}
+    dt = [{"image_id": vid[x["view"]], "category_id": 1, "score": x["score"], "bbox": x["bbox"],
+           "segmentation": x["rle"]} for d in ran for x in d.outcome.coco_dt[det]]
+    masks = all(g["rle"] is not None for d in ran for g in d.outcome.coco_gt)
+    types = ("bbox", "segm") if masks else ("bbox",)
+    stats = {f"{t}_{k}": v / 100.0 for t in types for k, v in coco_stats(gt, dt, t).items()}
+    stats.update({f"segm_{k}": float("nan") for k in ("AP", "AP50", "AP75", "R50") if not masks})
+    return {**stats, "n_detections": len(dt), "n_gt": len(gt["annotations"]),
+            "false_positives": sum(d.outcome.n_false_positives.get(det, 0) for d in ran)}
+
+
+def detection_ap(done: list[LabelledOutcome]) -> dict[str, dict]:
+    """{detector: COCO stats over every dataset} plus {"detector @ dataset": ...} per dataset
+    when there are several (the report's detection table; see coco_ap_of)."""
+    dets = list(dict.fromkeys(k for d in done for k in d.outcome.coco_dt))
+    out = {det: coco_ap_of(done, det) for det in dets}
+    names = list(dict.fromkeys(d.dataset for d in done))
+    if len(names) > 1:
+        for det in dets:
+            for n in names:
+                sub = [d for d in done if d.dataset == n]
+                if any(det in d.outcome.coco_dt for d in sub):
+                    out[f"{det} @ {n}"] = coco_ap_of(sub, det)
     return out
 
 
-def coco_dict(gt: list[dict]) -> dict:
-    """A COCO ground-truth dict from bench.real.evaluate.gt_coco entries (images named by view)."""
-    views = sorted({g["view"] for g in gt})
-    vid = {v: i + 1 for i, v in enumerate(views)}
-    size = {g["view"]: g["size"] for g in gt}
+def coco_dict(done: list[LabelledOutcome]) -> dict:
+    """A COCO ground-truth dict of the views (images named by their key) and their windows
+    (bench.real.evaluate.gt_coco entries)."""
+    vid = {d.key: i + 1 for i, d in enumerate(done)}
+    gt = [g for d in done for g in d.outcome.coco_gt]
     anns = [{"id": i + 1, "image_id": vid[g["view"]], "category_id": 1, "iscrowd": 0, "bbox": g["bbox"],
              "area": g["area"], **({"segmentation": g["rle"]} if g["rle"] is not None else {})}
             for i, g in enumerate(gt)]
-    return {"images": [{"id": vid[v], "file_name": v, "height": size[v][0], "width": size[v][1]} for v in views],
+    return {"images": [{"id": vid[d.key], "file_name": d.key, "height": d.size[0], "width": d.size[1]}
+                       for d in done],
             "annotations": anns, "categories": [{"id": 1, "name": "window"}]}
 
 
-def summarize_real(df: pd.DataFrame) -> dict:
-    """bench.results.summarize plus, per method, the real bench's own error columns."""
-    from bench.real.evaluate import REAL_COLUMNS  # noqa: PLC0415
-    from bench.metrics import error_stats  # noqa: PLC0415
-
-    out = res.summarize(df)
-    for m, g in df.groupby("method"):
-        ev = g[g["evaluable"].astype(bool)]
-        for col in REAL_COLUMNS:
-            out[m][col] = error_stats(ev[col].to_numpy(float))
-    return out
-
-
-def evaluate_datasets(profile: RealProfile, datasets: list, methods, progress: bool = True) -> list[ViewOutcome]:
+def evaluate_datasets(profile: RealProfile, datasets: list, methods, progress: bool = True) -> list[LabelledOutcome]:
     """evaluate_real_view over every view of every dataset, in order (one process: the real
     datasets are a few photos; the learned detector uses one thread)."""
     spec = RealEvalSpec(min_window_px=profile.min_window_px, height_m=profile.methods.height_m,
@@ -99,7 +110,8 @@ def evaluate_datasets(profile: RealProfile, datasets: list, methods, progress: b
     outcomes = []
     for ds in datasets:
         for view in ADAPTERS[ds.format](ds.folder(), **{"dataset": ds.name, **dict(ds.options)}):
-            outcomes.append(evaluate_real_view(view, methods, spec))
+            outcomes.append(LabelledOutcome(ds.name, f"{ds.name}/{view.name}", view.image.shape[:2],
+                                            evaluate_real_view(view, methods, spec)))
             if progress:
                 print(f"  {ds.name}/{view.name}: {len(view.windows)} windows", flush=True)
     return outcomes
@@ -114,7 +126,8 @@ def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: s
     run_dir.mkdir(parents=True, exist_ok=True)
     methods, skipped = plan_methods(profile)
     datasets, skipped_ds = available_datasets(profile)
-    outcomes = evaluate_datasets(profile, datasets, methods, progress)
+    done = evaluate_datasets(profile, datasets, methods, progress)
+    outcomes = [d.outcome for d in done]
     rows = [r for o in outcomes for r in o.rows]
     if not rows:
         raise FenestraError(f"profile {profile.name!r}: no labelled window in {[d.name for d in datasets]}")
@@ -122,16 +135,15 @@ def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: s
     df.insert(0, "profile", profile.name)
     res.write_results(df, run_dir)
     stage_s = {f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()}
-    det = detection_ap(outcomes)
+    det = detection_ap(done)
     meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed,
                              time.perf_counter() - t_start, stage_s, kind="real", n_views=len(outcomes),
                              n_rows=len(df), methods=[m.name for m in methods], skipped_detectors=skipped,
                              skipped_datasets=skipped_ds,
                              datasets={d.name: str(d.folder()) for d in datasets},
-                             n_windows={d.name: int(np.sum([len(o.coco_gt) for o in outcomes
-                                                            if o.coco_gt and o.coco_gt[0]["view"].startswith(d.name + "/")]))
+                             n_windows={d.name: sum(len(x.outcome.coco_gt) for x in done if x.dataset == d.name)
                                         for d in datasets})
-    summary = summarize_real(df)
+    summary = res.summarize(df)
     res.write_summary(run_dir, meta, summary, det)
     if sim_dir is not None:
         from bench.real.simreal import write_simreal  # noqa: PLC0415
@@ -144,3 +156,17 @@ def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: s
     meta["wall_time_s"] = time.perf_counter() - t_start
     res.write_summary(run_dir, meta, summary, det)
     return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))
+
+
+def run_real_profile(profile: str | Path, out_dir: Path | None = None, data: Path | None = None,
+                     fmt: str = "coco", sim_dir: Path | None = None, report: bool = True) -> RunInfo:
+    """``fenestra bench --profile real [--data DIR --format F] [--sim RUN_DIR]``: load the profile,
+    swap in the user's dataset if given, run. FileNotFoundError naming a missing --sim folder."""
+    from bench.real.profile import load_real_profile, with_user_data  # noqa: PLC0415
+
+    p = load_real_profile(profile)
+    if data is not None:
+        p = with_user_data(p, data, fmt)
+    if sim_dir is not None and not (Path(sim_dir) / res.SUMMARY_JSON).is_file():
+        raise FileNotFoundError(f"--sim {sim_dir}: not a benchmark run folder (no {res.SUMMARY_JSON})")
+    return run_real(p, out_dir, sim_dir, report=report)
