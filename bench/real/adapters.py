@@ -141,9 +141,10 @@ def _camera_of(img: dict, where: str) -> Camera | None:
         raise ValueError(f"{where}: image {img.get('file_name')!r}: bad K/distortion: {e}") from e
 
 
-def read_coco(path: Path, annotations: str = "annotations.json", images: str = ".",
+def read_coco(path: Path, annotations: str = "annotations.json", images: str | None = None,
               category=None, dataset: str = "coco") -> Iterator[RealView]:
-    """COCO instances JSON: ``path/annotations`` with images under ``path/images``.
+    """COCO instances JSON: ``path/annotations`` with each ``file_name`` under ``path/images``
+    (default: ``path/images`` if the photo is there, else ``path``).
 
     Per annotation: bbox -> box; segmentation (polygons, RLE) -> mask, and a single 4-vertex
     polygon -> quad; optional extension keys ``aspect`` (w/h), ``size_m`` [w, h], ``partial``.
@@ -160,7 +161,9 @@ def read_coco(path: Path, annotations: str = "annotations.json", images: str = "
         if a.get("category_id") in cats and not a.get("iscrowd", 0):
             by_image.setdefault(a["image_id"], []).append(a)
     for img in sorted(doc.get("images", []), key=lambda i: i["file_name"]):
-        photo = read_image(Path(path) / images / img["file_name"])
+        sub = images if images is not None else (
+            "images" if (Path(path) / "images" / img["file_name"]).is_file() else ".")
+        photo = read_image(Path(path) / sub / img["file_name"])
         h, w = photo.shape[:2]
         cam = _camera_of(img, str(js))
         if cam is not None and cam.has_distortion:

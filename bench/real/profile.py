@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -44,7 +45,7 @@ class DatasetSpec:
     def folder(self) -> Path:
         """The dataset folder: absolute, or relative to the repository root."""
         p = Path(self.path).expanduser()
-        return p if p.is_absolute() else REPO_ROOT / p
+        return p if p.is_absolute() else Path(os.path.normpath(REPO_ROOT / p))
 
 
 @dataclass(frozen=True)
