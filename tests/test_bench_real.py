@@ -239,6 +239,9 @@ def test_real_profile_loads_and_resolves_paths():
     assert q.datasets[0].format == "yolo" and q.datasets[0].name == "y"
     with pytest.raises(ProfileError, match="format 'voc' unknown"):
         real_profile_from_dict({"name": "u", "kind": "real", "data": "/x", "format": "voc"})
+    q = real_profile_from_dict({"name": "u", "kind": "real", "data": "/x/y",
+                                "detector_options": {"default": {"weights": "w.pt"}}})
+    assert q.detector_options == (("default", (("weights", "w.pt"),)),) and q.datasets[0].format == "coco"
     with pytest.raises(ProfileError, match="no datasets"):
         real_profile_from_dict({"name": "u", "kind": "real"})
 

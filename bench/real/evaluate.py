@@ -36,24 +36,27 @@ class RealEvalSpec:
     min_window_px: float = 12.0
     height_m: float = 1.0
     detector_long_side: int = 640
+    detector_options: tuple[tuple[str, tuple[tuple[str, object], ...]], ...] = ()  # (name, build options)
 
 
 def detect_resized(name: str, image: np.ndarray, long_side: int, score_threshold: float,
-                   instances: np.ndarray | None = None) -> list[Detection]:
+                   instances: np.ndarray | None = None, **options: object) -> list[Detection]:
     """Detections at full size. Oracles (``instances`` (H, W) int) run at full size; a learned
     detector on a copy resized to ``long_side`` px (INTER_AREA), masks scaled back (nearest)
-    and boxes recomputed from them; empty masks dropped."""
+    and boxes recomputed from them; empty masks dropped. options: the detector's build options
+    (e.g. weights=PATH), one torch thread unless given."""
     from pipeline.detectors import detect  # noqa: PLC0415
 
     if name in ORACLES:
         return detect(name, image, score_threshold=score_threshold, instances=instances)
+    options = {"threads": 1, **options}
     H, W = image.shape[:2]
     s = long_side / max(H, W) if long_side else 1.0
     if s >= 1.0:
-        return detect(name, image, score_threshold=score_threshold, threads=1)
+        return detect(name, image, score_threshold=score_threshold, **options)
     small = cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
     out = []
-    for d in detect(name, small, score_threshold=score_threshold, threads=1):
+    for d in detect(name, small, score_threshold=score_threshold, **options):
         m = cv2.resize(d.mask.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
         if m.any():
             out.append(Detection(mask=m, box=mask_box(m), score=d.score, label=d.label))
@@ -165,7 +168,8 @@ def evaluate_real_view(view: RealView, methods: tuple[Method, ...], spec: RealEv
             for m in ms:
                 out.rows += _not_run_rows(base, m, f"{det_name} needs ground-truth masks, the labels are boxes")
             continue
-        cands = detect_resized(det_name, view.image, spec.detector_long_side, AP_SCORE_MIN, inst)
+        cands = detect_resized(det_name, view.image, spec.detector_long_side, AP_SCORE_MIN, inst,
+                               **dict(dict(spec.detector_options).get(det_name, ())))
         dets = [d for d in cands if d.score >= MATCH_SCORE_MIN]
         out.coco_dt[det_name] = [{"view": f"{view.dataset}/{view.name}", "rle": _rle(d.mask), "score": float(d.score),
                                   "bbox": [float(d.box[0]) + 0.5, float(d.box[1]) + 0.5,

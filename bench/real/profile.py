@@ -3,6 +3,7 @@
     name = "real"
     kind = "real"                       # marks a real-photo profile (fenestra bench routes on it)
     detector_long_side = 640            # learned detectors see the photo at this long side
+    [detector_options.default]          # build options of a detector, e.g. weights = "out/x.pt"
     min_window_px = 12.0
     data = "PATH"                       # shorthand for one dataset (with format = "coco" | ...)
     [methods]                           # as the synthetic profiles (bench.profiles.MethodsSpec)
@@ -59,11 +60,13 @@ class RealProfile:
     methods: MethodsSpec = field(default_factory=MethodsSpec)
     detector_long_side: int = 640
     min_window_px: float = 12.0
+    detector_options: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
 
     def to_dict(self) -> dict:
         d = asdict(self)
         for ds in d["datasets"]:
             ds["options"] = dict(ds["options"])
+        d["detector_options"] = {k: dict(v) for k, v in self.detector_options}
         return d
 
     def config_hash(self) -> str:
@@ -91,7 +94,7 @@ def _dataset(t: dict, where: str) -> DatasetSpec:
 def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
     """RealProfile from a parsed TOML dict; ProfileError naming the file, key and value."""
     top = {"name", "kind", "description", "seed", "methods", "datasets", "data", "format",
-           "options", "detector_long_side", "min_window_px"}
+           "options", "detector_long_side", "min_window_px", "detector_options"}
     unknown = sorted(set(data) - top)
     if unknown:
         raise ProfileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(top)}")
@@ -106,7 +109,11 @@ def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
     long_side, min_px = data.get("detector_long_side", 640), data.get("min_window_px", 12.0)
     if not isinstance(long_side, int) or long_side < 0 or not isinstance(min_px, (int, float)) or min_px < 0:
         raise ProfileError(f"{where}: detector_long_side {long_side!r} / min_window_px {min_px!r} must be >= 0")
+    dopts = data.get("detector_options", {})
+    if not isinstance(dopts, dict) or not all(isinstance(v, dict) for v in dopts.values()):
+        raise ProfileError(f"{where}: detector_options must be tables per detector, got {dopts!r}")
     return RealProfile(name=str(data.get("name") or "real"), datasets=datasets,
+                       detector_options=tuple(sorted((k, tuple(sorted(v.items()))) for k, v in dopts.items())),
                        description=str(data.get("description", "")), seed=int(data.get("seed", 0)),
                        methods=_build(MethodsSpec, data.get("methods", {}), f"{where} [methods]"),
                        detector_long_side=long_side, min_window_px=float(min_px))

@@ -106,7 +106,8 @@ def evaluate_datasets(profile: RealProfile, datasets: list, methods, progress: b
     """evaluate_real_view over every view of every dataset, in order (one process: the real
     datasets are a few photos; the learned detector uses one thread)."""
     spec = RealEvalSpec(min_window_px=profile.min_window_px, height_m=profile.methods.height_m,
-                        detector_long_side=profile.detector_long_side)
+                        detector_long_side=profile.detector_long_side,
+                        detector_options=profile.detector_options)
     outcomes = []
     for ds in datasets:
         for view in ADAPTERS[ds.format](ds.folder(), **{"dataset": ds.name, **dict(ds.options)}):
