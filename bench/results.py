@@ -38,7 +38,7 @@ OPTIONAL_ERRORS = ("reproj_consistency_px", "rel_size_err")  # summarised when p
 # that error's statistics are over those windows only: absent truth is not a failure.
 TRUTH_FLAGS = {**{f"corner_err_px_{s}": "has_quad" for s in CORNER_STAGES}, "iou_2d": "has_quad",
                "aspect_err_rel": "has_aspect", "rot_err_deg": "has_pose", "normal_err_deg": "has_pose",
-               "trans_err_m": "has_pose", "rel_size_err": "has_size"}
+               "trans_err_m": "has_pose", "rel_size_err": "has_size", "reproj_consistency_px": "known_K"}
 REQUIRED_COLUMNS = ("method", "detector", "snapper", "pose", "evaluable", "status",
                     *(f"corner_err_px_{s}" for s in CORNER_STAGES), *OTHER_ERRORS)
 VERSIONED_PACKAGES = ("numpy", "scipy", "opencv-python-headless", "ifcopenshell", "trimesh",

@@ -157,6 +157,7 @@ def test_window_errors_hand_computed():
     assert e["aspect_err_rel"] == pytest.approx(0.05)
     assert e["reproj_consistency_px"] == pytest.approx(5.0)
     assert np.isnan(e["rot_err_deg"]) and np.isnan(e["trans_err_m"])  # no true pose: absent
+    assert np.isnan(window_errors(res, w, known_K=False)["reproj_consistency_px"])  # 0 by construction
     e = window_errors(res, RealWindow(id="w", box=np.array([0, 0, 5, 5.0])))
     assert np.isnan(e["corner_err_px_snap"]) and np.isnan(e["aspect_err_rel"])  # no quad, no aspect
 

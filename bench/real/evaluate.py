@@ -5,7 +5,8 @@ stage, or a method that cannot run on this view (an oracle without ground-truth 
 row with ``status`` and ``reason``. Errors whose truth the view lacks are NaN (absent), never 0:
 corner errors and 2D IoU need a labelled quad, aspect error a known aspect ratio, relative size a
 coplanar photo with known sizes; rotation, normal and translation errors need a true pose, which
-no real dataset here has. Reprojection consistency needs no truth.
+no real dataset here has. Reprojection consistency needs no truth but a known K (with the focal
+length estimated from the same quad, the pose reprojects onto it exactly: 0 by construction).
 """
 from __future__ import annotations
 
@@ -84,8 +85,9 @@ def window_base(view: RealView, w: RealWindow, spec: RealEvalSpec) -> dict:
             "has_pose": False, "known_K": view.K is not None, "evaluable": reason == "", "eval_reason": reason}
 
 
-def window_errors(res, w: RealWindow) -> dict:
-    """Errors of one WindowResult against what the window's labels know (NaN elsewhere)."""
+def window_errors(res, w: RealWindow, known_K: bool = True) -> dict:
+    """Errors of one WindowResult against what the window's labels know (NaN elsewhere);
+    reprojection consistency only with a known K (see the module docstring)."""
     out = {k: NAN for k in (*_ERROR_COLUMNS, *REAL_COLUMNS)}
     stages = (("mask", res.quad_mask), ("snap", res.quad_snapped), ("reproj", res.quad_reprojected))
     finite = {s: q is not None and bool(np.all(np.isfinite(q))) for s, q in stages}
@@ -102,7 +104,7 @@ def window_errors(res, w: RealWindow) -> dict:
         out["aspect_est"] = float(res.aspect_ratio)
         if w.aspect is not None:
             out["aspect_err_rel"] = metrics.aspect_error_rel(res.aspect_ratio, w.aspect)
-    if finite["snap"] and finite["reproj"]:
+    if finite["snap"] and finite["reproj"] and known_K:
         out["reproj_consistency_px"] = real_metrics.reprojection_consistency_px(res.quad_snapped,
                                                                                  res.quad_reprojected)
     return out
@@ -186,8 +188,8 @@ def evaluate_real_view(view: RealView, methods: tuple[Method, ...], spec: RealEv
             cfg = ReconstructConfig(snapper=m.snapper, pose=m.pose, height_m=spec.height_m)
             res = reconstruct_from_quads(gray, view.K, rec_dets, quads, cfg) if matched else []
             by_gt = {matched[r.index][0]: r for r in res}
-            rows = [_row(b, m, w, by_gt.get(g), det_for_gt.get(g), dets) for g, (w, b) in
-                    enumerate(zip(view.windows, base))]
+            rows = [_row(b, m, w, by_gt.get(g), det_for_gt.get(g), dets, view.K is not None)
+                    for g, (w, b) in enumerate(zip(view.windows, base))]
             add_relative_sizes(rows, by_gt, view)
             out.rows += rows
         t0 = _tick(stage_s, "reconstruct", t0)
@@ -200,14 +202,14 @@ def _tick(stage_s: dict, stage: str, t0: float) -> float:
     return t1
 
 
-def _row(base: dict, m: Method, w: RealWindow, res, match, dets: list[Detection]) -> dict:
+def _row(base: dict, m: Method, w: RealWindow, res, match, dets: list[Detection], known_K: bool) -> dict:
     """One results row: the window's columns, the method, its outcome and errors."""
     row = {**base, "detector": m.detector, "snapper": m.snapper, "pose": m.pose, "method": m.name}
     if res is None:
         row.update({k: NAN for k in (*_ERROR_COLUMNS, *REAL_COLUMNS)}, status="missed", reason="missed",
                    aspect_case=None)
         return row
-    row.update(window_errors(res, w), aspect_case=res.aspect_case,
+    row.update(window_errors(res, w, known_K), aspect_case=res.aspect_case,
                status="ok" if res.failure is None else "failed",
                reason="" if res.failure is None else f"failed: {res.failure}")
     row["match_iou"], row["det_score"] = match[1], float(dets[match[0]].score)
