@@ -138,7 +138,8 @@ def narrative(df: pd.DataFrame, results: dict) -> list[str]:
         ms = [m for m in results if m.startswith(det + "/")]
         best = best_method(results, methods=ms)
         if best is None:
-            out.append(f"With detector {det}, no method produced a snapped quad.")
+            out.append(f"With detector {det}, no corner error was measured: no method produced a snapped "
+                       "quad, or (real photos) no window has a labelled quad.")
             continue
         r = results[best]
         snapper = best.split("/")[1]

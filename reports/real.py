@@ -58,12 +58,12 @@ def real_sections(run_dir: Path, results: dict, summary: dict | None) -> list[tu
     if meta.get("kind") != "real":
         return []
     s: list[tuple] = [("h2", "Real photos: what the labels allow"),
-                      ("p", f"Datasets: {meta.get('n_windows')} labelled windows"
+                      ("p", "Labelled windows: " + ", ".join(f"{k} {v}" for k, v in (meta.get("n_windows") or {}).items())
                             + (f"; skipped: {meta['skipped_datasets']}" if meta.get("skipped_datasets") else "")
                             + ". Absent truth is shown as '-' (never 0): corner errors need labelled quads, "
                               "aspect error a known aspect ratio, relative size a photo of coplanar panes of known "
                               "size; reprojection consistency (snapped quad vs the rectangle reprojected from the "
-                              "pose) needs none."),
+                              "pose) needs no truth but a known K."),
                       ("table", *real_metrics_rows(results))]
     p = Path(run_dir) / SIMREAL_JSON
     if p.is_file():

@@ -274,3 +274,26 @@ def test_cli_bench_on_a_user_coco_folder(tmp_path):
     r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--data", str(folder)],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "need a real profile" in r.stderr
+
+
+def test_simreal_section_in_the_report(tmp_path):
+    """A synthetic run identical to the real one: renders choose what photos choose ("yes"), and
+    the report carries the real metrics and the sim-to-real sections."""
+    import shutil
+
+    from bench.real.simreal import write_simreal
+    from reports.build import build_report
+
+    folder, *_ = _rectangle_view(tmp_path / "data")
+    prof = real_profile_from_dict({"name": "t", "kind": "real", "data": str(folder),
+                                   "methods": {"detectors": ["oracle"], "snappers": ["none", "harris"],
+                                               "pose_solvers": ["lm"]}})
+    info = run_real(prof, out_dir=tmp_path / "real", progress=False, report=False)
+    shutil.copytree(info.run_dir, tmp_path / "sim")
+    doc = json.loads(write_simreal(tmp_path / "sim", info.run_dir).read_text())
+    (r,) = [x for x in doc["rankings"] if x["metric"] == "aspect_err_rel"]
+    assert r["best_sim"] == r["best_real"] and r["regret"] == 0.0 and r["n_windows_real"] == 1
+    assert doc["answer"][0].startswith("oracle masks, aspect_err_rel") and ": yes: renders choose" in doc["answer"][0]
+    assert doc["gap"]["oracle"]["aspect_err_rel"] == pytest.approx(1.0)
+    md = build_report(info.run_dir)[1].read_text()
+    assert "## Real photos: what the labels allow" in md and "## Sim-to-real: do render rankings hold on photos?" in md
