@@ -297,3 +297,25 @@ def test_simreal_section_in_the_report(tmp_path):
     assert doc["gap"]["oracle"]["aspect_err_rel"] == pytest.approx(1.0)
     md = build_report(info.run_dir)[1].read_text()
     assert "## Real photos: what the labels allow" in md and "## Sim-to-real: do render rankings hold on photos?" in md
+
+
+def test_coco_rle_masks_uncompressed_and_compressed(tmp_path):
+    """Column-major RLE on a 5 x 6 image: 7 off, 3 on, 2 off, 3 on -> rows 2-4 of columns 1-2."""
+    from pycocotools import mask as mask_utils
+
+    _write_rgb(tmp_path / "p.png", _photo(5, 6))
+    rle = {"size": [5, 6], "counts": [7, 3, 2, 3, 15]}
+    m = np.zeros((5, 6), np.uint8)
+    m[2:5, 1:3] = 1
+    packed = mask_utils.encode(np.asfortranarray(m))
+    doc = {"images": [{"id": 1, "file_name": "p.png", "width": 6, "height": 5}],
+           "categories": [{"id": 3, "name": "window"}],
+           "annotations": [{"id": 1, "image_id": 1, "category_id": 3, "segmentation": rle},
+                           {"id": 2, "image_id": 1, "category_id": 3,
+                            "segmentation": {"size": [5, 6], "counts": packed["counts"].decode("ascii")}}]}
+    (tmp_path / "annotations.json").write_text(json.dumps(doc))
+    (v,) = list(read_coco(tmp_path))
+    for w in v.windows:
+        np.testing.assert_array_equal(w.mask, m.astype(bool))
+        np.testing.assert_allclose(w.bbox(), [0.5, 1.5, 2.5, 4.5])
+        assert w.quad is None and w.box is None and w.aspect is None
