@@ -65,6 +65,12 @@ def real_sections(run_dir: Path, results: dict, summary: dict | None) -> list[tu
                               "size; reprojection consistency (snapped quad vs the rectangle reprojected from the "
                               "pose) needs no truth but a known K."),
                       ("table", *real_metrics_rows(results))]
+    det = (summary or {}).get("detection") or {}
+    if det:
+        s += [("h3", "Detection per detector and dataset (COCO; R50 = recall at IoU 0.5; '-': no masks labelled)"),
+              ("table", ["detector", "bbox AP", "bbox AP50", "bbox R50", "segm AP", "segm AP50", "segm R50", "GT"],
+               [[d, v.get("bbox_AP"), v.get("bbox_AP50"), v.get("bbox_R50"), v.get("segm_AP"), v.get("segm_AP50"),
+                 v.get("segm_R50"), v.get("n_gt")] for d, v in det.items()])]
     p = Path(run_dir) / SIMREAL_JSON
     if p.is_file():
         s += simreal_sections(json.loads(p.read_text()))

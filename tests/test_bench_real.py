@@ -297,6 +297,7 @@ def test_simreal_section_in_the_report(tmp_path):
     assert doc["gap"]["oracle"]["aspect_err_rel"] == pytest.approx(1.0)
     md = build_report(info.run_dir)[1].read_text()
     assert "## Real photos: what the labels allow" in md and "## Sim-to-real: do render rankings hold on photos?" in md
+    assert "| oracle | 1.00 | 1.00 | 1.00 | 1.00 | 1.00 | 1.00 | 1 |" in md  # exact masks: AP = recall = 1
 
 
 def test_coco_rle_masks_uncompressed_and_compressed(tmp_path):
