@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke report gate train timing clean
+.PHONY: help setup sysdeps test test-all bench smoke real report gate train timing clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -39,8 +39,13 @@ bench:  ## default profile: render, reconstruct with every strategy, report
 smoke:  ## smoke profile (what CI gates)
 	$(PY) -m fenestra bench --profile smoke --out out/bench/smoke
 
-gate: smoke  ## smoke profile, then the accuracy gates
+real:  ## real-photo profile (bundled curtain-wall photos, ../shared/real when present), sim-to-real table vs the smoke run if there is one
+	SIM=$$( [ -f out/bench/smoke/summary.json ] && echo "--sim out/bench/smoke" ); \
+	$(PY) -m fenestra bench --profile real --out out/bench/real $$SIM
+
+gate: smoke real  ## smoke and real profiles, then the accuracy gates
 	$(PY) -m fenestra gate out/bench/smoke
+	$(PY) -m fenestra gate out/bench/real
 
 timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s)
 	$(PY) -m bench.timing --json out/timing.json

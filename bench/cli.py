@@ -1,6 +1,7 @@
 """CLI commands of bench/ and reports/ (registered on the `fenestra` app by fenestra/cli.py).
 
     fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report] [--executor local|ray]
+    fenestra bench --profile real [--data DIR --format coco|yolo|labelmap|curtainwall] [--sim RUN_DIR]
     fenestra report RUN_DIR
     fenestra gate RUN_DIR [--gates FILE] [--profile NAME]
 """
@@ -43,10 +44,14 @@ def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile 
                                        help="where views are rendered and evaluated: local (process pool) or ray"),
           ray_address: str = typer.Option(None, "--ray-address",
                                           help="ray: a running cluster (auto, or HOST:PORT); default a local one"),
-          shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard")) -> None:
+          shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard"),
+          data: Path = typer.Option(None, "--data", help="real profiles: your labelled photo folder instead of the profile's datasets"),
+          fmt: str = typer.Option("coco", "--format", help="with --data: coco | yolo | labelmap | curtainwall"),
+          sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table")) -> None:
     """Render (cached), reconstruct with every strategy, measure, summarise, report."""
     from bench.executors import get_executor  # noqa: PLC0415
     from bench.profiles import load_profile  # noqa: PLC0415
+    from bench.real.profile import is_real_profile  # noqa: PLC0415
     from bench.results import load_summary  # noqa: PLC0415
     from bench.runner import run_benchmark  # noqa: PLC0415
 
@@ -56,8 +61,15 @@ def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile 
         raise ValueError(f"--shard-views must be >= 1, got {shard_views}")
     get_executor(executor)  # an unknown name fails before anything is rendered
     opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
-    info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                         report=not no_report, executor=executor, executor_options=opts)
+    if is_real_profile(profile):
+        from bench.real.runner import run_real_profile  # noqa: PLC0415
+
+        info = run_real_profile(profile, out, data, fmt, sim, report=not no_report)
+    elif data is not None or sim is not None:
+        raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
+    else:
+        info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
+                             report=not no_report, executor=executor, executor_options=opts)
     summary = load_summary(info.run_dir)
     typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
     typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))

@@ -138,7 +138,8 @@ def narrative(df: pd.DataFrame, results: dict) -> list[str]:
         ms = [m for m in results if m.startswith(det + "/")]
         best = best_method(results, methods=ms)
         if best is None:
-            out.append(f"With detector {det}, no method produced a snapped quad.")
+            out.append(f"With detector {det}, no corner error was measured: no method produced a snapped "
+                       "quad, or (real photos) no window has a labelled quad.")
             continue
         r = results[best]
         snapper = best.split("/")[1]
@@ -297,6 +298,10 @@ def build_report(run_dir: str | Path) -> tuple[Path, Path]:
     results = summarize(df)
     figs = make_figures(df, run_dir / "figures")
     sections = _sections(df, results, summary, figs)
+    from reports.real import real_sections  # noqa: PLC0415
+
+    at = next(i for i, sec in enumerate(sections) if sec[:2] == ("h2", "Strategy comparison"))
+    sections[at:at] = real_sections(run_dir, results, summary)
     md, html = run_dir / "report.md", run_dir / "report.html"
     md.write_text(_to_md(sections, run_dir))
     html.write_text(_to_html(sections))

@@ -1,0 +1,146 @@
+"""The real-photo profile: which labelled datasets, which methods (``bench/profiles/real.toml``).
+
+    name = "real"
+    kind = "real"                       # marks a real-photo profile (fenestra bench routes on it)
+    detector_long_side = 640            # learned detectors see the photo at this long side
+    [detector_options.default]          # build options of a detector, e.g. weights = "out/x.pt"
+    min_window_px = 12.0
+    data = "PATH"                       # shorthand for one dataset (with format = "coco" | ...)
+    [methods]                           # as the synthetic profiles (bench.profiles.MethodsSpec)
+    [[datasets]]
+    name = "curtainwall"; format = "curtainwall"; path = "data/real/curtainwall"
+    optional = false                    # true: skipped (and recorded) when the folder is absent
+    options = {...}                     # keyword options of the adapter (bench.real.adapters)
+
+Relative dataset paths in a profile file are resolved against the repository root (so
+``../shared/real`` is the shared folder beside the checkout); paths given on the command line
+against the current directory.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from bench.profiles import PROFILE_DIR, MethodsSpec, ProfileError, _build
+from bench.real.adapters import ADAPTERS
+from fenestra.config import read_toml
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+KIND = "real"
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """One labelled dataset: a name, an adapter format (a key of ADAPTERS), a folder, options."""
+
+    name: str
+    format: str
+    path: str
+    optional: bool = False
+    options: tuple[tuple[str, Any], ...] = ()
+
+    def folder(self) -> Path:
+        """The dataset folder: absolute, or relative to the repository root."""
+        p = Path(self.path).expanduser()
+        return p if p.is_absolute() else Path(os.path.normpath(REPO_ROOT / p))
+
+
+@dataclass(frozen=True)
+class RealProfile:
+    """A real-photo benchmark profile (see the module docstring)."""
+
+    name: str
+    datasets: tuple[DatasetSpec, ...]
+    description: str = ""
+    seed: int = 0
+    methods: MethodsSpec = field(default_factory=MethodsSpec)
+    detector_long_side: int = 640
+    min_window_px: float = 12.0
+    detector_options: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        for ds in d["datasets"]:
+            ds["options"] = dict(ds["options"])
+        d["detector_options"] = {k: dict(v) for k, v in self.detector_options}
+        return d
+
+    def config_hash(self) -> str:
+        d = self.to_dict()
+        d.pop("name"), d.pop("description")
+        return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
+
+
+def _dataset(t: dict, where: str) -> DatasetSpec:
+    """DatasetSpec from a TOML table; ProfileError naming the bad key or value."""
+    allowed = {"name", "format", "path", "optional", "options"}
+    if not isinstance(t, dict) or set(t) - allowed:
+        raise ProfileError(f"{where}: dataset keys {sorted(t) if isinstance(t, dict) else t!r}; allowed {sorted(allowed)}")
+    if t.get("format") not in ADAPTERS:
+        raise ProfileError(f"{where}: format {t.get('format')!r} unknown; choose from {sorted(ADAPTERS)}")
+    if not isinstance(t.get("path"), str) or not t["path"]:
+        raise ProfileError(f"{where}: dataset needs a string 'path', got {t.get('path')!r}")
+    opts = t.get("options", {})
+    if not isinstance(opts, dict) or not isinstance(t.get("optional", False), bool):
+        raise ProfileError(f"{where}: 'options' must be a table and 'optional' a bool, got {opts!r}, {t.get('optional')!r}")
+    return DatasetSpec(name=str(t.get("name") or Path(t["path"]).name), format=t["format"], path=t["path"],
+                       optional=t.get("optional", False), options=tuple(sorted(opts.items())))
+
+
+def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
+    """RealProfile from a parsed TOML dict; ProfileError naming the file, key and value."""
+    top = {"name", "kind", "description", "seed", "methods", "datasets", "data", "format",
+           "options", "detector_long_side", "min_window_px", "detector_options"}
+    unknown = sorted(set(data) - top)
+    if unknown:
+        raise ProfileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(top)}")
+    if data.get("kind") != KIND:
+        raise ProfileError(f"{where}: kind must be {KIND!r}, got {data.get('kind')!r}")
+    tables = list(data.get("datasets", []))
+    if "data" in data:
+        tables.append({"path": data["data"], "format": data.get("format", "coco"), "options": data.get("options", {})})
+    datasets = tuple(_dataset(t, f"{where} dataset #{i + 1}") for i, t in enumerate(tables))
+    if not datasets:
+        raise ProfileError(f"{where}: no datasets: give [[datasets]] tables or data = \"PATH\"")
+    long_side, min_px = data.get("detector_long_side", 640), data.get("min_window_px", 12.0)
+    if not isinstance(long_side, int) or long_side < 0 or not isinstance(min_px, (int, float)) or min_px < 0:
+        raise ProfileError(f"{where}: detector_long_side {long_side!r} / min_window_px {min_px!r} must be >= 0")
+    dopts = data.get("detector_options", {})
+    if not isinstance(dopts, dict) or not all(isinstance(v, dict) for v in dopts.values()):
+        raise ProfileError(f"{where}: detector_options must be tables per detector, got {dopts!r}")
+    return RealProfile(name=str(data.get("name") or "real"), datasets=datasets,
+                       detector_options=tuple(sorted((k, tuple(sorted(v.items()))) for k, v in dopts.items())),
+                       description=str(data.get("description", "")), seed=int(data.get("seed", 0)),
+                       methods=_build(MethodsSpec, data.get("methods", {}), f"{where} [methods]"),
+                       detector_long_side=long_side, min_window_px=float(min_px))
+
+
+def _profile_path(name_or_path: str | Path) -> Path:
+    p = Path(name_or_path)
+    return PROFILE_DIR / f"{name_or_path}.toml" if not p.suffix else p
+
+
+def is_real_profile(name_or_path: str | Path) -> bool:
+    """True if the profile file exists and says ``kind = "real"``."""
+    p = _profile_path(name_or_path)
+    return p.is_file() and read_toml(p, ProfileError, "profile file").get("kind") == KIND
+
+
+def load_real_profile(name_or_path: str | Path) -> RealProfile:
+    """A real profile by bundled name (``real``) or TOML path."""
+    p = _profile_path(name_or_path)
+    return real_profile_from_dict(read_toml(p, ProfileError, "profile file"), where=str(p))
+
+
+def with_user_data(profile: RealProfile, data: str | Path, fmt: str, options: dict | None = None) -> RealProfile:
+    """The profile's methods on one user dataset instead of its own (``--data DIR --format F``);
+    the path is made absolute against the current directory."""
+    if fmt not in ADAPTERS:
+        raise ProfileError(f"--format {fmt!r} unknown; choose from {sorted(ADAPTERS)}")
+    p = Path(data).expanduser().resolve()
+    ds = DatasetSpec(name=p.name, format=fmt, path=str(p), options=tuple(sorted((options or {}).items())))
+    return replace(profile, name=f"{profile.name}-{p.name}", datasets=(ds,))
