@@ -38,7 +38,8 @@ def print_headline(results: dict) -> None:
 def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile name (bench/profiles) or TOML path"),
           out: Path = typer.Option(None, "--out", "-o", help="run folder (default out/bench/<profile>-<hash>)"),
           workers: int = typer.Option(0, "--workers", "-j", help="worker processes (0: all cores)"),
-          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report")) -> None:
+          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report"),
+          force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files")) -> None:
     """Render (cached), reconstruct with every strategy, measure, summarise, report."""
     from bench.profiles import load_profile  # noqa: PLC0415
     from bench.results import load_summary  # noqa: PLC0415
@@ -47,7 +48,7 @@ def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile 
     if workers < 0:
         raise ValueError(f"--workers must be >= 0, got {workers}")
     info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                         report=not no_report)
+                         report=not no_report, force=force)
     summary = load_summary(info.run_dir)
     typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
     typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))
@@ -74,13 +75,14 @@ def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.par
          margin: float = typer.Option(0.5, "--margin", help="with --suggest: relative margin on ceilings")) -> None:
     """Check a run against accuracy gates; exit 1 naming each violated metric, value and bound."""
     from bench.gates import DEFAULT_GATES, check, suggest_gates  # noqa: PLC0415
-    from bench.results import load_results, load_summary, summarize  # noqa: PLC0415
+    from bench.manifest import load_verified_results  # noqa: PLC0415
+    from bench.results import load_summary, summarize  # noqa: PLC0415
 
     if suggest:
         if margin < 0:
             raise ValueError(f"--margin must be >= 0, got {margin}")
         name = profile or load_summary(run_dir)["metadata"].get("profile")
-        typer.echo(suggest_gates(summarize(load_results(run_dir)), name, margin), nl=False)
+        typer.echo(suggest_gates(summarize(load_verified_results(run_dir)), name, margin), nl=False)
         return
 
     violations = check(run_dir, gates or DEFAULT_GATES, profile=profile)

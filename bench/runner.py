@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench import manifest
 from bench import results as res
 from bench.evaluate import Method, ViewOutcome, ViewTask, evaluate_view
 from bench.profiles import ALL, Profile
@@ -188,15 +189,16 @@ def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[st
 
 def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: int | None = None,
                   progress: bool = True, report: bool = True, methods: tuple[Method, ...] | None = None,
-                  renders_dir: str | Path | None = None) -> RunInfo:
+                  renders_dir: str | Path | None = None, force: bool = False) -> RunInfo:
     """Run a profile end to end; see the module docstring. Returns a RunInfo.
 
     methods: override the profile's method combinations (e.g. a test's extra snapper);
-    renders_dir: where cached renders live (default out/renders).
+    renders_dir: where cached renders live (default out/renders); force: replace a run folder
+    that holds another profile's run or foreign files (bench.manifest.claim_run_dir).
     """
     t_start = time.perf_counter()
-    run_dir = Path(out_dir) if out_dir else default_run_dir(profile)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    run_dir = manifest.claim_run_dir(Path(out_dir) if out_dir else default_run_dir(profile),
+                                     profile.name, profile.config_hash(), force)
     workers = workers or max(1, min(os.cpu_count() or 1, 8))
     skipped: dict[str, str] = {}
     if methods is None:
@@ -219,6 +221,9 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
     df = pd.DataFrame([r for o in outcomes for r in o.rows])
     df.insert(0, "profile", profile.name)
     res.write_results(df, run_dir)
+    manifest.write_manifest(run_dir, manifest.expected_rows([(t.house, Path(t.view_dir)) for t in tasks],
+                                                            [m.name for m in methods]),
+                            profile.name, profile.config_hash())
     det = detection_ap(outcomes)
     stage_s["summarize"] = time.perf_counter() - t0
     wall = time.perf_counter() - t_start
