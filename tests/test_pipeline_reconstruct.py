@@ -69,9 +69,14 @@ def test_two_blobs_one_id_is_a_failure_not_a_crash():
 def test_empty_mask_and_wrong_shape_mask():
     from pipeline.types import Detection
     bgr, _, _ = scene()
-    dets = [Detection(np.zeros(SHAPE, bool), np.zeros(4), 0.9), Detection(np.zeros((10, 10), bool), np.zeros(4), 0.9)]
+    # a (10, 10) mask is a sparse crop (at origin (0, 0) by default): outside the image only when
+    # it does not fit there
+    dets = [Detection(np.zeros(SHAPE, bool), np.zeros(4), 0.9),
+            Detection(np.zeros((10, 10), bool), np.zeros(4), 0.9, origin=(SHAPE[1] - 5, 0)),
+            Detection(np.zeros((SHAPE[0] + 1, SHAPE[1]), bool), np.zeros(4), 0.9)]
     res = reconstruct(bgr, K, dets)
-    assert res[0].failure.startswith("quad: empty_mask") and "mask shape" in res[1].failure
+    assert res[0].failure.startswith("quad: empty_mask")
+    assert "mask shape" in res[1].failure and "mask shape" in res[2].failure
     with pytest.raises(ValueError, match="unknown snapper"):
         ReconstructConfig(snapper="magic")
     with pytest.raises(ValueError, match="K must be 3x3"):
