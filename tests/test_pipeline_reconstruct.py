@@ -134,3 +134,26 @@ def test_pipeline_does_not_import_harness_packages():
                 names = [node.module]
             for n in names:
                 assert n.split(".")[0] not in forbidden, f"{path} imports {n}"
+
+
+def test_sparse_detections_fit_exactly_like_full_masks():
+    """detections_from_instance_map's crops give the quad, lines and failure of mask_to_quad on
+    the full (H, W) mask of each id: windows inside, touching the border, split in two blobs."""
+    from pipeline.quad import mask_to_quad
+    from pipeline.reconstruct import fit_quads
+
+    _, inst, _ = scene()
+    inst[0:30, 600:640] = 5  # touches the top and right edges
+    inst[400:420, 20:40] = 6
+    inst[400:420, 60:80] = 6  # two blobs, one id
+    inst[100:160, 0:25] = 9  # touches the left edge only
+    dets = detections_from_instance_map(inst)
+    assert [d.instance_id for d in dets] == [1, 2, 5, 6, 9]
+    assert all(d.mask.shape != SHAPE for d in dets)
+    for d, f in zip(dets, fit_quads(dets, image_shape=SHAPE)):
+        full = mask_to_quad(inst == d.instance_id)
+        assert f.result.failure == full.failure
+        if full.quad is not None:
+            np.testing.assert_allclose(f.result.quad, full.quad, atol=1e-9)
+            np.testing.assert_allclose(f.result.lines, full.lines, atol=1e-9)
+    assert dets[2].box.tolist() == [600, 0, 639, 29]
