@@ -278,8 +278,10 @@ def read_only_dir(tmp_path):
         subprocess.run(["umount", str(d)], check=True)
 
 
-def test_reconstruct_into_read_only_folder(read_only_dir, tmp_path):
+def test_read_only_output_folders(read_only_dir, tmp_path):
     one_line_error(reconstruct(read_only_dir / "out", cwd=tmp_path), "ro/")
+    (tmp_path / "tiny.toml").write_text(TINY_PROFILE)
+    one_line_error(fenestra("bench", "--profile", "tiny.toml", "--out", read_only_dir / "run", cwd=tmp_path), "ro/run")
 
 
 # ---------------------------------------------------------------- 4. bounded memory and time
