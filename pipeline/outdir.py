@@ -39,6 +39,9 @@ def staged_dir(out: str | Path, force: bool = False) -> Iterator[Path]:
     check_out(out, force)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    umask = os.umask(0o022)
+    os.umask(umask)
+    tmp.chmod(0o777 & ~umask)  # mkdtemp makes it 0o700; the result gets a normal folder's mode
     try:
         yield tmp
         old = out.with_name(f".{out.name}.old{os.getpid()}") if out.exists() else None
