@@ -238,6 +238,9 @@ def reconstruct(out, *extra, cwd: Path, photo=EXAMPLE / "img017.jpg", masks=EXAM
 
 def test_reconstruct_replaces_its_output_whole(tmp_path):
     assert reconstruct("o", cwd=tmp_path).returncode == 0
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert (tmp_path / "o").stat().st_mode & 0o777 == 0o777 & ~umask  # a normal folder, not mkdtemp's 0700
     (tmp_path / "o" / "model.glb.old").write_text("stale")
     first = (tmp_path / "o" / "windows.json").read_bytes()
     # a failing export (disk full at 50 kB: texture.png is larger) leaves the complete first set
@@ -286,14 +289,19 @@ def test_read_only_output_folders(read_only_dir, tmp_path):
 
 # ---------------------------------------------------------------- 4. bounded memory and time
 
+# A launcher between pytest and the CLI: Linux keeps a process's pre-exec memory high-water mark,
+# so a CLI forked straight from this (large) pytest process would report pytest's RSS as its own.
+MEASURE = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); "
+           "print(f'MAXRSS_KB {resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss}', file=sys.stderr); "
+           "sys.exit(r.returncode)")
+
+
 def run_measured(args: list, cwd: Path) -> tuple[int, str, float]:
-    """(exit code, stderr, peak RSS in GB) of one CLI run (its own rusage, via wait4)."""
-    p = subprocess.Popen([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env(),
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    err = p.stderr.read()
-    _, status, usage = os.wait4(p.pid, 0)
-    p.returncode = os.waitstatus_to_exitcode(status)
-    return p.returncode, err, usage.ru_maxrss / 2**20
+    """(exit code, stderr, peak RSS in GB) of one CLI run."""
+    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
+                       cwd=cwd, env=env(), capture_output=True, text=True, timeout=300)
+    kb = int(r.stderr.rsplit("MAXRSS_KB ", 1)[1])
+    return r.returncode, r.stderr, kb / 2**20
 
 
 def test_65535_instance_ids_are_a_clear_error_in_bounded_memory(tmp_path):
