@@ -47,7 +47,8 @@ def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile 
           shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard"),
           data: Path = typer.Option(None, "--data", help="real profiles: your labelled photo folder instead of the profile's datasets"),
           fmt: str = typer.Option("coco", "--format", help="with --data: coco | yolo | labelmap | curtainwall"),
-          sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table")) -> None:
+          sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table"),
+          force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files")) -> None:
     """Render (cached), reconstruct with every strategy, measure, summarise, report."""
     from bench.executors import get_executor  # noqa: PLC0415
     from bench.profiles import load_profile  # noqa: PLC0415
@@ -64,12 +65,12 @@ def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile 
     if is_real_profile(profile):
         from bench.real.runner import run_real_profile  # noqa: PLC0415
 
-        info = run_real_profile(profile, out, data, fmt, sim, report=not no_report)
+        info = run_real_profile(profile, out, data, fmt, sim, report=not no_report, force=force)
     elif data is not None or sim is not None:
         raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
     else:
         info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                             report=not no_report, executor=executor, executor_options=opts)
+                             report=not no_report, executor=executor, executor_options=opts, force=force)
     summary = load_summary(info.run_dir)
     typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
     typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))
@@ -96,13 +97,14 @@ def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.par
          margin: float = typer.Option(0.5, "--margin", help="with --suggest: relative margin on ceilings")) -> None:
     """Check a run against accuracy gates; exit 1 naming each violated metric, value and bound."""
     from bench.gates import DEFAULT_GATES, check, suggest_gates  # noqa: PLC0415
-    from bench.results import load_results, load_summary, summarize  # noqa: PLC0415
+    from bench.manifest import load_verified_results  # noqa: PLC0415
+    from bench.results import load_summary, summarize  # noqa: PLC0415
 
     if suggest:
         if margin < 0:
             raise ValueError(f"--margin must be >= 0, got {margin}")
         name = profile or load_summary(run_dir)["metadata"].get("profile")
-        typer.echo(suggest_gates(summarize(load_results(run_dir)), name, margin), nl=False)
+        typer.echo(suggest_gates(summarize(load_verified_results(run_dir)), name, margin), nl=False)
         return
 
     violations = check(run_dir, gates or DEFAULT_GATES, profile=profile)

@@ -232,14 +232,16 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
         # detections a user would (score >= MATCH_SCORE_MIN, the detectors' default threshold)
         cands = detect(det_name, image, score_threshold=AP_SCORE_MIN, instances=inst,
                        **_detector_options(task, det_name))
-        dets = [d for d in cands if d.score >= MATCH_SCORE_MIN]
+        keep = [i for i, d in enumerate(cands) if d.score >= MATCH_SCORE_MIN]
+        dets = [cands[i] for i in keep]
         t0 = tick("detect", t0)
-        out.coco_dt[det_name] = [{"view": f"{task.house}/{view}", "rle": _rle(d.mask),
+        sparse = [matching.SparseMask.from_crop(d.mask, d.origin, instances.shape) for d in cands]
+        out.coco_dt[det_name] = [{"view": f"{task.house}/{view}", "rle": m.rle(),
                                   "score": float(d.score),
                                   "bbox": [float(d.box[0]), float(d.box[1]),
                                            float(d.box[2] - d.box[0]), float(d.box[3] - d.box[1])]}
-                                 for d in cands]
-        iou = matching.iou_matrix([d.mask for d in dets], gt_masks)
+                                 for d, m in zip(cands, sparse)]
+        iou = matching.iou_matrix([sparse[i] for i in keep], gt_masks)
         mt = matching.match(iou, TOL.match_iou)
         out.n_false_positives[det_name] = len(mt.false_positives)
         det_for_gt = mt.det_for_gt()

@@ -16,7 +16,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.results import load_results, load_summary, summarize
+from bench.manifest import load_verified_results
+from bench.results import load_summary, summarize
 from fenestra.config import read_toml
 from fenestra.errors import FenestraError
 
@@ -109,7 +110,8 @@ def check_results(results: dict, profile: str, gates: list[Gate]) -> list[Violat
 
 def check(run_dir: str | Path, gates: list[Gate] | str | Path = DEFAULT_GATES,
           profile: str | None = None) -> list[Violation]:
-    """Violations of a run folder: its results table re-summarised, its profile from summary.json.
+    """Violations of a run folder: its results table (checked against the run's manifest, see
+    bench.manifest) re-summarised, its profile from summary.json.
 
     ``profile`` overrides the run's profile name (e.g. to gate a custom run against smoke bounds).
     """
@@ -120,7 +122,7 @@ def check(run_dir: str | Path, gates: list[Gate] | str | Path = DEFAULT_GATES,
         profile = load_summary(run_dir)["metadata"].get("profile")
     if not any(g.profile == profile for g in gates):
         raise GateError(f"no gates for profile {profile!r}; gated profiles: {sorted({g.profile for g in gates})}")
-    return check_results(summarize(load_results(run_dir)), profile, gates)
+    return check_results(summarize(load_verified_results(run_dir)), profile, gates)
 
 
 # ---------------------------------------------------------------- suggesting gates from a run

@@ -69,6 +69,17 @@ class SparseMask:
         crop = m[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
         return cls(crop, int(rows[0]), int(cols[0]), tuple(m.shape), int(np.count_nonzero(crop)))
 
+    @classmethod
+    def from_crop(cls, crop: np.ndarray, origin: tuple[int, int], shape: tuple[int, int]) -> "SparseMask":
+        """A mask given as a crop (h, w) whose pixel [0, 0] is image pixel origin (x0, y0) of an
+        image of ``shape`` (H, W): a Detection's (mask, origin); a full mask has origin (0, 0)."""
+        s = cls.from_dense(crop)
+        x0, y0 = int(origin[0]), int(origin[1])
+        r0, c0 = s.r0 + y0, s.c0 + x0
+        if s.area and (r0 < 0 or c0 < 0 or r0 + s.crop.shape[0] > shape[0] or c0 + s.crop.shape[1] > shape[1]):
+            raise ValueError(f"mask crop {crop.shape} at origin {origin} does not fit an image of shape {tuple(shape)}")
+        return cls(s.crop, r0, c0, tuple(shape), s.area)
+
     def rle(self) -> dict:
         """COCO RLE of the full-image mask ({"size": [H, W], "counts": str}), built from the crop
         without allocating the full image: runs in column-major order, starting with background."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -136,6 +137,9 @@ def _build(cls: type, table: dict, where: str) -> Any:
 
 def _validate(p: Profile, where: str) -> None:
     """Range checks, each naming the key and the bad value."""
+    if not math.isfinite(p.evaluation.min_window_px):
+        raise ProfileError(f"{where}: evaluation.min_window_px = {p.evaluation.min_window_px!r} would leave no "
+                           "window large enough to evaluate; give a finite size in px")
     checks = [
         ("render.views_per_house", p.render.views_per_house, p.render.views_per_house >= 1),
         ("render.width", p.render.width, p.render.width >= 16),

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench import manifest
 from bench import results as res
 from bench.evaluate import Method, ViewOutcome
 from bench.executors import HousePlan, Plan, get_executor
@@ -155,17 +156,18 @@ def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[st
 def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: int | None = None,
                   progress: bool = True, report: bool = True, methods: tuple[Method, ...] | None = None,
                   renders_dir: str | Path | None = None, executor: str = "local",
-                  executor_options: dict | None = None) -> RunInfo:
+                  executor_options: dict | None = None, force: bool = False) -> RunInfo:
     """Run a profile end to end; see the module docstring. Returns a RunInfo.
 
     methods: override the profile's method combinations (e.g. a test's extra snapper);
     renders_dir: where cached renders live (default out/renders);
     executor: a key of bench.executors.EXECUTORS ("local" process pool, "ray" cluster), with
-    executor_options (ray: address, shard_views).
+    executor_options (ray: address, shard_views); force: replace a run folder that holds another
+    profile's run or foreign files (bench.manifest.claim_run_dir).
     """
     t_start = time.perf_counter()
-    run_dir = Path(out_dir) if out_dir else default_run_dir(profile)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    run_dir = manifest.claim_run_dir(Path(out_dir) if out_dir else default_run_dir(profile),
+                                     profile.name, profile.config_hash(), force)
     workers = workers or max(1, min(os.cpu_count() or 1, 8))
     skipped: dict[str, str] = {}
     if methods is None:
@@ -178,6 +180,10 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
     df = pd.DataFrame([r for o in outcomes for r in o.rows])
     df.insert(0, "profile", profile.name)
     res.write_results(df, run_dir)
+    views = [(house, v) for house, ds in datasets for v in sorted((Path(ds) / "views").iterdir())
+             if (v / "view.json").is_file()]  # from the renders, not from the outcomes
+    manifest.write_manifest(run_dir, manifest.expected_rows(views, [m.name for m in methods]),
+                            profile.name, profile.config_hash())
     det = detection_ap(outcomes)
     stage_s["summarize"] = time.perf_counter() - t0
     wall = time.perf_counter() - t_start

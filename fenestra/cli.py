@@ -7,6 +7,7 @@
 """
 from __future__ import annotations
 
+import signal
 import sys
 
 import typer
@@ -31,9 +32,21 @@ _register()
 
 
 def main() -> None:
-    """Entry point: run the app; user-facing errors become one line on stderr and exit code 2."""
+    """Entry point: run the app; user-facing errors (bad input, and every OS error: disk full,
+    read-only or missing paths, names too long) become one line on stderr and exit code 2."""
+    signal.signal(signal.SIGTERM, _terminate)  # unwinds: temporary outputs are removed
     try:
         app()
-    except (FenestraError, FileNotFoundError, ValueError) as e:
-        typer.echo(f"error: {e}", err=True)
+    except (FenestraError, OSError, ValueError) as e:
+        typer.echo(f"error: {one_line(e)}", err=True)
         sys.exit(2)
+
+
+def _terminate(signum: int, _frame) -> None:
+    typer.echo(f"error: terminated (signal {signum}); partial outputs removed", err=True)
+    raise SystemExit(128 + signum)
+
+
+def one_line(e: BaseException) -> str:
+    """The error's message on one line (without a message: its class name)."""
+    return " ".join(str(e).split()) or type(e).__name__

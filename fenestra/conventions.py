@@ -164,3 +164,24 @@ def rotation_error_deg(R_est: np.ndarray, R_gt: np.ndarray) -> float:
     """Geodesic angle (deg) between two rotation matrices."""
     c = (np.trace(np.asarray(R_est) @ np.asarray(R_gt).T) - 1.0) / 2.0
     return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+@dataclass(frozen=True)
+class InputLimits:
+    """Bounds on one photo's input, so memory and time stay bounded (pipeline/, issue 16).
+
+    max_windows_per_photo: instance ids (or detections) per photo; beyond it reconstruct stops with
+        an error naming the count (each window costs ~10 ms and its share of the IFC export).
+    detector_max_side_px: learned detectors see the photo resized so its long side is at most
+        this (INTER_AREA); their masks and boxes are mapped back to full resolution.
+    fov_min_deg / fov_max_deg: a horizontal or vertical field of view outside this range
+        (from K and the photo size) is reported as a warning: the focal length is probably wrong.
+    """
+
+    max_windows_per_photo: int = 1000
+    detector_max_side_px: int = 1024
+    fov_min_deg: float = 1.0
+    fov_max_deg: float = 170.0
+
+
+LIMITS = InputLimits()

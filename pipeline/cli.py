@@ -21,30 +21,42 @@ import numpy as np
 import typer
 
 from fenestra.errors import PipelineError
+from pipeline.outdir import check_out, staged_dir
 
 
 def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
                     fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
                     masks: Optional[Path] = None, detector: str = "default", snapper: str = "harris",
                     pose: str = "lm", height: float = 1.0, width: Optional[float] = None,
-                    substitute: Optional[str] = None, export: bool = True) -> dict:
-    """The `reconstruct` command as a function: returns the windows.json dict it wrote."""
-    from pipeline.io import (Camera, K_from_values, read_camera, read_instance_map,  # noqa: PLC0415
-                             read_photo, undistort_photo)
+                    substitute: Optional[str] = None, export: bool = True, force: bool = False) -> dict:
+    """The `reconstruct` command as a function: returns the windows.json dict it wrote.
+
+    Everything is written to a temporary folder that replaces ``out`` when complete
+    (pipeline.outdir.staged_dir; ``force``: replace a non-empty folder that is not an output).
+    """
+    from pipeline.io import (Camera, K_from_values, fit_camera_to_photo, intrinsics_warnings,  # noqa: PLC0415
+                             photo_orientation, photo_warnings, read_camera, read_instance_map, read_photo,
+                             undistort_photo)
     from pipeline.reconstruct import (ReconstructConfig, detections_from_instance_map,  # noqa: PLC0415
                                       reconstruct, windows_to_json)
 
+    check_out(out, force)  # before the (slow) pipeline runs
     image = read_photo(photo)
     size = (image.shape[1], image.shape[0])
     if K_json is not None and fx is not None:
         raise PipelineError("give either --K or --fx, not both")
+    warnings = photo_warnings(photo)
     if K_json is not None:
-        camera = read_camera(K_json, size)
+        camera, more = fit_camera_to_photo(read_camera(K_json, size), size, photo_orientation(photo))
+        warnings += more
     elif fx is not None:
         camera = Camera(K=K_from_values(fx, fy, cx, cy, size))
     else:
         raise PipelineError("intrinsics needed: --K K.json or --fx F [--fy --cx --cy]")
     K = camera.K
+    warnings += intrinsics_warnings(K, size)
+    for w in warnings:
+        typer.echo(f"warning: {w}", err=True)
     image = undistort_photo(image, camera)  # masks (--masks) are taken to be in this frame
     cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width)
     if masks is not None:
@@ -54,18 +66,19 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
 
         detections = detect(detector, cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
     results = reconstruct(image, K, detections, cfg)
-    out.mkdir(parents=True, exist_ok=True)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
     doc["undistorted"] = camera.has_distortion
     doc["distortion"] = None if camera.distortion is None else camera.distortion.tolist()
-    (out / "windows.json").write_text(json.dumps(doc, indent=2))
-    if export:
-        try:
-            from pipeline.export import write_outputs  # noqa: PLC0415
-        except ImportError as e:  # the export module is optional for the geometry core
-            typer.echo(f"note: export skipped ({e})", err=True)
-        else:
-            write_outputs(out, image, K, results, substitute=substitute)
+    doc["warnings"] = warnings
+    with staged_dir(out, force) as tmp:
+        (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
+        if export:
+            try:
+                from pipeline.export import write_outputs  # noqa: PLC0415
+            except ImportError as e:  # the export module is optional for the geometry core
+                typer.echo(f"note: export skipped ({e})", err=True)
+            else:
+                write_outputs(tmp, image, K, results, substitute=substitute)
     return doc
 
 
@@ -106,10 +119,11 @@ def register(app: typer.Typer) -> None:
         height: float = typer.Option(1.0, "--height", help="window height, m (the scale parameter)"),
         width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
+        force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),
     ) -> None:
         """Reconstruct the windows of one photo: windows.json, IFC, OBJ, overlay."""
         doc = run_reconstruct(photo, out, K_json, fx, fy, cx, cy, masks, detector, snapper, pose,
-                              height, width, substitute)
+                              height, width, substitute, force=force)
         typer.echo(format_table(doc))
         if doc.get("undistorted"):
             typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")

@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fenestra.conventions import check_K, make_K
+from fenestra.conventions import LIMITS, check_K, make_K
 from fenestra.errors import PipelineError
 
 
@@ -57,6 +57,7 @@ class Camera:
 
     K: np.ndarray
     distortion: np.ndarray | None = None
+    size: tuple[int, int] | None = None  # (W, H) px the K file states it is for, if it does
 
     @property
     def has_distortion(self) -> bool:
@@ -105,7 +106,84 @@ def read_camera(path: str | Path, image_size: tuple[int, int] | None = None) -> 
         dist = check_distortion(data.get("distortion"))
     except PipelineError as e:
         raise PipelineError(f"{Path(path)}: bad distortion: {e}") from e
-    return Camera(K=K, distortion=dist)
+    return Camera(K=K, distortion=dist, size=_stated_size(path, data))
+
+
+def _stated_size(path: str | Path, data: dict) -> tuple[int, int] | None:
+    """(W, H) from an intrinsics JSON's optional "width"/"height"; PipelineError if malformed."""
+    if "width" not in data and "height" not in data:
+        return None
+    w, h = data.get("width"), data.get("height")
+    if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (w, h)):
+        raise PipelineError(f"{Path(path)}: 'width' and 'height' must both be positive integers (px), got {w!r}, {h!r}")
+    return w, h
+
+
+SWAPS_AXES = (5, 6, 7, 8)  # EXIF orientations that rotate by 90 degrees (width and height swap)
+
+
+def photo_orientation(path: str | Path) -> int:
+    """EXIF orientation tag (1-8) of an image file; 1 when absent or unreadable."""
+    from PIL import Image  # noqa: PLC0415
+
+    try:
+        with Image.open(path) as im:
+            v = im.getexif().get(0x0112, 1)
+    except (OSError, ValueError):
+        return 1
+    return v if isinstance(v, int) and 1 <= v <= 8 else 1
+
+
+def photo_warnings(path: str | Path) -> list[str]:
+    """Problems cv2 decodes through silently: a truncated file (the rest comes out grey)."""
+    from PIL import Image  # noqa: PLC0415
+
+    try:
+        with Image.open(path) as im:
+            im.load()
+    except OSError as e:
+        return [f"photo {Path(path)} is damaged ({' '.join(str(e).split())}): part of it decodes as grey"]
+    return []
+
+
+def fit_camera_to_photo(camera: Camera, size: tuple[int, int], orientation: int = 1) -> tuple[Camera, list[str]]:
+    """The camera for a photo of ``size`` (W, H) px as displayed (EXIF ``orientation`` applied, as
+    cv2.imread does), and warnings.
+
+    If the K file states its size: the same size passes; the size before an EXIF 90-degree
+    rotation is an error (K would have to rotate too); another size with the same aspect ratio
+    rescales K (pixel centres at integers) with a warning; anything else is an error.
+    """
+    if camera.size is None or tuple(camera.size) == tuple(size):
+        return camera, []
+    (w, h), (W, H) = camera.size, size
+    if orientation in SWAPS_AXES and (h, w) == (W, H):
+        raise PipelineError(f"K is for a {w}x{h} image but the photo's EXIF orientation {orientation} turns it "
+                            f"to {W}x{H}; give K for the upright {W}x{H} photo")
+    s = W / w
+    if abs(H / h - s) > 1e-3 * s:
+        raise PipelineError(f"K is for a {w}x{h} image but the photo is {W}x{H} (another aspect ratio)")
+    K = camera.K.copy()
+    K[:2, :2] *= s
+    K[:2, 2] = (K[:2, 2] + 0.5) * s - 0.5
+    warning = f"K is for a {w}x{h} image; rescaled by {s:.4g} to the {W}x{H} photo"
+    return Camera(K=K, distortion=camera.distortion, size=(W, H)), [warning]
+
+
+def intrinsics_warnings(K: np.ndarray, size: tuple[int, int]) -> list[str]:
+    """Warnings for a K that does not look like this (W, H) photo's: principal point outside the
+    image, or a field of view outside LIMITS.fov_min_deg .. fov_max_deg (focal length wrong?)."""
+    W, H = size
+    cx, cy = K[0, 2], K[1, 2]
+    out = []
+    if not (-0.5 <= cx <= W - 0.5 and -0.5 <= cy <= H - 0.5):
+        out.append(f"principal point ({cx:.1f}, {cy:.1f}) px lies outside the {W}x{H} photo")
+    for axis, n, f in (("horizontal", W, K[0, 0]), ("vertical", H, K[1, 1])):
+        fov = float(np.degrees(2 * np.arctan2(n / 2.0, f)))
+        if not LIMITS.fov_min_deg <= fov <= LIMITS.fov_max_deg:
+            out.append(f"{axis} field of view {fov:.3g} deg (f = {f:.4g} px over {n} px) is outside "
+                       f"{LIMITS.fov_min_deg:g}..{LIMITS.fov_max_deg:g} deg: is the focal length right?")
+    return out
 
 
 def read_K(path: str | Path, image_size: tuple[int, int] | None = None) -> np.ndarray:

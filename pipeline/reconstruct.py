@@ -14,13 +14,14 @@ remaining windows carry on; only malformed arguments (wrong shapes, unknown stra
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
-from fenestra.conventions import check_K
+from fenestra.conventions import LIMITS, check_K
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
 from pipeline.pose import POSE_SOLVERS, estimate_pose
@@ -77,7 +78,8 @@ def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failu
     fields = dict(quad_mask=None, quad_snapped=None, aspect_ratio=None, aspect_case=None,
                   focal_estimate_px=None, R=None, t=None, quad_reprojected=None, height_m=cfg.height_m)
     fields.update(stages)
-    return WindowResult(index=i, score=float(det.score), failure=failure, timings_ms=dict(timings), **fields)
+    return WindowResult(index=i, score=float(det.score), failure=failure, timings_ms=dict(timings),
+                        instance_id=det.instance_id, **fields)
 
 
 @dataclass(frozen=True)
@@ -101,13 +103,44 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
     """
     fits = []
     for det in detections:
-        if image_shape is not None and np.asarray(det.mask).shape != tuple(image_shape):
+        if image_shape is not None and mask_outside(det, image_shape):
             fits.append(QuadFit(None, 0.0))
             continue
         t0 = time.perf_counter()
-        qr = mask_to_quad(det.mask, params)
+        qr = mask_to_quad(det.mask, params) if image_shape is None else fit_sparse(det, params, image_shape)
         fits.append(QuadFit(qr, (time.perf_counter() - t0) * 1e3))
     return fits
+
+
+def mask_outside(det: Detection, image_shape: tuple[int, int]) -> str | None:
+    """Why a detection's mask (full or a crop at ``det.origin``) does not lie in an (H, W) image."""
+    (x0, y0), (h, w) = det.origin, np.asarray(det.mask).shape
+    H, W = image_shape
+    if x0 < 0 or y0 < 0 or x0 + w > W or y0 + h > H:
+        return f"mask shape {(h, w)} at origin {(x0, y0)} != image {(H, W)}"
+    return None
+
+
+def fit_sparse(det: Detection, params: QuadParams, image_shape: tuple[int, int]) -> QuadResult:
+    """mask_to_quad of a detection whose mask is a crop at ``det.origin`` of an (H, W) image.
+
+    The crop is padded by one background pixel where the image allows (what mask_to_quad's own
+    crop of a full mask holds), so border checks and the fit are those of the full mask; the
+    quad (4, 2) and lines (n_x, n_y, c) are moved to image coordinates.
+    """
+    m, (x0, y0) = np.asarray(det.mask), det.origin
+    (h, w), (H, W) = m.shape, image_shape
+    if (x0, y0, w, h) == (0, 0, W, H):
+        return mask_to_quad(m, params)
+    px, py = max(x0 - 1, 0), max(y0 - 1, 0)
+    padded = np.zeros((min(y0 + h + 1, H) - py, min(x0 + w + 1, W) - px), dtype=bool)
+    padded[y0 - py:y0 - py + h, x0 - px:x0 - px + w] = m != 0
+    qr = mask_to_quad(padded, params)
+    if qr.quad is None:
+        return qr
+    o = np.array([px, py], dtype=np.float64)
+    lines = None if qr.lines is None else np.column_stack([qr.lines[:, :2], qr.lines[:, 2] + qr.lines[:, :2] @ o])
+    return dataclasses.replace(qr, quad=qr.quad + o, lines=lines)
 
 
 def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detection,
@@ -119,10 +152,11 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
     """
     timings: dict[str, float] = {}
     H, W = gray.shape
-    if np.asarray(det.mask).shape != (H, W):
-        return _result(i, det, cfg, timings, f"quad: mask shape {np.asarray(det.mask).shape} != image {(H, W)}")
+    outside = mask_outside(det, (H, W))
+    if outside:
+        return _result(i, det, cfg, timings, f"quad: {outside}")
     if fit is None or fit.result is None:
-        fit = fit_quads([det], cfg.quad)[0]
+        fit = fit_quads([det], cfg.quad, (H, W))[0]
     qr = fit.result
     timings["quad"] = fit.ms
     if qr.failure:
@@ -188,23 +222,34 @@ def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detect
     return reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg)
 
 
-def detections_from_instance_map(instances: np.ndarray) -> list[Detection]:
-    """One Detection per non-zero id of an (H, W) integer instance map, in increasing id order.
+def detections_from_instance_map(instances: np.ndarray,
+                                 max_windows: int = LIMITS.max_windows_per_photo) -> list[Detection]:
+    """One sparse Detection per non-zero id of an (H, W) integer instance map, in increasing id order.
 
-    Score 1, label ``"window:<id>"``; box (x0, y0, x1, y1) px of the id's pixels. An id with two
-    separate blobs still gives one Detection: mask_to_quad then reports ``multiple_blobs``.
+    Score 1, label ``"window:<id>"``, ``instance_id`` the id; mask: the id's bounding-box crop at
+    ``origin`` (memory O(H W) once, plus the crops); box (x0, y0, x1, y1): the first and last
+    pixel column/row of the id. An id with two separate blobs still gives one Detection
+    (mask_to_quad then reports ``multiple_blobs``). More than ``max_windows`` ids: PipelineError.
     """
+    from scipy import ndimage  # noqa: PLC0415
+
     inst = np.asarray(instances)
     if inst.ndim != 2 or not np.issubdtype(inst.dtype, np.integer):
         raise ValueError(f"instance map must be a 2-D integer array, got shape {inst.shape}, dtype {inst.dtype}")
+    if inst.size and inst.min() < 0:
+        raise ValueError(f"instance map has negative ids (min {inst.min()})")
+    boxes = ndimage.find_objects(inst) if inst.size and inst.max() > 0 else []
+    ids = [i + 1 for i, sl in enumerate(boxes) if sl is not None]
+    if len(ids) > max_windows:
+        raise PipelineError(f"instance map has {len(ids)} window ids, more than the {max_windows} per photo "
+                            "this pipeline handles (fenestra.conventions.LIMITS.max_windows_per_photo)")
     dets = []
-    for iid in np.unique(inst):
-        if iid == 0:
-            continue
-        m = inst == iid
-        ys, xs = np.nonzero(m)
-        box = np.array([xs.min(), ys.min(), xs.max(), ys.max()], dtype=np.float64)
-        dets.append(Detection(mask=m, box=box, score=1.0, label=f"window:{int(iid)}"))
+    for iid in ids:
+        ys, xs = boxes[iid - 1]
+        m = inst[ys, xs] == iid
+        box = np.array([xs.start, ys.start, xs.stop - 1, ys.stop - 1], dtype=np.float64)
+        dets.append(Detection(mask=m, box=box, score=1.0, label=f"window:{iid}", origin=(xs.start, ys.start),
+                              instance_id=iid))
     return dets
 
 
@@ -215,7 +260,7 @@ def _list(a: np.ndarray | None):
 def window_to_dict(r: WindowResult) -> dict:
     """One windows.json entry (DESIGN.md: Pipeline output)."""
     return {
-        "index": r.index, "score": r.score,
+        "index": r.index, "instance_id": r.instance_id, "score": r.score,
         "quad_mask": _list(r.quad_mask), "quad_snapped": _list(r.quad_snapped),
         "aspect_ratio": r.aspect_ratio, "aspect_case": r.aspect_case,
         "focal_estimate_px": r.focal_estimate_px,

@@ -11,12 +11,19 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Detection:
-    """One detected window void. mask: (H, W) bool; box: (4,) x0, y0, x1, y1 px; score in [0, 1]."""
+    """One detected window void. mask: (H, W) bool; box: (4,) x0, y0, x1, y1 px; score in [0, 1].
+
+    Sparse form (large photos, many windows): ``mask`` is an (h, w) crop whose pixel [0, 0] is
+    image pixel ``origin`` (x0, y0); the default origin (0, 0) with the image's shape is the full
+    mask. instance_id: the input instance map's id (``--masks``), None for a detector's output.
+    """
 
     mask: np.ndarray
     box: np.ndarray
     score: float
     label: str = "window"
+    origin: tuple[int, int] = (0, 0)
+    instance_id: int | None = None
 
 
 @dataclass(frozen=True)
@@ -42,3 +49,4 @@ class WindowResult:
     quad_reprojected: np.ndarray | None
     failure: str | None
     timings_ms: dict[str, float] = field(default_factory=dict)
+    instance_id: int | None = None  # the detection's id in the input instance map, if any

@@ -14,6 +14,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +47,8 @@ class DatasetConfig:
     def __post_init__(self) -> None:
         if self.n_views < 1:
             raise ValueError(f"n_views must be >= 1, got {self.n_views}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
         if self.renderer not in RENDERERS:
             raise ValueError(f"unknown renderer {self.renderer!r}; choose one of {sorted(RENDERERS)}")
 
@@ -65,14 +68,63 @@ def dataset_dir(config: DatasetConfig, scene: Scene) -> Path:
     return Path(config.out_root) / f"{safe}-{config.renderer}-{config_hash(config, scene)}"
 
 
+def write_file_atomic(path: Path, write) -> None:
+    """Call ``write(tmp_path) -> bool`` on a temporary name beside ``path``, then rename it over
+    ``path``; an OSError naming the file when the writer reports failure or raises."""
+    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
+    try:
+        ok = write(tmp)
+        if ok is False or not tmp.is_file():
+            raise OSError(f"cannot write {path} (disk full or not writable?)")
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _write_text(path: Path, text: str) -> None:
+    write_file_atomic(path, lambda p: p.write_text(text) == len(text))
+
+
+def _imwrite(img: np.ndarray):
+    return lambda p: bool(cv2.imwrite(str(p), img))
+
+
 def write_view(view_dir: Path, out: RenderOutput, meta: dict) -> None:
-    """Write image.png, instances.png (16-bit) and view.json of one view (atomically: json last)."""
+    """Write image.png, instances.png (16-bit) and view.json of one view.
+
+    Every file goes to a temporary name first and is renamed into place; view.json, the view's
+    completion marker, comes last and records the image size and each PNG's byte size (checked
+    on reuse by :func:`check_view`). Any failed write raises OSError naming the file.
+    """
     view_dir.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(view_dir / "image.png"), out.rgb[..., ::-1])
-    cv2.imwrite(str(view_dir / "instances.png"), out.instances.astype(np.uint16))
-    tmp = view_dir / "view.json.tmp"
-    tmp.write_text(json.dumps(meta, indent=1))
-    tmp.replace(view_dir / "view.json")
+    (view_dir / "view.json").unlink(missing_ok=True)  # not complete until rewritten last
+    files = {"image.png": out.rgb[..., ::-1], "instances.png": out.instances.astype(np.uint16)}
+    for name, img in files.items():
+        write_file_atomic(view_dir / name, _imwrite(img))
+    meta = {**meta, "files": {name: (view_dir / name).stat().st_size for name in files}}
+    _write_text(view_dir / "view.json", json.dumps(meta, indent=1))
+
+
+def check_view(view_dir: Path) -> str | None:
+    """Why a cached view folder cannot be reused (None if it can): view.json missing or unreadable,
+    a PNG missing, of another byte size than recorded, or not decodable at the recorded size."""
+    try:
+        meta = json.loads((view_dir / "view.json").read_text())
+    except FileNotFoundError:
+        return "no view.json"
+    except (OSError, ValueError) as e:
+        return f"unreadable view.json ({e})"
+    sizes = meta.get("files", {})
+    for name, flag in (("image.png", cv2.IMREAD_COLOR), ("instances.png", cv2.IMREAD_UNCHANGED)):
+        p = view_dir / name
+        if not p.is_file():
+            return f"{name} missing"
+        if name in sizes and p.stat().st_size != sizes[name]:
+            return f"{name} is {p.stat().st_size} bytes, view.json recorded {sizes[name]}"
+        img = cv2.imread(str(p), flag)
+        if img is None or img.shape[:2] != (meta.get("height"), meta.get("width")):
+            return f"{name} does not decode to {meta.get('width')}x{meta.get('height')} px"
+    return None
 
 
 def load_view(view_dir: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -80,11 +132,13 @@ def load_view(view_dir: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:
     view_dir = Path(view_dir)
     if not (view_dir / "view.json").is_file():
         raise FileNotFoundError(f"{view_dir}: no view.json (not a rendered view folder)")
-    img = cv2.imread(str(view_dir / "image.png"), cv2.IMREAD_COLOR)[..., ::-1].copy()
+    img = cv2.imread(str(view_dir / "image.png"), cv2.IMREAD_COLOR)
+    if img is None:
+        raise ValueError(f"{view_dir / 'image.png'}: missing or not decodable (delete the view to re-render it)")
     inst = cv2.imread(str(view_dir / "instances.png"), cv2.IMREAD_UNCHANGED)
     if inst is None or inst.dtype != np.uint16:
         raise ValueError(f"{view_dir / 'instances.png'}: expected a 16-bit PNG")
-    return img, inst, json.loads((view_dir / "view.json").read_text())
+    return img[..., ::-1].copy(), inst, json.loads((view_dir / "view.json").read_text())
 
 
 def coco_from_views(root: Path, n_views: int) -> dict:
@@ -109,13 +163,6 @@ def coco_from_views(root: Path, n_views: int) -> dict:
     return {"images": images, "annotations": anns, "categories": [{"id": 1, "name": "window"}]}
 
 
-def _write_shared(path: Path, text: str) -> None:
-    """Write a dataset-wide file atomically (shards of one dataset write the same content)."""
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-
-
 def _load_scene(config: DatasetConfig) -> Scene:
     from scenes import load_scene
 
@@ -137,9 +184,9 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     indices = range(config.n_views) if only is None else only
     if indices.start < 0 or indices.stop > config.n_views:
         raise ValueError(f"only={indices} is outside the dataset's views 0..{config.n_views - 1}")
-    _write_shared(root / "config.json", json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
-                                                    "scene_sha256": scene.sha256}, indent=1, default=list))
-    missing = [i for i in indices if not (root / "views" / f"{i:06d}" / "view.json").is_file()]
+    _write_text(root / "config.json", json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
+                                                  "scene_sha256": scene.sha256}, indent=1, default=list))
+    missing = [i for i in indices if not _reusable(root / "views" / f"{i:06d}")]
     stats = {"rendered": 0, "reused": config.n_views - len(missing), "seconds": 0.0}
     if missing:
         settings = dataclasses.replace(config.settings, seed=config.seed)
@@ -152,9 +199,8 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
 
                 vis = lambda cam: ground_truth(occ, cam)[2]  # noqa: E731
             sampling = sample_views(scene, config.sampler, config.n_views, config.seed, visibility=vis)
-            _write_shared(root / "sampling.json", json.dumps(
-                {"rejected": sampling.rejected, "tries": sampling.tries, "accepted": len(sampling.views)},
-                indent=1))
+            _write_text(root / "sampling.json", json.dumps({"rejected": sampling.rejected, "tries": sampling.tries,
+                                                            "accepted": len(sampling.views)}, indent=1))
             t0 = time.perf_counter()
             for i in _progress(missing, progress, f"render {scene.name} ({config.renderer})"):
                 spec = sampling.views[i]
@@ -171,9 +217,19 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
         finally:
             renderer.close()
     if only is None:
-        (root / "coco.json").write_text(json.dumps(coco_from_views(root, config.n_views)))
-        (root / "stats.json").write_text(json.dumps(stats))
+        _write_text(root / "coco.json", json.dumps(coco_from_views(root, config.n_views)))
+        _write_text(root / "stats.json", json.dumps(stats))
     return root
+
+
+def _reusable(view_dir: Path) -> bool:
+    """True if the cached view can be reused; a broken one is reported on stderr (re-rendered)."""
+    if not (view_dir / "view.json").is_file():
+        return False
+    reason = check_view(view_dir)
+    if reason is not None:
+        print(f"warning: cached view {view_dir} is damaged ({reason}); re-rendering it", file=sys.stderr)
+    return reason is None
 
 
 def _progress(items, enabled: bool, label: str):

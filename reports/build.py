@@ -4,7 +4,8 @@
     html, md = build_report("out/bench/smoke")    # or: fenestra report out/bench/smoke
 
 Writes ``report.md`` with PNG plots beside it (``figures/``) and a self-contained ``report.html``
-(the same content, images embedded as base64). Inputs: results.parquet (or .csv) and, when present,
+(the same content, images embedded as base64). Inputs: results.parquet (or .csv), checked against
+the run's manifest.json (bench.manifest), and, when present,
 summary.json (metadata and detection AP); summary statistics are recomputed from the table.
 """
 from __future__ import annotations
@@ -19,7 +20,8 @@ import numpy as np
 import pandas as pd
 from scipy.stats import wilcoxon
 
-from bench.results import CORNER_STAGES, STAGE_LABELS, load_results, summarize
+from bench.manifest import load_verified_results
+from bench.results import CORNER_STAGES, STAGE_LABELS, summarize
 from reports import plots
 
 PAIR_KEY = ("house", "view", "window_id")
@@ -290,7 +292,7 @@ def build_report(run_dir: str | Path) -> tuple[Path, Path]:
     import json  # noqa: PLC0415
 
     run_dir = Path(run_dir)
-    df = load_results(run_dir)
+    df = load_verified_results(run_dir)  # refuses a table that does not match the run's manifest
     if df.empty:
         raise ValueError(f"{run_dir}: the results table is empty")
     summary_path = run_dir / "summary.json"

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from bench import gates, results
+from bench import gates, manifest, results
 from bench.profiles import ProfileError, available_profiles, load_profile, profile_from_dict
 from bench.synthetic import synthetic_results
 
@@ -22,6 +22,7 @@ def run_dir(tmp_path_factory):
     d = tmp_path_factory.mktemp("run")
     df = synthetic_results(n_windows=120, seed=1)
     results.write_results(df, d)
+    manifest.seal(d, df, "synthetic")
     results.write_summary(d, {"profile": "synthetic"}, results.summarize(df))
     return d
 

@@ -169,3 +169,22 @@ def test_default_detector_finds_windows_in_fresh_renders(tmp_path):
     r = evaluate("default", ds)
     assert r["n_gt"] >= 6
     assert r["segm"]["AP50"] >= 50.0, r["segm"]
+
+
+def test_large_photo_masks_come_back_at_full_resolution():
+    """A detection on the 4x downscaled copy maps to a crop of the full-size image covering the
+    same rectangle (within the half network pixel the resize can move an edge by)."""
+    from pipeline.detectors import full_resolution, input_scale
+    from pipeline.types import Detection
+
+    assert input_scale((4000, 6000)) == pytest.approx(1024 / 6000) and input_scale((480, 640)) == 1.0
+    small = np.zeros((100, 150), bool)
+    small[20:40, 30:80] = True  # full size: rows 80..159, columns 120..319
+    d = full_resolution(Detection(small, np.array([29.5, 19.5, 79.5, 39.5]), 0.9), 0.25, (400, 600))
+    full = np.zeros((400, 600), bool)
+    h, w = d.mask.shape
+    full[d.origin[1]:d.origin[1] + h, d.origin[0]:d.origin[0] + w] = d.mask
+    want = np.zeros((400, 600), bool)
+    want[80:160, 120:320] = True
+    assert _iou(full, want) > 0.97 and h * w < 0.1 * full.size
+    np.testing.assert_allclose(d.box, [119.5, 79.5, 319.5, 159.5])  # pixel edges map by 1 / scale

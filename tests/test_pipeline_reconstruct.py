@@ -69,9 +69,14 @@ def test_two_blobs_one_id_is_a_failure_not_a_crash():
 def test_empty_mask_and_wrong_shape_mask():
     from pipeline.types import Detection
     bgr, _, _ = scene()
-    dets = [Detection(np.zeros(SHAPE, bool), np.zeros(4), 0.9), Detection(np.zeros((10, 10), bool), np.zeros(4), 0.9)]
+    # a (10, 10) mask is a sparse crop (at origin (0, 0) by default): outside the image only when
+    # it does not fit there
+    dets = [Detection(np.zeros(SHAPE, bool), np.zeros(4), 0.9),
+            Detection(np.zeros((10, 10), bool), np.zeros(4), 0.9, origin=(SHAPE[1] - 5, 0)),
+            Detection(np.zeros((SHAPE[0] + 1, SHAPE[1]), bool), np.zeros(4), 0.9)]
     res = reconstruct(bgr, K, dets)
-    assert res[0].failure.startswith("quad: empty_mask") and "mask shape" in res[1].failure
+    assert res[0].failure.startswith("quad: empty_mask")
+    assert "mask shape" in res[1].failure and "mask shape" in res[2].failure
     with pytest.raises(ValueError, match="unknown snapper"):
         ReconstructConfig(snapper="magic")
     with pytest.raises(ValueError, match="K must be 3x3"):
@@ -129,3 +134,26 @@ def test_pipeline_does_not_import_harness_packages():
                 names = [node.module]
             for n in names:
                 assert n.split(".")[0] not in forbidden, f"{path} imports {n}"
+
+
+def test_sparse_detections_fit_exactly_like_full_masks():
+    """detections_from_instance_map's crops give the quad, lines and failure of mask_to_quad on
+    the full (H, W) mask of each id: windows inside, touching the border, split in two blobs."""
+    from pipeline.quad import mask_to_quad
+    from pipeline.reconstruct import fit_quads
+
+    _, inst, _ = scene()
+    inst[0:30, 600:640] = 5  # touches the top and right edges
+    inst[400:420, 20:40] = 6
+    inst[400:420, 60:80] = 6  # two blobs, one id
+    inst[100:160, 0:25] = 9  # touches the left edge only
+    dets = detections_from_instance_map(inst)
+    assert [d.instance_id for d in dets] == [1, 2, 5, 6, 9]
+    assert all(d.mask.shape != SHAPE for d in dets)
+    for d, f in zip(dets, fit_quads(dets, image_shape=SHAPE)):
+        full = mask_to_quad(inst == d.instance_id)
+        assert f.result.failure == full.failure
+        if full.quad is not None:
+            np.testing.assert_allclose(f.result.quad, full.quad, atol=1e-9)
+            np.testing.assert_allclose(f.result.lines, full.lines, atol=1e-9)
+    assert dets[2].box.tolist() == [600, 0, 639, 29]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.stats import wilcoxon
 
-from bench import results
+from bench import manifest, results
 from bench.synthetic import synthetic_results
 from reports.build import build_report, paired_comparison
 
@@ -19,6 +19,7 @@ def built(tmp_path_factory):
     d = tmp_path_factory.mktemp("run")
     df = synthetic_results(n_windows=80, seed=3)
     results.write_results(df, d)
+    manifest.seal(d, df, "synthetic")
     results.write_summary(d, {"profile": "synthetic", "seed": 3}, results.summarize(df),
                           {"oracle": {"bbox_AP": 0.9, "segm_AP": 0.8, "n_gt": 80}})
     html, md = build_report(d)

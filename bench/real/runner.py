@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench import manifest
 from bench import results as res
 from bench.evaluate import ViewOutcome
 from bench.real.adapters import ADAPTERS
@@ -54,6 +55,7 @@ class LabelledOutcome:
     key: str
     size: tuple[int, int]
     outcome: ViewOutcome
+    window_ids: tuple[str, ...] = ()  # the labelled windows (the run manifest's expected rows)
 
 
 def coco_ap_of(done: list[LabelledOutcome], det: str) -> dict:
@@ -112,19 +114,23 @@ def evaluate_datasets(profile: RealProfile, datasets: list, methods, progress: b
     for ds in datasets:
         for view in ADAPTERS[ds.format](ds.folder(), **{"dataset": ds.name, **dict(ds.options)}):
             outcomes.append(LabelledOutcome(ds.name, f"{ds.name}/{view.name}", view.image.shape[:2],
-                                            evaluate_real_view(view, methods, spec)))
+                                            evaluate_real_view(view, methods, spec),
+                                            tuple(str(w.id) for w in view.windows)))
             if progress:
                 print(f"  {ds.name}/{view.name}: {len(view.windows)} windows", flush=True)
     return outcomes
 
 
 def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: str | Path | None = None,
-             progress: bool = True, report: bool = True) -> RunInfo:
-    """Run a real profile; see the module docstring. Returns the synthetic runner's RunInfo."""
+             progress: bool = True, report: bool = True, force: bool = False) -> RunInfo:
+    """Run a real profile; see the module docstring. Returns the synthetic runner's RunInfo.
+
+    force: replace a run folder holding another profile's run or foreign files
+    (bench.manifest.claim_run_dir); the run's manifest lists every labelled window x method."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     t_start = time.perf_counter()
-    run_dir = Path(out_dir) if out_dir else default_real_run_dir(profile)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    run_dir = manifest.claim_run_dir(Path(out_dir) if out_dir else default_real_run_dir(profile),
+                                     profile.name, profile.config_hash(), force)
     methods, skipped = plan_methods(profile)
     datasets, skipped_ds = available_datasets(profile)
     done = evaluate_datasets(profile, datasets, methods, progress)
@@ -135,6 +141,8 @@ def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: s
     df = pd.DataFrame(rows)
     df.insert(0, "profile", profile.name)
     res.write_results(df, run_dir)
+    expected = [(d.dataset, d.key[len(d.dataset) + 1:], w, m.name) for d in done for w in d.window_ids for m in methods]
+    manifest.write_manifest(run_dir, expected, profile.name, profile.config_hash())
     stage_s = {f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()}
     det = detection_ap(done)
     meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed,
@@ -160,7 +168,8 @@ def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: s
 
 
 def run_real_profile(profile: str | Path, out_dir: Path | None = None, data: Path | None = None,
-                     fmt: str = "coco", sim_dir: Path | None = None, report: bool = True) -> RunInfo:
+                     fmt: str = "coco", sim_dir: Path | None = None, report: bool = True,
+                     force: bool = False) -> RunInfo:
     """``fenestra bench --profile real [--data DIR --format F] [--sim RUN_DIR]``: load the profile,
     swap in the user's dataset if given, run. FileNotFoundError naming a missing --sim folder."""
     from bench.real.profile import load_real_profile, with_user_data  # noqa: PLC0415
@@ -170,4 +179,4 @@ def run_real_profile(profile: str | Path, out_dir: Path | None = None, data: Pat
         p = with_user_data(p, data, fmt)
     if sim_dir is not None and not (Path(sim_dir) / res.SUMMARY_JSON).is_file():
         raise FileNotFoundError(f"--sim {sim_dir}: not a benchmark run folder (no {res.SUMMARY_JSON})")
-    return run_real(p, out_dir, sim_dir, report=report)
+    return run_real(p, out_dir, sim_dir, report=report, force=force)

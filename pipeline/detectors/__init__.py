@@ -8,7 +8,9 @@
 
 ``DETECTORS[name](**options)`` builds a detector: a callable ``(image, **per_image) ->
 list[Detection]`` (every candidate, best first). ``detect`` caches the built detector, applies
-``score_threshold`` and checks the input. Detection.box is (x0, y0, x1, y1) on the pixel-edge
+``score_threshold`` and checks the input; learned detectors see photos larger than
+``LIMITS.detector_max_side_px`` resized, their masks come back sparse at full resolution
+(Detection.origin). Detection.box is (x0, y0, x1, y1) on the pixel-edge
 outline of the mask (pixel centres at integers, so x1 - x0 is the width in px).
 """
 from __future__ import annotations
@@ -17,9 +19,12 @@ import functools
 from pathlib import Path
 from typing import Callable
 
+import cv2
 import numpy as np
 
+from fenestra.conventions import LIMITS
 from fenestra.errors import FenestraError
+from pipeline.detectors.checkpoint import check_device, read_checkpoint
 from pipeline.detectors.oracle import DegradeConfig, check_instances, degraded_detections, oracle_detections
 from pipeline.types import Detection
 
@@ -75,9 +80,7 @@ def load_winnet(weights: str | Path | None = None):
     if not path.is_file():
         raise FenestraError(f"no WinNet weights at {path}: train them with "
                             "`fenestra train --config pipeline/models/default.toml` (see pipeline/models/README.md)")
-    ckpt = torch.load(path, map_location="cpu", weights_only=False)
-    if ckpt.get("arch") != "winnet":
-        raise FenestraError(f"{path} holds a {ckpt.get('arch')!r} model, not 'winnet'")
+    ckpt = read_checkpoint(path, "winnet")
     model = WinNet(WinNetConfig(tuple(ckpt["widths"])))
     model.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
     model.to(memory_format=torch.channels_last)  # NHWC: faster convolutions on CPU (oneDNN)
@@ -88,7 +91,7 @@ def _default(weights: str | Path | None = None, threads: int | None = None, devi
     from pipeline.detectors.winnet import instances_from_maps, predict_maps  # noqa: PLC0415
 
     model, post = load_winnet(weights)
-    model.to(device)
+    model.to(check_device(device))
     set_cpu_threads(threads)
 
     def run(image: np.ndarray, **_: object) -> list[Detection]:
@@ -143,10 +146,50 @@ def detect(name: str, image: np.ndarray, score_threshold: float = 0.5,
     if not 0.0 <= score_threshold <= 1.0:
         raise ValueError(f"score_threshold must be in [0, 1], got {score_threshold}")
     per_image = {} if instances is None else {"instances": instances}
-    if name in ("oracle", "oracle-degraded") and instances is None:
+    if name in ORACLES and instances is None:
         raise ValueError(f"detector {name!r} needs instances= an (H, W) instance map")
-    dets = get_detector(name, **options)(image, **per_image)
+    run = get_detector(name, **options)
+    scale = 1.0 if name in ORACLES else input_scale(image.shape[:2])
+    if scale == 1.0:
+        dets = run(image, **per_image)
+    else:  # bounded memory and time: the network sees a smaller copy, masks come back sparse
+        dets = [full_resolution(d, scale, image.shape[:2]) for d in run(downscale(image, scale), **per_image)]
     return [d for d in dets if d.score >= score_threshold]
+
+
+ORACLES = ("oracle", "oracle-degraded")
+
+
+def input_scale(shape: tuple[int, int], max_side: int = LIMITS.detector_max_side_px) -> float:
+    """Factor (<= 1) that brings an (H, W) image's long side down to ``max_side`` px."""
+    return min(1.0, max_side / max(shape))
+
+
+def downscale(image: np.ndarray, scale: float) -> np.ndarray:
+    """(round(H s), round(W s), 3) copy of an image, INTER_AREA."""
+    H, W = image.shape[:2]
+    return cv2.resize(image, (max(1, round(W * scale)), max(1, round(H * scale))), interpolation=cv2.INTER_AREA)
+
+
+def full_resolution(det: Detection, scale: float, shape: tuple[int, int]) -> Detection:
+    """A detection on an image downscaled by ``scale`` mapped back to the (H, W) original, sparse:
+    the mask's bounding box (+1 px) resized bilinearly (threshold 0.5) into a crop at ``origin``."""
+    H, W = shape
+    small = np.asarray(det.mask, dtype=np.uint8)
+    x, y, w, h = cv2.boundingRect(small)
+    if w == 0 or h == 0:
+        return Detection(np.zeros((0, 0), bool), box_to_full(det.box, scale), det.score, det.label)
+    sx0, sy0 = max(x - 1, 0), max(y - 1, 0)
+    sx1, sy1 = min(x + w + 1, small.shape[1]), min(y + h + 1, small.shape[0])
+    fx0, fy0 = int(round(sx0 / scale)), int(round(sy0 / scale))
+    fx1, fy1 = min(W, int(round(sx1 / scale))), min(H, int(round(sy1 / scale)))
+    crop = cv2.resize(small[sy0:sy1, sx0:sx1] * np.uint8(255), (fx1 - fx0, fy1 - fy0), interpolation=cv2.INTER_LINEAR)
+    return Detection(crop >= 128, box_to_full(det.box, scale), det.score, det.label, origin=(fx0, fy0))
+
+
+def box_to_full(box: np.ndarray, scale: float) -> np.ndarray:
+    """(4,) box px on the downscaled image -> the original's (pixel centres at integers)."""
+    return (np.asarray(box, dtype=np.float64) + 0.5) / scale - 0.5
 
 
 __all__ = ["DETECTORS", "DegradeConfig", "Detection", "detect", "get_detector", "check_image"]

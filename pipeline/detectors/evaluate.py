@@ -132,6 +132,8 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
     "bbox": {AP, AP50, ...}, "segm": {...}, "paper_table2": ...}; metrics in percent.
     options are passed to the detector's factory (e.g. weights=PATH).
     """
+    if max_images is not None and max_images < 1:
+        raise ValueError(f"--max-images must be >= 1, got {max_images}")
     dataset_dir = Path(dataset_dir)
     coco, paths = merged_coco(find_datasets([dataset_dir]))
     images = coco["images"]

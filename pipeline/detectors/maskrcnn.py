@@ -33,12 +33,12 @@ def load_maskrcnn(weights: str | Path | None = None, device: str = "cpu") -> tor
     path = Path(weights) if weights is not None else DEFAULT_MASKRCNN_WEIGHTS
     if not path.is_file():
         raise FenestraError(f"no Mask R-CNN weights at {path}: {TRAIN_HINT}")
-    ckpt = torch.load(path, map_location="cpu", weights_only=False)
-    if ckpt.get("arch") != "maskrcnn":
-        raise FenestraError(f"{path} holds a {ckpt.get('arch')!r} model, not 'maskrcnn'")
+    from pipeline.detectors.checkpoint import check_device, read_checkpoint  # noqa: PLC0415
+
+    ckpt = read_checkpoint(path, "maskrcnn")
     model = build_maskrcnn(**ckpt.get("model_kw", {}))
     model.load_state_dict(ckpt["state_dict"])
-    return model.eval().to(device)
+    return model.eval().to(check_device(device))
 
 
 def maskrcnn_targets(instances: np.ndarray) -> dict[str, torch.Tensor]:

@@ -88,12 +88,16 @@ def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarr
     style = get_style(style)
     image = Image.fromarray(np.ascontiguousarray(texture_rgb))
     colours = {"frame": (*style.frame_rgb, 1.0), "glass": (*style.glass_rgb, style.glass_alpha)}
+    # one photo material for every textured part, its hash computed once: the glTF exporter
+    # hashes each part's material, and trimesh's hash serialises the whole texture (minutes for
+    # 1000 windows on a 6000x4000 photo); equal hashes are what it deduplicates on, so the file
+    # is unchanged
+    photo = _once_hashed(trimesh.visual.material.PBRMaterial)(name="photo", baseColorTexture=image,
+                                                               metallicFactor=0.0, roughnessFactor=1.0)
     scene = trimesh.Scene()
     for p in parts:
         if p.uv is not None:
-            material = trimesh.visual.material.PBRMaterial(name="photo", baseColorTexture=image,
-                                                           metallicFactor=0.0, roughnessFactor=1.0)
-            visual = trimesh.visual.TextureVisuals(uv=p.uv, material=material)
+            visual = trimesh.visual.TextureVisuals(uv=p.uv, material=photo)
         else:
             rgba = np.asarray(colours[p.material])
             material = trimesh.visual.material.PBRMaterial(
@@ -105,3 +109,13 @@ def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarr
     glb_path = Path(glb_path)
     glb_path.write_bytes(scene.export(file_type="glb"))
     return glb_path
+
+
+def _once_hashed(material_cls: type) -> type:
+    """A subclass of a trimesh material class whose instances compute their hash once."""
+    class OnceHashed(material_cls):
+        def __hash__(self) -> int:
+            if "_hash_once" not in self.__dict__:
+                self.__dict__["_hash_once"] = super().__hash__()
+            return self.__dict__["_hash_once"]
+    return OnceHashed

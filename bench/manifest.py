@@ -1,0 +1,184 @@
+"""A run's manifest: the rows its results table must hold, and the table's checksum.
+
+``fenestra bench`` writes ``manifest.json`` beside ``results.parquet``::
+
+    {"format": 1, "profile": "smoke", "profile_hash": "1a2b3c4d", "n_rows": 2880,
+     "keys": ["house", "view", "window_id", "method"],
+     "rows": [["fzk-haus", "000000", "w-17", "oracle/none/lm"], ...],
+     "sha256": {"results.parquet": "...", "results.csv": "..."}}
+
+The expected rows come from the rendered views (every ground-truth window of every ``view.json``)
+times the planned methods, not from the evaluation's output: a view or method the evaluation
+dropped is missing from the table but not from the manifest. :func:`load_verified_results` is
+what ``fenestra gate`` and ``fenestra report`` read: it refuses a table that lacks or adds rows
+(naming them, grouped by method), or whose bytes changed after the run (edited values).
+
+A run folder is also claimed by its profile (:func:`claim_run_dir`): ``run.json`` records the
+profile name and hash; a folder holding another profile's run, or files that are not a run's,
+is refused unless ``force`` (then it is emptied first), so no stale report or figure survives
+beside new results.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from collections import Counter
+from pathlib import Path
+
+import pandas as pd
+
+from bench.results import RESULTS_CSV, RESULTS_PARQUET, load_results
+from fenestra.errors import FenestraError
+
+MANIFEST_JSON = "manifest.json"
+RUN_JSON = "run.json"
+KEY_COLUMNS = ("house", "view", "window_id", "method")
+FORMAT = 1
+MAX_NAMED = 5  # how many missing/extra rows an error message names
+
+
+class RunIntegrityError(FenestraError):
+    """A run folder whose results table does not match its manifest, or a foreign run folder."""
+
+
+def write_json_atomic(path: Path, doc: dict) -> Path:
+    """Write ``doc`` as JSON to a temporary name beside ``path``, then rename it over ``path``."""
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(doc, indent=1))
+    tmp.replace(path)
+    return path
+
+
+def expected_rows(views: list[tuple[str, Path]], methods: list[str]) -> list[tuple[str, str, str, str]]:
+    """(house, view, window_id, method) of every GT window in each (house, view folder) x method."""
+    rows = []
+    for house, vdir in views:
+        meta = json.loads((Path(vdir) / "view.json").read_text())
+        rows += [(house, Path(vdir).name, str(w["id"]), m) for w in meta["windows"] for m in methods]
+    return rows
+
+
+def table_rows(df: pd.DataFrame) -> list[tuple[str, str, str, str]]:
+    """The KEY_COLUMNS of every row of a results table, as strings."""
+    missing = [c for c in KEY_COLUMNS if c not in df.columns]
+    if missing:
+        raise RunIntegrityError(f"results table lacks key column(s) {missing}")
+    return [tuple(map(str, r)) for r in df[list(KEY_COLUMNS)].itertuples(index=False)]
+
+
+def file_sha256(path: Path) -> str:
+    """sha256 hex digest of a file's bytes (read in 1 MiB blocks)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def write_manifest(run_dir: str | Path, rows: list[tuple], profile: str, profile_hash: str) -> Path:
+    """manifest.json of a run whose results tables are already written (their checksums go in)."""
+    run_dir = Path(run_dir)
+    sums = {name: file_sha256(run_dir / name) for name in (RESULTS_PARQUET, RESULTS_CSV)
+            if (run_dir / name).is_file()}
+    doc = {"format": FORMAT, "profile": profile, "profile_hash": profile_hash, "n_rows": len(rows),
+           "keys": list(KEY_COLUMNS), "rows": [list(r) for r in rows], "sha256": sums}
+    return write_json_atomic(run_dir / MANIFEST_JSON, doc)
+
+
+def seal(run_dir: str | Path, df: pd.DataFrame, profile: str, profile_hash: str = "") -> Path:
+    """Write the manifest of a table built outside run_benchmark (expected rows = the table's)."""
+    return write_manifest(run_dir, table_rows(df), profile, profile_hash)
+
+
+def load_manifest(run_dir: str | Path) -> dict:
+    """manifest.json of a run folder; RunIntegrityError if absent or unreadable."""
+    p = Path(run_dir) / MANIFEST_JSON
+    if not p.is_file():
+        raise RunIntegrityError(f"{run_dir} has no {MANIFEST_JSON}: not a complete benchmark run "
+                                "(re-run `fenestra bench`)")
+    try:
+        doc = json.loads(p.read_text())
+        return doc | {"rows": [tuple(r) for r in doc["rows"]]}
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise RunIntegrityError(f"{p}: unreadable manifest ({e})") from e
+
+
+def describe_rows(rows: Counter, what: str, total: int) -> str:
+    """'lacks 96 of 480 expected rows (method a/b/c: 96, ...; e.g. house/view/window/method, ...)'."""
+    n = sum(rows.values())
+    per_method = Counter(r[3] for r in rows.elements())
+    methods = ", ".join(f"{m}: {k}" for m, k in per_method.most_common(MAX_NAMED))
+    examples = ", ".join("/".join(r) for r in list(rows)[:MAX_NAMED])
+    return f"{what} {n} of {total} expected rows (by method {methods}; e.g. {examples})"
+
+
+def verify_table(run_dir: str | Path, df: pd.DataFrame, manifest: dict) -> None:
+    """RunIntegrityError naming missing/extra rows, or a table whose bytes changed since the run."""
+    expected, got = Counter(manifest["rows"]), Counter(table_rows(df))
+    missing, extra = expected - got, got - expected
+    problems = []
+    if missing:
+        problems.append(describe_rows(missing, "lacks", manifest["n_rows"]))
+    if extra:
+        problems.append(describe_rows(extra, "has unexpected", manifest["n_rows"]))
+    if problems:
+        raise RunIntegrityError(f"{run_dir}: results table " + "; ".join(problems))
+    run_dir = Path(run_dir)
+    for name, digest in manifest.get("sha256", {}).items():
+        p = run_dir / name
+        if p.is_file() and file_sha256(p) != digest:
+            raise RunIntegrityError(f"{p} was modified after the run (sha256 differs from {MANIFEST_JSON}); "
+                                    "re-run `fenestra bench`")
+
+
+def load_verified_results(run_dir: str | Path) -> pd.DataFrame:
+    """The results table of a run folder, checked against its manifest (see the module doc)."""
+    df = load_results(run_dir)
+    manifest = load_manifest(run_dir)
+    verify_table(run_dir, df, manifest)
+    return df
+
+
+def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: bool = False) -> Path:
+    """Make ``run_dir`` this profile's run folder (see the module doc); returns it.
+
+    An empty or missing folder, or one whose run.json names the same profile and hash, is reused
+    (its stale run outputs are removed by the caller's overwrite). Anything else needs ``force``.
+    """
+    run_dir = Path(run_dir)
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunIntegrityError(f"--out {run_dir} is a file, not a folder")
+    entries = sorted(p.name for p in run_dir.iterdir()) if run_dir.is_dir() else []
+    if entries and not force:
+        owner = _read_run_json(run_dir)
+        if owner is None:
+            raise RunIntegrityError(f"{run_dir} is not empty and holds no benchmark run ({', '.join(entries[:MAX_NAMED])}"
+                                    f"{', ...' if len(entries) > MAX_NAMED else ''}); choose another --out or pass --force "
+                                    "to replace its contents")
+        if (owner.get("profile"), owner.get("profile_hash")) != (profile, profile_hash):
+            raise RunIntegrityError(f"{run_dir} holds a run of profile {owner.get('profile')!r} (hash "
+                                    f"{owner.get('profile_hash')}), not {profile!r} (hash {profile_hash}); "
+                                    "choose another --out or pass --force to replace it")
+    if force and entries:
+        shutil.rmtree(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    for stale in (MANIFEST_JSON, "report.html", "report.md", "figures"):  # outputs of an earlier run
+        p = run_dir / stale
+        shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
+    write_json_atomic(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash})
+    return run_dir
+
+
+def _read_run_json(run_dir: Path) -> dict | None:
+    """{"profile", "profile_hash"} of the run in run_dir (run.json, else an older run's summary.json)."""
+    for name, keys in ((RUN_JSON, ("profile", "profile_hash")), ("summary.json", ("profile", "config_hash"))):
+        try:
+            doc = json.loads((run_dir / name).read_text())
+        except (OSError, ValueError):
+            continue
+        doc = doc.get("metadata", doc) if isinstance(doc, dict) else None
+        if isinstance(doc, dict) and keys[0] in doc:
+            return {"profile": doc.get(keys[0]), "profile_hash": doc.get(keys[1])}
+    return None

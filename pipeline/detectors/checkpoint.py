@@ -1,0 +1,44 @@
+"""Loading a detector checkpoint and choosing its device, with one-line errors.
+
+    ckpt = read_checkpoint(path, "winnet")   # FenestraError if missing, not a model, or another arch
+    check_device("cuda")                     # FenestraError if no CUDA GPU is visible
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from fenestra.errors import FenestraError
+
+
+def check_device(device: str) -> str:
+    """``device`` if torch can use it here: "cpu", or "cuda[:n]" with a visible GPU n."""
+    import torch  # noqa: PLC0415
+
+    if device == "cpu":
+        return device
+    if not str(device).startswith("cuda"):
+        raise FenestraError(f"unknown device {device!r}; use cpu or cuda")
+    n = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    index = int(device.split(":")[1]) if ":" in device and device.split(":")[1].isdigit() else 0
+    if index >= n:
+        raise FenestraError(f"--device {device}: {'no CUDA GPU is available' if n == 0 else f'only {n} CUDA GPU(s)'} "
+                            "on this machine; use --device cpu")
+    return device
+
+
+def read_checkpoint(path: Path, arch: str) -> dict:
+    """The checkpoint dict at ``path`` (torch.load on the CPU) holding an ``arch`` model.
+
+    FenestraError naming the file if it is not a torch checkpoint of that architecture.
+    """
+    import torch  # noqa: PLC0415
+
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:  # noqa: BLE001 - pickle, zip and torch errors all mean "not a model"
+        raise FenestraError(f"{path} is not a model checkpoint ({type(e).__name__}: "
+                            f"{' '.join(str(e).split())[:120]})") from e
+    if not isinstance(ckpt, dict) or ckpt.get("arch") != arch:
+        got = ckpt.get("arch") if isinstance(ckpt, dict) else type(ckpt).__name__
+        raise FenestraError(f"{path} holds a {got!r} model, not {arch!r}")
+    return ckpt

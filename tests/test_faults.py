@@ -1,0 +1,433 @@
+"""Fault injection, as a user meets faults: every case runs ``python -m fenestra ...`` in a
+subprocess (README: "What Fenestra guarantees").
+
+Disk full is a real failing write: the child runs under RLIMIT_FSIZE (a file-size limit the
+kernel enforces with EFBIG, SIGXFSZ ignored), so cv2.imwrite and friends fail mid-run exactly as
+on a full disk. A read-only output is a read-only tmpfs when running as root (root ignores file
+modes), else a folder with mode 0o555.
+"""
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "examples" / "curtainwall"
+TINY_PROFILE = """name = "tiny"
+description = "fault-injection test profile"
+seed = 0
+[scenes]
+houses = ["fzk-haus"]
+procedural = 0
+[render]
+renderer = "pyrender"
+views_per_house = 3
+width = 320
+height = 240
+[methods]
+detectors = ["oracle"]
+snappers = ["none", "linefit"]
+pose_solvers = ["lm"]
+"""
+TINY_GATES = """[[gate]]
+profile = "tiny"
+method = "oracle/*/*"
+metric = "detection_rate"
+min = 0.5
+"""
+RENDER_ARGS = ["render", "--views", "3", "--width", "160", "--height", "120"]
+
+
+def env() -> dict:
+    e = {**os.environ, "PYTHONPATH": str(ROOT), "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg"}
+    e.pop("PYTHONHASHSEED", None)
+    return e
+
+
+def fenestra(*args, cwd: Path, limit_bytes: int | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
+    """Run the CLI in ``cwd`` (its out/ holds renders); limit_bytes: the largest file it may write."""
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env(),
+                          capture_output=True, text=True, timeout=timeout,
+                          preexec_fn=limit if limit_bytes is not None else None)
+
+
+def one_line_error(r: subprocess.CompletedProcess, *needles: str) -> str:
+    """Assert the run failed with exit 2 and one 'error:' line (no traceback) holding each needle."""
+    assert r.returncode == 2, (r.returncode, r.stderr[-2000:])
+    assert "Traceback" not in r.stderr, r.stderr[-2000:]
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error: ")]
+    assert len(lines) == 1, r.stderr[-2000:]
+    for n in needles:
+        assert n in lines[0], lines[0]
+    return lines[0]
+
+
+def view_dirs(root: Path) -> list[Path]:
+    return sorted(root.glob("out/renders/*/views/*"))
+
+
+# ---------------------------------------------------------------- 1. gates see dropped samples
+
+@pytest.fixture(scope="module")
+def bench_run(tmp_path_factory):
+    """A complete tiny benchmark run (3 views, oracle x 2 snappers) and its gates file."""
+    d = tmp_path_factory.mktemp("bench")
+    (d / "tiny.toml").write_text(TINY_PROFILE)
+    (d / "gates.toml").write_text(TINY_GATES)
+    r = fenestra("bench", "--profile", "tiny.toml", "--out", "run", "--workers", "1", cwd=d)
+    assert r.returncode == 0, r.stderr[-3000:]
+    ok = fenestra("gate", "run", "--gates", "gates.toml", cwd=d)
+    assert ok.returncode == 0 and "all gates passed" in ok.stdout, ok.stderr
+    return d
+
+
+def tampered(bench_run: Path, name: str, edit) -> Path:
+    """A copy of the run whose results.parquet went through ``edit(df) -> df`` (csv removed)."""
+    dst = bench_run / name
+    shutil.copytree(bench_run / "run", dst)
+    df = edit(pd.read_parquet(dst / "results.parquet"))
+    df.to_parquet(dst / "results.parquet", index=False)
+    (dst / "results.csv").unlink()
+    return dst
+
+
+def test_gate_refuses_a_table_missing_a_method(bench_run):
+    run = tampered(bench_run, "no-linefit", lambda df: df[df.method != "oracle/linefit/lm"])
+    n = len(json.loads((bench_run / "run" / "manifest.json").read_text())["rows"]) // 2
+    line = one_line_error(fenestra("gate", run.name, "--gates", "gates.toml", cwd=bench_run),
+                          f"lacks {n} of {2 * n} expected rows", f"oracle/linefit/lm: {n}")
+    assert "oracle/none/lm" not in line
+    one_line_error(fenestra("report", run.name, cwd=bench_run), f"lacks {n} of {2 * n}")
+
+
+def test_gate_refuses_a_table_missing_single_windows(bench_run):
+    def drop_worst(df):  # the two worst evaluable rows of one method, as a cherry-picker would
+        worst = df[df.method == "oracle/none/lm"].sort_values("corner_err_px_snap").index[-2:]
+        return df.drop(index=worst)
+    run = tampered(bench_run, "no-worst", drop_worst)
+    one_line_error(fenestra("gate", run.name, "--gates", "gates.toml", cwd=bench_run),
+                   "lacks 2 of", "oracle/none/lm: 2")
+
+
+def test_gate_refuses_overwritten_values(bench_run):
+    def hide_errors(df):
+        df = df.copy()
+        df["status"] = "ok"
+        df["corner_err_px_snap"] = df["corner_err_px_snap"].fillna(0.0) * 0.5
+        return df
+    run = tampered(bench_run, "edited", hide_errors)
+    one_line_error(fenestra("gate", run.name, "--gates", "gates.toml", cwd=bench_run),
+                   "results.parquet was modified after the run")
+
+
+def test_gate_refuses_a_run_without_manifest(bench_run):
+    run = tampered(bench_run, "no-manifest", lambda df: df)
+    (run / "manifest.json").unlink()
+    one_line_error(fenestra("gate", run.name, "--gates", "gates.toml", cwd=bench_run), "no manifest.json")
+
+
+def test_manifest_lists_every_gt_window_of_every_view(bench_run):
+    """Expected rows = each view.json's windows x methods, computed here from the renders."""
+    m = json.loads((bench_run / "run" / "manifest.json").read_text())
+    want = sorted([["fzk-haus", v.name, str(w["id"]), meth] for v in view_dirs(bench_run)
+                   for w in json.loads((v / "view.json").read_text())["windows"]
+                   for meth in ("oracle/none/lm", "oracle/linefit/lm")])
+    assert sorted(m["rows"]) == want and m["n_rows"] == len(want) > 0
+
+
+def test_bench_refuses_a_foreign_folder_and_force_leaves_nothing_stale(bench_run):
+    foreign = bench_run / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    one_line_error(fenestra("bench", "--profile", "tiny.toml", "--out", "foreign", cwd=bench_run),
+                   "not empty", "--force")
+    other = bench_run / "other-profile"
+    shutil.copytree(bench_run / "run", other)
+    (bench_run / "tiny2.toml").write_text(TINY_PROFILE.replace("views_per_house = 3", "views_per_house = 2"))
+    one_line_error(fenestra("bench", "--profile", "tiny2.toml", "--out", other.name, "--no-report", cwd=bench_run),
+                   "holds a run of profile 'tiny'", "--force")
+    r = fenestra("bench", "--profile", "tiny2.toml", "--out", other.name, "--no-report", "--force",
+                 "--workers", "1", cwd=bench_run)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert not (other / "report.html").exists() and not (other / "figures").exists()  # the old run's
+    assert json.loads((other / "run.json").read_text())["profile_hash"] != \
+        json.loads((bench_run / "run" / "run.json").read_text())["profile_hash"]
+    assert fenestra("gate", other.name, "--gates", "gates.toml", cwd=bench_run).returncode == 0
+
+
+def test_profile_with_infinite_min_window_px_is_refused(tmp_path):
+    (tmp_path / "p.toml").write_text(TINY_PROFILE + "[evaluation]\nmin_window_px = inf\n")
+    one_line_error(fenestra("bench", "--profile", "p.toml", cwd=tmp_path), "min_window_px = inf")
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------- 2. the render cache
+
+def test_disk_full_mid_render_then_resume(tmp_path):
+    r = fenestra(*RENDER_ARGS, cwd=tmp_path, limit_bytes=5_000)  # a 160x120 render PNG is larger (~26 kB)
+    one_line_error(r, "cannot write", "image.png")
+    assert not list(tmp_path.glob("out/renders/*/views/*/view.json"))  # no view counts as done
+    assert not list(tmp_path.glob("out/renders/**/.*tmp*"))  # no temporary file left
+    r = fenestra(*RENDER_ARGS, cwd=tmp_path)
+    assert r.returncode == 0 and "3 views rendered, 0 reused" in r.stdout, r.stderr[-2000:]
+
+
+def test_poisoned_cache_is_rerendered_with_a_message(tmp_path):
+    assert fenestra(*RENDER_ARGS, cwd=tmp_path).returncode == 0
+    v0, v1, v2 = view_dirs(tmp_path)
+    good = (v0 / "image.png").read_bytes()
+    (v0 / "image.png").write_bytes(good[: len(good) // 2])  # truncated
+    (v1 / "image.png").unlink()  # view.json without its image
+    (v2 / "instances.png").write_bytes(b"not a png")
+    r = fenestra(*RENDER_ARGS, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "3 views rendered, 0 reused" in r.stdout
+    for v in (v0, v1, v2):
+        assert f"cached view {v.relative_to(tmp_path)} is damaged" in r.stderr
+    assert (v0 / "image.png").read_bytes() == good  # renders are deterministic
+    r = fenestra(*RENDER_ARGS, cwd=tmp_path)
+    assert "0 views rendered, 3 reused" in r.stdout and "damaged" not in r.stderr
+
+
+def test_sigterm_mid_render_then_resume(tmp_path):
+    args = [*RENDER_ARGS[:2], "40", *RENDER_ARGS[3:]]
+    p = subprocess.Popen([sys.executable, "-m", "fenestra", *args], cwd=tmp_path, env=env(),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not list(tmp_path.glob("out/renders/*/views/000001/view.json")) and time.time() < deadline:
+        time.sleep(0.02)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 128 + signal.SIGTERM, err[-2000:]
+    done = len(list(tmp_path.glob("out/renders/*/views/*/view.json")))
+    assert 2 <= done < 40
+    assert not list(tmp_path.glob("out/renders/**/.*tmp*"))
+    r = fenestra(*args, cwd=tmp_path)
+    assert r.returncode == 0 and f"{40 - done} views rendered, {done} reused" in r.stdout, r.stderr[-2000:]
+
+
+def test_negative_seed_leaves_no_folder(tmp_path):
+    one_line_error(fenestra(*RENDER_ARGS, "--seed", "-5", cwd=tmp_path), "seed must be >= 0, got -5")
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------- 3. reconstruct's outputs
+
+def reconstruct(out, *extra, cwd: Path, photo=EXAMPLE / "img017.jpg", masks=EXAMPLE / "panes017.png",
+                K=EXAMPLE / "K.json", limit_bytes=None):
+    args = ["reconstruct", photo, "--out", out, "--snapper", "none"]
+    args += ["--K", K] if K is not None else []
+    args += ["--masks", masks] if masks is not None else []
+    return fenestra(*args, *extra, cwd=cwd, limit_bytes=limit_bytes)
+
+
+def test_reconstruct_replaces_its_output_whole(tmp_path):
+    assert reconstruct("o", cwd=tmp_path).returncode == 0
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert (tmp_path / "o").stat().st_mode & 0o777 == 0o777 & ~umask  # a normal folder, not mkdtemp's 0700
+    (tmp_path / "o" / "model.glb.old").write_text("stale")
+    first = (tmp_path / "o" / "windows.json").read_bytes()
+    # a failing export (disk full at 50 kB: texture.png is larger) leaves the complete first set
+    r = reconstruct("o", cwd=tmp_path, limit_bytes=50_000)
+    one_line_error(r)
+    assert (tmp_path / "o" / "windows.json").read_bytes() == first
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary folder left
+    assert reconstruct("o", cwd=tmp_path).returncode == 0
+    assert not (tmp_path / "o" / "model.glb.old").exists()  # nothing stale beside the new set
+
+
+def test_reconstruct_refuses_bad_out(tmp_path):
+    (tmp_path / "file").write_text("x")
+    one_line_error(reconstruct("file", cwd=tmp_path), "existing file")
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "thesis.tex").write_text("x")
+    one_line_error(reconstruct("mine", cwd=tmp_path), "not empty", "--force")
+    assert reconstruct("mine", "--force", cwd=tmp_path).returncode == 0
+    assert not (tmp_path / "mine" / "thesis.tex").exists() and (tmp_path / "mine" / "windows.json").is_file()
+    one_line_error(reconstruct("x" * 300, cwd=tmp_path), "File name too long")
+
+
+@pytest.fixture
+def read_only_dir(tmp_path):
+    d = tmp_path / "ro"
+    d.mkdir()
+    if os.geteuid() != 0:
+        d.chmod(0o555)
+        yield d
+        d.chmod(0o755)
+        return
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(d)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip(f"running as root without permission to mount a read-only tmpfs: {r.stderr!r}")
+    try:
+        yield d
+    finally:
+        subprocess.run(["umount", str(d)], check=True)
+
+
+def test_read_only_output_folders(read_only_dir, tmp_path):
+    one_line_error(reconstruct(read_only_dir / "out", cwd=tmp_path), "ro/")
+    (tmp_path / "tiny.toml").write_text(TINY_PROFILE)
+    one_line_error(fenestra("bench", "--profile", "tiny.toml", "--out", read_only_dir / "run", cwd=tmp_path), "ro/run")
+
+
+# ---------------------------------------------------------------- 4. bounded memory and time
+
+# A launcher between pytest and the CLI: Linux keeps a process's pre-exec memory high-water mark,
+# so a CLI forked straight from this (large) pytest process would report pytest's RSS as its own.
+MEASURE = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); "
+           "print(f'MAXRSS_KB {resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss}', file=sys.stderr); "
+           "sys.exit(r.returncode)")
+
+
+def run_measured(args: list, cwd: Path) -> tuple[int, str, float]:
+    """(exit code, stderr, peak RSS in GB) of one CLI run."""
+    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
+                       cwd=cwd, env=env(), capture_output=True, text=True, timeout=300)
+    kb = int(r.stderr.rsplit("MAXRSS_KB ", 1)[1])
+    return r.returncode, r.stderr, kb / 2**20
+
+
+def test_65535_instance_ids_are_a_clear_error_in_bounded_memory(tmp_path):
+    ids = np.arange(1, 256 * 256, dtype=np.uint16).tolist() + [0]
+    cv2.imwrite(str(tmp_path / "m.png"), np.array(ids, np.uint16).reshape(256, 256))
+    cv2.imwrite(str(tmp_path / "p.png"), np.full((256, 256, 3), 128, np.uint8))
+    rc, err, gb = run_measured(["reconstruct", "p.png", "--fx", "300", "--masks", "m.png", "--out", "o"], tmp_path)
+    assert rc == 2 and "instance map has 65535 window ids, more than the 1000 per photo" in err, err[-2000:]
+    assert gb < 1.0 and not (tmp_path / "o").exists()
+
+
+def test_many_windows_sparse_masks_large_photo():
+    """1000 windows (the stated maximum) in a 4000x3000 instance map: one Detection per id with
+    its bounding-box crop (not a full-size mask each: 12 GB), quads where the rectangles are.
+    In process: the CLI run of this case (export included) is measured by tools/bench_memory.py."""
+    from pipeline.reconstruct import detections_from_instance_map, fit_quads
+
+    inst = np.zeros((3000, 4000), np.uint16)
+    rects = {}
+    for k in range(1000):
+        r, c = divmod(k, 40)
+        x0, y0 = 20 + c * 98, 20 + r * 118
+        inst[y0:y0 + 60, x0:x0 + 40] = 7 + 3 * k
+        rects[7 + 3 * k] = (x0, y0, x0 + 39, y0 + 59)
+    dets = detections_from_instance_map(inst)
+    assert [d.instance_id for d in dets] == sorted(rects)
+    assert sum(d.mask.nbytes for d in dets) == 1000 * 60 * 40  # crops exactly the windows' boxes
+    fits = fit_quads(dets, image_shape=inst.shape)
+    for d, f in list(zip(dets, fits))[::37]:
+        x0, y0, x1, y1 = rects[d.instance_id]
+        # the void's outline runs half a pixel outside the outer pixel centres
+        want = np.array([[x0 - .5, y0 - .5], [x1 + .5, y0 - .5], [x1 + .5, y1 + .5], [x0 - .5, y1 + .5]])
+        np.testing.assert_allclose(f.result.quad, want, atol=0.05)
+    with pytest.raises(Exception, match="1000 window ids, more than the 999 per photo"):
+        detections_from_instance_map(inst, max_windows=999)
+
+
+def test_large_photo_with_the_learned_detector(tmp_path):
+    """A 3000x2000 photo: the network sees it at 1024 px, the quad comes back at full resolution
+    (tools/bench_memory.py measures the 6000x4000 case)."""
+    img = np.full((2000, 3000, 3), 180, np.uint8)
+    img[500:800, 750:950] = 30  # a dark 200 x 300 px window void
+    cv2.imwrite(str(tmp_path / "big.jpg"), img)
+    rc, err, gb = run_measured(["reconstruct", "big.jpg", "--fx", "2500", "--out", "o", "--snapper", "none"],
+                               tmp_path)
+    assert rc == 0, err[-2000:]
+    assert gb < 2.0, gb
+    doc = json.loads((tmp_path / "o" / "windows.json").read_text())
+    assert doc["image_size"] == [3000, 2000] and len(doc["windows"]) == 1
+    want = [[749.5, 499.5], [949.5, 499.5], [949.5, 799.5], [749.5, 799.5]]
+    # one network pixel is 2.9 photo pixels: the corners within a few of them
+    np.testing.assert_allclose(doc["windows"][0]["quad_mask"], want, atol=12.0)
+
+
+# ---------------------------------------------------------------- 5. intrinsics that don't fit the photo
+
+def write_K(path: Path, fx=1000.0, cx=383.5, cy=511.5, **extra) -> Path:
+    path.write_text(json.dumps({"K": [[fx, 0, cx], [0, fx, cy], [0, 0, 1]], **extra}))
+    return path
+
+
+def test_K_for_another_image_size(tmp_path):
+    one_line_error(reconstruct("o", cwd=tmp_path, K=write_K(tmp_path / "a.json", width=1000, height=1000)),
+                   "K is for a 1000x1000 image but the photo is 768x1024")
+    # half the resolution, same aspect: rescaled (pixel centres at integers) with a warning
+    r = reconstruct("o", cwd=tmp_path, K=write_K(tmp_path / "h.json", fx=500, cx=191.5, cy=255.5,
+                                                 width=384, height=512))
+    assert r.returncode == 0, r.stderr[-2000:]
+    doc = json.loads((tmp_path / "o" / "windows.json").read_text())
+    np.testing.assert_allclose(doc["K"], [[1000, 0, 383.5], [0, 1000, 511.5], [0, 0, 1]])
+    assert any("rescaled by 2" in w for w in doc["warnings"]) and "rescaled by 2" in r.stderr
+
+
+def test_exif_rotated_photo_with_sensor_K_is_an_error(tmp_path):
+    from PIL import Image
+
+    raw = np.full((300, 400, 3), 150, np.uint8)
+    exif = Image.Exif()
+    exif[0x0112] = 6  # rotate 90 deg clockwise on display: cv2 reads it 300 wide, 400 high
+    Image.fromarray(raw).save(tmp_path / "p.jpg", exif=exif)
+    assert cv2.imread(str(tmp_path / "p.jpg")).shape[:2] == (400, 300)
+    K = write_K(tmp_path / "K.json", fx=400, cx=199.5, cy=149.5, width=400, height=300)
+    one_line_error(reconstruct("o", cwd=tmp_path, photo=tmp_path / "p.jpg", masks=None, K=K),
+                   "EXIF orientation 6", "give K for the upright 300x400 photo")
+
+
+def test_principal_point_outside_and_absurd_fov_are_warned(tmp_path):
+    K = write_K(tmp_path / "K.json", fx=1e6, cx=5000.0, cy=511.5)
+    r = reconstruct("o", cwd=tmp_path, K=K)
+    assert r.returncode == 0, r.stderr[-2000:]
+    warnings = json.loads((tmp_path / "o" / "windows.json").read_text())["warnings"]
+    assert any("principal point (5000.0, 511.5)" in w for w in warnings)
+    # 2 atan(768 / 2e6) = 0.044 deg
+    assert any("horizontal field of view 0.044 deg" in w for w in warnings), warnings
+    assert all(f"warning: {w}" in r.stderr for w in warnings)
+
+
+# ---------------------------------------------------------------- 6. OS errors and odd input
+
+def test_truncated_jpeg_is_a_warning(tmp_path):
+    data = (EXAMPLE / "img017.jpg").read_bytes()
+    (tmp_path / "cut.jpg").write_bytes(data[: len(data) // 2])
+    r = reconstruct("o", cwd=tmp_path, photo=tmp_path / "cut.jpg")
+    assert r.returncode == 0, r.stderr[-2000:]
+    warnings = json.loads((tmp_path / "o" / "windows.json").read_text())["warnings"]
+    assert any("is damaged" in w and "truncated" in w for w in warnings), warnings
+
+
+def test_windows_json_carries_instance_ids(tmp_path):
+    inst = cv2.imread(str(EXAMPLE / "panes017.png"), cv2.IMREAD_UNCHANGED)
+    assert reconstruct("o", cwd=tmp_path).returncode == 0
+    wins = json.loads((tmp_path / "o" / "windows.json").read_text())["windows"]
+    assert [w["instance_id"] for w in wins] == sorted(int(i) for i in np.unique(inst) if i)
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ds")
+    assert fenestra(*RENDER_ARGS, cwd=d).returncode == 0
+    return next(d.glob("out/renders/*"))
+
+
+def test_evaluate_detector_bad_options(small_dataset, tmp_path):
+    one_line_error(fenestra("evaluate-detector", "--data", small_dataset, "--max-images", "0", cwd=tmp_path),
+                   "--max-images must be >= 1, got 0")
+    one_line_error(fenestra("evaluate-detector", "--data", small_dataset, "--weights", ROOT / "README.md",
+                            cwd=tmp_path), "README.md is not a model checkpoint")
+    one_line_error(fenestra("evaluate-detector", "--data", small_dataset, "--device", "cuda:99", cwd=tmp_path),
+                   "--device cuda:99")
