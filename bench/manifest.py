@@ -20,7 +20,6 @@ beside new results.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
@@ -31,6 +30,7 @@ import pandas as pd
 
 from bench.results import RESULTS_CSV, RESULTS_PARQUET, load_results
 from fenestra.errors import FenestraError
+from fenestra.files import file_sha256
 
 MANIFEST_JSON = "manifest.json"
 RUN_JSON = "run.json"
@@ -66,15 +66,6 @@ def table_rows(df: pd.DataFrame) -> list[tuple[str, str, str, str]]:
     if missing:
         raise RunIntegrityError(f"results table lacks key column(s) {missing}")
     return [tuple(map(str, r)) for r in df[list(KEY_COLUMNS)].itertuples(index=False)]
-
-
-def file_sha256(path: Path) -> str:
-    """sha256 hex digest of a file's bytes (read in 1 MiB blocks)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def write_manifest(run_dir: str | Path, rows: list[tuple], profile: str, profile_hash: str) -> Path:

@@ -16,7 +16,6 @@ code never serve stale data.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import multiprocessing
 import os
@@ -27,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from fenestra.errors import SceneError
+from fenestra.files import file_sha256
 from scenes.model import ElementMesh, Scene, SkippedWindow, WindowGT
 from scenes.registry import BUNDLED, resolve, scene_name
 
@@ -48,15 +48,6 @@ DEFAULT_COLOUR = (0.75, 0.75, 0.75, 1.0)
 
 
 # --------------------------------------------------------------------------- helpers
-def file_sha256(path: Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def default_cache_dir() -> Path:
     """``$FENESTRA_CACHE`` (if set) else ``~/.cache/fenestra/scenes``."""
     env = os.environ.get("FENESTRA_CACHE")
