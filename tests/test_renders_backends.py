@@ -173,3 +173,38 @@ def test_fzk_haus_views_have_consistent_ground_truth():
                 assert w.visible_px == int((out.instances == w.instance_id).sum())
             t = next(w for w in out.windows if w.id == v.targets[0])
             assert t.visible_px > 0
+
+
+def test_oidn_denoising_brings_low_spp_render_closer_to_high_spp_reference():
+    """4 spp + OIDN vs the same 4 spp samples raw, both against two independent 512-spp renders of
+    the view (their disagreement bounds the reference's own noise); cache names keep apart."""
+    from renders.dataset import DatasetConfig, config_hash
+    from renders.photoreal import PhotorealRenderer, linear_to_srgb, mitsuba_sensor, oidn_denoise
+
+    scene = wall_scene(sill_top=1.2)
+    R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
+    cam = Camera.from_fov(96, 72, 60, R, t)
+    srgb = lambda x: linear_to_srgb(x) * 255  # noqa: E731
+    rmse = lambda a, b: float(np.sqrt(np.mean((a - b) ** 2)))  # noqa: E731
+    with PhotorealRenderer(scene, RenderSettings(seed=1, spp=4, denoise="oidn")) as r:
+        mi = r.mi
+        render = lambda spp, seed: np.array(mi.render(r._scene, sensor=mi.load_dict(mitsuba_sensor(mi, cam, spp)),  # noqa: E731
+                                                      integrator=r._aov, seed=seed))
+        den = r.render_linear(cam)
+        aov = render(4, 1)  # the same samples (mitsuba's LLVM sums differ in the last float bits between runs)
+        refs = [srgb(render(512, s)[..., :3]) for s in (101, 102)]
+    np.testing.assert_allclose(den, oidn_denoise(aov[..., :3], aov[..., 3:6], aov[..., 6:9]), atol=1e-3)
+    np.testing.assert_array_equal(oidn_denoise(aov[..., :3], aov[..., 3:6], aov[..., 6:9]),
+                                  oidn_denoise(aov[..., :3], aov[..., 3:6], aov[..., 6:9]))  # deterministic
+    ref_noise = rmse(*refs) / np.sqrt(2)  # per-reference noise, sRGB levels
+    e_raw, e_den = rmse(srgb(aov[..., :3]), refs[0]), rmse(srgb(den), refs[0])
+    print(ref_noise, e_raw, e_den, srgb(den).mean(), refs[0].mean())
+    assert ref_noise < 0.2 * e_raw, (ref_noise, e_raw)
+    assert e_den < 0.5 * e_raw, (e_den, e_raw)
+    assert abs(srgb(den).mean() - refs[0].mean()) < 2.0  # no brightness shift (linear HDR input)
+    hashes = {(r, d): config_hash(DatasetConfig(scene="w", renderer=r, settings=RenderSettings(denoise=d)), scene)
+              for r in ("pyrender", "mitsuba") for d in ("none", "oidn")}
+    assert hashes["mitsuba", "none"] != hashes["mitsuba", "oidn"]
+    assert hashes["pyrender", "none"] == hashes["pyrender", "oidn"]  # raster ignores it
+    with pytest.raises(ValueError, match="denoise"):
+        RenderSettings(denoise="optix")

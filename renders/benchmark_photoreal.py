@@ -1,0 +1,169 @@
+"""Photoreal (mitsuba) cost and quality: the figures behind the ``photoreal`` profile's settings.
+
+    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal speed [--views 6]
+    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal quality [--reference-spp 256]
+    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal bench [--workers 2]
+
+``speed``: median seconds per view of ``renderer.render(camera)`` (path tracing + denoising +
+ground truth; start-up and one warm-up view per setting excluded) for the settings used before
+issue 17 (``OLD``) and the profile's, the two alternating view by view so that both see the same
+load; prints the load average beside them and the median per-view ratio old/new.
+``quality``: sRGB RMSE (0-255) against a high-spp reference of the same views, for a grid of
+spp x denoiser (the measured trade-off). ``bench``: the photoreal bench with ``OLD`` and with the
+profile's settings on the same views; prints detection AP / rate and median corner error per
+detector x snapper as a Markdown table.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import time
+
+import numpy as np
+
+from renders.base import DENOISERS, RenderSettings
+
+OLD = RenderSettings(spp=16, denoise="none")  # the photoreal profile before issue 17 (RenderSettings defaults then)
+PROFILE = "photoreal"
+
+
+def load_avg() -> list[float]:
+    """1/5/15-minute load averages (the machine is shared: timings scale with them)."""
+    return [round(x, 2) for x in os.getloadavg()]
+
+
+def profile_settings() -> RenderSettings:
+    """The RenderSettings the photoreal profile renders with (seed excluded: set per dataset)."""
+    from bench.profiles import load_profile
+    from bench.render_adapter import dataset_config
+
+    p = load_profile(PROFILE)
+    return dataset_config(p, p.scenes.houses[0], "out/renders").settings
+
+
+def sample(scene_name: str, n: int, width: int, height: int, seed: int = 0):
+    from renders.sampler import SamplerConfig, sample_views
+    from scenes import load_scene
+
+    scene = load_scene(scene_name)
+    return scene, [v.camera for v in sample_views(scene, SamplerConfig(width=width, height=height), n, seed=seed).views]
+
+
+def speed(scene_name: str, n_views: int, width: int, height: int) -> dict:
+    """Old vs profile settings, alternating per view after one warm-up view each."""
+    from renders.photoreal import PhotorealRenderer
+
+    scene, cams = sample(scene_name, n_views + 1, width, height)
+    settings = {"old": OLD, "new": profile_settings()}
+    renderers = {k: PhotorealRenderer(scene, s) for k, s in settings.items()}
+    ts: dict[str, list[float]] = {k: [] for k in settings}
+    load = [load_avg()]
+    try:
+        for i, cam in enumerate(cams):
+            for k, r in renderers.items():
+                t0 = time.perf_counter()
+                r.render(cam)
+                if i > 0:  # view 0 warms up (JIT compilation, denoiser set-up)
+                    ts[k].append(time.perf_counter() - t0)
+        load.append(load_avg())
+    finally:
+        for r in renderers.values():
+            r.close()
+    ratio = np.array(ts["old"]) / np.array(ts["new"])
+    return {"scene": scene_name, "size": [width, height], "views": n_views, "cpu_count": os.cpu_count(),
+            "load_avg_before_after": load,
+            "settings": {k: dataclasses.asdict(s) for k, s in settings.items()},
+            "median_s_per_view": {k: float(np.median(v)) for k, v in ts.items()},
+            "s_per_view": {k: [round(x, 2) for x in v] for k, v in ts.items()},
+            "median_ratio_old_over_new": float(np.median(ratio))}
+
+
+def quality(scene_name: str, n_views: int, width: int, height: int, reference_spp: int,
+            spps: list[int]) -> dict:
+    """sRGB RMSE (0-255) of each spp x denoiser against a reference_spp render (no denoiser)."""
+    from renders.photoreal import PhotorealRenderer, linear_to_srgb
+
+    scene, cams = sample(scene_name, n_views, width, height, seed=1)
+    srgb = lambda r, c, **kw: linear_to_srgb(r.render_linear(c.canvas(), **kw)) * 255  # noqa: E731
+    with PhotorealRenderer(scene, OLD) as r:  # same look, an independent sampler seed
+        refs = [srgb(r, c, spp=reference_spp, seed=12345) for c in cams]
+    rows = []
+    for den in DENOISERS:
+        for spp in spps:
+            with PhotorealRenderer(scene, dataclasses.replace(OLD, spp=spp, denoise=den)) as r:
+                srgb(r, cams[0])  # warm-up
+                errs, ts = [], []
+                for c, ref in zip(cams, refs):
+                    t0 = time.perf_counter()
+                    img = srgb(r, c)
+                    ts.append(time.perf_counter() - t0)
+                    errs.append(float(np.sqrt(np.mean((img - ref) ** 2))))
+            rows.append({"spp": spp, "denoise": den, "rmse_srgb": round(float(np.mean(errs)), 2),
+                         "median_s": round(float(np.median(ts)), 2)})
+    return {"scene": scene_name, "size": [width, height], "views": n_views, "reference_spp": reference_spp,
+            "load_avg": load_avg(), "rows": rows}
+
+
+def bench(workers: int) -> str:
+    """The photoreal bench with OLD and with the profile's settings; a Markdown comparison table."""
+    from bench.profiles import load_profile
+    from bench.runner import run_benchmark
+
+    new = load_profile(PROFILE)
+    opts = dict(new.render.options)
+    old_settings = {k: v for k, v in dataclasses.asdict(OLD).items() if k in ("spp", "denoise")}
+    old = dataclasses.replace(new, render=dataclasses.replace(
+        new.render, options=tuple(sorted({**opts, "settings": {**opts.get("settings", {}), **old_settings}}.items()))))
+    runs = {}
+    for label, prof in (("old", old), ("new", new)):
+        t0 = time.perf_counter()
+        info = run_benchmark(prof, workers=workers, report=False)
+        runs[label] = (json.loads((info.run_dir / "summary.json").read_text()), time.perf_counter() - t0, info.run_dir)
+    s = {k: v[0] for k, v in runs.items()}
+    n_s = {k: dict(dataclasses.asdict(OLD), **(dict(p.render.options).get("settings", {})))
+           for k, p in (("old", old), ("new", new))}
+    lines = [f"old: spp {n_s['old']['spp']}, denoise {n_s['old']['denoise']} ({runs['old'][2]}); "
+             f"new: spp {n_s['new']['spp']}, denoise {n_s['new']['denoise']} ({runs['new'][2]}); "
+             f"views {s['new']['metadata']['n_views']}, load avg {load_avg()}",
+             "", "| detector | segm AP old → new | snapper | detected old → new | median corner error px old → new |",
+             "|---|---|---|---|---|"]
+    for m in sorted(s["new"]["results"]):
+        det, snap, pose = m.split("/") if m.count("/") == 2 else (m, "", "")
+        if pose and pose != "lm":
+            continue
+        ro, rn = s["old"]["results"][m], s["new"]["results"][m]
+        ap = lambda k: 100 * s[k]["detection"][det]["segm_AP"] if det in s[k]["detection"] else None  # noqa: E731
+        fmt = lambda x, f: "n/a" if x is None else format(x, f)  # noqa: E731
+        lines.append(f"| {det} | {fmt(ap('old'), '.1f')} → {fmt(ap('new'), '.1f')} | {snap} | "
+                     f"{ro['detection_rate']:.0%} → {rn['detection_rate']:.0%} | "
+                     f"{fmt(ro['corner_err_px_snap']['median'], '.2f')} → {fmt(rn['corner_err_px_snap']['median'], '.2f')} |")
+    lines.append("")
+    lines.append(f"bench wall s: old {runs['old'][1]:.0f}, new {runs['new'][1]:.0f} "
+                 f"(render stage: old {s['old']['metadata']['stage_time_s']['render']:.0f}, "
+                 f"new {s['new']['metadata']['stage_time_s']['render']:.0f})")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", choices=("speed", "quality", "bench"))
+    ap.add_argument("--scene", default="fzk-haus")
+    ap.add_argument("--views", type=int, default=6)
+    ap.add_argument("--width", type=int, default=640)
+    ap.add_argument("--height", type=int, default=480)
+    ap.add_argument("--reference-spp", type=int, default=256)
+    ap.add_argument("--spp", type=int, nargs="+", default=[2, 4, 8, 16])
+    ap.add_argument("--workers", type=int, default=2)
+    a = ap.parse_args()
+    if a.what == "speed":
+        print(json.dumps(speed(a.scene, a.views, a.width, a.height), indent=1))
+    elif a.what == "quality":
+        print(json.dumps(quality(a.scene, a.views, a.width, a.height, a.reference_spp, a.spp), indent=1))
+    else:
+        print(bench(a.workers))
+
+
+if __name__ == "__main__":
+    main()
