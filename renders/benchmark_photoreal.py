@@ -2,7 +2,7 @@
 
     PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal speed [--views 6]
     PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal quality [--reference-spp 256]
-    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal bench [--workers 2]
+    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal bench [--workers 2] [--reuse]
 
 ``speed``: median seconds per view of ``renderer.render(camera)`` (path tracing + denoising +
 ground truth; start-up and one warm-up view per setting excluded) for the settings used before
@@ -106,10 +106,11 @@ def quality(scene_name: str, n_views: int, width: int, height: int, reference_sp
             "load_avg": load_avg(), "rows": rows}
 
 
-def bench(workers: int) -> str:
-    """The photoreal bench with OLD and with the profile's settings; a Markdown comparison table."""
+def bench(workers: int, reuse: bool = False) -> str:
+    """The photoreal bench with OLD and with the profile's settings; a Markdown comparison table.
+    reuse: read a run's summary.json if its run folder (named by the profile's config hash) has one."""
     from bench.profiles import load_profile
-    from bench.runner import run_benchmark
+    from bench.runner import default_run_dir, run_benchmark
 
     new = load_profile(PROFILE)
     opts = dict(new.render.options)
@@ -118,9 +119,10 @@ def bench(workers: int) -> str:
         new.render, options=tuple(sorted({**opts, "settings": {**opts.get("settings", {}), **old_settings}}.items()))))
     runs = {}
     for label, prof in (("old", old), ("new", new)):
-        t0 = time.perf_counter()
-        info = run_benchmark(prof, workers=workers, report=False)
-        runs[label] = (json.loads((info.run_dir / "summary.json").read_text()), time.perf_counter() - t0, info.run_dir)
+        t0, run_dir = time.perf_counter(), default_run_dir(prof)
+        if not (reuse and (run_dir / "summary.json").is_file()):
+            run_dir = run_benchmark(prof, workers=workers, report=False).run_dir
+        runs[label] = (json.loads((run_dir / "summary.json").read_text()), time.perf_counter() - t0, run_dir)
     s = {k: v[0] for k, v in runs.items()}
     n_s = {k: dict(dataclasses.asdict(OLD), **(dict(p.render.options).get("settings", {})))
            for k, p in (("old", old), ("new", new))}
@@ -140,9 +142,8 @@ def bench(workers: int) -> str:
                      f"{ro['detection_rate']:.0%} → {rn['detection_rate']:.0%} | "
                      f"{fmt(ro['corner_err_px_snap']['median'], '.2f')} → {fmt(rn['corner_err_px_snap']['median'], '.2f')} |")
     lines.append("")
-    lines.append(f"bench wall s: old {runs['old'][1]:.0f}, new {runs['new'][1]:.0f} "
-                 f"(render stage: old {s['old']['metadata']['stage_time_s']['render']:.0f}, "
-                 f"new {s['new']['metadata']['stage_time_s']['render']:.0f})")
+    lines.append(f"render stage s ({s['new']['metadata']['n_views']} views, summary.json): " + ", ".join(
+        f"{k} {s[k]['metadata']['stage_time_s']['render']:.0f}" for k in runs))
     return "\n".join(lines)
 
 
@@ -156,13 +157,14 @@ def main() -> None:
     ap.add_argument("--reference-spp", type=int, default=256)
     ap.add_argument("--spp", type=int, nargs="+", default=[2, 4, 8, 16])
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--reuse", action="store_true", help="bench: reuse finished runs (summary.json) of the same config")
     a = ap.parse_args()
     if a.what == "speed":
         print(json.dumps(speed(a.scene, a.views, a.width, a.height), indent=1))
     elif a.what == "quality":
         print(json.dumps(quality(a.scene, a.views, a.width, a.height, a.reference_spp, a.spp), indent=1))
     else:
-        print(bench(a.workers))
+        print(bench(a.workers, a.reuse))
 
 
 if __name__ == "__main__":
