@@ -82,25 +82,31 @@ def speed(scene_name: str, n_views: int, width: int, height: int) -> dict:
 
 def quality(scene_name: str, n_views: int, width: int, height: int, reference_spp: int,
             spps: list[int]) -> dict:
-    """sRGB RMSE (0-255) of each spp x denoiser against a reference_spp render (no denoiser)."""
+    """sRGB RMSE (0-255) of each spp x denoiser against reference_spp renders (independent sampler
+    seed, not denoised) through the gaussian pixel filter (undenoised renders) and the box one (denoised)."""
     from renders.photoreal import PhotorealRenderer, linear_to_srgb
 
     scene, cams = sample(scene_name, n_views, width, height, seed=1)
     srgb = lambda r, c, **kw: linear_to_srgb(r.render_linear(c.canvas(), **kw)) * 255  # noqa: E731
-    with PhotorealRenderer(scene, OLD) as r:  # same look, an independent sampler seed
-        refs = [srgb(r, c, spp=reference_spp, seed=12345) for c in cams]
+    refs = {}
+    for den, filt in (("none", "gaussian"), ("oidn", "box")):
+        with PhotorealRenderer(scene, dataclasses.replace(OLD, denoise=den)) as r:
+            refs[filt] = [srgb(r, c, spp=reference_spp, seed=12345, denoise=False) for c in cams]
     rows = []
     for den in DENOISERS:
         for spp in spps:
             with PhotorealRenderer(scene, dataclasses.replace(OLD, spp=spp, denoise=den)) as r:
                 srgb(r, cams[0])  # warm-up
-                errs, ts = [], []
-                for c, ref in zip(cams, refs):
+                errs: dict[str, list[float]] = {f: [] for f in refs}
+                ts = []
+                for i, c in enumerate(cams):
                     t0 = time.perf_counter()
                     img = srgb(r, c)
                     ts.append(time.perf_counter() - t0)
-                    errs.append(float(np.sqrt(np.mean((img - ref) ** 2))))
-            rows.append({"spp": spp, "denoise": den, "rmse_srgb": round(float(np.mean(errs)), 2),
+                    for f, ref in refs.items():
+                        errs[f].append(float(np.sqrt(np.mean((img - ref[i]) ** 2))))
+            rows.append({"spp": spp, "denoise": den, "pixel_filter": "gaussian" if den == "none" else "box",
+                         **{f"rmse_vs_{f}_ref": round(float(np.mean(e)), 2) for f, e in errs.items()},
                          "median_s": round(float(np.median(ts)), 2)})
     return {"scene": scene_name, "size": [width, height], "views": n_views, "reference_spp": reference_spp,
             "load_avg": load_avg(), "rows": rows}

@@ -176,32 +176,27 @@ def test_fzk_haus_views_have_consistent_ground_truth():
 
 
 def test_oidn_denoising_brings_low_spp_render_closer_to_high_spp_reference():
-    """4 spp + OIDN vs the same 4 spp samples raw, both against two independent 512-spp renders of
-    the view (their disagreement bounds the reference's own noise); cache names keep apart."""
+    """4 spp + OIDN vs the same 4 spp samples raw, both against the mean of two independent 128-spp
+    renders of the view (their disagreement bounds the reference's own noise); cache names keep apart.
+    Measured (80x60): reference noise 2.1, raw 18.0, denoised 5.8 sRGB levels RMSE."""
     from renders.dataset import DatasetConfig, config_hash
-    from renders.photoreal import PhotorealRenderer, linear_to_srgb, mitsuba_sensor, oidn_denoise
+    from renders.photoreal import PhotorealRenderer, linear_to_srgb
 
     scene = wall_scene(sill_top=1.2)
     R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
-    cam = Camera.from_fov(96, 72, 60, R, t)
+    cam = Camera.from_fov(80, 60, 60, R, t)
     srgb = lambda x: linear_to_srgb(x) * 255  # noqa: E731
     rmse = lambda a, b: float(np.sqrt(np.mean((a - b) ** 2)))  # noqa: E731
     with PhotorealRenderer(scene, RenderSettings(seed=1, spp=4, denoise="oidn")) as r:
-        mi = r.mi
-        render = lambda spp, seed: np.array(mi.render(r._scene, sensor=mi.load_dict(mitsuba_sensor(mi, cam, spp)),  # noqa: E731
-                                                      integrator=r._aov, seed=seed))
-        den = r.render_linear(cam)
-        aov = render(4, 1)  # the same samples (mitsuba's LLVM sums differ in the last float bits between runs)
-        refs = [srgb(render(512, s)[..., :3]) for s in (101, 102)]
-    np.testing.assert_allclose(den, oidn_denoise(aov[..., :3], aov[..., 3:6], aov[..., 6:9]), atol=1e-3)
-    np.testing.assert_array_equal(oidn_denoise(aov[..., :3], aov[..., 3:6], aov[..., 6:9]),
-                                  oidn_denoise(aov[..., :3], aov[..., 3:6], aov[..., 6:9]))  # deterministic
-    ref_noise = rmse(*refs) / np.sqrt(2)  # per-reference noise, sRGB levels
-    e_raw, e_den = rmse(srgb(aov[..., :3]), refs[0]), rmse(srgb(den), refs[0])
-    print(ref_noise, e_raw, e_den, srgb(den).mean(), refs[0].mean())
+        den, den2 = srgb(r.render_linear(cam)), srgb(r.render_linear(cam))
+        raw = srgb(r.render_linear(cam, denoise=False))  # the same samples, not denoised
+        refs = [srgb(r.render_linear(cam, spp=128, seed=s, denoise=False)) for s in (101, 102)]
+    np.testing.assert_allclose(den, den2, atol=0.01)  # mitsuba's LLVM sums vary in the last float bits only
+    ref, ref_noise = (refs[0] + refs[1]) / 2, rmse(*refs) / 2  # noise of the mean, sRGB levels
+    e_raw, e_den = rmse(raw, ref), rmse(den, ref)
     assert ref_noise < 0.2 * e_raw, (ref_noise, e_raw)
-    assert e_den < 0.5 * e_raw, (e_den, e_raw)
-    assert abs(srgb(den).mean() - refs[0].mean()) < 2.0  # no brightness shift (linear HDR input)
+    assert e_den < 0.4 * e_raw, (e_den, e_raw)
+    assert abs(den.mean() - ref.mean()) < 2.0, (den.mean(), ref.mean())  # no brightness shift
     hashes = {(r, d): config_hash(DatasetConfig(scene="w", renderer=r, settings=RenderSettings(denoise=d)), scene)
               for r in ("pyrender", "mitsuba") for d in ("none", "oidn")}
     assert hashes["mitsuba", "none"] != hashes["mitsuba", "oidn"]
