@@ -4,7 +4,7 @@
     PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal quality [--reference-spp 256]
     PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal bench [--workers 2] [--reuse]
 
-``speed``: median seconds per view of ``renderer.render(camera)`` (path tracing + denoising +
+``speed``: median wall and CPU seconds per view of ``renderer.render(camera)`` (path tracing + denoising +
 ground truth; start-up and one warm-up view per setting excluded) for the settings used before
 issue 17 (``OLD``) and the profile's, the two alternating view by view so that both see the same
 load; prints the load average beside them and the median per-view ratio old/new.
@@ -59,14 +59,16 @@ def speed(scene_name: str, n_views: int, width: int, height: int) -> dict:
     settings = {"old": OLD, "new": profile_settings()}
     renderers = {k: PhotorealRenderer(scene, s) for k, s in settings.items()}
     ts: dict[str, list[float]] = {k: [] for k in settings}
+    cpu: dict[str, list[float]] = {k: [] for k in settings}
     load = [load_avg()]
     try:
         for i, cam in enumerate(cams):
             for k, r in renderers.items():
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 r.render(cam)
                 if i > 0:  # view 0 warms up (JIT compilation, denoiser set-up)
                     ts[k].append(time.perf_counter() - t0)
+                    cpu[k].append(time.process_time() - c0)
         load.append(load_avg())
     finally:
         for r in renderers.values():
@@ -76,6 +78,9 @@ def speed(scene_name: str, n_views: int, width: int, height: int) -> dict:
             "load_avg_before_after": load,
             "settings": {k: dataclasses.asdict(s) for k, s in settings.items()},
             "median_s_per_view": {k: float(np.median(v)) for k, v in ts.items()},
+            # CPU seconds of all the process's threads: less sensitive to other processes' load;
+            # / cpu_count = the wall time if the renderer had the cores to itself and used them fully
+            "median_cpu_s_per_view": {k: float(np.median(v)) for k, v in cpu.items()},
             "s_per_view": {k: [round(x, 2) for x in v] for k, v in ts.items()},
             "median_ratio_old_over_new": float(np.median(ratio))}
 
@@ -112,6 +117,25 @@ def quality(scene_name: str, n_views: int, width: int, height: int, reference_sp
             "load_avg": load_avg(), "rows": rows}
 
 
+def paired_snap_errors(old_dir, new_dir) -> dict[str, tuple[float, float, int]]:
+    """{method: (fraction of windows with a lower snapped corner error in new, Wilcoxon p, n)} over
+    the windows evaluable and detected in both runs (same views: same cameras and ground truth)."""
+    import pandas as pd
+    from scipy.stats import wilcoxon
+
+    key = ["method", "house", "view", "window_id"]
+    cols = key + ["corner_err_px_snap"]
+    df = [pd.read_parquet(d / "results.parquet") for d in (old_dir, new_dir)]
+    df = [d.loc[d["evaluable"].astype(bool), cols].dropna() for d in df]
+    both = df[0].merge(df[1], on=key, suffixes=("_old", "_new"))
+    out = {}
+    for m, g in both.groupby("method"):
+        a, b = g["corner_err_px_snap_old"].to_numpy(), g["corner_err_px_snap_new"].to_numpy()
+        p = float(wilcoxon(a, b).pvalue) if np.any(a != b) else 1.0
+        out[m] = (float(np.mean(b < a)), p, len(g))
+    return out
+
+
 def bench(workers: int, reuse: bool = False) -> str:
     """The photoreal bench with OLD and with the profile's settings; a Markdown comparison table.
     reuse: read a run's summary.json if its run folder (named by the profile's config hash) has one."""
@@ -135,8 +159,9 @@ def bench(workers: int, reuse: bool = False) -> str:
     lines = [f"old: spp {n_s['old']['spp']}, denoise {n_s['old']['denoise']} ({runs['old'][2]}); "
              f"new: spp {n_s['new']['spp']}, denoise {n_s['new']['denoise']} ({runs['new'][2]}); "
              f"views {s['new']['metadata']['n_views']}, load avg {load_avg()}",
-             "", "| detector | segm AP old → new | snapper | detected old → new | median corner error px old → new |",
-             "|---|---|---|---|---|"]
+             "", "| detector | segm AP old → new | snapper | detected old → new | median corner error px old → new "
+             "| paired: new lower on | Wilcoxon p |", "|---|---|---|---|---|---|---|"]
+    pairs = paired_snap_errors(runs["old"][2], runs["new"][2])
     for m in sorted(s["new"]["results"]):
         det, snap, pose = m.split("/") if m.count("/") == 2 else (m, "", "")
         if pose and pose != "lm":
@@ -146,7 +171,8 @@ def bench(workers: int, reuse: bool = False) -> str:
         fmt = lambda x, f: "n/a" if x is None else format(x, f)  # noqa: E731
         lines.append(f"| {det} | {fmt(ap('old'), '.1f')} → {fmt(ap('new'), '.1f')} | {snap} | "
                      f"{ro['detection_rate']:.0%} → {rn['detection_rate']:.0%} | "
-                     f"{fmt(ro['corner_err_px_snap']['median'], '.2f')} → {fmt(rn['corner_err_px_snap']['median'], '.2f')} |")
+                     f"{fmt(ro['corner_err_px_snap']['median'], '.2f')} → {fmt(rn['corner_err_px_snap']['median'], '.2f')} | "
+                     f"{pairs[m][0]:.0%} of {pairs[m][2]} | {pairs[m][1]:.2g} |")
     lines.append("")
     lines.append(f"render stage s ({s['new']['metadata']['n_views']} views, summary.json): " + ", ".join(
         f"{k} {s[k]['metadata']['stage_time_s']['render']:.0f}" for k in runs))
