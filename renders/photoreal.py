@@ -3,10 +3,10 @@
 The instance map, depth and per-window ground truth come from the same exact occluder pass as
 the raster backend (:func:`renders.raster.ground_truth`), so both backends share one definition.
 Variant: ``llvm_ad_rgb`` (with ``DRJIT_LIBLLVM_PATH`` pointed at libLLVM 19 if present), falling
-back to ``scalar_rgb``. ``RenderSettings.denoise="oidn"`` renders albedo and shading-normal AOVs
-with the same samples (mitsuba's ``aov`` integrator around the path tracer), through a box pixel
-filter (OIDN needs uncorrelated per-pixel noise), and runs Intel Open Image Denoise's RT filter on
-the linear HDR radiance before the sRGB encoding. OIDN is deterministic for a given input (mitsuba's
+back to ``scalar_rgb``. ``RenderSettings.denoise="oidn"`` renders through a box pixel filter (OIDN
+needs uncorrelated per-pixel noise) and runs Intel Open Image Denoise's RT filter on the linear HDR
+radiance before the sRGB encoding; "oidn-aov" also renders albedo and shading-normal AOVs with the
+same samples (mitsuba's ``aov`` integrator around the path tracer) as the denoiser's guides. OIDN is deterministic for a given input (mitsuba's
 LLVM variant itself differs between runs in the last float bits). ``python -m
 renders.benchmark_photoreal`` measures the cost and the effect.
 """
@@ -99,12 +99,13 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
 
 
-def oidn_denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """Open Image Denoise (RT filter, hdr, quality "high") of linear radiance (H, W, 3), guided by
-    albedo (H, W, 3) in [0, 1] and normals (H, W, 3) in [-1, 1] (noisy, OIDN prefilters them)."""
+def oidn_denoise(color: np.ndarray, albedo: np.ndarray | None = None,
+                 normal: np.ndarray | None = None) -> np.ndarray:
+    """Open Image Denoise (RT filter, hdr, quality "high") of linear radiance (H, W, 3), optionally
+    guided by albedo (H, W, 3) in [0, 1] and normals (H, W, 3) in [-1, 1] (noisy: OIDN prefilters them)."""
     import pyoidn  # noqa: PLC0415
 
-    f32 = lambda a, lo, hi: np.ascontiguousarray(np.clip(a, lo, hi), np.float32)  # noqa: E731
+    f32 = lambda a, lo, hi: None if a is None else np.ascontiguousarray(np.clip(a, lo, hi), np.float32)  # noqa: E731
     return pyoidn.denoise(f32(color, 0.0, None), f32(albedo, 0.0, 1.0), f32(normal, -1.0, 1.0),
                           hdr=True, quality="high")
 
@@ -151,7 +152,7 @@ class PhotorealRenderer:
         objs["type"] = "scene"
         objs["integrator"] = {"type": "path", "max_depth": settings.max_depth}
         self._scene = mi.load_dict(objs)
-        self._aov = None if settings.denoise == "none" else mi.load_dict(
+        self._aov = None if settings.denoise != "oidn-aov" else mi.load_dict(
             {"type": "aov", "aovs": AOVS, "inner": objs["integrator"]})
         self.occluders = OccluderPass(scene)
 
@@ -161,14 +162,14 @@ class PhotorealRenderer:
         so and ``denoise``; spp/seed (the sampler's) default to the settings' (references use others)."""
         mi = self.mi
         # OIDN needs uncorrelated per-pixel noise: a box pixel filter (a gaussian one blurs the noise
-        # into blobs the denoiser keeps as detail: measured 17.4 -> 4.5 sRGB RMSE with box, 9.3 -> 7.9 with gaussian)
-        rfilter = "gaussian" if self._aov is None else "box"
+        # into blobs the denoiser keeps as detail; wall scene, 4 spp, sRGB RMSE 17 -> 4.5 with box, 9.3 -> 7.9 gaussian)
+        rfilter = "gaussian" if self.settings.denoise == "none" else "box"
         sensor = mi.load_dict(mitsuba_sensor(mi, canvas, self.settings.spp if spp is None else spp, rfilter))
         img = np.array(mi.render(self._scene, sensor=sensor, integrator=self._aov,
                                  seed=self.settings.seed if seed is None else seed))
-        if self._aov is None or not denoise:
+        if self.settings.denoise == "none" or not denoise:
             return img[..., :3]
-        return oidn_denoise(img[..., :3], img[..., 3:6], img[..., 6:9])
+        return oidn_denoise(img[..., :3], *((img[..., 3:6], img[..., 6:9]) if self._aov is not None else ()))
 
     def render_rgb(self, camera: Camera) -> np.ndarray:
         """(H, W, 3) uint8 path-traced image (distortion applied)."""
