@@ -34,12 +34,12 @@ def load_avg() -> list[float]:
     return [round(x, 2) for x in os.getloadavg()]
 
 
-def profile_settings() -> RenderSettings:
-    """The RenderSettings the photoreal profile renders with (seed excluded: set per dataset)."""
+def profile_settings(profile=None) -> RenderSettings:
+    """The RenderSettings a profile (default: photoreal) renders with (seed: set per dataset)."""
     from bench.profiles import load_profile
     from bench.render_adapter import dataset_config
 
-    p = load_profile(PROFILE)
+    p = load_profile(PROFILE) if profile is None else profile
     return dataset_config(p, p.scenes.houses[0], "out/renders").settings
 
 
@@ -147,21 +147,18 @@ def bench(workers: int, reuse: bool = False) -> str:
     old_settings = {k: v for k, v in dataclasses.asdict(OLD).items() if k in ("spp", "denoise")}
     old = dataclasses.replace(new, render=dataclasses.replace(
         new.render, options=tuple(sorted({**opts, "settings": {**opts.get("settings", {}), **old_settings}}.items()))))
-    runs = {}
+    dirs, s = {}, {}
     for label, prof in (("old", old), ("new", new)):
-        t0, run_dir = time.perf_counter(), default_run_dir(prof)
-        if not (reuse and (run_dir / "summary.json").is_file()):
-            run_dir = run_benchmark(prof, workers=workers, report=False).run_dir
-        runs[label] = (json.loads((run_dir / "summary.json").read_text()), time.perf_counter() - t0, run_dir)
-    s = {k: v[0] for k, v in runs.items()}
-    n_s = {k: dict(dataclasses.asdict(OLD), **(dict(p.render.options).get("settings", {})))
-           for k, p in (("old", old), ("new", new))}
-    lines = [f"old: spp {n_s['old']['spp']}, denoise {n_s['old']['denoise']} ({runs['old'][2]}); "
-             f"new: spp {n_s['new']['spp']}, denoise {n_s['new']['denoise']} ({runs['new'][2]}); "
-             f"views {s['new']['metadata']['n_views']}, load avg {load_avg()}",
+        dirs[label] = default_run_dir(prof)
+        if not (reuse and (dirs[label] / "summary.json").is_file()):
+            dirs[label] = run_benchmark(prof, workers=workers, report=False).run_dir
+        s[label] = json.loads((dirs[label] / "summary.json").read_text())
+    st = {"old": profile_settings(old), "new": profile_settings(new)}
+    lines = ["; ".join(f"{k}: spp {st[k].spp}, denoise {st[k].denoise} ({dirs[k]})" for k in st)
+             + f"; views {s['new']['metadata']['n_views']}, load avg {load_avg()}",
              "", "| detector | segm AP old → new | snapper | detected old → new | median corner error px old → new "
              "| paired: new lower on | Wilcoxon p |", "|---|---|---|---|---|---|---|"]
-    pairs = paired_snap_errors(runs["old"][2], runs["new"][2])
+    pairs = paired_snap_errors(dirs["old"], dirs["new"])
     for m in sorted(s["new"]["results"]):
         det, snap, pose = m.split("/") if m.count("/") == 2 else (m, "", "")
         if pose and pose != "lm":
@@ -175,7 +172,7 @@ def bench(workers: int, reuse: bool = False) -> str:
                      f"{pairs[m][0]:.0%} of {pairs[m][2]} | {pairs[m][1]:.2g} |")
     lines.append("")
     lines.append(f"render stage s ({s['new']['metadata']['n_views']} views, summary.json): " + ", ".join(
-        f"{k} {s[k]['metadata']['stage_time_s']['render']:.0f}" for k in runs))
+        f"{k} {s[k]['metadata']['stage_time_s']['render']:.0f}" for k in s))
     return "\n".join(lines)
 
 
