@@ -156,8 +156,8 @@ def bench(workers: int, reuse: bool = False) -> str:
     st = {"old": profile_settings(old), "new": profile_settings(new)}
     lines = ["; ".join(f"{k}: spp {st[k].spp}, denoise {st[k].denoise} ({dirs[k]})" for k in st)
              + f"; views {s['new']['metadata']['n_views']}, load avg {load_avg()}",
-             "", "| detector | segm AP old → new | snapper | detected old → new | median corner error px old → new "
-             "| paired: new lower on | Wilcoxon p |", "|---|---|---|---|---|---|---|"]
+             "", "| detector | segm AP old → new | snapper | detected old → new "
+             "| median corner error px old → new | paired: new lower on | Wilcoxon p |", "|---|---|---|---|---|---|---|"]
     pairs = paired_snap_errors(dirs["old"], dirs["new"])
     for m in sorted(s["new"]["results"]):
         det, snap, pose = m.split("/") if m.count("/") == 2 else (m, "", "")
@@ -168,7 +168,8 @@ def bench(workers: int, reuse: bool = False) -> str:
         fmt = lambda x, f: "n/a" if x is None else format(x, f)  # noqa: E731
         lines.append(f"| {det} | {fmt(ap('old'), '.1f')} → {fmt(ap('new'), '.1f')} | {snap} | "
                      f"{ro['detection_rate']:.0%} → {rn['detection_rate']:.0%} | "
-                     f"{fmt(ro['corner_err_px_snap']['median'], '.2f')} → {fmt(rn['corner_err_px_snap']['median'], '.2f')} | "
+                     f"{fmt(ro['corner_err_px_snap']['median'], '.2f')} → "
+                     f"{fmt(rn['corner_err_px_snap']['median'], '.2f')} | "
                      f"{pairs[m][0]:.0%} of {pairs[m][2]} | {pairs[m][1]:.2g} |")
     lines.append("")
     lines.append(f"render stage s ({s['new']['metadata']['n_views']} views, summary.json): " + ", ".join(

@@ -26,8 +26,8 @@ def register(app: typer.Typer) -> None:
                min_visible: float = typer.Option(0.5, help="min visible fraction of target windows"),
                k1: float = typer.Option(0.0, help="max |k1| radial distortion (0 = pinhole)"),
                spp: int = typer.Option(16, help="mitsuba samples per pixel"),
-               denoise: str = typer.Option("none", help="mitsuba: none | oidn (Open Image Denoise; "
-                                           "the photoreal profile uses 4 spp + oidn)"),
+               denoise: str = typer.Option("none", help="mitsuba: none | oidn | oidn-aov (Open Image Denoise, "
+                                           "oidn-aov guided by albedo/normal; the photoreal profile: 4 spp + oidn)"),
                no_shadows: bool = typer.Option(False, help="raster: no sun shadows"),
                sensor: bool = typer.Option(False, help="apply realistic sensor noise/blur/JPEG to images")) -> None:
         """Render a dataset of views (images, 16-bit instance maps, view.json, coco.json)."""
