@@ -43,7 +43,7 @@ REQUIRED_COLUMNS = ("method", "detector", "snapper", "pose", "evaluable", "statu
                     *(f"corner_err_px_{s}" for s in CORNER_STAGES), *OTHER_ERRORS)
 VERSIONED_PACKAGES = ("numpy", "scipy", "opencv-python-headless", "ifcopenshell", "trimesh",
                       "torch", "torchvision", "mitsuba", "pyrender", "shapely", "pandas",
-                      "pycocotools")
+                      "pycocotools", "pyoidn")
 
 
 def check_table(df: pd.DataFrame, where: str = "results") -> pd.DataFrame:

@@ -26,6 +26,8 @@ def register(app: typer.Typer) -> None:
                min_visible: float = typer.Option(0.5, help="min visible fraction of target windows"),
                k1: float = typer.Option(0.0, help="max |k1| radial distortion (0 = pinhole)"),
                spp: int = typer.Option(16, help="mitsuba samples per pixel"),
+               denoise: str = typer.Option("none", help="mitsuba: none | oidn | oidn-aov (Open Image Denoise, "
+                                           "oidn-aov guided by albedo/normal; the photoreal profile: 4 spp + oidn)"),
                no_shadows: bool = typer.Option(False, help="raster: no sun shadows"),
                sensor: bool = typer.Option(False, help="apply realistic sensor noise/blur/JPEG to images")) -> None:
         """Render a dataset of views (images, 16-bit instance maps, view.json, coco.json)."""
@@ -40,7 +42,7 @@ def register(app: typer.Typer) -> None:
                                   distance_m=(distance_min, distance_max), azimuth_deg=(-azimuth_max, azimuth_max),
                                   street_fraction=street_fraction, min_visible_fraction=min_visible,
                                   k1_range=(-abs(k1), abs(k1))),
-            settings=RenderSettings(seed=seed, spp=spp, shadows=not no_shadows),
+            settings=RenderSettings(seed=seed, spp=spp, shadows=not no_shadows, denoise=denoise),
             sensor=REALISTIC if sensor else SensorConfig())
         root = render_dataset(cfg)
         stats = json.loads((root / "stats.json").read_text())
