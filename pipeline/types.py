@@ -27,6 +27,8 @@ class WindowResult:
     R (3, 3), t (3,) map the window frame (x along the wall, y up, z outward; origin at the
     bottom-left corner; size aspect_ratio*height x height m) to the camera frame (OpenCV).
     Fields are None when the stage failed; ``failure`` then names the stage and reason.
+    wall: index of the wall the window was grouped into (per-wall strategies, pipeline.walls),
+    else None; uncertainty: its 90 % intervals (pipeline.walls.window_uncertainty), else None.
     """
 
     index: int
@@ -42,3 +44,5 @@ class WindowResult:
     quad_reprojected: np.ndarray | None
     failure: str | None
     timings_ms: dict[str, float] = field(default_factory=dict)
+    wall: int | None = None
+    uncertainty: dict | None = None

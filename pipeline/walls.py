@@ -1,0 +1,163 @@
+"""Per-wall strategies: group a photo's windows into walls, estimate each wall's geometry once.
+
+Registry ``WALL_STRATEGIES`` (pose-strategy names beside ``pipeline.pose.POSE_SOLVERS``; the
+bench's method combinations run both). A wall strategy takes the per-window results (their
+snapped quads), groups the windows into walls (:func:`pipeline.facade.group_walls`), fits each
+wall jointly (:func:`pipeline.facade.refine_wall`: one rotation, per-window translation and width)
+and gives every window its aspect ratio, pose and error bars from the shared plane.
+
+Unknown intrinsics (K None): the focal length is estimated from the walls (each wall's two
+vanishing directions, then the joint fit with f free; walls combined by inverse variance); the
+principal point is the image centre.
+
+Uncertainty per window (``WindowResult.uncertainty``): first-order covariance of the joint fit
+with the corner sigma pooled from the residuals and a prior (TOL.wall_sigma_px), reported as 90 %
+intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), ``trans_rel``
+(bound on |t error| / |t|), and ``ill_conditioned`` (aspect_case becomes "ill_conditioned").
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.stats import norm
+
+from fenestra.conventions import TOL
+from fenestra.errors import PipelineError
+from pipeline import facade
+from pipeline.types import WindowResult
+
+
+@dataclass(frozen=True)
+class WallParams:
+    """sigma_px: prior corner sigma (px); prior_dof: its weight in pseudo-observations (inf:
+    fixed sigma); base_pose: the per-window solver whose snapped quads feed the walls."""
+
+    sigma_px: float = TOL.wall_sigma_px
+    prior_dof: float = TOL.wall_sigma_prior_dof
+    base_pose: str = "ippe"
+
+
+WALL_STRATEGIES: dict[str, WallParams] = {
+    "wall": WallParams(),
+}
+
+_MC = np.random.default_rng(0).standard_normal((4000, 3))  # fixed draws for norm quantiles
+
+
+def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:
+    """``level`` quantile of |x| for x ~ N(0, cov (3, 3)) (Monte Carlo on fixed draws)."""
+    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    x = (_MC * np.sqrt(np.clip(vals, 0.0, None))) @ vecs.T
+    return float(np.quantile(np.linalg.norm(x, axis=1), level))
+
+
+def window_uncertainty(fit: facade.WallFit, i: int, level: float = TOL.interval_level) -> dict:
+    """90 % intervals of window i of a wall fit: aspect (lo, hi), rotation (deg), |dt| / |t|."""
+    k = 3 + 4 * i
+    z = float(norm.ppf(0.5 + level / 2.0))
+    a = fit.width[i] / fit.height
+    a_sd = float(np.sqrt(max(fit.cov[k + 3, k + 3], 0.0))) / fit.height
+    rot = np.degrees(norm_quantile(fit.cov[:3, :3], level))
+    trans = norm_quantile(fit.cov[k:k + 3, k:k + 3], level) / float(np.linalg.norm(fit.t[i]))
+    ill = bool(z * a_sd / a > TOL.ill_conditioned_aspect_rel or rot > TOL.ill_conditioned_rot_deg)
+    return {"level": level, "sigma_px": fit.sigma_px, "aspect_sd": a_sd, "aspect_lo": a - z * a_sd,
+            "aspect_hi": a + z * a_sd, "rot_deg": float(rot), "trans_rel": float(trans),
+            "ill_conditioned": ill}
+
+
+def pseudo_K(image_shape: tuple[int, int], focal_px: float | None = None) -> np.ndarray:
+    """Square-pixel K (3, 3) with the principal point at the centre of an (H, W) image; focal
+    ``focal_px`` (default max(H, W), a placeholder for grouping)."""
+    H, W = image_shape
+    f = float(max(H, W)) if focal_px is None else float(focal_px)
+    return np.array([[f, 0.0, (W - 1) / 2.0], [0.0, f, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams,
+              focal_free: bool = False) -> list[tuple[facade.WallVP, facade.WallFit | None]]:
+    """Group quads (N, 4, 2) px into walls and fit each (None where its fit failed)."""
+    out = []
+    for wall in facade.group_walls(quads, K, params.sigma_px):
+        R0 = facade.initial_rotation(wall.d_h, wall.d_v)
+        try:
+            fit = facade.refine_wall(quads[list(wall.members)], K, R0, height, focal_free,
+                                     params.sigma_px, params.prior_dof)
+        except (PipelineError, np.linalg.LinAlgError, ValueError):
+            fit = None
+        out.append((wall, fit))
+    return out
+
+
+def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
+                     params: WallParams = WallParams()) -> tuple[float, float]:
+    """Focal length (px) and its standard deviation from window quads (N, 4, 2) px of one photo.
+
+    Each wall's vanishing directions give an initial f (:func:`facade.focal_from_vanishing`), its
+    joint fit with f free refines it; walls whose relative sd exceeds TOL.focal_max_rel_sd are
+    dropped, the rest combined by inverse variance. Raises FacadeError when no wall gives f
+    (every wall fronto-parallel or with a pair of parallel sides).
+    """
+    q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
+    K0 = pseudo_K(image_shape)
+    est = []
+    for wall in facade.group_walls(q, K0, params.sigma_px):
+        f0 = facade.focal_from_vanishing(wall.d_h, wall.d_v, K0)
+        if f0 is None:
+            continue
+        K1 = pseudo_K(image_shape, f0)
+        d_h, d_v = facade.fit_vps(q, list(wall.members), K1, params.sigma_px)
+        try:
+            fit = facade.refine_wall(q[list(wall.members)], K1, facade.initial_rotation(d_h, d_v),
+                                     1.0, True, params.sigma_px, params.prior_dof)
+        except (PipelineError, np.linalg.LinAlgError, ValueError):
+            continue
+        sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
+        if sd / fit.focal_px <= TOL.focal_max_rel_sd and sd > 0:
+            est.append((fit.focal_px, sd))
+    if not est:
+        raise facade.FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
+                                 f"two converging side pairs")
+    f, sd = np.array(est).T
+    w = 1.0 / sd ** 2
+    return float(np.sum(w * f) / np.sum(w)), float(1.0 / np.sqrt(np.sum(w)))
+
+
+def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: tuple[int, int],
+                height_m: float, width_m: float | None, params: WallParams) -> list[WindowResult]:
+    """Replace the per-window aspect/pose of ``results`` by the per-wall estimates.
+
+    K None: f from :func:`focal_from_walls` (every window then records it as focal_estimate_px);
+    if unobservable, every window fails with that reason. Windows without a snapped quad keep
+    their result; a window whose wall fit fails keeps its failure, named ``wall: ...``.
+    """
+    idx = [k for k, r in enumerate(results) if r.quad_snapped is not None]
+    if not idx:
+        return results
+    quads = np.array([results[k].quad_snapped for k in idx], dtype=np.float64)
+    out = list(results)
+    f_est = None
+    if K is None:
+        try:
+            f_est, _ = focal_from_walls(quads, image_shape, params)
+        except facade.FacadeError as e:
+            for k in idx:
+                out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None)
+            return out
+        K = pseudo_K(image_shape, f_est)
+    for wid, (wall, fit) in enumerate(fit_walls(quads, K, height_m, params)):
+        for j, m in enumerate(wall.members):
+            k = idx[m]
+            if fit is None:
+                out[k] = replace(out[k], failure="wall: joint fit failed", R=None, t=None,
+                                 quad_reprojected=None, wall=wid)
+                continue
+            unc = window_uncertainty(fit, j)
+            scale = 1.0 if width_m is None else width_m / fit.width[j]
+            case = out[k].aspect_case or "general"
+            out[k] = replace(out[k], aspect_ratio=float(fit.width[j] / fit.height),
+                             aspect_case="ill_conditioned" if unc["ill_conditioned"] else case,
+                             focal_estimate_px=f_est, R=fit.R.copy(), t=fit.t[j] * scale,
+                             height_m=fit.height * scale, quad_reprojected=fit.reprojected[j],
+                             failure=None, wall=wid, uncertainty=unc)
+    return out
