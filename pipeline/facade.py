@@ -13,9 +13,9 @@ Pure functions on image quads (4, 2) px, TL TR BR BL (pixel centres at integers)
   known principal point: f^2 = -(v1 - p) . (v2 - p).
 - :func:`initial_rotation`: wall rotation (window frame -> camera) from the two vanishing
   directions, signs from the quads' side directions, projected onto SO(3).
-- :func:`refine_wall`: Levenberg-Marquardt over all corners of a wall: one shared rotation, per
-  window a translation and a width (height fixed: the scale gauge), optionally one shared focal
-  length. Returns the estimate and its first-order covariance (sigma^2 (J^T J)^-1).
+- :func:`refine_walls`: Levenberg-Marquardt over all corners of one or more walls: one rotation
+  per wall, per window a translation and a width (height fixed: the scale gauge), optionally one
+  focal length shared by all. Returns the estimate and its first-order covariance (sigma^2 (J^T J)^-1).
 
 The window frame is pipeline.pose's: x along the wall (BL -> BR), y up (BL -> TL), z outward,
 origin at the bottom-left corner, corners TL TR BR BL = (0,h,0), (w,h,0), (w,0,0), (0,0,0).
@@ -266,16 +266,18 @@ def window_init(quad: np.ndarray, K: np.ndarray, R: np.ndarray, height: float) -
 
 @dataclass(frozen=True)
 class WallFit:
-    """Joint estimate of one wall.
+    """Joint estimate of G walls with N windows.
 
-    R (3, 3): shared window frame -> camera rotation; t (N, 3) m and width (N,) m per window (height
-    fixed at ``height``); focal_px: the focal length used (estimated when ``focal_free``);
-    reprojected (N, 4, 2) px; rms_px: reprojection RMS; sigma_px: the corner sigma used for the
-    covariance; cov (P, P): first-order covariance of the parameters [omega (3, rad), (t_i (3), w_i)
-    per window, f if free]; dof: residuals minus parameters.
+    R (G, 3, 3): each wall's window frame -> camera rotation; wall_of (N,): each window's wall;
+    t (N, 3) m and width (N,) m per window (height fixed at ``height``); focal_px: the focal length
+    used (estimated when ``focal_free``); reprojected (N, 4, 2) px; rms_px: reprojection RMS;
+    sigma_px: the corner sigma used for the covariance; cov (P, P): first-order covariance of the
+    parameters [omega (3, rad) per wall, (t_i (3), w_i) per window, f if free]; dof: residuals
+    minus parameters.
     """
 
     R: np.ndarray
+    wall_of: np.ndarray
     t: np.ndarray
     width: np.ndarray
     height: float
@@ -287,10 +289,20 @@ class WallFit:
     cov: np.ndarray
     dof: int
 
+    def rot_block(self, i: int) -> slice:
+        """Covariance index range of window i's wall rotation vector."""
+        g = int(self.wall_of[i])
+        return slice(3 * g, 3 * g + 3)
 
-def _unpack(x: np.ndarray, n: int, R0: np.ndarray, K: np.ndarray, focal_free: bool):
-    R = cv2.Rodrigues(x[:3])[0] @ R0
-    per = x[3:3 + 4 * n].reshape(n, 4)
+    def window_block(self, i: int) -> slice:
+        """Covariance index range of window i's (t (3), width)."""
+        k = 3 * len(self.R) + 4 * i
+        return slice(k, k + 4)
+
+
+def _unpack(x: np.ndarray, n_walls: int, n: int, R0: np.ndarray, K: np.ndarray, focal_free: bool):
+    R = np.array([cv2.Rodrigues(x[3 * g:3 * g + 3])[0] @ R0[g] for g in range(n_walls)])
+    per = x[3 * n_walls:3 * n_walls + 4 * n].reshape(n, 4)
     Kx = K.copy()
     if focal_free:
         Kx[0, 0] = Kx[1, 1] = x[-1]
@@ -298,12 +310,14 @@ def _unpack(x: np.ndarray, n: int, R0: np.ndarray, K: np.ndarray, focal_free: bo
 
 
 def project_wall(R: np.ndarray, t: np.ndarray, width: np.ndarray, height: float, K: np.ndarray) -> np.ndarray:
-    """Corners (N, 4, 2) px of N windows (widths (N,), common height) sharing rotation R (3, 3),
-    translations t (N, 3), intrinsics K (3, 3)."""
+    """Corners (N, 4, 2) px of N windows (widths (N,), common height) with rotation R (3, 3) shared
+    or (N, 3, 3) per window, translations t (N, 3), intrinsics K (3, 3)."""
     w = np.asarray(width, dtype=np.float64).reshape(-1, 1)
+    Rn = np.broadcast_to(np.asarray(R, dtype=np.float64), (len(w), 3, 3))
     obj_x = w * np.array([0.0, 1.0, 1.0, 0.0])  # (N, 4) window-frame x; y = height * (1, 1, 0, 0)
     obj_y = np.broadcast_to(height * np.array([1.0, 1.0, 0.0, 0.0]), obj_x.shape)
-    X = obj_x[..., None] * R[:, 0] + obj_y[..., None] * R[:, 1] + np.asarray(t).reshape(-1, 1, 3)
+    X = (obj_x[..., None] * Rn[:, None, :, 0] + obj_y[..., None] * Rn[:, None, :, 1]
+         + np.asarray(t).reshape(-1, 1, 3))
     x = X @ K.T
     return x[..., :2] / x[..., 2:3]
 
@@ -316,38 +330,45 @@ def _inverse(A: np.ndarray) -> np.ndarray:
         return np.linalg.pinv(A)
 
 
-def refine_wall(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, height: float = 1.0,
-                focal_free: bool = False, sigma_px: float = 1.0, prior_dof: float = 0.0) -> WallFit:
-    """Joint LM over all corners of a wall's windows (quads (N, 4, 2) px).
+def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.ndarray | None = None,
+                 height: float = 1.0, focal_free: bool = False, sigma_px: float = 1.0,
+                 prior_dof: float = 0.0) -> WallFit:
+    """Joint LM over all corners of the windows of one or more walls (quads (N, 4, 2) px).
 
-    Parameters: one rotation (a rotation vector applied to R0), per window t (3,) m and width (m)
-    at the fixed ``height`` (the gauge: single-image scale is unknown per window), and the focal
-    length when ``focal_free`` (square pixels, K's principal point). Covariance sigma^2 (J^T J)^-1
-    with sigma^2 the residuals' variance pooled with ``prior_dof`` pseudo-observations of
-    ``sigma_px`` (prior_dof = inf: the fixed sigma_px). Raises FacadeError if the fit fails.
+    R0: (3, 3) for one wall, or (G, 3, 3) with wall_of (N,) giving each window's wall. Parameters:
+    per wall a rotation (a rotation vector applied to R0[g]), per window t (3,) m and width (m) at
+    the fixed ``height`` (the gauge: single-image scale is unknown per window), and one focal length
+    when ``focal_free`` (square pixels, K's principal point). Covariance sigma^2 (J^T J)^-1 with
+    sigma^2 the residuals' variance pooled with ``prior_dof`` pseudo-observations of ``sigma_px``
+    (prior_dof = inf: the fixed sigma_px). Raises FacadeError if the fit fails.
     """
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     n = len(q)
     K = check_K(K)
-    x0 = [np.zeros(3)]
-    for quad in q:
-        t, w = window_init(quad, K, R0, height)
+    R0 = np.asarray(R0, dtype=np.float64).reshape(-1, 3, 3)
+    G = len(R0)
+    wall_of = np.zeros(n, dtype=int) if wall_of is None else np.asarray(wall_of, dtype=int)
+    if wall_of.shape != (n,) or wall_of.min() < 0 or wall_of.max() >= G:
+        raise ValueError(f"wall_of must be (N,) = ({n},) indices into {G} wall(s), got {wall_of.tolist()}")
+    x0 = [np.zeros(3 * G)]
+    for quad, g in zip(q, wall_of):
+        t, w = window_init(quad, K, R0[g], height)
         x0.append(np.append(t, w))
     if focal_free:
         x0.append([np.sqrt(K[0, 0] * K[1, 1])])
     x0 = np.concatenate(x0)
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        R, t, w, Kx = _unpack(x, n, R0, K, focal_free)
-        return (project_wall(R, t, w, height, Kx) - q).ravel()
+        R, t, w, Kx = _unpack(x, G, n, R0, K, focal_free)
+        return (project_wall(R[wall_of], t, w, height, Kx) - q).ravel()
 
     sol = least_squares(residuals, x0, method="lm", x_scale="jac")
     if not np.all(np.isfinite(sol.x)):
         raise FacadeError(f"wall refinement diverged ({sol.message})")
-    R, t, w, Kx = _unpack(sol.x, n, R0, K, focal_free)
-    if np.any(w <= 0) or np.any(t[:, 2] <= 0):
-        raise FacadeError(f"wall refinement gives a window behind the camera or of width <= 0 "
-                          f"(widths {np.round(w, 4).tolist()})")
+    R, t, w, Kx = _unpack(sol.x, G, n, R0, K, focal_free)
+    if np.any(w <= 0) or np.any(t[:, 2] <= 0) or Kx[0, 0] <= 0:
+        raise FacadeError(f"wall refinement gives a window behind the camera, a width <= 0 or f <= 0 "
+                          f"(widths {np.round(w, 4).tolist()}, f {Kx[0, 0]:.1f})")
     r = sol.fun
     dof = len(r) - len(sol.x)
     rss = float(r @ r)
@@ -357,6 +378,6 @@ def refine_wall(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, height: float 
         s2 = (rss + prior_dof * sigma_px ** 2) / max(dof + prior_dof, 1e-9)
     J = sol.jac
     cov = _inverse(J.T @ J) * s2
-    return WallFit(R=R, t=t, width=w, height=float(height), focal_px=float(Kx[0, 0]),
-                   focal_free=focal_free, reprojected=project_wall(R, t, w, height, Kx),
+    return WallFit(R=R, wall_of=wall_of, t=t, width=w, height=float(height), focal_px=float(Kx[0, 0]),
+                   focal_free=focal_free, reprojected=project_wall(R[wall_of], t, w, height, Kx),
                    rms_px=float(np.sqrt(rss / len(r))), sigma_px=float(np.sqrt(s2)), cov=cov, dof=dof)

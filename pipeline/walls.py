@@ -54,12 +54,13 @@ def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:
 
 def window_uncertainty(fit: facade.WallFit, i: int, level: float = TOL.interval_level) -> dict:
     """90 % intervals of window i of a wall fit: aspect (lo, hi), rotation (deg), |dt| / |t|."""
-    k = 3 + 4 * i
     z = float(norm.ppf(0.5 + level / 2.0))
+    wb, rb = fit.window_block(i), fit.rot_block(i)
+    cw = fit.cov[wb, wb]
     a = fit.width[i] / fit.height
-    a_sd = float(np.sqrt(max(fit.cov[k + 3, k + 3], 0.0))) / fit.height
-    rot = np.degrees(norm_quantile(fit.cov[:3, :3], level))
-    trans = norm_quantile(fit.cov[k:k + 3, k:k + 3], level) / float(np.linalg.norm(fit.t[i]))
+    a_sd = float(np.sqrt(max(cw[3, 3], 0.0))) / fit.height
+    rot = np.degrees(norm_quantile(fit.cov[rb, rb], level))
+    trans = norm_quantile(cw[:3, :3], level) / float(np.linalg.norm(fit.t[i]))
     ill = bool(z * a_sd / a > TOL.ill_conditioned_aspect_rel or rot > TOL.ill_conditioned_rot_deg)
     return {"level": level, "sigma_px": fit.sigma_px, "aspect_sd": a_sd, "aspect_lo": a - z * a_sd,
             "aspect_hi": a + z * a_sd, "rot_deg": float(rot), "trans_rel": float(trans),
@@ -74,53 +75,61 @@ def pseudo_K(image_shape: tuple[int, int], focal_px: float | None = None) -> np.
     return np.array([[f, 0.0, (W - 1) / 2.0], [0.0, f, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
 
 
-def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams,
-              focal_free: bool = False) -> list[tuple[facade.WallVP, facade.WallFit | None]]:
-    """Group quads (N, 4, 2) px into walls and fit each (None where its fit failed)."""
+def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams
+              ) -> list[tuple[tuple[int, ...], facade.WallFit | None]]:
+    """Group quads (N, 4, 2) px into walls and fit each (K known, so walls are independent):
+    [(member indices, fit or None where it failed)]."""
     out = []
     for wall in facade.group_walls(quads, K, params.sigma_px):
         R0 = facade.initial_rotation(wall.d_h, wall.d_v)
         try:
-            fit = facade.refine_wall(quads[list(wall.members)], K, R0, height, focal_free,
-                                     params.sigma_px, params.prior_dof)
+            fit = facade.refine_walls(quads[list(wall.members)], K, R0, None, height, False,
+                                      params.sigma_px, params.prior_dof)
         except (PipelineError, np.linalg.LinAlgError, ValueError):
             fit = None
-        out.append((wall, fit))
+        out.append((wall.members, fit))
     return out
+
+
+def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
+                    params: WallParams = WallParams()) -> tuple[tuple[int, ...], facade.WallFit]:
+    """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
+    median of the walls' vanishing-point estimates (:func:`facade.focal_from_vanishing`), then fit
+    all walls jointly with one shared f (principal point at the image centre).
+
+    Returns (the windows fitted, in fit order; the joint fit). Raises FacadeError when no wall
+    gives f, or the fitted f's relative sd exceeds TOL.focal_max_rel_sd (unobservable).
+    """
+    q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
+    K0 = pseudo_K(image_shape)
+    walls = facade.group_walls(q, K0, params.sigma_px)
+    f0 = [f for w in walls if (f := facade.focal_from_vanishing(w.d_h, w.d_v, K0)) is not None]
+    if not f0:
+        raise facade.FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
+                                 f"two converging side pairs")
+    K1 = pseudo_K(image_shape, float(np.median(f0)))
+    members = [i for w in walls for i in w.members]
+    wall_of = np.concatenate([[g] * len(w.members) for g, w in enumerate(walls)])
+    R0 = np.array([facade.initial_rotation(*facade.fit_vps(q, list(w.members), K1, params.sigma_px))
+                   for w in walls])
+    try:
+        fit = facade.refine_walls(q[members], K1, R0, wall_of, height, True, params.sigma_px,
+                                  params.prior_dof)
+    except (np.linalg.LinAlgError, ValueError) as e:
+        raise facade.FacadeError(f"joint fit with free focal length failed: {e}") from e
+    sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
+    if not sd / fit.focal_px <= TOL.focal_max_rel_sd:
+        raise facade.FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} +- {sd:.0f} px "
+                                 f"(relative sd above {TOL.focal_max_rel_sd})")
+    return tuple(members), fit
 
 
 def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
                      params: WallParams = WallParams()) -> tuple[float, float]:
-    """Focal length (px) and its standard deviation from window quads (N, 4, 2) px of one photo.
-
-    Each wall's vanishing directions give an initial f (:func:`facade.focal_from_vanishing`), its
-    joint fit with f free refines it; walls whose relative sd exceeds TOL.focal_max_rel_sd are
-    dropped, the rest combined by inverse variance. Raises FacadeError when no wall gives f
-    (every wall fronto-parallel or with a pair of parallel sides).
-    """
-    q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
-    K0 = pseudo_K(image_shape)
-    est = []
-    for wall in facade.group_walls(q, K0, params.sigma_px):
-        f0 = facade.focal_from_vanishing(wall.d_h, wall.d_v, K0)
-        if f0 is None:
-            continue
-        K1 = pseudo_K(image_shape, f0)
-        d_h, d_v = facade.fit_vps(q, list(wall.members), K1, params.sigma_px)
-        try:
-            fit = facade.refine_wall(q[list(wall.members)], K1, facade.initial_rotation(d_h, d_v),
-                                     1.0, True, params.sigma_px, params.prior_dof)
-        except (PipelineError, np.linalg.LinAlgError, ValueError):
-            continue
-        sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
-        if sd / fit.focal_px <= TOL.focal_max_rel_sd and sd > 0:
-            est.append((fit.focal_px, sd))
-    if not est:
-        raise facade.FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
-                                 f"two converging side pairs")
-    f, sd = np.array(est).T
-    w = 1.0 / sd ** 2
-    return float(np.sum(w * f) / np.sum(w)), float(1.0 / np.sqrt(np.sum(w)))
+    """Focal length (px) and its standard deviation from window quads (N, 4, 2) px of an (H, W)
+    image (:func:`fit_walls_focal`); FacadeError when unobservable."""
+    _, fit = fit_walls_focal(quads, image_shape, 1.0, params)
+    return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))
 
 
 def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: tuple[int, int],
@@ -139,14 +148,17 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     f_est = None
     if K is None:
         try:
-            f_est, _ = focal_from_walls(quads, image_shape, params)
+            members, fit = fit_walls_focal(quads, image_shape, height_m, params)
         except facade.FacadeError as e:
             for k in idx:
                 out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None)
             return out
-        K = pseudo_K(image_shape, f_est)
-    for wid, (wall, fit) in enumerate(fit_walls(quads, K, height_m, params)):
-        for j, m in enumerate(wall.members):
+        f_est = fit.focal_px
+        fits = [(members, fit)]
+    else:
+        fits = fit_walls(quads, K, height_m, params)
+    for wid, (members, fit) in enumerate(fits):
+        for j, m in enumerate(members):
             k = idx[m]
             if fit is None:
                 out[k] = replace(out[k], failure="wall: joint fit failed", R=None, t=None,
@@ -155,9 +167,11 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             unc = window_uncertainty(fit, j)
             scale = 1.0 if width_m is None else width_m / fit.width[j]
             case = out[k].aspect_case or "general"
+            g = int(fit.wall_of[j])
             out[k] = replace(out[k], aspect_ratio=float(fit.width[j] / fit.height),
                              aspect_case="ill_conditioned" if unc["ill_conditioned"] else case,
-                             focal_estimate_px=f_est, R=fit.R.copy(), t=fit.t[j] * scale,
+                             focal_estimate_px=f_est, R=fit.R[g].copy(), t=fit.t[j] * scale,
                              height_m=fit.height * scale, quad_reprojected=fit.reprojected[j],
-                             failure=None, wall=wid, uncertainty=unc)
+                             failure=None, wall=g if f_est is not None else wid,
+                             uncertainty=unc)
     return out
