@@ -150,36 +150,40 @@ def fit_vps(quads: np.ndarray, idx: list[int], K: np.ndarray, sigma_px: float = 
 
 @dataclass(frozen=True)
 class _Sides:
-    """Per window and side family (0: horizontal, 1: vertical): segments (N, 2, 2, 2, 2) px,
-    normals (N, 2, 2, 3), weights (N, 2, 2), inlier thresholds (N, 2, 2) deg."""
+    """Per window and side family (0: horizontal, 1: vertical): segment midpoints (N, 2, 2, 3)
+    homogeneous px, directions (N, 2, 2, 2) px, weighted normal moments sum w n n^T (N, 2, 3, 3),
+    inlier thresholds (N, 2, 2) deg."""
 
-    seg: np.ndarray
-    normals: np.ndarray
-    weights: np.ndarray
+    mid: np.ndarray
+    dirs: np.ndarray
+    moments: np.ndarray
     thresh: np.ndarray
 
     @classmethod
     def of(cls, q: np.ndarray, K: np.ndarray, sigma_px: float) -> "_Sides":
         n = len(q)
-        segs = [side_segments(q, sides).reshape(n, 2, 2, 2) for sides in (H_SIDES, V_SIDES)]
-        seg = np.stack(segs, axis=1)
+        seg = np.stack([side_segments(q, sides).reshape(n, 2, 2, 2) for sides in (H_SIDES, V_SIDES)], axis=1)
         flat = seg.reshape(-1, 2, 2)
-        return cls(seg, edge_normals(flat, K).reshape(n, 2, 2, 3),
-                   segment_weights(flat, sigma_px).reshape(n, 2, 2), side_thresholds_deg(flat).reshape(n, 2, 2))
+        nrm = edge_normals(flat, K).reshape(n, 2, 2, 3)
+        wts = segment_weights(flat, sigma_px).reshape(n, 2, 2)
+        moments = np.einsum("nfs,nfsi,nfsj->nfij", wts, nrm, nrm)
+        mid = np.concatenate([0.5 * (seg[..., 0, :] + seg[..., 1, :]), np.ones((n, 2, 2, 1))], axis=-1)
+        return cls(mid, seg[..., 1, :] - seg[..., 0, :], moments, side_thresholds_deg(flat).reshape(n, 2, 2))
 
-    def directions(self, idx: list[int]) -> tuple[np.ndarray, np.ndarray]:
-        """Unoriented (d_h, d_v) of windows idx."""
-        return tuple(vanishing_direction(self.normals[idx, f].reshape(-1, 3), self.weights[idx, f].ravel())
-                     for f in (0, 1))
+    def directions(self, hyps: np.ndarray) -> np.ndarray:
+        """Unoriented (d_h, d_v) (H, 2, 3) of each hypothesis, a (H, N) bool window membership."""
+        M = np.einsum("hn,nfij->hfij", hyps.astype(float), self.moments)
+        return np.linalg.eigh(M)[1][..., 0]
 
-    def inliers(self, K: np.ndarray, d_h: np.ndarray, d_v: np.ndarray) -> np.ndarray:
-        """(N,) bool: windows whose four sides all point at the vanishing points of d_h and d_v."""
-        n = len(self.seg)
-        ok = np.ones(n, dtype=bool)
-        for f, d in ((0, d_h), (1, d_v)):
-            ang = side_angles_to_vp(self.seg[:, f].reshape(-1, 2, 2), K @ d).reshape(n, 2)
-            ok &= np.all(ang <= self.thresh[:, f], axis=1)
-        return ok
+    def inliers(self, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """(H, N) bool: windows whose four sides all point at the vanishing points K D[h, f]."""
+        vp = D @ K.T  # (H, 2, 3)
+        lines = np.cross(self.mid[None], vp[:, None, :, None, :])  # (H, N, 2, 2, 3)
+        to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
+        e = self.dirs[None]
+        c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * np.linalg.norm(e, axis=-1) + 1e-300)
+        ang = np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
+        return np.all(ang <= self.thresh[None], axis=(2, 3))
 
 
 def group_walls(quads: np.ndarray, K: np.ndarray, sigma_px: float = 1.0,
@@ -195,31 +199,34 @@ def group_walls(quads: np.ndarray, K: np.ndarray, sigma_px: float = 1.0,
     """
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     K = check_K(K)
+    n = len(q)
     sd = _Sides.of(q, K, sigma_px)
-    left = list(range(len(q)))
+    left = np.ones(n, dtype=bool)
     areas = 0.5 * np.abs(np.sum(q[:, :, 0] * np.roll(q[:, :, 1], -1, 1) - q[:, :, 1] * np.roll(q[:, :, 0], -1, 1), 1))
     walls: list[WallVP] = []
-    while left:
-        best: tuple | None = None
-        big = sorted(left, key=lambda i: -areas[i])[:max_pair_windows]
-        lmask = np.zeros(len(q), dtype=bool)
-        lmask[left] = True
-        for hyp in [[i] for i in left] + [list(p) for p in combinations(big, 2)]:
-            inl = sd.inliers(K, *sd.directions(hyp)) & lmask
-            if not inl[hyp].all():
-                continue
-            score = (int(inl.sum()), -len(hyp))
-            if best is None or score > best[0]:
-                best = (score, np.flatnonzero(inl).tolist())
-        members = best[1] if best is not None else [left[0]]
+    while left.any():
+        idx = np.flatnonzero(left)
+        big = idx[np.argsort(-areas[idx])][:max_pair_windows]
+        hyps = [np.eye(n, dtype=bool)[idx]]
+        if len(big) > 1:
+            pairs = np.array(list(combinations(big, 2)))
+            h2 = np.zeros((len(pairs), n), dtype=bool)
+            h2[np.arange(len(pairs))[:, None], pairs] = True
+            hyps.append(h2)
+        hyps = np.concatenate(hyps)
+        inl = sd.inliers(K, sd.directions(hyps)) & left
+        valid = ~np.any(hyps & ~inl, axis=1)  # a hypothesis must agree with its own windows
+        score = np.where(valid, inl.sum(axis=1) * 4 - hyps.sum(axis=1), -1)
+        members = inl[int(np.argmax(score))] if valid.any() else np.eye(n, dtype=bool)[idx[0]]
         for _ in range(2):  # refit on the inliers, re-collect
-            new = np.flatnonzero(sd.inliers(K, *sd.directions(members)) & lmask).tolist()
-            if not new or set(new) == set(members):
+            new = sd.inliers(K, sd.directions(members[None]))[0] & left
+            if not new.any() or np.array_equal(new, members):
                 break
             members = new
-        d_h, d_v = fit_vps(q, members, K, sigma_px)
-        walls.append(WallVP(d_h, d_v, tuple(sorted(members))))
-        left = [i for i in left if i not in members]
+        mem = np.flatnonzero(members).tolist()
+        d_h, d_v = fit_vps(q, mem, K, sigma_px)
+        walls.append(WallVP(d_h, d_v, tuple(mem)))
+        left &= ~members
     return sorted(walls, key=lambda w: -len(w.members))
 
 
@@ -322,6 +329,50 @@ def project_wall(R: np.ndarray, t: np.ndarray, width: np.ndarray, height: float,
     return x[..., :2] / x[..., 2:3]
 
 
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def left_jacobian(omega: np.ndarray) -> np.ndarray:
+    """SO(3) left Jacobian (3, 3) of a rotation vector omega (3,) rad: d(exp(omega) v) / d omega
+    = -[exp(omega) v]_x J_l(omega)."""
+    th = float(np.linalg.norm(omega))
+    W = _skew(omega)
+    if th < 1e-8:
+        return np.eye(3) + 0.5 * W
+    return np.eye(3) + (1.0 - np.cos(th)) / th ** 2 * W + (th - np.sin(th)) / th ** 3 * (W @ W)
+
+
+def wall_jacobian(x: np.ndarray, n_walls: int, wall_of: np.ndarray, R0: np.ndarray, K: np.ndarray,
+                  height: float, focal_free: bool) -> np.ndarray:
+    """Analytic Jacobian (8N, P) of :func:`refine_walls`' residuals (corners TL TR BR BL, u then v)
+    with respect to its parameters x (P,) [omega per wall, (t, w) per window, f if free]."""
+    n = len(wall_of)
+    R, t, w, Kx = _unpack(x, n_walls, n, R0, K, focal_free)
+    Rn = R[wall_of]  # (n, 3, 3)
+    cx_ = np.array([0.0, 1.0, 1.0, 0.0])
+    cy_ = height * np.array([1.0, 1.0, 0.0, 0.0])
+    v = (w[:, None, None] * cx_[None, :, None] * Rn[:, None, :, 0]
+         + cy_[None, :, None] * Rn[:, None, :, 1])  # (n, 4, 3) rotated object points
+    X = v + t[:, None, :]
+    Z = X[..., 2]
+    dpi = np.zeros((n, 4, 2, 3))  # d(u, v) / dX
+    dpi[..., 0, 0], dpi[..., 0, 2] = Kx[0, 0] / Z, -Kx[0, 0] * X[..., 0] / Z ** 2
+    dpi[..., 1, 1], dpi[..., 1, 2] = Kx[1, 1] / Z, -Kx[1, 1] * X[..., 1] / Z ** 2
+    Jl = np.array([left_jacobian(x[3 * g:3 * g + 3]) for g in range(n_walls)])
+    # d/d omega: dpi @ (-[v]_x J_l) = (v x dpi_row) @ J_l
+    rot = np.einsum("njkc,ncd->njkd", np.cross(v[:, :, None, :], dpi), Jl[wall_of])
+    J_rot = np.zeros((n, 4, 2, n_walls, 3))
+    J_rot[np.arange(n), :, :, wall_of, :] = rot
+    block = np.concatenate([dpi, (dpi @ Rn[:, None, :, 0][..., None]) * cx_[None, :, None, None]], axis=3)
+    J_win = np.zeros((n, 4, 2, n, 4))
+    J_win[np.arange(n), :, :, np.arange(n), :] = block
+    parts = [J_rot.reshape(8 * n, 3 * n_walls), J_win.reshape(8 * n, 4 * n)]
+    if focal_free:
+        parts.append((X[..., :2] / Z[..., None]).reshape(8 * n, 1))
+    return np.hstack(parts)
+
+
 def _inverse(A: np.ndarray) -> np.ndarray:
     """Inverse of a symmetric positive semi-definite (P, P) matrix (pseudo-inverse if singular)."""
     try:
@@ -362,7 +413,10 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
         R, t, w, Kx = _unpack(x, G, n, R0, K, focal_free)
         return (project_wall(R[wall_of], t, w, height, Kx) - q).ravel()
 
-    sol = least_squares(residuals, x0, method="lm", x_scale="jac")
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        return wall_jacobian(x, G, wall_of, R0, K, height, focal_free)
+
+    sol = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac")
     if not np.all(np.isfinite(sol.x)):
         raise FacadeError(f"wall refinement diverged ({sol.message})")
     R, t, w, Kx = _unpack(sol.x, G, n, R0, K, focal_free)

@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.stats import norm
+from scipy.stats import chi2, norm
 
 from fenestra.conventions import TOL
 from fenestra.errors import PipelineError
@@ -42,14 +42,14 @@ WALL_STRATEGIES: dict[str, WallParams] = {
     "wall": WallParams(),
 }
 
-_MC = np.random.default_rng(0).standard_normal((4000, 3))  # fixed draws for norm quantiles
-
-
 def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:
-    """``level`` quantile of |x| for x ~ N(0, cov (3, 3)) (Monte Carlo on fixed draws)."""
-    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    x = (_MC * np.sqrt(np.clip(vals, 0.0, None))) @ vecs.T
-    return float(np.quantile(np.linalg.norm(x, axis=1), level))
+    """``level`` quantile of |x| for x ~ N(0, cov (3, 3)): Satterthwaite's scaled chi-square,
+    |x|^2 ~ c chi2(nu) with c = tr(S^2) / tr(S), nu = tr(S)^2 / tr(S^2) (exact when isotropic)."""
+    S = 0.5 * (cov + cov.T)
+    tr, tr2 = float(np.trace(S)), float(np.sum(S * S))
+    if not tr > 0:
+        return 0.0
+    return float(np.sqrt(tr2 / tr * chi2.ppf(level, tr * tr / tr2)))
 
 
 def window_uncertainty(fit: facade.WallFit, i: int, level: float = TOL.interval_level) -> dict:
@@ -132,6 +132,13 @@ def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
     return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))
 
 
+def usable_quad(quad: np.ndarray, min_side_px: float = 1.0) -> bool:
+    """A quad (4, 2) px the wall geometry can use: finite, every side at least min_side_px."""
+    q = np.asarray(quad, dtype=np.float64)
+    sides = np.linalg.norm(q - np.roll(q, -1, axis=0), axis=1)
+    return bool(np.all(np.isfinite(q)) and sides.min() >= min_side_px)
+
+
 def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: tuple[int, int],
                 height_m: float, width_m: float | None, params: WallParams) -> list[WindowResult]:
     """Replace the per-window aspect/pose of ``results`` by the per-wall estimates.
@@ -141,10 +148,14 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     their result; a window whose wall fit fails keeps its failure, named ``wall: ...``.
     """
     idx = [k for k, r in enumerate(results) if r.quad_snapped is not None]
-    if not idx:
-        return results
-    quads = np.array([results[k].quad_snapped for k in idx], dtype=np.float64)
     out = list(results)
+    for k in [k for k in idx if not usable_quad(results[k].quad_snapped)]:
+        out[k] = replace(out[k], failure="wall: degenerate quad (a side under 1 px or non-finite)",
+                         R=None, t=None, quad_reprojected=None)
+        idx.remove(k)
+    if not idx:
+        return out
+    quads = np.array([results[k].quad_snapped for k in idx], dtype=np.float64)
     f_est = None
     if K is None:
         try:
