@@ -188,3 +188,21 @@ def test_ill_conditioned_flag_small_window_not_large_one():
         r = walls.apply_walls(_results(q), K, SHAPE, 1.0, None, params)[0]
         assert r.uncertainty["ill_conditioned"] is flagged
         assert (r.aspect_case == "ill_conditioned") is flagged
+
+
+def test_wall_jacobian_matches_finite_differences():
+    from scipy.optimize._numdiff import approx_derivative
+
+    _, _, quads, labels, _ = scene()
+    R0 = np.array([facade.initial_rotation(*facade.fit_vps(quads, list(np.flatnonzero(labels == g)), K))
+                   for g in (0, 1)])
+    rng = np.random.default_rng(0)
+    x = np.concatenate([rng.normal(0, 0.1, 6), rng.normal(0, 1, 4 * len(quads)) + np.tile([0, 0, 10, 1], len(quads)),
+                        [800.0]])
+
+    def residuals(x):
+        R, t, w, Kx = facade._unpack(x, 2, len(quads), R0, K, True)
+        return (facade.project_wall(R[labels], t, w, 1.0, Kx) - quads).ravel()
+
+    J = facade.wall_jacobian(x, 2, labels, R0, K, 1.0, True)
+    np.testing.assert_allclose(J, approx_derivative(residuals, x, method="3-point"), atol=1e-6 * np.abs(J).max())
