@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from fenestra.conventions import TOL, check_K, check_quad
+from fenestra.conventions import TOL, check_K, check_quad, rotation_error_deg
 from fenestra.errors import PipelineError
 
 
@@ -275,7 +275,10 @@ def window_init(quad: np.ndarray, K: np.ndarray, R: np.ndarray, height: float) -
 class WallFit:
     """Joint estimate of G walls with N windows.
 
-    R (G, 3, 3): each wall's window frame -> camera rotation; wall_of (N,): each window's wall;
+    R (G, 3, 3): each rotation group's frame -> camera rotation (a group: one wall, or walls tied
+    at right angles, see :func:`tie_walls`); wall_of (N,): each window's group; Q (N, 3, 3): each
+    window's fixed rotation within its group (identity for a plain wall), so its rotation is
+    R[wall_of[i]] @ Q[i] (:meth:`window_R`);
     t (N, 3) m and width (N,) m per window (height fixed at ``height``); focal_px: the focal length
     used (estimated when ``focal_free``); reprojected (N, 4, 2) px; rms_px: reprojection RMS;
     sigma_px: the corner sigma used for the covariance; cov (P, P): first-order covariance of the
@@ -285,6 +288,7 @@ class WallFit:
 
     R: np.ndarray
     wall_of: np.ndarray
+    Q: np.ndarray
     t: np.ndarray
     width: np.ndarray
     height: float
@@ -295,6 +299,10 @@ class WallFit:
     sigma_px: float
     cov: np.ndarray
     dof: int
+
+    def window_R(self, i: int) -> np.ndarray:
+        """Window i's rotation (3, 3), window frame -> camera."""
+        return self.R[int(self.wall_of[i])] @ self.Q[i]
 
     def rot_block(self, i: int) -> slice:
         """Covariance index range of window i's wall rotation vector."""
@@ -344,12 +352,13 @@ def left_jacobian(omega: np.ndarray) -> np.ndarray:
 
 
 def wall_jacobian(x: np.ndarray, n_walls: int, wall_of: np.ndarray, R0: np.ndarray, K: np.ndarray,
-                  height: float, focal_free: bool) -> np.ndarray:
+                  height: float, focal_free: bool, Q: np.ndarray | None = None) -> np.ndarray:
     """Analytic Jacobian (8N, P) of :func:`refine_walls`' residuals (corners TL TR BR BL, u then v)
-    with respect to its parameters x (P,) [omega per wall, (t, w) per window, f if free]."""
+    with respect to its parameters x (P,) [omega per group, (t, w) per window, f if free]; Q (N, 3, 3)
+    the windows' fixed rotations within their groups (None: identity)."""
     n = len(wall_of)
     R, t, w, Kx = _unpack(x, n_walls, n, R0, K, focal_free)
-    Rn = R[wall_of]  # (n, 3, 3)
+    Rn = R[wall_of] if Q is None else R[wall_of] @ Q  # (n, 3, 3)
     cx_ = np.array([0.0, 1.0, 1.0, 0.0])
     cy_ = height * np.array([1.0, 1.0, 0.0, 0.0])
     v = (w[:, None, None] * cx_[None, :, None] * Rn[:, None, :, 0]
@@ -383,7 +392,7 @@ def _inverse(A: np.ndarray) -> np.ndarray:
 
 def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.ndarray | None = None,
                  height: float = 1.0, focal_free: bool = False, sigma_px: float = 1.0,
-                 prior_dof: float = 0.0) -> WallFit:
+                 prior_dof: float = 0.0, Q: np.ndarray | None = None) -> WallFit:
     """Joint LM over all corners of the windows of one or more walls (quads (N, 4, 2) px).
 
     R0: (3, 3) for one wall, or (G, 3, 3) with wall_of (N,) giving each window's wall. Parameters:
@@ -391,10 +400,13 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
     the fixed ``height`` (the gauge: single-image scale is unknown per window), and one focal length
     when ``focal_free`` (square pixels, K's principal point). Covariance sigma^2 (J^T J)^-1 with
     sigma^2 the residuals' variance pooled with ``prior_dof`` pseudo-observations of ``sigma_px``
-    (prior_dof = inf: the fixed sigma_px). Raises FacadeError if the fit fails.
+    (prior_dof = inf: the fixed sigma_px). Q (N, 3, 3): a fixed rotation of each window within its
+    group (walls at right angles sharing one rotation: window i's is R[wall_of[i]] @ Q[i]); None:
+    identity. Raises FacadeError if the fit fails.
     """
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     n = len(q)
+    Q = np.broadcast_to(np.eye(3), (n, 3, 3)) if Q is None else np.asarray(Q, dtype=np.float64).reshape(n, 3, 3)
     K = check_K(K)
     R0 = np.asarray(R0, dtype=np.float64).reshape(-1, 3, 3)
     G = len(R0)
@@ -402,8 +414,8 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
     if wall_of.shape != (n,) or wall_of.min() < 0 or wall_of.max() >= G:
         raise ValueError(f"wall_of must be (N,) = ({n},) indices into {G} wall(s), got {wall_of.tolist()}")
     x0 = [np.zeros(3 * G)]
-    for quad, g in zip(q, wall_of):
-        t, w = window_init(quad, K, R0[g], height)
+    for quad, g, Qi in zip(q, wall_of, Q):
+        t, w = window_init(quad, K, R0[g] @ Qi, height)
         x0.append(np.append(t, w))
     if focal_free:
         x0.append([np.sqrt(K[0, 0] * K[1, 1])])
@@ -411,10 +423,10 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
 
     def residuals(x: np.ndarray) -> np.ndarray:
         R, t, w, Kx = _unpack(x, G, n, R0, K, focal_free)
-        return (project_wall(R[wall_of], t, w, height, Kx) - q).ravel()
+        return (project_wall(R[wall_of] @ Q, t, w, height, Kx) - q).ravel()
 
     def jacobian(x: np.ndarray) -> np.ndarray:
-        return wall_jacobian(x, G, wall_of, R0, K, height, focal_free)
+        return wall_jacobian(x, G, wall_of, R0, K, height, focal_free, Q)
 
     sol = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac")
     if not np.all(np.isfinite(sol.x)):
@@ -432,6 +444,38 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
         s2 = (rss + prior_dof * sigma_px ** 2) / max(dof + prior_dof, 1e-9)
     J = sol.jac
     cov = _inverse(J.T @ J) * s2
-    return WallFit(R=R, wall_of=wall_of, t=t, width=w, height=float(height), focal_px=float(Kx[0, 0]),
-                   focal_free=focal_free, reprojected=project_wall(R[wall_of], t, w, height, Kx),
+    return WallFit(R=R, wall_of=wall_of, Q=np.array(Q), t=t, width=w, height=float(height), focal_px=float(Kx[0, 0]),
+                   focal_free=focal_free, reprojected=project_wall(R[wall_of] @ Q, t, w, height, Kx),
                    rms_px=float(np.sqrt(rss / len(r))), sigma_px=float(np.sqrt(s2)), cov=cov, dof=dof)
+
+
+def rot_y(deg: float) -> np.ndarray:
+    """Rotation (3, 3) about the window frame's y axis (up) by ``deg``."""
+    c, s_ = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, 0.0, s_], [0.0, 1.0, 0.0], [-s_, 0.0, c]])
+
+
+def tie_walls(R0: np.ndarray, tol_deg: float = TOL.manhattan_deg) -> tuple[np.ndarray, np.ndarray]:
+    """Tie walls at right angles (one vertical, headings k x 90 deg apart: a rectilinear building).
+
+    R0 (G, 3, 3): the walls' rotations, largest wall first. Each wall joins the first group whose
+    reference wall it matches as R_ref @ rot_y(k 90) within ``tol_deg`` (geodesic), else starts its
+    own group. Returns group (G,) int and Q (G, 3, 3): wall g's rotation is R_group @ Q[g].
+    """
+    R0 = np.asarray(R0, dtype=np.float64).reshape(-1, 3, 3)
+    refs: list[int] = []
+    group = np.zeros(len(R0), dtype=int)
+    Q = np.repeat(np.eye(3)[None], len(R0), axis=0)
+    for g, Rg in enumerate(R0):
+        for k, r in enumerate(refs):
+            cands = [rot_y(90.0 * m) for m in range(4)]
+            errs = [rotation_error_deg(R0[r] @ c, Rg) for c in cands]
+            m = int(np.argmin(errs))
+            if errs[m] <= tol_deg:
+                group[g], Q[g] = k, cands[m]
+                break
+        else:
+            group[g] = len(refs)
+            refs.append(g)
+    return group, Q
+

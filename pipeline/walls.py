@@ -31,15 +31,18 @@ from pipeline.types import WindowResult
 @dataclass(frozen=True)
 class WallParams:
     """sigma_px: prior corner sigma (px); prior_dof: its weight in pseudo-observations (inf:
-    fixed sigma); base_pose: the per-window solver whose snapped quads feed the walls."""
+    fixed sigma); base_pose: the per-window solver whose snapped quads feed the walls; manhattan:
+    tie walls at right angles about a shared vertical into one rotation (facade.tie_walls)."""
 
     sigma_px: float = TOL.wall_sigma_px
     prior_dof: float = TOL.wall_sigma_prior_dof
     base_pose: str = "ippe"
+    manhattan: bool = False
 
 
 WALL_STRATEGIES: dict[str, WallParams] = {
-    "wall": WallParams(),
+    "wall": WallParams(),  # one rotation per wall
+    "building": WallParams(manhattan=True),  # one rotation per set of walls at right angles
 }
 
 def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:
@@ -75,30 +78,57 @@ def pseudo_K(image_shape: tuple[int, int], focal_px: float | None = None) -> np.
     return np.array([[f, 0.0, (W - 1) / 2.0], [0.0, f, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
 
 
-def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams
-              ) -> list[tuple[tuple[int, ...], facade.WallFit | None]]:
-    """Group quads (N, 4, 2) px into walls and fit each (K known, so walls are independent):
-    [(member indices, fit or None where it failed)]."""
-    out = []
-    for wall in facade.group_walls(quads, K, params.sigma_px):
-        R0 = facade.initial_rotation(wall.d_h, wall.d_v)
-        try:
-            fit = facade.refine_walls(quads[list(wall.members)], K, R0, None, height, False,
-                                      params.sigma_px, params.prior_dof)
-        except (PipelineError, np.linalg.LinAlgError, ValueError):
-            fit = None
-        out.append((wall.members, fit))
-    return out
+Fit = tuple[tuple[int, ...], tuple[int, ...], "facade.WallFit | None"]  # windows, their walls, fit
+
+
+def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], params: WallParams
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per wall: initial rotation R0 (G, 3, 3) under K, rotation group (G,) and Q (G, 3, 3)."""
+    R0 = np.array([facade.initial_rotation(*facade.fit_vps(quads, list(w.members), K, params.sigma_px))
+                   for w in walls])
+    if params.manhattan:
+        group, Q = facade.tie_walls(R0)
+    else:
+        group, Q = np.arange(len(walls)), np.repeat(np.eye(3)[None], len(walls), axis=0)
+    return R0, group, Q
+
+
+def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], groups: list[int],
+                R0: np.ndarray, group: np.ndarray, Q: np.ndarray, height: float, params: WallParams,
+                focal_free: bool) -> Fit:
+    """One joint fit of the walls of rotation groups ``groups`` (their first wall is the reference)."""
+    sel = [g for g in range(len(walls)) if group[g] in groups]
+    members = tuple(i for g in sel for i in walls[g].members)
+    wall_ids = tuple(g for g in sel for _ in walls[g].members)
+    refs = {k: next(g for g in sel if group[g] == k and np.allclose(Q[g], np.eye(3))) for k in groups}
+    set_of = np.array([groups.index(group[g]) for g in wall_ids])
+    R0s = np.array([R0[refs[k]] for k in groups])
+    try:
+        fit = facade.refine_walls(quads[list(members)], K, R0s, set_of, height, focal_free, params.sigma_px,
+                                  params.prior_dof, Q[list(wall_ids)])
+    except (PipelineError, np.linalg.LinAlgError, ValueError):
+        if focal_free:
+            raise
+        fit = None
+    return members, wall_ids, fit
+
+
+def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams) -> list[Fit]:
+    """Group quads (N, 4, 2) px into walls and fit each rotation group (K known, so groups are
+    independent): [(window indices, their wall indices, fit or None where it failed)]."""
+    walls = facade.group_walls(quads, K, params.sigma_px)
+    R0, group, Q = _rotation_groups(quads, K, walls, params)
+    return [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False) for k in sorted(set(group))]
 
 
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
-                    params: WallParams = WallParams()) -> tuple[tuple[int, ...], facade.WallFit]:
+                    params: WallParams = WallParams()) -> Fit:
     """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
     median of the walls' vanishing-point estimates (:func:`facade.focal_from_vanishing`), then fit
     all walls jointly with one shared f (principal point at the image centre).
 
-    Returns (the windows fitted, in fit order; the joint fit). Raises FacadeError when no wall
-    gives f, or the fitted f's relative sd exceeds TOL.focal_max_rel_sd (unobservable).
+    Returns (windows, their walls, the joint fit). Raises FacadeError when no wall gives f, or the
+    fitted f's relative sd exceeds TOL.focal_max_rel_sd (unobservable).
     """
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     K0 = pseudo_K(image_shape)
@@ -108,27 +138,23 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
         raise facade.FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
                                  f"two converging side pairs")
     K1 = pseudo_K(image_shape, float(np.median(f0)))
-    members = [i for w in walls for i in w.members]
-    wall_of = np.concatenate([[g] * len(w.members) for g, w in enumerate(walls)])
-    R0 = np.array([facade.initial_rotation(*facade.fit_vps(q, list(w.members), K1, params.sigma_px))
-                   for w in walls])
+    R0, group, Q = _rotation_groups(q, K1, walls, params)
     try:
-        fit = facade.refine_walls(q[members], K1, R0, wall_of, height, True, params.sigma_px,
-                                  params.prior_dof)
+        members, wall_ids, fit = _fit_groups(q, K1, walls, sorted(set(group)), R0, group, Q, height, params, True)
     except (np.linalg.LinAlgError, ValueError) as e:
         raise facade.FacadeError(f"joint fit with free focal length failed: {e}") from e
     sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
     if not sd / fit.focal_px <= TOL.focal_max_rel_sd:
         raise facade.FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} +- {sd:.0f} px "
                                  f"(relative sd above {TOL.focal_max_rel_sd})")
-    return tuple(members), fit
+    return members, wall_ids, fit
 
 
 def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
                      params: WallParams = WallParams()) -> tuple[float, float]:
     """Focal length (px) and its standard deviation from window quads (N, 4, 2) px of an (H, W)
     image (:func:`fit_walls_focal`); FacadeError when unobservable."""
-    _, fit = fit_walls_focal(quads, image_shape, 1.0, params)
+    fit = fit_walls_focal(quads, image_shape, 1.0, params)[2]
     return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))
 
 
@@ -159,17 +185,16 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     f_est = None
     if K is None:
         try:
-            members, fit = fit_walls_focal(quads, image_shape, height_m, params)
+            fits = [fit_walls_focal(quads, image_shape, height_m, params)]
         except facade.FacadeError as e:
             for k in idx:
                 out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None)
             return out
-        f_est = fit.focal_px
-        fits = [(members, fit)]
+        f_est = fits[0][2].focal_px
     else:
         fits = fit_walls(quads, K, height_m, params)
-    for wid, (members, fit) in enumerate(fits):
-        for j, m in enumerate(members):
+    for members, wall_ids, fit in fits:
+        for j, (m, wid) in enumerate(zip(members, wall_ids)):
             k = idx[m]
             if fit is None:
                 out[k] = replace(out[k], failure="wall: joint fit failed", R=None, t=None,
@@ -178,11 +203,9 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             unc = window_uncertainty(fit, j)
             scale = 1.0 if width_m is None else width_m / fit.width[j]
             case = out[k].aspect_case or "general"
-            g = int(fit.wall_of[j])
             out[k] = replace(out[k], aspect_ratio=float(fit.width[j] / fit.height),
                              aspect_case="ill_conditioned" if unc["ill_conditioned"] else case,
-                             focal_estimate_px=f_est, R=fit.R[g].copy(), t=fit.t[j] * scale,
+                             focal_estimate_px=f_est, R=fit.window_R(j), t=fit.t[j] * scale,
                              height_m=fit.height * scale, quad_reprojected=fit.reprojected[j],
-                             failure=None, wall=g if f_est is not None else wid,
-                             uncertainty=unc)
+                             failure=None, wall=wid, uncertainty=unc)
     return out

@@ -206,3 +206,29 @@ def test_wall_jacobian_matches_finite_differences():
 
     J = facade.wall_jacobian(x, 2, labels, R0, K, 1.0, True)
     np.testing.assert_allclose(J, approx_derivative(residuals, x, method="3-point"), atol=1e-6 * np.abs(J).max())
+
+
+def test_tie_walls_right_angles_only():
+    R, _, _, _, _ = scene()
+    front, side = true_R(R, EX_FRONT), true_R(R, EX_SIDE)
+    oblique = true_R(R, np.array([np.cos(np.radians(45)), np.sin(np.radians(45)), 0.0]))
+    group, Q = facade.tie_walls(np.array([front, side, oblique]))
+    assert group.tolist() == [0, 0, 1]
+    np.testing.assert_allclose(front @ Q[1], side, atol=1e-12)
+
+
+def test_building_shares_one_rotation_across_walls():
+    """Two walls at right angles: 'building' fits one rotation for both (exact on exact quads) and,
+    under noise, beats one rotation per wall on the same draws."""
+    R, _, quads, labels, _ = scene()
+    truth = [true_R(R, EX_FRONT if lab == 0 else EX_SIDE) for lab in labels]
+    exact = walls.apply_walls(_results(quads), K, SHAPE, 1.0, None, walls.WALL_STRATEGIES["building"])
+    assert max(rotation_error_deg(r.R, g) for r, g in zip(exact, truth)) < TOL.exact_rotation_deg
+    rng = np.random.default_rng(17)
+    err = {"wall": [], "building": []}
+    for _ in range(10):
+        res = _results(quads + rng.normal(0.0, 0.5, quads.shape))
+        for name in err:
+            out = walls.apply_walls(res, K, SHAPE, 1.0, None, walls.WALL_STRATEGIES[name])
+            err[name] += [rotation_error_deg(r.R, g) for r, g in zip(out, truth)]
+    assert np.median(err["building"]) < 0.8 * np.median(err["wall"])
