@@ -36,7 +36,7 @@ class WindowResult:
     quad_mask: np.ndarray | None
     quad_snapped: np.ndarray | None
     aspect_ratio: float | None
-    aspect_case: str | None  # e.g. "general", "one_pair_parallel", "fronto_parallel"
+    aspect_case: str | None  # "general", "one_pair_parallel", "fronto_parallel"; per-wall: "ill_conditioned"
     focal_estimate_px: float | None
     R: np.ndarray | None
     t: np.ndarray | None
