@@ -62,6 +62,8 @@ class Tolerances:
     wall_sigma_prior_dof: float = 4.0  # pseudo-observations given to that prior
     ill_conditioned_aspect_rel: float = 0.05  # 90 % half-width of w/h above this: ill-conditioned
     ill_conditioned_rot_deg: float = 5.0  # 90 % bound of the rotation error above this: ill-conditioned
+    wall_outlier_factor: float = 3.0  # a window whose corner RMS in its wall fit exceeds this x the median ...
+    wall_outlier_px: float = 1.0  # ... and this (px) is split off into a wall of its own
     manhattan_deg: float = 8.0  # walls this close to k x 90 deg about a shared vertical are tied
     focal_max_rel_sd: float = 0.25  # a wall's focal estimate with larger relative sd is not used
     interval_level: float = 0.90  # the reported uncertainty intervals

@@ -113,12 +113,46 @@ def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], gr
     return members, wall_ids, fit
 
 
+def outlier_windows(quads: np.ndarray, fits: list[Fit], factor: float = TOL.wall_outlier_factor,
+                    floor_px: float = TOL.wall_outlier_px) -> list[int]:
+    """Windows (indices into quads (N, 4, 2) px) that do not fit their wall: in a fit of >= 3
+    windows, an RMS corner residual above ``factor`` x the fit's median and above ``floor_px``."""
+    bad = []
+    for members, _, fit in fits:
+        if fit is None or len(members) < 3:
+            continue
+        rms = np.sqrt(np.mean(np.sum((fit.reprojected - quads[list(members)]) ** 2, axis=2), axis=1))
+        bad += [m for m, r in zip(members, rms) if r > max(factor * np.median(rms), floor_px)]
+    return bad
+
+
+def split_off(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], windows: list[int],
+              sigma_px: float) -> list[facade.WallVP]:
+    """The walls with ``windows`` taken out of theirs, each one a wall of its own (largest first)."""
+    out = []
+    for w in walls:
+        keep = [m for m in w.members if m not in windows]
+        if keep == list(w.members):
+            out.append(w)
+        elif keep:
+            out.append(facade.WallVP(*facade.fit_vps(quads, keep, K, sigma_px), tuple(keep)))
+    out += [facade.WallVP(*facade.fit_vps(quads, [m], K, sigma_px), (m,)) for m in windows]
+    return sorted(out, key=lambda w: -len(w.members))
+
+
 def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams) -> list[Fit]:
     """Group quads (N, 4, 2) px into walls and fit each rotation group (K known, so groups are
-    independent): [(window indices, their wall indices, fit or None where it failed)]."""
+    independent): [(window indices, their wall indices, fit or None where it failed)]. Windows that
+    do not fit their wall (:func:`outlier_windows`) are split off and everything refitted (twice at most)."""
     walls = facade.group_walls(quads, K, params.sigma_px)
-    R0, group, Q = _rotation_groups(quads, K, walls, params)
-    return [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False) for k in sorted(set(group))]
+    for attempt in range(3):
+        R0, group, Q = _rotation_groups(quads, K, walls, params)
+        fits = [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False) for k in sorted(set(group))]
+        bad = outlier_windows(quads, fits) if attempt < 2 else []
+        if not bad:
+            return fits
+        walls = split_off(quads, K, walls, bad, params.sigma_px)
+    return fits
 
 
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
