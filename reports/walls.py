@@ -7,15 +7,23 @@ import pandas as pd
 
 from reports.build import paired_comparison
 
-PER_WINDOW, PER_WALL, NO_K = "lm", "wall", "wall+noK"
+PER_WINDOW, NO_K_SUFFIX = "lm", "+noK"
 
 
-def paired_rows(df: pd.DataFrame) -> list[list]:
-    """Per detector x snapper: rotation (median, p90) and aspect p90 of per-window LM and per-wall,
-    paired on the windows where both have an estimate, and the Wilcoxon p of the rotation."""
+def wall_poses(df: pd.DataFrame) -> list[str]:
+    """The per-wall strategies (pipeline.walls.WALL_STRATEGIES) present in a results table."""
+    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+
+    return [p for p in WALL_STRATEGIES if (df["pose"] == p).any()]
+
+
+def paired_rows(df: pd.DataFrame, pose: str) -> list[list]:
+    """Per detector x snapper: rotation (median, p90) and aspect p90 of per-window LM and the
+    per-wall strategy ``pose``, paired on the windows where both have an estimate, and the
+    Wilcoxon p of the rotation."""
     rows = []
     for (det, snap), _ in df.groupby(["detector", "snapper"]):
-        a, b = f"{det}/{snap}/{PER_WINDOW}", f"{det}/{snap}/{PER_WALL}"
+        a, b = f"{det}/{snap}/{PER_WINDOW}", f"{det}/{snap}/{pose}"
         if not {a, b} <= set(df["method"]):
             continue
         rot = paired_comparison(df, b, a, "rot_err_deg")
@@ -34,7 +42,7 @@ def paired_rows(df: pd.DataFrame) -> list[list]:
 
 def focal_rows(df: pd.DataFrame) -> list[list]:
     """Per K-withheld method: windows with a focal estimate, median and p90 relative error, failures."""
-    ev = df[df["evaluable"].astype(bool) & df["pose"].eq(NO_K)]
+    ev = df[df["evaluable"].astype(bool) & df["pose"].str.endswith(NO_K_SUFFIX)]
     rows = []
     for m, g in ev.groupby("method"):
         e = g["focal_err_rel"].to_numpy(float)
@@ -62,17 +70,19 @@ def calibration_rows(df: pd.DataFrame) -> list[list]:
 
 def wall_sections(df: pd.DataFrame) -> list[tuple]:
     """Report sections (build.py's tuple format); empty for a run without per-wall methods."""
-    if "pose" not in df or not df["pose"].isin([PER_WALL, NO_K]).any():
+    if "pose" not in df or not wall_poses(df):
         return []
     s: list[tuple] = [("h2", "Per window or per wall (shared plane)")]
     s.append(("p", "Same evaluable windows, paired (both estimates present). 'wall' groups a view's windows into "
-                   "walls by their vanishing directions and fits one rotation per wall over all their corners "
-                   "(pipeline/walls.py); 'lm' is the paper's per-window solvePnP."))
-    s.append(("table", ["detector/snapper", "n paired", "rot median lm", "rot median wall", "rot p90 lm",
-                        "rot p90 wall", "aspect p90 lm", "aspect p90 wall", "wall better on", "Wilcoxon p"],
-              paired_rows(df)))
-    if (df["pose"] == NO_K).any():
-        s.append(("h3", "Focal length with K withheld ('wall+noK')"))
+                   "walls by their vanishing directions and fits one rotation per wall over all their corners; "
+                   "'building' also ties walls at right angles into one rotation (pipeline/walls.py); 'lm' is "
+                   "the paper's per-window solvePnP."))
+    for pose in wall_poses(df):
+        s.append(("table", ["detector/snapper", "n paired", "rot median lm", f"rot median {pose}", "rot p90 lm",
+                            f"rot p90 {pose}", "aspect p90 lm", f"aspect p90 {pose}", f"{pose} better on",
+                            "Wilcoxon p"], paired_rows(df, pose)))
+    if df["pose"].str.endswith(NO_K_SUFFIX).any():
+        s.append(("h3", "Focal length with K withheld ('+noK')"))
         s.append(("p", "The pipeline gets the image only (principal point assumed at the image centre); relative "
                        "error of the focal length it finds. A view whose walls leave f unobservable fails."))
         s.append(("table", ["method", "windows with f", "median rel. error", "p90 rel. error", "failure rate"],
