@@ -1,7 +1,7 @@
 """CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py).
 
     fenestra reconstruct PHOTO [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
-        [--detector NAME] [--snapper NAME] [--pose lm|ippe|wall] [--height M] [--width M]
+        [--detector NAME] [--snapper NAME] [--pose lm|ippe|wall|building] [--height M] [--width M]
         [--substitute STYLE] --out DIR
     fenestra calibrate PHOTOS... --pattern COLSxROWS [--square M] --out K.json
 
@@ -148,7 +148,7 @@ def register(app: typer.Typer) -> None:
                                               "lens distortion in --K it must be in the undistorted photo's frame"),
         detector: str = typer.Option("default", "--detector", help="detector registry name (without --masks)"),
         snapper: str = typer.Option(DEFAULT_SNAPPER, "--snapper", help="none | harris (the paper's) | hough | linefit | subpix"),
-        pose: str = typer.Option(DEFAULT_POSE, "--pose", help="lm (the paper's) | ippe: per window; wall: per wall (shared plane)"),
+        pose: str = typer.Option(DEFAULT_POSE, "--pose", help="lm (the paper's) | ippe: per window; wall | building: per wall (shared plane)"),
         height: float = typer.Option(1.0, "--height", help="window height, m (the scale parameter)"),
         width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
