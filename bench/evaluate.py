@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench import matching, metrics
+from bench import matching, metrics, uncertainty
 from bench.profiles import EvalSpec
 from fenestra.conventions import TOL, camera_depths
 
@@ -250,12 +250,14 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
         rec_dets = [dets[d] for _, (d, _) in matched]
         quads: dict = {}  # QuadParams -> fit_quads(rec_dets): the quads are fitted once per detector
         for method in (m for m in task.methods if m.detector == det_name):
-            cfg = ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=task.height_m)
+            pose, withhold_K = uncertainty.split_pose(method.pose)
+            cfg = ReconstructConfig(snapper=method.snapper, pose=pose, height_m=task.height_m)
             if cfg.quad not in quads:
                 quads[cfg.quad] = fit_quads(rec_dets, cfg.quad, gray.shape)
                 stage_s["reconstruct.quad"] = (stage_s.get("reconstruct.quad", 0.0)
                                                + sum(q.ms for q in quads[cfg.quad]) / 1000.0)
-            results = reconstruct_from_quads(gray, K, rec_dets, quads[cfg.quad], cfg) if matched else []
+            K_in = None if withhold_K else K
+            results = reconstruct_from_quads(gray, K_in, rec_dets, quads[cfg.quad], cfg) if matched else []
             t0 = tick("reconstruct", t0)
             by_gt = {matched[r.index][0]: r for r in results}
             for r in results:
@@ -266,13 +268,14 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
                 row = {**b, "detector": method.detector, "snapper": method.snapper,
                        "pose": method.pose, "method": method.name}
                 if g not in det_for_gt:
-                    row.update({k: NAN for k in _ERROR_COLUMNS}, status="missed", reason="missed",
-                               aspect_case=None)
+                    row.update({k: NAN for k in (*_ERROR_COLUMNS, *uncertainty.COLUMNS)}, status="missed",
+                               reason="missed", aspect_case=None)
                 else:
                     res = by_gt[g]
                     if g not in gt_poses:  # the same for every method
                         gt_poses[g] = metrics.gt_window_pose(meta["R"], meta["t"], w["corners_world"])
-                    row.update(_errors(res, w, gt_poses[g]), aspect_case=res.aspect_case,
+                    errs = _errors(res, w, gt_poses[g])
+                    row.update(errs, **uncertainty.columns(res, w, meta, K, errs), aspect_case=res.aspect_case,
                                status="ok" if res.failure is None else "failed",
                                reason="" if res.failure is None else f"failed: {res.failure}")
                     row["match_iou"] = det_for_gt[g][1]

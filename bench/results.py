@@ -32,6 +32,7 @@ SUMMARY_JSON = "summary.json"
 
 CORNER_STAGES = ("mask", "snap", "reproj")
 STAGE_LABELS = {"mask": "mask-fit", "snap": "snapped", "reproj": "reprojected"}
+CALIBRATION_COLUMNS = ("aspect_in90", "rot_in90", "trans_in90")  # bench.uncertainty
 OTHER_ERRORS = ("aspect_err_rel", "rot_err_deg", "normal_err_deg", "trans_err_m", "iou_2d")
 OPTIONAL_ERRORS = ("reproj_consistency_px", "rel_size_err")  # summarised when present (bench/real)
 # Where a table says which windows have the truth an error needs (the real bench: bench/real),
@@ -108,6 +109,21 @@ def summarize_method(df: pd.DataFrame) -> dict:
         out[f"corner_err_px_{s}"] = _stats_with_recall(_with_truth(ev, f"corner_err_px_{s}"))
     for col in (*OTHER_ERRORS, *(c for c in OPTIONAL_ERRORS if c in df.columns)):
         out[col] = error_stats(_with_truth(ev, col))
+    if "focal_err_rel" in ev:  # per-wall strategies with K withheld (bench.uncertainty)
+        out["focal_err_rel"] = error_stats(ev["focal_err_rel"].to_numpy(float))
+    out["calibration"] = calibration(ev)
+    return out
+
+
+def calibration(ev: pd.DataFrame) -> dict:
+    """Fraction of windows whose true error lies in their 90 % interval, per quantity (aspect, rot,
+    trans; NaN where no window has intervals), and ``n`` windows with intervals."""
+    cols = [c for c in CALIBRATION_COLUMNS if c in ev]
+    out: dict = {"n": int(ev[cols[0]].notna().sum()) if cols else 0}
+    for c in CALIBRATION_COLUMNS:
+        v = ev[c].to_numpy(float) if c in ev else np.array([])
+        v = v[np.isfinite(v)]
+        out[c.removesuffix("_in90")] = float(v.mean()) if v.size else float("nan")
     return out
 
 
@@ -197,5 +213,7 @@ def headline_table(results: dict) -> list[dict]:
             "snap_p90_px": snap["p90"], "reproj_med_px": r["corner_err_px_reproj"]["median"],
             "recall_2px_snap": snap["recall"]["2"], "aspect_p90_rel": r["aspect_err_rel"]["p90"],
             "rot_med_deg": r["rot_err_deg"]["median"],
+            "focal_med_rel": r.get("focal_err_rel", {}).get("median", float("nan")),
+            "cover90_rot": r.get("calibration", {}).get("rot", float("nan")),
         })
     return rows

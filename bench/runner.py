@@ -74,10 +74,21 @@ def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
     return ok, skipped
 
 
+def pose_strategies() -> dict[str, str]:
+    """Bench pose names: every per-window solver, every per-wall strategy, and each per-wall one
+    with K withheld (``wall+noK``: the focal length estimated from the photo, bench.uncertainty)."""
+    from pipeline.pose import POSE_SOLVERS  # noqa: PLC0415
+    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+
+    from bench.uncertainty import NO_K_SUFFIX  # noqa: PLC0415
+
+    return {**{p: "per-window" for p in POSE_SOLVERS}, **{p: "per-wall" for p in WALL_STRATEGIES},
+            **{p + NO_K_SUFFIX: "per-wall, K withheld" for p in WALL_STRATEGIES}}
+
+
 def plan_methods(profile: Profile) -> tuple[tuple[Method, ...], dict[str, str]]:
     """Every available detector x snapper x pose solver of the profile, and skipped detectors."""
     from pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from pipeline.pose import POSE_SOLVERS  # noqa: PLC0415
     from pipeline.snappers import SNAPPERS  # noqa: PLC0415
 
     requested = _expand(profile.methods.detectors, DETECTORS, "detector(s)")
@@ -85,7 +96,7 @@ def plan_methods(profile: Profile) -> tuple[tuple[Method, ...], dict[str, str]]:
     if not dets:
         raise FenestraError(f"no detector of {requested} is available: {skipped}")
     snaps = _expand(profile.methods.snappers, SNAPPERS, "snapper(s)")
-    poses = _expand(profile.methods.pose_solvers, POSE_SOLVERS, "pose solver(s)")
+    poses = _expand(profile.methods.pose_solvers, pose_strategies(), "pose solver(s)")
     return tuple(Method(d, s, p) for d, s, p in itertools.product(dets, snaps, poses)), skipped
 
 

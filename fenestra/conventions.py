@@ -55,6 +55,18 @@ class Tolerances:
     parallel_sides_deg: float = 0.05  # opposite image sides closer than this count as parallel
     match_iou: float = 0.5  # detection <-> ground truth matching
     recall_thresholds_px: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0)
+    # façade geometry (pipeline/facade.py, pipeline/walls.py)
+    wall_vp_angle_deg: float = 1.5  # a side points at its wall's vanishing point within this ...
+    wall_corner_noise_px: float = 1.5  # ... plus the angle that this corner noise makes on its length
+    wall_sigma_px: float = 0.5  # prior corner sigma (px) pooled with the wall fit's residuals
+    wall_sigma_prior_dof: float = 4.0  # pseudo-observations given to that prior
+    ill_conditioned_aspect_rel: float = 0.05  # 90 % half-width of w/h above this: ill-conditioned
+    ill_conditioned_rot_deg: float = 5.0  # 90 % bound of the rotation error above this: ill-conditioned
+    wall_outlier_factor: float = 3.0  # a window whose corner RMS in its wall fit exceeds this x the median ...
+    wall_outlier_px: float = 1.0  # ... and this (px) is split off into a wall of its own
+    manhattan_deg: float = 8.0  # walls this close to k x 90 deg about a shared vertical are tied
+    focal_max_rel_sd: float = 0.25  # a wall's focal estimate with larger relative sd is not used
+    interval_level: float = 0.90  # the reported uncertainty intervals
 
 
 TOL = Tolerances()

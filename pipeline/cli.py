@@ -1,8 +1,12 @@
 """CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py).
 
-    fenestra reconstruct PHOTO (--K K.json | --fx F [--fy --cx --cy]) [--masks MASKS.png]
-        [--detector NAME] [--snapper NAME] [--pose lm|ippe] [--height M] [--width M]
+    fenestra reconstruct PHOTO [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
+        [--detector NAME] [--snapper NAME] [--pose lm|ippe|wall|building] [--height M] [--width M]
         [--substitute STYLE] --out DIR
+    fenestra calibrate PHOTOS... --pattern COLSxROWS [--square M] --out K.json
+
+Without --K/--fx the intrinsics come from the photo (pipeline.intrinsics.resolve_K: the walls'
+vanishing points, else EXIF, else an error); windows.json records ``K`` and ``K_source``.
 
 writes DIR/windows.json and, through pipeline.export, model.ifc, model.obj, overlay.png, ...
 When K.json carries lens distortion (``"distortion": [k1, k2, p1, p2, k3]``, OpenCV), the photo is
@@ -23,11 +27,15 @@ import typer
 from fenestra.errors import PipelineError
 from pipeline.outdir import check_out, staged_dir
 
+# the defaults `make bench` measures best for learned masks (README: "The answer")
+DEFAULT_SNAPPER = "linefit"
+DEFAULT_POSE = "wall"
+
 
 def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
                     fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
-                    masks: Optional[Path] = None, detector: str = "default", snapper: str = "harris",
-                    pose: str = "lm", height: float = 1.0, width: Optional[float] = None,
+                    masks: Optional[Path] = None, detector: str = "default", snapper: str = DEFAULT_SNAPPER,
+                    pose: str = DEFAULT_POSE, height: float = 1.0, width: Optional[float] = None,
                     substitute: Optional[str] = None, export: bool = True, force: bool = False) -> dict:
     """The `reconstruct` command as a function: returns the windows.json dict it wrote.
 
@@ -52,12 +60,9 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     elif fx is not None:
         camera = Camera(K=K_from_values(fx, fy, cx, cy, size))
     else:
-        raise PipelineError("intrinsics needed: --K K.json or --fx F [--fy --cx --cy]")
-    K = camera.K
-    warnings += intrinsics_warnings(K, size)
-    for w in warnings:
-        typer.echo(f"warning: {w}", err=True)
-    image = undistort_photo(image, camera)  # masks (--masks) are taken to be in this frame
+        camera = None  # resolved below from the photo (vanishing points, EXIF)
+    if camera is not None:
+        image = undistort_photo(image, camera)  # masks (--masks) are taken to be in this frame
     cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width)
     if masks is not None:
         detections = detections_from_instance_map(read_instance_map(masks, size))
@@ -65,8 +70,18 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
         from pipeline.detectors import detect  # noqa: PLC0415
 
         detections = detect(detector, cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
+    if camera is None:
+        resolved = _resolve_K(photo, image, detections, cfg, size)
+        camera, K_source = Camera(K=resolved.K), {"source": resolved.source, "detail": resolved.detail}
+    else:
+        K_source = {"source": "--K" if K_json is not None else "--fx", "detail": str(K_json or "")}
+    K = camera.K
+    warnings += intrinsics_warnings(K, size)
+    for w in warnings:
+        typer.echo(f"warning: {w}", err=True)
     results = reconstruct(image, K, detections, cfg)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
+    doc["K_source"] = K_source
     doc["undistorted"] = camera.has_distortion
     doc["distortion"] = None if camera.distortion is None else camera.distortion.tolist()
     doc["warnings"] = warnings
@@ -79,6 +94,37 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                 typer.echo(f"note: export skipped ({e})", err=True)
             else:
                 write_outputs(tmp, image, K, results, substitute=substitute)
+    return doc
+
+
+def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tuple[int, int]):
+    """Intrinsics of a photo without --K: snap the detections' quads (no K needed), then
+    pipeline.intrinsics.resolve_K (vanishing points, else EXIF, else PipelineError)."""
+    from dataclasses import replace  # noqa: PLC0415
+
+    from pipeline.intrinsics import resolve_K  # noqa: PLC0415
+    from pipeline.reconstruct import fit_quads, reconstruct_from_quads, to_gray  # noqa: PLC0415
+
+    gray = to_gray(image)
+    per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
+                                 replace(cfg, pose="ippe", fallback_focal_px=float(max(size))))
+    quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
+    return resolve_K(photo, quads, size)
+
+
+def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
+    """The `calibrate` command as a function: returns the K.json dict it wrote."""
+    from pipeline.intrinsics import calibrate_chessboard, calibration_json  # noqa: PLC0415
+    from pipeline.io import read_photo  # noqa: PLC0415
+
+    try:
+        cols, rows = (int(v) for v in pattern.lower().split("x"))
+    except ValueError as e:
+        raise PipelineError(f"--pattern must be COLSxROWS inner corners (e.g. 9x6), got {pattern!r}") from e
+    cal = calibrate_chessboard([read_photo(p) for p in photos], (cols, rows), square)
+    doc = calibration_json(cal)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=2))
     return doc
 
 
@@ -114,8 +160,8 @@ def register(app: typer.Typer) -> None:
         masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector; with "
                                               "lens distortion in --K it must be in the undistorted photo's frame"),
         detector: str = typer.Option("default", "--detector", help="detector registry name (without --masks)"),
-        snapper: str = typer.Option("harris", "--snapper", help="none | harris | hough | linefit | subpix"),
-        pose: str = typer.Option("lm", "--pose", help="lm | ippe"),
+        snapper: str = typer.Option(DEFAULT_SNAPPER, "--snapper", help="none | harris (the paper's) | hough | linefit | subpix"),
+        pose: str = typer.Option(DEFAULT_POSE, "--pose", help="lm (the paper's) | ippe: per window; wall | building: per wall (shared plane)"),
         height: float = typer.Option(1.0, "--height", help="window height, m (the scale parameter)"),
         width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
@@ -127,7 +173,21 @@ def register(app: typer.Typer) -> None:
         typer.echo(format_table(doc))
         if doc.get("undistorted"):
             typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")
+        typer.echo(f"intrinsics: {doc['K_source']['source']} {doc['K_source']['detail']}".rstrip())
         typer.echo(f"wrote {out / 'windows.json'}")
+
+    @app.command("calibrate")
+    def calibrate_cmd(
+        photos: list[Path] = typer.Argument(..., help="chessboard photos (one camera, one size)"),
+        pattern: str = typer.Option(..., "--pattern", help="inner corners COLSxROWS, e.g. 9x6"),
+        square: float = typer.Option(1.0, "--square", help="square size, m (does not affect K)"),
+        out: Path = typer.Option(..., "--out", help="K.json to write (what `reconstruct --K` reads)"),
+    ) -> None:
+        """Camera intrinsics and distortion from chessboard photos (OpenCV), with the reprojection error."""
+        doc = run_calibrate(photos, pattern, square, out)
+        typer.echo(f"board found in {doc['n_images']} of {doc['n_given']} photos; reprojection RMS "
+                   f"{doc['reprojection_rms_px']:.3f} px; fx {doc['K'][0][0]:.2f} fy {doc['K'][1][1]:.2f}")
+        typer.echo(f"wrote {out}")
 
     try:
         from pipeline.detectors import cli as detectors_cli  # noqa: PLC0415

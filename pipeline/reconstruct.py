@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -28,6 +28,7 @@ from pipeline.pose import POSE_SOLVERS, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, mask_to_quad
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult
+from pipeline.walls import WALL_STRATEGIES, apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
 
@@ -37,7 +38,8 @@ class ReconstructConfig:
     """Strategy choices and parameters of :func:`reconstruct`.
 
     snapper: a key of ``pipeline.snappers.SNAPPERS``; snapper_params: its dataclass (None: defaults).
-    pose: a key of ``pipeline.pose.POSE_SOLVERS``.
+    pose: a key of ``pipeline.pose.POSE_SOLVERS`` (per window) or of
+    ``pipeline.walls.WALL_STRATEGIES`` (per wall: windows grouped into walls, each wall fitted once).
     height_m / width_m: the scale parameter (the window's height, or its width if given), m.
     fallback_focal_px: focal length used when K is None and the quad cannot give one.
     quad: parameters of the mask -> quad stage.
@@ -54,8 +56,9 @@ class ReconstructConfig:
     def __post_init__(self) -> None:
         if self.snapper not in SNAPPERS:
             raise ValueError(f"unknown snapper {self.snapper!r}; choose from {sorted(SNAPPERS)}")
-        if self.pose not in POSE_SOLVERS:
-            raise ValueError(f"unknown pose solver {self.pose!r}; choose from {sorted(POSE_SOLVERS)}")
+        if self.pose not in POSE_SOLVERS and self.pose not in WALL_STRATEGIES:
+            raise ValueError(f"unknown pose solver {self.pose!r}; choose from "
+                             f"{sorted(POSE_SOLVERS) + sorted(WALL_STRATEGIES)}")
         for name in ("height_m", "width_m"):
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and v > 0):
@@ -207,7 +210,15 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
         raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
     gray = to_gray(image)
     K = None if K is None else check_K(K)
-    return [reconstruct_one(i, gray, K, d, cfg, q) for i, (d, q) in enumerate(zip(detections, quads))]
+    wall = WALL_STRATEGIES.get(cfg.pose)
+    per_cfg = cfg if wall is None else replace(cfg, pose=wall.base_pose)
+    results = [reconstruct_one(i, gray, K, d, per_cfg, q) for i, (d, q) in enumerate(zip(detections, quads))]
+    if wall is None:
+        return results
+    t0 = time.perf_counter()
+    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall)
+    ms = (time.perf_counter() - t0) * 1e3 / max(len(results), 1)
+    return [replace(r, timings_ms={**r.timings_ms, "wall": ms}) for r in results]
 
 
 def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
@@ -269,6 +280,7 @@ def window_to_dict(r: WindowResult) -> dict:
         "width_m": None if r.aspect_ratio is None or r.R is None else r.aspect_ratio * r.height_m,
         "quad_reprojected": _list(r.quad_reprojected),
         "failure": r.failure, "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
+        "wall": r.wall, "uncertainty": r.uncertainty,
     }
 
 

@@ -34,6 +34,8 @@ class WindowResult:
     R (3, 3), t (3,) map the window frame (x along the wall, y up, z outward; origin at the
     bottom-left corner; size aspect_ratio*height x height m) to the camera frame (OpenCV).
     Fields are None when the stage failed; ``failure`` then names the stage and reason.
+    wall: index of the wall the window was grouped into (per-wall strategies, pipeline.walls),
+    else None; uncertainty: its 90 % intervals (pipeline.walls.window_uncertainty), else None.
     """
 
     index: int
@@ -41,7 +43,7 @@ class WindowResult:
     quad_mask: np.ndarray | None
     quad_snapped: np.ndarray | None
     aspect_ratio: float | None
-    aspect_case: str | None  # e.g. "general", "one_pair_parallel", "fronto_parallel"
+    aspect_case: str | None  # "general", "one_pair_parallel", "fronto_parallel"; per-wall: "ill_conditioned"
     focal_estimate_px: float | None
     R: np.ndarray | None
     t: np.ndarray | None
@@ -50,3 +52,5 @@ class WindowResult:
     failure: str | None
     timings_ms: dict[str, float] = field(default_factory=dict)
     instance_id: int | None = None  # the detection's id in the input instance map, if any
+    wall: int | None = None
+    uncertainty: dict | None = None

@@ -213,6 +213,9 @@ def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict)
                             "method better on", "Wilcoxon p"],
                   [[r["method"], r["n"], r["median_a"], r["median_b"], r["median_diff"], r["a_better"],
                     r["p_value"]] for r in comp]))
+    from reports.walls import wall_sections  # noqa: PLC0415 - reports.walls imports this module
+
+    s += wall_sections(df)
     det = (summary or {}).get("detection") or {}
     if det:
         s.append(("h2", "Detection (COCO)"))

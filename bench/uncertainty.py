@@ -1,0 +1,53 @@
+"""Bench columns of the per-wall strategies: estimated focal length and uncertainty calibration.
+
+Methods whose pose name ends in :data:`NO_K_SUFFIX` (e.g. ``wall+noK``) run the pipeline with
+K withheld (the principal point is then the image centre, as for a user's photo): their rows
+carry the focal length the pipeline found (``focal_est_px``) and its relative error.
+
+Calibration: a window with error bars (``WindowResult.uncertainty``, 90 % intervals) gets
+``aspect_in90`` / ``rot_in90`` / ``trans_in90`` (1.0 when its true error lies inside the interval,
+0.0 when not, NaN without intervals); the summary's calibration is their mean.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bench import metrics
+
+NO_K_SUFFIX = "+noK"
+NAN = float("nan")
+COLUMNS = ("focal_est_px", "focal_err_rel", "aspect_in90", "rot_in90", "trans_in90",
+           "aspect_ci90_rel", "rot_ci90_deg", "wall_id")
+CALIBRATION = ("aspect_in90", "rot_in90", "trans_in90")
+
+
+def split_pose(pose: str) -> tuple[str, bool]:
+    """(pipeline pose strategy, K withheld?) of a bench pose name like ``wall+noK``."""
+    if pose.endswith(NO_K_SUFFIX):
+        return pose[: -len(NO_K_SUFFIX)], True
+    return pose, False
+
+
+def columns(res, win: dict, meta: dict, K: np.ndarray, errors: dict) -> dict:
+    """The COLUMNS of one WindowResult against its GT window; ``errors``: its bench._errors row."""
+    out = {k: NAN for k in COLUMNS}
+    f_true = float(np.sqrt(K[0, 0] * K[1, 1]))
+    if res.focal_estimate_px is not None and math.isfinite(res.focal_estimate_px):
+        out["focal_est_px"] = float(res.focal_estimate_px)
+        out["focal_err_rel"] = abs(res.focal_estimate_px - f_true) / f_true
+    if res.wall is not None:
+        out["wall_id"] = float(res.wall)
+    u = res.uncertainty
+    if u is None or res.R is None:
+        return out
+    Cw = np.asarray(win["corners_world"], dtype=np.float64)
+    a_gt = float(np.linalg.norm(Cw[1] - Cw[0]) / np.linalg.norm(Cw[0] - Cw[3]))
+    out["aspect_in90"] = float(u["aspect_lo"] <= a_gt <= u["aspect_hi"])
+    out["aspect_ci90_rel"] = 0.5 * (u["aspect_hi"] - u["aspect_lo"]) / res.aspect_ratio
+    out["rot_ci90_deg"] = u["rot_deg"]
+    out["rot_in90"] = float(errors["rot_err_deg"] <= u["rot_deg"])
+    _, t_gt = metrics.gt_window_pose(meta["R"], meta["t"], Cw)
+    out["trans_in90"] = float(errors["trans_err_m"] / np.linalg.norm(t_gt) <= u["trans_rel"])
+    return out

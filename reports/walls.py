@@ -1,0 +1,97 @@
+"""Report sections of the per-wall strategies (pipeline.walls): per window vs per wall on the same
+windows, the focal length found with K withheld, and the calibration of the 90 % intervals."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from reports.build import paired_comparison
+
+PER_WINDOW, NO_K_SUFFIX = "lm", "+noK"
+
+
+def wall_poses(df: pd.DataFrame) -> list[str]:
+    """The per-wall strategies (pipeline.walls.WALL_STRATEGIES) present in a results table."""
+    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+
+    return [p for p in WALL_STRATEGIES if (df["pose"] == p).any()]
+
+
+def paired_rows(df: pd.DataFrame, pose: str) -> list[list]:
+    """Per detector x snapper: rotation (median, p90) and aspect p90 of per-window LM and the
+    per-wall strategy ``pose``, paired on the windows where both have an estimate, and the
+    Wilcoxon p of the rotation."""
+    rows = []
+    for (det, snap), _ in df.groupby(["detector", "snapper"]):
+        a, b = f"{det}/{snap}/{PER_WINDOW}", f"{det}/{snap}/{pose}"
+        if not {a, b} <= set(df["method"]):
+            continue
+        rot = paired_comparison(df, b, a, "rot_err_deg")
+        ev = df[df["evaluable"].astype(bool)]
+        key = ["house", "view", "window_id"]
+        both = ev[ev["method"].isin([a, b])].pivot_table(index=key, columns="method",
+                                                          values=["rot_err_deg", "aspect_err_rel"]).dropna()
+        if both.empty:
+            continue
+        q = {c: both[c].quantile(0.9) for c in ("rot_err_deg", "aspect_err_rel")}
+        rows.append([f"{det}/{snap}", rot["n"], rot["median_b"], rot["median_a"], q["rot_err_deg"][a],
+                     q["rot_err_deg"][b], q["aspect_err_rel"][a], q["aspect_err_rel"][b], rot["a_better"],
+                     rot["p_value"]])
+    return rows
+
+
+def focal_rows(df: pd.DataFrame) -> list[list]:
+    """Per K-withheld method: windows with a focal estimate, median and p90 relative error, failures."""
+    ev = df[df["evaluable"].astype(bool) & df["pose"].str.endswith(NO_K_SUFFIX)]
+    rows = []
+    for m, g in ev.groupby("method"):
+        e = g["focal_err_rel"].to_numpy(float)
+        e = e[np.isfinite(e)]
+        detected = g[g["status"] != "missed"]
+        rows.append([m, len(e), float(np.median(e)) if e.size else float("nan"),
+                     float(np.percentile(e, 90)) if e.size else float("nan"),
+                     float((detected["status"] == "failed").mean()) if len(detected) else float("nan")])
+    return rows
+
+
+def calibration_rows(df: pd.DataFrame) -> list[list]:
+    """Per method with intervals: windows, coverage of aspect / rotation / translation 90 % intervals,
+    median interval half-widths (aspect relative, rotation deg)."""
+    ev = df[df["evaluable"].astype(bool)]
+    rows = []
+    for m, g in ev.groupby("method"):
+        g = g[g["aspect_in90"].notna()] if "aspect_in90" in g else g.iloc[:0]
+        if g.empty:
+            continue
+        rows.append([m, len(g), g["aspect_in90"].mean(), g["rot_in90"].mean(), g["trans_in90"].mean(),
+                     g["aspect_ci90_rel"].median(), g["rot_ci90_deg"].median()])
+    return rows
+
+
+def wall_sections(df: pd.DataFrame) -> list[tuple]:
+    """Report sections (build.py's tuple format); empty for a run without per-wall methods."""
+    if "pose" not in df or not wall_poses(df):
+        return []
+    s: list[tuple] = [("h2", "Per window or per wall (shared plane)")]
+    s.append(("p", "Same evaluable windows, paired (both estimates present). 'wall' groups a view's windows into "
+                   "walls by their vanishing directions and fits one rotation per wall over all their corners; "
+                   "'building' also ties walls at right angles into one rotation (pipeline/walls.py); 'lm' is "
+                   "the paper's per-window solvePnP."))
+    for pose in wall_poses(df):
+        s.append(("table", ["detector/snapper", "n paired", "rot median lm", f"rot median {pose}", "rot p90 lm",
+                            f"rot p90 {pose}", "aspect p90 lm", f"aspect p90 {pose}", f"{pose} better on",
+                            "Wilcoxon p"], paired_rows(df, pose)))
+    if df["pose"].str.endswith(NO_K_SUFFIX).any():
+        s.append(("h3", "Focal length with K withheld ('+noK')"))
+        s.append(("p", "The pipeline gets the image only (principal point assumed at the image centre); relative "
+                       "error of the focal length it finds. A view whose walls leave f unobservable fails."))
+        s.append(("table", ["method", "windows with f", "median rel. error", "p90 rel. error", "failure rate"],
+                  focal_rows(df)))
+    cal = calibration_rows(df)
+    if cal:
+        s.append(("h3", "Uncertainty: coverage of the 90 % intervals"))
+        s.append(("p", "Fraction of windows whose true error lies inside their 90 % interval (first-order "
+                       "covariance of the wall fit); well calibrated is 0.85-0.95."))
+        s.append(("table", ["method", "windows", "aspect", "rotation", "translation", "median aspect ±",
+                            "median rotation bound deg"], cal))
+    return s

@@ -1,0 +1,125 @@
+"""Intrinsics without --K: EXIF focal lengths, façade vanishing points in `fenestra reconstruct`,
+and `fenestra calibrate` on chessboard photos this test renders itself (known K and poses)."""
+import json
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from fenestra.conventions import look_at, make_K, project
+from fenestra.errors import PipelineError
+from pipeline.cli import run_calibrate, run_reconstruct
+from pipeline.intrinsics import (TAG_FOCAL, TAG_FOCAL_35, TAG_PLANE_UNIT, TAG_PLANE_XRES, calibrate_chessboard,
+                                 focal_from_exif, focal_from_exif_tags, resolve_K)
+from pipeline.io import read_camera
+from pipeline.synthetic import coverage
+
+SIZE = (640, 480)  # W, H
+
+
+def _jpeg(path, exif_tags=None):
+    im = Image.fromarray(np.full((SIZE[1], SIZE[0], 3), 128, np.uint8))
+    ex = Image.Exif()
+    if exif_tags:
+        ex[0x8769] = exif_tags
+    im.save(path, exif=ex)
+    return path
+
+
+def test_focal_from_exif_35mm_and_sensor(tmp_path):
+    # 28 mm on a 36 mm wide frame, 640 px wide: f = 28 / 36 * 640
+    f, how = focal_from_exif(_jpeg(tmp_path / "a.jpg", {TAG_FOCAL_35: 28}), SIZE)
+    assert f == pytest.approx(28 / 36 * 640) and "35mm" in how.replace(" ", "").replace("In", "")
+    # 4.2 mm lens, 200 px per mm on the focal plane (unit 4 = mm): f = 840 px
+    tags = {TAG_FOCAL: 4.2, TAG_PLANE_XRES: 200.0, TAG_PLANE_UNIT: 4}
+    assert focal_from_exif_tags(tags, SIZE)[0] == pytest.approx(840.0)
+    assert focal_from_exif_tags({TAG_FOCAL: 4.2}, SIZE) is None  # no sensor size: unknown
+    assert focal_from_exif(_jpeg(tmp_path / "b.jpg"), SIZE) is None
+
+
+def test_resolve_K_falls_back_to_exif_then_fails(tmp_path):
+    r = resolve_K(_jpeg(tmp_path / "a.jpg", {TAG_FOCAL_35: 28}), np.zeros((0, 4, 2)), SIZE)
+    assert r.source == "exif" and r.K[0, 0] == pytest.approx(28 / 36 * 640)
+    assert r.K[0, 2] == pytest.approx(319.5) and r.K[1, 2] == pytest.approx(239.5)
+    with pytest.raises(PipelineError, match="--K"):
+        resolve_K(_jpeg(tmp_path / "b.jpg"), np.zeros((0, 4, 2)), SIZE)
+
+
+def _facade_photo(tmp_path, K):
+    """A photo of two walls of a house corner (dark voids on a bright wall) and its instance map."""
+    R, t = look_at(np.array([6.0, -6.0, -1.0]), np.array([1.5, 1.0, 3.0]))  # looking up: 3 finite VPs
+    up = np.array([0.0, 0.0, 1.0])
+    quads = []
+    for origin, ex, spots in (([0, 0, 0], [1, 0, 0], [(-2.0, 1.0, 1.0, 1.3), (0.0, 1.0, 0.8, 1.3), (1.8, 1.0, 1.2, 1.0),
+                                                       (-2.0, 3.6, 1.0, 1.2)]),
+                              ([3.5, 0, 0], [0, 1, 0], [(0.8, 1.0, 0.9, 1.2), (2.4, 1.0, 0.9, 1.2)])):
+        for x0, z0, w, h in spots:
+            bl = np.asarray(origin, float) + x0 * np.asarray(ex, float) + z0 * up
+            C = np.array([bl + h * up, bl + w * np.asarray(ex) + h * up, bl + w * np.asarray(ex), bl])
+            quads.append(project(K, R, t, C))
+    shape = (SIZE[1], SIZE[0])
+    cov = np.zeros(shape, np.float32)
+    inst = np.zeros(shape, np.uint16)
+    for i, q in enumerate(quads, 1):
+        c = coverage(q, shape)
+        cov = np.maximum(cov, c)
+        inst[c >= 0.5] = i
+    img = np.clip(np.round(200.0 - 160.0 * cov), 0, 255).astype(np.uint8)
+    photo, masks = tmp_path / "facade.png", tmp_path / "masks.png"
+    cv2.imwrite(str(photo), np.repeat(img[:, :, None], 3, axis=2))
+    cv2.imwrite(str(masks), inst)
+    return photo, masks
+
+
+def test_reconstruct_without_K_uses_vanishing_points(tmp_path):
+    K = make_K(700.0, 700.0, 319.5, 239.5)
+    photo, masks = _facade_photo(tmp_path, K)
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", export=False)
+    assert doc["K_source"]["source"] == "vanishing points"
+    assert doc["K"][0][0] == pytest.approx(700.0, rel=0.02)
+    saved = json.loads((tmp_path / "out" / "windows.json").read_text())
+    assert saved["K_source"] == doc["K_source"] and saved["K"] == doc["K"]
+    assert all(w["failure"] is None and w["uncertainty"] is not None for w in saved["windows"])
+
+
+def _chessboard_views(K, n=6, squares=(10, 7), square_px=40, seed=0):
+    """Photos (H, W) uint8 of a chessboard (``squares`` cols x rows, inner corners one fewer) of
+    1 m squares seen from known poses: the texture is warped by the homography K [r1 r2 t] S."""
+    cols, rows = squares
+    tex = ((np.indices((rows * square_px, cols * square_px)) // square_px).sum(axis=0) % 2 * 255).astype(np.uint8)
+    tex = cv2.copyMakeBorder(tex, square_px, square_px, square_px, square_px, cv2.BORDER_CONSTANT, value=255)
+    S = np.array([[1.0 / square_px, 0, -1.0], [0, 1.0 / square_px, -1.0], [0, 0, 1]])  # texture px -> board m
+    rng = np.random.default_rng(seed)
+    views = []
+    for _ in range(n):
+        centre = np.array([cols / 2.0, rows / 2.0, 0.0])
+        eye = centre + np.array([rng.uniform(-5, 5), rng.uniform(-4, 4), -rng.uniform(13, 16)])
+        R, t = look_at(eye, centre, up=(0.0, -1.0, 0.0), roll_deg=rng.uniform(-15, 15))
+        H = K @ np.column_stack([R[:, 0], R[:, 1], t]) @ S
+        views.append(cv2.warpPerspective(tex, H, SIZE, flags=cv2.INTER_AREA, borderValue=128))
+    return views
+
+
+def test_calibrate_chessboard_recovers_known_K():
+    K = make_K(610.0, 610.0, 322.0, 236.0)
+    cal = calibrate_chessboard(_chessboard_views(K), (9, 6), 1.0)
+    assert cal.n_images == 6 and cal.rms_px < 0.3
+    np.testing.assert_allclose(np.diag(cal.K)[:2], [610.0, 610.0], rtol=0.01)
+    np.testing.assert_allclose(cal.K[:2, 2], [322.0, 236.0], atol=4.0)
+
+
+def test_calibrate_command_writes_the_K_json_reconstruct_reads(tmp_path):
+    K = make_K(610.0, 610.0, 322.0, 236.0)
+    paths = []
+    for i, v in enumerate(_chessboard_views(K, n=5, seed=1)):
+        paths.append(tmp_path / f"board{i}.png")
+        cv2.imwrite(str(paths[-1]), v)
+    doc = run_calibrate(paths, "9x6", 0.025, tmp_path / "K.json")
+    cam = read_camera(tmp_path / "K.json")
+    np.testing.assert_allclose(cam.K, doc["K"])
+    assert doc["reprojection_rms_px"] < 0.3 and cam.K[0, 0] == pytest.approx(610.0, rel=0.01)
+    with pytest.raises(PipelineError, match="found in 0 of 1"):
+        run_calibrate([photo for photo in paths[:1]], "7x4", 0.025, tmp_path / "bad.json")
+    with pytest.raises(PipelineError, match="COLSxROWS"):
+        run_calibrate(paths, "nine", 0.025, tmp_path / "bad.json")
