@@ -4,7 +4,8 @@
 
 Runs ``fenestra bench`` twice in a fresh, empty working folder (so no cached render, scene or
 result of this checkout is reused): first cold (procedural houses generated, every view rendered),
-then again with the renders it just cached. Then the render throughput of ``fenestra render`` at
+then again with the renders it just cached. Then each pose family's CPU cost per view (per-window
+solvers, per-wall strategies, with K withheld) on a sample of those views. Then the render throughput of ``fenestra render`` at
 the margin: (time for 60 views - time for 10 views) / 50, so start-up does not count. Prints one
 JSON document: wall times, each stage's CPU seconds and share, matching's share of the CPU time,
 per-view and per-window stage milliseconds, the machine's load average before and after, versions.
@@ -14,6 +15,7 @@ The README's timing figures come from this command.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -55,6 +57,39 @@ def bench_run(profile: str, executor: str, cwd: Path, label: str) -> dict:
             "stage_ms_per_window": meta.get("stage_ms_per_window")}
 
 
+POSE_FAMILIES = {"per-window (lm, ippe)": ("lm", "ippe"), "wall": ("wall",), "building": ("building",),
+                 "wall+noK": ("wall+noK",), "building+noK": ("building+noK",)}
+
+
+def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default") -> dict:
+    """CPU seconds per view of evaluate_view for each pose family (every detector x snapper of
+    ``profile``), on the first views of each rendered house under ``renders``, in this process."""
+    from bench.evaluate import evaluate_view  # noqa: PLC0415
+    from bench.executors import init_worker, view_tasks  # noqa: PLC0415
+    from bench.profiles import load_profile  # noqa: PLC0415
+    from bench.runner import make_plan, plan_methods  # noqa: PLC0415
+
+    init_worker()
+    p = load_profile(profile)
+    allm, _ = plan_methods(dataclasses.replace(p, methods=dataclasses.replace(p.methods, pose_solvers=("all",))))
+    houses = sorted(d for d in renders.iterdir() if (d / "views").is_dir())
+    out = {}
+    for family, poses in POSE_FAMILIES.items():
+        methods = tuple(m for m in allm if m.pose in poses)
+        plan = make_plan(p, methods, renders, renders / "unused")
+        tasks = [t for d in houses for t in view_tasks(plan, d.name, d)[:views_per_house]]
+        evaluate_view(tasks[0])  # warm-up: detector weights
+        stages: dict[str, float] = {}
+        t0 = time.process_time()
+        for t in tasks:
+            for k, v in evaluate_view(t).stage_s.items():
+                stages[k] = stages.get(k, 0.0) + v
+        out[family] = {"methods": len(methods), "views": len(tasks),
+                       "cpu_s_per_view": (time.process_time() - t0) / len(tasks),
+                       "stage_cpu_s_per_view": {k: v / len(tasks) for k, v in stages.items() if "." not in k}}
+    return out
+
+
 def render_margin(cwd: Path, scene: str = "fzk-haus", few: int = 10, many: int = 60) -> dict:
     """Views per second of ``fenestra render`` at the margin (many - few views, fresh folders)."""
     t = {n: _fenestra(["render", "--scene", scene, "--views", str(n), "--out", str(cwd / f"render-{n}")], cwd)
@@ -85,6 +120,7 @@ def main(argv: list[str] | None = None) -> dict:
         if a.ray:
             out["ray_cached_renders"] = bench_run(a.profile, "ray", cwd, "ray")
             out["ray_over_local_wall"] = out["ray_cached_renders"]["wall_s"] / out["cached_renders"]["wall_s"]
+        out["pose_family_cost"] = pose_costs(cwd / "out" / "renders", profile=a.profile)
         if not a.skip_render:
             out["render"] = render_margin(cwd)
     out["load_after"] = os.getloadavg()
