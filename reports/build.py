@@ -179,10 +179,17 @@ def _safe(name: str) -> str:
 
 
 def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
-    """Every figure of the report as PNGs in fig_dir; {section: [paths]}."""
+    """Every figure of the report as PNGs in fig_dir (emptied first: no stale figure of an
+    earlier report stays beside them); {section: [paths]}."""
+    import shutil  # noqa: PLC0415
+
+    shutil.rmtree(fig_dir, ignore_errors=True)
     fig_dir.mkdir(parents=True, exist_ok=True)
-    figs = {"fig8": [plots.figure8(df, m, fig_dir / f"fig8_{_safe(m)}.png")
-                     for m in sorted(df["method"].unique())]}
+    # one figure 8 per detector x snapper: the mask-fit and snapped panels do not depend on the
+    # pose, so the figure of the main pose stands for every pose of its pair
+    d = df[df["pose"] == plots.main_pose(df)]
+    figs = {"fig8": [plots.figure8(d, m, fig_dir / f"fig8_{_safe(m)}.png")
+                     for m in sorted(d["method"].unique())]}
     figs["recall"] = [plots.recall_curves(df, fig_dir / "recall_curves.png")]
     figs["conditions"] = [plots.error_vs_conditions(df, fig_dir / "error_vs_conditions.png")]
     figs["aspect_rotation"] = [plots.aspect_rotation(df, fig_dir / "aspect_rotation.png")]
@@ -230,7 +237,9 @@ def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict)
     s += [("img", p) for p in figs["conditions"]]
     s.append(("h2", "Aspect ratio and rotation errors"))
     s += [("img", p) for p in figs["aspect_rotation"]]
-    s.append(("h2", "Figure 8 per strategy: corner error at mask-fit, snapped, reprojected"))
+    s.append(("h2", "Figure 8 per detector x snapper: corner error at mask-fit, snapped, reprojected"))
+    s.append(("p", f"Reprojected corners after the {plots.main_pose(df)} pose (mask-fit and snapped corners do "
+                   "not depend on the pose); every pose's reprojected errors are in the tables above."))
     s += [("img", p) for p in figs["fig8"]]
     timing = meta.get("stage_ms_per_view") or {}
     if timing:
