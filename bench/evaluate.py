@@ -187,6 +187,37 @@ def _rle(mask: np.ndarray) -> dict:
     return r
 
 
+PER_WINDOW_STAGES = ("snap", "aspect", "pose")
+
+
+def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list, cfg, withhold_K: bool,
+                 per_window: dict) -> tuple[list, tuple[str, ...]]:
+    """reconstruct_from_quads of one method, and the timing keys it spent time on.
+
+    A per-wall strategy starts from the per-window results of its base pose; those are computed
+    once per snapper (or taken from that per-window method's own run) and kept in ``per_window``,
+    so every method's results are exactly those of a run of its own.
+    """
+    from dataclasses import replace  # noqa: PLC0415
+
+    from pipeline.reconstruct import reconstruct_from_quads  # noqa: PLC0415
+    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+
+    if not dets:
+        return [], ()
+    wall = WALL_STRATEGIES.get(cfg.pose)
+    if wall is None:
+        results = reconstruct_from_quads(gray, K, dets, quads, cfg)
+        per_window[(cfg.snapper, cfg.pose, withhold_K)] = results
+        return results, PER_WINDOW_STAGES
+    key = (cfg.snapper, wall.base_pose, withhold_K)
+    counted: tuple[str, ...] = ("wall",)
+    if key not in per_window:
+        per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose))
+        counted = (*PER_WINDOW_STAGES, "wall")
+    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key]), counted
+
+
 def _detector_options(task: ViewTask, name: str) -> dict:
     for det, opts in task.detector_options:
         if det == name:
@@ -197,7 +228,7 @@ def _detector_options(task: ViewTask, name: str) -> dict:
 def evaluate_view(task: ViewTask) -> ViewOutcome:
     """Rows for every (GT window x method) of one view; see the module docstring."""
     from pipeline.detectors import detect  # noqa: PLC0415
-    from pipeline.reconstruct import ReconstructConfig, fit_quads, reconstruct_from_quads, to_gray  # noqa: PLC0415
+    from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
 
@@ -249,6 +280,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
         t0 = tick("match", t0)
         rec_dets = [dets[d] for _, (d, _) in matched]
         quads: dict = {}  # QuadParams -> fit_quads(rec_dets): the quads are fitted once per detector
+        per_window: dict = {}  # (snapper, pose, K withheld) -> per-window results, reused by per-wall strategies
         for method in (m for m in task.methods if m.detector == det_name):
             pose, withhold_K = uncertainty.split_pose(method.pose)
             cfg = ReconstructConfig(snapper=method.snapper, pose=pose, height_m=task.height_m)
@@ -257,12 +289,12 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
                 stage_s["reconstruct.quad"] = (stage_s.get("reconstruct.quad", 0.0)
                                                + sum(q.ms for q in quads[cfg.quad]) / 1000.0)
             K_in = None if withhold_K else K
-            results = reconstruct_from_quads(gray, K_in, rec_dets, quads[cfg.quad], cfg) if matched else []
+            results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window)
             t0 = tick("reconstruct", t0)
             by_gt = {matched[r.index][0]: r for r in results}
             for r in results:
                 for k, ms in r.timings_ms.items():
-                    if k != "quad":  # the shared fit's time, counted once above
+                    if k in counted:  # the shared quad fit and reused per-window stages: counted once
                         stage_s[f"reconstruct.{k}"] = stage_s.get(f"reconstruct.{k}", 0.0) + ms / 1000.0
             for g, (w, b) in enumerate(zip(wins, base)):
                 row = {**b, "detector": method.detector, "snapper": method.snapper,

@@ -198,21 +198,28 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
 
 
 def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
-                           quads: list[QuadFit], cfg: ReconstructConfig = ReconstructConfig()
-                           ) -> list[WindowResult]:
+                           quads: list[QuadFit], cfg: ReconstructConfig = ReconstructConfig(),
+                           base: list[WindowResult] | None = None) -> list[WindowResult]:
     """:func:`reconstruct` with the quads already fitted: ``quads = fit_quads(detections, cfg.quad,
     image_shape)``, one per detection, in order (so one fit serves every snapper x pose config).
 
     image: as for :func:`reconstruct`, or an (H, W) gray image (e.g. :func:`to_gray`'s, computed
     once). The ``quad`` timing of each result is the measured time of its (shared) fit.
+    base: for a per-wall strategy, the per-window results it starts from, already computed with the
+    same image, K, detections and quads and ``cfg`` with ``pose`` = the strategy's ``base_pose``
+    (e.g. by a run of that per-window solver); they are used as they are, not recomputed.
     """
     if len(quads) != len(detections):
         raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
     gray = to_gray(image)
     K = None if K is None else check_K(K)
     wall = WALL_STRATEGIES.get(cfg.pose)
+    if base is not None and (wall is None or len(base) != len(detections)):
+        raise ValueError(f"base: {len(base)} per-window results given for pose {cfg.pose!r} and "
+                         f"{len(detections)} detections; only a per-wall strategy takes them, one per detection")
     per_cfg = cfg if wall is None else replace(cfg, pose=wall.base_pose)
-    results = [reconstruct_one(i, gray, K, d, per_cfg, q) for i, (d, q) in enumerate(zip(detections, quads))]
+    results = list(base) if base is not None else [
+        reconstruct_one(i, gray, K, d, per_cfg, q) for i, (d, q) in enumerate(zip(detections, quads))]
     if wall is None:
         return results
     t0 = time.perf_counter()

@@ -128,3 +128,25 @@ def test_rows_identical_with_dense_reference_matching(view_dir, monkeypatch):
         for k in a:
             same = (a[k] == b[k]) or (isinstance(a[k], float) and np.isnan(a[k]) and np.isnan(b[k]))
             assert same, (k, a[k], b[k])
+
+
+def test_per_wall_rows_same_with_and_without_reused_per_window_results(view_dir):
+    """A per-wall method reuses the per-window (ippe) run of its snapper when the same view runs it:
+    its rows equal those of a view that runs the per-wall method alone."""
+    alone = _run(view_dir, [Method("oracle", "none", "wall")]).rows
+    shared = [r for r in _run(view_dir, [Method("oracle", "none", "ippe"), Method("oracle", "none", "wall"),
+                                         Method("oracle", "none", "building")]).rows if r["pose"] == "wall"]
+    assert len(alone) == len(shared) == 4
+    assert any(r["status"] == "ok" for r in alone)
+    for a, b in zip(alone, shared):
+        assert a.keys() == b.keys()
+        for k in a:
+            same = (a[k] == b[k]) or (isinstance(a[k], float) and np.isnan(a[k]) and np.isnan(b[k]))
+            assert same, (k, a[k], b[k])
+
+
+def test_reconstruct_base_only_for_per_wall_strategies():
+    from pipeline.reconstruct import ReconstructConfig, reconstruct_from_quads
+
+    with pytest.raises(ValueError, match="base: 0 per-window results given for pose 'lm'"):
+        reconstruct_from_quads(np.zeros((20, 20), np.float32), None, [], [], ReconstructConfig(pose="lm"), base=[])
