@@ -178,15 +178,6 @@ def _errors(res, win: dict, gt_pose: tuple[np.ndarray, np.ndarray]) -> dict:
     return out
 
 
-def _rle(mask: np.ndarray) -> dict:
-    """COCO RLE of a bool mask (H, W), counts as str (JSON/pickle friendly)."""
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
-
-    r = mask_utils.encode(np.asfortranarray(mask.astype(np.uint8)))
-    r["counts"] = r["counts"].decode("ascii")
-    return r
-
-
 PER_WINDOW_STAGES = ("snap", "aspect", "pose")
 
 
@@ -307,7 +298,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
                     if g not in gt_poses:  # the same for every method
                         gt_poses[g] = metrics.gt_window_pose(meta["R"], meta["t"], w["corners_world"])
                     errs = _errors(res, w, gt_poses[g])
-                    row.update(errs, **uncertainty.columns(res, w, meta, K, errs), aspect_case=res.aspect_case,
+                    row.update(errs, **uncertainty.columns(res, w, gt_poses[g], K, errs), aspect_case=res.aspect_case,
                                status="ok" if res.failure is None else "failed",
                                reason="" if res.failure is None else f"failed: {res.failure}")
                     row["match_iou"] = det_for_gt[g][1]

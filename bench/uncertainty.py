@@ -14,7 +14,6 @@ import math
 
 import numpy as np
 
-from bench import metrics
 
 NO_K_SUFFIX = "+noK"
 NAN = float("nan")
@@ -30,8 +29,9 @@ def split_pose(pose: str) -> tuple[str, bool]:
     return pose, False
 
 
-def columns(res, win: dict, meta: dict, K: np.ndarray, errors: dict) -> dict:
-    """The COLUMNS of one WindowResult against its GT window; ``errors``: its bench._errors row."""
+def columns(res, win: dict, gt_pose: tuple[np.ndarray, np.ndarray], K: np.ndarray, errors: dict) -> dict:
+    """The COLUMNS of one WindowResult against its GT window; ``gt_pose``: the window's true (R, t)
+    (metrics.gt_window_pose); ``errors``: its bench._errors row."""
     out = {k: NAN for k in COLUMNS}
     f_true = float(np.sqrt(K[0, 0] * K[1, 1]))
     if res.focal_estimate_px is not None and math.isfinite(res.focal_estimate_px):
@@ -48,6 +48,6 @@ def columns(res, win: dict, meta: dict, K: np.ndarray, errors: dict) -> dict:
     out["aspect_ci90_rel"] = 0.5 * (u["aspect_hi"] - u["aspect_lo"]) / res.aspect_ratio
     out["rot_ci90_deg"] = u["rot_deg"]
     out["rot_in90"] = float(errors["rot_err_deg"] <= u["rot_deg"])
-    _, t_gt = metrics.gt_window_pose(meta["R"], meta["t"], Cw)
+    t_gt = gt_pose[1]
     out["trans_in90"] = float(errors["trans_err_m"] / np.linalg.norm(t_gt) <= u["trans_rel"])
     return out

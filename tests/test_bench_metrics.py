@@ -165,7 +165,9 @@ def test_detection_ap_hand_values():
     """COCO AP on hand-made masks: exact detections -> 1; half the windows found -> 51/101
     (COCO's 101-point interpolation: precision 1 up to recall 0.5, 0 beyond)."""
     from bench.detection_ap import coco_ap
-    from bench.evaluate import _rle
+
+    def _rle(m):
+        return matching.SparseMask.from_dense(m).rle()
 
     gts, dts = [], []
     for i in range(4):

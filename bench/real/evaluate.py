@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from bench import matching, metrics
-from bench.evaluate import _ERROR_COLUMNS, AP_SCORE_MIN, MATCH_SCORE_MIN, ORACLES, Method, ViewOutcome, _rle
+from bench.evaluate import _ERROR_COLUMNS, AP_SCORE_MIN, MATCH_SCORE_MIN, ORACLES, Method, ViewOutcome
 from bench.real import metrics as real_metrics
 from bench.real.contract import RealView, RealWindow
 from fenestra.conventions import TOL
@@ -133,14 +133,16 @@ def gt_coco(view: RealView) -> list[dict]:
         m = None if w.mask is None else np.asarray(w.mask, dtype=bool)
         out.append({"view": f"{view.dataset}/{view.name}", "bbox": [b[0] + 0.5, b[1] + 0.5, b[2] - b[0], b[3] - b[1]],
                     "area": float(m.sum()) if m is not None else float((b[2] - b[0]) * (b[3] - b[1])),
-                    "rle": None if m is None else _rle(m)})
+                    "rle": None if m is None else matching.SparseMask.from_dense(m).rle()})
     return out
 
 
 def _iou(dets: list[Detection], view: RealView) -> np.ndarray:
     """(D, G) mask IoU when every window has a mask, else box IoU."""
     if view.has_masks:
-        return matching.iou_matrix([d.mask for d in dets], [w.mask for w in view.windows])
+        shape = view.image.shape[:2]
+        return matching.iou_matrix([matching.SparseMask.from_crop(d.mask, d.origin, shape) for d in dets],
+                                   [w.mask for w in view.windows])
     return real_metrics.box_iou_matrix([d.box for d in dets], [w.bbox() for w in view.windows])
 
 
@@ -173,7 +175,8 @@ def evaluate_real_view(view: RealView, methods: tuple[Method, ...], spec: RealEv
         cands = detect_resized(det_name, view.image, spec.detector_long_side, AP_SCORE_MIN, inst,
                                **dict(dict(spec.detector_options).get(det_name, ())))
         dets = [d for d in cands if d.score >= MATCH_SCORE_MIN]
-        out.coco_dt[det_name] = [{"view": f"{view.dataset}/{view.name}", "rle": _rle(d.mask), "score": float(d.score),
+        out.coco_dt[det_name] = [{"view": f"{view.dataset}/{view.name}", "rle": matching.SparseMask.from_crop(d.mask, d.origin, view.image.shape[:2]).rle(),
+                                  "score": float(d.score),
                                   "bbox": [float(d.box[0]) + 0.5, float(d.box[1]) + 0.5,
                                            float(d.box[2] - d.box[0]), float(d.box[3] - d.box[1])]}
                                  for d in cands]
