@@ -1,13 +1,17 @@
-"""CLI commands of bench/ and reports/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of bench/ (registered on the `fenestra` app by fenestra/cli.py).
 
-    fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report] [--executor local|ray]
+    fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report] [--executor local|ray] [--real RUN_DIR]
     fenestra bench --profile real [--data DIR --format coco|yolo|labelmap|curtainwall] [--sim RUN_DIR]
-    fenestra report RUN_DIR
     fenestra gate RUN_DIR [--gates FILE] [--profile NAME]
+
+bench/ never imports reports/: fenestra/cli.py passes the report writer (reports.cli.write_report)
+to :func:`register`, and ``fenestra bench`` calls it on the finished run folder.
 """
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import typer
@@ -36,58 +40,67 @@ def print_headline(results: dict) -> None:
     Console(width=max(150, Console().width)).print(t)
 
 
-def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile name (bench/profiles) or TOML path"),
-          out: Path = typer.Option(None, "--out", "-o", help="run folder (default out/bench/<profile>-<hash>)"),
-          workers: int = typer.Option(0, "--workers", "-j", help="worker processes (0: all cores)"),
-          no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report"),
-          executor: str = typer.Option("local", "--executor", "-x",
-                                       help="where views are rendered and evaluated: local (process pool) or ray"),
-          ray_address: str = typer.Option(None, "--ray-address",
-                                          help="ray: a running cluster (auto, or HOST:PORT); default a local one"),
-          shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard"),
-          data: Path = typer.Option(None, "--data", help="real profiles: your labelled photo folder instead of the profile's datasets"),
-          fmt: str = typer.Option("coco", "--format", help="with --data: coco | yolo | labelmap | curtainwall"),
-          sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table"),
-          force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files")) -> None:
-    """Render (cached), reconstruct with every strategy, measure, summarise, report."""
-    from bench.executors import get_executor  # noqa: PLC0415
-    from bench.profiles import load_profile  # noqa: PLC0415
-    from bench.real.profile import is_real_profile  # noqa: PLC0415
-    from bench.results import load_summary  # noqa: PLC0415
-    from bench.runner import run_benchmark  # noqa: PLC0415
-
-    if workers < 0:
-        raise ValueError(f"--workers must be >= 0, got {workers}")
-    if shard_views < 1:
-        raise ValueError(f"--shard-views must be >= 1, got {shard_views}")
-    get_executor(executor)  # an unknown name fails before anything is rendered
-    opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
-    if is_real_profile(profile):
-        from bench.real.runner import run_real_profile  # noqa: PLC0415
-
-        info = run_real_profile(profile, out, data, fmt, sim, report=not no_report, force=force)
-    elif data is not None or sim is not None:
-        raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
-    else:
-        info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                             report=not no_report, executor=executor, executor_options=opts, force=force)
-    summary = load_summary(info.run_dir)
-    typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
-    typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))
-    if info.skipped_detectors:
-        typer.echo("skipped detectors: " + "; ".join(f"{k}: {v}" for k, v in info.skipped_detectors.items()))
-    print_headline(summary["results"])
-    typer.echo(f"results: {info.run_dir / 'results.parquet'}")
-    if not no_report:
-        typer.echo(f"report: {info.run_dir / 'report.html'} (and report.md)")
+WriteReport = Callable[..., object]  # (run_dir, real_dir=None) -> writes the run's report
 
 
-def report(run_dir: Path = typer.Argument(..., help="a run folder with results.parquet")) -> None:
-    """Regenerate report.html and report.md (+ figures/) of a run from its results."""
-    from reports.build import build_report  # noqa: PLC0415
+def bench_command(write_report: WriteReport) -> Callable[..., None]:
+    """The ``fenestra bench`` command, writing its report with ``write_report(run_dir, real_dir=...)``."""
 
-    html, md = build_report(run_dir)
-    typer.echo(f"report: {html}\nmarkdown: {md}")
+    def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile name (bench/profiles) or TOML path"),
+              out: Path = typer.Option(None, "--out", "-o", help="run folder (default out/bench/<profile>-<hash>)"),
+              workers: int = typer.Option(0, "--workers", "-j", help="worker processes (0: all cores)"),
+              no_report: bool = typer.Option(False, "--no-report", help="skip the HTML/Markdown report"),
+              executor: str = typer.Option("local", "--executor", "-x",
+                                           help="where views are rendered and evaluated: local (process pool) or ray"),
+              ray_address: str = typer.Option(None, "--ray-address",
+                                              help="ray: a running cluster (auto, or HOST:PORT); default a local one"),
+              shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard"),
+              data: Path = typer.Option(None, "--data", help="real profiles: your labelled photo folder instead of the profile's datasets"),
+              fmt: str = typer.Option("coco", "--format", help="with --data: coco | yolo | labelmap | curtainwall"),
+              sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table"),
+              real: Path = typer.Option(None, "--real", help="synthetic profiles: a real-photo run folder (fenestra bench "
+                                                             "--profile real) for the report's photo column"),
+              force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files")) -> None:
+        """Render (cached), reconstruct with every strategy, measure, summarise, report."""
+        from bench.executors import get_executor  # noqa: PLC0415
+        from bench.profiles import load_profile  # noqa: PLC0415
+        from bench.real.profile import is_real_profile  # noqa: PLC0415
+        from bench.results import load_summary  # noqa: PLC0415
+        from bench.runner import run_benchmark  # noqa: PLC0415
+
+        if workers < 0:
+            raise ValueError(f"--workers must be >= 0, got {workers}")
+        if shard_views < 1:
+            raise ValueError(f"--shard-views must be >= 1, got {shard_views}")
+        get_executor(executor)  # an unknown name fails before anything is rendered
+        opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
+        if is_real_profile(profile):
+            from bench.real.runner import run_real_profile  # noqa: PLC0415
+
+            if real is not None:
+                raise ValueError(f"--real needs a synthetic profile (a real run's report takes its --sim run), "
+                                 f"got profile {profile!r}")
+            info = run_real_profile(profile, out, data, fmt, sim, report=None if no_report else write_report,
+                                    force=force)
+        elif data is not None or sim is not None:
+            raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
+        else:
+            if real is not None and not (real / "summary.json").is_file():
+                raise FileNotFoundError(f"--real {real}: not a benchmark run folder (no summary.json)")
+            report = None if no_report else functools.partial(write_report, real_dir=real)
+            info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
+                                 report=report, executor=executor, executor_options=opts, force=force)
+        summary = load_summary(info.run_dir)
+        typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
+        typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))
+        if info.skipped_detectors:
+            typer.echo("skipped detectors: " + "; ".join(f"{k}: {v}" for k, v in info.skipped_detectors.items()))
+        print_headline(summary["results"])
+        typer.echo(f"results: {info.run_dir / 'results.parquet'}")
+        if not no_report:
+            typer.echo(f"report: {info.run_dir / 'report.html'} (and report.md)")
+
+    return bench
 
 
 def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.parquet and summary.json"),
@@ -116,8 +129,7 @@ def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.par
     typer.echo("all gates passed")
 
 
-def register(app: typer.Typer) -> None:
-    """Add this stage's commands to the top-level app."""
-    app.command("bench")(bench)
-    app.command("report")(report)
+def register(app: typer.Typer, write_report: WriteReport) -> None:
+    """Add this stage's commands to the top-level app; ``fenestra bench`` reports with write_report."""
+    app.command("bench")(bench_command(write_report))
     app.command("gate")(gate)

@@ -6,14 +6,17 @@
 Views are rendered and evaluated by an executor (bench.executors: a local process pool of
 ``workers`` processes, or a Ray cluster), with a rich progress bar. Every ground-truth
 window gets one row per method combination (see bench.evaluate). The run folder (default
-``out/bench/<profile>-<config hash>``) receives results.parquet/.csv, summary.json and the report;
-renders go to ``out/renders`` (renders.dataset names and reuses them by config hash).
+``out/bench/<profile>-<config hash>``) receives results.parquet/.csv, summary.json and, when a
+report writer is passed, the report; renders go to ``out/renders`` (renders.dataset names and
+reuses them by config hash). bench/ never imports reports/ (reports read bench's tables): the CLI
+(fenestra/cli.py) passes the report writer in.
 """
 from __future__ import annotations
 
 import itertools
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +31,7 @@ from fenestra.errors import FenestraError
 
 OUT_ROOT = Path("out")
 LEARNED_DETECTOR_OPTIONS = {"threads": 1}  # one torch thread per worker process
+ReportWriter = Callable[[Path], object]  # run folder -> writes its report (reports.build, via the CLI)
 
 
 @dataclass(frozen=True)
@@ -165,7 +169,8 @@ def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[st
 
 
 def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: int | None = None,
-                  progress: bool = True, report: bool = True, methods: tuple[Method, ...] | None = None,
+                  progress: bool = True, report: ReportWriter | None = None,
+                  methods: tuple[Method, ...] | None = None,
                   renders_dir: str | Path | None = None, executor: str = "local",
                   executor_options: dict | None = None, force: bool = False) -> RunInfo:
     """Run a profile end to end; see the module docstring. Returns a RunInfo.
@@ -174,7 +179,8 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
     renders_dir: where cached renders live (default out/renders);
     executor: a key of bench.executors.EXECUTORS ("local" process pool, "ray" cluster), with
     executor_options (ray: address, shard_views); force: replace a run folder that holds another
-    profile's run or foreign files (bench.manifest.claim_run_dir).
+    profile's run or foreign files (bench.manifest.claim_run_dir); report: called with the run
+    folder once the tables are written, its time recorded as stage "report" (None or False: no report).
     """
     t_start = time.perf_counter()
     run_dir = manifest.claim_run_dir(Path(out_dir) if out_dir else default_run_dir(profile),
@@ -205,10 +211,8 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
                              datasets={h: str(p) for h, p in datasets})
     res.write_summary(run_dir, meta, res.summarize(df), det)
     if report:
-        from reports.build import build_report  # noqa: PLC0415
-
         t0 = time.perf_counter()
-        build_report(run_dir)
+        report(run_dir)
         stage_s["report"] = time.perf_counter() - t0
         meta["stage_time_s"] = stage_s
         meta["wall_time_s"] = time.perf_counter() - t_start

@@ -3,7 +3,8 @@
     fenestra scenes list | show | make      (scenes/cli.py)
     fenestra render                         (renders/cli.py)
     fenestra reconstruct | train | evaluate-detector   (pipeline/cli.py)
-    fenestra bench | report | gate          (bench/cli.py, reports/)
+    fenestra bench | gate                   (bench/cli.py; bench ends with reports' writer)
+    fenestra report                         (reports/cli.py)
 """
 from __future__ import annotations
 
@@ -22,10 +23,15 @@ def _register() -> None:
     import bench.cli
     import pipeline.cli
     import renders.cli
+    import reports.cli
     import scenes.cli
 
-    for module in (scenes.cli, renders.cli, pipeline.cli, bench.cli):
+    for module in (scenes.cli, renders.cli, pipeline.cli):
         module.register(app)
+    # the composition root: bench/ produces tables and never imports reports/, so the report step
+    # of `fenestra bench` is handed in here
+    bench.cli.register(app, write_report=reports.cli.write_report)
+    reports.cli.register(app)
 
 
 _register()

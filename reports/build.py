@@ -1,56 +1,46 @@
 """Report of a benchmark run, regenerated from its results alone.
 
     from reports.build import build_report
-    html, md = build_report("out/bench/smoke")    # or: fenestra report out/bench/smoke
+    html, md = build_report("out/bench/smoke", real_dir="out/bench/real")
+    # or: fenestra report out/bench/smoke --real out/bench/real
 
 Writes ``report.md`` with PNG plots beside it (``figures/``) and a self-contained ``report.html``
-(the same content, images embedded as base64). Inputs: results.parquet (or .csv), checked against
-the run's manifest.json (bench.manifest), and, when present,
-summary.json (metadata and detection AP); summary statistics are recomputed from the table.
+(the same content, images embedded as base64, no external file). Both lead with one figure (each
+detector's snappers ranked by median corner error, renders beside real photos; reports.lead) and
+the answer in words; in the HTML every later section is folded in a ``<details>``. Inputs:
+results.parquet (or .csv), checked against the run's manifest.json (bench.manifest), and, when
+present, summary.json (metadata and detection AP); summary statistics are recomputed from the
+table. The photo column comes from ``real_dir`` (a real-photo run) for a synthetic run, and from
+the synthetic run named in simreal.json for a real run.
+
+reports/ reads what bench/ writes (bench.results, bench.manifest, bench.paired, bench.real.simreal)
+and bench/ never imports reports/; the CLI composes the two (fenestra/cli.py).
 """
 from __future__ import annotations
 
 import base64
 import html as html_lib
+import json
 import math
 import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.stats import wilcoxon
 
 from bench.manifest import load_verified_results
+from bench.paired import paired_comparison
+from bench.real.simreal import SIMREAL_JSON
 from bench.results import CORNER_STAGES, STAGE_LABELS, summarize
+from reports import lead as lead_mod
 from reports import plots
+from reports.real import real_sections
+from reports.walls import wall_sections
 
-PAIR_KEY = ("house", "view", "window_id")
+LEAD_TITLE = "Which method is best"
 
 
 # ---------------------------------------------------------------- numbers
-
-def paired_comparison(df: pd.DataFrame, a: str, b: str, column: str = "corner_err_px_snap"
-                      ) -> dict:
-    """Paired statistics of methods a and b on the same evaluable windows with both estimates.
-
-    Returns {"n", "median_a", "median_b", "median_diff" (a - b, per window), "a_better" (fraction
-    of windows where a < b), "p_value" (two-sided Wilcoxon signed-rank; NaN if n < 5 or all
-    differences are zero)}.
-    """
-    ev = df[df["evaluable"].astype(bool)]
-    key = [k for k in PAIR_KEY if k in ev.columns]
-    A = ev[ev["method"] == a].set_index(key)[column]
-    B = ev[ev["method"] == b].set_index(key)[column]
-    j = pd.concat([A.rename("a"), B.rename("b")], axis=1, join="inner").dropna()
-    d = (j["a"] - j["b"]).to_numpy(float)
-    p = float("nan")
-    if d.size >= 5 and np.any(d != 0):
-        p = float(wilcoxon(j["a"], j["b"], zero_method="wilcox").pvalue)
-    return {"n": int(d.size), "median_a": float(j["a"].median()) if d.size else float("nan"),
-            "median_b": float(j["b"].median()) if d.size else float("nan"),
-            "median_diff": float(np.median(d)) if d.size else float("nan"),
-            "a_better": float(np.mean(d < 0)) if d.size else float("nan"), "p_value": p}
-
 
 def best_method(results: dict, column: str = "corner_err_px_snap", methods=None) -> str | None:
     """Method with the lowest median of ``column`` (ties: higher detection rate, then name)."""
@@ -220,8 +210,6 @@ def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict)
                             "method better on", "Wilcoxon p"],
                   [[r["method"], r["n"], r["median_a"], r["median_b"], r["median_diff"], r["a_better"],
                     r["p_value"]] for r in comp]))
-    from reports.walls import wall_sections  # noqa: PLC0415 - reports.walls imports this module
-
     s += wall_sections(df)
     det = (summary or {}).get("detection") or {}
     if det:
@@ -271,18 +259,35 @@ def _to_md(sections: list[tuple], base: Path) -> str:
             out.append(_md_table(sec[1], sec[2]))
         elif kind == "img":
             out.append(f"![{sec[1].stem}]({sec[1].relative_to(base).as_posix()})")
+        elif kind == "fold":
+            out.append("---")
     return "\n\n".join(out) + "\n"
 
 
+def _inline_html(text: str) -> str:
+    """Escaped text with the Markdown the sections use: **bold** and `code`."""
+    text = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", html_lib.escape(text))
+    return re.sub(r"`(.+?)`", r"<code>\1</code>", text)
+
+
 def _to_html(sections: list[tuple]) -> str:
+    """One self-contained page: images as data URIs (each <img> with the id of its file's stem);
+    after a ("fold",) marker every h2 opens a closed <details> holding its section."""
     esc = html_lib.escape
     body = []
+    folding = in_details = False
     for sec in sections:
         kind = sec[0]
-        if kind in ("h1", "h2", "h3"):
+        if kind == "fold":
+            folding = True
+        elif kind == "h2" and folding:
+            body.append(("</details>" if in_details else "")
+                        + f"<details><summary><h2>{esc(sec[1])}</h2></summary>")
+            in_details = True
+        elif kind in ("h1", "h2", "h3"):
             body.append(f"<{kind}>{esc(sec[1])}</{kind}>")
         elif kind == "p":
-            body.append("<p>" + re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", esc(sec[1])) + "</p>")
+            body.append("<p>" + _inline_html(sec[1]) + "</p>")
         elif kind == "table":
             head = "".join(f"<th>{esc(h)}</th>" for h in sec[1])
             rows = "".join("<tr>" + "".join(f"<td>{esc(v if isinstance(v, str) else _fmt(v))}</td>" for v in r)
@@ -290,8 +295,11 @@ def _to_html(sections: list[tuple]) -> str:
             body.append(f"<table><tr>{head}</tr>{rows}</table>")
         elif kind == "img":
             b64 = base64.b64encode(sec[1].read_bytes()).decode("ascii")
-            body.append(f'<img alt="{esc(sec[1].stem)}" src="data:image/png;base64,{b64}">')
+            body.append(f'<img id="{esc(sec[1].stem)}" alt="{esc(sec[1].stem)}" src="data:image/png;base64,{b64}">')
+    if in_details:
+        body.append("</details>")
     style = ("body{font-family:sans-serif;max-width:1300px;margin:2em auto;color:#222}"
+             "summary{cursor:pointer}summary h2{display:inline;font-size:1.25em}details{margin:0.6em 0}"
              "table{border-collapse:collapse;font-size:12px;margin:1em 0}"
              "td,th{border:1px solid #ccc;padding:3px 6px;text-align:right}"
              "td:first-child,th:first-child{text-align:left}img{max-width:100%}")
@@ -299,21 +307,72 @@ def _to_html(sections: list[tuple]) -> str:
             f"<style>{style}</style></head><body>{''.join(body)}</body></html>\n")
 
 
-def build_report(run_dir: str | Path) -> tuple[Path, Path]:
-    """Write report.html (self-contained) and report.md + figures/ into run_dir; return paths."""
-    import json  # noqa: PLC0415
+def _summary(run_dir: Path) -> dict | None:
+    p = run_dir / "summary.json"
+    return json.loads(p.read_text()) if p.is_file() else None
 
+
+def _is_real(summary: dict | None) -> bool:
+    return (summary or {}).get("metadata", {}).get("kind") == "real"
+
+
+def counterpart(run_dir: Path, summary: dict | None, real_dir: str | Path | None
+                ) -> tuple[Path | None, str | None]:
+    """(the other bench's run folder or None, a sentence when one was expected but is missing).
+
+    A synthetic run's counterpart is ``real_dir`` (ValueError unless it is a real-photo run); a
+    real run's is the synthetic run its simreal.json names (``real_dir`` must be None)."""
+    if _is_real(summary):
+        if real_dir is not None:
+            raise ValueError(f"--real {real_dir}: {run_dir} is itself a real-photo run (its synthetic "
+                             "counterpart is the --sim run of fenestra bench --profile real)")
+        p = run_dir / SIMREAL_JSON
+        if not p.is_file():
+            return None, None
+        sim = Path(json.loads(p.read_text())["sim_run"])
+        if not (sim / "summary.json").is_file():
+            return None, f"The synthetic run {sim} of the sim-to-real table is gone; the lead shows photos only."
+        return sim, None
+    if real_dir is None:
+        return None, None
+    real_dir = Path(real_dir)
+    if not _is_real(_summary(real_dir)):
+        raise ValueError(f"--real {real_dir}: not a real-photo run folder (its summary.json lacks "
+                         "metadata kind = \"real\"; make one with fenestra bench --profile real)")
+    return real_dir, None
+
+
+def _lead_sections(lead: lead_mod.Lead, sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None,
+                   fig: Path, runs: str) -> list[tuple]:
+    """The lead: one figure, what it shows, and the answer in words (never folded)."""
+    return [("h2", LEAD_TITLE), ("img", fig), ("p", lead_mod.caption(lead) + " " + runs),
+            *(("p", t) for t in lead_mod.answer(lead, sim_df, real_df)), ("fold",)]
+
+
+def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tuple[Path, Path]:
+    """Write report.html (self-contained) and report.md + figures/ into run_dir; return their paths.
+
+    real_dir: a real-photo run folder (fenestra bench --profile real) whose ranks fill the lead
+    figure's photo column of a synthetic run's report; a real run finds its synthetic counterpart
+    itself (simreal.json). ValueError for a real_dir that is not a real run, or given to a real run."""
     run_dir = Path(run_dir)
     df = load_verified_results(run_dir)  # refuses a table that does not match the run's manifest
     if df.empty:
         raise ValueError(f"{run_dir}: the results table is empty")
-    summary_path = run_dir / "summary.json"
-    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else None
+    summary = _summary(run_dir)
+    other, missing = counterpart(run_dir, summary, real_dir)
+    other_df = load_verified_results(other) if other is not None else None
+    sim_df, real_df = (other_df, df) if _is_real(summary) else (df, other_df)
     results = summarize(df)
     figs = make_figures(df, run_dir / "figures")
+    lead = lead_mod.make_lead(sim_df, real_df)
+    fig = plots.ranked_methods(lead_mod.lead_columns(lead), run_dir / "figures" / "lead_ranked.png")
+    runs = " ".join(x for x in (f"Renders: {'this run' if sim_df is df else other}." if sim_df is not None else "",
+                                f"Real photos: {'this run' if real_df is df else other}." if real_df is not None else "",
+                                missing or "") if x)
     sections = _sections(df, results, summary, figs)
-    from reports.real import real_sections  # noqa: PLC0415
-
+    at = next(i for i, sec in enumerate(sections) if sec[0] == "h2")
+    sections[at:at] = _lead_sections(lead, sim_df, real_df, fig, runs)
     at = next(i for i, sec in enumerate(sections) if sec[:2] == ("h2", "Strategy comparison"))
     sections[at:at] = real_sections(run_dir, results, summary)
     md, html = run_dir / "report.md", run_dir / "report.html"

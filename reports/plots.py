@@ -197,3 +197,71 @@ def aspect_rotation(df: pd.DataFrame, path: Path) -> Path:
         ax.set_xlabel(f"{label}, log scale; box p25-p75, whiskers p10/p90")
         ax.grid(alpha=0.3, axis="x")
     return _save(fig, path)
+
+
+def _ranks_panel(ax, ranks: list, ghosts: list, order: list[str], colour) -> bool:
+    """One detector's methods on rows ``order`` (top = first): dot at the median, bar to the p90,
+    the median written above the dot; ghosts (hollow grey): another bench's medians of the same
+    metric. True if anything was drawn."""
+    by = {r.snapper: r for r in ranks}
+    ghost = {r.snapper: r for r in ghosts}
+    drawn = False
+    for y, snapper in enumerate(order):
+        g = ghost.get(snapper)
+        if g is not None and np.isfinite(g.median):
+            ax.plot(g.median, y, "o", ms=7, mfc="none", mec="#999999", mew=1.2, zorder=2)
+        r = by.get(snapper)
+        if r is None or not np.isfinite(r.median):
+            continue
+        ax.plot([r.median, r.p90], [y, y], color=colour, lw=2.2, solid_capstyle="butt", zorder=3)
+        ax.plot(r.p90, y, "|", color=colour, ms=11, mew=2.2, zorder=3)
+        ax.plot(r.median, y, "o", color=colour, ms=7, zorder=4)
+        ax.annotate(f"{r.median:.3g}", (r.median, y), xytext=(0, 5), textcoords="offset points",
+                    ha="center", va="bottom", fontsize=8)
+        drawn = True
+    return drawn
+
+
+def ranked_methods(columns: list[tuple[str, dict, dict]], path: Path) -> Path:
+    """The report's lead figure: per detector (a row of panels, one colour each), its snappers
+    ranked by median error, dot = median, bar = to the p90, log x axis.
+
+    columns: [(title, {detector: [Rank]}, {detector: [Rank]} ghosts)], Rank as in reports.lead
+    (.snapper, .median, .p90; lists already ranked); the rows of every column follow the ranking
+    of the first column holding that detector, so a method keeps its row across columns and a
+    different order on photos shows as a different shape. Ghosts: hollow grey dots (the other
+    bench's median of the same metric, e.g. renders' aspect error in the photos column).
+    """
+    detectors = sorted(set().union(*(c[1].keys() for c in columns)))
+    if not detectors:
+        raise ValueError("ranked_methods: no detector in any column")
+    order = {d: [r.snapper for r in next(c[1][d] for c in columns if d in c[1])] for d in detectors}
+    heights = [max(1, len(order[d])) for d in detectors]
+    cmap = plt.get_cmap("tab10")
+    fig, axes = plt.subplots(len(detectors), len(columns), squeeze=False, sharex="col", sharey="row",
+                             figsize=(4.6 * len(columns) + 1.4, 0.36 * sum(heights) + 0.75 * len(detectors) + 0.9),
+                             gridspec_kw={"height_ratios": heights})
+    for i, det in enumerate(detectors):
+        colour = cmap(i % cmap.N)
+        for j, (title, ranks, ghosts) in enumerate(columns):
+            ax = axes[i, j]
+            if not _ranks_panel(ax, ranks.get(det, []), (ghosts or {}).get(det, []), order[det], colour):
+                ax.text(0.5, 0.5, "no windows with this truth", transform=ax.transAxes, ha="center",
+                        va="center", fontsize=9, color="#777777")
+            ax.set_yticks(range(len(order[det])), order[det])
+            ax.set_ylim(len(order[det]) - 0.4, -0.8)
+            ax.grid(alpha=0.3, axis="x", which="both")
+            if i == 0:
+                ax.set_title(title, fontsize=10)
+        axes[i, 0].set_ylabel(det, color=colour, fontsize=10, fontweight="bold")
+    for j, (title, ranks, _) in enumerate(columns):
+        ax = axes[-1, j]
+        if any(np.isfinite(r.median) for rs in ranks.values() for r in rs):
+            ax.set_xscale("log")
+            lo, hi = ax.get_xlim()
+            subs = (1.0, 2.0, 5.0) if np.log10(hi / lo) <= 2.5 else (1.0,)  # 1-2-5 ticks unless crowded
+            ax.xaxis.set_major_locator(matplotlib.ticker.LogLocator(subs=subs))
+            ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xlabel("log scale; dot: median, bar: to the p90", fontsize=8)
+    return _save(fig, path)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reports.build import paired_comparison
+from bench.paired import paired_comparison
 
 PER_WINDOW, NO_K_SUFFIX = "lm", "+noK"
 

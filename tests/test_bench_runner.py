@@ -16,6 +16,7 @@ from bench import gates, results
 from bench.evaluate import Method
 from bench.profiles import load_profile
 from bench.runner import run_benchmark
+from reports.build import build_report
 
 
 def _shift5(gray, quad, params):
@@ -34,8 +35,8 @@ def run(tmp_path_factory):
         root = tmp_path_factory.mktemp("bench")
         methods = (Method("oracle", "none", "lm"), Method("oracle", "linefit", "lm"),
                    Method("oracle", "shift5", "lm"))
-        info = run_benchmark(load_profile("smoke"), out_dir=root / "run", workers=1,
-                             progress=False, methods=methods, renders_dir=root / "renders")
+        info = run_benchmark(load_profile("smoke"), out_dir=root / "run", workers=1, progress=False,
+                             methods=methods, renders_dir=root / "renders", report=build_report)
     finally:
         del SNAPPERS["shift5"]
     return info

@@ -5,7 +5,8 @@
     info = run_real(load_real_profile("real"), sim_dir="out/bench/smoke")
 
 Writes the same run folder as the synthetic runner (results.parquet/.csv, summary.json with
-metadata, per-method results and per-detector detection AP, report.html/.md), plus
+metadata, per-method results and per-detector detection AP, and the report when a report writer
+is passed, as in bench.runner), plus
 ``simreal.json`` when a synthetic run folder is given (bench.real.simreal). Optional datasets
 whose folder is absent are skipped and listed in the metadata.
 """
@@ -24,7 +25,7 @@ from bench.evaluate import ViewOutcome
 from bench.real.adapters import ADAPTERS
 from bench.real.evaluate import RealEvalSpec, evaluate_real_view
 from bench.real.profile import RealProfile
-from bench.runner import OUT_ROOT, RunInfo, _sum_stages, plan_methods
+from bench.runner import OUT_ROOT, ReportWriter, RunInfo, _sum_stages, plan_methods
 from fenestra.errors import FenestraError
 
 
@@ -122,9 +123,10 @@ def evaluate_datasets(profile: RealProfile, datasets: list, methods, progress: b
 
 
 def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: str | Path | None = None,
-             progress: bool = True, report: bool = True, force: bool = False) -> RunInfo:
+             progress: bool = True, report: ReportWriter | None = None, force: bool = False) -> RunInfo:
     """Run a real profile; see the module docstring. Returns the synthetic runner's RunInfo.
 
+    report: called with the run folder after simreal.json is written (None or False: no report);
     force: replace a run folder holding another profile's run or foreign files
     (bench.manifest.claim_run_dir); the run's manifest lists every labelled window x method."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -159,16 +161,14 @@ def run_real(profile: RealProfile, out_dir: str | Path | None = None, sim_dir: s
 
         write_simreal(Path(sim_dir), run_dir)
     if report:
-        from reports.build import build_report  # noqa: PLC0415
-
-        build_report(run_dir)
+        report(run_dir)
     meta["wall_time_s"] = time.perf_counter() - t_start
     res.write_summary(run_dir, meta, summary, det)
     return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))
 
 
 def run_real_profile(profile: str | Path, out_dir: Path | None = None, data: Path | None = None,
-                     fmt: str = "coco", sim_dir: Path | None = None, report: bool = True,
+                     fmt: str = "coco", sim_dir: Path | None = None, report: ReportWriter | None = None,
                      force: bool = False) -> RunInfo:
     """``fenestra bench --profile real [--data DIR --format F] [--sim RUN_DIR]``: load the profile,
     swap in the user's dataset if given, run. FileNotFoundError naming a missing --sim folder."""

@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import kendalltau, rankdata, spearmanr
 
+from bench.paired import paired_comparison
 from bench.results import TRUTH_FLAGS, _jsonable, load_results
 
 METRICS = ("aspect_err_rel", "corner_err_px_mask", "corner_err_px_snap", "corner_err_px_reproj", "iou_2d")
@@ -94,9 +95,7 @@ def gap_ratios(sim_df: pd.DataFrame, real_df: pd.DataFrame) -> dict[str, dict[st
 
 def paired_on_photos(real_df: pd.DataFrame, r: dict, metric: str) -> dict:
     """The render-chosen method against the photo-best one on the same photographed windows
-    (reports.build.paired_comparison: n, medians, median difference, share better, Wilcoxon p)."""
-    from reports.build import paired_comparison  # noqa: PLC0415
-
+    (bench.paired.paired_comparison: n, medians, median difference, share better, Wilcoxon p)."""
     return paired_comparison(_rows_with_truth(real_df, metric), r["best_sim"], r["best_real"], metric)
 
 
