@@ -10,12 +10,12 @@ export MPLBACKEND ?= Agg
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
 
-sysdeps:  ## Debian packages for headless EGL rendering and mitsuba's LLVM backend (if missing)
+sysdeps:  ## Debian packages for headless EGL rendering, mitsuba's LLVM backend and the report's browser test (if missing)
 	@if ! ldconfig -p | grep -q 'libEGL.so.1' || ! ls /usr/lib/x86_64-linux-gnu/dri/*swrast* >/dev/null 2>&1 \
-	    || ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1; then \
-	  echo "installing libegl1 libgl1-mesa-dri libllvm19"; \
+	    || ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1 || ! command -v chromium >/dev/null; then \
+	  echo "installing libegl1 libgl1-mesa-dri libllvm19 chromium"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
-	  $$SUDO apt-get update -qq && $$SUDO apt-get install -y -qq libegl1 libgl1-mesa-dri libllvm19 >/dev/null; \
+	  $$SUDO apt-get update -qq && $$SUDO apt-get install -y -qq libegl1 libgl1-mesa-dri libllvm19 chromium >/dev/null; \
 	else echo "system packages present"; fi
 
 setup: sysdeps  ## virtualenv in .venv with every dependency, pinned
@@ -33,8 +33,10 @@ test:  ## fast tests (the CI test command)
 test-all:  ## every test, slow ones included
 	$(PY) -m pytest -q
 
-bench:  ## default profile: render, reconstruct with every strategy, report
-	$(PY) -m fenestra bench --profile default
+REAL_RUN = $(if $(wildcard out/bench/real/summary.json),--real out/bench/real)
+
+bench:  ## default profile: render, reconstruct with every strategy, report (photo column from out/bench/real when present)
+	$(PY) -m fenestra bench --profile default $(REAL_RUN)
 
 smoke:  ## smoke profile (what CI gates)
 	$(PY) -m fenestra bench --profile smoke --out out/bench/smoke
@@ -50,8 +52,8 @@ gate: smoke real  ## smoke and real profiles, then the accuracy gates
 timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s)
 	$(PY) -m bench.timing --json out/timing.json
 
-report:  ## regenerate the report of the newest default run
-	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1)
+report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present)
+	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1) $(REAL_RUN)
 
 train:  ## render the detector data, train the default CPU detector from scratch (reproduces the shipped weights), evaluate it
 	PY=$(PY) bash pipeline/models/make_data.sh out/detector-data

@@ -1,17 +1,26 @@
 """reports.build on a synthetic results table (bench.synthetic: snapper "good" halves the mask-fit
-error, "bad" adds to it), so the report's statements can be checked against known structure."""
+error, "bad" adds to it), so the report's statements can be checked against known structure; a
+second synthetic table stands for a real-photo run where the order is reversed."""
 from __future__ import annotations
 
+import ast
 import base64
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.stats import wilcoxon
+from typer.testing import CliRunner
 
 from bench import manifest, results
+from bench.real.simreal import write_simreal
 from bench.synthetic import synthetic_results
 from reports.build import build_report, paired_comparison
+from reports.lead import SIM_METRIC, ranks
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL_SNAP = {"good": (1.4, 0.5), "bad": (0.7, 0.0)}  # on the "photos", bad is the better snapper
 
 
 @pytest.fixture(scope="module")
@@ -30,8 +39,8 @@ def test_report_files_and_embedded_images(built):
     d, _, html, md = built
     text = html.read_text()
     imgs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', text)
-    # fig8 for two methods + recall + conditions + aspect/rotation
-    assert len(imgs) == 5
+    # lead + fig8 for two methods + recall + conditions + aspect/rotation
+    assert len(imgs) == 6
     assert all(base64.b64decode(i)[:8] == b"\x89PNG\r\n\x1a\n" for i in imgs)
     assert "src=\"figures/" not in text  # self-contained
     mdt = md.read_text()
@@ -63,3 +72,141 @@ def test_paired_comparison_matches_scipy(built):
 def test_report_of_missing_folder_is_clear(tmp_path):
     with pytest.raises(FileNotFoundError, match="not a run folder"):
         build_report(tmp_path)
+
+
+# ---------------------------------------------------------------- the lead: one figure, the answer
+
+def _write_run(d: Path, df, profile: str, kind: str | None = None) -> Path:
+    results.write_results(df, d)
+    manifest.seal(d, df, profile)
+    results.write_summary(d, {"profile": profile, "seed": 0, **({"kind": kind} if kind else {})},
+                          results.summarize(df), {})
+    return d
+
+
+def _snap(df, snapper):
+    """Snapped corner errors of one snapper's evaluable rows with a value (independent of reports)."""
+    ev = df[df.evaluable & (df.snapper == snapper)]
+    return ev.set_index("window_id").corner_err_px_snap.dropna()
+
+
+@pytest.fixture(scope="module")
+def with_real(tmp_path_factory):
+    """A synthetic run and a "real-photo" run (kind real) whose snapper order is reversed; the
+    synthetic run's report made by the CLI with --real."""
+    from fenestra.cli import app
+
+    root = tmp_path_factory.mktemp("lead")
+    sim_df = synthetic_results(n_windows=80, seed=3)
+    real_df = synthetic_results(n_windows=40, seed=9, snap_factor=REAL_SNAP)
+    sim = _write_run(root / "sim", sim_df, "synthetic")
+    real = _write_run(root / "real", real_df, "real-synthetic", kind="real")
+    r = CliRunner().invoke(app, ["report", str(sim), "--real", str(real)])
+    assert r.exit_code == 0, r.output
+    return sim, sim_df, real, real_df
+
+
+def test_report_leads_with_the_ranked_figure_then_folds_the_details(built):
+    d, _, html, md = built
+    text = html.read_text()
+    first_img = text.index("<img ")
+    assert text[first_img:].startswith('<img id="lead_ranked"')
+    assert text.index("<h2>Which method is best</h2>") < first_img < text.index("<details>")
+    mdt = md.read_text()
+    n_h2 = len(re.findall(r"^## ", mdt, flags=re.M))
+    assert text.count("<details><summary><h2>") == n_h2 - 1  # every h2 but the lead's is folded
+    assert text.count("<details>") == text.count("</details>")
+    assert mdt.index("![lead_ranked](figures/lead_ranked.png)") < mdt.index("## What this means")
+    assert (d / "figures" / "lead_ranked.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "No real-photo run is part of this report" in mdt
+
+
+def test_lead_ranks_are_the_medians_and_p90s_of_the_table(built):
+    _, df, _, _ = built
+    (rk,) = ranks(df, SIM_METRIC).values()
+    assert [r.snapper for r in rk] == ["good", "bad"]
+    for r in rk:
+        e = _snap(df, r.snapper).to_numpy()
+        assert r.median == pytest.approx(np.median(e)) and r.p90 == pytest.approx(np.percentile(e, 90))
+        assert r.n == e.size
+
+
+def test_lead_answer_says_what_is_best_and_by_how_much(built):
+    _, df, _, md = built
+    mdt = md.read_text()
+    good, bad = _snap(df, "good"), _snap(df, "bad")
+    diff = (bad - good).dropna()
+    assert (f"Renders, detector **oracle**: **good** is best, median {np.median(good):.2f} px "
+            f"(p90 {np.percentile(good, 90):.2f} px, {good.size} windows)") in mdt
+    assert (f"The runner-up, bad ({np.median(bad):.2f} px), is clearly worse: on the same {diff.size} windows "
+            f"the median of bad - good is {np.median(diff):.2f} px and bad is better on 0 % of them") in mdt
+
+
+def test_real_run_fills_the_photo_column_and_the_answer(with_real):
+    sim, _, real, real_df = with_real
+    mdt = (sim / "report.md").read_text()
+    good, bad = _snap(real_df, "good"), _snap(real_df, "bad")
+    assert f"Real photos: {real}." in mdt
+    assert (f"Real photos, detector **oracle**, by snapped corner error: **bad** is best, median "
+            f"{np.median(bad):.2f} px (p90 {np.percentile(bad, 90):.2f} px, {bad.size} windows); by the same "
+            f"error renders choose good, which ranks 2 of 2 here and costs "
+            f"{np.median(good) - np.median(bad):.2f} px in median") in mdt
+
+
+
+def _png_width(path: Path) -> int:
+    return int.from_bytes(path.read_bytes()[16:20], "big")  # IHDR width
+
+
+def test_photo_column_widens_the_lead_figure(built, with_real):
+    """Renders only: one column of panels; with a real run: renders and photos side by side."""
+    one, two = _png_width(built[0] / "figures" / "lead_ranked.png"), _png_width(with_real[0] / "figures" / "lead_ranked.png")
+    assert 1.6 * one < two < 2.4 * one
+
+
+def test_real_run_report_finds_its_synthetic_counterpart(with_real):
+    sim, sim_df, real, _ = with_real
+    write_simreal(sim, real)
+    mdt = build_report(real)[1].read_text()
+    assert f"Renders: {sim}. Real photos: this run." in mdt
+    assert f"Renders, detector **oracle**: **good** is best, median {np.median(_snap(sim_df, 'good')):.2f} px" in mdt
+
+
+def test_real_dir_must_be_a_real_photo_run(with_real):
+    sim, _, real, _ = with_real
+    with pytest.raises(ValueError, match="not a real-photo run folder"):
+        build_report(sim, real_dir=sim)
+    with pytest.raises(ValueError, match="is itself a real-photo run"):
+        build_report(real, real_dir=real)
+
+
+# ---------------------------------------------------------------- import direction
+
+def _imports(path: Path) -> list[str]:
+    """Absolute module names imported anywhere in a file (function bodies included)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out += [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+    return out
+
+
+REPORTS_READ_FROM_BENCH = {"bench.results", "bench.manifest", "bench.paired", "bench.real.simreal"}
+
+
+def test_bench_and_reports_do_not_import_each_other():
+    """The data flows bench -> reports: reports read bench's tables through its results contract
+    (REPORTS_READ_FROM_BENCH), bench never imports reports, and only the CLI's composition root
+    (fenestra/cli.py) joins them."""
+    for path in sorted((ROOT / "bench").rglob("*.py")):
+        assert not [n for n in _imports(path) if n.split(".")[0] == "reports"], f"{path} imports reports"
+    for path in sorted((ROOT / "reports").rglob("*.py")):
+        # a package on the way to an allowed module ("from bench import paired" names "bench") is fine
+        bad = sorted(m for m in _imports(path) if m.split(".")[0] == "bench" and not any(
+            m == a or m.startswith(a + ".") or a.startswith(m + ".") for a in REPORTS_READ_FROM_BENCH))
+        assert not bad, f"{path} imports {bad}; reports read bench only through {sorted(REPORTS_READ_FROM_BENCH)}"
+    importers = {p.relative_to(ROOT).as_posix() for pkg in ("scenes", "renders", "pipeline", "bench", "fenestra")
+                 for p in (ROOT / pkg).rglob("*.py") if any(n.split(".")[0] == "reports" for n in _imports(p))}
+    assert importers == {"fenestra/cli.py"}
