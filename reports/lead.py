@@ -29,6 +29,7 @@ METRIC_LABELS = {"corner_err_px_snap": "snapped corner error (px)",
                  "aspect_err_rel": "aspect ratio error (relative)"}
 NAMES = {"corner_err_px_snap": "snapped corner error", "aspect_err_rel": "relative aspect-ratio error"}
 SIGNIFICANT_P = 0.05
+FEW_WINDOWS = 10  # below this many windows a ranking is stated with a warning
 
 
 @dataclass(frozen=True)
@@ -140,7 +141,8 @@ def _verdict(c: dict) -> str:
 def _sim_sentence(det: str, rk: list[Rank], sim_df: pd.DataFrame) -> str:
     best = rk[0]
     text = (f"Renders, detector **{det}**: **{best.snapper}** is best, median {_v(best.median, SIM_METRIC)} "
-            f"(p90 {_v(best.p90, SIM_METRIC)}, {best.n} windows)")
+            f"(p90 {_v(best.p90, SIM_METRIC)}, {best.n} windows"
+            + (", too few to trust the order" if best.n < FEW_WINDOWS else "") + ")")
     measured = [r for r in rk if math.isfinite(r.median)]
     if len(measured) > 1:
         nxt = measured[1]
@@ -162,7 +164,8 @@ def _photo_sentence(det: str, rk: list[Rank], lead: Lead, sim_df: pd.DataFrame |
         return f"Real photos, detector **{det}**: no window has the truth the {NAMES[m]} needs."
     best = measured[0]
     text = (f"Real photos, detector **{det}**, by {NAMES[m]}: **{best.snapper}** is best, median "
-            f"{_v(best.median, m)} (p90 {_v(best.p90, m)}, {best.n} windows)")
+            f"{_v(best.median, m)} (p90 {_v(best.p90, m)}, {best.n} windows"
+            + (", too few to trust the order" if best.n < FEW_WINDOWS else "") + ")")
     if sim_df is not None and det in (lead.sim or {}):
         r = ranking(method_medians(sim_df, m, det), method_medians(real_df, m, det))
         chosen = lead.sim[det][0]
