@@ -87,6 +87,8 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         else:
             if real is not None and not (real / "summary.json").is_file():
                 raise FileNotFoundError(f"--real {real}: not a benchmark run folder (no summary.json)")
+            if real is not None and load_summary(real)["metadata"].get("kind") != "real":
+                raise ValueError(f"--real {real}: not a real-photo run (fenestra bench --profile real makes one)")
             report = None if no_report else functools.partial(write_report, real_dir=real)
             info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
                                  report=report, executor=executor, executor_options=opts, force=force)

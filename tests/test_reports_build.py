@@ -210,3 +210,12 @@ def test_bench_and_reports_do_not_import_each_other():
     importers = {p.relative_to(ROOT).as_posix() for pkg in ("scenes", "renders", "pipeline", "bench", "fenestra")
                  for p in (ROOT / pkg).rglob("*.py") if any(n.split(".")[0] == "reports" for n in _imports(p))}
     assert importers == {"fenestra/cli.py"}
+
+
+def test_bench_refuses_a_real_dir_that_is_not_a_real_run_before_running(with_real):
+    """fenestra bench --real checks the folder before rendering anything (a synthetic run is refused)."""
+    from fenestra.cli import app
+
+    sim, _, _, _ = with_real
+    r = CliRunner().invoke(app, ["bench", "--profile", "smoke", "--real", str(sim), "--no-report"])
+    assert isinstance(r.exception, ValueError) and "not a real-photo run" in str(r.exception)
