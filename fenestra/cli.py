@@ -2,7 +2,8 @@
 
     fenestra scenes list | show | make      (scenes/cli.py)
     fenestra render                         (renders/cli.py)
-    fenestra reconstruct | train | evaluate-detector   (pipeline/cli.py)
+    fenestra reconstruct | calibrate        (pipeline/cli.py)
+    fenestra train | evaluate-detector | ship-weights    (training/cli.py)
     fenestra bench | report | gate          (bench/cli.py, reports/)
 """
 from __future__ import annotations
@@ -23,8 +24,9 @@ def _register() -> None:
     import pipeline.cli
     import renders.cli
     import scenes.cli
+    import training.cli
 
-    for module in (scenes.cli, renders.cli, pipeline.cli, bench.cli):
+    for module in (scenes.cli, renders.cli, pipeline.cli, training.cli, bench.cli):
         module.register(app)
 
 

@@ -6,10 +6,9 @@ import pytest
 
 from fenestra.errors import FenestraError
 from pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
-from pipeline.detectors.evaluate import (best_overlaps, coco_stats, detection_to_coco, evaluate,
-                                         rescored_by_overlap)
-from pipeline.detectors.toy import write_toy_dataset
 from pipeline.types import Detection
+from toy_data import write_toy_dataset
+from training.evaluate import best_overlaps, coco_stats, detection_to_coco, evaluate, rescored_by_overlap
 
 
 def _rect_instances(H=480, W=640):
@@ -101,7 +100,7 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     """3 windows in 2 images; exact masks for two (scores 0.8, 0.6), one missed, and a false
     positive scored 0.9. Ranked FP, TP, TP: precision envelope 2/3 up to recall 2/3, so COCO's
     101-point AP = 67 * (2/3) / 101 at every IoU; ranked by overlap: 67 * 1 / 101; R50 = 2/3."""
-    from pipeline.detectors.tune import _gt
+    from training.tune import _gt
 
     def rect(r0, c0):
         m = np.zeros((60, 80), bool)

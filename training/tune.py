@@ -1,6 +1,6 @@
 """Choose WinNet's post-processing thresholds on VALIDATION views (never the held-out house).
 
-    python -m pipeline.detectors.tune --data out/detector-data/val --views-per-dataset 5 \
+    python -m training.tune --data out/detector-data/val --views-per-dataset 5 \
         [--weights pipeline/models/default.pt] [--write]      # --views-per-dataset 0: every view
 
 Runs the network once per view, then scores each PostConfig of a small grid with COCOeval (segm AP);
@@ -17,9 +17,9 @@ import numpy as np
 import torch
 
 from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
-from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
-from pipeline.detectors.evaluate import coco_stats, detection_to_coco
 from pipeline.detectors.winnet import PostConfig, instances_from_maps, predict_maps
+from training.dataset import find_datasets, list_views, read_image, read_instances
+from training.evaluate import coco_stats, detection_to_coco
 from pycocotools import mask as mask_utils
 
 
