@@ -30,6 +30,28 @@ def test_registry_names():
         detect("nope", np.zeros((20, 20, 3), np.uint8))
 
 
+def test_detectors_that_need_the_instance_map_declare_it_and_see_full_resolution():
+    """A detector declaring needs_instances refuses to run without the map and gets the image at
+    full size even beyond LIMITS.detector_max_side_px: its masks cover the exact rectangles."""
+    from fenestra.conventions import LIMITS
+    from pipeline.detectors import DetectorEntry
+
+    assert all(isinstance(e, DetectorEntry) for e in DETECTORS.values())
+    needing = [n for n, e in DETECTORS.items() if e.needs_instances]
+    assert needing and len(needing) < len(DETECTORS)
+    H, W = LIMITS.detector_max_side_px + 76, LIMITS.detector_max_side_px + 476
+    inst = np.zeros((H, W), np.uint16)
+    inst[100:300, 200:500] = 1
+    inst[H - 200:H - 50, W - 400:W - 100] = 2
+    img = np.zeros((H, W, 3), np.uint8)
+    for name in needing:
+        with pytest.raises(ValueError, match=f"{name}.*needs instances"):
+            detect(name, img)
+        dets = detect(name, img, score_threshold=0.0, instances=inst)
+        assert len(dets) == 2 and all(d.mask.shape == (H, W) and d.origin == (0, 0) for d in dets)
+        assert all(max(_iou(d.mask, inst == k) for d in dets) > 0.8 for k in (1, 2))
+
+
 def test_bad_inputs_are_named():
     inst, _ = _rect_instances()
     with pytest.raises(ValueError, match="uint8"):
