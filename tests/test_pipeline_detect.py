@@ -122,7 +122,7 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     """3 windows in 2 images; exact masks for two (scores 0.8, 0.6), one missed, and a false
     positive scored 0.9. Ranked FP, TP, TP: precision envelope 2/3 up to recall 2/3, so COCO's
     101-point AP = 67 * (2/3) / 101 at every IoU; ranked by overlap: 67 * 1 / 101; R50 = 2/3."""
-    from training.tune import _gt
+    from training.tune import coco_ground_truth
 
     def rect(r0, c0):
         m = np.zeros((60, 80), bool)
@@ -132,7 +132,7 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     inst1, inst2 = np.zeros((60, 80), np.uint16), np.zeros((60, 80), np.uint16)
     inst1[rect(5, 5)] = 1
     inst2[rect(5, 5)], inst2[rect(30, 40)] = 1, 2
-    gt = _gt([(1, inst1), (2, inst2)])
+    gt = coco_ground_truth([(1, inst1), (2, inst2)])
     dets = [(1, rect(5, 5), 0.6), (1, rect(40, 60), 0.9), (2, rect(30, 40), 0.8)]
     res = [detection_to_coco(Detection(mask=m, box=np.array([0, 0, 1, 1], float), score=s), i)
            for i, m, s in dets]

@@ -23,7 +23,8 @@ from training.evaluate import coco_stats, detection_to_coco
 from pycocotools import mask as mask_utils
 
 
-def _gt(images: list[tuple[int, np.ndarray]]) -> dict:
+def coco_ground_truth(images: list[tuple[int, np.ndarray]]) -> dict:
+    """COCO ground truth (one category, RLE masks) of (image id, instance map (H, W)) pairs of one size."""
     anns = []
     for i, inst in images:
         for k in np.unique(inst):
@@ -48,7 +49,7 @@ def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[di
         for v in vs:
             maps.append(predict_maps(model, read_image(v.image)))
             insts.append((len(insts) + 1, read_instances(v.instances)))
-    gt = _gt(insts)
+    gt = coco_ground_truth(insts)
     out = []
     for vt, ct in itertools.product((0.4, 0.5, 0.6), (0.3, 0.5, 0.7)):
         post = PostConfig(void_threshold=vt, core_threshold=ct)
