@@ -55,9 +55,10 @@ timing:  ## where make bench's time goes, measured as a fresh clone would (cold,
 report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present)
 	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1) $(REAL_RUN)
 
-train:  ## render the detector data, train the default CPU detector from scratch (reproduces the shipped weights), evaluate it
-	PY=$(PY) bash pipeline/models/make_data.sh out/detector-data
-	$(PY) -m fenestra train --config pipeline/models/default.toml
+train:  ## render the detector data, train the default CPU detector from scratch (out/train/), ship it (reproduces the shipped weights), evaluate it
+	PY=$(PY) bash training/scripts/make_data.sh out/detector-data
+	$(PY) -m fenestra train --config training/configs/default.toml
+	$(PY) -m fenestra ship-weights out/train/default.pt
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
 

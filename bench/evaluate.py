@@ -22,7 +22,6 @@ from bench import matching, metrics, uncertainty
 from bench.profiles import EvalSpec
 from fenestra.conventions import TOL, camera_depths
 
-ORACLES = ("oracle", "oracle-degraded")
 AP_SCORE_MIN = 0.05  # detections kept for COCO AP
 MATCH_SCORE_MIN = 0.5  # detections passed on to matching and reconstruction
 NAN = float("nan")
@@ -67,7 +66,7 @@ class ViewOutcome:
 
 def read_view(view_dir: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:
     """(image (H, W, 3) uint8 RGB, instances (H, W) int32, view.json dict) of a view folder."""
-    from pipeline.detectors.dataset import read_image, read_instances  # noqa: PLC0415
+    from training.dataset import read_image, read_instances  # noqa: PLC0415
 
     d = Path(view_dir)
     meta = json.loads((d / "view.json").read_text())
@@ -218,7 +217,7 @@ def _detector_options(task: ViewTask, name: str) -> dict:
 
 def evaluate_view(task: ViewTask) -> ViewOutcome:
     """Rows for every (GT window x method) of one view; see the module docstring."""
-    from pipeline.detectors import detect  # noqa: PLC0415
+    from pipeline.detectors import detect, detector_entry  # noqa: PLC0415
     from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
@@ -249,7 +248,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
     t0 = tick("reconstruct", t0)
 
     for det_name in dict.fromkeys(m.detector for m in task.methods):
-        inst = instances if det_name in ORACLES else None
+        inst = instances if detector_entry(det_name).needs_instances else None
         # every candidate down to AP_SCORE_MIN feeds detection AP; reconstruction gets the
         # detections a user would (score >= MATCH_SCORE_MIN, the detectors' default threshold)
         cands = detect(det_name, image, score_threshold=AP_SCORE_MIN, instances=inst,

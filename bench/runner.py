@@ -65,12 +65,12 @@ def _expand(names: tuple[str, ...], registry: dict, what: str) -> list[str]:
 
 def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
     """Detectors that can be built here (learned ones need weights); {skipped: reason}."""
-    from pipeline.detectors import get_detector  # noqa: PLC0415
+    from pipeline.detectors import DETECTORS, get_detector  # noqa: PLC0415
 
     ok, skipped = [], {}
     for n in names:
         try:
-            if n not in ("oracle", "oracle-degraded"):
+            if not DETECTORS[n].needs_instances:  # the oracles load no weights
                 get_detector(n, **LEARNED_DETECTOR_OPTIONS)
             ok.append(n)
         except Exception as e:  # noqa: BLE001 - missing weights etc.: skip, recorded in metadata
@@ -124,11 +124,12 @@ def make_plan(profile: Profile, methods: tuple[Method, ...], renders_dir: str | 
               run_dir: Path) -> Plan:
     """The executor's plan: each house's dataset config (procedural IFCs generated here), methods."""
     from bench.render_adapter import dataset_config  # noqa: PLC0415
+    from pipeline.detectors import DETECTORS  # noqa: PLC0415
 
     root = Path(renders_dir) if renders_dir is not None else OUT_ROOT / "renders"
     opts = tuple((d, tuple(LEARNED_DETECTOR_OPTIONS.items()))
                  for d in dict.fromkeys(m.detector for m in methods)
-                 if d not in ("oracle", "oracle-degraded"))
+                 if not DETECTORS[d].needs_instances)
     houses = tuple(HousePlan(h, dataset_config(profile, h, root)) for h in house_list(profile))
     return Plan(houses=houses, profile=profile, methods=methods, detector_options=opts, run_dir=str(run_dir))
 

@@ -2,7 +2,8 @@
 
     fenestra scenes list | show | make      (scenes/cli.py)
     fenestra render                         (renders/cli.py)
-    fenestra reconstruct | train | evaluate-detector   (pipeline/cli.py)
+    fenestra reconstruct | calibrate        (pipeline/cli.py)
+    fenestra train | evaluate-detector | ship-weights    (training/cli.py)
     fenestra bench | gate                   (bench/cli.py; bench ends with reports' writer)
     fenestra report                         (reports/cli.py)
 """
@@ -25,8 +26,9 @@ def _register() -> None:
     import renders.cli
     import reports.cli
     import scenes.cli
+    import training.cli
 
-    for module in (scenes.cli, renders.cli, pipeline.cli):
+    for module in (scenes.cli, renders.cli, pipeline.cli, training.cli):
         module.register(app)
     # the composition root: bench/ produces tables and never imports reports/, so the report step
     # of `fenestra bench` is handed in here

@@ -12,7 +12,6 @@ writes DIR/windows.json and, through pipeline.export, model.ifc, model.obj, over
 When K.json carries lens distortion (``"distortion": [k1, k2, p1, p2, k3]``, OpenCV), the photo is
 undistorted with the same K first (cv2.undistort) and everything downstream (masks, quads, the
 overlay and the texture) lives in that undistorted image; windows.json says ``"undistorted": true``.
-Also registers the detectors' commands (`fenestra train`, `fenestra evaluate-detector`).
 """
 from __future__ import annotations
 
@@ -188,9 +187,3 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"board found in {doc['n_images']} of {doc['n_given']} photos; reprojection RMS "
                    f"{doc['reprojection_rms_px']:.3f} px; fx {doc['K'][0][0]:.2f} fy {doc['K'][1][1]:.2f}")
         typer.echo(f"wrote {out}")
-
-    try:
-        from pipeline.detectors import cli as detectors_cli  # noqa: PLC0415
-    except ImportError:
-        return
-    detectors_cli.register(app)

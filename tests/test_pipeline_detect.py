@@ -6,10 +6,9 @@ import pytest
 
 from fenestra.errors import FenestraError
 from pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
-from pipeline.detectors.evaluate import (best_overlaps, coco_stats, detection_to_coco, evaluate,
-                                         rescored_by_overlap)
-from pipeline.detectors.toy import write_toy_dataset
 from pipeline.types import Detection
+from toy_data import write_toy_dataset
+from training.evaluate import best_overlaps, coco_stats, detection_to_coco, evaluate, rescored_by_overlap
 
 
 def _rect_instances(H=480, W=640):
@@ -29,6 +28,28 @@ def test_registry_names():
     assert {"oracle", "oracle-degraded", "default", "maskrcnn"} <= set(DETECTORS)
     with pytest.raises(ValueError, match="unknown detector 'nope'"):
         detect("nope", np.zeros((20, 20, 3), np.uint8))
+
+
+def test_detectors_that_need_the_instance_map_declare_it_and_see_full_resolution():
+    """A detector declaring needs_instances refuses to run without the map and gets the image at
+    full size even beyond LIMITS.detector_max_side_px: its masks cover the exact rectangles."""
+    from fenestra.conventions import LIMITS
+    from pipeline.detectors import DetectorEntry
+
+    assert all(isinstance(e, DetectorEntry) for e in DETECTORS.values())
+    needing = [n for n, e in DETECTORS.items() if e.needs_instances]
+    assert needing and len(needing) < len(DETECTORS)
+    H, W = LIMITS.detector_max_side_px + 76, LIMITS.detector_max_side_px + 476
+    inst = np.zeros((H, W), np.uint16)
+    inst[100:300, 200:500] = 1
+    inst[H - 200:H - 50, W - 400:W - 100] = 2
+    img = np.zeros((H, W, 3), np.uint8)
+    for name in needing:
+        with pytest.raises(ValueError, match=f"{name}.*needs instances"):
+            detect(name, img)
+        dets = detect(name, img, score_threshold=0.0, instances=inst)
+        assert len(dets) == 2 and all(d.mask.shape == (H, W) and d.origin == (0, 0) for d in dets)
+        assert all(max(_iou(d.mask, inst == k) for d in dets) > 0.8 for k in (1, 2))
 
 
 def test_bad_inputs_are_named():
@@ -101,7 +122,7 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     """3 windows in 2 images; exact masks for two (scores 0.8, 0.6), one missed, and a false
     positive scored 0.9. Ranked FP, TP, TP: precision envelope 2/3 up to recall 2/3, so COCO's
     101-point AP = 67 * (2/3) / 101 at every IoU; ranked by overlap: 67 * 1 / 101; R50 = 2/3."""
-    from pipeline.detectors.tune import _gt
+    from training.tune import coco_ground_truth
 
     def rect(r0, c0):
         m = np.zeros((60, 80), bool)
@@ -111,7 +132,7 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     inst1, inst2 = np.zeros((60, 80), np.uint16), np.zeros((60, 80), np.uint16)
     inst1[rect(5, 5)] = 1
     inst2[rect(5, 5)], inst2[rect(30, 40)] = 1, 2
-    gt = _gt([(1, inst1), (2, inst2)])
+    gt = coco_ground_truth([(1, inst1), (2, inst2)])
     dets = [(1, rect(5, 5), 0.6), (1, rect(40, 60), 0.9), (2, rect(30, 40), 0.8)]
     res = [detection_to_coco(Detection(mask=m, box=np.array([0, 0, 1, 1], float), score=s), i)
            for i, m, s in dets]

@@ -124,7 +124,7 @@ def test_cli_reconstruct(tmp_path):
 
 
 def test_pipeline_does_not_import_harness_packages():
-    forbidden = {"bench", "renders", "scenes"}
+    forbidden = {"bench", "renders", "scenes", "training"}
     for path in PIPELINE.rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
             names = []

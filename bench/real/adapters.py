@@ -20,9 +20,9 @@ import cv2
 import numpy as np
 
 from bench.real.contract import RealView, RealWindow
-from pipeline.detectors.dataset import read_image
 from pipeline.io import Camera, check_distortion, read_camera, undistort_photo
 from pipeline.quad import order_corners
+from training.dataset import read_image
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 EDGE_TO_CENTRE = 0.5  # format coordinates (pixel edges at integers) -> fenestra (centres at integers)

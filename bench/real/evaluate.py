@@ -17,10 +17,11 @@ import cv2
 import numpy as np
 
 from bench import matching, metrics
-from bench.evaluate import _ERROR_COLUMNS, AP_SCORE_MIN, MATCH_SCORE_MIN, ORACLES, Method, ViewOutcome
+from bench.evaluate import _ERROR_COLUMNS, AP_SCORE_MIN, MATCH_SCORE_MIN, Method, ViewOutcome
 from bench.real import metrics as real_metrics
 from bench.real.contract import RealView, RealWindow
 from fenestra.conventions import TOL
+from pipeline.detectors import detector_entry
 from pipeline.detectors.oracle import mask_box
 from pipeline.types import Detection
 
@@ -48,7 +49,7 @@ def detect_resized(name: str, image: np.ndarray, long_side: int, score_threshold
     (e.g. weights=PATH), one torch thread unless given."""
     from pipeline.detectors import detect  # noqa: PLC0415
 
-    if name in ORACLES:
+    if detector_entry(name).needs_instances:
         return detect(name, image, score_threshold=score_threshold, instances=instances)
     options = {"threads": 1, **options}
     H, W = image.shape[:2]
@@ -168,7 +169,7 @@ def evaluate_real_view(view: RealView, methods: tuple[Method, ...], spec: RealEv
     inst = view.instance_map() if view.has_masks else None
     for det_name in dict.fromkeys(m.detector for m in methods):
         ms = [m for m in methods if m.detector == det_name]
-        if det_name in ORACLES and inst is None:
+        if detector_entry(det_name).needs_instances and inst is None:
             for m in ms:
                 out.rows += _not_run_rows(base, m, f"{det_name} needs ground-truth masks, the labels are boxes")
             continue

@@ -61,8 +61,8 @@ class LabelledOutcome:
 
 def coco_ap_of(done: list[LabelledOutcome], det: str) -> dict:
     """COCO bbox (and segm where every window has a mask) AP/AP50/AP75/R50 of one detector, as
-    fractions, over the views it ran on (pipeline.detectors.evaluate.coco_stats); NaN = absent."""
-    from pipeline.detectors.evaluate import coco_stats  # noqa: PLC0415
+    fractions, over the views it ran on (training.evaluate.coco_stats); NaN = absent."""
+    from training.evaluate import coco_stats  # noqa: PLC0415
 
     ran = [d for d in done if det in d.outcome.coco_dt]
     gt = coco_dict(ran)

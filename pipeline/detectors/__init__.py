@@ -6,8 +6,10 @@
     dets = detect("oracle-degraded", image, instances=inst, config=DegradeConfig(seed=1))
     dets = detect("maskrcnn", image, weights="pipeline/models/maskrcnn.pt")
 
-``DETECTORS[name](**options)`` builds a detector: a callable ``(image, **per_image) ->
-list[Detection]`` (every candidate, best first). ``detect`` caches the built detector, applies
+``DETECTORS[name]`` is a ``DetectorEntry``: ``.build(**options)`` makes a detector, a callable
+``(image, **per_image) -> list[Detection]`` (every candidate, best first), and its capabilities say
+how to call it (``needs_instances``: the oracles take the ground-truth instance map, per image, and
+run at full resolution). ``detect`` caches the built detector, applies
 ``score_threshold`` and checks the input; learned detectors see photos larger than
 ``LIMITS.detector_max_side_px`` resized, their masks come back sparse at full resolution
 (Detection.origin). Detection.box is (x0, y0, x1, y1) on the pixel-edge
@@ -16,6 +18,7 @@ outline of the mask (pixel centres at integers, so x1 - x0 is the width in px).
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -78,8 +81,8 @@ def load_winnet(weights: str | Path | None = None):
 
     path = Path(weights) if weights is not None else DEFAULT_WEIGHTS
     if not path.is_file():
-        raise FenestraError(f"no WinNet weights at {path}: train them with "
-                            "`fenestra train --config pipeline/models/default.toml` (see pipeline/models/README.md)")
+        raise FenestraError(f"no WinNet weights at {path}: train them with `fenestra train --config "
+                            "training/configs/default.toml` (see pipeline/models/README.md)")
     ckpt = read_checkpoint(path, "winnet")
     model = WinNet(WinNetConfig(tuple(ckpt["widths"])))
     model.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
@@ -110,28 +113,47 @@ def _maskrcnn(weights: str | Path | None = None, threads: int | None = None, dev
     return run
 
 
-DETECTORS: dict[str, Callable[..., Detector]] = {
-    "oracle": _oracle,
-    "oracle-degraded": _oracle_degraded,
-    "default": _default,
-    "maskrcnn": _maskrcnn,
+@dataclass(frozen=True)
+class DetectorEntry:
+    """A registered detector: how to build it, and what it needs.
+
+    build(**options) -> Detector. needs_instances: it reads the ground-truth instance map
+    (``instances=`` (H, W) int, per image; the oracles), so it runs only where one exists (renders,
+    labelled masks) and always at the image's full resolution.
+    """
+
+    build: Callable[..., Detector]
+    needs_instances: bool = False
+
+
+DETECTORS: dict[str, DetectorEntry] = {
+    "oracle": DetectorEntry(_oracle, needs_instances=True),
+    "oracle-degraded": DetectorEntry(_oracle_degraded, needs_instances=True),
+    "default": DetectorEntry(_default),
+    "maskrcnn": DetectorEntry(_maskrcnn),
 }
+
+
+def detector_entry(name: str) -> DetectorEntry:
+    """The registry entry of detector ``name``; ValueError naming it and the choices if unknown."""
+    if name not in DETECTORS:
+        raise ValueError(f"unknown detector {name!r}; choose from {sorted(DETECTORS)}")
+    return DETECTORS[name]
 
 
 @functools.lru_cache(maxsize=8)
 def _cached(name: str, options: tuple) -> Detector:
-    return DETECTORS[name](**dict(options))
+    return DETECTORS[name].build(**dict(options))
 
 
 def get_detector(name: str, **options: object) -> Detector:
     """The detector ``name`` built with ``options`` (cached: weights load once)."""
-    if name not in DETECTORS:
-        raise ValueError(f"unknown detector {name!r}; choose from {sorted(DETECTORS)}")
+    entry = detector_entry(name)
     key = tuple(sorted((k, str(v) if isinstance(v, Path) else v) for k, v in options.items()))
     try:
         hash(key)
     except TypeError:
-        return DETECTORS[name](**options)
+        return entry.build(**options)
     return _cached(name, key)
 
 
@@ -146,18 +168,16 @@ def detect(name: str, image: np.ndarray, score_threshold: float = 0.5,
     if not 0.0 <= score_threshold <= 1.0:
         raise ValueError(f"score_threshold must be in [0, 1], got {score_threshold}")
     per_image = {} if instances is None else {"instances": instances}
-    if name in ORACLES and instances is None:
+    needs_instances = detector_entry(name).needs_instances
+    if needs_instances and instances is None:
         raise ValueError(f"detector {name!r} needs instances= an (H, W) instance map")
     run = get_detector(name, **options)
-    scale = 1.0 if name in ORACLES else input_scale(image.shape[:2])
+    scale = 1.0 if needs_instances else input_scale(image.shape[:2])
     if scale == 1.0:
         dets = run(image, **per_image)
     else:  # bounded memory and time: the network sees a smaller copy, masks come back sparse
         dets = [full_resolution(d, scale, image.shape[:2]) for d in run(downscale(image, scale), **per_image)]
     return [d for d in dets if d.score >= score_threshold]
-
-
-ORACLES = ("oracle", "oracle-degraded")
 
 
 def input_scale(shape: tuple[int, int], max_side: int = LIMITS.detector_max_side_px) -> float:
@@ -192,4 +212,5 @@ def box_to_full(box: np.ndarray, scale: float) -> np.ndarray:
     return (np.asarray(box, dtype=np.float64) + 0.5) / scale - 0.5
 
 
-__all__ = ["DETECTORS", "DegradeConfig", "Detection", "detect", "get_detector", "check_image"]
+__all__ = ["DETECTORS", "DetectorEntry", "DegradeConfig", "Detection", "detect", "detector_entry", "get_detector",
+           "check_image"]

@@ -1,7 +1,7 @@
 """Mask R-CNN (ResNet-50 FPN), the paper's architecture, from torchvision, trained from scratch.
 
 No pretrained weights anywhere (weights=None, weights_backbone=None). Two classes: background and
-window void. ``build_maskrcnn`` is shared by training (pipeline/detectors/train.py) and inference.
+window void. ``build_maskrcnn`` is shared by training (training/train.py) and inference.
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from pipeline.types import Detection
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_MASKRCNN_WEIGHTS = MODELS_DIR / "maskrcnn.pt"
-TRAIN_HINT = ("train it with `fenestra train --config pipeline/models/maskrcnn.toml --data DIR` "
-              "(a GPU machine is advised; see pipeline/models/README.md)")
+TRAIN_HINT = ("train it with `fenestra train --config training/configs/maskrcnn.toml --data DIR`, then "
+              "`fenestra ship-weights out/train/maskrcnn.pt` (a GPU machine is advised; see docs/experiments.md)")
 
 
 def build_maskrcnn(min_size: int = 480, max_size: int = 640) -> torch.nn.Module:

@@ -1,6 +1,6 @@
 """Small example overlays for the model card: the worst held-out views of a detector.
 
-    python -m pipeline.detectors.examples --data out/detector-data/heldout-pyrender --out pipeline/models/examples
+    .venv/bin/python tools/detector_examples.py --data out/detector-data/heldout-pyrender --out DIR [-n 3] [--weights W]
 
 Per view: each ground-truth window's best mask IoU with any detection (score >= 0.5); the views
 with the lowest worst-window IoU are drawn (ground truth green, detections red), 320 px wide.
@@ -8,13 +8,15 @@ with the lowest worst-window IoU are drawn (ground truth green, detections red),
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from pipeline.detectors import detect
-from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from pipeline.detectors import detect  # noqa: E402
+from training.dataset import find_datasets, list_views, read_image, read_instances  # noqa: E402
 
 
 def view_scores(name: str, data: Path, **opts) -> list[tuple[float, int, int, Path, Path]]:

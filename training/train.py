@@ -1,7 +1,11 @@
 """Train a window-void detector on rendered dataset folders.
 
-    fenestra train --config pipeline/models/default.toml            # WinNet, CPU, shipped weights
-    fenestra train --config pipeline/models/maskrcnn.toml --data D  # Mask R-CNN (GPU advised)
+    fenestra train --config training/configs/default.toml            # WinNet, CPU -> out/train/default.pt
+    fenestra train --config training/configs/maskrcnn.toml --data D  # Mask R-CNN (GPU advised)
+    fenestra ship-weights out/train/default.pt                       # then: the shipped weights
+
+What differs between architectures (model and optimizer, batches, losses, the weights file) is one
+``TrainableArch`` entry of ``ARCHS``; ``train`` itself is the same loop for every architecture.
 
 Deterministic for a given seed, thread count and device: the batch of iteration ``it`` is drawn with
 ``np.random.default_rng([seed, it])``, so ``workers`` > 0 (batches made ahead in worker processes,
@@ -11,7 +15,7 @@ continued in chunks: the optimizer state is kept in ``<state_dir>/<name>.state.p
 ``resume = true`` picks it up. ``amp = true`` (bfloat16 autocast) and ``channels_last`` speed up both
 the GPU machine (``device = "cuda"``) and CPUs with native bfloat16 (AMX / AVX512-BF16): on this
 project's 2-core CPU a step of the shipped WinNet takes ~0.16 s with both instead of ~0.44 s without
-(``python -m pipeline.detectors.steptime``). The shipped WinNet is trained on the CPU.
+(``python tools/steptime.py``). The shipped WinNet is trained on the CPU.
 """
 from __future__ import annotations
 
@@ -24,16 +28,18 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
 import torch.nn.functional as F
 
 from fenestra.config import read_toml
-from pipeline.detectors.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
-from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
+from pipeline.detectors import DEFAULT_WEIGHTS
+from pipeline.detectors.maskrcnn import DEFAULT_MASKRCNN_WEIGHTS
+from training.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
+from training.dataset import find_datasets, list_views, read_image, read_instances
 
-ARCHS = ("winnet", "maskrcnn")
 DEVICES = ("cpu", "cuda")
 
 
@@ -52,7 +58,7 @@ class TrainConfig:
 
     arch: str = "winnet"
     data: tuple[str, ...] = ()
-    out: str = "pipeline/models/default.pt"
+    out: str = "out/train/default.pt"  # generated; `fenestra ship-weights` copies weights into pipeline/models
     views: int | None = None
     seed: int = 0
     threads: int = 2
@@ -79,7 +85,7 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         if self.arch not in ARCHS:
-            raise ValueError(f"arch must be one of {ARCHS}, got {self.arch!r}")
+            raise ValueError(f"arch must be one of {tuple(ARCHS)}, got {self.arch!r}")
         for name in ("iterations", "batch_size", "threads", "log_every", "save_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -186,7 +192,7 @@ def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
 def make_batch(data, cfg: TrainConfig, it: int):
     """The batch of iteration ``it`` (same for any number of workers): see winnet_batch, maskrcnn_batch."""
     rng = np.random.default_rng([cfg.seed, it])
-    return (winnet_batch if cfg.arch == "winnet" else maskrcnn_batch)(data, cfg, rng)
+    return ARCHS[cfg.arch].batch(data, cfg, rng)
 
 
 _WORKER_DATA: list = []  # the training views, loaded once per worker process
@@ -224,13 +230,6 @@ def batches(data, cfg: TrainConfig, start: int):
             yield it, res.get()
 
 
-def _to_device(batch, arch: str, device: str):
-    if arch == "winnet":
-        return tuple(t.to(device) for t in batch)
-    imgs, tgts = batch
-    return [i.to(device) for i in imgs], [{k: v.to(device) for k, v in t.items()} for t in tgts]
-
-
 def _lr_at(it: int, cfg: TrainConfig) -> float:
     """Linear warm-up, then cosine decay to 1% of the peak."""
     if it < cfg.warmup:
@@ -239,31 +238,15 @@ def _lr_at(it: int, cfg: TrainConfig) -> float:
     return cfg.lr * (0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(1.0, f))))
 
 
-def _build(cfg: TrainConfig):
-    if cfg.arch == "winnet":
-        from pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
-
-        model = WinNet(WinNetConfig(cfg.winnet_widths))
-        opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    else:
-        from pipeline.detectors.maskrcnn import build_maskrcnn  # noqa: PLC0415
-
-        model = build_maskrcnn(cfg.maskrcnn_min_size, cfg.maskrcnn_max_size)
-        params = [p for p in model.parameters() if p.requires_grad]
-        opt = torch.optim.SGD(params, lr=cfg.lr, momentum=0.9, weight_decay=cfg.weight_decay)
-    return model, opt
+def build_model(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
+    """The untrained model of cfg.arch and its optimizer (draws from torch's RNG: seed it first)."""
+    return ARCHS[cfg.arch].build(cfg)
 
 
 def checkpoint(model: torch.nn.Module, cfg: TrainConfig, meta: dict) -> dict:
-    """The shipped file's contents: arch, architecture parameters, fp16 weights, config, metadata."""
-    if cfg.arch == "winnet":
-        from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
-
-        sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
-        return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
-                "post": dataclasses.asdict(PostConfig()), "train_config": dataclasses.asdict(cfg), "meta": meta}
-    return {"arch": "maskrcnn", "model_kw": {"min_size": cfg.maskrcnn_min_size, "max_size": cfg.maskrcnn_max_size},
-            "state_dict": {k: v.cpu() for k, v in model.state_dict().items()}, "train_config": dataclasses.asdict(cfg), "meta": meta}
+    """The weights file's contents: the architecture's keys (arch, its parameters, weights), then
+    the training config and metadata."""
+    return {**ARCHS[cfg.arch].checkpoint(model, cfg), "train_config": dataclasses.asdict(cfg), "meta": meta}
 
 
 def _device_name(device: str) -> str:
@@ -281,7 +264,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
     state_path.parent.mkdir(parents=True, exist_ok=True)
     views = select_views(cfg.data, cfg.views, log=log)
     data = read_views(views) if cfg.workers == 0 else []  # workers read their own copies
-    model, opt = _build(cfg)
+    model, opt = build_model(cfg)
     model.to(cfg.device)
     if cfg.channels_last:
         model.to(memory_format=torch.channels_last)
@@ -308,14 +291,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
             for g in opt.param_groups:
                 g["lr"] = lr
             with torch.autocast(cfg.device, dtype=torch.bfloat16, enabled=cfg.amp):
-                if cfg.arch == "winnet":
-                    x, y = _to_device(batch, cfg.arch, cfg.device)
-                    if cfg.channels_last:
-                        x = x.contiguous(memory_format=torch.channels_last)
-                    parts = winnet_loss(model(x).float(), y)
-                else:
-                    parts = model(*_to_device(batch, cfg.arch, cfg.device))
-                    parts["loss"] = sum(parts.values())
+                parts = ARCHS[cfg.arch].losses(model, batch, cfg)
             opt.zero_grad()
             parts["loss"].backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
@@ -338,3 +314,81 @@ def train(cfg: TrainConfig, log=print) -> Path:
                         "python": sys.version.split()[0]}
                 torch.save(checkpoint(model, cfg, meta), out)
     return out
+
+
+# ---------------------------------------------------------------- trainable architectures
+
+def winnet_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
+    """WinNet of cfg.winnet_widths and AdamW."""
+    from pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
+
+    model = WinNet(WinNetConfig(cfg.winnet_widths))
+    return model, torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+
+
+def winnet_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, torch.Tensor]:
+    """winnet_loss of one batch (images, targets) moved to cfg.device (channels-last if set)."""
+    x, y = (t.to(cfg.device) for t in batch)
+    if cfg.channels_last:
+        x = x.contiguous(memory_format=torch.channels_last)
+    return winnet_loss(model(x).float(), y)
+
+
+def winnet_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
+    """arch, widths, fp16 weights and the post-processing defaults (PostConfig)."""
+    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
+
+    sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
+    return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
+            "post": dataclasses.asdict(PostConfig())}
+
+
+def maskrcnn_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
+    """torchvision Mask R-CNN (cfg.maskrcnn_min_size/max_size) and SGD with momentum."""
+    from pipeline.detectors.maskrcnn import build_maskrcnn  # noqa: PLC0415
+
+    model = build_maskrcnn(cfg.maskrcnn_min_size, cfg.maskrcnn_max_size)
+    params = [p for p in model.parameters() if p.requires_grad]
+    return model, torch.optim.SGD(params, lr=cfg.lr, momentum=0.9, weight_decay=cfg.weight_decay)
+
+
+def maskrcnn_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, torch.Tensor]:
+    """torchvision's loss parts of one batch (images, targets) moved to cfg.device, and their sum."""
+    imgs, tgts = batch
+    parts = model([i.to(cfg.device) for i in imgs], [{k: v.to(cfg.device) for k, v in t.items()} for t in tgts])
+    parts["loss"] = sum(parts.values())
+    return parts
+
+
+def maskrcnn_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
+    """arch, the resize parameters and fp32 weights."""
+    return {"arch": "maskrcnn", "model_kw": {"min_size": cfg.maskrcnn_min_size, "max_size": cfg.maskrcnn_max_size},
+            "state_dict": {k: v.cpu() for k, v in model.state_dict().items()}}
+
+
+@dataclass(frozen=True)
+class TrainableArch:
+    """Everything ``train`` does differently for one architecture.
+
+    build(cfg) -> (model, optimizer); batch(data, cfg, rng) -> one augmented batch on the CPU (data:
+    load_views' list); losses(model, batch, cfg) -> {part: scalar tensor, ..., "loss": their sum},
+    the batch moved to cfg.device; checkpoint(model, cfg) -> the weights file's architecture keys
+    ("arch", its parameters, "state_dict"), which pipeline.detectors reads back; detector: the
+    pipeline.detectors registry name that loads such a file; shipped: the file that detector loads
+    by default (where `fenestra ship-weights` copies to).
+    """
+
+    build: Callable[[TrainConfig], tuple]
+    batch: Callable[..., object]
+    losses: Callable[..., dict]
+    checkpoint: Callable[[torch.nn.Module, TrainConfig], dict]
+    detector: str
+    shipped: Path
+
+
+ARCHS: dict[str, TrainableArch] = {
+    "winnet": TrainableArch(winnet_build, winnet_batch, winnet_losses, winnet_checkpoint,
+                            detector="default", shipped=DEFAULT_WEIGHTS),
+    "maskrcnn": TrainableArch(maskrcnn_build, maskrcnn_batch, maskrcnn_losses, maskrcnn_checkpoint,
+                              detector="maskrcnn", shipped=DEFAULT_MASKRCNN_WEIGHTS),
+}

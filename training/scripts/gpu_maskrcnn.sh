@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Train and evaluate Mask R-CNN (pipeline/models/maskrcnn.toml) on the GPU machine in one go.
-# Usage: bash pipeline/models/gpu_maskrcnn.sh DATA_ROOT OUT_DIR [TRAIN_SECONDS=330]
-#   DATA_ROOT holds train/, val/, heldout-pyrender/, heldout-mitsuba/ (pipeline/models/make_data.sh).
+# Train and evaluate Mask R-CNN (training/configs/maskrcnn.toml) on the GPU machine in one go.
+# Usage: bash training/scripts/gpu_maskrcnn.sh DATA_ROOT OUT_DIR [TRAIN_SECONDS=330]
+#   DATA_ROOT holds train/, val/, heldout-pyrender/, heldout-mitsuba/ (training/scripts/make_data.sh).
 # A 30-iteration probe measures the speed; the run then gets as many iterations as fit in
 # TRAIN_SECONDS (printed, and recorded in the weights' train_config). Metrics: OUT_DIR/eval-*.json.
 set -euo pipefail
@@ -9,12 +9,12 @@ cd "$(dirname "$0")/../.."
 DATA=$1 OUTD=$2 BUDGET=${3:-330}
 PY=${PY:-python3}
 mkdir -p "$OUTD"
-$PY -m fenestra train --config pipeline/models/maskrcnn.toml --data "$DATA/train" --iterations 30 \
+$PY -m fenestra train --config training/configs/maskrcnn.toml --data "$DATA/train" --iterations 30 \
     --out "$OUTD/probe.pt" > "$OUTD/probe.log"
 rate=$($PY -c "import csv,sys; r=list(csv.DictReader(open(sys.argv[1]))); print((float(r[-1]['elapsed_s'])-float(r[1]['elapsed_s']))/(int(r[-1]['iteration'])-int(r[1]['iteration'])))" "$OUTD/probe.loss.csv")
 ITER=$($PY -c "print(int($BUDGET / $rate) // 100 * 100)")
 echo "probe: $rate s/iteration -> $ITER iterations in ~${BUDGET}s"
-$PY -m fenestra train --config pipeline/models/maskrcnn.toml --data "$DATA/train" --iterations "$ITER" \
+$PY -m fenestra train --config training/configs/maskrcnn.toml --data "$DATA/train" --iterations "$ITER" \
     --out "$OUTD/maskrcnn.pt" | awk 'NR % 10 == 1'
 for split in val heldout-pyrender heldout-mitsuba; do
   $PY -m fenestra evaluate-detector --detector maskrcnn --weights "$OUTD/maskrcnn.pt" --device cuda \

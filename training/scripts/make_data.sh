@@ -11,9 +11,9 @@
 #        a path-traced (mitsuba) chunk per bundled house and per second varied house; far (<= 22 m)
 #        and grazing (<= 70 deg) cameras for the varied houses; facade-feature houses add roof
 #        overhangs with dark fascias, glazed doors and curtain walls (unlabelled glazing: negatives).
-# Usage:  bash pipeline/models/make_data.sh [ROOT=out/detector-data]   (about 30 min on 2 cores;
+# Usage:  bash training/scripts/make_data.sh [ROOT=out/detector-data]   (about 30 min on 2 cores;
 #         reruns reuse rendered views)
-# Then:   make train      (= fenestra train --config pipeline/models/default.toml)
+# Then:   make train      (= this, then fenestra train --config training/configs/default.toml, ship-weights)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 ROOT=${1:-out/detector-data}

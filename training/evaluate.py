@@ -14,10 +14,10 @@ from pycocotools import mask as mask_utils
 from pycocotools.coco import COCO
 from pycocotools.cocoeval import COCOeval
 
-from pipeline.detectors import get_detector
-from pipeline.detectors.dataset import (DatasetError, coco_image_path, find_datasets, load_coco, read_image,
-                                        read_instances)
+from pipeline.detectors import DETECTORS, get_detector
 from pipeline.types import Detection
+from training.dataset import (DatasetError, coco_image_path, find_datasets, load_coco, read_image,
+                              read_instances)
 
 STAT_NAMES = ("AP", "AP50", "AP75", "APs", "APm", "APl")
 
@@ -143,12 +143,12 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
         coco = {**coco, "images": images, "annotations": [a for a in coco["annotations"] if a["image_id"] in ids]}
     cat = coco["categories"][0]["id"]
     detector = get_detector(detector_name, **options)
-    oracle = detector_name.startswith("oracle")
+    needs_instances = DETECTORS[detector_name].needs_instances
     results, times = [], []
     for im in images:
         path = paths[im["id"]]
         image = read_image(path)
-        per_image = {"instances": read_instances(path.parent / "instances.png")} if oracle else {}
+        per_image = {"instances": read_instances(path.parent / "instances.png")} if needs_instances else {}
         t0 = time.perf_counter()
         dets = detector(image, **per_image)
         times.append((time.perf_counter() - t0) * 1000.0)

@@ -1,6 +1,6 @@
 """Choose WinNet's post-processing thresholds on VALIDATION views (never the held-out house).
 
-    python -m pipeline.detectors.tune --data out/detector-data/val --views-per-dataset 5 \
+    python -m training.tune --data out/detector-data/val --views-per-dataset 5 \
         [--weights pipeline/models/default.pt] [--write]      # --views-per-dataset 0: every view
 
 Runs the network once per view, then scores each PostConfig of a small grid with COCOeval (segm AP);
@@ -17,13 +17,14 @@ import numpy as np
 import torch
 
 from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
-from pipeline.detectors.dataset import find_datasets, list_views, read_image, read_instances
-from pipeline.detectors.evaluate import coco_stats, detection_to_coco
 from pipeline.detectors.winnet import PostConfig, instances_from_maps, predict_maps
+from training.dataset import find_datasets, list_views, read_image, read_instances
+from training.evaluate import coco_stats, detection_to_coco
 from pycocotools import mask as mask_utils
 
 
-def _gt(images: list[tuple[int, np.ndarray]]) -> dict:
+def coco_ground_truth(images: list[tuple[int, np.ndarray]]) -> dict:
+    """COCO ground truth (one category, RLE masks) of (image id, instance map (H, W)) pairs of one size."""
     anns = []
     for i, inst in images:
         for k in np.unique(inst):
@@ -48,7 +49,7 @@ def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[di
         for v in vs:
             maps.append(predict_maps(model, read_image(v.image)))
             insts.append((len(insts) + 1, read_instances(v.instances)))
-    gt = _gt(insts)
+    gt = coco_ground_truth(insts)
     out = []
     for vt, ct in itertools.product((0.4, 0.5, 0.6), (0.3, 0.5, 0.7)):
         post = PostConfig(void_threshold=vt, core_threshold=ct)

@@ -1,6 +1,8 @@
-"""CLI commands of pipeline/detectors: `fenestra train` and `fenestra evaluate-detector`.
+"""CLI commands of training/ (registered on the `fenestra` app by fenestra/cli.py):
 
-pipeline/cli.py's register(app) should call ``pipeline.detectors.cli.register(app)``.
+    fenestra train [--config training/configs/default.toml] [--data DIR ...] [--out W.pt]   # -> out/train/
+    fenestra evaluate-detector --data DIR [--detector NAME] [--weights W.pt] [--json OUT]
+    fenestra ship-weights W.pt [--to PATH]    # check, then copy to where the detector loads them
 """
 from __future__ import annotations
 
@@ -10,22 +12,24 @@ from typing import Optional
 
 import typer
 
+from pipeline.detectors import DETECTORS
+
 
 def register(app: typer.Typer) -> None:
-    """Add `train` and `evaluate-detector` to the top-level app."""
+    """Add `train`, `evaluate-detector` and `ship-weights` to the top-level app."""
 
     @app.command("train")
     def train_cmd(
-        config: Path = typer.Option(Path("pipeline/models/default.toml"), help="training config (TOML)"),
+        config: Path = typer.Option(Path("training/configs/default.toml"), help="training config (TOML)"),
         data: Optional[list[Path]] = typer.Option(None, help="dataset folder(s); replaces the config's `data`"),
-        out: Optional[Path] = typer.Option(None, help="weights file to write (default: the config's `out`)"),
+        out: Optional[Path] = typer.Option(None, help="weights file to write (default: the config's `out`, under out/train/)"),
         iterations: Optional[int] = typer.Option(None, help="override the number of iterations"),
         resume: bool = typer.Option(False, help="continue from out/train/<name>.state.pt if present"),
         device: Optional[str] = typer.Option(None, help="cpu or cuda (default: the config's `device`)"),
         workers: Optional[int] = typer.Option(None, help="processes making batches ahead (default: the config's)"),
     ) -> None:
         """Train a window-void detector (WinNet or Mask R-CNN) on rendered dataset folders."""
-        from pipeline.detectors.train import load_config, train  # noqa: PLC0415
+        from training.train import load_config, train  # noqa: PLC0415
 
         cfg = load_config(config, data=tuple(str(d) for d in data) if data else None,
                           out=str(out) if out else None, iterations=iterations, resume=resume or None,
@@ -36,14 +40,14 @@ def register(app: typer.Typer) -> None:
     @app.command("evaluate-detector")
     def evaluate_cmd(
         data: Path = typer.Option(..., help="held-out dataset folder (with coco.json)"),
-        detector: str = typer.Option("default", help="registry name: default, maskrcnn, oracle, oracle-degraded"),
+        detector: str = typer.Option("default", help=f"registry name: {', '.join(DETECTORS)}"),
         weights: Optional[Path] = typer.Option(None, help="weights file (default: the shipped one)"),
         max_images: Optional[int] = typer.Option(None, help="evaluate only the first N images"),
         json_out: Optional[Path] = typer.Option(None, "--json", help="also write the metrics as JSON"),
         device: str = typer.Option("cpu", help="cpu or cuda (learned detectors)"),
     ) -> None:
         """COCO bbox/segm AP of a detector on a dataset, beside the paper's Table 2."""
-        from pipeline.detectors.evaluate import evaluate, format_table  # noqa: PLC0415
+        from training.evaluate import evaluate, format_table  # noqa: PLC0415
 
         opts = {"weights": weights} if weights is not None else {}
         if device != "cpu":
@@ -53,3 +57,16 @@ def register(app: typer.Typer) -> None:
         if json_out is not None:
             json_out.parent.mkdir(parents=True, exist_ok=True)
             json_out.write_text(json.dumps(result, indent=2))
+
+    @app.command("ship-weights")
+    def ship_cmd(
+        src: Path = typer.Argument(..., help="trained weights (what `fenestra train` wrote)"),
+        to: Optional[Path] = typer.Option(None, help="destination (default: the file the architecture's "
+                                          "detector loads, e.g. pipeline/models/default.pt for WinNet)"),
+    ) -> None:
+        """Ship trained weights: check that the detector loads and runs them, then copy them into place."""
+        from training.ship import ship_weights  # noqa: PLC0415
+
+        shipped = ship_weights(src, to)
+        typer.echo(f"shipped {src} -> {shipped.path} (detector {shipped.detector!r}, sha256 {shipped.sha256[:16]}, "
+                   f"{shipped.meta.get('iterations_done', '?')} iterations, {shipped.meta.get('train_seconds', '?')} s)")

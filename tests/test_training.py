@@ -1,4 +1,5 @@
-"""Training runs on CPU: WinNet loss goes down; Mask R-CNN trains at a reduced size and loads."""
+"""training/: runs on CPU (WinNet loss goes down; Mask R-CNN trains at a reduced size and loads),
+shipping weights, tuning, the GPU/data scripts, and the lab tools in tools/."""
 import csv
 from pathlib import Path
 
@@ -6,10 +7,22 @@ import numpy as np
 import pytest
 
 from pipeline.detectors import detect
-from pipeline.detectors.dataset import read_image
-from pipeline.detectors.toy import write_toy_dataset
-from pipeline.detectors.train import load_config, train
 from pipeline.detectors.winnet import core_targets
+from toy_data import write_toy_dataset
+from training.dataset import read_image
+from training.train import load_config, train
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _tool(name: str):
+    """tools/<name>.py loaded as a module (tools/ lies outside the installed packages)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"tools_{name}", ROOT / "tools" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def test_core_targets_shrink_each_instance():
@@ -37,7 +50,7 @@ def test_config_rejects_unknown_keys(tmp_path):
 
 def test_winnet_tiny_training_loss_decreases(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
-    cfg = load_config("pipeline/models/default.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
+    cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
                       iterations=30, batch_size=3, crop_hw=(64, 96), log_every=1, warmup=5, lr=3e-3)
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
@@ -52,7 +65,7 @@ def test_winnet_tiny_training_loss_decreases(tmp_path):
 @pytest.mark.slow
 def test_maskrcnn_reduced_cpu_training(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=4, seed=2)
-    cfg = load_config("pipeline/models/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"), state_dir=str(tmp_path),
+    cfg = load_config("training/configs/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"), state_dir=str(tmp_path),
                       iterations=2, batch_size=1, crop_hw=(96, 128), maskrcnn_min_size=96,
                       maskrcnn_max_size=128, log_every=1, warmup=1, lr=0.005, device="cpu", amp=False, workers=0)
     path = train(cfg, log=lambda *_: None)
@@ -66,7 +79,7 @@ def test_maskrcnn_reduced_cpu_training(tmp_path):
 def test_shadow_band_darkens_rows_keeps_labels_and_is_off_by_default():
     from dataclasses import replace
 
-    from pipeline.detectors.augment import AugmentConfig, shadow_band
+    from training.augment import AugmentConfig, shadow_band
 
     img = np.full((64, 80, 3), 200, np.uint8)
     inst = np.zeros((64, 80), np.int32)
@@ -93,10 +106,10 @@ def test_detectors_package_imports_torch_lazily():
 def test_batches_are_the_same_with_worker_processes(tmp_path):
     from dataclasses import replace
 
-    from pipeline.detectors.train import batches, load_views
+    from training.train import batches, load_views
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=3)
-    cfg = load_config("pipeline/models/default.toml", data=(str(ds),), iterations=5, batch_size=2,
+    cfg = load_config("training/configs/default.toml", data=(str(ds),), iterations=5, batch_size=2,
                       crop_hw=(64, 96))
     data = load_views(cfg.data, None)
     serial = list(batches(data, cfg, start=1))
@@ -116,7 +129,7 @@ def test_training_is_reproducible_for_a_seed(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=4)
     weights = []
     for run in ("a", "b", "c"):
-        cfg = load_config("pipeline/models/default.toml", data=(str(ds),), out=str(tmp_path / f"{run}.pt"),
+        cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / f"{run}.pt"),
                           state_dir=str(tmp_path / run), iterations=4, batch_size=2, crop_hw=(64, 96),
                           warmup=1, seed=1 if run == "c" else 0)
         weights.append(torch.load(train(cfg, log=lambda *_: None), weights_only=False)["state_dict"])
@@ -127,15 +140,15 @@ def test_training_is_reproducible_for_a_seed(tmp_path):
 
 def test_steptime_times_every_variant(tmp_path):
     """The step-timing command behind the model card's figures runs each variant (bf16 on the CPU too)."""
-    from pipeline.detectors.steptime import VARIANTS, step_ms
-    from pipeline.detectors.train import load_views, make_batch
+    steptime = _tool("steptime")
+    from training.train import load_views, make_batch
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=2, seed=5)
-    cfg = load_config("pipeline/models/default.toml", data=(str(ds),), batch_size=2, crop_hw=(64, 64))
+    cfg = load_config("training/configs/default.toml", data=(str(ds),), batch_size=2, crop_hw=(64, 64))
     data = load_views(cfg.data, None)
     batches = [make_batch(data, cfg, it) for it in range(2)]
-    for amp, channels_last in VARIANTS.values():
-        ms = step_ms(cfg, batches, amp, channels_last, steps=3)
+    for amp, channels_last in steptime.VARIANTS.values():
+        ms = steptime.step_ms(cfg, batches, amp, channels_last, steps=3)
         assert np.isfinite(ms) and ms > 0
 
 
@@ -146,11 +159,11 @@ def test_gpu_search_variants_are_the_default_config_with_their_overrides(tmp_pat
     import os
     import subprocess
 
-    script = "pipeline/models/gpu_winnet_search.sh"
+    script = "training/scripts/gpu_winnet_search.sh"
     env = {**os.environ, "CONFIGS_ONLY": "1"}
     subprocess.run(["bash", script, str(tmp_path), "base", "seed1", "scalelo", "crop384", "c224"],
                    check=True, env=env)
-    default = load_config("pipeline/models/default.toml")
+    default = load_config("training/configs/default.toml")
     expect = {"base": {"iterations": 10000, "crop_hw": (256, 256)},
               "seed1": {"iterations": 10000, "crop_hw": (256, 256), "seed": 1},
               "scalelo": {"iterations": 10000, "crop_hw": (256, 256)},
@@ -178,12 +191,12 @@ def test_pack_data_keeps_every_nth_train_view_and_lists_only_those(tmp_path, mon
     import sys
     import tarfile
 
-    from pipeline.detectors.evaluate import evaluate
+    from training.evaluate import evaluate
 
     monkeypatch.chdir(tmp_path)
     ds = write_toy_dataset("data/train/toy", n_views=5, seed=3)
     full = json.loads((ds / "coco.json").read_text())
-    script = Path(__file__).resolve().parents[1] / "pipeline/models/pack_data.py"
+    script = Path(__file__).resolve().parents[1] / "training/pack_data.py"
     subprocess.run([sys.executable, str(script), "p.tar.xz", "--train-step", "2", "data/train"], check=True)
     with tarfile.open("p.tar.xz") as tf:
         tf.extractall("unpacked", filter="data")
@@ -196,3 +209,116 @@ def test_pack_data_keeps_every_nth_train_view_and_lists_only_those(tmp_path, mon
     assert coco["annotations"] == [a for a in full["annotations"] if a["image_id"] in ids]
     result = evaluate("oracle", packed)
     assert result["n_images"] == len(views) and result["segm"]["AP"] == pytest.approx(100.0)
+
+
+def _untrained_weights(path: Path, arch: str) -> Path:
+    """A weights file of an untrained, small model of ``arch``, written as training writes it."""
+    import torch
+
+    from training.train import build_model, checkpoint
+
+    cfg = load_config(None, arch=arch, winnet_widths=(8, 16, 16, 16, 16), maskrcnn_min_size=64, maskrcnn_max_size=96)
+    torch.manual_seed(0)
+    model, _ = build_model(cfg)
+    torch.save(checkpoint(model, cfg, {"iterations_done": 0}), path)
+    return path
+
+
+def test_every_trainable_architecture_is_loaded_by_its_detector(tmp_path):
+    """Each ARCHS entry's weights file is read back by the registry detector it names, which runs."""
+    from pipeline.detectors import DETECTORS
+    from training.train import ARCHS
+
+    for name, arch in ARCHS.items():
+        path = _untrained_weights(tmp_path / f"{name}.pt", name)
+        assert not DETECTORS[arch.detector].needs_instances
+        run = DETECTORS[arch.detector].build(weights=path)
+        assert isinstance(run(np.zeros((64, 96, 3), np.uint8)), list)
+
+
+def test_training_writes_under_out_not_into_the_shipped_weights():
+    """A bare `fenestra train` (the dataclass default, and every bundled config) writes under out/."""
+    from training.train import TrainConfig
+
+    configs = sorted((ROOT / "training" / "configs").glob("*.toml"))
+    assert [c.name for c in configs] == ["default.toml", "maskrcnn.toml"]
+    for cfg in [TrainConfig(), *(load_config(c) for c in configs)]:
+        assert Path(cfg.out).parts[0] == "out" and Path(cfg.state_dir).parts[0] == "out", cfg.out
+
+
+def test_ship_weights_checks_then_copies(tmp_path):
+    """`fenestra ship-weights` copies a weights file its detector runs, byte for byte; it refuses a
+    file that is not weights, or of an architecture nothing trains, and then writes nothing."""
+    import hashlib
+
+    import torch
+    from typer.testing import CliRunner
+
+    from fenestra.cli import app
+    from fenestra.errors import FenestraError
+
+    src = _untrained_weights(tmp_path / "w.pt", "winnet")
+    dest = tmp_path / "shipped" / "default.pt"
+    r = CliRunner().invoke(app, ["ship-weights", str(src), "--to", str(dest)])
+    assert r.exit_code == 0, r.output
+    assert dest.read_bytes() == src.read_bytes()
+    assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'default'" in r.output
+    assert not list(dest.parent.glob("*.tmp"))
+    (tmp_path / "junk.pt").write_bytes(b"not a model")
+    torch.save({"arch": "yolo", "state_dict": {}}, tmp_path / "yolo.pt")
+    for bad, message in (("junk.pt", "is not a weights file"), ("yolo.pt", "holds arch 'yolo'"),
+                         ("missing.pt", "no weights file")):
+        r = CliRunner().invoke(app, ["ship-weights", str(tmp_path / bad), "--to", str(tmp_path / "x" / "d.pt")])
+        assert isinstance(r.exception, FenestraError) and message in str(r.exception), (bad, r.exception)
+    assert not (tmp_path / "x").exists()
+
+
+def test_tune_command_writes_the_best_post_processing_into_the_weights(tmp_path):
+    """`python -m training.tune --write` scores the 3 x 3 threshold grid, names the best segm AP
+    and stores that PostConfig in the weights file, where the default detector reads it."""
+    import re
+    import shutil
+    import subprocess
+    import sys
+
+    from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
+
+    ds = write_toy_dataset(tmp_path / "val", n_views=2, seed=6)
+    weights = tmp_path / "w.pt"
+    shutil.copy(DEFAULT_WEIGHTS, weights)
+    r = subprocess.run([sys.executable, "-m", "training.tune", "--data", str(ds), "--weights", str(weights),
+                        "--views-per-dataset", "0", "--write"], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    grid = [(float(v), float(c), float(ap)) for v, c, ap in
+            re.findall(r"void ([\d.]+) core ([\d.]+): segm AP ([\d.]+)", r.stdout)]
+    assert len(grid) == 9 and len({g[:2] for g in grid}) == 9
+    best = re.search(r"best: PostConfig\(void_threshold=([\d.]+), core_threshold=([\d.]+).*segm AP ([\d.]+)\)", r.stdout)
+    assert best, r.stdout
+    vt, ct, ap = (float(x) for x in best.groups())
+    assert ap == max(g[2] for g in grid) and (vt, ct, ap) in grid
+    post = load_winnet(weights)[1]
+    assert (post.void_threshold, post.core_threshold) == (vt, ct)
+
+
+def test_tools_run_from_any_folder(tmp_path):
+    """Every script in tools/ (outside the installed packages) starts and prints its usage."""
+    import subprocess
+    import sys
+
+    tools = sorted((ROOT / "tools").glob("*.py"))
+    assert {"steptime.py", "detector_examples.py"} <= {t.name for t in tools}
+    for tool in tools:
+        r = subprocess.run([sys.executable, str(tool), "--help"], cwd=tmp_path, capture_output=True, text=True)
+        assert r.returncode == 0 and "usage:" in r.stdout, (tool.name, r.stderr[-500:])
+
+
+def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
+    """`make -n train`: every repository file it names exists; it trains into out/ and ships explicitly."""
+    import re
+    import subprocess
+
+    r = subprocess.run(["make", "-n", "train"], cwd=ROOT, capture_output=True, text=True, check=True)
+    files = set(re.findall(r"[\w./-]+\.(?:sh|toml|py)\b", r.stdout))
+    assert {"training/scripts/make_data.sh", "training/configs/default.toml"} <= files
+    assert all((ROOT / f).is_file() for f in files), files
+    assert "ship-weights out/train/default.pt" in r.stdout

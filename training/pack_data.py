@@ -1,9 +1,9 @@
 """Pack rendered detector data small enough to carry to the GPU machine (its copy limit is 64 MiB).
 
-    python pipeline/models/pack_data.py OUT.tar.xz --train-step 2 out/detector-data/{train,val,heldout-pyrender,heldout-mitsuba}
+    python training/pack_data.py OUT.tar.xz --train-step 2 out/detector-data/{train,val,heldout-pyrender,heldout-mitsuba}
 
 Each view's image.png is stored as JPEG bytes under the same name (OpenCV decodes by content, so
-pipeline/detectors/dataset.py reads it unchanged), instances.png and coco.json as they are;
+training/dataset.py reads it unchanged), instances.png and coco.json as they are;
 view.json is left out (training and evaluation do not read it). Under a path containing "/train"
 only every ``train-step``-th view is kept, and its coco.json then lists only the kept views (so the
 packed folder can be evaluated as it is). Unpack with ``tar -xJf OUT.tar.xz`` in the repo root.

@@ -1,0 +1,17 @@
+"""The training lab: a stage after renders/, making and measuring the detectors that pipeline/ ships.
+
+    train.py       TrainConfig, ARCHS (trainable architectures), train()    `fenestra train`
+    augment.py     domain randomisation at training time
+    dataset.py     reading rendered dataset folders (views, instance maps, coco.json)
+    evaluate.py    COCO bbox/segm AP of a detector on a dataset              `fenestra evaluate-detector`
+    ship.py        checked copy of trained weights into pipeline/models      `fenestra ship-weights`
+    tune.py        WinNet post-processing thresholds on validation views     `python -m training.tune`
+    pack_data.py   rendered data packed small for a GPU machine              `python training/pack_data.py`
+    configs/       the shipped detectors' training configs (default.toml: WinNet; maskrcnn.toml)
+    scripts/       make_data.sh (the training/validation/held-out renders), gpu_*.sh (GPU machine runs)
+
+training/ may import fenestra, scenes, renders and pipeline; pipeline/ never imports training/
+(a test checks it). Outputs go under out/ (out/train/, out/detector-data/, out/eval/); shipping
+weights into pipeline/models is the explicit `fenestra ship-weights` step. The model card is
+pipeline/models/README.md; the experiments behind it are in docs/experiments.md.
+"""
