@@ -12,6 +12,9 @@ from pathlib import Path
 
 import typer
 
+from bench.real.adapters import ADAPTERS
+from fenestra.config import choices
+
 
 def _fmt(x, d: int = 2) -> str:
     return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{d}f}"
@@ -46,7 +49,7 @@ def bench(profile: str = typer.Option("smoke", "--profile", "-p", help="profile 
                                           help="ray: a running cluster (auto, or HOST:PORT); default a local one"),
           shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard"),
           data: Path = typer.Option(None, "--data", help="real profiles: your labelled photo folder instead of the profile's datasets"),
-          fmt: str = typer.Option("coco", "--format", help="with --data: coco | yolo | labelmap | curtainwall"),
+          fmt: str = typer.Option("coco", "--format", help=f"with --data: {choices(ADAPTERS)}"),
           sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table"),
           force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files")) -> None:
     """Render (cached), reconstruct with every strategy, measure, summarise, report."""
