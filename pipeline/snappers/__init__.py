@@ -21,6 +21,7 @@ from pipeline.snappers.base import Snapper
 from pipeline.snappers.harris import HARRIS
 from pipeline.snappers.hough import HOUGH
 from pipeline.snappers.linefit import LINEFIT
+from pipeline.snappers.lsd import LSD
 from pipeline.snappers.none import NONE
 from pipeline.snappers.subpix import SUBPIX
 
@@ -30,6 +31,7 @@ SNAPPERS: dict[str, Snapper] = {
     "hough": HOUGH,
     "linefit": LINEFIT,
     "subpix": SUBPIX,
+    "lsd": LSD,
 }
 
 
