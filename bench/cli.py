@@ -16,6 +16,9 @@ from pathlib import Path
 
 import typer
 
+from bench.real.adapters import ADAPTERS
+from fenestra.config import choices
+
 
 def _fmt(x, d: int = 2) -> str:
     return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{d}f}"
@@ -56,7 +59,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                                               help="ray: a running cluster (auto, or HOST:PORT); default a local one"),
               shard_views: int = typer.Option(20, "--shard-views", help="ray: views per shard"),
               data: Path = typer.Option(None, "--data", help="real profiles: your labelled photo folder instead of the profile's datasets"),
-              fmt: str = typer.Option("coco", "--format", help="with --data: coco | yolo | labelmap | curtainwall"),
+              fmt: str = typer.Option("coco", "--format", help=f"with --data: {choices(ADAPTERS)}"),
               sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table"),
               real: Path = typer.Option(None, "--real", help="synthetic profiles: a real-photo run folder (fenestra bench "
                                                              "--profile real) for the report's photo column"),

@@ -229,7 +229,6 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
 
     t0 = time.process_time()
     image, instances, meta = read_view(task.view_dir)
-    image_bgr = np.ascontiguousarray(image[:, :, ::-1])  # reconstruct() takes BGR, like cv2.imread
     K = np.asarray(meta["K"], dtype=np.float64)
     view = Path(task.view_dir).name
     wins = meta["windows"]
@@ -244,7 +243,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
             out.coco_gt.append({"view": f"{task.house}/{view}", "rle": m.rle(), "area": m.area,
                                 "bbox": [m.c0 - 0.5, m.r0 - 0.5, float(m.c1 - m.c0), float(m.r1 - m.r0)]})
     t0 = tick("load", t0)
-    gray = to_gray(image_bgr)  # once per view, shared by every method
+    gray = to_gray(image)  # RGB, as detect() and reconstruct() take it; once per view, shared by every method
     t0 = tick("reconstruct", t0)
 
     for det_name in dict.fromkeys(m.detector for m in task.methods):

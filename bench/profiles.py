@@ -8,17 +8,23 @@ values raise :class:`ProfileError` naming the file, the key and the value.
     [render]      renderer, views_per_house, width, height, options = {...}  (options go to renders/)
     [methods]     detectors, snappers, pose_solvers (lists; ["all"] = every registered one), height_m
     [evaluation]  min_visible_fraction, require_corners_in_frame, min_window_px, max_incidence_deg
+
+Tables become the dataclasses below through ``fenestra.config.from_table``. Names are checked
+against the registries, not against lists kept here: ``render.renderer`` against
+``renders.backends.RENDERERS``, ``[methods]`` against ``pipeline.detectors.DETECTORS``,
+``pipeline.snappers.SNAPPERS`` and :func:`pose_strategies` (so a newly registered strategy is
+accepted, and ``["all"]`` runs it, with no edit here).
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fenestra.config import read_toml
+from fenestra.config import from_table, read_toml
 from fenestra.errors import FenestraError
 
 PROFILE_DIR = Path(__file__).parent / "profiles"
@@ -94,49 +100,49 @@ class Profile:
         return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
 
 
-_SECTIONS = {"scenes": ScenesSpec, "render": RenderSpec, "methods": MethodsSpec,
-             "evaluation": EvalSpec}
+def pose_strategies() -> dict[str, str]:
+    """Bench pose names -> description: every pipeline pose strategy (pipeline.reconstruct.pose_strategies:
+    per-window solvers, then per-wall ones), then each per-wall one with K withheld (``wall+noK``:
+    the focal length estimated from the photo, bench.uncertainty)."""
+    from bench.uncertainty import NO_K_SUFFIX  # noqa: PLC0415
+    from pipeline.reconstruct import pose_strategies as pipeline_poses  # noqa: PLC0415
+
+    poses = pipeline_poses()
+    return {**{n: s.description for n, s in poses.items()},
+            **{n + NO_K_SUFFIX: f"{s.description}; K withheld (focal length from the photo)"
+               for n, s in poses.items() if s.per_wall}}
 
 
-def _check_type(where: str, key: str, value: Any, default: Any) -> Any:
-    """Coerce a TOML value to the type of the field's default; ProfileError naming key/value."""
-    if isinstance(default, bool):
-        ok = isinstance(value, bool)
-    elif isinstance(default, int):
-        ok = isinstance(value, int) and not isinstance(value, bool)
-    elif isinstance(default, float):
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        value = float(value) if ok else value
-    elif isinstance(default, str):
-        ok = isinstance(value, str)
-    elif isinstance(default, tuple) and key == "options":
-        ok = isinstance(value, dict)
-        value = tuple(sorted(value.items())) if ok else value
-    elif isinstance(default, tuple):
-        ok = isinstance(value, list) and all(isinstance(v, str) for v in value) and value
-        value = tuple(value) if ok else value
-    else:  # pragma: no cover - every field has one of the types above
-        ok = True
-    if not ok:
-        raise ProfileError(f"{where}: key '{key}' has bad value {value!r} "
-                           f"(expected {type(default).__name__}{' of strings' if isinstance(default, tuple) and key != 'options' else ''})")
-    return value
+def method_registries() -> dict[str, dict]:
+    """The registry each ``[methods]`` list names entries of (its keys are the choices)."""
+    from pipeline.detectors import DETECTORS  # noqa: PLC0415
+    from pipeline.snappers import SNAPPERS  # noqa: PLC0415
+
+    return {"detectors": DETECTORS, "snappers": SNAPPERS, "pose_solvers": pose_strategies()}
 
 
-def _build(cls: type, table: dict, where: str) -> Any:
-    """Dataclass ``cls`` from a TOML table, rejecting unknown keys."""
-    if not isinstance(table, dict):
-        raise ProfileError(f"{where} must be a table, got {table!r}")
-    defaults = cls()
-    names = {f.name for f in fields(cls)}
-    unknown = sorted(set(table) - names)
-    if unknown:
-        raise ProfileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(names)}")
-    return cls(**{k: _check_type(where, k, v, getattr(defaults, k)) for k, v in table.items()})
+def check_methods(methods: MethodsSpec, where: str) -> None:
+    """Every name in ``[methods]`` is registered (or the list is ["all"]); ProfileError naming the
+    key, the bad names and the choices."""
+    for key, registry in method_registries().items():
+        names = getattr(methods, key)
+        if not names:
+            raise ProfileError(f"{where}: methods.{key} is empty; give names of {list(registry)} or [\"all\"]")
+        bad = [n for n in names if n not in registry] if names != (ALL,) else []
+        if bad:
+            raise ProfileError(f"{where}: methods.{key} has unknown name(s) {bad}; registered: {list(registry)} "
+                               "(or [\"all\"] alone)")
 
 
 def _validate(p: Profile, where: str) -> None:
-    """Range checks, each naming the key and the bad value."""
+    """Range checks and registry names, each naming the key and the bad value."""
+    from renders.backends import RENDERERS  # noqa: PLC0415
+
+    if not p.name:
+        raise ProfileError(f"{where}: 'name' must be a non-empty string, got {p.name!r}")
+    if p.render.renderer not in RENDERERS:
+        raise ProfileError(f"{where}: render.renderer has bad value {p.render.renderer!r}; registered: {list(RENDERERS)}")
+    check_methods(p.methods, where)
     if not math.isfinite(p.evaluation.min_window_px):
         raise ProfileError(f"{where}: evaluation.min_window_px = {p.evaluation.min_window_px!r} would leave no "
                            "window large enough to evaluate; give a finite size in px")
@@ -144,7 +150,6 @@ def _validate(p: Profile, where: str) -> None:
         ("render.views_per_house", p.render.views_per_house, p.render.views_per_house >= 1),
         ("render.width", p.render.width, p.render.width >= 16),
         ("render.height", p.render.height, p.render.height >= 16),
-        ("render.renderer", p.render.renderer, p.render.renderer in ("pyrender", "mitsuba")),
         ("scenes.procedural", p.scenes.procedural, p.scenes.procedural >= 0),
         ("methods.height_m", p.methods.height_m, p.methods.height_m > 0),
         ("evaluation.min_visible_fraction", p.evaluation.min_visible_fraction,
@@ -162,17 +167,7 @@ def _validate(p: Profile, where: str) -> None:
 
 def profile_from_dict(data: dict, where: str = "profile") -> Profile:
     """Profile from a parsed TOML dict (top-level: name, description, seed and the sections)."""
-    top = {"name", "description", "seed", *_SECTIONS}
-    unknown = sorted(set(data) - top)
-    if unknown:
-        raise ProfileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(top)}")
-    if not isinstance(data.get("name"), str) or not data["name"]:
-        raise ProfileError(f"{where}: 'name' must be a non-empty string, got {data.get('name')!r}")
-    seed = data.get("seed", 0)
-    if not isinstance(seed, int) or isinstance(seed, bool):
-        raise ProfileError(f"{where}: key 'seed' has bad value {seed!r} (expected int)")
-    kw = {s: _build(cls, data.get(s, {}), f"{where} [{s}]") for s, cls in _SECTIONS.items()}
-    p = Profile(name=data["name"], description=str(data.get("description", "")), seed=seed, **kw)
+    p = from_table(Profile, data, where, ProfileError)
     _validate(p, where)
     return p
 

@@ -40,17 +40,11 @@ OPTION_SECTIONS = ("sampler", "settings", "sensor")
 
 
 def _section(cls, opts: dict, where: str):
-    """cls(**opts) with unknown keys / bad values reported as ProfileError naming them."""
-    import dataclasses  # noqa: PLC0415
+    """cls from a ``[render.options.*]`` table (fenestra.config.from_table): unknown keys and bad
+    values are reported as ProfileError naming them."""
+    from fenestra.config import from_table  # noqa: PLC0415
 
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(opts) - names)
-    if unknown:
-        raise ProfileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(names)}")
-    try:
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in opts.items()})
-    except (TypeError, ValueError) as e:
-        raise ProfileError(f"{where}: {e}") from e
+    return from_table(cls, opts, where, ProfileError)
 
 
 def dataset_config(profile: Profile, house: str, renders_dir: Path):

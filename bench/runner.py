@@ -26,7 +26,7 @@ from bench import manifest
 from bench import results as res
 from bench.evaluate import Method, ViewOutcome
 from bench.executors import HousePlan, Plan, get_executor
-from bench.profiles import ALL, Profile
+from bench.profiles import ALL, Profile, pose_strategies
 from fenestra.errors import FenestraError
 
 OUT_ROOT = Path("out")
@@ -76,18 +76,6 @@ def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
         except Exception as e:  # noqa: BLE001 - missing weights etc.: skip, recorded in metadata
             skipped[n] = f"{type(e).__name__}: {e}"
     return ok, skipped
-
-
-def pose_strategies() -> dict[str, str]:
-    """Bench pose names: every per-window solver, every per-wall strategy, and each per-wall one
-    with K withheld (``wall+noK``: the focal length estimated from the photo, bench.uncertainty)."""
-    from pipeline.pose import POSE_SOLVERS  # noqa: PLC0415
-    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
-
-    from bench.uncertainty import NO_K_SUFFIX  # noqa: PLC0415
-
-    return {**{p: "per-window" for p in POSE_SOLVERS}, **{p: "per-wall" for p in WALL_STRATEGIES},
-            **{p + NO_K_SUFFIX: "per-wall, K withheld" for p in WALL_STRATEGIES}}
 
 
 def plan_methods(profile: Profile) -> tuple[tuple[Method, ...], dict[str, str]]:

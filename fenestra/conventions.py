@@ -22,6 +22,12 @@ Corner order
 Ground-truth window
     The void rectangle on the wall's exterior face, from IfcWindow + its IfcOpeningElement.
     Aspect ratio = width / height.
+Colour order
+    RGB at every API boundary (a photo, a render, ``detect()``, ``reconstruct()``); BGR only inside
+    calls to OpenCV's reading/writing/drawing functions.
+Default strategies
+    :data:`DEFAULTS` (what a user gets: `make bench`'s best with a learned detector's masks, README
+    "The answer") and :data:`PAPER` (the paper's method: the reference rows of comparisons).
 """
 from __future__ import annotations
 
@@ -37,6 +43,23 @@ CV_TO_GL = np.diag([1.0, -1.0, -1.0])
 
 # pyrender IntrinsicsCamera draws 0.5 px up-left of OpenCV's convention; add this to cx, cy.
 PYRENDER_PIXEL_OFFSET = 0.5
+
+
+@dataclass(frozen=True)
+class Strategies:
+    """One choice per pluggable stage: a detector, a corner snapper and a pose strategy (registry names:
+    ``pipeline.detectors.DETECTORS``, ``pipeline.snappers.SNAPPERS``, ``pipeline.reconstruct.pose_strategies()``)."""
+
+    detector: str
+    snapper: str
+    pose: str
+
+
+# What `fenestra reconstruct` and ReconstructConfig() use: the README's measured best for a learned
+# detector's masks (line-based snapping, the per-wall shared plane).
+DEFAULTS = Strategies(detector="default", snapper="linefit", pose="wall")
+# The paper's method (Mask R-CNN, Harris snapping, per-window iterative PnP): the reference in comparisons.
+PAPER = Strategies(detector="maskrcnn", snapper="harris", pose="lm")
 
 
 @dataclass(frozen=True)

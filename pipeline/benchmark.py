@@ -15,7 +15,7 @@ import platform
 import cv2
 import numpy as np
 
-from fenestra.conventions import make_K
+from fenestra.conventions import PAPER, make_K
 from pipeline.reconstruct import STAGES, ReconstructConfig, reconstruct
 from pipeline.snappers import SNAPPERS
 from pipeline.synthetic import pixel_centre_mask, render_window_image, view_window
@@ -25,7 +25,7 @@ SHAPE = (480, 640)
 
 
 def make_views(n: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray, Detection]]:
-    """n (image BGR, K, detection) triples of one window each."""
+    """n (image RGB, K, detection) triples of one window each."""
     K = make_K(800.0, 800.0, 319.5, 239.5)
     rng = np.random.default_rng(seed)
     out = []
@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--windows", type=int, default=40)
     ap.add_argument("--snapper", nargs="*", default=sorted(SNAPPERS))
-    ap.add_argument("--pose", default="lm")
+    ap.add_argument("--pose", default=PAPER.pose)
     ap.add_argument("--json", default=None, help="also write the numbers as JSON")
     a = ap.parse_args(argv)
     views = make_views(a.windows)

@@ -1,7 +1,7 @@
 """CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py).
 
     fenestra reconstruct PHOTO [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
-        [--detector NAME] [--snapper NAME] [--pose lm|ippe|wall|building] [--height M] [--width M]
+        [--detector NAME] [--snapper NAME] [--pose NAME] [--height M] [--width M]
         [--substitute STYLE] --out DIR
     fenestra calibrate PHOTOS... --pattern COLSxROWS [--square M] --out K.json
 
@@ -19,22 +19,22 @@ import json
 from pathlib import Path
 from typing import Optional
 
-import cv2
 import numpy as np
 import typer
 
+from fenestra.config import choices
+from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from pipeline.outdir import check_out, staged_dir
-
-# the defaults `make bench` measures best for learned masks (README: "The answer")
-DEFAULT_SNAPPER = "linefit"
-DEFAULT_POSE = "wall"
+from pipeline.reconstruct import (ReconstructConfig, detections_from_instance_map, fit_quads, pose_strategies,
+                                  reconstruct, reconstruct_from_quads, to_gray, windows_to_json)
+from pipeline.snappers import SNAPPERS
 
 
 def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
                     fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
-                    masks: Optional[Path] = None, detector: str = "default", snapper: str = DEFAULT_SNAPPER,
-                    pose: str = DEFAULT_POSE, height: float = 1.0, width: Optional[float] = None,
+                    masks: Optional[Path] = None, detector: str = DEFAULTS.detector, snapper: str = DEFAULTS.snapper,
+                    pose: str = DEFAULTS.pose, height: float = ReconstructConfig.height_m, width: Optional[float] = None,
                     substitute: Optional[str] = None, export: bool = True, force: bool = False) -> dict:
     """The `reconstruct` command as a function: returns the windows.json dict it wrote.
 
@@ -44,8 +44,6 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     from pipeline.io import (Camera, K_from_values, fit_camera_to_photo, intrinsics_warnings,  # noqa: PLC0415
                              photo_orientation, photo_warnings, read_camera, read_instance_map, read_photo,
                              undistort_photo)
-    from pipeline.reconstruct import (ReconstructConfig, detections_from_instance_map,  # noqa: PLC0415
-                                      reconstruct, windows_to_json)
 
     check_out(out, force)  # before the (slow) pipeline runs
     image = read_photo(photo)
@@ -68,7 +66,7 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     else:
         from pipeline.detectors import detect  # noqa: PLC0415
 
-        detections = detect(detector, cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
+        detections = detect(detector, image)
     if camera is None:
         resolved = _resolve_K(photo, image, detections, cfg, size)
         camera, K_source = Camera(K=resolved.K), {"source": resolved.source, "detail": resolved.detail}
@@ -102,7 +100,6 @@ def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tupl
     from dataclasses import replace  # noqa: PLC0415
 
     from pipeline.intrinsics import resolve_K  # noqa: PLC0415
-    from pipeline.reconstruct import fit_quads, reconstruct_from_quads, to_gray  # noqa: PLC0415
 
     gray = to_gray(image)
     per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
@@ -143,7 +140,10 @@ def format_table(doc: dict) -> str:
 
 
 def register(app: typer.Typer) -> None:
-    """Add this stage's commands to the top-level app."""
+    """Add this stage's commands to the top-level app (choices in the help: from the registries)."""
+    from pipeline.detectors import DETECTORS  # noqa: PLC0415
+
+    detector_names = ", ".join(DETECTORS)
 
     @app.command("reconstruct")
     def reconstruct_cmd(
@@ -158,10 +158,10 @@ def register(app: typer.Typer) -> None:
         cy: Optional[float] = typer.Option(None, "--cy", help="principal point y, px (default image centre)"),
         masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector; with "
                                               "lens distortion in --K it must be in the undistorted photo's frame"),
-        detector: str = typer.Option("default", "--detector", help="detector registry name (without --masks)"),
-        snapper: str = typer.Option(DEFAULT_SNAPPER, "--snapper", help="none | harris (the paper's) | hough | linefit | subpix"),
-        pose: str = typer.Option(DEFAULT_POSE, "--pose", help="lm (the paper's) | ippe: per window; wall | building: per wall (shared plane)"),
-        height: float = typer.Option(1.0, "--height", help="window height, m (the scale parameter)"),
+        detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {detector_names}"),
+        snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {choices(SNAPPERS)}"),
+        pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {choices(pose_strategies())}"),
+        height: float = typer.Option(ReconstructConfig.height_m, "--height", help="window height, m (the scale parameter)"),
         width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
         force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),

@@ -144,7 +144,7 @@ def find_corners(gray: np.ndarray, pattern: tuple[int, int]) -> np.ndarray | Non
 
 def calibrate_chessboard(images: list[np.ndarray], pattern: tuple[int, int], square_m: float = 1.0,
                          fix_aspect: bool = False) -> Calibration:
-    """Calibrate from chessboard photos (uint8 gray or BGR, one size) with ``pattern`` = inner
+    """Calibrate from chessboard photos (uint8 gray or RGB, one size) with ``pattern`` = inner
     corners (cols, rows). Needs the board in >= 3 photos; PipelineError otherwise."""
     if len(pattern) != 2 or min(pattern) < 2:
         raise PipelineError(f"pattern must be (cols, rows) inner corners >= 2, got {pattern}")
@@ -154,7 +154,7 @@ def calibrate_chessboard(images: list[np.ndarray], pattern: tuple[int, int], squ
     H, W = sizes.pop()
     obj, img = [], []
     for im in images:
-        gray = im if im.ndim == 2 else cv2.cvtColor(im, cv2.COLOR_BGR2GRAY)
+        gray = im if im.ndim == 2 else cv2.cvtColor(im, cv2.COLOR_RGB2GRAY)
         c = find_corners(gray, pattern)
         if c is not None:
             obj.append(board_points(pattern, square_m))

@@ -20,14 +20,14 @@ from fenestra.errors import PipelineError
 
 
 def read_photo(path: str | Path) -> np.ndarray:
-    """(H, W, 3) uint8 **BGR** image from any format cv2 reads; PipelineError if unreadable."""
+    """(H, W, 3) uint8 **RGB** image from any format cv2 reads; PipelineError if unreadable."""
     p = Path(path)
     if not p.is_file():
         raise PipelineError(f"photo not found: {p}")
     img = cv2.imread(str(p), cv2.IMREAD_COLOR)
     if img is None or img.size == 0:
         raise PipelineError(f"cannot read photo {p} (not an image cv2 can decode)")
-    return img
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
 def K_from_values(fx: float, fy: float | None, cx: float | None, cy: float | None,

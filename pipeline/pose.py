@@ -3,7 +3,7 @@
 Window frame: x along the wall, y up, z outward (toward the viewer), origin at the bottom-left
 corner. Image corners TL, TR, BR, BL are the object points (0,h,0), (w,h,0), (w,0,0), (0,0,0).
 Single-image scale is unknown: h is a parameter (default 1 m), or the user gives the true height or
-width. Solvers (registry ``POSE_SOLVERS``):
+width. Solvers (registry ``POSE_SOLVERS``: name -> :class:`PoseSolver`):
 
 - ``lm``: ``cv2.SOLVEPNP_ITERATIVE`` (homography initialisation, Levenberg-Marquardt refinement).
 - ``ippe``: ``cv2.SOLVEPNP_IPPE`` (infinitesimal plane-based pose; of its two solutions the one
@@ -17,7 +17,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from fenestra.conventions import check_K
+from fenestra.conventions import PAPER, check_K
 from fenestra.errors import PipelineError
 
 
@@ -88,14 +88,24 @@ def solve_ippe(obj: np.ndarray, img: np.ndarray, K: np.ndarray) -> tuple:
     return min(facing, key=lambda s: s[3])
 
 
-POSE_SOLVERS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray], tuple]] = {
-    "lm": solve_lm,
-    "ippe": solve_ippe,
+@dataclass(frozen=True)
+class PoseSolver:
+    """A registered per-window solver: ``solve(object_points (4, 3), image_points (4, 1, 2), K) ->
+    (R, t, reprojected (4, 2), rms_px)``; description: one line for CLI help and docs."""
+
+    name: str
+    solve: Callable[[np.ndarray, np.ndarray, np.ndarray], tuple]
+    description: str
+
+
+POSE_SOLVERS: dict[str, PoseSolver] = {
+    "lm": PoseSolver("lm", solve_lm, "per window, cv2.solvePnP iterative Levenberg-Marquardt, the paper's"),
+    "ippe": PoseSolver("ippe", solve_ippe, "per window, cv2.solvePnP IPPE, the solution facing the camera"),
 }
 
 
 def estimate_pose(quad: np.ndarray, K: np.ndarray, ratio: float, height_m: float | None = 1.0,
-                  width_m: float | None = None, solver: str = "lm") -> PoseResult:
+                  width_m: float | None = None, solver: str = PAPER.pose) -> PoseResult:
     """Pose of the w x h window imaged as ``quad`` (4, 2) px TL TR BR BL, with intrinsics K (3, 3).
 
     w = ratio * h with h = ``height_m`` (default 1 m), or h = width_m / ratio if ``width_m`` is
@@ -109,7 +119,7 @@ def estimate_pose(quad: np.ndarray, K: np.ndarray, ratio: float, height_m: float
     K = check_K(K)
     w, h = window_size(ratio, height_m, width_m)
     obj = object_points(w, h)
-    R, t, proj, rms = POSE_SOLVERS[solver](obj, img.reshape(4, 1, 2), K)
+    R, t, proj, rms = POSE_SOLVERS[solver].solve(obj, img.reshape(4, 1, 2), K)
     if not _faces_camera(R, t):
         raise PoseError(f"pose puts the window behind the camera or facing away (t={t.round(3).tolist()})")
     return PoseResult(R=R, t=t, reprojected=proj, width_m=w, height_m=h, rms_px=rms)

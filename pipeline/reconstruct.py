@@ -1,13 +1,13 @@
 """One photo + detections -> one WindowResult per detection: quad, snapping, aspect ratio, pose.
 
-    results = reconstruct(image_bgr, K, detections, ReconstructConfig(snapper="linefit"))
+    results = reconstruct(image_rgb, K, detections, ReconstructConfig(snapper="linefit"))
     json.dump(windows_to_json(results), f)
 
 To run several configs on the same detections, fit the quads (the costly stage) once:
 
-    quads = fit_quads(detections, QuadParams(), image_bgr.shape[:2])
+    quads = fit_quads(detections, QuadParams(), image_rgb.shape[:2])
     for cfg in configs:
-        results = reconstruct_from_quads(to_gray(image_bgr), K, detections, quads, cfg)
+        results = reconstruct_from_quads(to_gray(image_rgb), K, detections, quads, cfg)
 
 Each stage's failure is recorded in the result's ``failure`` (``"<stage>: <reason>"``) and the
 remaining windows carry on; only malformed arguments (wrong shapes, unknown strategy) raise.
@@ -21,16 +21,39 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from fenestra.conventions import LIMITS, check_K
+from fenestra.conventions import DEFAULTS, LIMITS, check_K
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
 from pipeline.pose import POSE_SOLVERS, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, mask_to_quad
 from pipeline.snappers import SNAPPERS
-from pipeline.types import Detection, WindowResult
+from pipeline.types import Detection, WindowResult, check_image
 from pipeline.walls import WALL_STRATEGIES, apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
+
+
+@dataclass(frozen=True)
+class PoseStrategy:
+    """A pose strategy as :func:`reconstruct` offers it (``ReconstructConfig.pose``).
+
+    per_wall: False for a per-window solver (``pipeline.pose.POSE_SOLVERS``: each window from its
+    own quad; with K None, from the focal length of its own quad), True for a per-wall strategy
+    (``pipeline.walls.WALL_STRATEGIES``: windows grouped into walls, each wall fitted once; with K
+    None the focal length is a parameter of that fit). description: one line for CLI help and docs.
+    No strategy needs K.
+    """
+
+    name: str
+    description: str
+    per_wall: bool
+
+
+def pose_strategies() -> dict[str, PoseStrategy]:
+    """Every pose strategy, per-window solvers first, read from the two registries (so an entry
+    added to either is offered everywhere: CLI, profiles, the bench)."""
+    return {**{n: PoseStrategy(n, s.description, False) for n, s in POSE_SOLVERS.items()},
+            **{n: PoseStrategy(n, w.description, True) for n, w in WALL_STRATEGIES.items()}}
 
 
 @dataclass(frozen=True)
@@ -38,15 +61,16 @@ class ReconstructConfig:
     """Strategy choices and parameters of :func:`reconstruct`.
 
     snapper: a key of ``pipeline.snappers.SNAPPERS``; snapper_params: its dataclass (None: defaults).
-    pose: a key of ``pipeline.pose.POSE_SOLVERS`` (per window) or of
+    pose: a key of :func:`pose_strategies`: of ``pipeline.pose.POSE_SOLVERS`` (per window) or of
     ``pipeline.walls.WALL_STRATEGIES`` (per wall: windows grouped into walls, each wall fitted once).
+    The defaults are ``fenestra.conventions.DEFAULTS``.
     height_m / width_m: the scale parameter (the window's height, or its width if given), m.
     fallback_focal_px: focal length used when K is None and the quad cannot give one.
     quad: parameters of the mask -> quad stage.
     """
 
-    snapper: str = "harris"
-    pose: str = "lm"
+    snapper: str = DEFAULTS.snapper
+    pose: str = DEFAULTS.pose
     height_m: float = 1.0
     width_m: float | None = None
     fallback_focal_px: float | None = None
@@ -56,9 +80,8 @@ class ReconstructConfig:
     def __post_init__(self) -> None:
         if self.snapper not in SNAPPERS:
             raise ValueError(f"unknown snapper {self.snapper!r}; choose from {sorted(SNAPPERS)}")
-        if self.pose not in POSE_SOLVERS and self.pose not in WALL_STRATEGIES:
-            raise ValueError(f"unknown pose solver {self.pose!r}; choose from "
-                             f"{sorted(POSE_SOLVERS) + sorted(WALL_STRATEGIES)}")
+        if self.pose not in pose_strategies():
+            raise ValueError(f"unknown pose solver {self.pose!r}; choose from {list(pose_strategies())}")
         for name in ("height_m", "width_m"):
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and v > 0):
@@ -66,13 +89,12 @@ class ReconstructConfig:
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
-    """(H, W) float32 gray from an (H, W, 3) uint8 BGR image (or an (H, W) one, returned as float32)."""
+    """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (pipeline.types.check_image), or an
+    (H, W) gray one, returned as float32. Gray = 0.299 R + 0.587 G + 0.114 B (OpenCV, rounded to uint8)."""
     img = np.asarray(image)
     if img.ndim == 2:
         return img.astype(np.float32)
-    if img.ndim != 3 or img.shape[2] not in (3, 4):
-        raise ValueError(f"image must be (H, W, 3) BGR or (H, W) gray, got shape {img.shape}")
-    return cv2.cvtColor(img[:, :, :3], cv2.COLOR_BGR2GRAY).astype(np.float32)
+    return cv2.cvtColor(check_image(img), cv2.COLOR_RGB2GRAY).astype(np.float32)
 
 
 def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failure: str | None = None,
@@ -230,7 +252,7 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
 
 def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                 cfg: ReconstructConfig = ReconstructConfig()) -> list[WindowResult]:
-    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **BGR**, as cv2.imread gives).
+    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as pipeline.io.read_photo gives).
 
     K: (3, 3) intrinsics, or None for an unknown focal length (square pixels, principal point at
     the image centre; f estimated per window by Zhang & He). Returns one WindowResult per

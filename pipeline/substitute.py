@@ -4,7 +4,7 @@ The catalogue window's triangles are placed with the estimated pose, rasterised 
 (perspective-correct depth, 2x2 supersampling for soft edges) and simple Lambert shading, then
 composited over the photo with the voids inpainted. Pure numpy + OpenCV; no GPU, no GL context.
 
-    out = substitute(image, K, result, "two-by-two-mullion")     # (H, W, 3) uint8 BGR
+    out = substitute(image, K, result, "two-by-two-mullion")     # (H, W, 3) uint8 RGB
 """
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ from fenestra.conventions import check_K, project
 from fenestra.errors import PipelineError
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import PlacedWindow, place
-from pipeline.export.inpaint import check_image, inpaint_voids
-from pipeline.types import WindowResult
+from pipeline.export.inpaint import inpaint_voids
+from pipeline.types import WindowResult, check_image
 
 # Direction towards the light in the camera frame (up-left of the camera), and the ambient share.
 LIGHT_DIR_CAM = np.array([-0.35, -0.6, -1.0]) / np.linalg.norm([-0.35, -0.6, -1.0])
@@ -108,7 +108,7 @@ def void_coverage(K: np.ndarray, shape: tuple[int, int], placed: list[PlacedWind
 
 
 def window_triangles(pw: PlacedWindow, style: str | WindowStyle) -> tuple[np.ndarray, np.ndarray]:
-    """Camera-facing triangles (M, 3, 3) m of the style's window for ``pw``, shaded BGR colours (M, 3).
+    """Camera-facing triangles (M, 3, 3) m of the style's window for ``pw``, shaded RGB colours (M, 3).
 
     Back faces are culled: every catalogue part is a closed box, so they are always hidden.
     """
@@ -116,12 +116,12 @@ def window_triangles(pw: PlacedWindow, style: str | WindowStyle) -> tuple[np.nda
     tris = pw.to_camera(mesh.vertices)[mesh.faces]  # (M, 3, 3), winding kept (R is proper)
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     front = np.einsum("ij,ij->i", n, tris.mean(axis=1)) < 0
-    return tris[front], shade(tris[front], mesh.face_rgb[front])[:, ::-1]  # RGB -> BGR
+    return tris[front], shade(tris[front], mesh.face_rgb[front])
 
 
 def render_windows(K: np.ndarray, shape: tuple[int, int], placed: list[PlacedWindow],
                    style: str | WindowStyle) -> tuple[np.ndarray, np.ndarray]:
-    """Render the style's window into every placed void: (BGR float (H, W, 3) in [0, 1], alpha (H, W)).
+    """Render the style's window into every placed void: (RGB float (H, W, 3) in [0, 1], alpha (H, W)).
 
     One z-buffer for all windows. Parts behind the facade are seen only through the void: alpha is
     clipped to the void outlines (the wall around a void occludes the frame's outer sides).
@@ -149,7 +149,7 @@ def render_windows(K: np.ndarray, shape: tuple[int, int], placed: list[PlacedWin
 
 def composite(background: np.ndarray, K: np.ndarray, placed: list[PlacedWindow],
               style: str | WindowStyle) -> np.ndarray:
-    """Render every placed window in ``style`` over ``background`` (H, W, 3) uint8 BGR."""
+    """Render every placed window in ``style`` over ``background`` (H, W, 3) uint8 RGB."""
     background = check_image(background)
     colour, alpha = render_windows(K, background.shape[:2], placed, style)
     out = background.astype(np.float64) / 255.0
@@ -159,7 +159,7 @@ def composite(background: np.ndarray, K: np.ndarray, placed: list[PlacedWindow],
 
 def substitute(image: np.ndarray, K: np.ndarray, result: WindowResult, style: str | WindowStyle,
                background: np.ndarray | None = None) -> np.ndarray:
-    """The photo with ``result``'s window replaced by catalogue ``style``: (H, W, 3) uint8 BGR.
+    """The photo with ``result``'s window replaced by catalogue ``style``: (H, W, 3) uint8 RGB (like ``image``).
 
     ``background``: the photo with voids already inpainted (default: inpaint this result's void).
     Raises PipelineError when the result has no usable pose, ValueError for an unknown style.

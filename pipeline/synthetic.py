@@ -100,7 +100,7 @@ def pixel_centre_mask(corners_px: np.ndarray, shape: tuple[int, int]) -> np.ndar
 
 def render_window_image(corners_px: np.ndarray, shape: tuple[int, int], wall: float = 200.0,
                         void: float = 40.0, noise_sigma: float = 0.0, seed: int = 0) -> np.ndarray:
-    """(H, W, 3) uint8 BGR image: a dark void on a bright wall, antialiased, optional Gaussian noise."""
+    """(H, W, 3) uint8 RGB (gray) image: a dark void on a bright wall, antialiased, optional Gaussian noise."""
     c = coverage(corners_px, shape)
     img = wall + (void - wall) * c
     if noise_sigma > 0:

@@ -17,7 +17,7 @@ intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), `
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import chi2, norm
@@ -32,17 +32,19 @@ from pipeline.types import WindowResult
 class WallParams:
     """sigma_px: prior corner sigma (px); prior_dof: its weight in pseudo-observations (inf:
     fixed sigma); base_pose: the per-window solver whose snapped quads feed the walls; manhattan:
-    tie walls at right angles about a shared vertical into one rotation (facade.tie_walls)."""
+    tie walls at right angles about a shared vertical into one rotation (facade.tie_walls);
+    description: one line for CLI help and docs (not a parameter: not compared)."""
 
     sigma_px: float = TOL.wall_sigma_px
     prior_dof: float = TOL.wall_sigma_prior_dof
     base_pose: str = "ippe"
     manhattan: bool = False
+    description: str = field(default="", compare=False)
 
 
 WALL_STRATEGIES: dict[str, WallParams] = {
-    "wall": WallParams(),  # one rotation per wall
-    "building": WallParams(manhattan=True),  # one rotation per set of walls at right angles
+    "wall": WallParams(description="per wall, one rotation fitted over all its windows' corners (the shared plane)"),
+    "building": WallParams(manhattan=True, description="per wall, walls at right angles tied into one rotation"),
 }
 
 def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:

@@ -2,13 +2,20 @@
 
 A Renderer has ``render(camera) -> RenderOutput`` (rgb uint8, instances uint16, depth float32 m,
 per-window ground truth) and ``close()``; both backends share the exact instance-map definition.
+Each registry entry (:class:`RendererEntry`) declares what it offers beyond that: a description
+(CLI help) and its visibility test (what the view sampler uses to reject views whose target
+windows are hidden). A backend without one cannot render a dataset whose sampler needs it: an
+error, never a silent skip.
 """
 from __future__ import annotations
 
+import functools
+from dataclasses import dataclass
 from typing import Callable, Protocol
 
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera
+from renders.gt import WindowView
 from scenes.model import Scene
 
 
@@ -18,6 +25,21 @@ class Renderer(Protocol):
     def render(self, camera: Camera) -> RenderOutput: ...
 
     def close(self) -> None: ...
+
+
+Visibility = Callable[[Renderer, Camera], tuple[WindowView, ...]]
+
+
+@dataclass(frozen=True)
+class RendererEntry:
+    """A registered backend. build(scene, settings) -> Renderer; description: one line for CLI help;
+    visibility(renderer, camera) -> per-window ground truth (``WindowView.visible_fraction`` is what
+    the sampler reads) of a renderer this entry built, or None when the backend has no visibility test."""
+
+    name: str
+    build: Callable[[Scene, RenderSettings], Renderer]
+    description: str
+    visibility: Visibility | None
 
 
 def _pyrender(scene: Scene, settings: RenderSettings) -> Renderer:
@@ -32,11 +54,38 @@ def _mitsuba(scene: Scene, settings: RenderSettings) -> Renderer:
     return PhotorealRenderer(scene, settings)
 
 
-RENDERERS: dict[str, Callable[[Scene, RenderSettings], Renderer]] = {"pyrender": _pyrender, "mitsuba": _mitsuba}
+def occluder_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView, ...]:
+    """Per-window ground truth from a backend's exact occluder pass (``renderer.occluders``, a
+    renders.raster.OccluderPass: depth + element ids, no antialiasing), the one both backends share."""
+    from renders.raster import ground_truth  # noqa: PLC0415 - GL: imported with the backend
+
+    return ground_truth(renderer.occluders, camera)[2]
+
+
+RENDERERS: dict[str, RendererEntry] = {
+    "pyrender": RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", occluder_visibility),
+    "mitsuba": RendererEntry("mitsuba", _mitsuba, "mitsuba path tracing, photoreal (optional OIDN denoising)",
+                             occluder_visibility),
+}
+
+
+def renderer_entry(name: str) -> RendererEntry:
+    """The registry entry ``name``; ValueError naming it and the registered ones."""
+    if name not in RENDERERS:
+        raise ValueError(f"unknown renderer {name!r}; choose one of {sorted(RENDERERS)}")
+    return RENDERERS[name]
 
 
 def make_renderer(name: str, scene: Scene, settings: RenderSettings = RenderSettings()) -> Renderer:
-    """Build the renderer ``name`` ("pyrender" | "mitsuba") for a scene; close() it when done."""
-    if name not in RENDERERS:
-        raise ValueError(f"unknown renderer {name!r}; choose one of {sorted(RENDERERS)}")
-    return RENDERERS[name](scene, settings)
+    """Build the renderer ``name`` (a key of RENDERERS) for a scene; close() it when done."""
+    return renderer_entry(name).build(scene, settings)
+
+
+def visibility_function(name: str, renderer: Renderer) -> Callable[[Camera], tuple[WindowView, ...]]:
+    """``camera -> per-window WindowViews`` of ``renderer`` (built as ``name``): its entry's declared
+    visibility test; ValueError when the backend declares none."""
+    entry = renderer_entry(name)
+    if entry.visibility is None:
+        raise ValueError(f"renderer {name!r} declares no visibility test (RENDERERS[{name!r}].visibility is None), "
+                         "which the view sampler needs to reject hidden windows (sampler.min_visible_fraction > 0)")
+    return functools.partial(entry.visibility, renderer)

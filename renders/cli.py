@@ -1,6 +1,9 @@
 """CLI commands of renders/ (registered on the `fenestra` app by fenestra/cli.py).
 
     fenestra render --scene fzk-haus --views 50 --seed 0 --renderer pyrender --out out/renders
+
+Option defaults are read from renders' config dataclasses (DatasetConfig, SamplerConfig,
+RenderSettings), the renderer choices from renders.backends.RENDERERS.
 """
 from __future__ import annotations
 
@@ -10,31 +13,37 @@ import typer
 
 
 def register(app: typer.Typer) -> None:
-    """Add this stage's commands to the top-level app."""
+    """Add this stage's commands to the top-level app (defaults from the config dataclasses, choices
+    from the registries)."""
+    from fenestra.config import choices  # noqa: PLC0415
+    from renders.backends import RENDERERS  # noqa: PLC0415
+    from renders.base import DENOISERS, RenderSettings  # noqa: PLC0415
+    from renders.dataset import DatasetConfig  # noqa: PLC0415
+    from renders.sampler import SamplerConfig  # noqa: PLC0415
+
+    D, S, R = DatasetConfig("-"), SamplerConfig(), RenderSettings()
 
     @app.command("render")
     def render(scene: str = typer.Option("fzk-haus", help="bundled scene name or IFC path"),
-               views: int = typer.Option(20, help="number of views"),
-               seed: int = typer.Option(0, help="seed: cameras, look (palette, sun), sensor"),
-               renderer: str = typer.Option("pyrender", help="pyrender | mitsuba"),
-               out: str = typer.Option("out/renders", help="root folder; the dataset gets a hashed sub-folder"),
-               width: int = typer.Option(640), height: int = typer.Option(480),
-               hfov_min: float = typer.Option(50.0), hfov_max: float = typer.Option(70.0),
-               distance_min: float = typer.Option(3.0), distance_max: float = typer.Option(12.0),
-               azimuth_max: float = typer.Option(50.0, help="max |azimuth| from the window normal, deg"),
-               street_fraction: float = typer.Option(0.3, help="fraction of street-level views"),
-               min_visible: float = typer.Option(0.5, help="min visible fraction of target windows"),
-               k1: float = typer.Option(0.0, help="max |k1| radial distortion (0 = pinhole)"),
-               spp: int = typer.Option(16, help="mitsuba samples per pixel"),
-               denoise: str = typer.Option("none", help="mitsuba: none | oidn | oidn-aov (Open Image Denoise, "
+               views: int = typer.Option(D.n_views, help="number of views"),
+               seed: int = typer.Option(D.seed, help="seed: cameras, look (palette, sun), sensor"),
+               renderer: str = typer.Option(D.renderer, help=f"renderer: {choices(RENDERERS)}"),
+               out: str = typer.Option(D.out_root, help="root folder; the dataset gets a hashed sub-folder"),
+               width: int = typer.Option(S.width), height: int = typer.Option(S.height),
+               hfov_min: float = typer.Option(S.hfov_deg[0]), hfov_max: float = typer.Option(S.hfov_deg[1]),
+               distance_min: float = typer.Option(S.distance_m[0]), distance_max: float = typer.Option(S.distance_m[1]),
+               azimuth_max: float = typer.Option(S.azimuth_deg[1], help="max |azimuth| from the window normal, deg"),
+               street_fraction: float = typer.Option(S.street_fraction, help="fraction of street-level views"),
+               min_visible: float = typer.Option(S.min_visible_fraction, help="min visible fraction of target windows"),
+               k1: float = typer.Option(S.k1_range[1], help="max |k1| radial distortion (0 = pinhole)"),
+               spp: int = typer.Option(R.spp, help="mitsuba samples per pixel"),
+               denoise: str = typer.Option(R.denoise, help=f"mitsuba: {', '.join(DENOISERS)} (Open Image Denoise, "
                                            "oidn-aov guided by albedo/normal; the photoreal profile: 4 spp + oidn)"),
-               no_shadows: bool = typer.Option(False, help="raster: no sun shadows"),
+               no_shadows: bool = typer.Option(not R.shadows, help="raster: no sun shadows"),
                sensor: bool = typer.Option(False, help="apply realistic sensor noise/blur/JPEG to images")) -> None:
         """Render a dataset of views (images, 16-bit instance maps, view.json, coco.json)."""
-        from renders.base import RenderSettings
-        from renders.dataset import DatasetConfig, render_dataset
-        from renders.sampler import SamplerConfig
-        from renders.sensor import REALISTIC, SensorConfig
+        from renders.dataset import render_dataset  # noqa: PLC0415
+        from renders.sensor import REALISTIC, SensorConfig  # noqa: PLC0415
 
         cfg = DatasetConfig(
             scene=scene, n_views=views, seed=seed, renderer=renderer, out_root=out,

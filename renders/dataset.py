@@ -4,9 +4,10 @@
         config.json  sampling.json  coco.json
         views/000000/image.png  instances.png (16-bit)  view.json
 
-The folder name is a hash of everything that changes the output (scene sha256, sampler config,
-renderer + settings, sensor config, seed, number of views), so re-running a config reuses the
-views already there. Python API: :func:`render_dataset`, :func:`load_view`.
+The folder name is a hash of the config that changes the output (scene sha256, sampler config,
+renderer + settings, sensor config, seed, number of views) and FORMAT_VERSION, so re-running a
+config reuses the views already there. The renderers' code is not hashed: a change to what a
+backend draws must bump FORMAT_VERSION (or the cached views are reused as they are). Python API: :func:`render_dataset`, :func:`load_view`.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from renders.backends import RENDERERS, make_renderer
+from renders.backends import RENDERERS, make_renderer, visibility_function
 from renders.base import RenderOutput, RenderSettings
 from renders.sampler import SamplerConfig, sample_views
 from renders.sensor import SensorConfig, apply_sensor
@@ -198,12 +199,7 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
         settings = dataclasses.replace(config.settings, seed=config.seed)
         renderer = make_renderer(config.renderer, scene, settings)
         try:
-            occ = getattr(renderer, "occluders", None)
-            vis = None
-            if occ is not None:
-                from renders.raster import ground_truth
-
-                vis = lambda cam: ground_truth(occ, cam)[2]  # noqa: E731
+            vis = visibility_function(config.renderer, renderer) if config.sampler.min_visible_fraction > 0 else None
             sampling = sample_views(scene, config.sampler, config.n_views, config.seed, visibility=vis)
             _write_text(root / "sampling.json", json.dumps({"rejected": sampling.rejected, "tries": sampling.tries,
                                                             "accepted": len(sampling.views)}, indent=1))

@@ -8,7 +8,7 @@ needs uncorrelated per-pixel noise) and runs Intel Open Image Denoise's RT filte
 radiance before the sRGB encoding; "oidn-aov" also renders albedo and shading-normal AOVs with the
 same samples (mitsuba's ``aov`` integrator around the path tracer) as the denoiser's guides. OIDN is
 deterministic for a given input (mitsuba's LLVM variant itself differs between runs in the last
-float bits). ``python -m renders.benchmark_photoreal`` measures the cost and the effect.
+float bits). ``python -m bench.benchmark_photoreal`` measures the cost and the effect.
 """
 from __future__ import annotations
 

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import typer
 
+from scenes.generate import HouseSpec
+
 scenes_app = typer.Typer(no_args_is_help=True, help="IFC houses and their window ground truth.")
 
 
@@ -94,26 +96,29 @@ def parse_footprint(text: str) -> list[tuple[float, float]]:
     return pts  # type: ignore[return-value]
 
 
+_H = HouseSpec()  # the option defaults are the spec's
+
+
 @scenes_app.command("make")
 def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
-             seed: int = typer.Option(0, help="random seed for window sizes and positions"),
-             footprint: str = typer.Option(None, help="polygon 'x,y;x,y;...' m, counter-clockwise"),
-             storeys: int = typer.Option(1, help="number of storeys"),
-             rotation_deg: float = typer.Option(0.0, help="rotate the whole footprint (deg)"),
-             storey_height: float = typer.Option(3.0, help="m"),
-             wall_thickness: float = typer.Option(0.3, help="m"),
-             windows_per_wall: int = typer.Option(1, help="windows per wall and storey"),
-             roof_overhang: float = typer.Option(0.0, help="roof beyond the walls (m)"),
-             fascia_height: float = typer.Option(0.0, help="dark band at the roof edge (m)"),
-             glazed_doors: int = typer.Option(0, help="ground-floor walls with a glazed door (not a window)"),
-             curtain_walls: int = typer.Option(0, help="walls glazed as curtain walls (no windows)"),
+             seed: int = typer.Option(_H.seed, help="random seed for window sizes and positions"),
+             footprint: str = typer.Option(None, help="polygon 'x,y;x,y;...' m, counter-clockwise (default: the spec's)"),
+             storeys: int = typer.Option(_H.storeys, help="number of storeys"),
+             rotation_deg: float = typer.Option(_H.rotation_deg, help="rotate the whole footprint (deg)"),
+             storey_height: float = typer.Option(_H.storey_height, help="m"),
+             wall_thickness: float = typer.Option(_H.wall_thickness, help="m"),
+             windows_per_wall: int = typer.Option(_H.windows_per_wall, help="windows per wall and storey"),
+             roof_overhang: float = typer.Option(_H.roof_overhang, help="roof beyond the walls (m)"),
+             fascia_height: float = typer.Option(_H.fascia_height, help="dark band at the roof edge (m)"),
+             glazed_doors: int = typer.Option(_H.glazed_doors, help="ground-floor walls with a glazed door (not a window)"),
+             curtain_walls: int = typer.Option(_H.curtain_walls, help="walls glazed as curtain walls (no windows)"),
              curtain_wall_width: float = typer.Option(
-                 0.0, help="0: a curtain wall fills its wall; else a strip this wide (m), other windows kept"),
-             curtain_wall_rows: int = typer.Option(2, help="panel rows of a curtain wall (1-4)"),
+                 _H.curtain_wall_width, help="0: a curtain wall fills its wall; else a strip this wide (m), other windows kept"),
+             curtain_wall_rows: int = typer.Option(_H.curtain_wall_rows, help="panel rows of a curtain wall (1-4)"),
              json_out: bool = typer.Option(False, "--json", help="print the expected GT as JSON"),
              ) -> None:
     """Write a procedural IFC4 house with known window voids; print its expected ground truth."""
-    from scenes.generate import HouseSpec, make_house
+    from scenes.generate import make_house
 
     kw = {} if footprint is None else {"footprint": tuple(parse_footprint(footprint))}
     spec = HouseSpec(seed=seed, storeys=storeys, rotation_deg=rotation_deg,

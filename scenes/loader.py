@@ -10,12 +10,14 @@ one :class:`ElementMesh` per element; IfcOpeningElement, IfcSpace and IfcAnnotat
 loaded. Colours come from the IFC surface styles (per face when an element has several; the
 element colour is the largest-area style), else :data:`CLASS_COLOURS`.
 
-Cache: ``$FENESTRA_CACHE`` or ``~/.cache/fenestra/scenes``; one ``<sha256>-v<N>.npz`` (arrays) and
-``.json`` (everything else) per file content and loader version, so edits to a file or to this
-code never serve stale data.
+Cache: ``$FENESTRA_CACHE`` or ``~/.cache/fenestra/scenes``; one ``<sha256>-<code>.npz`` (arrays) and
+``.json`` (everything else) per file content and :func:`cache_version` (a digest of the sources in
+:data:`CACHE_SOURCES` and the ifcopenshell version), so edits to a file or to that code never serve
+stale data, with no version number to bump by hand.
 """
 from __future__ import annotations
 
+import functools
 import json
 import multiprocessing
 import os
@@ -26,11 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from fenestra.errors import SceneError
-from fenestra.files import file_sha256
+from fenestra.files import file_sha256, source_digest
 from scenes.model import ElementMesh, Scene, SkippedWindow, WindowGT
 from scenes.registry import BUNDLED, resolve, scene_name
 
-CACHE_VERSION = 2  # bump when loader or ground-truth output changes
+# The code a loaded Scene depends on (this module's folder); with the ifcopenshell version they key the cache.
+CACHE_SOURCES: tuple[str, ...] = ("loader.py", "ground_truth.py", "model.py")
 SKIP_CLASSES: tuple[str, ...] = ("IfcOpeningElement", "IfcSpace", "IfcAnnotation")
 
 # Fallback colours (RGBA, 0-1) for elements without a surface style.
@@ -139,8 +142,17 @@ def iterate_meshes(ifc_file, label: str) -> dict[str, ElementMesh]:
 
 
 # --------------------------------------------------------------------------- cache
+@functools.cache
+def cache_version() -> str:
+    """12 hex digits of the CACHE_SOURCES' bytes and the ifcopenshell version (the cache key's code part)."""
+    from importlib.metadata import version  # noqa: PLC0415
+
+    here = Path(__file__).resolve().parent
+    return source_digest([here / f for f in CACHE_SOURCES], f"ifcopenshell {version('ifcopenshell')}")
+
+
 def _cache_paths(cache_dir: Path, sha: str) -> tuple[Path, Path]:
-    stem = cache_dir / f"{sha}-v{CACHE_VERSION}"
+    stem = cache_dir / f"{sha}-{cache_version()}"
     return stem.with_suffix(".npz"), stem.with_suffix(".json")
 
 

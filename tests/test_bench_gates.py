@@ -6,6 +6,7 @@ tests/test_bench_runner.py.
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -123,6 +124,28 @@ def test_profiles_load_and_validate():
     a = profile_from_dict({"name": "x", "description": "a"})
     assert a.config_hash() == profile_from_dict({"name": "x", "description": "b"}).config_hash()
     assert a.config_hash() != profile_from_dict({"name": "x", "seed": 1}).config_hash()
+
+
+def test_profile_names_are_checked_against_the_registries(monkeypatch):
+    from pipeline.snappers import SNAPPERS
+    from renders.backends import RENDERERS
+
+    snappers = list(SNAPPERS)
+    with pytest.raises(ProfileError, match=rf"x: methods.snappers has unknown name\(s\) \['sift'\]; registered: "
+                                           rf"{re.escape(str(snappers))}"):
+        profile_from_dict({"name": "x", "methods": {"snappers": ["none", "sift"]}}, where="x")
+    with pytest.raises(ProfileError, match=rf"render.renderer has bad value 'povray'; registered: "
+                                           rf"{re.escape(str(list(RENDERERS)))}"):
+        profile_from_dict({"name": "x", "render": {"renderer": "povray"}})
+    with pytest.raises(ProfileError, match=r"methods.pose_solvers has unknown name\(s\) \['lm\+noK'\]"):
+        profile_from_dict({"name": "x", "methods": {"pose_solvers": ["wall+noK", "lm+noK"]}})
+    with pytest.raises(ProfileError, match=r"methods.detectors has unknown name\(s\) \['all'\]"):
+        profile_from_dict({"name": "x", "methods": {"detectors": ["all", "oracle"]}})
+    with pytest.raises(ProfileError, match="methods.detectors is empty"):
+        profile_from_dict({"name": "x", "methods": {"detectors": []}})
+    # a strategy registered anywhere is accepted (and run by ["all"]) with no edit to bench/
+    monkeypatch.setitem(SNAPPERS, "tmp", SNAPPERS["none"])
+    assert profile_from_dict({"name": "x", "methods": {"snappers": ["tmp"]}}).methods.snappers == ("tmp",)
 
 
 def test_suggested_gates_pass_their_own_run_and_catch_a_worse_one(run_dir, tmp_path):

@@ -30,7 +30,7 @@ def run(tmp_path_factory):
     from pipeline.snappers.base import Snapper
     from pipeline.snappers.none import NoneParams
 
-    SNAPPERS["shift5"] = Snapper("shift5", _shift5, NoneParams)
+    SNAPPERS["shift5"] = Snapper("shift5", _shift5, NoneParams, description="broken: 5 px off", test_median_px=5.0)
     try:
         root = tmp_path_factory.mktemp("bench")
         methods = (Method("oracle", "none", "lm"), Method("oracle", "linefit", "lm"),

@@ -58,3 +58,22 @@ def test_rotation_error_deg():
     Rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
     assert np.isclose(C.rotation_error_deg(Rz, np.eye(3)), 30.0)
     assert C.rotation_error_deg(np.eye(3), np.eye(3)) == 0.0
+
+
+def test_window_frame_corner_order_matches_image_order():
+    """DESIGN.md / conventions: image TL, TR, BR, BL are the window-frame corners (0, h), (w, h),
+    (w, 0), (0, 0) (x along the wall, y up, z outward), seen from outside."""
+    from fenestra.conventions import CORNER_NAMES, make_K, project
+    from pipeline.pose import object_points
+
+    assert CORNER_NAMES == ("TL", "TR", "BR", "BL")
+    w, h = 2.0, 1.0
+    obj = object_points(w, h)
+    np.testing.assert_array_equal(obj[:, :2], [[0, h], [w, h], [w, 0], [0, 0]])
+    # seen from outside, square on: window x -> camera x, window y (up) -> camera -y, z (outward) -> -z
+    R, t = np.diag([1.0, -1.0, -1.0]), np.array([-1.0, 0.5, 5.0])
+    px = project(make_K(500.0, 500.0, 320.0, 240.0), R, t, obj)
+    (tl, tr, br, bl) = px
+    assert tl[0] < tr[0] and bl[0] < br[0]  # left before right
+    assert tl[1] < bl[1] and tr[1] < br[1]  # top above bottom (image y down)
+    assert tl[1] == tr[1] and tl[0] == bl[0]

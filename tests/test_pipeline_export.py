@@ -56,8 +56,13 @@ def quad_mask(quad: np.ndarray) -> np.ndarray:
     return m.astype(bool)
 
 
+def read_rgb(path) -> np.ndarray:
+    """An output PNG as (H, W, 3) uint8 RGB (the pipeline's colour order; cv2 reads BGR)."""
+    return cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
+
+
 def synthetic_photo() -> np.ndarray:
-    """The facade (bricks with noise, dark voids) seen by the camera: (H, W, 3) uint8 BGR."""
+    """The facade (bricks with noise, dark voids) seen by the camera: (H, W, 3) uint8 RGB."""
     rng = np.random.default_rng(0)
     s, xmin, ymax, xs, ys = 100.0, -4.0, 5.0, 12.0, 9.0  # px per m, canvas extent (m)
     cw, ch = int(xs * s), int(ys * s)
@@ -217,7 +222,7 @@ def test_ifc_wall_has_void_cut_and_photo_texture(ifc, outputs):
 def test_ifc_texture_coordinates_reproduce_projection(ifc, outputs):
     paths, manifest = outputs
     tex = manifest["texture"]
-    texture = cv2.imread(str(paths["texture"]))
+    texture = read_rgb(paths["texture"])
     assert texture.shape[:2] == (tex["height"], tex["width"])
     maps = ifc.by_type("IfcIndexedTriangleTextureMap")
     assert len(maps) == 2
@@ -244,13 +249,13 @@ def test_ifc_texture_coordinates_reproduce_projection(ifc, outputs):
                 checked += 1
     assert checked >= 2 * 6  # at least the two exterior-face triangles of each wall
     # The texture's photo region is the inpainted photo.
-    inpainted = cv2.imread(str(paths["inpainted"]))
+    inpainted = read_rgb(paths["inpainted"])
     crop = texture[tex["pad_top"]:tex["pad_top"] + IMG_H, tex["pad_left"]:tex["pad_left"] + IMG_W]
     assert np.array_equal(crop, inpainted)
 
 
 def test_inpainting_fills_every_void_and_keeps_the_rest(outputs, photo):
-    inpainted = cv2.imread(str(outputs[0]["inpainted"]))
+    inpainted = read_rgb(outputs[0]["inpainted"])
     far = ~cv2.dilate(np.any([quad_mask(gt_quad(i)) for i in range(3)], axis=0).astype(np.uint8),
                       np.ones((31, 31), np.uint8)).astype(bool)
     assert np.array_equal(inpainted[far], photo[far])
@@ -343,7 +348,7 @@ def _far_from_windows(margin_px: float) -> np.ndarray:
 
 
 def test_overlay_draws_on_the_windows_only(outputs, photo):
-    overlay = cv2.imread(str(outputs[0]["overlay"]))
+    overlay = read_rgb(outputs[0]["overlay"])
     assert overlay.shape == photo.shape
     for i in range(3):
         edge = quad_mask(gt_quad(i)) & ~cv2.erode(quad_mask(gt_quad(i)).astype(np.uint8),
@@ -355,8 +360,8 @@ def test_overlay_draws_on_the_windows_only(outputs, photo):
 
 
 def test_substitution_renders_into_void(outputs, photo):
-    sub = cv2.imread(str(outputs[0]["substituted"]))
-    inpainted = cv2.imread(str(outputs[0]["inpainted"]))
+    sub = read_rgb(outputs[0]["substituted"])
+    inpainted = read_rgb(outputs[0]["inpainted"])
     assert sub.shape == photo.shape
     for i in (0, 1):
         inside = cv2.erode(quad_mask(gt_quad(i)).astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
@@ -438,7 +443,7 @@ def test_texture_is_padded_when_the_wall_leaves_the_photo(tmp_path, photo):
     paths = write_outputs(tmp_path, photo, K_zoom, [r])
     tex = json.loads(paths["manifest"].read_text())["texture"]
     assert tex["pad_left"] + tex["pad_right"] + tex["pad_top"] + tex["pad_bottom"] > 0
-    texture = cv2.imread(str(paths["texture"]))
+    texture = read_rgb(paths["texture"])
     assert texture.shape[:2] == (tex["height"], tex["width"])
     lines = paths["obj"].read_text().splitlines()
     V = np.array([list(map(float, line.split()[1:])) for line in lines if line.startswith("v ")])

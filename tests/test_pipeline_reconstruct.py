@@ -1,7 +1,5 @@
-"""End to end on a synthetic photo: instance map -> windows.json; input files; CLI; import isolation."""
-import ast
+"""End to end on a synthetic photo: instance map -> windows.json; input files; CLI (import isolation: test_imports.py)."""
 import json
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -16,24 +14,23 @@ from pipeline.synthetic import coverage, pixel_centre_mask, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)
 SHAPE = (480, 640)
-PIPELINE = Path(__file__).resolve().parent.parent / "pipeline"
 
 
 def scene():
-    """Two 1.0 x 1.4 m windows on a wall; returns (BGR image, instance map, ground-truth views)."""
+    """Two 1.0 x 1.4 m windows on a wall; returns (RGB image (gray), instance map, ground-truth views)."""
     img, inst, views = np.full(SHAPE, 200.0), np.zeros(SHAPE, np.uint16), []
     for i, off in enumerate([(-150.0, 0.0), (150.0, 20.0)]):
         sw = view_window(K, 1.0, 1.4, 25.0, 5.0, 2.0, 6.0, off)
         img += (40.0 - 200.0) * coverage(sw.corners_px, SHAPE)
         inst[pixel_centre_mask(sw.corners_px, SHAPE)] = i + 1
         views.append(sw)
-    bgr = np.repeat(np.clip(np.round(img), 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
-    return bgr, inst, views
+    rgb = np.repeat(np.clip(np.round(img), 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
+    return rgb, inst, views
 
 
 def test_reconstruct_linefit_exact_scene():
-    bgr, inst, views = scene()
-    res = reconstruct(bgr, K, detections_from_instance_map(inst), ReconstructConfig(snapper="linefit", height_m=1.4))
+    rgb, inst, views = scene()
+    res = reconstruct(rgb, K, detections_from_instance_map(inst), ReconstructConfig(snapper="linefit", pose="lm", height_m=1.4))
     assert len(res) == 2
     for r, sw in zip(res, views):
         assert r.failure is None
@@ -51,36 +48,36 @@ def test_reconstruct_linefit_exact_scene():
 
 
 def test_unknown_focal_reconstruct():
-    bgr, inst, views = scene()
-    res = reconstruct(bgr, None, detections_from_instance_map(inst), ReconstructConfig(snapper="linefit"))
+    rgb, inst, views = scene()
+    res = reconstruct(rgb, None, detections_from_instance_map(inst), ReconstructConfig(snapper="linefit", pose="lm"))
     for r in res:
         assert r.failure is None and abs(r.focal_estimate_px / 800.0 - 1) < 0.05
 
 
 def test_two_blobs_one_id_is_a_failure_not_a_crash():
-    bgr, inst, _ = scene()
+    rgb, inst, _ = scene()
     inst[inst == 2] = 1  # both windows carry id 1
     inst[300:340, 300:340] = 3  # a square window, fine
-    res = reconstruct(bgr, K, detections_from_instance_map(inst))
+    res = reconstruct(rgb, K, detections_from_instance_map(inst))
     assert res[0].failure.startswith("quad: multiple_blobs") and res[0].R is None
     assert res[1].failure is None
 
 
 def test_empty_mask_and_wrong_shape_mask():
     from pipeline.types import Detection
-    bgr, _, _ = scene()
+    rgb, _, _ = scene()
     # a (10, 10) mask is a sparse crop (at origin (0, 0) by default): outside the image only when
     # it does not fit there
     dets = [Detection(np.zeros(SHAPE, bool), np.zeros(4), 0.9),
             Detection(np.zeros((10, 10), bool), np.zeros(4), 0.9, origin=(SHAPE[1] - 5, 0)),
             Detection(np.zeros((SHAPE[0] + 1, SHAPE[1]), bool), np.zeros(4), 0.9)]
-    res = reconstruct(bgr, K, dets)
+    res = reconstruct(rgb, K, dets)
     assert res[0].failure.startswith("quad: empty_mask")
     assert "mask shape" in res[1].failure and "mask shape" in res[2].failure
     with pytest.raises(ValueError, match="unknown snapper"):
         ReconstructConfig(snapper="magic")
     with pytest.raises(ValueError, match="K must be 3x3"):
-        reconstruct(bgr, np.eye(4), dets)
+        reconstruct(rgb, np.eye(4), dets)
 
 
 def test_io_errors(tmp_path):
@@ -108,8 +105,8 @@ def test_io_errors(tmp_path):
 
 def test_cli_reconstruct(tmp_path):
     from fenestra.cli import app
-    bgr, inst, _ = scene()
-    cv2.imwrite(str(tmp_path / "photo.png"), bgr)
+    rgb, inst, _ = scene()
+    cv2.imwrite(str(tmp_path / "photo.png"), rgb)
     cv2.imwrite(str(tmp_path / "inst.png"), inst)
     (tmp_path / "K.json").write_text(json.dumps({"K": K.tolist()}))
     out = tmp_path / "out"
@@ -121,19 +118,6 @@ def test_cli_reconstruct(tmp_path):
     assert len(doc["windows"]) == 2 and all(w["failure"] is None for w in doc["windows"])
     assert "median ms/window" in r.output
     assert (out / "model.ifc").is_file() and (out / "overlay.png").is_file()
-
-
-def test_pipeline_does_not_import_harness_packages():
-    forbidden = {"bench", "renders", "scenes", "training"}
-    for path in PIPELINE.rglob("*.py"):
-        for node in ast.walk(ast.parse(path.read_text())):
-            names = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                names = [node.module]
-            for n in names:
-                assert n.split(".")[0] not in forbidden, f"{path} imports {n}"
 
 
 def test_sparse_detections_fit_exactly_like_full_masks():
@@ -157,3 +141,42 @@ def test_sparse_detections_fit_exactly_like_full_masks():
             np.testing.assert_allclose(f.result.quad, full.quad, atol=1e-9)
             np.testing.assert_allclose(f.result.lines, full.lines, atol=1e-9)
     assert dets[2].box.tolist() == [600, 0, 639, 29]
+
+
+def test_pose_strategies_come_from_both_registries():
+    from fenestra.conventions import DEFAULTS
+    from pipeline.pose import POSE_SOLVERS
+    from pipeline.reconstruct import pose_strategies
+    from pipeline.walls import WALL_STRATEGIES
+
+    ps = pose_strategies()
+    assert list(ps) == [*POSE_SOLVERS, *WALL_STRATEGIES]
+    for name, s in ps.items():
+        assert s.name == name and s.description.strip() and s.per_wall == (name in WALL_STRATEGIES)
+        assert ReconstructConfig(pose=name).pose == name
+    cfg = ReconstructConfig()
+    assert (cfg.snapper, cfg.pose) == (DEFAULTS.snapper, DEFAULTS.pose)
+
+
+def test_one_image_check_and_rgb_at_every_boundary(tmp_path):
+    """One check_image (pipeline.types) guards detect, reconstruct and the export, with one error that
+    is both a PipelineError and a ValueError; colour images are read as RGB (gray = 0.299 R + 0.587 G
+    + 0.114 B: pure red is 76, as BGR it would be 29)."""
+    from pipeline.detectors import detect
+    from pipeline.export import write_outputs
+    from pipeline.reconstruct import to_gray
+    from pipeline.types import ImageError
+
+    red = np.zeros((20, 30, 3), np.uint8)
+    red[..., 0] = 255
+    assert np.all(to_gray(red) == 76)
+    cv2.imwrite(str(tmp_path / "red.png"), red[:, :, ::-1])  # cv2 writes BGR
+    np.testing.assert_array_equal(read_photo(tmp_path / "red.png"), red)
+    rgba = np.zeros((20, 30, 4), np.uint8)
+    for call in (lambda: detect("oracle", rgba, instances=np.zeros((20, 30), np.int32)),
+                 lambda: reconstruct(rgba, K, []), lambda: write_outputs(tmp_path / "o", rgba, K, [])):
+        with pytest.raises(ImageError, match=r"image must be \(H, W, 3\) RGB, got shape \(20, 30, 4\)") as e:
+            call()
+        assert isinstance(e.value, PipelineError) and isinstance(e.value, ValueError)
+    with pytest.raises(ImageError, match="uint8, got dtype float32"):
+        reconstruct(red.astype(np.float32), K, [])

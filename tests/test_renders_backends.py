@@ -1,6 +1,7 @@
 """renders/: mitsuba camera convention, backend agreement, dataset determinism, sampler, sensor."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -207,3 +208,45 @@ def test_oidn_denoising_brings_low_spp_render_closer_to_high_spp_reference():
     assert len({hashes["pyrender", d] for d in ("none", "oidn", "oidn-aov")}) == 1  # raster ignores it
     with pytest.raises(ValueError, match="denoise"):
         RenderSettings(denoise="optix")
+
+
+def test_renderer_entries_declare_their_visibility_test(tmp_path, monkeypatch):
+    """Every registered backend declares a visibility test that gives the same per-window visibility
+    as its own render; one without a test cannot render a dataset that needs one (an error naming it,
+    never a silent skip), and can when the sampler does not need it."""
+    from renders import backends
+    from renders.backends import RENDERERS, RendererEntry, visibility_function
+
+    scene = wall_scene(sill_top=1.2)
+    R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
+    cam = Camera.from_fov(160, 120, 60, R, t)
+    for name, entry in RENDERERS.items():
+        assert entry.name == name and entry.description.strip() and entry.visibility is not None
+    r = backends.make_renderer("pyrender", scene, RenderSettings(seed=1))
+    try:
+        vis = {w.id: w.visible_fraction for w in visibility_function("pyrender", r)(cam)}
+        rendered = {w.id: w.visible_fraction for w in r.render(cam).windows}
+    finally:
+        r.close()
+    assert vis == rendered and len(vis) == len(scene.windows) and max(vis.values()) > 0.5
+
+    class Flat:
+        name = "flat"
+
+        def render(self, camera):
+            from renders.base import RenderOutput
+            W, H = camera.width, camera.height
+            return RenderOutput(camera, np.zeros((H, W, 3), np.uint8), np.zeros((H, W), np.uint16),
+                                np.zeros((H, W), np.float32), ())
+
+        def close(self):
+            pass
+
+    monkeypatch.setitem(RENDERERS, "flat", RendererEntry("flat", lambda s, st: Flat(), "no visibility test", None))
+    with pytest.raises(ValueError, match="renderer 'flat' declares no visibility test"):
+        render_dataset(DatasetConfig("wall", n_views=1, renderer="flat", sampler=SMALL, out_root=str(tmp_path)),
+                       scene=scene, progress=False)
+    free = dataclasses.replace(SMALL, min_visible_fraction=0.0)
+    root = render_dataset(DatasetConfig("wall", n_views=1, renderer="flat", sampler=free, out_root=str(tmp_path)),
+                          scene=scene, progress=False)
+    assert (root / "views" / "000000" / "view.json").is_file()

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import ifcopenshell
 import numpy as np
@@ -60,3 +61,29 @@ def test_holes_are_cut_in_host_walls():
 
 def test_list_scenes():
     assert list_scenes() == ["fzk-haus", "duplex", "samplehouse4", "jasmin-sun", "niedriha"]
+
+
+def test_cache_key_is_derived_from_the_loader_code(tmp_path):
+    """No version number to bump by hand: the key digests the sources the cached Scene is computed by
+    (any byte of them changes it), and those are every scenes module the cached code imports
+    (registry.py only maps names to paths: not part of the cached content)."""
+    import ast
+    from importlib.metadata import version
+
+    from fenestra.files import source_digest
+    from scenes import loader
+
+    f = tmp_path / "a.py"
+    f.write_text("x = 1\n")
+    before = source_digest([f])
+    f.write_text("x = 2\n")
+    assert source_digest([f]) != before
+    here = Path(loader.__file__).parent
+    assert loader.cache_version() == source_digest([here / s for s in loader.CACHE_SOURCES],
+                                                   f"ifcopenshell {version('ifcopenshell')}")
+    used = set()
+    for s in loader.CACHE_SOURCES:
+        for node in ast.walk(ast.parse((here / s).read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("scenes."):
+                used.add(node.module.split(".")[1] + ".py")
+    assert used - {"registry.py"} <= set(loader.CACHE_SOURCES), used

@@ -165,7 +165,7 @@ def evaluate_real_view(view: RealView, methods: tuple[Method, ...], spec: RealEv
     t0 = time.perf_counter()
     base = [window_base(view, w, spec) for w in view.windows]
     out = ViewOutcome(rows=[], stage_s=stage_s, coco_gt=gt_coco(view))
-    gray = to_gray(np.ascontiguousarray(view.image[:, :, ::-1]))
+    gray = to_gray(view.image)  # RGB, as detect() and reconstruct() take it
     inst = view.instance_map() if view.has_masks else None
     for det_name in dict.fromkeys(m.detector for m in methods):
         ms = [m for m in methods if m.detector == det_name]

@@ -25,9 +25,9 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from bench.profiles import PROFILE_DIR, MethodsSpec, ProfileError, _build
+from bench.profiles import PROFILE_DIR, MethodsSpec, ProfileError, check_methods
 from bench.real.adapters import ADAPTERS
-from fenestra.config import read_toml
+from fenestra.config import from_table, read_toml
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 KIND = "real"
@@ -76,19 +76,14 @@ class RealProfile:
 
 
 def _dataset(t: dict, where: str) -> DatasetSpec:
-    """DatasetSpec from a TOML table; ProfileError naming the bad key or value."""
-    allowed = {"name", "format", "path", "optional", "options"}
-    if not isinstance(t, dict) or set(t) - allowed:
-        raise ProfileError(f"{where}: dataset keys {sorted(t) if isinstance(t, dict) else t!r}; allowed {sorted(allowed)}")
+    """DatasetSpec from a TOML table (fenestra.config.from_table); ProfileError naming the bad key or value."""
+    if not isinstance(t, dict):
+        raise ProfileError(f"{where} must be a table, got {t!r}")
     if t.get("format") not in ADAPTERS:
         raise ProfileError(f"{where}: format {t.get('format')!r} unknown; choose from {sorted(ADAPTERS)}")
     if not isinstance(t.get("path"), str) or not t["path"]:
         raise ProfileError(f"{where}: dataset needs a string 'path', got {t.get('path')!r}")
-    opts = t.get("options", {})
-    if not isinstance(opts, dict) or not isinstance(t.get("optional", False), bool):
-        raise ProfileError(f"{where}: 'options' must be a table and 'optional' a bool, got {opts!r}, {t.get('optional')!r}")
-    return DatasetSpec(name=str(t.get("name") or Path(t["path"]).name), format=t["format"], path=t["path"],
-                       optional=t.get("optional", False), options=tuple(sorted(opts.items())))
+    return from_table(DatasetSpec, {**t, "name": str(t.get("name") or Path(t["path"]).name)}, where, ProfileError)
 
 
 def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
@@ -112,11 +107,12 @@ def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
     dopts = data.get("detector_options", {})
     if not isinstance(dopts, dict) or not all(isinstance(v, dict) for v in dopts.values()):
         raise ProfileError(f"{where}: detector_options must be tables per detector, got {dopts!r}")
+    methods = from_table(MethodsSpec, data.get("methods", {}), f"{where} [methods]", ProfileError)
+    check_methods(methods, where)
     return RealProfile(name=str(data.get("name") or "real"), datasets=datasets,
                        detector_options=tuple(sorted((k, tuple(sorted(v.items()))) for k, v in dopts.items())),
                        description=str(data.get("description", "")), seed=int(data.get("seed", 0)),
-                       methods=_build(MethodsSpec, data.get("methods", {}), f"{where} [methods]"),
-                       detector_long_side=long_side, min_window_px=float(min_px))
+                       methods=methods, detector_long_side=long_side, min_window_px=float(min_px))
 
 
 def _profile_path(name_or_path: str | Path) -> Path:

@@ -24,6 +24,7 @@ from scipy.stats import kendalltau, rankdata, spearmanr
 
 from bench.paired import paired_comparison
 from bench.results import TRUTH_FLAGS, _jsonable, load_results
+from fenestra.conventions import PAPER
 
 METRICS = ("aspect_err_rel", "corner_err_px_mask", "corner_err_px_snap", "corner_err_px_reproj", "iou_2d")
 POSE_FREE = ("aspect_err_rel", "corner_err_px_mask", "corner_err_px_snap")
@@ -45,7 +46,7 @@ def method_medians(df: pd.DataFrame, metric: str, detector: str) -> pd.Series:
     d = _rows_with_truth(df[df["detector"] == detector], metric)
     if metric in POSE_FREE and len(d):
         poses = sorted(d["pose"].unique())
-        d = d[d["pose"] == ("lm" if "lm" in poses else poses[0])]
+        d = d[d["pose"] == (PAPER.pose if PAPER.pose in poses else poses[0])]
     return d.groupby("method")[metric].median().dropna()
 
 

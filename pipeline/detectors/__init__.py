@@ -29,24 +29,12 @@ from fenestra.conventions import LIMITS
 from fenestra.errors import FenestraError
 from pipeline.detectors.checkpoint import check_device, read_checkpoint
 from pipeline.detectors.oracle import DegradeConfig, check_instances, degraded_detections, oracle_detections
-from pipeline.types import Detection
+from pipeline.types import Detection, check_image
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_WEIGHTS = MODELS_DIR / "default.pt"
 
 Detector = Callable[..., list[Detection]]
-
-
-def check_image(image: np.ndarray) -> np.ndarray:
-    """Validate an RGB image (H, W, 3) uint8; raises ValueError naming the problem."""
-    a = np.asarray(image)
-    if a.ndim != 3 or a.shape[2] != 3:
-        raise ValueError(f"image must be (H, W, 3) RGB, got shape {a.shape}")
-    if a.dtype != np.uint8:
-        raise ValueError(f"image must be uint8, got dtype {a.dtype}")
-    if a.shape[0] < 8 or a.shape[1] < 8:
-        raise ValueError(f"image too small: {a.shape[1]}x{a.shape[0]} px")
-    return a
 
 
 def set_cpu_threads(n: int | None = None) -> None:

@@ -20,10 +20,10 @@ from fenestra.errors import PipelineError
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import CAMERA_TO_EXPORT, PlacedWindow, place, texture_layout
 from pipeline.export.ifc import write_ifc
-from pipeline.export.inpaint import check_image, inpaint_voids
+from pipeline.export.inpaint import inpaint_voids
 from pipeline.export.mesh import model_parts, write_glb, write_obj
 from pipeline.export.overlay import draw_overlay
-from pipeline.types import WindowResult
+from pipeline.types import WindowResult, check_image
 
 DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
 
@@ -50,7 +50,8 @@ def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAUL
 
 
 def _write_png(path: Path, image: np.ndarray) -> Path:
-    if not cv2.imwrite(str(path), image):
+    """Write an (H, W, 3) uint8 RGB image as PNG (cv2 writes BGR: the one conversion)."""
+    if not cv2.imwrite(str(path), np.ascontiguousarray(image[:, :, ::-1])):
         raise PipelineError(f"could not write {path}")
     return path
 
@@ -59,7 +60,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                   substitute: str | WindowStyle | None = None) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
-    image (H, W, 3) uint8 BGR; K (3, 3); results from the reconstruction. Written: model.ifc,
+    image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
     texture.png (inpainted photo, padded), inpainted.png (photo size), model.obj + model.mtl,
     model.glb, overlay.png, export.json (manifest: exported and skipped windows, with reasons, and
     export timings), and substituted.png when ``substitute`` names a catalogue style (which then
@@ -92,7 +93,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     parts = model_parts(K, placed, layout, style)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
     if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
-        paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture[:, :, ::-1], style)
+        paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)
     paths["overlay"] = _write_png(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results)))
     if substitute is not None:
         from pipeline.substitute import composite  # noqa: PLC0415

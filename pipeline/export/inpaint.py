@@ -4,20 +4,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from fenestra.errors import PipelineError
-from pipeline.types import WindowResult
-
-
-def check_image(image: np.ndarray) -> np.ndarray:
-    """Validate a photo: (H, W, 3) uint8 (BGR, as cv2.imread gives); grey (H, W) is expanded."""
-    image = np.asarray(image)
-    if image.ndim == 2:
-        image = np.repeat(image[:, :, None], 3, axis=2)
-    if image.ndim != 3 or image.shape[2] != 3 or image.shape[0] < 2 or image.shape[1] < 2:
-        raise PipelineError(f"image must be (H, W, 3), got shape {image.shape}")
-    if image.dtype != np.uint8:
-        raise PipelineError(f"image must be uint8, got dtype {image.dtype}")
-    return image
+from pipeline.types import WindowResult, check_image
 
 
 def result_quad(result: WindowResult) -> np.ndarray | None:

@@ -1,6 +1,6 @@
 """Overlay PNG: the pipeline's quads and the reprojected 3D window drawn on the photo.
 
-Colours (BGR): mask-fit quad yellow, snapped quad magenta (corner labels TL TR BR BL), reprojected
+Colours (RGB, like the image): mask-fit quad yellow, snapped quad magenta (corner labels TL TR BR BL), reprojected
 3D window green (void outline at the facade and the frame's back outline, depth edges between),
 window axes x red, y green, z blue (length half the window height). Failed windows get their
 available quads and a red "failed" note.
@@ -12,11 +12,10 @@ import numpy as np
 
 from fenestra.conventions import CORNER_NAMES, check_K, project
 from pipeline.export.geometry import place
-from pipeline.export.inpaint import check_image
-from pipeline.types import WindowResult
+from pipeline.types import WindowResult, check_image
 
-COLOURS = {"mask": (0, 220, 255), "snapped": (255, 0, 255), "reprojected": (0, 230, 0),
-           "x": (0, 0, 255), "y": (0, 200, 0), "z": (255, 80, 0), "failed": (0, 0, 255)}
+COLOURS = {"mask": (255, 220, 0), "snapped": (255, 0, 255), "reprojected": (0, 230, 0),
+           "x": (255, 0, 0), "y": (0, 200, 0), "z": (0, 80, 255), "failed": (255, 0, 0)}
 _SHIFT = 4  # fractional bits for sub-pixel drawing
 
 
@@ -64,7 +63,7 @@ def _draw_3d(img, K, result, thick, depth_m: float = 0.07):
 
 
 def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult]) -> np.ndarray:
-    """(H, W, 3) uint8 BGR copy of ``image`` with every result drawn on it."""
+    """(H, W, 3) uint8 RGB copy of the RGB ``image`` with every result drawn on it."""
     img = check_image(image).copy()
     K = check_K(K)
     H, W = img.shape[:2]

@@ -8,6 +8,10 @@ gray: (H, W) uint8 or float32 image; quad: (4, 2) px TL TR BR BL (pixel centres 
 params: the strategy's frozen dataclass (``SNAPPERS[name].params()`` gives the defaults).
 Returns the snapped quad (4, 2) float64 and a dict of diagnostics (e.g. which corners moved).
 Use :func:`snap` to look a strategy up by name with default parameters.
+
+Each entry (:class:`~pipeline.snappers.base.Snapper`) also carries its one-line ``description``
+(CLI help) and ``test_median_px`` (its bound in the generic snapper test): a new strategy is one
+module and one line here, nothing else (docs/EXTENDING.md).
 """
 from __future__ import annotations
 
@@ -17,6 +21,7 @@ from pipeline.snappers.base import Snapper
 from pipeline.snappers.harris import HARRIS
 from pipeline.snappers.hough import HOUGH
 from pipeline.snappers.linefit import LINEFIT
+from pipeline.snappers.lsd import LSD
 from pipeline.snappers.none import NONE
 from pipeline.snappers.subpix import SUBPIX
 
@@ -26,6 +31,7 @@ SNAPPERS: dict[str, Snapper] = {
     "hough": HOUGH,
     "linefit": LINEFIT,
     "subpix": SUBPIX,
+    "lsd": LSD,
 }
 
 

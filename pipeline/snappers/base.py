@@ -11,11 +11,26 @@ from fenestra.conventions import check_quad
 
 @dataclass(frozen=True)
 class Snapper:
-    """A registered strategy: ``snap(gray, quad, params) -> (quad, info)``; ``params`` its dataclass."""
+    """A registered strategy and what it declares about itself.
+
+    name: its registry key; snap(gray, quad, params) -> (quad (4, 2), info dict with ``moved``:
+    4 bools); params: its frozen parameter dataclass (``params()``: the defaults); description:
+    one line for CLI help and the docs; test_median_px: its bound on the median corner error (px)
+    on tests/test_pipeline_snappers.py's synthetic views (antialiased quads, noise sigma 2, from the
+    mask-fit quad), which the generic snapper test holds every registered strategy to.
+    """
 
     name: str
     snap: Callable[[np.ndarray, np.ndarray, Any], tuple[np.ndarray, dict]]
     params: type
+    description: str
+    test_median_px: float
+
+    def __post_init__(self) -> None:
+        if not self.description.strip():
+            raise ValueError(f"snapper {self.name!r} needs a description (CLI help, docs)")
+        if not self.test_median_px > 0:
+            raise ValueError(f"snapper {self.name!r}: test_median_px must be > 0, got {self.test_median_px!r}")
 
 
 def check_inputs(gray: np.ndarray, quad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

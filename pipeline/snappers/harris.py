@@ -59,4 +59,5 @@ def snap_harris(gray: np.ndarray, quad: np.ndarray, params: HarrisParams = Harri
     return out, {"moved": moved}
 
 
-HARRIS = Snapper("harris", snap_harris, HarrisParams)
+HARRIS = Snapper("harris", snap_harris, HarrisParams, test_median_px=2.0,
+                  description="nearest Harris corner, the paper's")

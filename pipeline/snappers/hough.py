@@ -102,4 +102,5 @@ def snap_hough(gray: np.ndarray, quad: np.ndarray, params: HoughParams = HoughPa
     return out, {"moved": ok, "side_found": found}
 
 
-HOUGH = Snapper("hough", snap_hough, HoughParams)
+HOUGH = Snapper("hough", snap_hough, HoughParams, test_median_px=0.6,
+                 description="Hough line per side, intersected, the paper's suggestion")

@@ -113,4 +113,5 @@ def snap_linefit(gray: np.ndarray, quad: np.ndarray, params: LinefitParams = Lin
     return out, {"moved": ok, "side_found": found}
 
 
-LINEFIT = Snapper("linefit", snap_linefit, LinefitParams)
+LINEFIT = Snapper("linefit", snap_linefit, LinefitParams, test_median_px=0.05,
+                   description="sub-pixel edge points per side, robust line fits, intersected")

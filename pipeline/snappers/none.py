@@ -19,4 +19,5 @@ def snap_none(gray: np.ndarray, quad: np.ndarray, params: NoneParams = NoneParam
     return q.copy(), {"moved": [False] * 4}
 
 
-NONE = Snapper("none", snap_none, NoneParams)
+NONE = Snapper("none", snap_none, NoneParams, test_median_px=0.3,
+                description="no snapping, the mask-fit quad as it is (the baseline)")

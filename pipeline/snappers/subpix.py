@@ -42,4 +42,5 @@ def snap_subpix(gray: np.ndarray, quad: np.ndarray, params: SubpixParams = Subpi
     return out, {"moved": [bool(o and i) for o, i in zip(ok, inside)]}
 
 
-SUBPIX = Snapper("subpix", snap_subpix, SubpixParams)
+SUBPIX = Snapper("subpix", snap_subpix, SubpixParams, test_median_px=0.5,
+                  description="cv2.cornerSubPix at each corner")

@@ -1,8 +1,8 @@
 """Photoreal (mitsuba) cost and quality: the figures behind the ``photoreal`` profile's settings.
 
-    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal speed [--views 6]
-    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal quality [--reference-spp 256]
-    PYOPENGL_PLATFORM=egl .venv/bin/python -m renders.benchmark_photoreal bench [--workers 2] [--reuse]
+    PYOPENGL_PLATFORM=egl .venv/bin/python -m bench.benchmark_photoreal speed [--views 6]
+    PYOPENGL_PLATFORM=egl .venv/bin/python -m bench.benchmark_photoreal quality [--reference-spp 256]
+    PYOPENGL_PLATFORM=egl .venv/bin/python -m bench.benchmark_photoreal bench [--workers 2] [--reuse]
 
 ``speed``: median wall and CPU seconds per view of ``renderer.render(camera)`` (path tracing + denoising +
 ground truth; start-up and one warm-up view per setting excluded) for the settings used before
@@ -12,6 +12,8 @@ load; prints the load average beside them and the median per-view ratio old/new.
 spp x denoiser (the measured trade-off). ``bench``: the photoreal bench with ``OLD`` and with the
 profile's settings on the same views; prints detection AP / rate and median corner error per
 detector x snapper as a Markdown table.
+
+(A bench script, not a renders/ one: it runs the bench, which renders/ must not import.)
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ import time
 
 import numpy as np
 
+from fenestra.conventions import PAPER
 from renders.base import DENOISERS, RenderSettings
 
 OLD = RenderSettings(spp=16, denoise="none")  # the photoreal profile before issue 17 (RenderSettings defaults then)
@@ -161,7 +164,7 @@ def bench(workers: int, reuse: bool = False) -> str:
     pairs = paired_snap_errors(dirs["old"], dirs["new"])
     for m in sorted(s["new"]["results"]):
         det, snap, pose = m.split("/") if m.count("/") == 2 else (m, "", "")
-        if pose and pose != "lm":
+        if pose and pose != PAPER.pose:
             continue
         ro, rn = s["old"]["results"][m], s["new"]["results"][m]
         ap = lambda k: 100 * s[k]["detection"][det]["segm_AP"] if det in s[k]["detection"] else None  # noqa: E731
