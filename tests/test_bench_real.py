@@ -20,6 +20,7 @@ from bench.real.evaluate import RealEvalSpec, evaluate_real_view, gt_coco, windo
 from bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
 from bench.real.runner import LabelledOutcome, coco_ap_of, run_real
 from bench.real.simreal import ranking
+from fenestra.data import coco_result
 from pipeline.types import WindowResult
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -68,9 +69,9 @@ def test_box_ap_hand_computed(yolo_dir):
     thresholds 0.65-0.95: only A: AP = 51 / 101. Mean over the 10 thresholds."""
     (v,) = list(ADAPTERS["yolo"](yolo_dir))
     key = f"{v.dataset}/{v.name}"
-    dt = [{"view": key, "score": 0.9, "bbox": [15.0, 15.0, 20.0, 20.0], "rle": None},
-          {"view": key, "score": 0.8, "bbox": [80.0, 0.0, 10.0, 10.0], "rle": None},
-          {"view": key, "score": 0.7, "bbox": [60.0, 50.0, 20.0, 12.5], "rle": None}]
+    dt = [coco_result(key, 0.9, [14.5, 14.5, 34.5, 34.5]), coco_result(key, 0.8, [79.5, -0.5, 89.5, 9.5]),
+          coco_result(key, 0.7, [59.5, 49.5, 79.5, 62.0])]
+    assert [d["bbox"] for d in dt] == [[15.0, 15.0, 20.0, 20.0], [80.0, 0.0, 10.0, 10.0], [60.0, 50.0, 20.0, 12.5]]
     out = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v), coco_dt={"d": dt})
     s = coco_ap_of([LabelledOutcome(v.dataset, key, (100, 100), out)], "d")
     ap_low, ap_high = (51 + 50 * 2 / 3) / 101, 51 / 101
