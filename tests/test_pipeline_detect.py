@@ -53,9 +53,9 @@ def test_oracle_is_exact():
     assert len(dets) == 3
     for det, (k, (r0, r1, c0, c1)) in zip(dets, sorted(rects.items())):
         assert isinstance(det, Detection) and det.score == 1.0 and det.instance_id == k
-        # sparse: the mask is the id's bounding-box crop at origin (c0, r0)
-        assert det.origin == (c0, r0) and det.mask.shape == (r1 - r0 + 1, c1 - c0 + 1) and det.mask.dtype == bool
-        assert det.mask.all()
+        assert det.mask.shape == (480, 640) and det.mask.dtype == bool and det.origin == (0, 0)
+        assert det.mask.sum() == (r1 - r0 + 1) * (c1 - c0 + 1)
+        assert det.mask[r0:r1 + 1, c0:c1 + 1].all()
         # Box on the pixel-edge outline: pixel centres at integers, so edges at +-0.5.
         np.testing.assert_array_equal(det.box, [c0 - 0.5, r0 - 0.5, c1 + 0.5, r1 + 0.5])
 

@@ -37,16 +37,18 @@ def check_instances(instances: np.ndarray | None, image_shape: tuple[int, ...] |
     return inst.astype(np.int64)
 
 
-def detections_from_instance_map(instances: np.ndarray,
-                                 max_windows: int = LIMITS.max_windows_per_photo) -> list[Detection]:
-    """One sparse Detection per non-zero id of an (H, W) integer instance map, in increasing id
-    order: the ``oracle`` detector, and ``fenestra reconstruct --masks``.
+def detections_from_instance_map(instances: np.ndarray, max_windows: int = LIMITS.max_windows_per_photo,
+                                 full_masks: bool = False) -> list[Detection]:
+    """One Detection per non-zero id of an (H, W) integer instance map, in increasing id order:
+    the ``oracle`` detector (full masks) and ``fenestra reconstruct --masks`` (sparse).
 
-    Score 1, label ``"window:<id>"``, ``instance_id`` the id; mask: the id's bounding-box crop at
-    ``origin`` (memory O(H W) once, plus the crops); box (x0, y0, x1, y1) on the pixel-edge outline
-    (fenestra.data.mask_box). An id with two separate blobs still gives one Detection (mask_to_quad
-    then reports ``multiple_blobs``). Negative ids: ValueError; more than ``max_windows`` ids:
-    PipelineError.
+    Score 1, label ``"window:<id>"``, ``instance_id`` the id; box (x0, y0, x1, y1) on the
+    pixel-edge outline (fenestra.data.mask_box); mask: the id's bounding-box crop at ``origin``
+    (memory O(H W) once, plus the crops), or with ``full_masks`` the (H, W) mask at origin (0, 0)
+    (the quad fit of a crop equals the full mask's to ~1e-14 px, not bit for bit: the bench's
+    oracle rows keep the full-mask figures). An id with two separate blobs still gives one
+    Detection (mask_to_quad then reports ``multiple_blobs``). Negative ids: ValueError; more than
+    ``max_windows`` ids: PipelineError.
     """
     from scipy import ndimage  # noqa: PLC0415
 
@@ -63,16 +65,19 @@ def detections_from_instance_map(instances: np.ndarray,
     dets = []
     for iid in ids:
         ys, xs = boxes[iid - 1]
-        m = inst[ys, xs] == iid
         box = np.array([xs.start - 0.5, ys.start - 0.5, xs.stop - 0.5, ys.stop - 0.5])
-        dets.append(Detection(mask=m, box=box, score=1.0, label=f"window:{iid}", origin=(xs.start, ys.start),
-                              instance_id=iid))
+        if full_masks:
+            dets.append(Detection(mask=inst == iid, box=box, score=1.0, label=f"window:{iid}", instance_id=iid))
+        else:
+            dets.append(Detection(mask=inst[ys, xs] == iid, box=box, score=1.0, label=f"window:{iid}",
+                                  origin=(xs.start, ys.start), instance_id=iid))
     return dets
 
 
 def oracle_detections(instances: np.ndarray) -> list[Detection]:
-    """The ``oracle`` detector: :func:`detections_from_instance_map` of a checked instance map."""
-    return detections_from_instance_map(check_instances(instances))
+    """The ``oracle`` detector: :func:`detections_from_instance_map` of a checked instance map,
+    full masks."""
+    return detections_from_instance_map(check_instances(instances), full_masks=True)
 
 
 @dataclass(frozen=True)
