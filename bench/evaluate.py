@@ -10,7 +10,6 @@ for the oracle detectors, which stand in for a perfect or imperfect network).
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -20,6 +19,7 @@ import numpy as np
 
 from bench import matching, metrics, uncertainty
 from bench.profiles import EvalSpec
+from fenestra import data
 from fenestra.conventions import TOL, camera_depths
 
 AP_SCORE_MIN = 0.05  # detections kept for COCO AP
@@ -59,21 +59,9 @@ class ViewOutcome:
 
     rows: list[dict]
     stage_s: dict[str, float]
-    coco_gt: list[dict] = field(default_factory=list)  # {"view", "instance_id", "rle", "bbox", "area"}
-    coco_dt: dict[str, list[dict]] = field(default_factory=dict)  # detector -> {"view","rle","bbox","score"}
+    coco_gt: list[dict] = field(default_factory=list)  # fenestra.data.gt_annotation per window / ignore region
+    coco_dt: dict[str, list[dict]] = field(default_factory=dict)  # detector -> fenestra.data.coco_result
     n_false_positives: dict[str, int] = field(default_factory=dict)
-
-
-def read_view(view_dir: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:
-    """(image (H, W, 3) uint8 RGB, instances (H, W) int32, view.json dict) of a view folder."""
-    from training.dataset import read_image, read_instances  # noqa: PLC0415
-
-    d = Path(view_dir)
-    meta = json.loads((d / "view.json").read_text())
-    missing = [k for k in ("K", "width", "height", "R", "t", "windows") if k not in meta]
-    if missing:
-        raise ValueError(f"{d / 'view.json'} lacks key(s) {missing}")
-    return read_image(d / "image.png"), read_instances(d / "instances.png"), meta
 
 
 def window_conditions(win: dict, meta: dict, mask_px: int, spec: EvalSpec) -> dict:
@@ -228,20 +216,18 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
         return t1
 
     t0 = time.process_time()
-    image, instances, meta = read_view(task.view_dir)
+    view = data.read_view(task.view_dir)
+    image, instances, meta = view.image, view.instances, view.meta
     K = np.asarray(meta["K"], dtype=np.float64)
-    view = Path(task.view_dir).name
+    view_name = Path(task.view_dir).name
+    key = f"{task.house}/{view_name}"  # the COCO image of this view
     wins = meta["windows"]
-    gt_masks = matching.instance_masks(instances, [int(w["instance_id"]) for w in wins])
+    gt_masks = data.instance_masks(instances, [int(w["instance_id"]) for w in wins])
     conds = [window_conditions(w, meta, m.area, task.evaluation) for w, m in zip(wins, gt_masks)]
-    base = [{"house": task.house, "renderer": task.renderer, "view": view, "window_id": w["id"],
+    base = [{"house": task.house, "renderer": task.renderer, "view": view_name, "window_id": w["id"],
              "instance_id": int(w["instance_id"]), **c} for w, c in zip(wins, conds)]
-    out = ViewOutcome(rows=[], stage_s=stage_s)
+    out = ViewOutcome(rows=[], stage_s=stage_s, coco_gt=data.view_annotations(view, key, gt_masks))
     gt_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    for m in gt_masks:
-        if m.area:
-            out.coco_gt.append({"view": f"{task.house}/{view}", "rle": m.rle(), "area": m.area,
-                                "bbox": [m.c0 - 0.5, m.r0 - 0.5, float(m.c1 - m.c0), float(m.r1 - m.r0)]})
     t0 = tick("load", t0)
     gray = to_gray(image)  # RGB, as detect() and reconstruct() take it; once per view, shared by every method
     t0 = tick("reconstruct", t0)
@@ -255,12 +241,8 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
         keep = [i for i, d in enumerate(cands) if d.score >= MATCH_SCORE_MIN]
         dets = [cands[i] for i in keep]
         t0 = tick("detect", t0)
-        sparse = [matching.SparseMask.from_crop(d.mask, d.origin, instances.shape) for d in cands]
-        out.coco_dt[det_name] = [{"view": f"{task.house}/{view}", "rle": m.rle(),
-                                  "score": float(d.score),
-                                  "bbox": [float(d.box[0]), float(d.box[1]),
-                                           float(d.box[2] - d.box[0]), float(d.box[3] - d.box[1])]}
-                                 for d, m in zip(cands, sparse)]
+        sparse = [data.SparseMask.from_crop(d.mask, d.origin, instances.shape) for d in cands]
+        out.coco_dt[det_name] = [data.coco_result(key, d.score, d.box, m.rle()) for d, m in zip(cands, sparse)]
         iou = matching.iou_matrix([sparse[i] for i in keep], gt_masks)
         mt = matching.match(iou, TOL.match_iou)
         out.n_false_positives[det_name] = len(mt.false_positives)

@@ -153,7 +153,7 @@ def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[st
         if fp_counts:
             out[det]["false_positives"] = sum(o.n_false_positives.get(det, 0) for o in outcomes)
             out[det]["n_detections"] = len(dt)
-            out[det]["n_gt"] = len(gt)
+            out[det]["n_gt"] = sum(not g["iscrowd"] for g in gt)  # windows, not ignore regions
     return out
 
 

@@ -21,9 +21,10 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from fenestra.conventions import DEFAULTS, LIMITS, check_K
+from fenestra.conventions import DEFAULTS, check_K
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
+from pipeline.detectors.oracle import detections_from_instance_map  # noqa: F401  (--masks input; re-exported)
 from pipeline.pose import POSE_SOLVERS, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, mask_to_quad
 from pipeline.snappers import SNAPPERS
@@ -260,37 +261,6 @@ def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detect
     """
     gray = to_gray(image)
     return reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg)
-
-
-def detections_from_instance_map(instances: np.ndarray,
-                                 max_windows: int = LIMITS.max_windows_per_photo) -> list[Detection]:
-    """One sparse Detection per non-zero id of an (H, W) integer instance map, in increasing id order.
-
-    Score 1, label ``"window:<id>"``, ``instance_id`` the id; mask: the id's bounding-box crop at
-    ``origin`` (memory O(H W) once, plus the crops); box (x0, y0, x1, y1): the first and last
-    pixel column/row of the id. An id with two separate blobs still gives one Detection
-    (mask_to_quad then reports ``multiple_blobs``). More than ``max_windows`` ids: PipelineError.
-    """
-    from scipy import ndimage  # noqa: PLC0415
-
-    inst = np.asarray(instances)
-    if inst.ndim != 2 or not np.issubdtype(inst.dtype, np.integer):
-        raise ValueError(f"instance map must be a 2-D integer array, got shape {inst.shape}, dtype {inst.dtype}")
-    if inst.size and inst.min() < 0:
-        raise ValueError(f"instance map has negative ids (min {inst.min()})")
-    boxes = ndimage.find_objects(inst) if inst.size and inst.max() > 0 else []
-    ids = [i + 1 for i, sl in enumerate(boxes) if sl is not None]
-    if len(ids) > max_windows:
-        raise PipelineError(f"instance map has {len(ids)} window ids, more than the {max_windows} per photo "
-                            "this pipeline handles (fenestra.conventions.LIMITS.max_windows_per_photo)")
-    dets = []
-    for iid in ids:
-        ys, xs = boxes[iid - 1]
-        m = inst[ys, xs] == iid
-        box = np.array([xs.start, ys.start, xs.stop - 1, ys.stop - 1], dtype=np.float64)
-        dets.append(Detection(mask=m, box=box, score=1.0, label=f"window:{iid}", origin=(xs.start, ys.start),
-                              instance_id=iid))
-    return dets
 
 
 def _list(a: np.ndarray | None):

@@ -106,13 +106,14 @@ def test_window_conditions_reasons(view_dir):
 def test_rows_identical_with_dense_reference_matching(view_dir, monkeypatch):
     """The sparse IoU (crops of overlapping boxes) gives the rows of full-image dense matching."""
     from bench import matching
+    from fenestra.data import SparseMask
 
     methods = [Method("oracle", "none", "lm"), Method("oracle-degraded", "linefit", "ippe")]
     sparse = _run(view_dir, methods).rows
 
     def dense_iou(det, gt):
-        d = [m.dense() if isinstance(m, matching.SparseMask) else np.asarray(m, bool) for m in det]
-        g = [m.dense() if isinstance(m, matching.SparseMask) else np.asarray(m, bool) for m in gt]
+        d = [m.dense() if isinstance(m, SparseMask) else np.asarray(m, bool) for m in det]
+        g = [m.dense() if isinstance(m, SparseMask) else np.asarray(m, bool) for m in gt]
         out = np.zeros((len(d), len(g)))
         for i, a in enumerate(d):
             for j, b in enumerate(g):

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from bench import matching, metrics
+from fenestra import data
 from fenestra.conventions import look_at, make_K, project
 
 
@@ -166,17 +167,12 @@ def test_detection_ap_hand_values():
     (COCO's 101-point interpolation: precision 1 up to recall 0.5, 0 beyond)."""
     from bench.detection_ap import coco_ap
 
-    def _rle(m):
-        return matching.SparseMask.from_dense(m).rle()
-
     gts, dts = [], []
     for i in range(4):
-        m = _box_mask(5 * i, 0, 5 * i + 4, 6)
-        ys, xs = np.nonzero(m)
-        g = {"view": "v", "rle": _rle(m), "area": int(m.sum()),
-             "bbox": [xs.min() - 0.5, ys.min() - 0.5, np.ptp(xs) + 1.0, np.ptp(ys) + 1.0]}
-        gts.append(g)
-        dts.append({"view": "v", "rle": g["rle"], "bbox": g["bbox"], "score": 1.0})
+        m = data.SparseMask.from_dense(_box_mask(5 * i, 0, 5 * i + 4, 6))
+        gts.append(data.gt_annotation("v", m.rle(), m.box(), m.area))
+        dts.append(data.coco_result("v", 1.0, m.box(), m.rle()))
+    assert gts[1]["bbox"] == [5.0, 0.0, 4.0, 6.0]  # COCO (pixel edges at integers) of columns 5-8, rows 0-5
     assert coco_ap(gts, dts)["segm_AP"] == pytest.approx(1.0)
     assert coco_ap(gts, dts)["bbox_AP"] == pytest.approx(1.0)
     assert coco_ap(gts, dts[:2])["segm_AP"] == pytest.approx(51 / 101)
@@ -206,7 +202,7 @@ def test_sparse_iou_equals_dense_reference_bit_for_bit():
     gt_dense = [inst == k for k in ids]
     det_dense = [np.roll(m, (int(rng.integers(-4, 5)), int(rng.integers(-4, 5))), axis=(0, 1))
                  for m in gt_dense[:6]] + [np.zeros((H, W), bool), rng.random((H, W)) < 0.3]
-    gt_sparse = matching.instance_masks(inst, ids)
+    gt_sparse = data.instance_masks(inst, ids)
     assert [m.area for m in gt_sparse] == [int(m.sum()) for m in gt_dense]
     for s, d in zip(gt_sparse, gt_dense):
         assert np.array_equal(s.dense(), d)
@@ -219,22 +215,6 @@ def test_sparse_iou_equals_dense_reference_bit_for_bit():
 
 def test_instance_masks_bad_input():
     with pytest.raises(ValueError, match="ids must be >= 1.*0"):
-        matching.instance_masks(np.zeros((4, 4), np.int32), [0, 1])
+        data.instance_masks(np.zeros((4, 4), np.int32), [0, 1])
     with pytest.raises(ValueError, match="integer map"):
-        matching.instance_masks(np.zeros((4, 4), np.float32), [1])
-
-
-def test_sparse_rle_equals_pycocotools_encode_of_the_dense_mask():
-    from pycocotools import mask as mask_utils
-
-    rng = np.random.default_rng(5)
-    H, W = 37, 53
-    inst = np.zeros((H, W), np.int32)
-    inst[3:20, 10:30] = 1
-    inst[rng.random((H, W)) < 0.1] = 0  # holes: many short runs
-    inst[0:H, 52] = 2  # touches the last column and both image edges
-    inst[0, 0] = 3  # a single pixel at the first index
-    for m, k in zip(matching.instance_masks(inst, [1, 2, 3, 9]), [1, 2, 3, 9]):
-        ref = mask_utils.encode(np.asfortranarray((inst == k).astype(np.uint8)))
-        got = m.rle()
-        assert got["size"] == [H, W] and got["counts"] == ref["counts"].decode("ascii"), k
+        data.instance_masks(np.zeros((4, 4), np.float32), [1])

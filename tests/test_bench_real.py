@@ -15,11 +15,12 @@ import pytest
 from bench.evaluate import Method, ViewOutcome
 from bench.real import metrics as rm
 from bench.real.adapters import ADAPTERS, CURTAIN_K, read_coco
-from bench.real.contract import RealView, RealWindow
+from bench.real.contract import RealWindow
 from bench.real.evaluate import RealEvalSpec, evaluate_real_view, gt_coco, window_errors
 from bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
 from bench.real.runner import LabelledOutcome, coco_ap_of, run_real
 from bench.real.simreal import ranking
+from fenestra.data import coco_result
 from pipeline.types import WindowResult
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -68,9 +69,9 @@ def test_box_ap_hand_computed(yolo_dir):
     thresholds 0.65-0.95: only A: AP = 51 / 101. Mean over the 10 thresholds."""
     (v,) = list(ADAPTERS["yolo"](yolo_dir))
     key = f"{v.dataset}/{v.name}"
-    dt = [{"view": key, "score": 0.9, "bbox": [15.0, 15.0, 20.0, 20.0], "rle": None},
-          {"view": key, "score": 0.8, "bbox": [80.0, 0.0, 10.0, 10.0], "rle": None},
-          {"view": key, "score": 0.7, "bbox": [60.0, 50.0, 20.0, 12.5], "rle": None}]
+    dt = [coco_result(key, 0.9, [14.5, 14.5, 34.5, 34.5]), coco_result(key, 0.8, [79.5, -0.5, 89.5, 9.5]),
+          coco_result(key, 0.7, [59.5, 49.5, 79.5, 62.0])]
+    assert [d["bbox"] for d in dt] == [[15.0, 15.0, 20.0, 20.0], [80.0, 0.0, 10.0, 10.0], [60.0, 50.0, 20.0, 12.5]]
     out = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v), coco_dt={"d": dt})
     s = coco_ap_of([LabelledOutcome(v.dataset, key, (100, 100), out)], "d")
     ap_low, ap_high = (51 + 50 * 2 / 3) / 101, 51 / 101
@@ -79,6 +80,32 @@ def test_box_ap_hand_computed(yolo_dir):
     assert s["bbox_R50"] == pytest.approx(1.0)
     assert np.isnan(s["segm_AP"])  # boxes only: mask AP is absent, not zero
     assert s["n_gt"] == 2 and s["n_detections"] == 3
+
+
+def test_coco_crowd_region_is_ignored_in_box_ap(tmp_path):
+    """COCO windows A (x 10..30, y 10..30), B (50..70, 10..30) and an iscrowd region R (10..90,
+    60..90): R becomes an ignore region, not a window. Detections: inside R (0.9), on nothing
+    (0.8), exactly A (0.7). R's detection counts neither way: precision 1/2 at recall 1/2, AP =
+    0.5 * 51 / 101 at every IoU; were R absent, that detection would be a false positive: (1/3) * 51 / 101."""
+    _write_rgb(tmp_path / "p.png", _photo())
+    doc = {"images": [{"id": 1, "file_name": "p.png", "width": 100, "height": 100}],
+           "categories": [{"id": 1, "name": "window"}],
+           "annotations": [{"id": 1, "image_id": 1, "category_id": 1, "bbox": [10, 10, 20, 20]},
+                           {"id": 2, "image_id": 1, "category_id": 1, "bbox": [50, 10, 20, 20]},
+                           {"id": 3, "image_id": 1, "category_id": 1, "bbox": [10, 60, 80, 30], "iscrowd": 1}]}
+    (tmp_path / "annotations.json").write_text(json.dumps(doc))
+    (v,) = list(read_coco(tmp_path))
+    assert [w.id for w in v.windows] == ["1", "2"] and [w.id for w in v.ignore] == ["3"]
+    key = f"{v.dataset}/{v.name}"
+    dt = [coco_result(key, 0.9, [19.5, 64.5, 39.5, 84.5]), coco_result(key, 0.8, [79.5, 39.5, 95.5, 49.5]),
+          coco_result(key, 0.7, [9.5, 9.5, 29.5, 29.5])]
+    out = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v), coco_dt={"d": dt})
+    s = coco_ap_of([LabelledOutcome(v.dataset, key, (100, 100), out)], "d")
+    assert s["bbox_AP"] == pytest.approx(0.5 * 51 / 101, abs=1e-12) and s["bbox_R50"] == pytest.approx(0.5)
+    assert s["n_gt"] == 2 and np.isnan(s["segm_AP"])
+    no_ignore = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v)[:2], coco_dt={"d": dt})
+    assert coco_ap_of([LabelledOutcome(v.dataset, key, (100, 100), no_ignore)], "d")["bbox_AP"] == pytest.approx(
+        51 / 101 / 3, abs=1e-12)
 
 
 def test_box_iou_matrix_hand_computed():

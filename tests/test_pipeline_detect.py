@@ -1,14 +1,14 @@
 """Detector registry, oracles, COCO evaluation and the shipped default detector."""
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from fenestra.data import coco_scores
 from fenestra.errors import FenestraError
 from pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
 from pipeline.types import Detection
 from toy_data import write_toy_dataset
-from training.evaluate import best_overlaps, coco_stats, detection_to_coco, evaluate, rescored_by_overlap
+from training.evaluate import best_overlaps, detection_to_coco, evaluate, rescored_by_overlap
 
 
 def _rect_instances(H=480, W=640):
@@ -73,8 +73,8 @@ def test_oracle_is_exact():
     dets = detect("oracle", np.zeros((480, 640, 3), np.uint8), instances=inst)
     assert len(dets) == 3
     for det, (k, (r0, r1, c0, c1)) in zip(dets, sorted(rects.items())):
-        assert isinstance(det, Detection) and det.score == 1.0
-        assert det.mask.shape == (480, 640) and det.mask.dtype == bool
+        assert isinstance(det, Detection) and det.score == 1.0 and det.instance_id == k
+        assert det.mask.shape == (480, 640) and det.mask.dtype == bool and det.origin == (0, 0)
         assert det.mask.sum() == (r1 - r0 + 1) * (c1 - c0 + 1)
         assert det.mask[r0:r1 + 1, c0:c1 + 1].all()
         # Box on the pixel-edge outline: pixel centres at integers, so edges at +-0.5.
@@ -109,20 +109,20 @@ def test_coco_eval_of_oracle_is_100(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=5)
     r = evaluate("oracle", ds)
     assert r["n_gt"] == 9 and r["n_det"] == 9
-    for iou in ("bbox", "segm"):
-        assert r[iou]["AP"] == pytest.approx(100.0)
-        assert r[iou]["AP75"] == pytest.approx(100.0)
+    for iou in ("bbox", "segm"):  # fractions (fenestra.data.coco_scores)
+        assert r[iou]["AP"] == pytest.approx(1.0)
+        assert r[iou]["AP75"] == pytest.approx(1.0)
     # The degraded oracle is found at IoU 0.5 but loses AP at strict thresholds.
     d = evaluate("oracle-degraded", ds)
-    assert d["segm"]["AP50"] == pytest.approx(100.0)
-    assert d["segm"]["AP"] < 100.0 and d["bbox"]["AP"] < 100.0
+    assert d["segm"]["AP50"] == pytest.approx(1.0)
+    assert d["segm"]["AP"] < 1.0 and d["bbox"]["AP"] < 1.0
 
 
 def test_recall_and_perfect_ranking_against_hand_computed_ap():
     """3 windows in 2 images; exact masks for two (scores 0.8, 0.6), one missed, and a false
     positive scored 0.9. Ranked FP, TP, TP: precision envelope 2/3 up to recall 2/3, so COCO's
     101-point AP = 67 * (2/3) / 101 at every IoU; ranked by overlap: 67 * 1 / 101; R50 = 2/3."""
-    from training.tune import coco_ground_truth
+    from training.tune import instance_maps_to_coco
 
     def rect(r0, c0):
         m = np.zeros((60, 80), bool)
@@ -132,17 +132,18 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     inst1, inst2 = np.zeros((60, 80), np.uint16), np.zeros((60, 80), np.uint16)
     inst1[rect(5, 5)] = 1
     inst2[rect(5, 5)], inst2[rect(30, 40)] = 1, 2
-    gt = coco_ground_truth([(1, inst1), (2, inst2)])
+    gt = instance_maps_to_coco([inst1, inst2])
     dets = [(1, rect(5, 5), 0.6), (1, rect(40, 60), 0.9), (2, rect(30, 40), 0.8)]
     res = [detection_to_coco(Detection(mask=m, box=np.array([0, 0, 1, 1], float), score=s), i)
            for i, m, s in dets]
-    overlaps = best_overlaps(gt, res, "segm")
+    overlaps = best_overlaps(gt, res)
     assert np.allclose(overlaps, [1.0, 0.0, 1.0])
-    got, best = coco_stats(gt, res, "segm"), coco_stats(gt, rescored_by_overlap(res, overlaps), "segm")
-    assert got["AP"] == pytest.approx(100 * 67 * (2 / 3) / 101, abs=1e-6)
-    assert got["AP50"] == pytest.approx(got["AP"], abs=1e-9)
-    assert best["AP"] == pytest.approx(100 * 67 / 101, abs=1e-6)
-    assert got["R50"] == pytest.approx(100 * 2 / 3) and best["R50"] == pytest.approx(100 * 2 / 3)
+    got = coco_scores(gt, res, ("segm",))
+    best = coco_scores(gt, rescored_by_overlap(res, overlaps), ("segm",))
+    assert got["segm_AP"] == pytest.approx(67 * (2 / 3) / 101, abs=1e-8)
+    assert got["segm_AP50"] == pytest.approx(got["segm_AP"], abs=1e-11)
+    assert best["segm_AP"] == pytest.approx(67 / 101, abs=1e-8)
+    assert got["segm_R50"] == pytest.approx(2 / 3) and best["segm_R50"] == pytest.approx(2 / 3)
 
 
 def test_default_detector_loads_shipped_weights():
@@ -168,7 +169,7 @@ def test_maskrcnn_without_weights_says_how_to_train(tmp_path):
 
 
 def test_coco_eval_of_oracle_on_real_renders_is_100(tmp_path):
-    """Real IFC house, real raster renders (renders.dataset), real COCOeval: the oracle scores 100."""
+    """Real IFC house, real raster renders (renders.dataset), real COCOeval: the oracle scores 1 (100 %)."""
     from renders.dataset import DatasetConfig, render_dataset
     from renders.sampler import SamplerConfig
 
@@ -176,9 +177,9 @@ def test_coco_eval_of_oracle_on_real_renders_is_100(tmp_path):
                                       sampler=SamplerConfig(width=320, height=240)), progress=False)
     r = evaluate("oracle", ds)
     assert r["n_images"] == 3 and r["n_gt"] >= 3 and r["n_det"] == r["n_gt"]
-    assert r["bbox"]["AP"] == pytest.approx(100.0) and r["segm"]["AP"] == pytest.approx(100.0)
+    assert r["bbox"]["AP"] == pytest.approx(1.0) and r["segm"]["AP"] == pytest.approx(1.0)
     d = evaluate("oracle-degraded", ds)
-    assert d["segm"]["AP"] < 100.0
+    assert d["segm"]["AP"] < 1.0
 
 
 def test_default_detector_finds_windows_in_fresh_renders(tmp_path):
@@ -189,7 +190,7 @@ def test_default_detector_finds_windows_in_fresh_renders(tmp_path):
                         progress=False)
     r = evaluate("default", ds)
     assert r["n_gt"] >= 6
-    assert r["segm"]["AP50"] >= 50.0, r["segm"]
+    assert r["segm"]["AP50"] >= 0.5, r["segm"]
 
 
 def test_large_photo_masks_come_back_at_full_resolution():

@@ -140,7 +140,7 @@ def test_sparse_detections_fit_exactly_like_full_masks():
         if full.quad is not None:
             np.testing.assert_allclose(f.result.quad, full.quad, atol=1e-9)
             np.testing.assert_allclose(f.result.lines, full.lines, atol=1e-9)
-    assert dets[2].box.tolist() == [600, 0, 639, 29]
+    assert dets[2].box.tolist() == [599.5, -0.5, 639.5, 29.5]  # pixel-edge outline of columns 600-639, rows 0-29
 
 
 def test_pose_strategies_come_from_both_registries():

@@ -10,7 +10,8 @@ import pytest
 from fenestra.conventions import TOL, look_at, make_K
 from renders.base import RenderSettings
 from renders.camera import Camera
-from renders.dataset import DatasetConfig, load_view, render_dataset
+from fenestra.data import read_view
+from renders.dataset import DatasetConfig, render_dataset
 from renders.sampler import SamplerConfig, sample_views
 from renders.sensor import REALISTIC, SensorConfig, apply_sensor
 from renders.synthetic import wall_scene
@@ -121,8 +122,9 @@ def test_dataset_same_seed_same_files_and_reuse(tmp_path):
     for i in range(3):  # byte-identical files, images included (a fresh GL context each time)
         for f in ("image.png", "instances.png", "view.json"):
             assert (root_a / "views" / f"{i:06d}" / f).read_bytes() == (root_b / "views" / f"{i:06d}" / f).read_bytes()
-    img, inst, meta = load_view(root_a / "views" / "000000")
-    assert img.shape == (120, 160, 3) and inst.dtype == np.uint16
+    v = read_view(root_a / "views" / "000000")
+    img, inst, meta = v.image, v.instances, v.meta
+    assert img.shape == (120, 160, 3) and img.dtype == np.uint8 and inst.dtype == np.int32 and v.ignore is None
     assert set(meta) >= {"K", "width", "height", "R", "t", "distortion", "renderer", "seed", "windows"}
     w = meta["windows"][0]
     assert set(w) >= {"id", "instance_id", "corners_world", "corners_px", "corner_visible", "visible_fraction",
@@ -132,7 +134,8 @@ def test_dataset_same_seed_same_files_and_reuse(tmp_path):
     from pycocotools import mask as mask_utils
 
     ann = coco["annotations"][0]
-    _, inst0, meta0 = load_view(root_a / "views" / f"{ann['image_id']:06d}")
+    v0 = read_view(root_a / "views" / f"{ann['image_id']:06d}")
+    inst0, meta0 = v0.instances, v0.meta
     wid = next(x["instance_id"] for x in meta0["windows"] if x["id"] == ann["window_id"])
     np.testing.assert_array_equal(mask_utils.decode(ann["segmentation"]).astype(bool), inst0 == wid)
     # same config again: everything reused
@@ -141,7 +144,7 @@ def test_dataset_same_seed_same_files_and_reuse(tmp_path):
     # a different seed: a different folder and different cameras
     root_c = render_dataset(DatasetConfig(**{**cfg.__dict__, "seed": 6}), scene=scene, progress=False)
     assert root_c != root_a
-    assert load_view(root_c / "views" / "000000")[2]["t"] != meta["t"]
+    assert read_view(root_c / "views" / "000000").meta["t"] != meta["t"]
 
 
 def test_sensor_changes_images_only():

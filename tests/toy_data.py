@@ -10,7 +10,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from pycocotools import mask as mask_utils
+
+from fenestra import data
 
 
 def toy_view(rng: np.random.Generator, width: int = 160, height: int = 120,
@@ -41,30 +42,22 @@ def toy_view(rng: np.random.Generator, width: int = 160, height: int = 120,
 
 def write_toy_dataset(out_dir: str | Path, n_views: int = 4, seed: int = 0, width: int = 160,
                       height: int = 120) -> Path:
-    """Write a toy dataset folder (views/NNNNNN/{image,instances}.png, view.json, coco.json)."""
+    """Write a toy dataset folder (views/NNNNNN/{image,instances}.png, view.json, coco.json) with
+    fenestra.data's view writer and COCO builder."""
     out = Path(out_dir)
     rng = np.random.default_rng(seed)
     images, anns = [], []
     for i in range(n_views):
         img, inst, quads = toy_view(rng, width, height)
-        d = out / "views" / f"{i:06d}"
-        d.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(d / "image.png"), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
-        cv2.imwrite(str(d / "instances.png"), inst)
         fx = width
-        view = {"K": [[fx, 0, (width - 1) / 2], [0, fx, (height - 1) / 2], [0, 0, 1]], "width": width,
+        meta = {"K": [[fx, 0, (width - 1) / 2], [0, fx, (height - 1) / 2], [0, 0, 1]], "width": width,
                 "height": height, "R": np.eye(3).tolist(), "t": [0, 0, 0], "distortion": None,
                 "renderer": "toy", "seed": seed,
                 "windows": [{"id": f"toy{k + 1}", "instance_id": k + 1, "corners_px": q.tolist()}
                             for k, q in enumerate(quads)]}
-        (d / "view.json").write_text(json.dumps(view))
-        images.append({"id": i + 1, "file_name": f"views/{i:06d}/image.png", "width": width, "height": height})
-        for k in range(1, len(quads) + 1):
-            m = np.asfortranarray((inst == k).astype(np.uint8))
-            rle = mask_utils.encode(m)
-            anns.append({"id": len(anns) + 1, "image_id": i + 1, "category_id": 1, "iscrowd": 0,
-                         "area": float(mask_utils.area(rle)), "bbox": mask_utils.toBbox(rle).tolist(),
-                         "segmentation": {"size": rle["size"], "counts": rle["counts"].decode("ascii")}})
-    coco = {"images": images, "annotations": anns, "categories": [{"id": 1, "name": "window"}]}
-    (out / "coco.json").write_text(json.dumps(coco))
+        data.write_view(out / "views" / f"{i:06d}", img, inst, meta)
+        key = f"views/{i:06d}/image.png"
+        images.append((key, height, width))
+        anns += [data.gt_annotation(key, m.rle()) for m in data.instance_masks(inst, range(1, len(quads) + 1))]
+    data.write_text_atomic(out / "coco.json", json.dumps(data.coco_ground_truth(images, anns)))
     return out

@@ -2,7 +2,8 @@
 
 A dataset folder holds ``views/NNNNNN/image.png`` (RGB), ``views/NNNNNN/instances.png`` (uint16,
 0 = no window, k = the window with ``instance_id`` k), ``views/NNNNNN/view.json`` and a
-``coco.json`` with RLE masks. Only the files are read: pipeline/ never imports renders/.
+``coco.json`` with RLE masks (fenestra.data: the contract, its readers and the COCO builder).
+Only the files are read: pipeline/ never imports renders/.
 """
 from __future__ import annotations
 
@@ -10,14 +11,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
-import numpy as np
-
-from fenestra.errors import FenestraError
-
-
-class DatasetError(FenestraError):
-    """A dataset folder that does not follow the data contract."""
+from fenestra.data import DatasetError, read_image, read_instances  # noqa: F401  (the contract's readers)
 
 
 @dataclass(frozen=True)
@@ -64,24 +58,6 @@ def find_datasets(paths) -> list[Path]:
             raise DatasetError(f"{p} holds no dataset folder (no views/ inside it or below it)")
         found += below
     return found
-
-
-def read_image(path: str | Path) -> np.ndarray:
-    """RGB image (H, W, 3) uint8 from a PNG/JPEG file (alpha dropped, grey expanded)."""
-    raw = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if raw is None:
-        raise DatasetError(f"cannot read image {path}")
-    return cv2.cvtColor(raw, cv2.COLOR_BGR2RGB)
-
-
-def read_instances(path: str | Path) -> np.ndarray:
-    """Instance map (H, W) int32 from a 16-bit PNG; 0 = no window."""
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise DatasetError(f"cannot read instance map {path}")
-    if raw.ndim != 2:
-        raise DatasetError(f"instance map {path} must be single-channel, got shape {raw.shape}")
-    return raw.astype(np.int32)
 
 
 def load_coco(dataset_dir: str | Path) -> dict:

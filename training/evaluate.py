@@ -1,73 +1,50 @@
-"""COCO evaluation (pycocotools COCOeval, bbox and segm) of a detector on a rendered dataset.
+"""COCO evaluation (fenestra.data.coco_scores: COCOeval, bbox and segm) of a detector on a rendered dataset.
 
-Ground truth is the dataset's own coco.json (written by the renderer), never recomputed here.
+Ground truth is the dataset's own coco.json (written by the renderer with fenestra.data's builder;
+ignore regions as ``iscrowd``), never recomputed here. Scores are fractions in [0, 1];
+:func:`format_table` prints them in percent, beside the paper's Table 2.
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import time
 from pathlib import Path
 
 import numpy as np
-from pycocotools import mask as mask_utils
-from pycocotools.coco import COCO
-from pycocotools.cocoeval import COCOeval
 
+from fenestra import data
 from pipeline.detectors import DETECTORS, get_detector
 from pipeline.types import Detection
 from training.dataset import (DatasetError, coco_image_path, find_datasets, load_coco, read_image,
                               read_instances)
 
-STAT_NAMES = ("AP", "AP50", "AP75", "APs", "APm", "APl")
+TABLE_STATS = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large")  # the columns of format_table
 
 # The paper's Table 2 (Mask R-CNN on its real-photo test set; not comparable one-to-one with
-# synthetic renders, printed for orientation).
+# synthetic renders, printed for orientation; percent).
 PAPER_TABLE2 = {"bbox": {"AP": 61.9, "AP50": 92.8, "AP75": 81.1},
                 "segm": {"AP": 72.5, "AP50": 92.8, "AP75": 88.7}}
 
 
-def detection_to_coco(det: Detection, image_id: int, category_id: int = 1) -> dict:
-    """One COCO result entry (RLE segmentation, xywh bbox in pixel-edge coordinates)."""
-    rle = mask_utils.encode(np.asfortranarray(det.mask.astype(np.uint8)))
-    rle["counts"] = rle["counts"].decode("ascii")
-    x0, y0, x1, y1 = (float(v) for v in det.box)
-    return {"image_id": int(image_id), "category_id": int(category_id), "segmentation": rle,
-            "bbox": [x0 + 0.5, y0 + 0.5, x1 - x0, y1 - y0], "score": float(det.score)}
+def detection_to_coco(det: Detection, image_id: int, shape: tuple[int, int] | None = None) -> dict:
+    """fenestra.data.coco_result of a Detection (full mask, or a crop at ``det.origin`` of an image
+    of ``shape`` (H, W); default: the mask's own shape, a full mask)."""
+    shape = np.asarray(det.mask).shape if shape is None else shape
+    return data.coco_result(image_id, det.score, det.box, data.rle_from_crop(det.mask, det.origin, shape))
 
 
-def coco_stats(gt: dict, results: list[dict], iou_type: str) -> dict[str, float]:
-    """AP, AP50, AP75, APs, APm, APl and R50 in percent (NaN where COCO reports -1: no GT in the
-    range). R50: COCO recall at IoU 0.5, all areas, up to 100 detections per image."""
-    if iou_type not in ("bbox", "segm"):
-        raise ValueError(f"iou_type must be 'bbox' or 'segm', got {iou_type!r}")
-    with contextlib.redirect_stdout(io.StringIO()):
-        coco_gt = COCO()
-        coco_gt.dataset = gt
-        coco_gt.createIndex()
-        coco_dt = coco_gt.loadRes(results) if results else None
-        if coco_dt is None:
-            return {k: 0.0 for k in STAT_NAMES + ("R50",)}
-        ev = COCOeval(coco_gt, coco_dt, iou_type)
-        ev.evaluate()
-        ev.accumulate()
-        ev.summarize()
-    pct = lambda v: float(v) * 100.0 if v >= 0 else float("nan")  # noqa: E731
-    r50 = ev.eval["recall"][0, 0, 0, -1]  # [IoU 0.5, category, area all, maxDets 100]
-    return {**{k: pct(v) for k, v in zip(STAT_NAMES, ev.stats[:6])}, "R50": pct(r50)}
-
-
-def best_overlaps(gt: dict, results: list[dict], iou_type: str) -> np.ndarray:
-    """(len(results),) each result's best IoU with a window of its image (0 where it has none)."""
-    key = "segmentation" if iou_type == "segm" else "bbox"
+def best_overlaps(gt: dict, results: list[dict]) -> np.ndarray:
+    """(len(results),) each result's best mask IoU with a window of its image (0 where it has
+    none; ignore regions are not windows). gt: a COCO dict; results: coco_result dicts by image id."""
+    sizes = {im["id"]: (im["height"], im["width"]) for im in gt["images"]}
     gts: dict[int, list] = {}
     for a in gt["annotations"]:
-        gts.setdefault(a["image_id"], []).append(_mask_api(a[key]))
+        if not a.get("iscrowd", 0):
+            gts.setdefault(a["image_id"], []).append(data.segmentation_to_rle(a["segmentation"], *sizes[a["image_id"]]))
     ious = np.zeros(len(results))
     for j, r in enumerate(results):
-        g = gts.get(r["image_id"], [])
+        g = gts.get(r["image"], [])
         if g:
-            ious[j] = np.max(mask_utils.iou([_mask_api(r[key])], g, [0] * len(g)))
+            ious[j] = data.rle_iou([r["segmentation"]], g).max()
     return ious
 
 
@@ -78,31 +55,13 @@ def rescored_by_overlap(results: list[dict], overlaps: np.ndarray) -> list[dict]
     return [{**r, "score": float(o) + 1e-3 * r["score"]} for r, o in zip(results, overlaps)]
 
 
-def _mask_api(x: dict | list) -> dict | list:
-    """A COCO RLE with str counts as pycocotools' mask functions take it (bytes); else unchanged."""
-    if isinstance(x, dict) and isinstance(x.get("counts"), str):
-        return {**x, "counts": x["counts"].encode("ascii")}
-    return x
-
-
-def _gt_for_coco(coco: dict) -> dict:
-    """coco.json made safe for COCOeval: areas and bboxes filled in from the RLE when missing."""
-    gt = {"images": coco["images"], "categories": coco.get("categories") or [{"id": 1, "name": "window"}],
-          "annotations": []}
-    for i, a in enumerate(coco.get("annotations", [])):
-        a = dict(a)
-        a.setdefault("id", i + 1)
-        a.setdefault("iscrowd", 0)
-        seg = a["segmentation"]
-        if isinstance(seg, dict) and isinstance(seg.get("counts"), list):
-            seg = mask_utils.frPyObjects(seg, *seg["size"])
-            a["segmentation"] = {"size": seg["size"], "counts": seg["counts"].decode("ascii")}
-        if "area" not in a or "bbox" not in a:
-            rle = _mask_api(a["segmentation"])
-            a.setdefault("area", float(mask_utils.area(rle)))
-            a.setdefault("bbox", [float(v) for v in mask_utils.toBbox(rle)])
-        gt["annotations"].append(a)
-    return gt
+def scores_by_type(scores: dict[str, float]) -> dict[str, dict[str, float]]:
+    """fenestra.data.coco_scores' flat {"bbox_AP": ...} as {"bbox": {"AP": ...}, "segm": {...}}."""
+    out: dict[str, dict[str, float]] = {}
+    for k, v in scores.items():
+        t, stat = k.split("_", 1)
+        out.setdefault(t, {})[stat] = v
+    return out
 
 
 def merged_coco(dataset_dirs: list[Path]) -> tuple[dict, dict[int, Path]]:
@@ -126,11 +85,13 @@ def merged_coco(dataset_dirs: list[Path]) -> tuple[dict, dict[int, Path]]:
 
 def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None = None,
              min_score: float = 0.05, **options: object) -> dict:
-    """COCO bbox/segm metrics of ``detector_name`` on a dataset folder (or a root holding several).
+    """COCO bbox/segm scores of ``detector_name`` on a dataset folder (or a root holding several).
 
-    Returns {"detector", "dataset", "n_images", "n_gt", "n_det", "ms_per_image_median",
-    "bbox": {AP, AP50, ...}, "segm": {...}, "paper_table2": ...}; metrics in percent.
-    options are passed to the detector's factory (e.g. weights=PATH).
+    Returns {"detector", "dataset", "n_images", "n_gt" (windows), "n_ignore" (ignore regions),
+    "n_det", "ms_per_image_median", "bbox": {AP, AP50, ..., R50}, "segm": {...},
+    "segm_perfect_ranking": {...}, "n_det_matching_no_window", "paper_table2"}; scores are
+    fractions in [0, 1] (fenestra.data.coco_scores). options are passed to the detector's
+    factory (e.g. weights=PATH).
     """
     if max_images is not None and max_images < 1:
         raise ValueError(f"--max-images must be >= 1, got {max_images}")
@@ -141,7 +102,6 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
         images = images[:max_images]
         ids = {im["id"] for im in images}
         coco = {**coco, "images": images, "annotations": [a for a in coco["annotations"] if a["image_id"] in ids]}
-    cat = coco["categories"][0]["id"]
     detector = get_detector(detector_name, **options)
     needs_instances = DETECTORS[detector_name].needs_instances
     results, times = [], []
@@ -152,34 +112,37 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
         t0 = time.perf_counter()
         dets = detector(image, **per_image)
         times.append((time.perf_counter() - t0) * 1000.0)
-        results += [detection_to_coco(d, im["id"], cat) for d in dets if d.score >= min_score]
-    gt = _gt_for_coco(coco)
-    overlaps = best_overlaps(gt, results, "segm")
+        results += [detection_to_coco(d, im["id"], image.shape[:2]) for d in dets if d.score >= min_score]
+    gt = data.complete_coco(coco)
+    overlaps = best_overlaps(gt, results)
+    n_ignore = sum(bool(a["iscrowd"]) for a in gt["annotations"])
+    scores = scores_by_type(data.coco_scores(gt, results))
     return {"detector": detector_name, "dataset": str(dataset_dir), "n_images": len(images),
-            "n_gt": len(gt["annotations"]), "n_det": len(results),
-            "ms_per_image_median": float(np.median(times)),
-            "bbox": coco_stats(gt, results, "bbox"), "segm": coco_stats(gt, results, "segm"),
-            "segm_perfect_ranking": coco_stats(gt, rescored_by_overlap(results, overlaps), "segm"),
+            "n_gt": len(gt["annotations"]) - n_ignore, "n_ignore": n_ignore, "n_det": len(results),
+            "ms_per_image_median": float(np.median(times)), **scores,
+            "segm_perfect_ranking": scores_by_type(data.coco_scores(gt, rescored_by_overlap(results, overlaps),
+                                                                    ("segm",)))["segm"],
             "n_det_matching_no_window": int((overlaps < 0.5).sum()),  # segm IoU < 0.5 with every window
             "paper_table2": PAPER_TABLE2}
 
 
 def format_table(result: dict) -> str:
-    """The metrics beside the paper's Table 2 (measured there on real photos), as text."""
+    """The scores in percent beside the paper's Table 2 (measured there on real photos), as text."""
     lines = [f"detector {result['detector']} on {result['dataset']}: {result['n_images']} images, "
-             f"{result['n_gt']} windows, {result['n_det']} detections, "
-             f"{result['ms_per_image_median']:.0f} ms/image (median)",
-             f"{'':6}{'':>6}" + "".join(f"{k:>7}" for k in STAT_NAMES)]
+             f"{result['n_gt']} windows ({result.get('n_ignore', 0)} ignore regions), {result['n_det']} "
+             f"detections, {result['ms_per_image_median']:.0f} ms/image (median); scores in percent",
+             f"{'':6}{'':>6}" + "".join(f"{k.replace('_small', 's').replace('_medium', 'm').replace('_large', 'l'):>7}"
+                                        for k in TABLE_STATS)]
     for iou in ("bbox", "segm"):
-        lines.append(f"{iou:6}{'ours':>6}" + "".join(f"{result[iou][k]:7.1f}" for k in STAT_NAMES))
+        lines.append(f"{iou:6}{'ours':>6}" + "".join(f"{100 * result[iou][k]:7.1f}" for k in TABLE_STATS))
         paper = PAPER_TABLE2[iou]
         lines.append(f"{'':6}{'paper':>6}" + "".join(f"{paper[k]:7.1f}" if k in paper else f"{'-':>7}"
-                                                   for k in STAT_NAMES))
+                                                   for k in TABLE_STATS))
     lines.append("paper = Table 2, Mask R-CNN measured on real photos (not synthetic renders)")
     if "segm_perfect_ranking" in result:
         s, o = result["segm"], result["segm_perfect_ranking"]
-        lines.append(f"segm recall at IoU 0.5: {s['R50']:.1f} %; {result['n_det_matching_no_window']} of "
+        lines.append(f"segm recall at IoU 0.5: {100 * s['R50']:.1f} %; {result['n_det_matching_no_window']} of "
                      f"{result['n_det']} detections match no window (IoU < 0.5); with the same detections "
-                     f"ranked by their overlap with the truth: AP {o['AP']:.1f}, AP50 {o['AP50']:.1f} "
-                     f"(what the scores cost: {o['AP'] - s['AP']:.1f} AP)")
+                     f"ranked by their overlap with the truth: AP {100 * o['AP']:.1f}, AP50 {100 * o['AP50']:.1f} "
+                     f"(what the scores cost: {100 * (o['AP'] - s['AP']):.1f} AP)")
     return "\n".join(lines)

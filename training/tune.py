@@ -16,30 +16,23 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from fenestra.data import coco_ground_truth, coco_scores, gt_annotation, instance_masks
 from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
 from pipeline.detectors.winnet import PostConfig, instances_from_maps, predict_maps
 from training.dataset import find_datasets, list_views, read_image, read_instances
-from training.evaluate import coco_stats, detection_to_coco
-from pycocotools import mask as mask_utils
+from training.evaluate import detection_to_coco
 
 
-def coco_ground_truth(images: list[tuple[int, np.ndarray]]) -> dict:
-    """COCO ground truth (one category, RLE masks) of (image id, instance map (H, W)) pairs of one size."""
-    anns = []
-    for i, inst in images:
-        for k in np.unique(inst):
-            if k:
-                rle = mask_utils.encode(np.asfortranarray((inst == k).astype(np.uint8)))
-                anns.append({"id": len(anns) + 1, "image_id": i, "category_id": 1, "iscrowd": 0,
-                             "area": float(mask_utils.area(rle)), "bbox": mask_utils.toBbox(rle).tolist(),
-                             "segmentation": {"size": rle["size"], "counts": rle["counts"].decode("ascii")}})
-    H, W = images[0][1].shape
-    return {"images": [{"id": i, "width": W, "height": H} for i, _ in images], "annotations": anns,
-            "categories": [{"id": 1, "name": "window"}]}
+def instance_maps_to_coco(instances: list[np.ndarray]) -> dict:
+    """COCO ground truth (fenestra.data builder) of instance maps (H, W), image ids 1, 2, ..."""
+    anns = [gt_annotation(str(i), m.rle()) for i, inst in enumerate(instances, 1)
+            for m in instance_masks(inst, [k for k in np.unique(inst).tolist() if k])]
+    return coco_ground_truth([(str(i), *inst.shape) for i, inst in enumerate(instances, 1)], anns)
 
 
 def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[dict, PostConfig]]:
-    """(segm stats, PostConfig) for every grid point, best segm AP first (views_per_dataset 0: all)."""
+    """(fenestra.data.coco_scores segm scores, PostConfig) for every grid point, best segm AP first
+    (views_per_dataset 0: all)."""
     model, _ = load_winnet(weights)
     maps, insts = [], []
     for d in find_datasets([data]):
@@ -49,15 +42,16 @@ def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[di
         for v in vs:
             maps.append(predict_maps(model, read_image(v.image)))
             insts.append((len(insts) + 1, read_instances(v.instances)))
-    gt = coco_ground_truth(insts)
+    gt = instance_maps_to_coco([inst for _, inst in insts])  # ids 1, 2, ... as in insts
     out = []
     for vt, ct in itertools.product((0.4, 0.5, 0.6), (0.3, 0.5, 0.7)):
         post = PostConfig(void_threshold=vt, core_threshold=ct)
-        res = [detection_to_coco(det, i, 1) for (i, _), (v, c) in zip(insts, maps)
+        res = [detection_to_coco(det, i) for (i, _), (v, c) in zip(insts, maps)
                for det in instances_from_maps(v, c, post) if det.score >= 0.05]
-        out.append((coco_stats(gt, res, "segm"), post))
-        print(f"void {vt} core {ct}: segm AP {out[-1][0]['AP']:.1f} AP50 {out[-1][0]['AP50']:.1f}", flush=True)
-    return sorted(out, key=lambda r: -r[0]["AP"])
+        out.append((coco_scores(gt, res, ("segm",)), post))
+        print(f"void {vt} core {ct}: segm AP {100 * out[-1][0]['segm_AP']:.1f} "
+              f"AP50 {100 * out[-1][0]['segm_AP50']:.1f}", flush=True)
+    return sorted(out, key=lambda r: -r[0]["segm_AP"])
 
 
 def main() -> None:
@@ -69,7 +63,7 @@ def main() -> None:
     a = ap.parse_args()
     torch.set_num_threads(2)
     best_stats, best = tune(a.weights, a.data, a.views_per_dataset)[0]
-    print(f"best: {best} (segm AP {best_stats['AP']:.1f})")
+    print(f"best: {best} (segm AP {100 * best_stats['segm_AP']:.1f})")
     if a.write:
         ckpt = torch.load(a.weights, map_location="cpu", weights_only=False)
         ckpt["post"] = dataclasses.asdict(best)

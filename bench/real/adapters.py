@@ -20,9 +20,9 @@ import cv2
 import numpy as np
 
 from bench.real.contract import RealView, RealWindow
+from fenestra.data import box_from_coco, read_image, rle_to_mask, segmentation_to_rle
 from pipeline.io import Camera, check_distortion, read_camera, undistort_photo
 from pipeline.quad import order_corners
-from training.dataset import read_image
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 EDGE_TO_CENTRE = 0.5  # format coordinates (pixel edges at integers) -> fenestra (centres at integers)
@@ -71,29 +71,13 @@ def quad_from_polygon(poly: list[float]) -> np.ndarray | None:
     return order_corners(p.reshape(4, 2) - EDGE_TO_CENTRE)
 
 
-def box_from_xywh(bbox: list[float]) -> np.ndarray:
-    """COCO / YOLO box x, y, w, h (pixel edges at integers) -> (4,) x0 y0 x1 y1 px (fenestra)."""
-    x, y, w, h = (float(v) for v in bbox)
-    return np.array([x, y, x + w, y + h]) - EDGE_TO_CENTRE
-
-
 # ---------------------------------------------------------------- COCO
 
 def _coco_mask(seg, h: int, w: int) -> np.ndarray | None:
-    """(H, W) bool of a COCO segmentation (polygons, RLE or uncompressed RLE); None if absent."""
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
-
+    """(H, W) bool of a COCO segmentation (polygons, RLE or uncompressed RLE); None if absent or empty."""
     if not seg:
         return None
-    if isinstance(seg, list):
-        rle = mask_utils.merge(mask_utils.frPyObjects(seg, h, w))
-    elif isinstance(seg, dict) and isinstance(seg.get("counts"), list):
-        rle = mask_utils.frPyObjects(seg, h, w)
-    elif isinstance(seg, dict):
-        rle = dict(seg, counts=seg["counts"].encode("ascii") if isinstance(seg["counts"], str) else seg["counts"])
-    else:
-        raise ValueError(f"unreadable COCO segmentation {str(seg)[:60]!r}")
-    m = mask_utils.decode(rle).astype(bool)
+    m = rle_to_mask(segmentation_to_rle(seg, h, w))
     return m if m.any() else None
 
 
@@ -105,7 +89,7 @@ def _coco_window(a: dict, h: int, w: int, where: str) -> RealWindow:
     aspect = a.get("aspect", size[0] / size[1] if size else None)
     try:
         return RealWindow(id=str(a.get("id")), quad=quad, mask=_coco_mask(seg, h, w),
-                          box=box_from_xywh(a["bbox"]) if a.get("bbox") else None,
+                          box=box_from_coco(a["bbox"]) if a.get("bbox") else None,
                           aspect=None if aspect is None else float(aspect),
                           size_m=None if size is None else (float(size[0]), float(size[1])),
                           partial=bool(a.get("partial", False)))
@@ -149,17 +133,18 @@ def read_coco(path: Path, annotations: str = "annotations.json", images: str | N
     Per annotation: bbox -> box; segmentation (polygons, RLE) -> mask, and a single 4-vertex
     polygon -> quad; optional extension keys ``aspect`` (w/h), ``size_m`` [w, h], ``partial``.
     Per image: optional ``K`` (3x3) and ``distortion`` (labels then in the undistorted frame:
-    the photo is undistorted here). iscrowd annotations are ignored regions, not windows.
+    the photo is undistorted here). iscrowd annotations are ignore regions (RealView.ignore):
+    neither windows nor background; detection AP counts detections there neither way.
     """
     js = Path(path) / annotations
     if not js.is_file():
         raise FileNotFoundError(f"COCO annotations not found: {js}")
     doc = json.loads(js.read_text())
     cats = _coco_categories(doc, category, str(js))
-    by_image: dict = {}
+    by_image: dict = {}  # image id -> ([window annotations], [crowd annotations])
     for a in doc.get("annotations", []):
-        if a.get("category_id") in cats and not a.get("iscrowd", 0):
-            by_image.setdefault(a["image_id"], []).append(a)
+        if a.get("category_id") in cats:
+            by_image.setdefault(a["image_id"], ([], []))[int(bool(a.get("iscrowd", 0)))].append(a)
     for img in sorted(doc.get("images", []), key=lambda i: i["file_name"]):
         sub = images if images is not None else (
             "images" if (Path(path) / "images" / img["file_name"]).is_file() else ".")
@@ -168,8 +153,10 @@ def read_coco(path: Path, annotations: str = "annotations.json", images: str | N
         cam = _camera_of(img, str(js))
         if cam is not None and cam.has_distortion:
             photo = undistort_photo(photo, cam)
-        wins = tuple(_coco_window(a, h, w, str(js)) for a in by_image.get(img["id"], []))
-        yield RealView(dataset=dataset, name=Path(img["file_name"]).stem, image=photo, windows=wins,
+        anns, crowd = by_image.get(img["id"], ([], []))
+        yield RealView(dataset=dataset, name=Path(img["file_name"]).stem, image=photo,
+                       windows=tuple(_coco_window(a, h, w, str(js)) for a in anns),
+                       ignore=tuple(_coco_window(a, h, w, str(js)) for a in crowd),
                        K=None if cam is None else cam.K,
                        distortion_removed=None if cam is None or cam.distortion is None
                        else tuple(cam.distortion.tolist()), coplanar=bool(img.get("coplanar", False)))
@@ -190,7 +177,7 @@ def yolo_boxes(text: str, width: int, height: int, classes: tuple[int, ...], whe
         except (ValueError, IndexError) as e:
             raise ValueError(f"{where}:{k}: bad YOLO line {line!r}") from e
         if c in classes:
-            out.append(box_from_xywh([(cx - bw / 2) * width, (cy - bh / 2) * height, bw * width, bh * height]))
+            out.append(box_from_coco([(cx - bw / 2) * width, (cy - bh / 2) * height, bw * width, bh * height]))
     return out
 
 

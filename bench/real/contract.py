@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fenestra.conventions import check_K, check_quad
+from fenestra.data import mask_box
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,8 +55,7 @@ class RealWindow:
         if self.box is not None:
             return np.asarray(self.box, dtype=np.float64)
         if self.mask is not None:
-            ys, xs = np.nonzero(self.mask)
-            return np.array([xs.min() - 0.5, ys.min() - 0.5, xs.max() + 0.5, ys.max() + 0.5])
+            return mask_box(self.mask)
         q = np.asarray(self.quad, dtype=np.float64)
         return np.array([q[:, 0].min(), q[:, 1].min(), q[:, 0].max(), q[:, 1].max()])
 
@@ -64,7 +64,9 @@ class RealWindow:
 class RealView:
     """One labelled photo. image: (H, W, 3) uint8 RGB in the labels' frame; K: (3, 3) px or None
     (unknown intrinsics); distortion_removed: OpenCV coefficients already undone, or None;
-    coplanar: every window lies on one plane (enables the relative-size metric)."""
+    coplanar: every window lies on one plane (enables the relative-size metric); ignore: ignore
+    regions (a box or mask each; e.g. COCO ``iscrowd``): neither window nor background, detection
+    AP counts detections there neither way."""
 
     dataset: str
     name: str
@@ -73,6 +75,7 @@ class RealView:
     K: np.ndarray | None = None
     distortion_removed: tuple[float, ...] | None = None
     coplanar: bool = False
+    ignore: tuple[RealWindow, ...] = ()
 
     def __post_init__(self) -> None:
         img = np.asarray(self.image)
@@ -83,7 +86,7 @@ class RealView:
         ids = [w.id for w in self.windows]
         if len(set(ids)) != len(ids):
             raise ValueError(f"view {self.name!r}: duplicate window ids {ids}")
-        for w in self.windows:
+        for w in (*self.windows, *self.ignore):
             if w.mask is not None and np.asarray(w.mask).shape != img.shape[:2]:
                 raise ValueError(f"view {self.name!r} window {w.id!r}: mask shape "
                                  f"{np.asarray(w.mask).shape} != image {img.shape[:2]}")

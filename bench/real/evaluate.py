@@ -20,9 +20,9 @@ from bench import matching, metrics
 from bench.evaluate import _ERROR_COLUMNS, AP_SCORE_MIN, MATCH_SCORE_MIN, Method, ViewOutcome
 from bench.real import metrics as real_metrics
 from bench.real.contract import RealView, RealWindow
+from fenestra import data
 from fenestra.conventions import TOL
 from pipeline.detectors import detector_entry
-from pipeline.detectors.oracle import mask_box
 from pipeline.types import Detection
 
 NAN = float("nan")
@@ -61,7 +61,7 @@ def detect_resized(name: str, image: np.ndarray, long_side: int, score_threshold
     for d in detect(name, small, score_threshold=score_threshold, **options):
         m = cv2.resize(d.mask.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
         if m.any():
-            out.append(Detection(mask=m, box=mask_box(m), score=d.score, label=d.label))
+            out.append(Detection(mask=m, box=data.mask_box(m), score=d.score, label=d.label))
     return out
 
 
@@ -125,16 +125,21 @@ def add_relative_sizes(rows: list[dict], results: dict[int, object], view: RealV
         rows[g]["rel_size_err"] = float(e)
 
 
+def image_key(view: RealView) -> str:
+    """The view's COCO image key, "dataset/name"."""
+    return f"{view.dataset}/{view.name}"
+
+
 def gt_coco(view: RealView) -> list[dict]:
-    """COCO ground truth of a view: {"view", "bbox" (x, y, w, h px, pixel edges), "area", "rle"
-    (None without a mask)} per window, evaluable or not (a detector should find cut windows too)."""
+    """COCO ground truth of a view (fenestra.data.gt_annotation): every window, evaluable or not
+    (a detector should find cut windows too), with its labelled box (else its mask's) and its
+    mask's RLE (none for box-only labels); then the view's ignore regions (``iscrowd``)."""
     out = []
-    for w in view.windows:
-        b = w.bbox()
-        m = None if w.mask is None else np.asarray(w.mask, dtype=bool)
-        out.append({"view": f"{view.dataset}/{view.name}", "bbox": [b[0] + 0.5, b[1] + 0.5, b[2] - b[0], b[3] - b[1]],
-                    "area": float(m.sum()) if m is not None else float((b[2] - b[0]) * (b[3] - b[1])),
-                    "rle": None if m is None else matching.SparseMask.from_dense(m).rle()})
+    for ignore, regions in ((False, view.windows), (True, view.ignore)):
+        for w in regions:
+            m = None if w.mask is None else data.SparseMask.from_dense(w.mask)
+            out.append(data.gt_annotation(image_key(view), None if m is None else m.rle(), w.bbox(),
+                                          None if m is None else m.area, ignore=ignore))
     return out
 
 
@@ -142,7 +147,7 @@ def _iou(dets: list[Detection], view: RealView) -> np.ndarray:
     """(D, G) mask IoU when every window has a mask, else box IoU."""
     if view.has_masks:
         shape = view.image.shape[:2]
-        return matching.iou_matrix([matching.SparseMask.from_crop(d.mask, d.origin, shape) for d in dets],
+        return matching.iou_matrix([data.SparseMask.from_crop(d.mask, d.origin, shape) for d in dets],
                                    [w.mask for w in view.windows])
     return real_metrics.box_iou_matrix([d.box for d in dets], [w.bbox() for w in view.windows])
 
@@ -176,10 +181,8 @@ def evaluate_real_view(view: RealView, methods: tuple[Method, ...], spec: RealEv
         cands = detect_resized(det_name, view.image, spec.detector_long_side, AP_SCORE_MIN, inst,
                                **dict(dict(spec.detector_options).get(det_name, ())))
         dets = [d for d in cands if d.score >= MATCH_SCORE_MIN]
-        out.coco_dt[det_name] = [{"view": f"{view.dataset}/{view.name}", "rle": matching.SparseMask.from_crop(d.mask, d.origin, view.image.shape[:2]).rle(),
-                                  "score": float(d.score),
-                                  "bbox": [float(d.box[0]) + 0.5, float(d.box[1]) + 0.5,
-                                           float(d.box[2] - d.box[0]), float(d.box[3] - d.box[1])]}
+        out.coco_dt[det_name] = [data.coco_result(image_key(view), d.score, d.box,
+                                                  data.rle_from_crop(d.mask, d.origin, view.image.shape[:2]))
                                  for d in cands]
         mt = matching.match(_iou(dets, view), TOL.match_iou)
         out.n_false_positives[det_name] = len(mt.false_positives)

@@ -26,6 +26,7 @@ from bench.real.adapters import ADAPTERS
 from bench.real.evaluate import RealEvalSpec, evaluate_real_view
 from bench.real.profile import RealProfile
 from bench.runner import OUT_ROOT, ReportWriter, RunInfo, _sum_stages, plan_methods
+from fenestra import data
 from fenestra.errors import FenestraError
 
 
@@ -60,20 +61,13 @@ class LabelledOutcome:
 
 
 def coco_ap_of(done: list[LabelledOutcome], det: str) -> dict:
-    """COCO bbox (and segm where every window has a mask) AP/AP50/AP75/R50 of one detector, as
-    fractions, over the views it ran on (training.evaluate.coco_stats); NaN = absent."""
-    from training.evaluate import coco_stats  # noqa: PLC0415
-
+    """COCO bbox and segm scores (fenestra.data.coco_scores: fractions, NaN = absent, e.g. segm
+    where a window has no mask) of one detector over the views it ran on, plus counts."""
     ran = [d for d in done if det in d.outcome.coco_dt]
-    gt = coco_dict(ran)
-    vid = {im["file_name"]: im["id"] for im in gt["images"]}
-    dt = [{"image_id": vid[x["view"]], "category_id": 1, "score": x["score"], "bbox": x["bbox"],
-           "segmentation": x["rle"]} for d in ran for x in d.outcome.coco_dt[det]]
-    masks = all(g["rle"] is not None for d in ran for g in d.outcome.coco_gt)
-    types = ("bbox", "segm") if masks else ("bbox",)
-    stats = {f"{t}_{k}": v / 100.0 for t in types for k, v in coco_stats(gt, dt, t).items()}
-    stats.update({f"segm_{k}": float("nan") for k in ("AP", "AP50", "AP75", "R50") if not masks})
-    return {**stats, "n_detections": len(dt), "n_gt": len(gt["annotations"]),
+    gt = [g for d in ran for g in d.outcome.coco_gt]
+    dt = [x for d in ran for x in d.outcome.coco_dt[det]]
+    stats = data.coco_scores(data.coco_ground_truth([(d.key, *d.size) for d in ran], gt), dt)
+    return {**stats, "n_detections": len(dt), "n_gt": sum(not g["iscrowd"] for g in gt),
             "false_positives": sum(d.outcome.n_false_positives.get(det, 0) for d in ran)}
 
 
@@ -90,19 +84,6 @@ def detection_ap(done: list[LabelledOutcome]) -> dict[str, dict]:
                 if any(det in d.outcome.coco_dt for d in sub):
                     out[f"{det} @ {n}"] = coco_ap_of(sub, det)
     return out
-
-
-def coco_dict(done: list[LabelledOutcome]) -> dict:
-    """A COCO ground-truth dict of the views (images named by their key) and their windows
-    (bench.real.evaluate.gt_coco entries)."""
-    vid = {d.key: i + 1 for i, d in enumerate(done)}
-    gt = [g for d in done for g in d.outcome.coco_gt]
-    anns = [{"id": i + 1, "image_id": vid[g["view"]], "category_id": 1, "iscrowd": 0, "bbox": g["bbox"],
-             "area": g["area"], **({"segmentation": g["rle"]} if g["rle"] is not None else {})}
-            for i, g in enumerate(gt)]
-    return {"images": [{"id": vid[d.key], "file_name": d.key, "height": d.size[0], "width": d.size[1]}
-                       for d in done],
-            "annotations": anns, "categories": [{"id": 1, "name": "window"}]}
 
 
 def evaluate_datasets(profile: RealProfile, datasets: list, methods, progress: bool = True) -> list[LabelledOutcome]:

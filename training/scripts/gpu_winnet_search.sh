@@ -59,6 +59,6 @@ $PY - "$OUTD" $VARIANTS <<'PY'
 import json, sys
 for v in sys.argv[2:]:
     r = {s: json.load(open(f"{sys.argv[1]}/{v}-{s}.json")) for s in ("val", "loho")}
-    print(v, "  ".join(f"{s} segm {m['segm']['AP']:.1f}/{m['segm']['AP50']:.1f} bbox {m['bbox']['AP']:.1f}"
+    print(v, "  ".join(f"{s} segm {100 * m['segm']['AP']:.1f}/{100 * m['segm']['AP50']:.1f} bbox {100 * m['bbox']['AP']:.1f}"
                        for s, m in r.items()))
 PY
