@@ -20,9 +20,9 @@ from pathlib import Path
 
 import pytest
 
-from bench import manifest, results
 from bench.synthetic import synthetic_results
 from reports.build import build_report
+from test_reports_build import _write_run  # the same tiny-run writer as the report tests
 
 BROWSERS = ("chromium", "chromium-browser")
 VIEWPORT = {"width": 1280, "height": 1000}
@@ -150,14 +150,6 @@ class Browser:
             self.proc.wait()
         os.close(self._to_browser)
         os.close(self._from_browser)
-
-
-def _write_run(d: Path, df, profile: str, kind: str | None = None) -> Path:
-    results.write_results(df, d)
-    manifest.seal(d, df, profile)
-    results.write_summary(d, {"profile": profile, "seed": 0, **({"kind": kind} if kind else {})},
-                          results.summarize(df), {})
-    return d
 
 
 @pytest.fixture(scope="module")
