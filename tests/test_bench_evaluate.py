@@ -1,7 +1,7 @@
 """bench.evaluate on a view folder built by hand in this test (not a renders/ output).
 
 A wall in the plane y = 0 (outward normal -y) with three window voids seen by a known camera:
-the image is drawn with exact area coverage (pipeline.synthetic, independent of the code under
+the image is drawn with exact area coverage (renders.quad_image, independent of the code under
 test), the instance map by pixel centres, view.json from the camera and the world corners. The
 third window hangs off the image edge; a fourth is listed but hidden (absent from the map).
 """
@@ -16,7 +16,7 @@ import pytest
 from bench.evaluate import Method, ViewTask, evaluate_view, window_conditions
 from bench.profiles import EvalSpec
 from fenestra.conventions import K_from_fov, look_at, project
-from pipeline.synthetic import coverage, pixel_centre_mask
+from renders.quad_image import coverage, pixel_centre_mask
 
 W, H = 640, 480
 

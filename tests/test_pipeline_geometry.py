@@ -1,7 +1,7 @@
 """Aspect ratio (Zhang & He 2007) and pose (solvePnP) on exact synthetic quads.
 
 Ground truth by construction: a known w x h rectangle, a known K and pose, projected with plain
-pinhole algebra (pipeline.synthetic.view_window), independent of pipeline.aspect / pipeline.pose.
+pinhole algebra (renders.quad_image.view_window), independent of pipeline.aspect / pipeline.pose.
 """
 import numpy as np
 import pytest
@@ -9,7 +9,7 @@ import pytest
 from fenestra.conventions import TOL, make_K, rotation_error_deg
 from pipeline.aspect import AspectError, aspect_ratio, classify, focal_from_quad
 from pipeline.pose import POSE_SOLVERS, PoseError, estimate_pose
-from pipeline.synthetic import view_window
+from renders.quad_image import view_window
 
 K = make_K(812.0, 805.0, 331.3, 238.9)
 

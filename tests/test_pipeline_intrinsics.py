@@ -13,7 +13,7 @@ from pipeline.cli import run_calibrate, run_reconstruct
 from pipeline.intrinsics import (TAG_FOCAL, TAG_FOCAL_35, TAG_PLANE_UNIT, TAG_PLANE_XRES, calibrate_chessboard,
                                  focal_from_exif, focal_from_exif_tags, resolve_K)
 from pipeline.io import read_camera
-from pipeline.synthetic import coverage
+from renders.quad_image import coverage
 
 SIZE = (640, 480)  # W, H
 

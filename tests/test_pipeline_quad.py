@@ -9,7 +9,7 @@ import pytest
 
 from fenestra.conventions import make_K
 from pipeline.quad import QuadParams, mask_to_quad, order_corners
-from pipeline.synthetic import pixel_centre_mask, view_window
+from renders.quad_image import pixel_centre_mask, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)
 SHAPE = (480, 640)

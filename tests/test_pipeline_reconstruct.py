@@ -10,7 +10,7 @@ from fenestra.conventions import make_K, rotation_error_deg
 from fenestra.errors import PipelineError
 from pipeline.io import read_instance_map, read_K, read_photo
 from pipeline.reconstruct import ReconstructConfig, detections_from_instance_map, reconstruct, windows_to_json
-from pipeline.synthetic import coverage, pixel_centre_mask, view_window
+from renders.quad_image import coverage, pixel_centre_mask, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)
 SHAPE = (480, 640)

@@ -34,7 +34,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from fenestra.config import read_toml
+from fenestra.config import from_table, read_toml
 from pipeline.detectors import DEFAULT_WEIGHTS
 from pipeline.detectors.maskrcnn import DEFAULT_MASKRCNN_WEIGHTS
 from training.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
@@ -100,24 +100,16 @@ class TrainConfig:
 
 
 def load_config(path: str | Path | None = None, **overrides: object) -> TrainConfig:
-    """TrainConfig from a TOML file ([train] keys, optional [augment] table) plus overrides."""
-    raw: dict = {}
-    if path is not None:
-        raw = read_toml(path, ValueError, "training config")
-    train = dict(raw.get("train", {}))
-    aug = dict(raw.get("augment", {}))
-    unknown = set(train) - {f.name for f in dataclasses.fields(TrainConfig)}
-    unknown |= {f"augment.{k}" for k in set(aug) - {f.name for f in dataclasses.fields(AugmentConfig)}}
+    """TrainConfig from a TOML file ([train] keys, optional [augment] table) plus overrides (None:
+    not given), through fenestra.config.from_table: unknown keys and ill-typed values are errors
+    naming them."""
+    raw: dict = read_toml(path, ValueError, "training config") if path is not None else {}
+    unknown = sorted(set(raw) - {"train", "augment"})
     if unknown:
-        raise ValueError(f"unknown keys in {path}: {sorted(unknown)}")
-    train.update({k: v for k, v in overrides.items() if v is not None})
-    for k in ("data", "crop_hw", "winnet_widths"):
-        if k in train:
-            train[k] = tuple(train[k])
-    for k in ("scale_range", "jpeg_quality", "shadow_strength"):
-        if k in aug:
-            aug[k] = tuple(aug[k])
-    return TrainConfig(**train, augment=AugmentConfig(**aug))
+        raise ValueError(f"{path}: unknown table(s) {unknown}; allowed: ['augment', 'train']")
+    train = {**raw.get("train", {}), **{k: v for k, v in overrides.items() if v is not None}}
+    return from_table(TrainConfig, {**train, "augment": raw.get("augment", {})},
+                      where=f"{path or 'training config'} [train]")
 
 
 def select_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list:

@@ -1,8 +1,8 @@
 """Timing of the reconstruction stages (without detection): median ms per window, per stage.
 
-    .venv/bin/python -m pipeline.benchmark [--windows 40] [--snapper harris linefit ...] [--json out.json]
+    .venv/bin/python tools/pipeline_timing.py [--windows 40] [--snapper harris linefit ...] [--json out.json]
 
-Synthetic photos (pipeline.synthetic: exact antialiased quads + noise, 640 x 480) with exact masks;
+Synthetic photos (renders.quad_image: exact antialiased quads + noise, 640 x 480) with exact masks;
 one warm-up pass, then the median of each stage's time over all windows, and the whole (sum).
 Target: < 5 ms per window for the whole reconstruction.
 """
@@ -11,15 +11,19 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-from fenestra.conventions import PAPER, make_K
-from pipeline.reconstruct import STAGES, ReconstructConfig, reconstruct
-from pipeline.snappers import SNAPPERS
-from pipeline.synthetic import pixel_centre_mask, render_window_image, view_window
-from pipeline.types import Detection
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # run from anywhere: the repository's packages
+
+from fenestra.conventions import PAPER, make_K  # noqa: E402
+from pipeline.reconstruct import STAGES, ReconstructConfig, reconstruct  # noqa: E402
+from pipeline.snappers import SNAPPERS  # noqa: E402
+from pipeline.types import Detection  # noqa: E402
+from renders.quad_image import pixel_centre_mask, render_window_image, view_window  # noqa: E402
 
 SHAPE = (480, 640)
 

@@ -1,4 +1,5 @@
-"""Synthetic windows with exact ground truth, for tests and ``pipeline/benchmark.py``.
+"""Synthetic window images with exact ground truth (a quad rasterised with exact area coverage), for
+tests and ``tools/pipeline_timing.py``; the pipeline never imports it.
 
 A known rectangle (w x h m) seen by a known camera (K, R, t) projects to an exact quad; the quad is
 rasterised with exact area coverage (see :func:`coverage`) so every pixel's value is the fraction
