@@ -32,17 +32,35 @@ from pipeline.types import WindowResult
 class WallParams:
     """sigma_px: prior corner sigma (px); prior_dof: its weight in pseudo-observations (inf:
     fixed sigma); base_pose: the per-window solver whose snapped quads feed the walls; manhattan:
-    tie walls at right angles about a shared vertical into one rotation (facade.tie_walls)."""
+    tie walls at right angles about a shared vertical into one rotation (facade.tie_walls).
+
+    lines: façade line segments of the photo (facade.detect_segments, at least line_min_px long)
+    join each wall's vanishing points and its joint fit (:func:`wall_segments`): a segment belongs
+    to a wall when its midpoint lies within line_margin x the wall's median window size of the
+    hull of its windows, it does not retrace a window border (both ends within line_border_px of
+    one side: the quads already hold those edges), and it points at one of the wall's two
+    vanishing points within line_gate_deg (+ the angle of 2 line_sigma_px on its length); after
+    the fit, segments off the fitted vanishing points by more than line_refit_deg (+ the same) are
+    dropped and the fit repeated. line_sigma_px: end-point sigma of a segment.
+    """
 
     sigma_px: float = TOL.wall_sigma_px
     prior_dof: float = TOL.wall_sigma_prior_dof
     base_pose: str = "ippe"
     manhattan: bool = False
+    lines: bool = False
+    line_sigma_px: float = 0.5
+    line_min_px: float = 20.0
+    line_gate_deg: float = 2.0
+    line_refit_deg: float = 0.5
+    line_margin: float = 1.0
+    line_border_px: float = 2.0
 
 
 WALL_STRATEGIES: dict[str, WallParams] = {
     "wall": WallParams(),  # one rotation per wall
     "building": WallParams(manhattan=True),  # one rotation per set of walls at right angles
+    "wall+lines": WallParams(lines=True),  # and the façade's long line segments
 }
 
 def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:
@@ -79,33 +97,133 @@ def pseudo_K(image_shape: tuple[int, int], focal_px: float | None = None) -> np.
 
 
 Fit = tuple[tuple[int, ...], tuple[int, ...], "facade.WallFit | None"]  # windows, their walls, fit
+WallLines = tuple[np.ndarray, np.ndarray]  # a wall's candidate façade segments (M, 2, 2) px, their family (M,)
 
 
-def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], params: WallParams
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per wall: initial rotation R0 (G, 3, 3) under K, rotation group (G,) and Q (G, 3, 3)."""
-    R0 = np.array([facade.initial_rotation(*facade.fit_vps(quads, list(w.members), K, params.sigma_px))
-                   for w in walls])
+def quad_sizes(quads: np.ndarray) -> np.ndarray:
+    """Square root of the area (N,) px of quads (N, 4, 2) px."""
+    q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
+    x, y = q[..., 0], q[..., 1]
+    return np.sqrt(0.5 * np.abs(np.sum(x * np.roll(y, -1, 1) - y * np.roll(x, -1, 1), axis=1)))
+
+
+def wall_segments(segments: np.ndarray, quads: np.ndarray, members: list[int], K: np.ndarray,
+                  params: WallParams, rounds: int = 2) -> tuple[WallLines, tuple[np.ndarray, np.ndarray]]:
+    """The candidate façade segments of the wall of windows ``members`` of quads (N, 4, 2) px among
+    the photo's ``segments`` (M, 2, 2) px, the vanishing direction each follows, and the wall's
+    vanishing directions (d_h, d_v) (3,) under K from its sides and those segments.
+
+    Candidates: see WallParams.lines. Assignment (0: d_h, 1: d_v, -1: neither): per direction, the
+    segments that agree on one vanishing point near the sides' (facade.vp_consensus, within
+    line_gate_deg of it, line_refit_deg of each other); ``rounds`` times, each around the
+    vanishing points refitted with the segments found.
+    """
+    vp = facade.fit_vps(quads, list(members), K, params.sigma_px)
+    s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
+    if not len(s):
+        return (s, np.zeros(0, dtype=int)), vp
+    q = quads[list(members)]
+    mid = 0.5 * (s[:, 0] + s[:, 1])
+    keep = facade.hull_distance(mid, q) >= -params.line_margin * float(np.median(quad_sizes(q)))
+    if params.line_border_px >= 0:
+        keep &= ~facade.on_quad_sides(s, quads, params.line_border_px)
+    s = s[keep]
+    for _ in range(rounds):
+        inl = [facade.vp_consensus(s, d, K, params.line_gate_deg, params.line_refit_deg, params.line_sigma_px)
+               for d in vp]
+        fam = np.where(inl[0] & ~inl[1], 0, np.where(inl[1] & ~inl[0], 1, -1))
+        vp = facade.fit_vps(quads, list(members), K, params.sigma_px, lines=(s[fam == 0], s[fam == 1]),
+                            line_sigma_px=params.line_sigma_px)
+    return (s, fam), vp
+
+
+def wall_vps(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], params: WallParams,
+             segments: np.ndarray | None = None) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[WallLines] | None]:
+    """Per wall: its vanishing directions (d_h, d_v) under K from its windows' sides and, given the
+    photo's façade segments (M, 2, 2) px, those that follow them (:func:`wall_segments`); and the
+    segments per wall (None without)."""
+    if segments is None:
+        return [facade.fit_vps(quads, list(w.members), K, params.sigma_px) for w in walls], None
+    out = [wall_segments(segments, quads, list(w.members), K, params) for w in walls]
+    return [vp for _, vp in out], [wl for wl, _ in out]
+
+
+def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], params: WallParams,
+                     segments: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[WallLines] | None]:
+    """Per wall: initial rotation R0 (G, 3, 3) under K, rotation group (G,), Q (G, 3, 3), and its
+    façade segments (:func:`wall_vps`)."""
+    vps, lines = wall_vps(quads, K, walls, params, segments)
+    R0 = np.array([facade.initial_rotation(*vp) for vp in vps])
     if params.manhattan:
         group, Q = facade.tie_walls(R0)
     else:
         group, Q = np.arange(len(walls)), np.repeat(np.eye(3)[None], len(walls), axis=0)
-    return R0, group, Q
+    return R0, group, Q, lines
+
+
+def _line_obs(lines: list[WallLines], sel: list[int], set_of_wall: dict[int, int], Q: np.ndarray,
+              weight: float) -> tuple[facade.LineObs, np.ndarray]:
+    """The candidate segments of walls ``sel`` as one LineObs, each twice (axis 0 then 1; rotation
+    group set_of_wall[g] of wall g), and (2M,) bool: the entries of their initial families."""
+    seg, grp, Qs, keep = [np.zeros((0, 2, 2))], [np.zeros(0, int)], [np.zeros((0, 3, 3))], [np.zeros(0, bool)]
+    for g in sel:
+        s, fam = lines[g]
+        seg.append(np.repeat(s, 2, axis=0))
+        grp.append(np.full(2 * len(s), set_of_wall[g]))
+        Qs.append(np.repeat(Q[g][None], 2 * len(s), axis=0))
+        keep.append((np.tile([0, 1], len(s)) == np.repeat(fam, 2)))
+    seg = np.concatenate(seg)
+    obs = facade.LineObs(seg, np.concatenate(grp), np.concatenate(Qs), np.tile([0, 1], len(seg) // 2),
+                         np.full(len(seg), weight))
+    return obs, np.concatenate(keep)
+
+
+def _refit_lines(quads: np.ndarray, K: np.ndarray, R0s: np.ndarray, set_of: np.ndarray, Qw: np.ndarray,
+                 height: float, params: WallParams, focal_free: bool, obs: facade.LineObs, keep: np.ndarray
+                 ) -> facade.WallFit:
+    """Joint fit with the façade segments ``obs.take(keep)``; then each candidate segment is
+    assigned again, to the fitted vanishing point it points at within line_refit_deg (+ the angle
+    of 2 line_sigma_px on its length), weighted by the fit's corner RMS (at least the prior sigma)
+    over line_sigma_px, and the walls fitted again."""
+    def fit(o: facade.LineObs) -> facade.WallFit:
+        return facade.refine_walls(quads, K, R0s, set_of, height, focal_free, params.sigma_px,
+                                   params.prior_dof, Qw, lines=o if len(o) else None)
+
+    first = fit(obs.take(keep))
+    Kx = K.copy()
+    Kx[0, 0] = Kx[1, 1] = first.focal_px
+    length = np.linalg.norm(obs.segments[::2, 1] - obs.segments[::2, 0], axis=1)
+    ang = obs.angles_deg(first.R, Kx).reshape(-1, 2)
+    best = np.argmin(ang, axis=1)
+    ok = ang[np.arange(len(ang)), best] <= params.line_refit_deg + np.degrees(np.arctan2(2.0 * params.line_sigma_px, length))
+    again = np.zeros(len(obs), dtype=bool)
+    again[2 * np.flatnonzero(ok) + best[ok]] = True
+    corner_rms = float(np.sqrt(np.mean((first.reprojected - quads) ** 2)))
+    w = max(params.sigma_px, corner_rms) / params.line_sigma_px
+    return fit(replace(obs.take(again), weight=np.full(int(again.sum()), w)))
 
 
 def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], groups: list[int],
                 R0: np.ndarray, group: np.ndarray, Q: np.ndarray, height: float, params: WallParams,
-                focal_free: bool) -> Fit:
-    """One joint fit of the walls of rotation groups ``groups`` (their first wall is the reference)."""
+                focal_free: bool, lines: list[WallLines] | None = None) -> Fit:
+    """One joint fit of the walls of rotation groups ``groups`` (their first wall is the reference),
+    with their façade segments ``lines`` (per wall) when given."""
     sel = [g for g in range(len(walls)) if group[g] in groups]
     members = tuple(i for g in sel for i in walls[g].members)
     wall_ids = tuple(g for g in sel for _ in walls[g].members)
     refs = {k: next(g for g in sel if group[g] == k and np.allclose(Q[g], np.eye(3))) for k in groups}
     set_of = np.array([groups.index(group[g]) for g in wall_ids])
     R0s = np.array([R0[refs[k]] for k in groups])
+    q = quads[list(members)]
     try:
-        fit = facade.refine_walls(quads[list(members)], K, R0s, set_of, height, focal_free, params.sigma_px,
-                                  params.prior_dof, Q[list(wall_ids)])
+        if lines is None:
+            fit = facade.refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px,
+                                      params.prior_dof, Q[list(wall_ids)])
+        else:
+            obs, keep = _line_obs(lines, sel, {g: groups.index(group[g]) for g in sel}, Q,
+                                  params.sigma_px / params.line_sigma_px)
+            fit = _refit_lines(q, K, R0s, set_of, Q[list(wall_ids)], height, params, focal_free, obs, keep)
     except (PipelineError, np.linalg.LinAlgError, ValueError):
         if focal_free:
             raise
@@ -140,14 +258,17 @@ def split_off(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], wind
     return sorted(out, key=lambda w: -len(w.members))
 
 
-def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams) -> list[Fit]:
+def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams,
+              segments: np.ndarray | None = None) -> list[Fit]:
     """Group quads (N, 4, 2) px into walls and fit each rotation group (K known, so groups are
     independent): [(window indices, their wall indices, fit or None where it failed)]. Windows that
-    do not fit their wall (:func:`outlier_windows`) are split off and everything refitted (twice at most)."""
+    do not fit their wall (:func:`outlier_windows`) are split off and everything refitted (twice at
+    most). segments: the photo's façade line segments (M, 2, 2) px (WallParams.lines), or None."""
     walls = facade.group_walls(quads, K, params.sigma_px)
     for attempt in range(3):
-        R0, group, Q = _rotation_groups(quads, K, walls, params)
-        fits = [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False) for k in sorted(set(group))]
+        R0, group, Q, lines = _rotation_groups(quads, K, walls, params, segments)
+        fits = [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False, lines)
+                for k in sorted(set(group))]
         bad = outlier_windows(quads, fits) if attempt < 2 else []
         if not bad:
             return fits
@@ -156,10 +277,11 @@ def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParam
 
 
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
-                    params: WallParams = WallParams()) -> Fit:
+                    params: WallParams = WallParams(), segments: np.ndarray | None = None) -> Fit:
     """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
     median of the walls' vanishing-point estimates (:func:`facade.focal_from_vanishing`), then fit
-    all walls jointly with one shared f (principal point at the image centre).
+    all walls jointly with one shared f (principal point at the image centre). segments: the
+    photo's façade line segments (M, 2, 2) px, which join the vanishing points and the fit, or None.
 
     Returns (windows, their walls, the joint fit). Raises FacadeError when no wall gives f, or the
     fitted f's relative sd exceeds TOL.focal_max_rel_sd (unobservable).
@@ -167,14 +289,16 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     K0 = pseudo_K(image_shape)
     walls = facade.group_walls(q, K0, params.sigma_px)
-    f0 = [f for w in walls if (f := facade.focal_from_vanishing(w.d_h, w.d_v, K0)) is not None]
+    vps = [(w.d_h, w.d_v) for w in walls] if segments is None else wall_vps(q, K0, walls, params, segments)[0]
+    f0 = [f for d_h, d_v in vps if (f := facade.focal_from_vanishing(d_h, d_v, K0)) is not None]
     if not f0:
         raise facade.FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
                                  f"two converging side pairs")
     K1 = pseudo_K(image_shape, float(np.median(f0)))
-    R0, group, Q = _rotation_groups(q, K1, walls, params)
+    R0, group, Q, lines = _rotation_groups(q, K1, walls, params, segments)
     try:
-        members, wall_ids, fit = _fit_groups(q, K1, walls, sorted(set(group)), R0, group, Q, height, params, True)
+        members, wall_ids, fit = _fit_groups(q, K1, walls, sorted(set(group)), R0, group, Q, height, params,
+                                             True, lines)
     except (np.linalg.LinAlgError, ValueError) as e:
         raise facade.FacadeError(f"joint fit with free focal length failed: {e}") from e
     sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
@@ -185,11 +309,23 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
 
 
 def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
-                     params: WallParams = WallParams()) -> tuple[float, float]:
+                     params: WallParams = WallParams(), gray: np.ndarray | None = None) -> tuple[float, float]:
     """Focal length (px) and its standard deviation from window quads (N, 4, 2) px of an (H, W)
-    image (:func:`fit_walls_focal`); FacadeError when unobservable."""
-    fit = fit_walls_focal(quads, image_shape, 1.0, params)[2]
+    image (:func:`fit_walls_focal`; gray (H, W) uint8: the photo, needed when params.lines);
+    FacadeError when unobservable."""
+    fit = fit_walls_focal(quads, image_shape, 1.0, params, photo_segments(gray, params))[2]
     return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))
+
+
+def photo_segments(gray: np.ndarray | None, params: WallParams) -> np.ndarray | None:
+    """The façade segments (M, 2, 2) px a strategy uses: those of the gray photo (H, W) uint8
+    (facade.detect_segments) when params.lines, else None. ValueError when it needs the photo and
+    has none."""
+    if not params.lines:
+        return None
+    if gray is None:
+        raise ValueError("a per-wall strategy with façade lines (WallParams.lines) needs the gray image")
+    return facade.detect_segments(gray, params.line_min_px)
 
 
 def usable_quad(quad: np.ndarray, min_side_px: float = 1.0) -> bool:
@@ -200,8 +336,10 @@ def usable_quad(quad: np.ndarray, min_side_px: float = 1.0) -> bool:
 
 
 def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: tuple[int, int],
-                height_m: float, width_m: float | None, params: WallParams) -> list[WindowResult]:
-    """Replace the per-window aspect/pose of ``results`` by the per-wall estimates.
+                height_m: float, width_m: float | None, params: WallParams,
+                gray: np.ndarray | None = None) -> list[WindowResult]:
+    """Replace the per-window aspect/pose of ``results`` by the per-wall estimates; gray (H, W)
+    uint8: the photo, needed by a strategy with façade lines (WallParams.lines).
 
     K None: f from :func:`focal_from_walls` (every window then records it as focal_estimate_px);
     if unobservable, every window fails with that reason. Windows without a snapped quad keep
@@ -216,17 +354,18 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     if not idx:
         return out
     quads = np.array([results[k].quad_snapped for k in idx], dtype=np.float64)
+    segments = photo_segments(gray, params)
     f_est = None
     if K is None:
         try:
-            fits = [fit_walls_focal(quads, image_shape, height_m, params)]
+            fits = [fit_walls_focal(quads, image_shape, height_m, params, segments)]
         except facade.FacadeError as e:
             for k in idx:
                 out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None)
             return out
         f_est = fits[0][2].focal_px
     else:
-        fits = fit_walls(quads, K, height_m, params)
+        fits = fit_walls(quads, K, height_m, params, segments)
     for members, wall_ids, fit in fits:
         for j, (m, wid) in enumerate(zip(members, wall_ids)):
             k = idx[m]
