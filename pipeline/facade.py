@@ -400,7 +400,8 @@ def _inverse(A: np.ndarray) -> np.ndarray:
 
 def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.ndarray | None = None,
                  height: float = 1.0, focal_free: bool = False, sigma_px: float = 1.0,
-                 prior_dof: float = 0.0, Q: np.ndarray | None = None, lines: "LineObs | None" = None) -> WallFit:
+                 prior_dof: float = 0.0, Q: np.ndarray | None = None, lines: "LineObs | None" = None,
+                 corner_sigma: np.ndarray | None = None) -> WallFit:
     """Joint LM over all corners of the windows of one or more walls (quads (N, 4, 2) px).
 
     R0: (3, 3) for one wall, or (G, 3, 3) with wall_of (N,) giving each window's wall. Parameters:
@@ -411,7 +412,10 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
     (prior_dof = inf: the fixed sigma_px). Q (N, 3, 3): a fixed rotation of each window within its
     group (walls at right angles sharing one rotation: window i's is R[wall_of[i]] @ Q[i]); None:
     identity. lines: façade line segments along the groups' axes, an extra residual each on the
-    rotations (and f); None: corners only. Raises FacadeError if the fit fails.
+    rotations (and f); None: corners only. corner_sigma (N,) px: each window's own corner sigma
+    for the covariance (at least the pooled one; the estimate stays unweighted, so the covariance
+    is the sandwich (J^T J)^-1 J^T V J (J^T J)^-1 with V the residuals' variances); None: the
+    pooled sigma for all. Raises FacadeError if the fit fails.
     """
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     n = len(q)
@@ -458,6 +462,11 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
         s2 = (rss + prior_dof * sigma_px ** 2) / max(dof + prior_dof, 1e-9)
     J = sol.jac
     cov = _inverse(J.T @ J) * s2
+    if corner_sigma is not None:
+        v = np.full(len(r), s2)
+        v[:8 * n] = np.maximum(s2, np.repeat(np.asarray(corner_sigma, dtype=np.float64) ** 2, 8))
+        A = cov / s2
+        cov = A @ ((J.T * v) @ J) @ A
     return WallFit(R=R, wall_of=wall_of, Q=np.array(Q), t=t, width=w, height=float(height), focal_px=float(Kx[0, 0]),
                    focal_free=focal_free, reprojected=project_wall(R[wall_of] @ Q, t, w, height, Kx),
                    rms_px=float(np.sqrt(rss / len(r))), sigma_px=float(np.sqrt(s2)), cov=cov, dof=dof,
@@ -577,23 +586,6 @@ def hull_distance(points: np.ndarray, quads: np.ndarray) -> np.ndarray:
     hull = cv2.convexHull(np.asarray(quads, dtype=np.float32).reshape(-1, 2))
     return np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), True)
                      for x, y in np.asarray(points, dtype=np.float64).reshape(-1, 2)])
-
-
-def on_quad_sides(segments: np.ndarray, quads: np.ndarray, tol_px: float) -> np.ndarray:
-    """(M,) bool: both end points of a segment (M, 2, 2) px lie within tol_px of the same side of one
-    of the quads (N, 4, 2) px (the segment retraces a window's border)."""
-    s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
-    q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
-    A, B = q.reshape(-1, 2), np.roll(q, -1, axis=1).reshape(-1, 2)  # (S, 2) sides
-    AB = B - A
-    L2 = np.maximum(np.sum(AB * AB, axis=1), 1e-12)
-
-    def dist(P: np.ndarray) -> np.ndarray:  # (M, S)
-        AP = P[:, None, :] - A[None]
-        t = np.clip(np.sum(AP * AB[None], axis=2) / L2[None], 0.0, 1.0)
-        return np.linalg.norm(AP - t[..., None] * AB[None], axis=2)
-
-    return np.any((dist(s[:, 0]) <= tol_px) & (dist(s[:, 1]) <= tol_px), axis=1)
 
 
 def line_residuals(segments: np.ndarray, vp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

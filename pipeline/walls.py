@@ -17,6 +17,7 @@ intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), `
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -32,35 +33,39 @@ from pipeline.types import WindowResult
 class WallParams:
     """sigma_px: prior corner sigma (px); prior_dof: its weight in pseudo-observations (inf:
     fixed sigma); base_pose: the per-window solver whose snapped quads feed the walls; manhattan:
-    tie walls at right angles about a shared vertical into one rotation (facade.tie_walls).
+    tie walls at right angles about a shared vertical into one rotation (facade.tie_walls);
+    snap_sigma: each window's corner sigma for its error bars from its snapping
+    (:func:`corner_sigmas`; the estimate is unchanged).
 
     lines: façade line segments of the photo (facade.detect_segments, at least line_min_px long)
-    join each wall's vanishing points and its joint fit (:func:`wall_segments`): a segment belongs
-    to a wall when its midpoint lies within line_margin x the wall's median window size of the
-    hull of its windows, it does not retrace a window border (both ends within line_border_px of
-    one side: the quads already hold those edges), and it points at one of the wall's two
-    vanishing points within line_gate_deg (+ the angle of 2 line_sigma_px on its length); after
-    the fit, segments off the fitted vanishing points by more than line_refit_deg (+ the same) are
-    dropped and the fit repeated. line_sigma_px: end-point sigma of a segment.
+    join each wall's vanishing points and its joint fit (:func:`wall_segments`). A segment is a
+    candidate of a wall when its midpoint lies within line_margin x the wall's median window size
+    of the hull of its windows (window borders included: measured to help, also with exact
+    masks); the candidates that share a vanishing point within line_gate_deg of the wall's sides'
+    one, and within line_refit_deg of each other (+ the angle of 2 line_sigma_px on their length),
+    are the wall's. After the joint fit, every candidate is assigned again to the fitted vanishing
+    point it points at within line_refit_deg (+ the same) and the fit repeated. line_sigma_px:
+    end-point sigma of a segment. The defaults are the best of a sweep on the walls profile's views.
     """
 
     sigma_px: float = TOL.wall_sigma_px
     prior_dof: float = TOL.wall_sigma_prior_dof
     base_pose: str = "ippe"
     manhattan: bool = False
+    snap_sigma: bool = False
     lines: bool = False
     line_sigma_px: float = 0.5
     line_min_px: float = 20.0
-    line_gate_deg: float = 2.0
-    line_refit_deg: float = 0.5
-    line_margin: float = 1.0
-    line_border_px: float = 2.0
+    line_gate_deg: float = 8.0
+    line_refit_deg: float = 0.25
+    line_margin: float = 3.0
 
 
 WALL_STRATEGIES: dict[str, WallParams] = {
     "wall": WallParams(),  # one rotation per wall
     "building": WallParams(manhattan=True),  # one rotation per set of walls at right angles
-    "wall+lines": WallParams(lines=True),  # and the façade's long line segments
+    "wall+lines": WallParams(lines=True),  # and the façade's line segments
+    "building+lines": WallParams(manhattan=True, lines=True),
 }
 
 def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:
@@ -113,7 +118,7 @@ def wall_segments(segments: np.ndarray, quads: np.ndarray, members: list[int], K
     the photo's ``segments`` (M, 2, 2) px, the vanishing direction each follows, and the wall's
     vanishing directions (d_h, d_v) (3,) under K from its sides and those segments.
 
-    Candidates: see WallParams.lines. Assignment (0: d_h, 1: d_v, -1: neither): per direction, the
+    Candidates: see WallParams.lines (None of them: the sides' vanishing points). Assignment (0: d_h, 1: d_v, -1: neither): per direction, the
     segments that agree on one vanishing point near the sides' (facade.vp_consensus, within
     line_gate_deg of it, line_refit_deg of each other); ``rounds`` times, each around the
     vanishing points refitted with the segments found.
@@ -124,10 +129,7 @@ def wall_segments(segments: np.ndarray, quads: np.ndarray, members: list[int], K
         return (s, np.zeros(0, dtype=int)), vp
     q = quads[list(members)]
     mid = 0.5 * (s[:, 0] + s[:, 1])
-    keep = facade.hull_distance(mid, q) >= -params.line_margin * float(np.median(quad_sizes(q)))
-    if params.line_border_px >= 0:
-        keep &= ~facade.on_quad_sides(s, quads, params.line_border_px)
-    s = s[keep]
+    s = s[facade.hull_distance(mid, q) >= -params.line_margin * float(np.median(quad_sizes(q)))]
     for _ in range(rounds):
         inl = [facade.vp_consensus(s, d, K, params.line_gate_deg, params.line_refit_deg, params.line_sigma_px)
                for d in vp]
@@ -179,17 +181,13 @@ def _line_obs(lines: list[WallLines], sel: list[int], set_of_wall: dict[int, int
     return obs, np.concatenate(keep)
 
 
-def _refit_lines(quads: np.ndarray, K: np.ndarray, R0s: np.ndarray, set_of: np.ndarray, Qw: np.ndarray,
-                 height: float, params: WallParams, focal_free: bool, obs: facade.LineObs, keep: np.ndarray
-                 ) -> facade.WallFit:
-    """Joint fit with the façade segments ``obs.take(keep)``; then each candidate segment is
-    assigned again, to the fitted vanishing point it points at within line_refit_deg (+ the angle
-    of 2 line_sigma_px on its length), weighted by the fit's corner RMS (at least the prior sigma)
-    over line_sigma_px, and the walls fitted again."""
-    def fit(o: facade.LineObs) -> facade.WallFit:
-        return facade.refine_walls(quads, K, R0s, set_of, height, focal_free, params.sigma_px,
-                                   params.prior_dof, Qw, lines=o if len(o) else None)
-
+def _refit_lines(fit: Callable[[facade.LineObs | None], facade.WallFit], quads: np.ndarray, K: np.ndarray,
+                 params: WallParams, obs: facade.LineObs, keep: np.ndarray) -> facade.WallFit:
+    """Joint fit (``fit``, of the windows' quads (N, 4, 2) px under K) with the façade segments
+    ``obs.take(keep)``; then each candidate segment is assigned again, to the fitted vanishing
+    point it points at within line_refit_deg (+ the angle of 2 line_sigma_px on its length),
+    weighted by the fit's corner RMS (at least the prior sigma) over line_sigma_px, and the walls
+    fitted again."""
     first = fit(obs.take(keep))
     Kx = K.copy()
     Kx[0, 0] = Kx[1, 1] = first.focal_px
@@ -206,9 +204,10 @@ def _refit_lines(quads: np.ndarray, K: np.ndarray, R0s: np.ndarray, set_of: np.n
 
 def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], groups: list[int],
                 R0: np.ndarray, group: np.ndarray, Q: np.ndarray, height: float, params: WallParams,
-                focal_free: bool, lines: list[WallLines] | None = None) -> Fit:
+                focal_free: bool, lines: list[WallLines] | None = None, sigmas: np.ndarray | None = None) -> Fit:
     """One joint fit of the walls of rotation groups ``groups`` (their first wall is the reference),
-    with their façade segments ``lines`` (per wall) when given."""
+    with their façade segments ``lines`` (per wall) when given, and each window's corner sigma
+    ``sigmas`` (N,) px (None: params.sigma_px for all)."""
     sel = [g for g in range(len(walls)) if group[g] in groups]
     members = tuple(i for g in sel for i in walls[g].members)
     wall_ids = tuple(g for g in sel for _ in walls[g].members)
@@ -216,19 +215,25 @@ def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], gr
     set_of = np.array([groups.index(group[g]) for g in wall_ids])
     R0s = np.array([R0[refs[k]] for k in groups])
     q = quads[list(members)]
+    cs = None if sigmas is None else np.asarray(sigmas, dtype=np.float64)[list(members)]
+
+    def fit(obs: facade.LineObs | None = None) -> facade.WallFit:
+        return facade.refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px, params.prior_dof,
+                                   Q[list(wall_ids)], lines=obs if obs is not None and len(obs) else None,
+                                   corner_sigma=cs)
+
     try:
         if lines is None:
-            fit = facade.refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px,
-                                      params.prior_dof, Q[list(wall_ids)])
+            wall_fit = fit()
         else:
             obs, keep = _line_obs(lines, sel, {g: groups.index(group[g]) for g in sel}, Q,
                                   params.sigma_px / params.line_sigma_px)
-            fit = _refit_lines(q, K, R0s, set_of, Q[list(wall_ids)], height, params, focal_free, obs, keep)
+            wall_fit = _refit_lines(fit, q, K, params, obs, keep)
     except (PipelineError, np.linalg.LinAlgError, ValueError):
         if focal_free:
             raise
-        fit = None
-    return members, wall_ids, fit
+        wall_fit = None
+    return members, wall_ids, wall_fit
 
 
 def outlier_windows(quads: np.ndarray, fits: list[Fit], factor: float = TOL.wall_outlier_factor,
@@ -259,15 +264,16 @@ def split_off(quads: np.ndarray, K: np.ndarray, walls: list[facade.WallVP], wind
 
 
 def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams,
-              segments: np.ndarray | None = None) -> list[Fit]:
+              segments: np.ndarray | None = None, sigmas: np.ndarray | None = None) -> list[Fit]:
     """Group quads (N, 4, 2) px into walls and fit each rotation group (K known, so groups are
     independent): [(window indices, their wall indices, fit or None where it failed)]. Windows that
     do not fit their wall (:func:`outlier_windows`) are split off and everything refitted (twice at
-    most). segments: the photo's façade line segments (M, 2, 2) px (WallParams.lines), or None."""
+    most). segments: the photo's façade line segments (M, 2, 2) px (WallParams.lines), or None;
+    sigmas (N,) px: each window's corner sigma (:func:`corner_sigmas`), or None."""
     walls = facade.group_walls(quads, K, params.sigma_px)
     for attempt in range(3):
         R0, group, Q, lines = _rotation_groups(quads, K, walls, params, segments)
-        fits = [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False, lines)
+        fits = [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False, lines, sigmas)
                 for k in sorted(set(group))]
         bad = outlier_windows(quads, fits) if attempt < 2 else []
         if not bad:
@@ -277,11 +283,13 @@ def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParam
 
 
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
-                    params: WallParams = WallParams(), segments: np.ndarray | None = None) -> Fit:
+                    params: WallParams = WallParams(), segments: np.ndarray | None = None,
+                    sigmas: np.ndarray | None = None) -> Fit:
     """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
     median of the walls' vanishing-point estimates (:func:`facade.focal_from_vanishing`), then fit
     all walls jointly with one shared f (principal point at the image centre). segments: the
-    photo's façade line segments (M, 2, 2) px, which join the vanishing points and the fit, or None.
+    photo's façade line segments (M, 2, 2) px, which join the vanishing points and the fit, or None;
+    sigmas (N,) px: each window's corner sigma, or None.
 
     Returns (windows, their walls, the joint fit). Raises FacadeError when no wall gives f, or the
     fitted f's relative sd exceeds TOL.focal_max_rel_sd (unobservable).
@@ -298,7 +306,7 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
     R0, group, Q, lines = _rotation_groups(q, K1, walls, params, segments)
     try:
         members, wall_ids, fit = _fit_groups(q, K1, walls, sorted(set(group)), R0, group, Q, height, params,
-                                             True, lines)
+                                             True, lines, sigmas)
     except (np.linalg.LinAlgError, ValueError) as e:
         raise facade.FacadeError(f"joint fit with free focal length failed: {e}") from e
     sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
@@ -315,6 +323,17 @@ def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
     FacadeError when unobservable."""
     fit = fit_walls_focal(quads, image_shape, 1.0, params, photo_segments(gray, params))[2]
     return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))
+
+
+def corner_sigmas(results: list[WindowResult], params: WallParams) -> np.ndarray | None:
+    """Each window's corner sigma (N,) px when params.snap_sigma: at least params.sigma_px and the
+    RMS distance its corners moved in snapping (quad_mask -> quad_snapped; when the snapper moved a
+    corner by d, the mask or the snap is off by about d); else None (params.sigma_px for all)."""
+    if not params.snap_sigma:
+        return None
+    moved = [0.0 if r.quad_mask is None else float(np.sqrt(np.mean(np.sum((r.quad_snapped - r.quad_mask) ** 2, axis=1))))
+             for r in results]
+    return np.maximum(params.sigma_px, np.array(moved))
 
 
 def photo_segments(gray: np.ndarray | None, params: WallParams) -> np.ndarray | None:
@@ -355,17 +374,18 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
         return out
     quads = np.array([results[k].quad_snapped for k in idx], dtype=np.float64)
     segments = photo_segments(gray, params)
+    sigmas = corner_sigmas([results[k] for k in idx], params)
     f_est = None
     if K is None:
         try:
-            fits = [fit_walls_focal(quads, image_shape, height_m, params, segments)]
+            fits = [fit_walls_focal(quads, image_shape, height_m, params, segments, sigmas)]
         except facade.FacadeError as e:
             for k in idx:
                 out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None)
             return out
         f_est = fits[0][2].focal_px
     else:
-        fits = fit_walls(quads, K, height_m, params, segments)
+        fits = fit_walls(quads, K, height_m, params, segments, sigmas)
     for members, wall_ids, fit in fits:
         for j, (m, wid) in enumerate(zip(members, wall_ids)):
             k = idx[m]
