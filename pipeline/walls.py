@@ -64,8 +64,9 @@ class WallParams:
 WALL_STRATEGIES: dict[str, WallParams] = {
     "wall": WallParams(),  # one rotation per wall
     "building": WallParams(manhattan=True),  # one rotation per set of walls at right angles
-    "wall+lines": WallParams(lines=True),  # and the façade's line segments
-    "building+lines": WallParams(manhattan=True, lines=True),
+    # and the façade's line segments; error bars from each window's snapping
+    "wall+lines": WallParams(lines=True, snap_sigma=True),
+    "building+lines": WallParams(manhattan=True, lines=True, snap_sigma=True),
 }
 
 def norm_quantile(cov: np.ndarray, level: float = TOL.interval_level) -> float:
