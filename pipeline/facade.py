@@ -522,11 +522,14 @@ SEGMENT_DETECTORS = {"lsd": _lsd, "hough": _hough}  # LSD: OpenCV's line segment
 
 def detect_segments(gray: np.ndarray, min_length_px: float, method: str = "lsd") -> np.ndarray:
     """Straight line segments (M, 2, 2) px (start, end; pixel centres at integers) at least
-    ``min_length_px`` long in a gray image (H, W) uint8: ``lsd`` (OpenCV's line segment detector,
-    sub-pixel, within about 0.15 px of a step edge) or ``hough`` (probabilistic Hough on Canny edges)."""
+    ``min_length_px`` long in a gray image (H, W), uint8 or float in [0, 255] (rounded to uint8):
+    ``lsd`` (OpenCV's line segment detector, sub-pixel, within about 0.15 px of a step edge) or
+    ``hough`` (probabilistic Hough on Canny edges)."""
     g = np.asarray(gray)
-    if g.ndim != 2 or g.dtype != np.uint8:
-        raise ValueError(f"gray must be an (H, W) uint8 image, got shape {g.shape} dtype {g.dtype}")
+    if g.ndim != 2 or not (g.dtype == np.uint8 or np.issubdtype(g.dtype, np.floating)):
+        raise ValueError(f"gray must be an (H, W) uint8 or float image, got shape {g.shape} dtype {g.dtype}")
+    if g.dtype != np.uint8:
+        g = np.clip(np.round(g), 0, 255).astype(np.uint8)
     if method not in SEGMENT_DETECTORS:
         raise ValueError(f"unknown segment detector {method!r}; known: {sorted(SEGMENT_DETECTORS)}")
     found = SEGMENT_DETECTORS[method](g, float(min_length_px))

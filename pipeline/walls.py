@@ -119,10 +119,10 @@ def wall_segments(segments: np.ndarray, quads: np.ndarray, members: list[int], K
     the photo's ``segments`` (M, 2, 2) px, the vanishing direction each follows, and the wall's
     vanishing directions (d_h, d_v) (3,) under K from its sides and those segments.
 
-    Candidates: see WallParams.lines (None of them: the sides' vanishing points). Assignment (0: d_h, 1: d_v, -1: neither): per direction, the
-    segments that agree on one vanishing point near the sides' (facade.vp_consensus, within
-    line_gate_deg of it, line_refit_deg of each other); ``rounds`` times, each around the
-    vanishing points refitted with the segments found.
+    Candidates: see WallParams.lines (none: the sides' vanishing points). Assignment (0: d_h, 1:
+    d_v, -1: neither): per direction, the segments that agree on one vanishing point near the
+    sides' (facade.vp_consensus, within line_gate_deg of it, line_refit_deg of each other);
+    ``rounds`` times, each around the vanishing points refitted with the segments found.
     """
     vp = facade.fit_vps(quads, list(members), K, params.sigma_px)
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
@@ -320,7 +320,7 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
 def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
                      params: WallParams = WallParams(), gray: np.ndarray | None = None) -> tuple[float, float]:
     """Focal length (px) and its standard deviation from window quads (N, 4, 2) px of an (H, W)
-    image (:func:`fit_walls_focal`; gray (H, W) uint8: the photo, needed when params.lines);
+    image (:func:`fit_walls_focal`; gray (H, W): the photo, needed when params.lines);
     FacadeError when unobservable."""
     fit = fit_walls_focal(quads, image_shape, 1.0, params, photo_segments(gray, params))[2]
     return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))
@@ -338,8 +338,8 @@ def corner_sigmas(results: list[WindowResult], params: WallParams) -> np.ndarray
 
 
 def photo_segments(gray: np.ndarray | None, params: WallParams) -> np.ndarray | None:
-    """The façade segments (M, 2, 2) px a strategy uses: those of the gray photo (H, W) uint8
-    (facade.detect_segments) when params.lines, else None. ValueError when it needs the photo and
+    """The façade segments (M, 2, 2) px a strategy uses: those of the gray photo (H, W), uint8 or
+    float in [0, 255] (facade.detect_segments) when params.lines, else None. ValueError when it needs the photo and
     has none."""
     if not params.lines:
         return None
@@ -359,7 +359,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
                 height_m: float, width_m: float | None, params: WallParams,
                 gray: np.ndarray | None = None) -> list[WindowResult]:
     """Replace the per-window aspect/pose of ``results`` by the per-wall estimates; gray (H, W)
-    uint8: the photo, needed by a strategy with façade lines (WallParams.lines).
+    uint8 or float in [0, 255]: the photo, needed by a strategy with façade lines (WallParams.lines).
 
     K None: f from :func:`focal_from_walls` (every window then records it as focal_estimate_px);
     if unobservable, every window fails with that reason. Windows without a snapped quad keep

@@ -288,8 +288,8 @@ def test_detect_segments_on_a_drawn_edge(method, tol_px):
 
 
 def test_detect_segments_rejects_bad_input():
-    with pytest.raises(ValueError, match="uint8"):
-        facade.detect_segments(np.zeros(SHAPE), 20.0)
+    with pytest.raises(ValueError, match="uint8 or float"):
+        facade.detect_segments(np.zeros((*SHAPE, 3), np.uint8), 20.0)
     with pytest.raises(ValueError, match="unknown segment detector"):
         facade.detect_segments(np.zeros(SHAPE, np.uint8), 20.0, "canny")
 
@@ -417,7 +417,7 @@ def test_wall_lines_strategy_on_a_drawn_photo():
     corner noise: the median rotation error well below 'wall''s on the same quads; without the
     photo it refuses."""
     R, t, quads, labels, _ = scene()
-    gray = draw_scene(R, t, quads)
+    gray = draw_scene(R, t, quads).astype(np.float32)  # as reconstruct.to_gray gives it
     truth = [true_R(R, EX_FRONT if lab == 0 else EX_SIDE) for lab in labels]
     rng = np.random.default_rng(9)
     err = {"wall": [], "wall+lines": []}
@@ -429,3 +429,32 @@ def test_wall_lines_strategy_on_a_drawn_photo():
     assert np.median(err["wall+lines"]) < 0.4 * np.median(err["wall"])  # measured 0.27 deg vs 1.05 deg
     with pytest.raises(ValueError, match="gray image"):
         walls.apply_walls(_results(quads), K, SHAPE, 1.0, None, walls.WALL_STRATEGIES["wall+lines"])
+
+
+def test_corner_sigmas_from_snapping():
+    """Each window's sigma: the RMS distance its corners moved in snapping, at least the prior."""
+    _, _, quads, _, _ = scene()
+    moves = np.zeros((3, 4, 2))
+    moves[1, :, 0] = 2.0  # every corner 2 px right
+    moves[2, 0] = [3.0, 4.0]  # one corner 5 px
+    res = [replace(r, quad_snapped=r.quad_mask + m) for r, m in zip(_results(quads[:3]), moves)]
+    sig = walls.corner_sigmas(res, walls.WallParams(snap_sigma=True))
+    np.testing.assert_allclose(sig, [TOL.wall_sigma_px, 2.0, 2.5])
+    assert walls.corner_sigmas(res, walls.WallParams()) is None
+
+
+def test_per_window_sigma_covariance_matches_monte_carlo():
+    """Windows with different corner noise (0.2 px and 1.5 px): with those sigmas given, the
+    (sandwich) covariance of the unweighted fit matches a 150-draw Monte Carlo, per window."""
+    _, _, quads, labels, _ = scene()
+    q0 = quads[labels == 0]
+    sig = np.array([0.2, 1.5, 0.2, 1.5, 0.2])
+    R0 = facade.initial_rotation(*facade.fit_vps(q0, list(range(len(q0))), K))
+    ref = facade.refine_walls(q0, K, R0, sigma_px=0.2, prior_dof=np.inf, corner_sigma=sig)
+    rng = np.random.default_rng(12)
+    widths = [facade.refine_walls(q0 + rng.normal(0.0, 1.0, q0.shape) * sig[:, None, None], K, ref.R[0]).width
+              for _ in range(150)]
+    sd_w = np.sqrt([ref.cov[ref.window_block(i), ref.window_block(i)][3, 3] for i in range(len(q0))])
+    np.testing.assert_allclose(sd_w, np.std(widths, axis=0), rtol=0.2)
+    plain = facade.refine_walls(q0, K, R0, sigma_px=0.2, prior_dof=np.inf)
+    np.testing.assert_allclose(plain.width, ref.width)  # the estimate itself is unweighted
