@@ -15,7 +15,12 @@ Pure functions on image quads (4, 2) px, TL TR BR BL (pixel centres at integers)
   directions, signs from the quads' side directions, projected onto SO(3).
 - :func:`refine_walls`: Levenberg-Marquardt over all corners of one or more walls: one rotation
   per wall, per window a translation and a width (height fixed: the scale gauge), optionally one
-  focal length shared by all. Returns the estimate and its first-order covariance (sigma^2 (J^T J)^-1).
+  focal length shared by all, and optionally façade line segments (:class:`LineObs`) as extra
+  residuals on the rotations (and f). Returns the estimate and its first-order covariance
+  (sigma^2 (J^T J)^-1, or the sandwich form with per-window corner sigmas).
+- Façade lines: :func:`detect_segments` (LSD, or Hough on Canny edges) finds straight segments;
+  :func:`vp_consensus` picks those that share one vanishing point near a wall's; :func:`line_residuals`
+  measures a segment against a vanishing point in pixels.
 
 The window frame is pipeline.pose's: x along the wall (BL -> BR), y up (BL -> TL), z outward,
 origin at the bottom-left corner, corners TL TR BR BL = (0,h,0), (w,h,0), (w,0,0), (0,0,0).

@@ -6,12 +6,17 @@ snapped quads), groups the windows into walls (:func:`pipeline.facade.group_wall
 wall jointly (:func:`pipeline.facade.refine_wall`: one rotation, per-window translation and width)
 and gives every window its aspect ratio, pose and error bars from the shared plane.
 
+``+lines`` strategies also use the photo's straight line segments (wall edges, eaves, mullions,
+window frames): those that agree with a wall's vanishing points join its fit (WallParams.lines);
+they need the gray image (``apply_walls(..., gray)``).
+
 Unknown intrinsics (K None): the focal length is estimated from the walls (each wall's two
 vanishing directions, then the joint fit with f free; walls combined by inverse variance); the
 principal point is the image centre.
 
 Uncertainty per window (``WindowResult.uncertainty``): first-order covariance of the joint fit
-with the corner sigma pooled from the residuals and a prior (TOL.wall_sigma_px), reported as 90 %
+with the corner sigma pooled from the residuals and a prior (TOL.wall_sigma_px; with
+WallParams.snap_sigma, per window at least how far snapping moved its corners), reported as 90 %
 intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), ``trans_rel``
 (bound on |t error| / |t|), and ``ill_conditioned`` (aspect_case becomes "ill_conditioned").
 """
