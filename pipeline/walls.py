@@ -368,13 +368,14 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
 
     K None: f from :func:`focal_from_walls` (every window then records it as focal_estimate_px);
     if unobservable, every window fails with that reason. Windows without a snapped quad keep
-    their result; a window whose wall fit fails keeps its failure, named ``wall: ...``.
+    their result; a window whose wall fit fails keeps its failure, named ``wall: ...``, and no
+    focal estimate (not its per-window one).
     """
     idx = [k for k, r in enumerate(results) if r.quad_snapped is not None]
     out = list(results)
     for k in [k for k in idx if not usable_quad(results[k].quad_snapped)]:
         out[k] = replace(out[k], failure="wall: degenerate quad (a side under 1 px or non-finite)",
-                         R=None, t=None, quad_reprojected=None)
+                         R=None, t=None, quad_reprojected=None, focal_estimate_px=None)
         idx.remove(k)
     if not idx:
         return out
@@ -387,7 +388,8 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             fits = [fit_walls_focal(quads, image_shape, height_m, params, segments, sigmas)]
         except facade.FacadeError as e:
             for k in idx:
-                out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None)
+                out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None,
+                                 focal_estimate_px=None)
             return out
         f_est = fits[0][2].focal_px
     else:
@@ -397,7 +399,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             k = idx[m]
             if fit is None:
                 out[k] = replace(out[k], failure="wall: joint fit failed", R=None, t=None,
-                                 quad_reprojected=None, wall=wid)
+                                 quad_reprojected=None, focal_estimate_px=None, wall=wid)
                 continue
             unc = window_uncertainty(fit, j)
             scale = 1.0 if width_m is None else width_m / fit.width[j]

@@ -175,8 +175,10 @@ def test_apply_walls_without_K_estimates_focal_and_poses():
 def test_apply_walls_without_K_fails_cleanly_when_unobservable():
     R, t = look_at(np.array([0.5, -8.0, 2.0]), np.array([0.5, 0.0, 2.0]))  # fronto-parallel
     quads = np.array([project(K, R, t, c) for c in wall_windows([0, 0, 0], EX_FRONT, FRONT[:3])])
-    out = walls.apply_walls(_results(quads), None, SHAPE, 1.0, None, walls.WallParams())
+    base = [replace(r, focal_estimate_px=700.0) for r in _results(quads)]  # a per-window (Zhang & He) f
+    out = walls.apply_walls(base, None, SHAPE, 1.0, None, walls.WallParams())
     assert all(r.failure and "focal length unobservable" in r.failure and r.R is None for r in out)
+    assert all(r.focal_estimate_px is None for r in out)  # the bench must not count the per-window f
 
 
 def test_ill_conditioned_flag_small_window_not_large_one():
