@@ -112,13 +112,13 @@ def orient(d: np.ndarray, segments: np.ndarray, K: np.ndarray) -> np.ndarray:
 
 def side_angles_to_vp(segments: np.ndarray, vp: np.ndarray) -> np.ndarray:
     """Image angle (N,) deg between each segment (N, 2, 2) px and the line from its midpoint to the
-    homogeneous vanishing point vp (3,) px (finite or at infinity)."""
+    homogeneous vanishing point vp (3,) px (finite or at infinity); vp (H, 3): (H, N), per point."""
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
     m = _homog(0.5 * (s[:, 0] + s[:, 1]))
-    lines = np.cross(m, np.asarray(vp, dtype=np.float64)[None, :])
-    to_vp = np.stack([lines[:, 1], -lines[:, 0]], axis=1)
+    lines = np.cross(m, np.asarray(vp, dtype=np.float64)[..., None, :])
+    to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
     e = s[:, 1] - s[:, 0]
-    c = np.abs(np.sum(to_vp * e, axis=1)) / (np.linalg.norm(to_vp, axis=1) * np.linalg.norm(e, axis=1) + 1e-300)
+    c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * np.linalg.norm(e, axis=1) + 1e-300)
     return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
 
 
@@ -581,7 +581,7 @@ def vp_consensus(segments: np.ndarray, d0: np.ndarray, K: np.ndarray, gate_deg: 
     H = np.concatenate(hyps)
     H = H[np.linalg.norm(H, axis=1) > 1e-12]
     thr = side_thresholds_deg(s[cand], noise_px, tight_deg)
-    inl = np.stack([side_angles_to_vp(s[cand], K @ h) <= thr for h in H])  # (H, C)
+    inl = side_angles_to_vp(s[cand], H @ K.T) <= thr  # (H, C)
     best = inl[int(np.argmax(inl @ length[cand]))]
     out = np.zeros(len(s), dtype=bool)
     out[cand[best]] = True
