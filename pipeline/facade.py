@@ -15,7 +15,12 @@ Pure functions on image quads (4, 2) px, TL TR BR BL (pixel centres at integers)
   directions, signs from the quads' side directions, projected onto SO(3).
 - :func:`refine_walls`: Levenberg-Marquardt over all corners of one or more walls: one rotation
   per wall, per window a translation and a width (height fixed: the scale gauge), optionally one
-  focal length shared by all. Returns the estimate and its first-order covariance (sigma^2 (J^T J)^-1).
+  focal length shared by all, and optionally façade line segments (:class:`LineObs`) as extra
+  residuals on the rotations (and f). Returns the estimate and its first-order covariance
+  (sigma^2 (J^T J)^-1, or the sandwich form with per-window corner sigmas).
+- Façade lines: :func:`detect_segments` (LSD, or Hough on Canny edges) finds straight segments;
+  :func:`vp_consensus` picks those that share one vanishing point near a wall's; :func:`line_residuals`
+  measures a segment against a vanishing point in pixels.
 
 The window frame is pipeline.pose's: x along the wall (BL -> BR), y up (BL -> TL), z outward,
 origin at the bottom-left corner, corners TL TR BR BL = (0,h,0), (w,h,0), (w,0,0), (0,0,0).
@@ -107,13 +112,13 @@ def orient(d: np.ndarray, segments: np.ndarray, K: np.ndarray) -> np.ndarray:
 
 def side_angles_to_vp(segments: np.ndarray, vp: np.ndarray) -> np.ndarray:
     """Image angle (N,) deg between each segment (N, 2, 2) px and the line from its midpoint to the
-    homogeneous vanishing point vp (3,) px (finite or at infinity)."""
+    homogeneous vanishing point vp (3,) px (finite or at infinity); vp (H, 3): (H, N), per point."""
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
     m = _homog(0.5 * (s[:, 0] + s[:, 1]))
-    lines = np.cross(m, np.asarray(vp, dtype=np.float64)[None, :])
-    to_vp = np.stack([lines[:, 1], -lines[:, 0]], axis=1)
+    lines = np.cross(m, np.asarray(vp, dtype=np.float64)[..., None, :])
+    to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
     e = s[:, 1] - s[:, 0]
-    c = np.abs(np.sum(to_vp * e, axis=1)) / (np.linalg.norm(to_vp, axis=1) * np.linalg.norm(e, axis=1) + 1e-300)
+    c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * np.linalg.norm(e, axis=1) + 1e-300)
     return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
 
 
@@ -136,14 +141,21 @@ class WallVP:
 
 
 def fit_vps(quads: np.ndarray, idx: list[int], K: np.ndarray, sigma_px: float = 1.0,
-            oriented: bool = True) -> tuple[np.ndarray, np.ndarray]:
+            oriented: bool = True, lines: tuple[np.ndarray, np.ndarray] | None = None,
+            line_sigma_px: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """(d_h, d_v) (3,) each of windows ``idx`` of quads (N, 4, 2) px: weighted least squares over
     their horizontal resp. vertical sides, oriented along +x / +y of the window frame unless not
-    ``oriented`` (sign arbitrary then)."""
+    ``oriented`` (sign arbitrary then). lines: façade segments (M_h, 2, 2), (M_v, 2, 2) px along
+    the horizontal resp. vertical direction, weighted like the sides with end-point sigma
+    ``line_sigma_px`` (the sign still comes from the sides)."""
     out = []
-    for sides in (H_SIDES, V_SIDES):
+    for f, sides in enumerate((H_SIDES, V_SIDES)):
         seg = side_segments(quads[idx], sides)
-        d = vanishing_direction(edge_normals(seg, K), segment_weights(seg, sigma_px))
+        nrm, wts = edge_normals(seg, K), segment_weights(seg, sigma_px)
+        if lines is not None and len(lines[f]):
+            nrm = np.concatenate([nrm, edge_normals(lines[f], K)])
+            wts = np.concatenate([wts, segment_weights(lines[f], line_sigma_px)])
+        d = vanishing_direction(nrm, wts)
         out.append(orient(d, seg, K) if oriented else d)
     return out[0], out[1]
 
@@ -283,7 +295,7 @@ class WallFit:
     used (estimated when ``focal_free``); reprojected (N, 4, 2) px; rms_px: reprojection RMS;
     sigma_px: the corner sigma used for the covariance; cov (P, P): first-order covariance of the
     parameters [omega (3, rad) per wall, (t_i (3), w_i) per window, f if free]; dof: residuals
-    minus parameters.
+    minus parameters; n_lines: façade line segments in the fit (:class:`LineObs`).
     """
 
     R: np.ndarray
@@ -299,6 +311,7 @@ class WallFit:
     sigma_px: float
     cov: np.ndarray
     dof: int
+    n_lines: int = 0
 
     def window_R(self, i: int) -> np.ndarray:
         """Window i's rotation (3, 3), window frame -> camera."""
@@ -392,7 +405,8 @@ def _inverse(A: np.ndarray) -> np.ndarray:
 
 def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.ndarray | None = None,
                  height: float = 1.0, focal_free: bool = False, sigma_px: float = 1.0,
-                 prior_dof: float = 0.0, Q: np.ndarray | None = None) -> WallFit:
+                 prior_dof: float = 0.0, Q: np.ndarray | None = None, lines: "LineObs | None" = None,
+                 corner_sigma: np.ndarray | None = None) -> WallFit:
     """Joint LM over all corners of the windows of one or more walls (quads (N, 4, 2) px).
 
     R0: (3, 3) for one wall, or (G, 3, 3) with wall_of (N,) giving each window's wall. Parameters:
@@ -402,7 +416,11 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
     sigma^2 the residuals' variance pooled with ``prior_dof`` pseudo-observations of ``sigma_px``
     (prior_dof = inf: the fixed sigma_px). Q (N, 3, 3): a fixed rotation of each window within its
     group (walls at right angles sharing one rotation: window i's is R[wall_of[i]] @ Q[i]); None:
-    identity. Raises FacadeError if the fit fails.
+    identity. lines: façade line segments along the groups' axes, an extra residual each on the
+    rotations (and f); None: corners only. corner_sigma (N,) px: each window's own corner sigma
+    for the covariance (at least the pooled one; the estimate stays unweighted, so the covariance
+    is the sandwich (J^T J)^-1 J^T V J (J^T J)^-1 with V the residuals' variances); None: the
+    pooled sigma for all. Raises FacadeError if the fit fails.
     """
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     n = len(q)
@@ -423,10 +441,15 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
 
     def residuals(x: np.ndarray) -> np.ndarray:
         R, t, w, Kx = _unpack(x, G, n, R0, K, focal_free)
-        return (project_wall(R[wall_of] @ Q, t, w, height, Kx) - q).ravel()
+        r = (project_wall(R[wall_of] @ Q, t, w, height, Kx) - q).ravel()
+        return r if lines is None else np.concatenate([r, lines.residuals(R, Kx)])
 
     def jacobian(x: np.ndarray) -> np.ndarray:
-        return wall_jacobian(x, G, wall_of, R0, K, height, focal_free, Q)
+        J = wall_jacobian(x, G, wall_of, R0, K, height, focal_free, Q)
+        if lines is None:
+            return J
+        R, _, _, Kx = _unpack(x, G, n, R0, K, focal_free)
+        return np.vstack([J, lines.jacobian(x, R, Kx, len(x), focal_free)])
 
     sol = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac")
     if not np.all(np.isfinite(sol.x)):
@@ -444,9 +467,15 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
         s2 = (rss + prior_dof * sigma_px ** 2) / max(dof + prior_dof, 1e-9)
     J = sol.jac
     cov = _inverse(J.T @ J) * s2
+    if corner_sigma is not None:
+        v = np.full(len(r), s2)
+        v[:8 * n] = np.maximum(s2, np.repeat(np.asarray(corner_sigma, dtype=np.float64) ** 2, 8))
+        A = cov / s2
+        cov = A @ ((J.T * v) @ J) @ A
     return WallFit(R=R, wall_of=wall_of, Q=np.array(Q), t=t, width=w, height=float(height), focal_px=float(Kx[0, 0]),
                    focal_free=focal_free, reprojected=project_wall(R[wall_of] @ Q, t, w, height, Kx),
-                   rms_px=float(np.sqrt(rss / len(r))), sigma_px=float(np.sqrt(s2)), cov=cov, dof=dof)
+                   rms_px=float(np.sqrt(rss / len(r))), sigma_px=float(np.sqrt(s2)), cov=cov, dof=dof,
+                   n_lines=0 if lines is None else len(lines))
 
 
 def rot_y(deg: float) -> np.ndarray:
@@ -479,3 +508,169 @@ def tie_walls(R0: np.ndarray, tol_deg: float = TOL.manhattan_deg) -> tuple[np.nd
             refs.append(g)
     return group, Q
 
+
+
+# ------------------------------------------------------------------ façade lines
+
+def _lsd(gray: np.ndarray, min_length_px: float) -> np.ndarray | None:
+    return cv2.createLineSegmentDetector().detect(gray)[0]
+
+
+def _hough(gray: np.ndarray, min_length_px: float) -> np.ndarray | None:
+    edges = cv2.Canny(gray, 50, 150)
+    return cv2.HoughLinesP(edges, 1.0, np.pi / 720.0, threshold=int(min_length_px),
+                           minLineLength=min_length_px, maxLineGap=2.0)
+
+
+SEGMENT_DETECTORS = {"lsd": _lsd, "hough": _hough}  # LSD: OpenCV's line segment detector (sub-pixel)
+
+
+def detect_segments(gray: np.ndarray, min_length_px: float, method: str = "lsd") -> np.ndarray:
+    """Straight line segments (M, 2, 2) px (start, end; pixel centres at integers) at least
+    ``min_length_px`` long in a gray image (H, W), uint8 or float in [0, 255] (rounded to uint8):
+    ``lsd`` (OpenCV's line segment detector, sub-pixel, within about 0.15 px of a step edge) or
+    ``hough`` (probabilistic Hough on Canny edges)."""
+    g = np.asarray(gray)
+    if g.ndim != 2 or not (g.dtype == np.uint8 or np.issubdtype(g.dtype, np.floating)):
+        raise ValueError(f"gray must be an (H, W) uint8 or float image, got shape {g.shape} dtype {g.dtype}")
+    if g.dtype != np.uint8:
+        g = np.clip(np.round(g), 0, 255).astype(np.uint8)
+    if method not in SEGMENT_DETECTORS:
+        raise ValueError(f"unknown segment detector {method!r}; known: {sorted(SEGMENT_DETECTORS)}")
+    found = SEGMENT_DETECTORS[method](g, float(min_length_px))
+    seg = np.zeros((0, 2, 2)) if found is None else np.asarray(found, dtype=np.float64).reshape(-1, 2, 2)
+    return seg[np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= min_length_px]
+
+
+def segment_families(segments: np.ndarray, d_h: np.ndarray, d_v: np.ndarray, K: np.ndarray,
+                     base_deg: float, noise_px: float) -> np.ndarray:
+    """Which vanishing direction each segment (M, 2, 2) px follows: 0 the wall's horizontal d_h,
+    1 its vertical d_v (camera frame (3,) under K (3, 3)), -1 neither: the closer of the two in
+    image angle (:func:`side_angles_to_vp`), if within base_deg + atan(2 noise_px / length)."""
+    s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
+    K = check_K(K)
+    ang = np.stack([side_angles_to_vp(s, K @ d) for d in (d_h, d_v)], axis=1)
+    fam = np.argmin(ang, axis=1)
+    ok = ang[np.arange(len(s)), fam] <= side_thresholds_deg(s, noise_px, base_deg)
+    return np.where(ok, fam, -1)
+
+
+def vp_consensus(segments: np.ndarray, d0: np.ndarray, K: np.ndarray, gate_deg: float, tight_deg: float,
+                 noise_px: float, max_pairs_of: int = 12) -> np.ndarray:
+    """Which of the segments (M, 2, 2) px share one vanishing point near K d0 (d0 (3,) camera frame
+    under K (3, 3)): (M,) bool.
+
+    Candidates: the segments pointing at K d0 within gate_deg (+ atan(2 noise_px / length)).
+    Hypotheses: the direction in each candidate's interpretation plane closest to d0, and the
+    intersection of every pair among the ``max_pairs_of`` longest candidates. The hypothesis whose
+    segments within tight_deg (+ the same) have the greatest total length wins; those segments are
+    returned (none without candidates).
+    """
+    s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
+    K = check_K(K)
+    length = np.linalg.norm(s[:, 1] - s[:, 0], axis=1)
+    cand = np.flatnonzero(side_angles_to_vp(s, K @ d0) <= side_thresholds_deg(s, noise_px, gate_deg))
+    if not len(cand):
+        return np.zeros(len(s), dtype=bool)
+    n = edge_normals(s[cand], K)
+    hyps = [d0[None] - (n @ d0)[:, None] * n]
+    top = np.argsort(-length[cand])[:max_pairs_of]
+    if len(top) > 1:
+        i, j = np.array(list(combinations(top, 2))).T
+        hyps.append(np.cross(n[i], n[j]))
+    H = np.concatenate(hyps)
+    H = H[np.linalg.norm(H, axis=1) > 1e-12]
+    thr = side_thresholds_deg(s[cand], noise_px, tight_deg)
+    inl = side_angles_to_vp(s[cand], H @ K.T) <= thr  # (H, C)
+    best = inl[int(np.argmax(inl @ length[cand]))]
+    out = np.zeros(len(s), dtype=bool)
+    out[cand[best]] = True
+    return out
+
+
+def hull_distance(points: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Signed distance (M,) px of points (M, 2) px to the convex hull of quads' (N, 4, 2) corners:
+    positive inside, negative outside."""
+    hull = cv2.convexHull(np.asarray(quads, dtype=np.float32).reshape(-1, 2))
+    return np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), True)
+                     for x, y in np.asarray(points, dtype=np.float64).reshape(-1, 2)])
+
+
+def line_residuals(segments: np.ndarray, vp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Residual (M,) px of segments (M, 2, 2) px against their vanishing points vp (M, 3)
+    (homogeneous px), and its gradient d r / d vp (M, 3).
+
+    r = sqrt(2) x the signed distance of the segment's end from the line through its midpoint and
+    its vanishing point: with isotropic end-point noise sigma, r has standard deviation sigma.
+    """
+    s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
+    v = np.asarray(vp, dtype=np.float64).reshape(-1, 3)
+    m = _homog(0.5 * (s[:, 0] + s[:, 1]))
+    c = np.cross(_homog(s[:, 1]), m)  # r ~ c . v: the end's offset from the line m x v
+    line = np.cross(m, v)
+    D = np.linalg.norm(line[:, :2], axis=1)
+    cv = np.sum(c * v, axis=1)
+    # d line / d v = [m]_x, so d D / d v = (l0 [m]_x[0] + l1 [m]_x[1]) / D
+    mx = np.stack([np.zeros(len(m)), -m[:, 2], m[:, 1]], axis=1), np.stack([m[:, 2], np.zeros(len(m)), -m[:, 0]], axis=1)
+    dD = (line[:, :1] * mx[0] + line[:, 1:2] * mx[1]) / D[:, None]
+    r = np.sqrt(2.0) * cv / D
+    grad = np.sqrt(2.0) * (c / D[:, None] - (cv / D ** 2)[:, None] * dD)
+    return r, grad
+
+
+@dataclass(frozen=True)
+class LineObs:
+    """Façade line segments in a joint wall fit.
+
+    segments (M, 2, 2) px; group (M,): the rotation group (index into the fit's R0) of each
+    segment's wall; Q (M, 3, 3): that wall's fixed rotation within its group; axis (M,): 0 the
+    segment runs along the window frame's x (horizontal), 1 along its y (vertical); weight (M,):
+    the factor on its residual (:func:`line_residuals`), corner sigma / line sigma, so that a line
+    counts like one corner coordinate of its precision.
+    """
+
+    segments: np.ndarray
+    group: np.ndarray
+    Q: np.ndarray
+    axis: np.ndarray
+    weight: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.segments)
+
+    def directions(self, R: np.ndarray) -> np.ndarray:
+        """Unit camera-frame directions (M, 3) of the segments under group rotations R (G, 3, 3)."""
+        RQ = R[self.group] @ self.Q
+        return RQ[np.arange(len(self.segments)), :, self.axis]
+
+    def residuals(self, R: np.ndarray, K: np.ndarray) -> np.ndarray:
+        """Weighted residuals (M,) px under rotations R (G, 3, 3) and intrinsics K (3, 3)."""
+        return self.weight * line_residuals(self.segments, self.directions(R) @ K.T)[0]
+
+    def angles_deg(self, R: np.ndarray, K: np.ndarray) -> np.ndarray:
+        """Image angle (M,) deg between each segment and the line from its midpoint to its
+        vanishing point under rotations R (G, 3, 3) and intrinsics K (3, 3)."""
+        r = line_residuals(self.segments, self.directions(R) @ K.T)[0]
+        half = 0.5 * np.linalg.norm(self.segments[:, 1] - self.segments[:, 0], axis=1)
+        return np.degrees(np.arcsin(np.clip(np.abs(r) / (np.sqrt(2.0) * half), 0.0, 1.0)))
+
+    def take(self, keep: np.ndarray) -> "LineObs":
+        """The segments selected by ``keep`` (M,) bool or indices."""
+        return LineObs(self.segments[keep], self.group[keep], self.Q[keep], self.axis[keep], self.weight[keep])
+
+    def jacobian(self, x: np.ndarray, R: np.ndarray, K: np.ndarray, n_params: int, focal_free: bool) -> np.ndarray:
+        """(M, P) derivative of :meth:`residuals` by the fit parameters x (P,) (refine_walls'
+        layout: rotation vector per group first, f last if free)."""
+        d = self.directions(R)
+        _, g = line_residuals(self.segments, d @ K.T)
+        g = g * self.weight[:, None]
+        J = np.zeros((len(d), n_params))
+        Jl = np.array([left_jacobian(x[3 * k:3 * k + 3]) for k in range(len(R))])
+        # d vp / d omega = K (-[d]_x J_l); (-[d]_x)^T (K^T g) = d x (K^T g)
+        rot = np.einsum("mc,mcd->md", np.cross(d, g @ K), Jl[self.group])
+        for k in range(len(R)):
+            sel = self.group == k
+            J[sel, 3 * k:3 * k + 3] = rot[sel]
+        if focal_free:
+            J[:, -1] = g[:, 0] * d[:, 0] + g[:, 1] * d[:, 1]
+        return J

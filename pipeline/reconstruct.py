@@ -246,7 +246,7 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
     if wall is None:
         return results
     t0 = time.perf_counter()
-    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall)
+    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, gray)
     ms = (time.perf_counter() - t0) * 1e3 / max(len(results), 1)
     return [replace(r, timings_ms={**r.timings_ms, "wall": ms}) for r in results]
 

@@ -7,7 +7,7 @@ import pandas as pd
 
 from bench.paired import paired_comparison
 
-PER_WINDOW, NO_K_SUFFIX = "lm", "+noK"
+PER_WINDOW, NO_K_SUFFIX, LINES_SUFFIX = "lm", "+noK", "+lines"
 
 
 def wall_poses(df: pd.DataFrame) -> list[str]:
@@ -17,13 +17,13 @@ def wall_poses(df: pd.DataFrame) -> list[str]:
     return [p for p in WALL_STRATEGIES if (df["pose"] == p).any()]
 
 
-def paired_rows(df: pd.DataFrame, pose: str) -> list[list]:
-    """Per detector x snapper: rotation (median, p90) and aspect p90 of per-window LM and the
-    per-wall strategy ``pose``, paired on the windows where both have an estimate, and the
-    Wilcoxon p of the rotation."""
+def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW) -> list[list]:
+    """Per detector x snapper: rotation (median, p90) and aspect p90 of the pose ``ref`` (default
+    per-window LM) and the per-wall strategy ``pose``, paired on the windows where both have an
+    estimate, and the Wilcoxon p of the rotation."""
     rows = []
     for (det, snap), _ in df.groupby(["detector", "snapper"]):
-        a, b = f"{det}/{snap}/{PER_WINDOW}", f"{det}/{snap}/{pose}"
+        a, b = f"{det}/{snap}/{ref}", f"{det}/{snap}/{pose}"
         if not {a, b} <= set(df["method"]):
             continue
         rot = paired_comparison(df, b, a, "rot_err_deg")
@@ -75,12 +75,18 @@ def wall_sections(df: pd.DataFrame) -> list[tuple]:
     s: list[tuple] = [("h2", "Per window or per wall (shared plane)")]
     s.append(("p", "Same evaluable windows, paired (both estimates present). 'wall' groups a view's windows into "
                    "walls by their vanishing directions and fits one rotation per wall over all their corners; "
-                   "'building' also ties walls at right angles into one rotation (pipeline/walls.py); 'lm' is "
-                   "the paper's per-window solvePnP."))
-    for pose in wall_poses(df):
-        s.append(("table", ["detector/snapper", "n paired", "rot median lm", f"rot median {pose}", "rot p90 lm",
-                            f"rot p90 {pose}", "aspect p90 lm", f"aspect p90 {pose}", f"{pose} better on",
-                            "Wilcoxon p"], paired_rows(df, pose)))
+                   "'building' also ties walls at right angles into one rotation (pipeline/walls.py); '+lines' "
+                   "adds the photo's line segments along the walls' two directions; 'lm' is the paper's "
+                   "per-window solvePnP."))
+    poses = wall_poses(df)
+    pairs = [(p, PER_WINDOW) for p in poses] + [(p, p[: -len(LINES_SUFFIX)]) for p in poses
+                                                 if p.endswith(LINES_SUFFIX) and p[: -len(LINES_SUFFIX)] in poses]
+    for pose, ref in pairs:
+        if ref != PER_WINDOW:
+            s.append(("p", f"With and without the façade's line segments: '{pose}' against '{ref}'."))
+        s.append(("table", ["detector/snapper", "n paired", f"rot median {ref}", f"rot median {pose}", f"rot p90 {ref}",
+                            f"rot p90 {pose}", f"aspect p90 {ref}", f"aspect p90 {pose}", f"{pose} better on",
+                            "Wilcoxon p"], paired_rows(df, pose, ref)))
     if df["pose"].str.endswith(NO_K_SUFFIX).any():
         s.append(("h3", "Focal length with K withheld ('+noK')"))
         s.append(("p", "The pipeline gets the image only (principal point assumed at the image centre); relative "

@@ -6,7 +6,9 @@ SRC_DIR as for prepare.py (``masks/maskNNN.png``, already undistorted). The whol
 (prepare.pane_instances) give mask quads (no snapping: the photos themselves still carry lens
 distortion); pipeline.walls.fit_walls_focal estimates f with the principal point at the image
 centre. Prints, per photo, the panes used, f +- sd and the error against the calibrated
-sqrt(fx fy) (scaled), or why f was unobservable.
+sqrt(fx fy) (scaled), or why f was unobservable. The strategies with façade lines (``+lines``) are
+left out: their segments would come from the photo, which still carries lens distortion (and
+undistorting it needs the K that is withheld here).
 """
 from __future__ import annotations
 
@@ -39,6 +41,8 @@ def main() -> None:
         fits = fit_quads(detections_from_instance_map(inst), image_shape=inst.shape)
         quads = np.array([f.result.quad for f in fits if f.result.quad is not None]).reshape(-1, 4, 2)
         for name, params in WALL_STRATEGIES.items():
+            if params.lines:
+                continue
             try:
                 fit = fit_walls_focal(quads, inst.shape, 1.0, params)[2]
                 sd = float(np.sqrt(fit.cov[-1, -1]))
