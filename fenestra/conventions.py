@@ -56,8 +56,8 @@ class Strategies:
 
 
 # What `fenestra reconstruct` and ReconstructConfig() use: the README's measured best for a learned
-# detector's masks (line-based snapping, the per-wall shared plane).
-DEFAULTS = Strategies(detector="default", snapper="linefit", pose="wall")
+# detector's masks (line-based snapping, the per-wall shared plane with the façade's line segments).
+DEFAULTS = Strategies(detector="default", snapper="linefit", pose="wall+lines")
 # The paper's method (Mask R-CNN, Harris snapping, per-window iterative PnP): the reference in comparisons.
 PAPER = Strategies(detector="maskrcnn", snapper="harris", pose="lm")
 
