@@ -100,12 +100,14 @@ def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tupl
     from dataclasses import replace  # noqa: PLC0415
 
     from pipeline.intrinsics import resolve_K  # noqa: PLC0415
+    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
 
     gray = to_gray(image)
     per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
                                  replace(cfg, pose="ippe", fallback_focal_px=float(max(size))))
     quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
-    return resolve_K(photo, quads, size)
+    # the chosen per-wall strategy's parameters (its façade lines too), the plain wall fit otherwise
+    return resolve_K(photo, quads, size, WALL_STRATEGIES.get(cfg.pose), gray)
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:

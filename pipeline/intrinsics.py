@@ -17,11 +17,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from fenestra.errors import PipelineError
+
+if TYPE_CHECKING:  # annotations only; pipeline.walls is imported lazily below
+    from pipeline.walls import WallParams
 
 FULL_FRAME_WIDTH_MM = 36.0  # the 35 mm-equivalent focal length refers to a 36 x 24 mm frame
 EXIF_IFD = 0x8769
@@ -88,20 +92,25 @@ class ResolvedK:
     detail: str
 
 
-def resolve_K(photo: str | Path, quads: np.ndarray, image_size: tuple[int, int]) -> ResolvedK:
+def resolve_K(photo: str | Path, quads: np.ndarray, image_size: tuple[int, int],
+              wall: WallParams | None = None, gray: np.ndarray | None = None) -> ResolvedK:
     """Intrinsics for a photo without --K: façade vanishing points, else EXIF, else PipelineError.
 
-    quads: (N, 4, 2) px snapped window quads of the photo; image_size (W, H).
+    quads: (N, 4, 2) px snapped window quads of the photo; image_size (W, H); wall: the per-wall
+    strategy's parameters (default ``WallParams()``; with ``lines`` the photo's façade segments join
+    the focal fit, which needs gray (H, W), the photo).
     """
-    from pipeline.walls import focal_from_walls  # noqa: PLC0415
+    from pipeline.walls import WallParams, focal_from_walls  # noqa: PLC0415
 
     W, H = image_size
     why = "no window quads"
     if len(quads):
         try:
-            f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W))
+            f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), gray)
             return ResolvedK(centred_K(f, image_size), "vanishing points",
-                             f"f = {f:.1f} +- {sd:.1f} px from {len(quads)} window(s), principal point at the image centre")
+                             f"f = {f:.1f} +- {sd:.1f} px from {len(quads)} window(s)"
+                             f"{' and the facade line segments' if wall is not None and wall.lines else ''}, "
+                             "principal point at the image centre")
         except PipelineError as e:
             why = str(e)
     exif = focal_from_exif(photo, image_size)

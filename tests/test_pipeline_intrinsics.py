@@ -81,6 +81,11 @@ def test_reconstruct_without_K_uses_vanishing_points(tmp_path):
     saved = json.loads((tmp_path / "out" / "windows.json").read_text())
     assert saved["K_source"] == doc["K_source"] and saved["K"] == doc["K"]
     assert all(w["failure"] is None and w["uncertainty"] is not None for w in saved["windows"])
+    # the default pose (wall+lines) lets the photo's façade segments into the focal fit; plain `wall` does not
+    assert "line segments" in doc["K_source"]["detail"]
+    plain = run_reconstruct(photo, tmp_path / "out-wall", masks=masks, snapper="none", pose="wall", export=False)
+    assert "line segments" not in plain["K_source"]["detail"]
+    assert plain["K"][0][0] == pytest.approx(700.0, rel=0.02)
 
 
 def _chessboard_views(K, n=6, squares=(10, 7), square_px=40, seed=0):
