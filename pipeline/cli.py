@@ -26,7 +26,8 @@ from fenestra.config import choices
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from pipeline.outdir import check_out, staged_dir
-from pipeline.reconstruct import (ReconstructConfig, detections_from_instance_map, fit_quads, pose_strategies,
+from pipeline.detectors.oracle import detections_from_instance_map
+from pipeline.reconstruct import (ReconstructConfig, fit_quads, pose_strategies,
                                   reconstruct, reconstruct_from_quads, to_gray, windows_to_json)
 from pipeline.snappers import SNAPPERS
 

@@ -24,7 +24,6 @@ import numpy as np
 from fenestra.conventions import DEFAULTS, check_K
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
-from pipeline.detectors.oracle import detections_from_instance_map  # noqa: F401  (--masks input; re-exported)
 from pipeline.pose import POSE_SOLVERS, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, mask_to_quad
 from pipeline.snappers import SNAPPERS

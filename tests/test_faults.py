@@ -319,7 +319,8 @@ def test_many_windows_sparse_masks_large_photo():
     """1000 windows (the stated maximum) in a 4000x3000 instance map: one Detection per id with
     its bounding-box crop (not a full-size mask each: 12 GB), quads where the rectangles are.
     In process: the CLI run of this case (export included) is measured by tools/bench_memory.py."""
-    from pipeline.reconstruct import detections_from_instance_map, fit_quads
+    from pipeline.detectors.oracle import detections_from_instance_map
+    from pipeline.reconstruct import fit_quads
 
     inst = np.zeros((3000, 4000), np.uint16)
     rects = {}

@@ -9,7 +9,8 @@ from typer.testing import CliRunner
 from fenestra.conventions import make_K, rotation_error_deg
 from fenestra.errors import PipelineError
 from pipeline.io import read_instance_map, read_K, read_photo
-from pipeline.reconstruct import ReconstructConfig, detections_from_instance_map, reconstruct, windows_to_json
+from pipeline.detectors.oracle import detections_from_instance_map
+from pipeline.reconstruct import ReconstructConfig, reconstruct, windows_to_json
 from renders.quad_image import coverage, pixel_centre_mask, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)

@@ -11,7 +11,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from fenestra.data import DatasetError, read_image, read_instances  # noqa: F401  (the contract's readers)
+from fenestra.data import DatasetError
 
 
 @dataclass(frozen=True)

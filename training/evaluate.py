@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from fenestra import data
+from fenestra.data import DatasetError, read_image, read_instances
 from pipeline.detectors import DETECTORS, get_detector
 from pipeline.types import Detection
-from training.dataset import (DatasetError, coco_image_path, find_datasets, load_coco, read_image,
-                              read_instances)
+from training.dataset import coco_image_path, find_datasets, load_coco
 
 TABLE_STATS = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large")  # the columns of format_table
 

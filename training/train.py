@@ -35,10 +35,11 @@ import torch
 import torch.nn.functional as F
 
 from fenestra.config import from_table, read_toml
+from fenestra.data import read_image, read_instances
 from pipeline.detectors import DEFAULT_WEIGHTS
 from pipeline.detectors.maskrcnn import DEFAULT_MASKRCNN_WEIGHTS
 from training.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
-from training.dataset import find_datasets, list_views, read_image, read_instances
+from training.dataset import find_datasets, list_views
 
 DEVICES = ("cpu", "cuda")
 

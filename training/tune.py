@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from fenestra.data import coco_ground_truth, coco_scores, gt_annotation, instance_masks
+from fenestra.data import coco_ground_truth, coco_scores, gt_annotation, instance_masks, read_image, read_instances
 from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
 from pipeline.detectors.winnet import PostConfig, instances_from_maps, predict_maps
-from training.dataset import find_datasets, list_views, read_image, read_instances
+from training.dataset import find_datasets, list_views
 from training.evaluate import detection_to_coco
 
 
