@@ -54,9 +54,10 @@ def default_run_dir(profile: Profile) -> Path:
 # ---------------------------------------------------------------- methods
 
 def _expand(names: tuple[str, ...], registry: dict, what: str) -> list[str]:
-    """["all"] -> every registered name; otherwise check each name exists."""
+    """["all"] -> every registered name (but entries with ``in_all`` False); otherwise check each
+    name exists."""
     if names == (ALL,):
-        return list(registry)
+        return [n for n, e in registry.items() if getattr(e, "in_all", True)]
     bad = [n for n in names if n not in registry]
     if bad:
         raise FenestraError(f"unknown {what} {bad}; registered: {sorted(registry)}")

@@ -262,6 +262,23 @@ def box_from_coco(bbox) -> np.ndarray:
     return np.array([x - 0.5, y - 0.5, x + w - 0.5, y + h - 0.5])
 
 
+def yolo_boxes(text: str, width: int, height: int, classes: tuple[int, ...], where: str) -> list[np.ndarray]:
+    """Boxes (4,) x0 y0 x1 y1 px (fenestra convention) of the lines ``class cx cy w h``
+    (normalised to the image size) whose class is in ``classes``."""
+    out = []
+    for k, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        parts = line.split()
+        try:
+            c, cx, cy, bw, bh = int(float(parts[0])), *(float(v) for v in parts[1:5])
+        except (ValueError, IndexError) as e:
+            raise DatasetError(f"{where}:{k}: bad YOLO line {line!r}") from e
+        if c in classes:
+            out.append(box_from_coco([(cx - bw / 2) * width, (cy - bh / 2) * height, bw * width, bh * height]))
+    return out
+
+
 # ---------------------------------------------------------------- masks and RLE
 
 @dataclass(frozen=True)

@@ -30,6 +30,9 @@ import cv2
 import numpy as np
 
 
+QUAD_SOURCES = ("mask", "corners")
+
+
 @dataclass(frozen=True)
 class QuadParams:
     """Parameters of :func:`mask_to_quad` (pixels unless stated).
@@ -50,6 +53,10 @@ class QuadParams:
         mask fail with ``multiple_blobs`` (e.g. two windows in one mask).
     allow_border: if False, a mask touching the image border fails with ``touches_border``
         (the window is cut by the image, its true corners are unknown).
+    source: where the quad comes from: ``"mask"`` (:func:`mask_to_quad`), or ``"corners"``: the
+        corners a detector with a corner head predicts (``Detection.corners``,
+        :func:`corners_to_quad`), falling back to the mask fit for a detection without usable
+        corners. QUAD_SOURCES lists the choices.
     """
 
     window_pts: int = 100
@@ -63,6 +70,11 @@ class QuadParams:
     speck_px: int = 4
     speck_rel: float = 0.05
     allow_border: bool = False
+    source: str = "mask"
+
+    def __post_init__(self) -> None:
+        if self.source not in QUAD_SOURCES:
+            raise ValueError(f"quad source must be one of {QUAD_SOURCES}, got {self.source!r}")
 
 
 @dataclass(frozen=True)
@@ -299,3 +311,32 @@ def _is_convex(quad: np.ndarray) -> bool:
     e = np.roll(quad, -1, axis=0) - quad
     cross = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
     return bool(np.all(cross > 0) or np.all(cross < 0))
+
+
+def corners_to_quad(corners: np.ndarray | None, min_side_px: float = 3.0) -> QuadResult:
+    """The QuadResult of four predicted corners (4, 2) px (a detector's corner head), any order.
+
+    Fails (never raises) with ``no_corners`` (None, wrong shape or not finite) or
+    ``not_quadrilateral`` (not convex, or a side shorter than ``min_side_px``). lines: the sides
+    through neighbouring corners, normals pointing out; explained = 1 (no outline is fitted).
+    """
+    if corners is None:
+        return _fail("no_corners: the detection has no predicted corners")
+    c = np.asarray(corners, dtype=np.float64)
+    if c.shape != (4, 2) or not np.all(np.isfinite(c)):
+        return _fail(f"no_corners: corners must be (4, 2) finite px, got shape {c.shape}")
+    quad = order_corners(c)
+    if not _is_convex(quad):
+        return _fail("not_quadrilateral: the predicted corners are not convex")
+    sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+    if sides.min() < min_side_px:
+        return _fail(f"not_quadrilateral: a predicted side is {sides.min():.1f} px < {min_side_px} px")
+    centre = quad.mean(axis=0)
+    lines = np.zeros((4, 3))
+    for k in range(4):
+        a, b = quad[k], quad[(k + 1) % 4]
+        n = np.array([b[1] - a[1], a[0] - b[0]]) / np.linalg.norm(b - a)
+        if n @ centre > n @ a:
+            n = -n
+        lines[k] = (n[0], n[1], n @ a)
+    return QuadResult(quad=quad, lines=lines, explained=1.0, failure=None)

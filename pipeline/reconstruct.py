@@ -25,7 +25,7 @@ from fenestra.conventions import DEFAULTS, check_K
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
 from pipeline.pose import POSE_SOLVERS, estimate_pose
-from pipeline.quad import QuadParams, QuadResult, mask_to_quad
+from pipeline.quad import QuadParams, QuadResult, corners_to_quad, mask_to_quad
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult, check_image
 from pipeline.walls import WALL_STRATEGIES, apply_walls
@@ -122,7 +122,9 @@ class QuadFit:
 
 def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
               image_shape: tuple[int, int] | None = None) -> list[QuadFit]:
-    """Fit the quad of every detection (mask -> quad), in order, for :func:`reconstruct_from_quads`.
+    """Fit the quad of every detection (mask -> quad, or the predicted corners with
+    ``params.source == "corners"`` where the detection has usable ones), in order, for
+    :func:`reconstruct_from_quads`.
 
     image_shape: (H, W); a detection whose mask has another shape is not fitted (result None).
     """
@@ -132,7 +134,9 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
             fits.append(QuadFit(None, 0.0))
             continue
         t0 = time.perf_counter()
-        qr = mask_to_quad(det.mask, params) if image_shape is None else fit_sparse(det, params, image_shape)
+        qr = corners_to_quad(det.corners) if params.source == "corners" else None
+        if qr is None or qr.quad is None:  # the mask fit: the source, or the fallback
+            qr = mask_to_quad(det.mask, params) if image_shape is None else fit_sparse(det, params, image_shape)
         fits.append(QuadFit(qr, (time.perf_counter() - t0) * 1e3))
     return fits
 

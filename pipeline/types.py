@@ -43,6 +43,8 @@ class Detection:
     Sparse form (large photos, many windows): ``mask`` is an (h, w) crop whose pixel [0, 0] is
     image pixel ``origin`` (x0, y0); the default origin (0, 0) with the image's shape is the full
     mask. instance_id: the input instance map's id (``--masks``), None for a detector's output.
+    corners: (4, 2) px, TL TR BR BL in image order, full-image coordinates: the void's corners as a
+    detector with a corner head predicts them (pipeline.quad.corners_to_quad), else None.
     """
 
     mask: np.ndarray
@@ -51,6 +53,7 @@ class Detection:
     label: str = "window"
     origin: tuple[int, int] = (0, 0)
     instance_id: int | None = None
+    corners: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

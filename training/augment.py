@@ -31,10 +31,33 @@ class AugmentConfig:
     shadow_strength: tuple[float, float] = (0.15, 0.6)  # brightness factor inside the band
 
 
+@dataclass(frozen=True)
+class CropWarp:
+    """The geometry of one random_scale_crop: scale (sx, sy), crop origin (x0, y0) on the scaled
+    image, horizontal flip of a crop ``width`` px wide. Maps points like the pixels."""
+
+    sx: float
+    sy: float
+    x0: int
+    y0: int
+    flip: bool
+    width: int
+
+    def points(self, p: np.ndarray) -> np.ndarray:
+        """(..., 2) px on the original (pixel centres at integers) -> the same points on the crop."""
+        p = np.asarray(p, dtype=np.float64)
+        x = (p[..., 0] + 0.5) * self.sx - 0.5 - self.x0
+        y = (p[..., 1] + 0.5) * self.sy - 0.5 - self.y0
+        if self.flip:
+            x = self.width - 1 - x
+        return np.stack([x, y], axis=-1)
+
+
 def random_scale_crop(image: np.ndarray, instances: np.ndarray, crop_hw: tuple[int, int],
-                      cfg: AugmentConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+                      cfg: AugmentConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, CropWarp]:
     """Rescale by a random factor, take a random crop (H, W) = crop_hw (replicate-padded if
-    needed), flip horizontally at random. Returns image (h, w, 3) uint8, instances (h, w) int32."""
+    needed), flip horizontally at random. Returns image (h, w, 3) uint8, instances (h, w) int32
+    and the CropWarp that maps points (corners) the same way."""
     s = rng.uniform(*cfg.scale_range)
     H, W = instances.shape
     nh, nw = max(8, int(round(H * s))), max(8, int(round(W * s)))
@@ -55,9 +78,11 @@ def random_scale_crop(image: np.ndarray, instances: np.ndarray, crop_hw: tuple[i
             y0 = int(np.clip(ys[i] - ch // 2, 0, img.shape[0] - ch))
             x0 = int(np.clip(xs[i] - cw // 2, 0, img.shape[1] - cw))
     img, inst = img[y0:y0 + ch, x0:x0 + cw], inst[y0:y0 + ch, x0:x0 + cw]
-    if rng.random() < cfg.hflip_prob:
+    flip = bool(rng.random() < cfg.hflip_prob)
+    if flip:
         img, inst = img[:, ::-1], inst[:, ::-1]
-    return np.ascontiguousarray(img), np.ascontiguousarray(inst)
+    warp = CropWarp(nw / W, nh / H, x0, y0, flip, cw)
+    return np.ascontiguousarray(img), np.ascontiguousarray(inst), warp
 
 
 def photometric(image: np.ndarray, cfg: AugmentConfig, rng: np.random.Generator) -> np.ndarray:

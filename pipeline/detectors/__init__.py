@@ -33,6 +33,7 @@ from pipeline.types import Detection, check_image
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_WEIGHTS = MODELS_DIR / "default.pt"
+WINNET_WEIGHTS = MODELS_DIR / "winnet.pt"
 
 Detector = Callable[..., list[Detection]]
 
@@ -62,23 +63,56 @@ def _oracle_degraded(config: DegradeConfig = DegradeConfig()) -> Detector:
 
 
 def load_winnet(weights: str | Path | None = None):
-    """(model, PostConfig) from a WinNet checkpoint (default: the shipped pipeline/models/default.pt)."""
+    """(model, PostConfig) from a WinNet checkpoint (default: the shipped pipeline/models/winnet.pt)."""
     import torch  # noqa: PLC0415
 
     from pipeline.detectors.winnet import PostConfig, WinNet, WinNetConfig  # noqa: PLC0415
 
-    path = Path(weights) if weights is not None else DEFAULT_WEIGHTS
-    if not path.is_file():
-        raise FenestraError(f"no WinNet weights at {path}: train them with `fenestra train --config "
-                            "training/configs/default.toml` (see pipeline/models/README.md)")
-    ckpt = read_checkpoint(path, "winnet")
+    ckpt = read_checkpoint(_weights_file(weights, WINNET_WEIGHTS), "winnet")
     model = WinNet(WinNetConfig(tuple(ckpt["widths"])))
     model.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
     model.to(memory_format=torch.channels_last)  # NHWC: faster convolutions on CPU (oneDNN)
     return model.eval(), PostConfig(**ckpt.get("post", {}))
 
 
-def _default(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
+def load_effwin(weights: str | Path | None = None):
+    """(model, PostConfig) from an EffWin checkpoint (default: the shipped pipeline/models/default.pt).
+    Only the model code is needed: the backbone's ImageNet weights are inside the checkpoint."""
+    import torch  # noqa: PLC0415
+
+    from pipeline.detectors.effwin import EffWin, EffWinConfig  # noqa: PLC0415
+    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
+
+    ckpt = read_checkpoint(_weights_file(weights, DEFAULT_WEIGHTS), "effwin")
+    c = ckpt["config"]
+    model = EffWin(EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"])))
+    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in ckpt["state_dict"].items()})
+    model.to(memory_format=torch.channels_last)
+    return model.eval(), PostConfig(**ckpt.get("post", {}))
+
+
+def _weights_file(weights: str | Path | None, default: Path) -> Path:
+    path = Path(weights) if weights is not None else default
+    if not path.is_file():
+        raise FenestraError(f"no detector weights at {path}: train them with `fenestra train --config "
+                            "training/configs/<arch>.toml` (see pipeline/models/README.md)")
+    return path
+
+
+def checkpoint_arch(path: str | Path) -> str:
+    """The ``arch`` a weights file holds (FenestraError if it is not a checkpoint)."""
+    import torch  # noqa: PLC0415
+
+    try:
+        ckpt = torch.load(_weights_file(path, DEFAULT_WEIGHTS), map_location="cpu", weights_only=False)
+    except FenestraError:
+        raise
+    except Exception as e:  # noqa: BLE001 - pickle, zip and torch errors all mean "not a model"
+        raise FenestraError(f"{path} is not a model checkpoint ({type(e).__name__})") from e
+    return str(ckpt.get("arch")) if isinstance(ckpt, dict) else type(ckpt).__name__
+
+
+def _winnet(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
     from pipeline.detectors.winnet import instances_from_maps, predict_maps  # noqa: PLC0415
 
     model, post = load_winnet(weights)
@@ -88,6 +122,27 @@ def _default(weights: str | Path | None = None, threads: int | None = None, devi
     def run(image: np.ndarray, **_: object) -> list[Detection]:
         return instances_from_maps(*predict_maps(model, image), post)
     return run
+
+
+def _effwin(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
+    from pipeline.detectors.effwin import detections_from_maps, predict_maps  # noqa: PLC0415
+
+    model, post = load_effwin(weights)
+    model.to(check_device(device))
+    set_cpu_threads(threads)
+
+    def run(image: np.ndarray, **_: object) -> list[Detection]:
+        return detections_from_maps(predict_maps(model, image), post)
+    return run
+
+
+def _default(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
+    """The shipped default (pipeline/models/default.pt), or any winnet/effwin weights file."""
+    path = _weights_file(weights, DEFAULT_WEIGHTS)
+    build = {"winnet": _winnet, "effwin": _effwin}.get(checkpoint_arch(path))
+    if build is None:
+        raise FenestraError(f"{path} holds a {checkpoint_arch(path)!r} model; the default detector loads winnet or effwin")
+    return build(path, threads, device)
 
 
 def _maskrcnn(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
@@ -107,18 +162,22 @@ class DetectorEntry:
 
     build(**options) -> Detector. needs_instances: it reads the ground-truth instance map
     (``instances=`` (H, W) int, per image; the oracles), so it runs only where one exists (renders,
-    labelled masks) and always at the image's full resolution.
+    labelled masks) and always at the image's full resolution. in_all: part of a profile's
+    ``detectors = ["all"]`` (False for maskrcnn, whose weights are not shipped: a fresh clone
+    would have to skip it).
     """
 
     build: Callable[..., Detector]
     needs_instances: bool = False
+    in_all: bool = True
 
 
 DETECTORS: dict[str, DetectorEntry] = {
     "oracle": DetectorEntry(_oracle, needs_instances=True),
     "oracle-degraded": DetectorEntry(_oracle_degraded, needs_instances=True),
     "default": DetectorEntry(_default),
-    "maskrcnn": DetectorEntry(_maskrcnn),
+    "winnet": DetectorEntry(_winnet),
+    "maskrcnn": DetectorEntry(_maskrcnn, in_all=False),
 }
 
 
