@@ -33,11 +33,11 @@ def print_headline(results: dict) -> None:
 
     t = Table(title="per method (evaluable windows)")
     rows = headline_table(results)
-    for col in ("method", "evaluable", "detected", "mask med px", "snap med px", "snap p90 px",
+    for col in ("method", "evaluable", "detected", "mask med px", "head med px", "snap med px", "snap p90 px",
                 "reproj med px", "R@2px snap", "aspect p90", "rot med deg"):
         t.add_column(col, justify="left" if col == "method" else "right")
     for r in rows:
-        t.add_row(r["method"], str(r["n_evaluable"]), _fmt(r["detected"]), _fmt(r["mask_med_px"]),
+        t.add_row(r["method"], str(r["n_evaluable"]), _fmt(r["detected"]), _fmt(r["mask_med_px"]), _fmt(r["head_med_px"]),
                   _fmt(r["snap_med_px"]), _fmt(r["snap_p90_px"]), _fmt(r["reproj_med_px"]),
                   _fmt(r["recall_2px_snap"]), _fmt(r["aspect_p90_rel"], 3), _fmt(r["rot_med_deg"]))
     Console(width=max(150, Console().width)).print(t)

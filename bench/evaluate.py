@@ -127,8 +127,17 @@ _ERROR_COLUMNS = (
     "corner_err_px_mask", "corner_err_px_mask_max", "corner_err_px_snap", "corner_err_px_snap_max",
     "corner_err_px_reproj", "corner_err_px_reproj_max", "snap_gain_px", "aspect_est",
     "aspect_err_rel", "rot_err_deg", "normal_err_deg", "trans_err_m", "iou_2d", "iou_2d_mask",
-    "iou_2d_reproj", "match_iou", "det_score",
+    "iou_2d_reproj", "match_iou", "det_score", "corner_err_px_head",
 )
+
+
+def _head_error(det, win: dict) -> float:
+    """Mean corner error (px) of a detection's predicted corners (a corner head's; pipeline.quad.
+    corners_to_quad), NaN where it has none or they are not a quad."""
+    from pipeline.quad import corners_to_quad  # noqa: PLC0415
+
+    q = corners_to_quad(det.corners).quad
+    return NAN if q is None else float(metrics.corner_errors_px(q, np.asarray(win["corners_px"], np.float64)).mean())
 
 
 def _errors(res, win: dict, gt_pose: tuple[np.ndarray, np.ndarray]) -> dict:
@@ -283,6 +292,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
                                reason="" if res.failure is None else f"failed: {res.failure}")
                     row["match_iou"] = det_for_gt[g][1]
                     row["det_score"] = float(dets[det_for_gt[g][0]].score)
+                    row["corner_err_px_head"] = _head_error(dets[det_for_gt[g][0]], w)
                 out.rows.append(row)
             t0 = tick("metrics", t0)
     return out

@@ -34,7 +34,9 @@ CORNER_STAGES = ("mask", "snap", "reproj")
 STAGE_LABELS = {"mask": "mask-fit", "snap": "snapped", "reproj": "reprojected"}
 CALIBRATION_COLUMNS = ("aspect_in90", "rot_in90", "trans_in90")  # bench.uncertainty
 OTHER_ERRORS = ("aspect_err_rel", "rot_err_deg", "normal_err_deg", "trans_err_m", "iou_2d")
-OPTIONAL_ERRORS = ("reproj_consistency_px", "rel_size_err")  # summarised when present (bench/real)
+# summarised when present: bench/real's; corner_err_px_head: the detector's corner head (its
+# predicted corners, where it has one), beside the mask fit, for the same matched windows
+OPTIONAL_ERRORS = ("reproj_consistency_px", "rel_size_err", "corner_err_px_head")
 # Where a table says which windows have the truth an error needs (the real bench: bench/real),
 # that error's statistics are over those windows only: absent truth is not a failure.
 TRUTH_FLAGS = {**{f"corner_err_px_{s}": "has_quad" for s in CORNER_STAGES}, "iou_2d": "has_quad",
@@ -209,7 +211,9 @@ def headline_table(results: dict) -> list[dict]:
         snap = r["corner_err_px_snap"]
         rows.append({
             "method": m, "n_evaluable": r["n_evaluable"], "detected": r["detection_rate"],
-            "mask_med_px": r["corner_err_px_mask"]["median"], "snap_med_px": snap["median"],
+            "mask_med_px": r["corner_err_px_mask"]["median"],
+            "head_med_px": r.get("corner_err_px_head", {}).get("median", float("nan")),
+            "snap_med_px": snap["median"],
             "snap_p90_px": snap["p90"], "reproj_med_px": r["corner_err_px_reproj"]["median"],
             "recall_2px_snap": snap["recall"]["2"], "aspect_p90_rel": r["aspect_err_rel"]["p90"],
             "rot_med_deg": r["rot_err_deg"]["median"],

@@ -314,7 +314,8 @@ def _is_convex(quad: np.ndarray) -> bool:
 
 
 def corners_to_quad(corners: np.ndarray | None, min_side_px: float = 3.0) -> QuadResult:
-    """The QuadResult of four predicted corners (4, 2) px (a detector's corner head), any order.
+    """The QuadResult of four predicted corners (4, 2) px (a detector's corner head), in cyclic
+    order (TL TR BR BL as predicted; any start or direction is reordered by order_corners).
 
     Fails (never raises) with ``no_corners`` (None, wrong shape or not finite) or
     ``not_quadrilateral`` (not convex, or a side shorter than ``min_side_px``). lines: the sides

@@ -39,7 +39,11 @@ def register(app: typer.Typer) -> None:
 
     @app.command("evaluate-detector")
     def evaluate_cmd(
-        data: Path = typer.Option(..., help="held-out dataset folder (with coco.json)"),
+        data: Optional[Path] = typer.Option(None, help="held-out dataset folder (with coco.json)"),
+        yolo: Optional[Path] = typer.Option(None, help="instead of --data: real photos with YOLO window boxes "
+                                            "(images/, labels/; bbox AP only)"),
+        part: str = typer.Option("val", help="with --yolo: val (every --holdout-every th photo), train or all"),
+        holdout_every: int = typer.Option(5, help="with --yolo: the validation photos' spacing"),
         detector: str = typer.Option("default", help=f"registry name: {', '.join(DETECTORS)}"),
         weights: Optional[Path] = typer.Option(None, help="weights file (default: the shipped one)"),
         max_images: Optional[int] = typer.Option(None, help="evaluate only the first N images"),
@@ -47,12 +51,15 @@ def register(app: typer.Typer) -> None:
         device: str = typer.Option("cpu", help="cpu or cuda (learned detectors)"),
     ) -> None:
         """COCO bbox/segm AP of a detector on a dataset, beside the paper's Table 2."""
-        from training.evaluate import evaluate, format_table  # noqa: PLC0415
+        from training.evaluate import evaluate, evaluate_boxes, format_table  # noqa: PLC0415
 
+        if (data is None) == (yolo is None):
+            raise typer.BadParameter("give exactly one of --data (rendered dataset) and --yolo (real photos)")
         opts = {"weights": weights} if weights is not None else {}
         if device != "cpu":
             opts["device"] = device
-        result = evaluate(detector, data, max_images=max_images, **opts)
+        result = (evaluate(detector, data, max_images=max_images, **opts) if yolo is None else
+                  evaluate_boxes(detector, yolo, part, holdout_every, max_images=max_images, **opts))
         typer.echo(format_table(result))
         if json_out is not None:
             json_out.parent.mkdir(parents=True, exist_ok=True)

@@ -82,16 +82,17 @@ def coco_image_path(dataset_dir: str | Path, image_entry: dict) -> Path:
 def view_corners(view_json: str | Path) -> np.ndarray:
     """(N, 4, 2) float32 px: the corners of every window facing the camera in a view.json, ordered
     TL TR BR BL in the image (pipeline.quad.order_corners); a corner the renderer marks unseen
-    (occluded or outside the image: ``corner_visible``) is NaN. (0, 4, 2) without windows."""
+    (occluded or outside the image: ``corner_visible``) is NaN. (0, 4, 2) without windows. A view
+    without ``visible_fraction`` / ``corner_visible`` (hand-made data) counts every corner seen."""
     from pipeline.quad import order_corners  # noqa: PLC0415
 
     meta = json.loads(Path(view_json).read_text())
     out = []
     for w in meta.get("windows", []):
-        if w.get("visible_fraction", 0.0) <= 0.0:
+        if w.get("visible_fraction", 1.0) <= 0.0:
             continue
         q = np.asarray(w["corners_px"], dtype=np.float64)
-        seen = np.asarray(w["corner_visible"], dtype=bool)
+        seen = np.asarray(w.get("corner_visible", [True] * 4), dtype=bool)
         o = order_corners(q)
         idx = [int(np.argmin(np.abs(q - p).sum(axis=1))) for p in o]  # where each ordered corner came from
         o[~seen[idx]] = np.nan

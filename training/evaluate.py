@@ -126,6 +126,37 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
             "paper_table2": PAPER_TABLE2}
 
 
+def evaluate_boxes(detector_name: str, yolo_dir: str | Path, part: str = "val", holdout_every: int = 5,
+                   max_images: int | None = None, min_score: float = 0.05, **options: object) -> dict:
+    """COCO bbox scores of a learned detector on real photos with YOLO window boxes (class 0).
+
+    part / holdout_every: which photos (training.dataset.real_box_photos: "val" is the part
+    training never sees). The photos go through :func:`pipeline.detectors.detect`, as a user's
+    would (resized to the network's input, boxes mapped back). Returns the keys of
+    :func:`evaluate` but "segm" (boxes only) and the perfect-ranking figures.
+    """
+    from pipeline.detectors import detect  # noqa: PLC0415
+    from training.dataset import read_box_photo, real_box_photos  # noqa: PLC0415
+
+    if DETECTORS[detector_name].needs_instances:
+        raise ValueError(f"detector {detector_name!r} needs instance maps; real photos have boxes only")
+    photos = real_box_photos(yolo_dir, part, holdout_every)[:max_images]
+    images, anns, results, times = [], [], [], []
+    for k, p in enumerate(photos, 1):
+        image, inst, _ = read_box_photo(p)
+        images.append((p.name, *image.shape[:2]))
+        anns += [data.gt_annotation(p.name, box=data.mask_box(inst == i)) for i in np.unique(inst) if i]
+        t0 = time.perf_counter()
+        dets = detect(detector_name, image, score_threshold=min_score, **options)
+        times.append((time.perf_counter() - t0) * 1000.0)
+        results += [data.coco_result(k, d.score, d.box) for d in dets]
+    gt = data.coco_ground_truth(images, anns)
+    scores = scores_by_type(data.coco_scores(gt, results, ("bbox",)))
+    return {"detector": detector_name, "dataset": f"{yolo_dir} ({part}, every {holdout_every}th photo held out)",
+            "n_images": len(images), "n_gt": len(anns), "n_ignore": 0, "n_det": len(results),
+            "ms_per_image_median": float(np.median(times)), **scores, "paper_table2": PAPER_TABLE2}
+
+
 def format_table(result: dict) -> str:
     """The scores in percent beside the paper's Table 2 (measured there on real photos), as text."""
     lines = [f"detector {result['detector']} on {result['dataset']}: {result['n_images']} images, "
@@ -133,7 +164,7 @@ def format_table(result: dict) -> str:
              f"detections, {result['ms_per_image_median']:.0f} ms/image (median); scores in percent",
              f"{'':6}{'':>6}" + "".join(f"{k.replace('_small', 's').replace('_medium', 'm').replace('_large', 'l'):>7}"
                                         for k in TABLE_STATS)]
-    for iou in ("bbox", "segm"):
+    for iou in (t for t in ("bbox", "segm") if t in result):
         lines.append(f"{iou:6}{'ours':>6}" + "".join(f"{100 * result[iou][k]:7.1f}" for k in TABLE_STATS))
         paper = PAPER_TABLE2[iou]
         lines.append(f"{'':6}{'paper':>6}" + "".join(f"{paper[k]:7.1f}" if k in paper else f"{'-':>7}"

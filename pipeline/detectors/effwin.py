@@ -155,14 +155,21 @@ def corner_heatmaps(corners: np.ndarray, shape: tuple[int, int], sigma: float = 
     return out
 
 
+def _peak_offset(lm: float, l0: float, lp: float) -> float:
+    """Sub-pixel offset in [-0.5, 0.5] of the vertex of the parabola through (-1, lm), (0, l0), (1, lp)."""
+    den = lm - 2.0 * l0 + lp
+    return float(np.clip(0.5 * (lm - lp) / den, -0.5, 0.5)) if den < 0 else 0.0
+
+
 def instance_corners(corner_p: np.ndarray, mask: np.ndarray, min_peak: float = 0.1,
                      margin_frac: float = 0.25, margin_px: int = 4) -> np.ndarray | None:
     """The four corners (4, 2) px (TL TR BR BL) of one instance from corner heatmaps (4, H, W).
 
     Each corner: the peak of its heatmap inside the mask's bounding box grown by
-    max(margin_px, margin_frac x its size), refined to sub-pixel by the probability-weighted mean
-    over the 3x3 neighbourhood of the peak. None when any peak is below ``min_peak`` (the network
-    does not see that corner) or the mask is empty.
+    max(margin_px, margin_frac x its size), refined to sub-pixel by a parabola through the log
+    probabilities of the peak and its neighbours along x and along y (exact for a Gaussian peak).
+    None when any peak is below ``min_peak`` (the network does not see that corner) or the mask is
+    empty.
     """
     x, y, w, h = cv2.boundingRect(np.asarray(mask, dtype=np.uint8))
     if w == 0 or h == 0:
@@ -176,10 +183,11 @@ def instance_corners(corner_p: np.ndarray, mask: np.ndarray, min_peak: float = 0
         iy, ix = np.unravel_index(int(np.argmax(sub)), sub.shape)
         if sub[iy, ix] < min_peak:
             return None
-        ys, xs = slice(max(0, iy - 1), iy + 2), slice(max(0, ix - 1), ix + 2)
-        p = sub[ys, xs].astype(np.float64)
-        gy, gx = np.mgrid[ys, xs]
-        out[c] = (x0 + (p * gx).sum() / p.sum(), y0 + (p * gy).sum() / p.sum())
+        py, px = iy + y0, ix + x0
+        lg = np.log(np.clip(corner_p[c].astype(np.float64), 1e-6, 1.0))
+        dx = _peak_offset(lg[py, px - 1], lg[py, px], lg[py, px + 1]) if 0 < px < W - 1 else 0.0
+        dy = _peak_offset(lg[py - 1, px], lg[py, px], lg[py + 1, px]) if 0 < py < H - 1 else 0.0
+        out[c] = (px + dx, py + dy)
     return out
 
 

