@@ -3,8 +3,9 @@
 - **Files**: :func:`write_file_atomic` (temporary name, then rename), :func:`read_image` (any photo
   -> (H, W, 3) uint8 RGB), :func:`read_instances` (16-bit instance PNG -> (H, W) **int32**).
 - **A rendered view** (``image.png``, ``instances.png``, optional ``ignore.png``, ``view.json``):
-  :func:`write_view` (atomic, ``view.json`` last), :func:`check_view` (can a cached view be
-  reused?) and :func:`read_view` -> :class:`View`.
+  :func:`write_view` (atomic, ``view.json`` last), :func:`write_ignore` (add ignore regions to a
+  view written before), :func:`check_view` (can a cached view be reused?) and :func:`read_view` ->
+  :class:`View`.
 - **Masks**: :class:`SparseMask` (a mask stored as its bounding crop), :func:`instance_masks`
   (every id of an instance map), COCO compressed RLE from a full mask or a crop at an origin
   (:func:`rle_from_mask`, :func:`rle_from_crop`: one encoder) and back (:func:`rle_to_mask`,
@@ -177,6 +178,30 @@ def write_view(view_dir: str | Path, image: np.ndarray, instances: np.ndarray, m
         _write_png(view_dir / name, a)
     meta = {**meta, "files": {name: (view_dir / name).stat().st_size for name in pngs}}
     write_text_atomic(view_dir / "view.json", json.dumps(meta, indent=1))
+
+
+def write_ignore(view_dir: str | Path, ignore: np.ndarray | None, regions: Sequence[dict]) -> None:
+    """Record the ignore regions of a view already written (one rendered before its renderer drew
+    them): ignore.png (16-bit, only when ``regions`` lists any; ``ignore`` (H, W) holds their
+    ``instance_id`` values) and view.json's ``ignore`` (= regions) and ``files``, each atomically,
+    view.json last. ValueError for a shape other than the view's or an unlisted id."""
+    view_dir = Path(view_dir)
+    meta = read_meta(view_dir)
+    meta["ignore"] = [dict(r) for r in regions]
+    files = dict(meta.get("files", {}))
+    if regions:
+        a = _instances_png(ignore, "ignore")
+        if a.shape != (meta["height"], meta["width"]):
+            raise ValueError(f"ignore map {a.shape} != view {view_dir}'s {(meta['height'], meta['width'])}")
+        present = set(np.unique(a).tolist()) - {0}
+        listed = {int(r["instance_id"]) for r in regions}
+        if not present <= listed:
+            raise ValueError(f"ignore map ids {sorted(present - listed)} are not listed in regions")
+        _write_png(view_dir / "ignore.png", a)
+        files["ignore.png"] = (view_dir / "ignore.png").stat().st_size
+    else:
+        files.pop("ignore.png", None)
+    write_text_atomic(view_dir / "view.json", json.dumps({**meta, "files": files}, indent=1))
 
 
 def _view_pngs(meta: dict) -> tuple[str, ...]:

@@ -40,10 +40,14 @@ class RenderSettings:
 @dataclass(frozen=True, eq=False)
 class RenderOutput:
     """One rendered view. rgb (H, W, 3) uint8; instances (H, W) uint16 (0 = none, i+1 = window i);
-    depth (H, W) float32 camera z in m (0 = sky); windows: per-window ground truth."""
+    depth (H, W) float32 camera z in m (0 = sky); windows: per-window ground truth.
+    ignore: (H, W) uint16 ignore-region map (0 = none, renders.gt.ignore_map) or None when no
+    region is in view; ignore_regions: its view.json ``ignore`` entries (id, instance_id, kind, visible_px)."""
 
     camera: Camera
     rgb: np.ndarray
     instances: np.ndarray
     depth: np.ndarray
     windows: tuple[WindowView, ...]
+    ignore: np.ndarray | None = None
+    ignore_regions: tuple[dict, ...] = ()

@@ -2,12 +2,15 @@
 
     out/renders/<scene>-<renderer>-<hash>/
         config.json  sampling.json  coco.json
-        views/000000/image.png  instances.png (16-bit)  view.json
+        views/000000/image.png  instances.png (16-bit)  [ignore.png (16-bit)]  view.json
 
 The folder name is a hash of the config that changes the output (scene sha256, sampler config,
 renderer + settings, sensor config, seed, number of views) and FORMAT_VERSION, so re-running a
 config reuses the views already there. The renderers' code is not hashed: a change to what a
-backend draws must bump FORMAT_VERSION (or the cached views are reused as they are). Python API:
+backend draws must bump FORMAT_VERSION (or the cached views are reused as they are). Ignore
+regions (renders.gt: curtain-wall glazing, glazed doors) came later without a bump: every view.json
+now lists ``ignore`` (maybe empty); a cached view without the key gets them from the occluder pass
+alone (ignore.png and view.json added, image and instances untouched: they are the same). Python API:
 :func:`render_dataset`; read a view with fenestra.data.read_view.
 """
 from __future__ import annotations
@@ -112,6 +115,11 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
                                                   "scene_sha256": scene.sha256}, indent=1, default=list))
     missing = [i for i in indices if not _reusable(root / "views" / f"{i:06d}")]
     stats = {"rendered": 0, "reused": config.n_views - len(missing), "seconds": 0.0}
+    todo = set(missing)
+    stale = [i for i in indices if i not in todo and "ignore" not in data.read_meta(root / "views" / f"{i:06d}")]
+    if stale:
+        add_ignore_regions(scene, [root / "views" / f"{i:06d}" for i in stale])
+        stats["ignore_added"] = len(stale)
     if missing:
         settings = dataclasses.replace(config.settings, seed=config.seed)
         renderer = make_renderer(config.renderer, scene, settings)
@@ -129,8 +137,9 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
                     out = dataclasses.replace(out, rgb=rgb)
                 meta = {**spec.camera.to_dict(), "renderer": config.renderer, "seed": config.seed, "view_index": i,
                         "mode": spec.mode, "targets": list(spec.targets), "scene": scene.name,
-                        "scene_sha256": scene.sha256, "windows": [w.to_dict() for w in out.windows]}
-                data.write_view(root / "views" / f"{i:06d}", out.rgb, out.instances, meta)
+                        "scene_sha256": scene.sha256, "windows": [w.to_dict() for w in out.windows],
+                        "ignore": list(out.ignore_regions)}
+                data.write_view(root / "views" / f"{i:06d}", out.rgb, out.instances, meta, ignore=out.ignore)
             stats["seconds"] = time.perf_counter() - t0
             stats["rendered"] = len(missing)
         finally:
@@ -139,6 +148,21 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
         data.write_text_atomic(root / "coco.json", json.dumps(coco_from_views(root, config.n_views)))
         data.write_text_atomic(root / "stats.json", json.dumps(stats))
     return root
+
+
+def add_ignore_regions(scene: Scene, view_dirs: list[Path]) -> None:
+    """Give views rendered before the renderers drew ignore regions their ignore.png and view.json
+    ``ignore`` list, from the exact occluder pass of each view's camera (no RGB rendering)."""
+    from renders.camera import Camera  # noqa: PLC0415
+    from renders.raster import OccluderPass, ground_truth  # noqa: PLC0415 - GL
+
+    occ = OccluderPass(scene)
+    try:
+        for d in view_dirs:
+            _, _, _, (ign, regions) = ground_truth(occ, Camera.from_dict(data.read_meta(d)))
+            data.write_ignore(d, ign, regions)
+    finally:
+        occ.close()
 
 
 def _reusable(view_dir: Path) -> bool:

@@ -1,10 +1,18 @@
-"""Exact per-view ground truth of window voids: instance map, corners, visibility.
+"""Exact per-view ground truth of window voids: instance map, corners, visibility; and the
+ignore regions (curtain-wall glazing, glazed doors: neither window nor background).
 
 The instance map is defined at pixel centres: pixel (u, v) belongs to window i when the ray
 through (u, v) hits window i's void rectangle (on the wall's exterior face) before any other
 geometry, where a window's own element (frame, glass) never hides its own void. The void
 rectangles are rasterised here analytically (pixel-centre inside test, ray/plane depth); the
 occluders come from a renderer's exact (non-antialiased) depth + element-id pass.
+
+Ignore regions (:func:`ignore_regions`): the glazing faces (alpha < :data:`GLAZING_MAX_ALPHA`) of
+IfcCurtainWall / IfcPlate elements (kind ``curtain_wall``, one region per IfcCurtainWall: its
+panels together) and of IfcDoor elements (kind ``glazed_door``, one per door). They take their own
+codes in the same element-id pass; :func:`ignore_map` marks a pixel where that glazing is the
+nearest surface and no window void is (a window in front keeps its pixels; glazing behind a wall
+is hidden like any surface).
 """
 from __future__ import annotations
 
@@ -13,9 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from renders.camera import Camera
-from scenes.model import WindowGT
+from scenes.model import ElementMesh, Scene, WindowGT
 
 NEAR_M = 1e-3
+IGNORE_KINDS = {"IfcCurtainWall": "curtain_wall", "IfcPlate": "curtain_wall", "IfcDoor": "glazed_door"}
+GLAZING_MAX_ALPHA = 0.9  # a face below this alpha is glazing (renders.materials' glass threshold)
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,3 +204,77 @@ def window_views(camera: Camera, windows: tuple[WindowGT, ...], instances: np.nd
         out.append(WindowView(w.id, i + 1, np.asarray(w.corners_world, float), px, tuple(vis), frac,
                               int(counts[i + 1]), inc, dist))
     return tuple(out)
+
+
+# ---------------------------------------------------------------- ignore regions
+
+@dataclass(frozen=True, eq=False)
+class IgnoreRegion:
+    """Glazing of a scene that is neither window nor background (an ``ignore`` entry of view.json).
+
+    id: GlobalId of the IfcCurtainWall a panel is aggregated into (else the element's own), or of
+    the IfcDoor; kind: "curtain_wall" | "glazed_door"; faces: GlobalId of each of its elements ->
+    (M,) bool, which of that mesh's faces are glazing.
+    """
+
+    id: str
+    kind: str
+    faces: dict[str, np.ndarray]
+
+
+def glazing_faces(mesh: ElementMesh) -> np.ndarray:
+    """(M,) bool: faces whose alpha (per-face style, else the element's) is below GLAZING_MAX_ALPHA
+    (a NaN alpha counts as opaque)."""
+    alpha = (np.full(len(mesh.faces), mesh.rgba[3], np.float64) if mesh.face_rgba is None
+             else np.asarray(mesh.face_rgba, np.float64)[:, 3])
+    with np.errstate(invalid="ignore"):
+        return alpha < GLAZING_MAX_ALPHA
+
+
+def ignore_regions(scene: Scene) -> tuple[IgnoreRegion, ...]:
+    """The scene's ignore regions, in mesh order: every IfcCurtainWall / IfcPlate / IfcDoor mesh
+    with glazing faces; elements aggregated into one whole (the panels of a curtain wall) form one
+    region; doors are one region each."""
+    faces: dict[str, dict[str, np.ndarray]] = {}
+    kinds: dict[str, str] = {}
+    for m in scene.meshes:
+        kind = IGNORE_KINDS.get(m.ifc_class)
+        if kind is None:
+            continue
+        glass = glazing_faces(m)
+        if not glass.any():
+            continue
+        key = m.parent_id if kind == "curtain_wall" and m.parent_id else m.global_id
+        kinds.setdefault(key, kind)
+        faces.setdefault(key, {})[m.global_id] = glass
+    return tuple(IgnoreRegion(k, kinds[k], faces[k]) for k in faces)
+
+
+def ignore_map(occ_elem: np.ndarray, instances: np.ndarray, first_code: int, n_regions: int,
+               sample_xy: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """(Ho, Wo) uint16 ignore-region map: r + 1 where the nearest surface is region r's glazing
+    (element code ``first_code + r`` in ``occ_elem``, the (H, W) int element-code pass of a
+    pinhole canvas) and ``instances`` (Ho, Wo) holds no window; 0 elsewhere.
+
+    sample_xy: as in :func:`void_instances` (a distorted camera's inverse map): the code is then
+    looked up at the nearest canvas pixel, as void_instances looks up occluders.
+    """
+    code = np.asarray(occ_elem)
+    if sample_xy is not None:
+        H, W = code.shape
+        ix = np.clip(np.rint(sample_xy[0]), 0, W - 1).astype(np.int64)
+        iy = np.clip(np.rint(sample_xy[1]), 0, H - 1).astype(np.int64)
+        code = code[iy, ix]
+    if code.shape != instances.shape:
+        raise ValueError(f"element codes {code.shape} and instances {instances.shape} differ in shape")
+    r = code.astype(np.int64) - first_code + 1
+    out = np.where((r >= 1) & (r <= n_regions) & (instances == 0), r, 0)
+    return out.astype(np.uint16)
+
+
+def ignore_entries(regions: tuple[IgnoreRegion, ...], ignore: np.ndarray) -> list[dict]:
+    """view.json's ``ignore`` list: per region with pixels in ``ignore`` (its map, region r = r + 1),
+    ``{"id", "instance_id", "kind", "visible_px"}``, in region order."""
+    counts = np.bincount(ignore.ravel(), minlength=len(regions) + 1)
+    return [{"id": g.id, "instance_id": r + 1, "kind": g.kind, "visible_px": int(counts[r + 1])}
+            for r, g in enumerate(regions) if counts[r + 1]]

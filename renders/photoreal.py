@@ -1,6 +1,6 @@
 """mitsuba 3 backend: path-traced daylight RGB (sky environment + sun), same materials roughly.
 
-The instance map, depth and per-window ground truth come from the same exact occluder pass as
+The instance map, depth, per-window ground truth and ignore regions come from the same exact occluder pass as
 the raster backend (:func:`renders.raster.ground_truth`), so both backends share one definition.
 Variant: ``llvm_ad_rgb`` (with ``DRJIT_LIBLLVM_PATH`` pointed at libLLVM 19 if present), falling
 back to ``scalar_rgb``. ``RenderSettings.denoise="oidn"`` renders through a box pixel filter (OIDN
@@ -178,8 +178,8 @@ class PhotorealRenderer:
         return distort_image(camera, rgb)
 
     def render(self, camera: Camera) -> RenderOutput:
-        inst, depth, wins, _ = ground_truth(self.occluders, camera)
-        return RenderOutput(camera, self.render_rgb(camera), inst, depth, wins)
+        inst, depth, wins, (ign, regions) = ground_truth(self.occluders, camera)
+        return RenderOutput(camera, self.render_rgb(camera), inst, depth, wins, ign if regions else None, regions)
 
     def close(self) -> None:
         self.occluders.close()

@@ -27,7 +27,7 @@ from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
 from renders.gl import (GLContext, Geometry, begin, encode, read_depth, read_rgba, texture_rgb,
                         texture_u16, uniform)
-from renders.gt import void_instances, window_views
+from renders.gt import IgnoreRegion, ignore_entries, ignore_map, ignore_regions, void_instances, window_views
 from renders.materials import face_normals, group_scene, ground_z, lighting, sample_look, sun_direction
 from scenes.model import Scene
 
@@ -62,6 +62,17 @@ def element_codes(scene: Scene) -> tuple[dict[str, int], np.ndarray]:
     return codes, np.arange(1, len(scene.windows) + 1)
 
 
+def ignore_face_codes(scene: Scene, regions: tuple[IgnoreRegion, ...]) -> dict[str, np.ndarray]:
+    """Element codes of the ignore regions' faces: per element GlobalId, (M,) int per face, region
+    r's glazing ``len(scene.windows) + 1 + r``, the element's other faces 0 (like any non-window
+    geometry). ValueError when the codes do not fit the pass's 16 bits."""
+    first = len(scene.windows) + 1
+    if first + len(regions) > 65536:
+        raise ValueError(f"{len(scene.windows)} windows + {len(regions)} ignore regions exceed the occluder "
+                         "pass's 16-bit element codes")
+    return {gid: np.where(glass, first + r, 0) for r, g in enumerate(regions) for gid, glass in g.faces.items()}
+
+
 def ground_quad(scene: Scene, half_size_m: float = 200.0) -> tuple[np.ndarray, np.ndarray]:
     """Ground plane square (4, 3) vertices, (2, 3) faces (upward), centred under the scene."""
     gz = ground_z(scene) - 0.002
@@ -74,8 +85,9 @@ def ground_quad(scene: Scene, half_size_m: float = 200.0) -> tuple[np.ndarray, n
 class OccluderPass:
     """Exact depth + element-code images (no antialiasing) of a scene, for ground truth.
 
-    The colour of a pixel encodes the element code (window i's element = i + 1, other geometry 0)
-    in R + 256 G; B is 1 + 254 * the face's shadow ratio when ``shade`` is given (else 255).
+    The colour of a pixel encodes the element code (window i's element = i + 1, ignore region r's
+    glazing = n_windows + 1 + r (:func:`ignore_face_codes`), other geometry 0) in R + 256 G;
+    B is 1 + 254 * the face's shadow ratio when ``shade`` is given (else 255).
     All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order.
     """
 
@@ -84,9 +96,19 @@ class OccluderPass:
 
         self.scene = scene
         self.codes, self.window_codes = element_codes(scene)
+        self.ignore_regions = ignore_regions(scene)
+        self.first_ignore_code = len(scene.windows) + 1
+        self.face_codes = ignore_face_codes(scene, self.ignore_regions)
         parts: dict[tuple[int, int], list[np.ndarray]] = {}
         gv, gf = ground_quad(scene)
-        items = [(self.codes.get(m.global_id, 0), m.vertices, m.faces) for m in scene.meshes] + [(0, gv, gf)]
+        items = []
+        for m in scene.meshes:
+            fc = self.face_codes.get(m.global_id)
+            if fc is None:
+                items.append((self.codes.get(m.global_id, 0), m.vertices, m.faces))
+            else:
+                items += [(int(c), m.vertices, m.faces[fc == c]) for c in np.unique(fc)]
+        items.append((0, gv, gf))
         for code, v, f in items:
             if shade is None:
                 bins = np.full(len(f), 255)
@@ -186,7 +208,8 @@ def read_occluder_pass(fb: int, W: int, H: int, attachment: int = 0) -> tuple[np
 
 
 def ground_truth(occ: OccluderPass, camera: Camera):
-    """Instance map (H, W) uint16, depth (H, W) float32, per-window views and the canvas pass."""
+    """Instance map (H, W) uint16, depth (H, W) float32, per-window views and the ignore regions:
+    (ignore map (H, W) uint16, region r = r + 1 (renders.gt.ignore_map), its view.json entries)."""
     return _ground_truth(occ, camera, *occ.render_full(camera.canvas()))
 
 
@@ -196,7 +219,8 @@ def _ground_truth(occ: OccluderPass, camera: Camera, depth_c, code_c, shade_c):
     inst, _ = void_instances(canvas, occ.scene.windows, depth_c, code_c, occ.window_codes, maps)
     depth = distort_image(camera, depth_c, nearest=True)
     wins = window_views(camera, occ.scene.windows, inst, depth_c, code_c, occ.window_codes)
-    return inst, depth, wins, (depth_c, shade_c)
+    ign = ignore_map(code_c, inst, occ.first_ignore_code, len(occ.ignore_regions), maps)
+    return inst, depth, wins, (ign, tuple(ignore_entries(occ.ignore_regions, ign)))
 
 
 class SunShadow:
@@ -296,6 +320,10 @@ class RasterRenderer:
             mult, ratio = lighting(face_normals(g.vertices, g.faces), look)
             r = shadow_ratio_levels(ratio)
             fcode = np.array([self.occluders.codes.get(e, 0) for e in g.element_ids])[g.face_element]
+            for k, e in enumerate(g.element_ids):  # ignore regions' glazing: per face
+                fc = self.occluders.face_codes.get(e)
+                if fc is not None:  # group_scene keeps a non-window mesh's faces whole, in order
+                    fcode[g.face_element == k] = fc
             enc = np.zeros((len(g.vertices), 4), np.float32)
             enc[g.faces.ravel()] = np.repeat(encode(np.stack([fcode % 256, fcode // 256, 1 + np.rint(254 * r),
                                                                np.full(len(r), 255)], axis=1)), 3, axis=0)
@@ -410,8 +438,9 @@ class RasterRenderer:
             fb = self._draw_rgb(camera)
             self._gl.make_current()
             occ_pass = read_occluder_pass(self._codes_fb, canvas.width, canvas.height, attachment=1)
-        inst, depth, wins, _ = _ground_truth(occ, camera, *occ_pass)
-        return RenderOutput(camera, self._read_rgb(camera, fb), inst, depth, wins)
+        inst, depth, wins, (ign, regions) = _ground_truth(occ, camera, *occ_pass)
+        return RenderOutput(camera, self._read_rgb(camera, fb), inst, depth, wins,
+                            ign if regions else None, regions)
 
     def close(self) -> None:
         from OpenGL import GL

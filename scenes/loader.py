@@ -17,6 +17,7 @@ stale data, with no version number to bump by hand.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import multiprocessing
@@ -138,7 +139,22 @@ def iterate_meshes(ifc_file, label: str) -> dict[str, ElementMesh]:
             meshes[mesh.global_id] = mesh
         if not it.next():
             break
+    for gid, m in meshes.items():
+        parent = _aggregate_parent(ifc_file, gid)
+        if parent:
+            meshes[gid] = dataclasses.replace(m, parent_id=parent)
     return meshes
+
+
+def _aggregate_parent(ifc_file, global_id: str) -> str:
+    """GlobalId of the element ``global_id`` is aggregated into (IfcRelAggregates), "" when none
+    or when the whole is a spatial element (storey, building, site)."""
+    el = ifc_file.by_guid(global_id)
+    for rel in getattr(el, "Decomposes", None) or ():
+        whole = rel.RelatingObject
+        if rel.is_a("IfcRelAggregates") and whole.is_a("IfcElement"):
+            return whole.GlobalId
+    return ""
 
 
 # --------------------------------------------------------------------------- cache
@@ -167,7 +183,8 @@ def _save_cache(scene: Scene, cache_dir: Path) -> None:
         if m.face_rgba is not None:
             arrays[f"c{i}"] = m.face_rgba
         meshes_meta.append({"global_id": m.global_id, "ifc_class": m.ifc_class, "name": m.name,
-                            "rgba": list(m.rgba), "face_rgba": m.face_rgba is not None})
+                            "rgba": list(m.rgba), "face_rgba": m.face_rgba is not None,
+                            "parent_id": m.parent_id})
     for i, w in enumerate(scene.windows):
         arrays[f"wc{i}"], arrays[f"wn{i}"] = w.corners_world, w.normal
         if w.outline_world is not None:
@@ -199,7 +216,8 @@ def _load_cache(cache_dir: Path, sha: str, path: Path, name: str) -> Scene | Non
         meshes = tuple(
             ElementMesh(global_id=m["global_id"], ifc_class=m["ifc_class"], name=m["name"],
                         vertices=arrays[f"v{i}"], faces=arrays[f"f{i}"], rgba=tuple(m["rgba"]),
-                        face_rgba=arrays[f"c{i}"] if m["face_rgba"] else None)
+                        face_rgba=arrays[f"c{i}"] if m["face_rgba"] else None,
+                        parent_id=m.get("parent_id", ""))
             for i, m in enumerate(meta["meshes"]))
         windows = tuple(
             WindowGT(**{k: v for k, v in w.items() if k != "outline"},

@@ -26,6 +26,9 @@ class ElementMesh:
     # Optional per-face colours (M, 4) float in [0, 1] when the element has several surface styles
     # (e.g. a window's frame and its glass; alpha = 1 - IFC transparency). None: use ``rgba``.
     face_rgba: np.ndarray | None = None
+    # GlobalId of the element this one is aggregated into (IfcRelAggregates), e.g. the
+    # IfcCurtainWall of an IfcPlate panel; "" when none.
+    parent_id: str = ""
 
 
 @dataclass(frozen=True)
