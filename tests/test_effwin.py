@@ -133,3 +133,22 @@ def test_effwin_tiny_training_loss_decreases_and_detects(tmp_path):
     dets = detect("default", img, score_threshold=0.0, weights=path)
     assert all(d.mask.shape == img.shape[:2] for d in dets)
     assert all(d.corners is None or d.corners.shape == (4, 2) for d in dets)
+
+
+def test_occluders_hide_the_void_they_cover_and_are_off_by_default():
+    from dataclasses import replace
+
+    from training.augment import occluders
+
+    img = np.full((96, 128, 3), 200, np.uint8)
+    inst = np.zeros((96, 128), np.int32)
+    inst[20:70, 30:90] = 1
+    rng = np.random.default_rng(0)
+    same, same_inst, occ = occluders(img, inst, AugmentConfig(), rng)
+    assert same is img and same_inst is inst and not occ.any()
+    assert rng.random() == np.random.default_rng(0).random()  # off: no draw from the stream
+    cfg = replace(AugmentConfig(), occluder_prob=1.0, occluder_max=3)
+    for seed in range(6):
+        out, ins, occ = occluders(img, inst, cfg, np.random.default_rng(seed))
+        assert occ.any() and not ins[occ].any()  # occluded pixels are no longer window
+        assert (ins[~occ] == inst[~occ]).all() and (out[~occ] == img[~occ]).all()

@@ -29,6 +29,8 @@ class AugmentConfig:
     grey_prob: float = 0.05
     shadow_prob: float = 0.0  # dark horizontal band (eave shadow) over the top of a window
     shadow_strength: tuple[float, float] = (0.15, 0.6)  # brightness factor inside the band
+    occluder_prob: float = 0.0  # street occluders drawn over the crop (occluders()): trees, poles, cars, people
+    occluder_max: int = 3  # at most this many per crop
 
 
 @dataclass(frozen=True)
@@ -143,3 +145,58 @@ def shadow_band(image: np.ndarray, instances: np.ndarray, cfg: AugmentConfig,
         f = cv2.GaussianBlur(f[:, None], (1, 2 * soft + 1), 0)[:, 0]
     out = image.astype(np.float32) * f[:, None, None]
     return np.clip(out, 0, 255).astype(np.uint8)
+
+
+OCCLUDER_KINDS = ("tree", "pole", "car", "person")
+
+
+def _occluder_mask(kind: str, h: int, w: int, rng: np.random.Generator) -> np.ndarray:
+    """(h, w) bool silhouette of one street occluder, placed at random (sizes relative to the crop)."""
+    m = np.zeros((h, w), np.uint8)
+    if kind == "tree":  # a crown of overlapping discs on a trunk
+        cx, cy, r = int(rng.integers(0, w)), int(rng.integers(0, h)), int(rng.uniform(0.08, 0.3) * min(h, w)) + 2
+        for _ in range(int(rng.integers(4, 10))):
+            c = (cx + int(rng.normal(0, r * 0.6)), cy + int(rng.normal(0, r * 0.4)))
+            cv2.circle(m, c, max(2, int(r * rng.uniform(0.4, 0.8))), 1, -1)
+        cv2.rectangle(m, (cx - max(1, r // 8), cy), (cx + max(1, r // 8), h), 1, -1)
+    elif kind == "pole":  # a lamp or sign post, maybe with a cable
+        x, t = int(rng.integers(0, w)), int(rng.integers(1, max(2, w // 40) + 2))
+        cv2.rectangle(m, (x, int(rng.integers(0, h // 2))), (x + t, h), 1, -1)
+        if rng.random() < 0.5:
+            cv2.line(m, (0, int(rng.integers(0, h))), (w, int(rng.integers(0, h))), 1, 1)
+    elif kind == "car":  # a rounded box with a cabin, at the bottom
+        cw, ch = int(rng.uniform(0.3, 0.8) * w), int(rng.uniform(0.12, 0.3) * h)
+        x0, y1 = int(rng.integers(-cw // 2, w)), h - int(rng.integers(0, h // 6 + 1))
+        cv2.rectangle(m, (x0, y1 - ch // 2), (x0 + cw, y1), 1, -1)
+        cv2.rectangle(m, (x0 + cw // 5, y1 - ch), (x0 + 4 * cw // 5, y1 - ch // 2), 1, -1)
+    else:  # person: head, body, legs
+        ph = int(rng.uniform(0.2, 0.6) * h)
+        x, y1 = int(rng.integers(0, w)), h - int(rng.integers(0, h // 5 + 1))
+        cv2.circle(m, (x, y1 - ph + ph // 10), max(1, ph // 10), 1, -1)
+        cv2.rectangle(m, (x - ph // 8, y1 - ph + ph // 5), (x + ph // 8, y1 - ph // 2), 1, -1)
+        cv2.rectangle(m, (x - ph // 10, y1 - ph // 2), (x + ph // 10, y1), 1, -1)
+    return m.astype(bool)
+
+
+def occluders(image: np.ndarray, instances: np.ndarray, cfg: AugmentConfig,
+              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """With probability cfg.occluder_prob, draw 1..occluder_max street occluders (tree, pole, car,
+    person as simple shapes, flat or noisy colour) over the image. A window is a void *seen*, so
+    occluded pixels leave the instance map (as in a render, where an occluder hides the void).
+
+    image (h, w, 3) uint8, instances (h, w) int -> new image, new instances, occluded (h, w) bool.
+    """
+    h, w = instances.shape
+    occ = np.zeros((h, w), bool)
+    if cfg.occluder_prob <= 0 or rng.random() >= cfg.occluder_prob:  # no draw when off: same stream
+        return image, instances, occ
+    img = image.copy()
+    for _ in range(int(rng.integers(1, cfg.occluder_max + 1))):
+        kind = OCCLUDER_KINDS[int(rng.integers(len(OCCLUDER_KINDS)))]
+        m = _occluder_mask(kind, h, w, rng)
+        base = {"tree": (50, 90, 40), "pole": (60, 60, 60)}.get(kind, tuple(int(v) for v in rng.integers(20, 235, 3)))
+        col = np.clip(np.asarray(base, np.float32) * rng.uniform(0.5, 1.3), 0, 255)
+        tex = rng.normal(0, 25 if kind == "tree" else 8, (h, w, 1)).astype(np.float32)
+        img[m] = np.clip(col + tex[m], 0, 255).astype(np.uint8)
+        occ |= m
+    return img, np.where(occ, 0, instances), occ

@@ -38,7 +38,7 @@ from fenestra.config import from_table, read_toml
 from fenestra.data import read_image, read_instances
 from pipeline.detectors import DEFAULT_WEIGHTS, WINNET_WEIGHTS
 from pipeline.detectors.maskrcnn import DEFAULT_MASKRCNN_WEIGHTS
-from training.augment import AugmentConfig, photometric, random_scale_crop, shadow_band
+from training.augment import AugmentConfig, occluders, photometric, random_scale_crop, shadow_band
 from training.dataset import find_datasets, list_views, read_box_photo, real_box_photos, view_corners
 
 DEVICES = ("cpu", "cuda")
@@ -377,12 +377,13 @@ def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
         pool = real if real and (not synth or rng.random() < cfg.real_fraction) else synth
         image, inst, corners = data[pool[int(rng.integers(len(pool)))]]
         img, ins, warp = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+        img, ins, occ = occluders(img, ins, cfg.augment, rng)
         imgs.append(photometric(shadow_band(img, ins, cfg.augment, rng), cfg.augment, rng))
         if corners is None:
             heat, w = np.zeros((4, *ins.shape), np.float32), 0.0
         else:
             c = warp.points(corners)
-            heat, w = corner_heatmaps(c[:, [1, 0, 3, 2]] if warp.flip else c, ins.shape), 1.0
+            heat, w = corner_heatmaps(c[:, [1, 0, 3, 2]] if warp.flip else c, ins.shape) * ~occ, 1.0
         tgts.append(np.concatenate([np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]), heat]))
         wts.append(w)
     return (to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32)),
