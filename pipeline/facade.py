@@ -27,6 +27,7 @@ origin at the bottom-left corner, corners TL TR BR BL = (0,h,0), (w,h,0), (w,0,0
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from itertools import combinations
 
@@ -529,17 +530,33 @@ def detect_segments(gray: np.ndarray, min_length_px: float, method: str = "lsd")
     """Straight line segments (M, 2, 2) px (start, end; pixel centres at integers) at least
     ``min_length_px`` long in a gray image (H, W), uint8 or float in [0, 255] (rounded to uint8):
     ``lsd`` (OpenCV's line segment detector, sub-pixel, within about 0.15 px of a step edge) or
-    ``hough`` (probabilistic Hough on Canny edges)."""
+    ``hough`` (probabilistic Hough on Canny edges).
+
+    The last result is kept, keyed on the uint8 image's content (a digest), the method and the
+    length: one photo's segments are found once, though ``fenestra reconstruct`` asks for them
+    twice (the focal fit without K, then the wall fit); LSD on a 6000x4000 photo takes ~3 s and
+    ~0.5 GB. A copy is returned.
+    """
     g = np.asarray(gray)
     if g.ndim != 2 or not (g.dtype == np.uint8 or np.issubdtype(g.dtype, np.floating)):
         raise ValueError(f"gray must be an (H, W) uint8 or float image, got shape {g.shape} dtype {g.dtype}")
     if g.dtype != np.uint8:
-        g = np.clip(np.round(g), 0, 255).astype(np.uint8)
+        r = np.round(g)
+        g = np.clip(r, 0, 255, out=r).astype(np.uint8)
+        del r
     if method not in SEGMENT_DETECTORS:
         raise ValueError(f"unknown segment detector {method!r}; known: {sorted(SEGMENT_DETECTORS)}")
-    found = SEGMENT_DETECTORS[method](g, float(min_length_px))
-    seg = np.zeros((0, 2, 2)) if found is None else np.asarray(found, dtype=np.float64).reshape(-1, 2, 2)
-    return seg[np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= min_length_px]
+    g = np.ascontiguousarray(g)
+    key = (g.shape, hashlib.blake2b(g.data, digest_size=16).digest(), method, float(min_length_px))
+    last = _LAST_SEGMENTS[0]
+    if last is None or last[0] != key:
+        found = SEGMENT_DETECTORS[method](g, float(min_length_px))
+        seg = np.zeros((0, 2, 2)) if found is None else np.asarray(found, dtype=np.float64).reshape(-1, 2, 2)
+        last = _LAST_SEGMENTS[0] = (key, seg[np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= min_length_px])
+    return last[1].copy()
+
+
+_LAST_SEGMENTS: list = [None]  # detect_segments' last (key, segments), replaced as one object
 
 
 def segment_families(segments: np.ndarray, d_h: np.ndarray, d_v: np.ndarray, K: np.ndarray,

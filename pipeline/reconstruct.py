@@ -90,10 +90,11 @@ class ReconstructConfig:
 
 def to_gray(image: np.ndarray) -> np.ndarray:
     """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (pipeline.types.check_image), or an
-    (H, W) gray one, returned as float32. Gray = 0.299 R + 0.587 G + 0.114 B (OpenCV, rounded to uint8)."""
+    (H, W) gray one, returned as float32 (not copied when it is already). Gray = 0.299 R + 0.587 G + 0.114 B
+    (OpenCV, rounded to uint8)."""
     img = np.asarray(image)
     if img.ndim == 2:
-        return img.astype(np.float32)
+        return img.astype(np.float32, copy=False)
     return cv2.cvtColor(check_image(img), cv2.COLOR_RGB2GRAY).astype(np.float32)
 
 

@@ -210,3 +210,94 @@ def test_large_photo_masks_come_back_at_full_resolution():
     want[80:160, 120:320] = True
     assert _iou(full, want) > 0.97 and h * w < 0.1 * full.size
     np.testing.assert_allclose(d.box, [119.5, 79.5, 319.5, 159.5])  # pixel edges map by 1 / scale
+
+
+def test_large_photo_resize_and_map_back_by_hand():
+    """A 3000x2000 photo is seen at 1024x683 (scale 1024 / 3000, so 1 / scale = 2.9296875 exactly);
+    a detection on that copy (mask, box, corners) maps back to the numbers worked out by hand:
+    points by (v + 0.5) / scale - 0.5, and full pixel j inside iff its centre, at small coordinate
+    (j + 0.5) scale - 0.5, interpolates to >= 0.5 between the mask's edge pixels. The same detection
+    given sparse (a crop at an origin) maps to the same result."""
+    import dataclasses
+
+    from pipeline.detectors import downscale, full_resolution, input_scale
+
+    H, W = 2000, 3000
+    s = input_scale((H, W))
+    assert s == 1024 / 3000 and 1 / s == pytest.approx(2.9296875, abs=1e-12)
+    image = np.zeros((H, W, 3), np.uint8)
+    image[293:586, 586:1172] = 255  # the full-size void (rows 293..585, columns 586..1171)
+    small_image = downscale(image, s)
+    assert small_image.shape == (683, 1024, 3)
+    small = np.zeros((683, 1024), bool)
+    small[100:200, 200:400] = True  # pixel edges x 200..400, y 100..200 on the small image
+    assert (small_image[101:199, 201:399] == 255).all() and (small_image[small == 0] < 128).all()
+    box = np.array([199.5, 99.5, 399.5, 199.5])
+    corners = np.array([[199.5, 99.5], [399.5, 99.5], [399.5, 199.5], [199.5, 199.5]])  # TL TR BR BL
+    det = Detection(small, box, 0.9, corners=corners)
+    full = full_resolution(det, s, (H, W))
+
+    k = 3000 / 1024  # 1 / scale: pixel edges e map to e k, centres c to (c + 0.5) k - 0.5
+    x0, y0, x1, y1 = 200 * k - 0.5, 100 * k - 0.5, 400 * k - 0.5, 200 * k - 0.5
+    np.testing.assert_allclose(full.box, [x0, y0, x1, y1], atol=1e-9)
+    np.testing.assert_allclose(full.box, [585.4375, 292.46875, 1171.375, 585.4375], atol=1e-9)
+    np.testing.assert_allclose(full.corners, [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], atol=1e-9)
+    assert full.score == 0.9 and full.label == "window"
+
+    # mask: rows ceil(y0)..floor(y1) = 293..585, columns ceil(x0)..floor(x1) = 586..1171, less at
+    # most its four corner pixels (there the two edges' bilinear weights multiply to < 0.5)
+    (ox, oy), (h, w) = full.origin, full.mask.shape
+    assert 0 <= ox and 0 <= oy and ox + w <= W and oy + h <= H and h * w < 0.04 * H * W  # sparse
+    dense = np.zeros((H, W), bool)
+    dense[oy:oy + h, ox:ox + w] = full.mask
+    want = np.zeros((H, W), bool)
+    want[293:586, 586:1172] = True
+    assert not (dense & ~want).any()
+    missing = np.argwhere(want & ~dense)
+    assert len(missing) <= 4 and all(r in (293, 585) and c in (586, 1171) for r, c in missing)
+
+    crop = dataclasses.replace(det, mask=small[90:210, 150:420], origin=(150, 90))
+    again = full_resolution(crop, s, (H, W))
+    assert again.origin == full.origin and np.array_equal(again.mask, full.mask)
+    np.testing.assert_allclose(again.corners, full.corners)
+    assert full_resolution(dataclasses.replace(det, corners=None), s, (H, W)).corners is None
+
+
+def test_learned_detector_on_a_large_photo_returns_sparse_full_resolution_masks():
+    """The shipped detector on a 3000x2000 photo (resized for the network): one detection per drawn
+    window, each a crop inside the image covering that window's frame, with its box on the crop's
+    outline and its corners (if the detector predicts them) at the frame's corners."""
+    import cv2
+
+    from fenestra.data import SparseMask
+
+    H, W = 2000, 3000
+    image = np.empty((H, W, 3), np.uint8)
+    image[:] = (200, 170, 140)
+    image = np.clip(image + np.random.default_rng(0).normal(0, 6, image.shape), 0, 255).astype(np.uint8)
+    frames = []  # (x0, y0, x1, y1) pixel edges of each white frame
+    for r in range(3):
+        for c in range(5):
+            y, x = 250 + r * 600, 200 + c * 560
+            cv2.rectangle(image, (x - 30, y - 30), (x + 330, y + 430), (245, 245, 240), -1)
+            cv2.rectangle(image, (x, y), (x + 300, y + 400), (40, 50, 70), -1)
+            cv2.line(image, (x + 150, y), (x + 150, y + 400), (245, 245, 240), 16)
+            frames.append((x - 30, y - 30, x + 331, y + 431))
+    dets = detect("default", image)
+    assert len(dets) == len(frames)
+    matched = set()
+    for d in dets:
+        (ox, oy), (h, w) = d.origin, d.mask.shape
+        assert 0 <= ox and 0 <= oy and ox + w <= W and oy + h <= H and h * w < 0.05 * H * W
+        m = SparseMask.from_crop(d.mask, d.origin, (H, W))
+        np.testing.assert_allclose(d.box, m.box(), atol=3.0)  # network px are ~3 full px
+        cx, cy = (m.c0 + m.c1) / 2, (m.r0 + m.r1) / 2
+        k = next(i for i, (a, b, e, f) in enumerate(frames) if a <= cx < e and b <= cy < f)
+        a, b, e, f = frames[k]
+        inter = max(0, min(m.c1, e) - max(m.c0, a)) * max(0, min(m.r1, f) - max(m.r0, b))
+        assert inter / ((e - a) * (f - b) + (m.c1 - m.c0) * (m.r1 - m.r0) - inter) > 0.8
+        if d.corners is not None:
+            outline = np.array([[a, b], [e, b], [e, f], [a, f]]) - 0.5  # pixel centres at integers
+            np.testing.assert_allclose(d.corners, outline, atol=15.0)
+        matched.add(k)
+    assert len(matched) == len(frames)

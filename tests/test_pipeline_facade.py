@@ -296,6 +296,32 @@ def test_detect_segments_rejects_bad_input():
         facade.detect_segments(np.zeros(SHAPE, np.uint8), 20.0, "canny")
 
 
+def test_detect_segments_runs_once_per_image_content(monkeypatch):
+    """The same photo asked twice (as uint8, then as float32 gray: a new array with the same
+    content) runs the segment detector once and gives equal segments; the image changed in place
+    (the same array object) or another minimum length runs it again. The counter wraps the real
+    LSD."""
+    calls = []
+
+    def counted(g, min_length_px):
+        calls.append(g.shape)
+        return facade._lsd(g, min_length_px)
+
+    monkeypatch.setitem(facade.SEGMENT_DETECTORS, "lsd", counted)
+    img = np.full(SHAPE, 60, np.uint8)
+    img[:, SHAPE[1] // 2:] = 200  # one vertical step edge
+    a = facade.detect_segments(img, 100.0)
+    b = facade.detect_segments(img.astype(np.float32), 100.0)
+    assert len(calls) == 1 and len(a) >= 1 and np.array_equal(a, b)
+    a[:] = 0  # the caller's copy: the kept result is not changed
+    assert np.array_equal(facade.detect_segments(img, 100.0), b) and len(calls) == 1
+    img[SHAPE[0] // 2:, :] = 60  # the edge now covers half the height only
+    c = facade.detect_segments(img, 100.0)
+    assert len(calls) == 2 and np.abs(c[..., 1]).max() < SHAPE[0] / 2 + 2 < np.abs(b[..., 1]).max()
+    facade.detect_segments(img, 50.0)
+    assert len(calls) == 3
+
+
 def test_segment_families_follow_the_walls_vanishing_points():
     """Front-wall edges go to its horizontal (0) or vertical (1) vanishing point; a side-wall
     horizontal and a roof rake (45 deg on the front wall) follow neither (-1)."""

@@ -17,6 +17,7 @@ outline of the mask (pixel centres at integers, so x1 - x0 is the width in px).
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 from pathlib import Path
@@ -240,23 +241,36 @@ def downscale(image: np.ndarray, scale: float) -> np.ndarray:
 
 def full_resolution(det: Detection, scale: float, shape: tuple[int, int]) -> Detection:
     """A detection on an image downscaled by ``scale`` mapped back to the (H, W) original, sparse:
-    the mask's bounding box (+1 px) resized bilinearly (threshold 0.5) into a crop at ``origin``."""
+    the mask's bounding box (+1 px) resized bilinearly (threshold 0.5) into a crop at ``origin``.
+
+    The small detection's mask may itself be sparse (a crop at ``det.origin``). Box and corners
+    (pixel centres at integers) map by ``(v + 0.5) / scale - 0.5`` (:func:`box_to_full`); corners
+    (4, 2) px stay None when the detector has none.
+    """
     H, W = shape
     small = np.asarray(det.mask, dtype=np.uint8)
+    box = box_to_full(det.box, scale)
+    corners = None if det.corners is None else points_to_full(det.corners, scale)
     x, y, w, h = cv2.boundingRect(small)
     if w == 0 or h == 0:
-        return Detection(np.zeros((0, 0), bool), box_to_full(det.box, scale), det.score, det.label)
-    sx0, sy0 = max(x - 1, 0), max(y - 1, 0)
+        return dataclasses.replace(det, mask=np.zeros((0, 0), bool), box=box, origin=(0, 0), corners=corners)
+    ox, oy = det.origin
+    sx0, sy0 = max(x - 1, 0), max(y - 1, 0)  # crop pixels, +1 px of background where the crop has it
     sx1, sy1 = min(x + w + 1, small.shape[1]), min(y + h + 1, small.shape[0])
-    fx0, fy0 = int(round(sx0 / scale)), int(round(sy0 / scale))
-    fx1, fy1 = min(W, int(round(sx1 / scale))), min(H, int(round(sy1 / scale)))
+    fx0, fy0 = int(round((ox + sx0) / scale)), int(round((oy + sy0) / scale))
+    fx1, fy1 = min(W, int(round((ox + sx1) / scale))), min(H, int(round((oy + sy1) / scale)))
     crop = cv2.resize(small[sy0:sy1, sx0:sx1] * np.uint8(255), (fx1 - fx0, fy1 - fy0), interpolation=cv2.INTER_LINEAR)
-    return Detection(crop >= 128, box_to_full(det.box, scale), det.score, det.label, origin=(fx0, fy0))
+    return dataclasses.replace(det, mask=crop >= 128, box=box, origin=(fx0, fy0), corners=corners)
+
+
+def points_to_full(points: np.ndarray, scale: float) -> np.ndarray:
+    """Points (..., 2) px on the downscaled image -> the original's (pixel centres at integers)."""
+    return (np.asarray(points, dtype=np.float64) + 0.5) / scale - 0.5
 
 
 def box_to_full(box: np.ndarray, scale: float) -> np.ndarray:
     """(4,) box px on the downscaled image -> the original's (pixel centres at integers)."""
-    return (np.asarray(box, dtype=np.float64) + 0.5) / scale - 0.5
+    return points_to_full(box, scale)
 
 
 __all__ = ["DETECTORS", "DetectorEntry", "DegradeConfig", "Detection", "detect", "detector_entry", "get_detector",

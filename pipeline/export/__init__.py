@@ -9,6 +9,7 @@ Frames, units and texture conventions: pipeline/export/geometry.py.
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from pathlib import Path
 
@@ -86,8 +87,11 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     inpainted, _ = _timed("inpaint_ms", inpaint_voids, image, list(results))
     layout = texture_layout(K, image.shape, placed)
     texture = layout.pad(inpainted)
-    paths = {"inpainted": _write_png(out / "inpainted.png", inpainted),
-             "texture": _write_png(out / "texture.png", texture)}
+    paths = {"inpainted": _write_png(out / "inpainted.png", inpainted)}
+    if texture.shape == inpainted.shape:  # no padding: the same image, the same file (no second encode)
+        paths["texture"] = Path(shutil.copyfile(paths["inpainted"], out / "texture.png"))
+    else:
+        paths["texture"] = _write_png(out / "texture.png", texture)
     ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K, placed, layout, "texture.png", style)
     paths["ifc"] = out / "model.ifc"
     parts = model_parts(K, placed, layout, style)

@@ -75,7 +75,6 @@ def snap_hough(gray: np.ndarray, quad: np.ndarray, params: HoughParams = HoughPa
     """Replace each side by its closest Hough line within the band, intersect neighbours."""
     g, q = check_inputs(gray, quad)
     H, W = g.shape
-    g8 = g if gray.dtype == np.uint8 else np.clip(g, 0, 255)
     sides = side_lines(q)
     new_lines, found = sides.copy(), []
     pad = params.band_px + 2
@@ -86,7 +85,7 @@ def snap_hough(gray: np.ndarray, quad: np.ndarray, params: HoughParams = HoughPa
         x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
         line = None
         if x1 - x0 >= 3 and y1 - y0 >= 3:
-            crop = np.ascontiguousarray(g8[y0:y1, x0:x1]).astype(np.uint8)
+            crop = np.clip(g[y0:y1, x0:x1], 0, 255).astype(np.uint8)  # the side's crop only, not the photo
             edges = cv2.Canny(crop, params.canny_low, params.canny_high)
             origin = np.array([x0, y0], dtype=np.float64)
             edges *= band_mask(edges.shape, a - origin, b - origin, params.band_px, params.end_trim_px)
