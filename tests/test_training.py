@@ -50,7 +50,7 @@ def test_config_rejects_unknown_keys(tmp_path):
 
 def test_winnet_tiny_training_loss_decreases(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
-    cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
+    cfg = load_config("training/configs/winnet.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
                       iterations=30, batch_size=3, crop_hw=(64, 96), log_every=1, warmup=5, lr=3e-3)
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
@@ -58,7 +58,7 @@ def test_winnet_tiny_training_loss_decreases(tmp_path):
     loss = np.array([float(r["loss"]) for r in rows])
     assert loss[-10:].mean() < 0.85 * loss[:5].mean(), loss
     img = read_image(ds / "views" / "000000" / "image.png")
-    dets = detect("default", img, score_threshold=0.0, weights=path)
+    dets = detect("winnet", img, score_threshold=0.0, weights=path)
     assert all(d.mask.shape == img.shape[:2] for d in dets)
 
 
@@ -110,13 +110,13 @@ def test_batches_are_the_same_with_worker_processes(tmp_path):
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=3)
     cfg = load_config("training/configs/default.toml", data=(str(ds),), iterations=5, batch_size=2,
-                      crop_hw=(64, 96))
+                      crop_hw=(64, 128), real_fraction=0.0)
     data = load_views(cfg.data, None)
     serial = list(batches(data, cfg, start=1))
     forked = list(batches(data, replace(cfg, workers=2), start=1))
     assert [it for it, _ in serial] == [it for it, _ in forked] == [1, 2, 3, 4]
-    for (_, (x0, y0)), (_, (x1, y1)) in zip(serial, forked):
-        assert x0.equal(x1) and y0.equal(y1)
+    for (_, b0), (_, b1) in zip(serial, forked):
+        assert len(b0) == len(b1) == 3 and all(t0.equal(t1) for t0, t1 in zip(b0, b1))  # EffWin: x, y, corner weights
     assert not serial[0][1][0].equal(serial[1][1][0])  # iterations differ from each other
     with pytest.raises(ValueError, match="device"):
         replace(cfg, device="tpu")
@@ -130,7 +130,7 @@ def test_training_is_reproducible_for_a_seed(tmp_path):
     weights = []
     for run in ("a", "b", "c"):
         cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / f"{run}.pt"),
-                          state_dir=str(tmp_path / run), iterations=4, batch_size=2, crop_hw=(64, 96),
+                          state_dir=str(tmp_path / run), iterations=4, batch_size=2, crop_hw=(64, 128), real_fraction=0.0,
                           warmup=1, seed=1 if run == "c" else 0)
         weights.append(torch.load(train(cfg, log=lambda *_: None), weights_only=False)["state_dict"])
     a, b, c = weights
@@ -144,7 +144,7 @@ def test_steptime_times_every_variant(tmp_path):
     from training.train import load_views, make_batch
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=2, seed=5)
-    cfg = load_config("training/configs/default.toml", data=(str(ds),), batch_size=2, crop_hw=(64, 64))
+    cfg = load_config("training/configs/winnet.toml", data=(str(ds),), batch_size=2, crop_hw=(64, 64))
     data = load_views(cfg.data, None)
     batches = [make_batch(data, cfg, it) for it in range(2)]
     for amp, channels_last in steptime.VARIANTS.values():
@@ -163,7 +163,7 @@ def test_gpu_search_variants_are_the_default_config_with_their_overrides(tmp_pat
     env = {**os.environ, "CONFIGS_ONLY": "1"}
     subprocess.run(["bash", script, str(tmp_path), "base", "seed1", "scalelo", "crop384", "c224"],
                    check=True, env=env)
-    default = load_config("training/configs/default.toml")
+    default = load_config("training/configs/winnet.toml")
     expect = {"base": {"iterations": 10000, "crop_hw": (256, 256)},
               "seed1": {"iterations": 10000, "crop_hw": (256, 256), "seed": 1},
               "scalelo": {"iterations": 10000, "crop_hw": (256, 256)},
@@ -241,7 +241,7 @@ def test_training_writes_under_out_not_into_the_shipped_weights():
     from training.train import TrainConfig
 
     configs = sorted((ROOT / "training" / "configs").glob("*.toml"))
-    assert [c.name for c in configs] == ["default.toml", "maskrcnn.toml"]
+    assert [c.name for c in configs] == ["default.toml", "maskrcnn.toml", "winnet.toml"]
     for cfg in [TrainConfig(), *(load_config(c) for c in configs)]:
         assert Path(cfg.out).parts[0] == "out" and Path(cfg.state_dir).parts[0] == "out", cfg.out
 
@@ -262,7 +262,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     r = CliRunner().invoke(app, ["ship-weights", str(src), "--to", str(dest)])
     assert r.exit_code == 0, r.output
     assert dest.read_bytes() == src.read_bytes()
-    assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'default'" in r.output
+    assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'winnet'" in r.output
     assert not list(dest.parent.glob("*.tmp"))
     (tmp_path / "junk.pt").write_bytes(b"not a model")
     torch.save({"arch": "yolo", "state_dict": {}}, tmp_path / "yolo.pt")

@@ -7,7 +7,7 @@
     ship.py        checked copy of trained weights into pipeline/models      `fenestra ship-weights`
     tune.py        WinNet post-processing thresholds on validation views     `python -m training.tune`
     pack_data.py   rendered data packed small for a GPU machine              `python training/pack_data.py`
-    configs/       the shipped detectors' training configs (default.toml: WinNet; maskrcnn.toml)
+    configs/       the detectors' training configs (default.toml: EffWin, the shipped default; winnet.toml; maskrcnn.toml)
     scripts/       make_data.sh (the training/validation/held-out renders), gpu_*.sh (GPU machine runs)
 
 training/ may import fenestra, scenes, renders and pipeline; pipeline/ never imports training/

@@ -1,6 +1,7 @@
 """Train a window-void detector on rendered dataset folders.
 
-    fenestra train --config training/configs/default.toml            # WinNet, CPU -> out/train/default.pt
+    fenestra train --config training/configs/default.toml            # EffWin (the default), CPU -> out/train/default.pt
+    fenestra train --config training/configs/winnet.toml             # WinNet, CPU -> out/train/winnet.pt
     fenestra train --config training/configs/maskrcnn.toml --data D  # Mask R-CNN (GPU advised)
     fenestra ship-weights out/train/default.pt                       # then: the shipped weights
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# WinNet recipe search on the GPU machine: variants of the default config trained side by side on
+# WinNet recipe search on the GPU machine: variants of the WinNet config (winnet.toml) trained side by side on
 # the same data and scored on validation (houses 201-208) and on fzk-haus, a bundled IFC house that
 # is taken out of the training data for this search (leave-one-house-out). Never on samplehouse4.
 # The record of the session-4 search (H100) is docs/experiments/winnet-search-h100.json.
@@ -8,8 +8,8 @@
 #            out/detector-data/train out/detector-data/val          # ~31 MiB, 1204 + 288 views
 # There: tar -xJf data.tar.xz && bash training/scripts/gpu_winnet_search.sh OUT_DIR [VARIANT ...]
 #
-# Each variant is the default config with the keys below replaced (iterations and crop given
-# explicitly, so the variants do not move when default.toml does), device cuda, and its own batch-
+# Each variant is winnet.toml with the keys below replaced (iterations and crop given
+# explicitly, so the variants do not move when winnet.toml does), device cuda, and its own batch-
 # making worker processes (the machine's 16 cores are shared among the variants run together).
 # CONFIGS_ONLY=1 writes the variants' configs to OUT_DIR and stops (tests/test_training.py).
 set -euo pipefail
@@ -32,10 +32,10 @@ for v in $VARIANTS; do
   [ -n "${SET[$v]+x}" ] || { echo "unknown variant $v (known: ${!SET[*]})" >&2; exit 1; }
   cfg="$OUTD/$v.toml"
   sed -e "s#^out = .*#out = \"$OUTD/$v.pt\"#" -e 's#^save_every = .*#save_every = 100000\ndevice = "cuda"#' \
-      training/configs/default.toml > "$cfg"
+      training/configs/winnet.toml > "$cfg"
   for kv in ${SET[$v]}; do
     sed -i "s#^${kv%%=*} = .*#${kv%%=*} = ${kv#*=}#" "$cfg"
-    grep -qxF "${kv%%=*} = ${kv#*=}" "$cfg" || { echo "variant $v: key ${kv%%=*} not in default.toml" >&2; exit 1; }
+    grep -qxF "${kv%%=*} = ${kv#*=}" "$cfg" || { echo "variant $v: key ${kv%%=*} not in winnet.toml" >&2; exit 1; }
   done
 done
 [ "${CONFIGS_ONLY:-0}" = 1 ] && exit 0
