@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke real report gate train timing clean
+.PHONY: help setup sysdeps test test-all bench smoke real report gate train train-winnet timing clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -55,12 +55,18 @@ timing:  ## where make bench's time goes, measured as a fresh clone would (cold,
 report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present)
 	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1) $(REAL_RUN)
 
-train:  ## render the detector data, train the default CPU detector from scratch (out/train/), ship it (reproduces the shipped weights), evaluate it
+train:  ## render the detector data, train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, ship it (reproduces the shipped weights), evaluate it
 	PY=$(PY) bash training/scripts/make_data.sh out/detector-data
 	$(PY) -m fenestra train --config training/configs/default.toml
 	$(PY) -m fenestra ship-weights out/train/default.pt
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
+	$(PY) -m fenestra evaluate-detector --yolo ../shared/real/spb_facades/train --part val --json out/eval/default-spb-val.json
+
+train-winnet:  ## the from-scratch WinNet (registered as `winnet`) on the same renders: out/train/winnet.pt, then ship-weights
+	PY=$(PY) bash training/scripts/make_data.sh out/detector-data
+	$(PY) -m fenestra train --config training/configs/winnet.toml
+	$(PY) -m fenestra ship-weights out/train/winnet.pt
 
 clean:
 	rm -rf out .pytest_cache

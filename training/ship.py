@@ -1,6 +1,6 @@
 """Shipping trained weights: the one explicit step from a training run's output to the product.
 
-    fenestra ship-weights out/train/default.pt      # -> pipeline/models/default.pt (WinNet)
+    fenestra ship-weights out/train/default.pt      # -> pipeline/models/default.pt (EffWin; out/train/winnet.pt -> winnet.pt)
 
 Training writes under out/ (never into pipeline/); this copies a weights file to where its
 detector loads it, after checking that the detector builds from it and runs on an image.
