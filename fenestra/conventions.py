@@ -48,11 +48,14 @@ PYRENDER_PIXEL_OFFSET = 0.5
 @dataclass(frozen=True)
 class Strategies:
     """One choice per pluggable stage: a detector, a corner snapper and a pose strategy (registry names:
-    ``pipeline.detectors.DETECTORS``, ``pipeline.snappers.SNAPPERS``, ``pipeline.reconstruct.pose_strategies()``)."""
+    ``pipeline.detectors.DETECTORS``, ``pipeline.snappers.SNAPPERS``, ``pipeline.reconstruct.pose_strategies()``),
+    and where the quad comes from (``pipeline.quad.QUAD_SOURCES``: the mask fit, or a corner head's
+    predicted corners with the mask fit as fallback)."""
 
     detector: str
     snapper: str
     pose: str
+    quad_source: str = "mask"
 
 
 # What `fenestra reconstruct` and ReconstructConfig() use: the README's measured best for a learned

@@ -27,6 +27,7 @@ from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from pipeline.outdir import check_out, staged_dir
 from pipeline.detectors.oracle import detections_from_instance_map
+from pipeline.quad import QUAD_SOURCES, QuadParams
 from pipeline.reconstruct import (ReconstructConfig, fit_quads, pose_strategies,
                                   reconstruct, reconstruct_from_quads, to_gray, windows_to_json)
 from pipeline.snappers import SNAPPERS
@@ -36,7 +37,8 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                     fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
                     masks: Optional[Path] = None, detector: str = DEFAULTS.detector, snapper: str = DEFAULTS.snapper,
                     pose: str = DEFAULTS.pose, height: float = ReconstructConfig.height_m, width: Optional[float] = None,
-                    substitute: Optional[str] = None, export: bool = True, force: bool = False) -> dict:
+                    substitute: Optional[str] = None, export: bool = True, force: bool = False,
+                    quad_source: str = DEFAULTS.quad_source) -> dict:
     """The `reconstruct` command as a function: returns the windows.json dict it wrote.
 
     Everything is written to a temporary folder that replaces ``out`` when complete
@@ -61,7 +63,8 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
         camera = None  # resolved below from the photo (vanishing points, EXIF)
     if camera is not None:
         image = undistort_photo(image, camera)  # masks (--masks) are taken to be in this frame
-    cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width)
+    cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width,
+                            quad=QuadParams(source=quad_source))
     if masks is not None:
         detections = detections_from_instance_map(read_instance_map(masks, size))
     else:
@@ -168,10 +171,15 @@ def register(app: typer.Typer) -> None:
         width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
         force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),
+        quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
+                                        help=f"quad from: {', '.join(QUAD_SOURCES)} (corners: the detector's corner head, "
+                                             "the mask fit where it has none)"),
     ) -> None:
         """Reconstruct the windows of one photo: windows.json, IFC, OBJ, overlay."""
+        if quad_source not in QUAD_SOURCES:
+            raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
         doc = run_reconstruct(photo, out, K_json, fx, fy, cx, cy, masks, detector, snapper, pose,
-                              height, width, substitute, force=force)
+                              height, width, substitute, force=force, quad_source=quad_source)
         typer.echo(format_table(doc))
         if doc.get("undistorted"):
             typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")

@@ -45,6 +45,8 @@ def register(app: typer.Typer) -> None:
         part: str = typer.Option("val", help="with --yolo: val (every --holdout-every th photo), train or all"),
         holdout_every: int = typer.Option(5, help="with --yolo: the validation photos' spacing"),
         detector: str = typer.Option("default", help=f"registry name: {', '.join(DETECTORS)}"),
+        no_ignore: bool = typer.Option(False, "--no-ignore", help="with --data: count detections on curtain-wall "
+                                       "and glazed-door glazing as false positives (drop the ignore regions)"),
         weights: Optional[Path] = typer.Option(None, help="weights file (default: the shipped one)"),
         max_images: Optional[int] = typer.Option(None, help="evaluate only the first N images"),
         json_out: Optional[Path] = typer.Option(None, "--json", help="also write the metrics as JSON"),
@@ -58,7 +60,7 @@ def register(app: typer.Typer) -> None:
         opts = {"weights": weights} if weights is not None else {}
         if device != "cpu":
             opts["device"] = device
-        result = (evaluate(detector, data, max_images=max_images, **opts) if yolo is None else
+        result = (evaluate(detector, data, max_images=max_images, ignore_regions=not no_ignore, **opts) if yolo is None else
                   evaluate_boxes(detector, yolo, part, holdout_every, max_images=max_images, **opts))
         typer.echo(format_table(result))
         if json_out is not None:

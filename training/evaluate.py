@@ -84,19 +84,23 @@ def merged_coco(dataset_dirs: list[Path]) -> tuple[dict, dict[int, Path]]:
 
 
 def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None = None,
-             min_score: float = 0.05, **options: object) -> dict:
+             min_score: float = 0.05, ignore_regions: bool = True, **options: object) -> dict:
     """COCO bbox/segm scores of ``detector_name`` on a dataset folder (or a root holding several).
 
     Returns {"detector", "dataset", "n_images", "n_gt" (windows), "n_ignore" (ignore regions),
     "n_det", "ms_per_image_median", "bbox": {AP, AP50, ..., R50}, "segm": {...},
     "segm_perfect_ranking": {...}, "n_det_matching_no_window", "paper_table2"}; scores are
     fractions in [0, 1] (fenestra.data.coco_scores). options are passed to the detector's
-    factory (e.g. weights=PATH).
+    factory (e.g. weights=PATH). ignore_regions=False drops the ignore regions (curtain-wall and
+    glazed-door glazing), so detections there count as false positives: the figures before the
+    project counted glazing that way.
     """
     if max_images is not None and max_images < 1:
         raise ValueError(f"--max-images must be >= 1, got {max_images}")
     dataset_dir = Path(dataset_dir)
     coco, paths = merged_coco(find_datasets([dataset_dir]))
+    if not ignore_regions:
+        coco = {**coco, "annotations": [a for a in coco["annotations"] if not a.get("iscrowd", 0)]}
     images = coco["images"]
     if max_images is not None:
         images = images[:max_images]
