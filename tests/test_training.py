@@ -281,7 +281,7 @@ def test_tune_command_writes_the_best_post_processing_into_the_weights(tmp_path)
     import subprocess
     import sys
 
-    from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
+    from pipeline.detectors import DEFAULT_WEIGHTS, load_map_predictor
 
     ds = write_toy_dataset(tmp_path / "val", n_views=2, seed=6)
     weights = tmp_path / "w.pt"
@@ -296,7 +296,7 @@ def test_tune_command_writes_the_best_post_processing_into_the_weights(tmp_path)
     assert best, r.stdout
     vt, ct, ap = (float(x) for x in best.groups())
     assert ap == max(g[2] for g in grid) and (vt, ct, ap) in grid
-    post = load_winnet(weights)[1]
+    post = load_map_predictor(weights)[1]
     assert (post.void_threshold, post.core_threshold) == (vt, ct)
 
 

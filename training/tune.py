@@ -1,4 +1,4 @@
-"""Choose WinNet's post-processing thresholds on VALIDATION views (never the held-out house).
+"""Choose the void/core post-processing thresholds (WinNet, EffWin) on VALIDATION views (never the held-out house).
 
     python -m training.tune --data out/detector-data/val --views-per-dataset 5 \
         [--weights pipeline/models/default.pt] [--write]      # --views-per-dataset 0: every view
@@ -17,8 +17,8 @@ import numpy as np
 import torch
 
 from fenestra.data import coco_ground_truth, coco_scores, gt_annotation, instance_masks, read_image, read_instances
-from pipeline.detectors import DEFAULT_WEIGHTS, load_winnet
-from pipeline.detectors.winnet import PostConfig, instances_from_maps, predict_maps
+from pipeline.detectors import DEFAULT_WEIGHTS, load_map_predictor
+from pipeline.detectors.winnet import PostConfig, instances_from_maps
 from training.dataset import find_datasets, list_views
 from training.evaluate import detection_to_coco
 
@@ -33,14 +33,14 @@ def instance_maps_to_coco(instances: list[np.ndarray]) -> dict:
 def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[dict, PostConfig]]:
     """(fenestra.data.coco_scores segm scores, PostConfig) for every grid point, best segm AP first
     (views_per_dataset 0: all)."""
-    model, _ = load_winnet(weights)
+    predict, _ = load_map_predictor(weights)
     maps, insts = [], []
     for d in find_datasets([data]):
         vs = list_views(d)
         if views_per_dataset > 0:
             vs = [vs[j] for j in np.linspace(0, len(vs) - 1, views_per_dataset).round().astype(int)]
         for v in vs:
-            maps.append(predict_maps(model, read_image(v.image)))
+            maps.append(predict(read_image(v.image)))
             insts.append((len(insts) + 1, read_instances(v.instances)))
     gt = instance_maps_to_coco([inst for _, inst in insts])  # ids 1, 2, ... as in insts
     out = []

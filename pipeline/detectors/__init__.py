@@ -113,6 +113,25 @@ def checkpoint_arch(path: str | Path) -> str:
     return str(ckpt.get("arch")) if isinstance(ckpt, dict) else type(ckpt).__name__
 
 
+def load_map_predictor(weights: str | Path | None = None):
+    """(predict, PostConfig) of a winnet or effwin weights file (default: the shipped default):
+    predict(image (H, W, 3) uint8 RGB) -> (void, core) probability maps (H, W) float32, the inputs
+    of winnet.instances_from_maps (post-processing tuning: training/tune.py)."""
+    path = _weights_file(weights, DEFAULT_WEIGHTS)
+    arch = checkpoint_arch(path)
+    if arch == "winnet":
+        from pipeline.detectors.winnet import predict_maps  # noqa: PLC0415
+
+        model, post = load_winnet(path)
+        return (lambda image: predict_maps(model, image)), post
+    if arch == "effwin":
+        from pipeline.detectors.effwin import predict_maps as effwin_maps  # noqa: PLC0415
+
+        model, post = load_effwin(path)
+        return (lambda image: tuple(effwin_maps(model, image)[:2])), post
+    raise FenestraError(f"{path} holds a {arch!r} model; void/core maps come from winnet or effwin")
+
+
 def _winnet(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
     from pipeline.detectors.winnet import instances_from_maps, predict_maps  # noqa: PLC0415
 
