@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
         device: Optional[str] = typer.Option(None, help="cpu or cuda (default: the config's `device`)"),
         workers: Optional[int] = typer.Option(None, help="processes making batches ahead (default: the config's)"),
     ) -> None:
-        """Train a window-void detector (WinNet or Mask R-CNN) on rendered dataset folders."""
+        """Train a window-void detector (EffWin, WinNet or Mask R-CNN) on rendered dataset folders (EffWin: plus real box photos)."""
         from training.train import load_config, train  # noqa: PLC0415
 
         cfg = load_config(config, data=tuple(str(d) for d in data) if data else None,
@@ -71,7 +71,7 @@ def register(app: typer.Typer) -> None:
     def ship_cmd(
         src: Path = typer.Argument(..., help="trained weights (what `fenestra train` wrote)"),
         to: Optional[Path] = typer.Option(None, help="destination (default: the file the architecture's "
-                                          "detector loads, e.g. pipeline/models/default.pt for WinNet)"),
+                                          "detector loads, e.g. pipeline/models/default.pt for EffWin, winnet.pt for WinNet)"),
     ) -> None:
         """Ship trained weights: check that the detector loads and runs them, then copy them into place."""
         from training.ship import ship_weights  # noqa: PLC0415

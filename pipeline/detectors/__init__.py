@@ -1,7 +1,8 @@
 """Window-void detectors behind one registry.
 
     from pipeline.detectors import DETECTORS, detect
-    dets = detect("default", image)                        # learned, CPU-fast (WinNet)
+    dets = detect("default", image)                        # learned: EffWin (pretrained backbone, corner head)
+    dets = detect("winnet", image)                         # learned from scratch (the default before issue #13)
     dets = detect("oracle", image, instances=inst)         # exact masks from an instance map
     dets = detect("oracle-degraded", image, instances=inst, config=DegradeConfig(seed=1))
     dets = detect("maskrcnn", image, weights="pipeline/models/maskrcnn.pt")
