@@ -152,3 +152,33 @@ def test_occluders_hide_the_void_they_cover_and_are_off_by_default():
         out, ins, occ = occluders(img, inst, cfg, np.random.default_rng(seed))
         assert occ.any() and not ins[occ].any()  # occluded pixels are no longer window
         assert (ins[~occ] == inst[~occ]).all() and (out[~occ] == img[~occ]).all()
+
+
+def test_evaluate_boxes_scores_real_style_photos_through_detect(tmp_path):
+    """`evaluate-detector --yolo`: the validation part of a YOLO folder, window boxes (class 0) as
+    ground truth, the photos through detect() (resized: 1800x1200 > 1024 px) and COCO bbox AP.
+    The shipped default finds the six drawn dark windows in their white frames."""
+    import cv2
+
+    from training.evaluate import evaluate_boxes
+
+    (tmp_path / "images").mkdir()
+    (tmp_path / "labels").mkdir()
+    H, W = 1200, 1800
+    img = np.full((H, W, 3), (190, 160, 130), np.uint8)
+    lines = []
+    for r in range(2):
+        for c in range(3):
+            x, y = 200 + c * 550, 150 + r * 550
+            cv2.rectangle(img, (x - 25, y - 25), (x + 325, y + 425), (245, 245, 240), -1)
+            cv2.rectangle(img, (x, y), (x + 300, y + 400), (40, 50, 70), -1)
+            lines.append(f"0 {(x + 150.5) / W} {(y + 200.5) / H} {301 / W} {401 / H}")
+    lines.append("5 0.5 0.95 0.1 0.1")  # a door: not a window
+    for name in ("a", "b"):  # "a" is the validation photo (index 0), "b" training
+        cv2.imwrite(str(tmp_path / "images" / f"{name}.jpg"), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+        (tmp_path / "labels" / f"{name}.txt").write_text("\n".join(lines) + "\n")
+    r = evaluate_boxes("default", tmp_path, part="val", holdout_every=2)
+    assert (r["n_images"], r["n_gt"]) == (1, 6) and "segm" not in r
+    assert r["bbox"]["AP50"] > 0.8, r["bbox"]
+    with pytest.raises(ValueError, match="instance maps"):
+        evaluate_boxes("oracle", tmp_path)
