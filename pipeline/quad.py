@@ -341,3 +341,20 @@ def corners_to_quad(corners: np.ndarray | None, min_side_px: float = 3.0) -> Qua
             n = -n
         lines[k] = (n[0], n[1], n @ a)
     return QuadResult(quad=quad, lines=lines, explained=1.0, failure=None)
+
+
+def corners_agree_with_mask(quad: np.ndarray, mask: np.ndarray, origin: tuple[int, int] = (0, 0),
+                            area_ratio: tuple[float, float] = (0.5, 2.0)) -> bool:
+    """Do predicted corners (4, 2) px describe the detection's own mask (full, or a crop at
+    ``origin``)? Their quad's area must be within ``area_ratio`` x the mask's pixel count and the
+    mask's centroid inside the quad: a corner head that put one corner on another window fails."""
+    m = np.asarray(mask, dtype=bool)
+    n = int(m.sum())
+    if n == 0:
+        return False
+    x, y = quad[:, 0], quad[:, 1]
+    area = 0.5 * abs(float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))
+    ys, xs = np.nonzero(m)
+    c = (float(xs.mean()) + origin[0], float(ys.mean()) + origin[1])
+    inside = cv2.pointPolygonTest(quad.astype(np.float32).reshape(-1, 1, 2), c, False) >= 0
+    return bool(area_ratio[0] * n <= area <= area_ratio[1] * n and inside)

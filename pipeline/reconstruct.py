@@ -25,7 +25,7 @@ from fenestra.conventions import DEFAULTS, check_K
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
 from pipeline.pose import POSE_SOLVERS, estimate_pose
-from pipeline.quad import QuadParams, QuadResult, corners_to_quad, mask_to_quad
+from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult, check_image
 from pipeline.walls import WALL_STRATEGIES, apply_walls
@@ -124,7 +124,8 @@ class QuadFit:
 def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
               image_shape: tuple[int, int] | None = None) -> list[QuadFit]:
     """Fit the quad of every detection (mask -> quad, or the predicted corners with
-    ``params.source == "corners"`` where the detection has usable ones), in order, for
+    ``params.source == "corners"`` where the detection has usable ones that agree with its mask:
+    pipeline.quad.corners_agree_with_mask), in order, for
     :func:`reconstruct_from_quads`.
 
     image_shape: (H, W); a detection whose mask has another shape is not fitted (result None).
@@ -136,6 +137,8 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
             continue
         t0 = time.perf_counter()
         qr = corners_to_quad(det.corners) if params.source == "corners" else None
+        if qr is not None and qr.quad is not None and not corners_agree_with_mask(qr.quad, det.mask, det.origin):
+            qr = None  # predicted corners that do not describe the mask: fall back to the mask fit
         if qr is None or qr.quad is None:  # the mask fit: the source, or the fallback
             qr = mask_to_quad(det.mask, params) if image_shape is None else fit_sparse(det, params, image_shape)
         fits.append(QuadFit(qr, (time.perf_counter() - t0) * 1e3))

@@ -182,3 +182,26 @@ def test_evaluate_boxes_scores_real_style_photos_through_detect(tmp_path):
     assert r["bbox"]["AP50"] > 0.8, r["bbox"]
     with pytest.raises(ValueError, match="instance maps"):
         evaluate_boxes("oracle", tmp_path)
+
+
+def test_corner_quads_fall_back_to_the_mask_fit_when_they_disagree_with_the_mask():
+    from pipeline.quad import QuadParams, corners_agree_with_mask
+    from pipeline.reconstruct import fit_quads
+    from pipeline.types import Detection
+
+    mask = np.zeros((60, 80), bool)
+    mask[10:40, 20:60] = True  # 40 x 30 px: pixel-edge outline x 19.5..59.5, y 9.5..39.5
+    good = np.array([[19.6, 9.4], [59.4, 9.6], [59.5, 39.4], [19.5, 39.5]])
+    bad = good.copy()
+    bad[2] = [79.0, 59.0]  # one corner on another window: area 1.9x, still convex
+    far = good + [100, 0]  # the right shape, somewhere else
+    assert corners_agree_with_mask(good, mask) and not corners_agree_with_mask(far, mask)
+    box = np.array([19.5, 9.5, 59.5, 39.5])
+    dets = [Detection(mask, box, 0.9, corners=c) for c in (good, bad, far, None)]
+    fits = fit_quads(dets, QuadParams(source="corners"), mask.shape)
+    np.testing.assert_allclose(fits[0].result.quad, good)  # the head's corners, as predicted
+    mask_fit = fit_quads(dets[:1], QuadParams(), mask.shape)[0].result.quad
+    np.testing.assert_allclose(mask_fit, [[19.5, 9.5], [59.5, 9.5], [59.5, 39.5], [19.5, 39.5]], atol=0.05)
+    assert corners_agree_with_mask(bad, mask)  # within 2x the area: kept (a plausible quad)
+    for f in fits[2:]:  # far away, or no corners: the mask fit
+        np.testing.assert_allclose(f.result.quad, mask_fit)
