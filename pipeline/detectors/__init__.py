@@ -64,106 +64,73 @@ def _oracle_degraded(config: DegradeConfig = DegradeConfig()) -> Detector:
     return run
 
 
-def load_winnet(weights: str | Path | None = None):
-    """(model, PostConfig) from a WinNet checkpoint (default: the shipped pipeline/models/winnet.pt)."""
-    import torch  # noqa: PLC0415
+def _winnet_model(ckpt: dict):
+    from pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
 
-    from pipeline.detectors.winnet import PostConfig, WinNet, WinNetConfig  # noqa: PLC0415
-
-    ckpt = read_checkpoint(_weights_file(weights, WINNET_WEIGHTS), "winnet")
-    model = WinNet(WinNetConfig(tuple(ckpt["widths"])))
-    model.load_state_dict({k: v.float() for k, v in ckpt["state_dict"].items()})
-    model.to(memory_format=torch.channels_last)  # NHWC: faster convolutions on CPU (oneDNN)
-    return model.eval(), PostConfig(**ckpt.get("post", {}))
+    return WinNet(WinNetConfig(tuple(ckpt["widths"])))
 
 
-def load_effwin(weights: str | Path | None = None):
-    """(model, PostConfig) from an EffWin checkpoint (default: the shipped pipeline/models/default.pt).
-    Only the model code is needed: the backbone's ImageNet weights are inside the checkpoint."""
-    import torch  # noqa: PLC0415
-
+def _effwin_model(ckpt: dict):
     from pipeline.detectors.effwin import EffWin, EffWinConfig  # noqa: PLC0415
+
+    c = ckpt["config"]  # only the model code is needed: the ImageNet weights are in the checkpoint
+    return EffWin(EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"])))
+
+
+MAP_MODELS = {"winnet": _winnet_model, "effwin": _effwin_model}  # arch -> model from its checkpoint
+
+
+def load_map_model(weights: str | Path | None = None, default: Path = DEFAULT_WEIGHTS, archs=tuple(MAP_MODELS)):
+    """(arch, model in eval mode, PostConfig) from a WinNet or EffWin weights file (default: the
+    shipped ``default``), read once; FenestraError naming the file if it is missing or holds
+    another architecture."""
+    import torch  # noqa: PLC0415
+
     from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
 
-    ckpt = read_checkpoint(_weights_file(weights, DEFAULT_WEIGHTS), "effwin")
-    c = ckpt["config"]
-    model = EffWin(EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"])))
-    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in ckpt["state_dict"].items()})
-    model.to(memory_format=torch.channels_last)
-    return model.eval(), PostConfig(**ckpt.get("post", {}))
-
-
-def _weights_file(weights: str | Path | None, default: Path) -> Path:
     path = Path(weights) if weights is not None else default
     if not path.is_file():
         raise FenestraError(f"no detector weights at {path}: train them with `fenestra train --config "
                             "training/configs/<arch>.toml` (see pipeline/models/README.md)")
-    return path
-
-
-def checkpoint_arch(path: str | Path) -> str:
-    """The ``arch`` a weights file holds (FenestraError if it is not a checkpoint)."""
-    import torch  # noqa: PLC0415
-
-    try:
-        ckpt = torch.load(_weights_file(path, DEFAULT_WEIGHTS), map_location="cpu", weights_only=False)
-    except FenestraError:
-        raise
-    except Exception as e:  # noqa: BLE001 - pickle, zip and torch errors all mean "not a model"
-        raise FenestraError(f"{path} is not a model checkpoint ({type(e).__name__})") from e
-    return str(ckpt.get("arch")) if isinstance(ckpt, dict) else type(ckpt).__name__
+    ckpt = read_checkpoint(path, archs)
+    model = MAP_MODELS[ckpt["arch"]](ckpt)
+    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in ckpt["state_dict"].items()})
+    model.to(memory_format=torch.channels_last)  # NHWC: faster convolutions on CPU (oneDNN)
+    return ckpt["arch"], model.eval(), PostConfig(**ckpt.get("post", {}))
 
 
 def load_map_predictor(weights: str | Path | None = None):
     """(predict, PostConfig) of a winnet or effwin weights file (default: the shipped default):
     predict(image (H, W, 3) uint8 RGB) -> (void, core) probability maps (H, W) float32, the inputs
     of winnet.instances_from_maps (post-processing tuning: training/tune.py)."""
-    path = _weights_file(weights, DEFAULT_WEIGHTS)
-    arch = checkpoint_arch(path)
+    from pipeline.detectors import effwin, winnet  # noqa: PLC0415
+
+    arch, model, post = load_map_model(weights)
     if arch == "winnet":
-        from pipeline.detectors.winnet import predict_maps  # noqa: PLC0415
+        return (lambda image: winnet.predict_maps(model, image)), post
+    return (lambda image: tuple(effwin.predict_maps(model, image)[:2])), post
 
-        model, post = load_winnet(path)
-        return (lambda image: predict_maps(model, image)), post
-    if arch == "effwin":
-        from pipeline.detectors.effwin import predict_maps as effwin_maps  # noqa: PLC0415
 
-        model, post = load_effwin(path)
-        return (lambda image: tuple(effwin_maps(model, image)[:2])), post
-    raise FenestraError(f"{path} holds a {arch!r} model; void/core maps come from winnet or effwin")
+def _map_detector(weights: str | Path | None, threads: int | None, device: str, default: Path,
+                  archs: tuple[str, ...]) -> Detector:
+    """A WinNet or EffWin detector (EffWin's detections carry corners)."""
+    from pipeline.detectors import effwin, winnet  # noqa: PLC0415
+
+    arch, model, post = load_map_model(weights, default, archs)
+    model.to(check_device(device))
+    set_cpu_threads(threads)
+    if arch == "winnet":
+        return lambda image, **_: winnet.instances_from_maps(*winnet.predict_maps(model, image), post)
+    return lambda image, **_: effwin.detections_from_maps(effwin.predict_maps(model, image), post)
 
 
 def _winnet(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
-    from pipeline.detectors.winnet import instances_from_maps, predict_maps  # noqa: PLC0415
-
-    model, post = load_winnet(weights)
-    model.to(check_device(device))
-    set_cpu_threads(threads)
-
-    def run(image: np.ndarray, **_: object) -> list[Detection]:
-        return instances_from_maps(*predict_maps(model, image), post)
-    return run
-
-
-def _effwin(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
-    from pipeline.detectors.effwin import detections_from_maps, predict_maps  # noqa: PLC0415
-
-    model, post = load_effwin(weights)
-    model.to(check_device(device))
-    set_cpu_threads(threads)
-
-    def run(image: np.ndarray, **_: object) -> list[Detection]:
-        return detections_from_maps(predict_maps(model, image), post)
-    return run
+    return _map_detector(weights, threads, device, WINNET_WEIGHTS, ("winnet",))
 
 
 def _default(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
-    """The shipped default (pipeline/models/default.pt), or any winnet/effwin weights file."""
-    path = _weights_file(weights, DEFAULT_WEIGHTS)
-    build = {"winnet": _winnet, "effwin": _effwin}.get(checkpoint_arch(path))
-    if build is None:
-        raise FenestraError(f"{path} holds a {checkpoint_arch(path)!r} model; the default detector loads winnet or effwin")
-    return build(path, threads, device)
+    """The shipped default (pipeline/models/default.pt, EffWin), or any winnet/effwin weights file."""
+    return _map_detector(weights, threads, device, DEFAULT_WEIGHTS, tuple(MAP_MODELS))
 
 
 def _maskrcnn(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:

@@ -26,8 +26,9 @@ def check_device(device: str) -> str:
     return device
 
 
-def read_checkpoint(path: Path, arch: str) -> dict:
-    """The checkpoint dict at ``path`` (torch.load on the CPU) holding an ``arch`` model.
+def read_checkpoint(path: Path, arch: str | tuple[str, ...]) -> dict:
+    """The checkpoint dict at ``path`` (torch.load on the CPU) holding an ``arch`` model (or one of
+    several architectures).
 
     FenestraError naming the file if it is not a torch checkpoint of that architecture.
     """
@@ -38,7 +39,8 @@ def read_checkpoint(path: Path, arch: str) -> dict:
     except Exception as e:  # noqa: BLE001 - pickle, zip and torch errors all mean "not a model"
         raise FenestraError(f"{path} is not a model checkpoint ({type(e).__name__}: "
                             f"{' '.join(str(e).split())[:120]})") from e
-    if not isinstance(ckpt, dict) or ckpt.get("arch") != arch:
+    archs = (arch,) if isinstance(arch, str) else tuple(arch)
+    if not isinstance(ckpt, dict) or ckpt.get("arch") not in archs:
         got = ckpt.get("arch") if isinstance(ckpt, dict) else type(ckpt).__name__
-        raise FenestraError(f"{path} holds a {got!r} model, not {arch!r}")
+        raise FenestraError(f"{path} holds a {got!r} model, not {' or '.join(map(repr, archs))}")
     return ckpt
