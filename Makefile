@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke real report gate train train-winnet timing clean
+.PHONY: help setup sysdeps test test-all bench smoke real report docs docs-check gate train train-winnet timing clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -35,8 +35,11 @@ test-all:  ## every test, slow ones included
 
 REAL_RUN = $(if $(wildcard out/bench/real/summary.json),--real out/bench/real)
 
-bench:  ## default profile: render, reconstruct with every strategy, report (photo column from out/bench/real when present)
+LATEST_DEFAULT = $$(ls -td out/bench/default* | head -1)
+
+bench:  ## default profile: render, reconstruct with every strategy, report (photo column from out/bench/real when present), then `make docs`
 	$(PY) -m fenestra bench --profile default $(REAL_RUN)
+	$(MAKE) --no-print-directory docs
 
 smoke:  ## smoke profile (what CI gates)
 	$(PY) -m fenestra bench --profile smoke --out out/bench/smoke
@@ -52,8 +55,15 @@ gate: smoke real  ## smoke and real profiles, then the accuracy gates
 timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s)
 	$(PY) -m bench.timing --json out/timing.json
 
-report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present)
-	$(PY) -m fenestra report $$(ls -td out/bench/default* | head -1) $(REAL_RUN)
+report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present), then `make docs`
+	$(PY) -m fenestra report $(LATEST_DEFAULT) $(REAL_RUN)
+	$(MAKE) --no-print-directory docs
+
+docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real)
+	$(PY) -m fenestra report $(LATEST_DEFAULT) --markdown docs/results.md $(REAL_RUN)
+
+docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
+	$(PY) -m reports.markdown --check
 
 train:  ## render the detector data, train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, ship it (reproduces the shipped weights), evaluate it
 	PY=$(PY) bash training/scripts/make_data.sh out/detector-data

@@ -1,0 +1,204 @@
+"""The docs say what the code and the committed results say.
+
+- README.md's generated blocks, docs/results.md and docs/DESIGN.md's defaults block are what
+  reports.markdown renders from the committed docs/results/summary.json (byte for byte);
+- the README carries no figure outside its generated blocks;
+- the defaults the README and DESIGN.md state are fenestra.conventions.DEFAULTS;
+- the generator's figures are the medians of the results table, computed here independently
+  (a run written by bench's own writers from bench.synthetic's table).
+"""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench import manifest, results
+from bench.synthetic import synthetic_results
+from fenestra.conventions import DEFAULTS, PAPER
+from reports import markdown as md
+
+ROOT = Path(__file__).resolve().parents[1]
+PATHS = md.DocPaths.for_markdown(ROOT / "docs" / "results.md")
+GENERATED = ("results", "defaults")
+# A figure: a number with a unit of a measurement, or any decimal number (outside code). Licence and
+# standard versions ("CC BY 4.0") are names, not figures.
+UNIT_FIGURE = re.compile(r"(?<![\w./:-])\d+(?:[.,]\d+)?\s*(?:px|%|°|deg\b|ms\b|s\b|min\b|h\b|GB\b|MB\b|×|x\b|AP\b)")
+DECIMAL = re.compile(r"(?<![\w./:-])\d+\.\d+")
+NOT_FIGURES = ("CC BY 4.0",)
+
+
+# ---------------------------------------------------------------- the committed docs
+
+def test_committed_docs_are_what_the_committed_summary_renders():
+    assert PATHS.summary.is_file(), "docs/results/summary.json is missing: make docs"
+    assert md.stale(PATHS) == [], "regenerate with `python -m reports.markdown` (or `make docs` after a bench run)"
+
+
+def test_committed_summary_is_small_and_names_its_runs():
+    doc = json.loads(PATHS.summary.read_text())
+    assert PATHS.summary.stat().st_size < 32_000
+    pv = doc["synthetic"]["provenance"]
+    assert pv["profile"] and pv["config_hash"] and pv["commit"] and pv["date"]
+    results_md = PATHS.markdown.read_text()
+    for key in ("profile", "config_hash", "commit"):
+        assert str(pv[key]) in results_md
+    assert "fenestra report RUN --markdown docs/results.md --real out/bench/real" in results_md
+
+
+def _outside_generated(text: str) -> str:
+    for name in GENERATED:
+        text = re.sub(rf"<!-- {name}:begin -->.*?<!-- {name}:end -->", "", text, flags=re.S)
+    text = re.sub(r"```.*?```", "", text, flags=re.S)  # code blocks: commands and their arguments
+    text = re.sub(r"`[^`]*`", "", text)  # inline code: options, file names, versions
+    text = re.sub(r"<[^>]+>", "", text)  # HTML tags (image widths)
+    for name in NOT_FIGURES:
+        text = text.replace(name, "")
+    return text
+
+
+def test_readme_has_no_figure_outside_its_generated_blocks():
+    prose = _outside_generated((ROOT / "README.md").read_text())
+    found = UNIT_FIGURE.findall(prose) + DECIMAL.findall(prose)
+    assert found == [], f"figures typed by hand in README.md: {found}"
+
+
+def test_the_figure_check_catches_figures():
+    """The check itself: a typed figure outside the blocks is found, the same inside is not."""
+    for typed in ("cuts it to 1.39 px", "on 56 % of windows", "median 0.28°", "in 300 s", "AP 42.7"):
+        assert UNIT_FIGURE.findall(_outside_generated(typed)) + DECIMAL.findall(_outside_generated(typed))
+    inside = "<!-- results:begin -->\n1.39 px, 56 %\n<!-- results:end -->\n`--width 0.0932`, CC BY 4.0"
+    assert UNIT_FIGURE.findall(_outside_generated(inside)) + DECIMAL.findall(_outside_generated(inside)) == []
+
+
+def test_readme_is_a_front_page():
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 150
+    assert text.count("<img ") == 1
+    answer = md.block(text, "results")
+    assert sum(1 for line in answer.splitlines() if line.startswith("|---")) == 1  # one table
+    prose = [p for p in answer.split("\n\n") if p.strip() and not p.lstrip().startswith("|")]
+    assert len(prose) == 1  # one paragraph
+    for link in re.findall(r"\]\(([^)#]+)\)", text):
+        assert (ROOT / link).exists(), link
+
+
+def _stated_defaults(text: str) -> dict[str, str]:
+    """detector/snapper/pose named in a defaults statement (read here, not by the generator)."""
+    first = text.split("The paper's method")[0]
+    return {k: re.search(rf"{k} `([^`]+)`", first).group(1) for k in ("detector", "snapper", "pose")}
+
+
+@pytest.mark.parametrize("doc", ["README.md", "docs/DESIGN.md"])
+def test_stated_defaults_are_the_code_defaults(doc):
+    text = (ROOT / doc).read_text()
+    stated = _stated_defaults(md.block(text, "defaults"))
+    assert stated == {"detector": DEFAULTS.detector, "snapper": DEFAULTS.snapper, "pose": DEFAULTS.pose}
+    assert md.block(text, "defaults").strip() == md.defaults_text()
+
+
+def test_design_states_no_other_default_pose():
+    """Outside its generated block DESIGN.md names no default pose or snapper of its own."""
+    text = re.sub(r"<!-- defaults:begin -->.*?<!-- defaults:end -->", "", (ROOT / "docs/DESIGN.md").read_text(), flags=re.S)
+    assert not re.search(r"default[^.]{0,40}\b(pose|snapper)\b[^.]{0,10}`(?!" + re.escape(DEFAULTS.pose) + ")", text)
+
+
+def test_training_houses_are_make_data_s():
+    """TRAINED_ON is the bundled-house loop of training/scripts/make_data.sh; samplehouse4 held out."""
+    script = (ROOT / "training" / "scripts" / "make_data.sh").read_text()
+    houses = tuple(re.search(r"^for house in ([^;]+); do", script, re.M).group(1).split())
+    assert all(v == houses for v in md.TRAINED_ON.values())
+    assert "samplehouse4" not in houses and "samplehouse4" in script
+
+
+# ---------------------------------------------------------------- the generator on a run
+
+def _learned_run(d: Path) -> tuple[Path, "pd.DataFrame"]:  # noqa: F821
+    """A synthetic run of the CLI default detector on two houses, one trained on, one held out."""
+    df = synthetic_results(n_windows=120, seed=5)
+    df["detector"] = DEFAULTS.detector
+    df["house"] = np.where(df["window_id"].str[1:].astype(int) % 2 == 0, "fzk-haus", "samplehouse4")
+    df["rot_err_deg"] = df["corner_err_px_snap"] * 0.5  # any pose figure, known per row
+    df["method"] = df["detector"] + "/" + df["snapper"] + "/" + df["pose"]
+    results.write_results(df, d)
+    manifest.seal(d, df, "synthetic")
+    results.write_summary(d, {"profile": "synthetic", "seed": 5, "config_hash": "abc123", "commit": "f" * 40,
+                              "n_views": 30, "datasets": {"fzk-haus": "x", "samplehouse4": "y"}},
+                          results.summarize(df), {})
+    return d, df
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    return _learned_run(tmp_path_factory.mktemp("run"))
+
+
+def _median(df, **where) -> float:
+    ev = df[df.evaluable.astype(bool)]
+    for k, v in where.items():
+        ev = ev[ev[k] == v]
+    return float(np.median(ev["corner_err_px_snap"].dropna()))
+
+
+def test_generated_figures_are_the_tables_medians(run, tmp_path):
+    d, df = run
+    doc = md.collect(d)
+    snap = doc["synthetic"]["snap"][DEFAULTS.detector]
+    assert [r["snapper"] for r in snap] == ["good", "bad"]
+    for r in snap:
+        assert r["median"] == pytest.approx(_median(df, snapper=r["snapper"]), rel=1e-3)
+    houses = {r["house"]: r for r in doc["synthetic"]["per_house"][DEFAULTS.detector]["rows"]}
+    assert houses["fzk-haus"]["trained"] and not houses["samplehouse4"]["trained"]
+    for h, r in houses.items():
+        assert r["snap_median"] == pytest.approx(_median(df, snapper="good", house=h), rel=1e-3)
+    table = md.lead_table(doc["synthetic"])
+    assert f"**{_median(df, snapper='good'):.2f} px" in table[2]  # the best is bold
+    pv = doc["synthetic"]["provenance"]
+    assert (pv["profile"], pv["config_hash"], pv["commit"], pv["commit_source"]) == ("synthetic", "abc123", "f" * 12, "run")
+
+
+def test_a_run_without_the_cli_default_method_says_so(run):
+    d, _ = run
+    doc = md.collect(d)
+    assert doc["synthetic"]["default_method"] == {"method": f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}",
+                                                  "in_run": False}
+    text = md.answer(doc)
+    assert f"`{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}`" in text and "is not part of" in text
+    assert "--snapper good --pose lm" in text  # the recommendation: best snapper, best K-known pose
+
+
+def test_cli_writes_the_docs_and_they_render_again_identically(run, tmp_path):
+    from typer.testing import CliRunner
+
+    from fenestra.cli import app
+
+    d, _ = run
+    (tmp_path / "docs").mkdir()
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n<!-- results:begin -->\n<!-- results:end -->\n<!-- defaults:begin -->\nold\n<!-- defaults:end -->\n")
+    r = CliRunner().invoke(app, ["report", str(d), "--markdown", str(tmp_path / "docs" / "results.md")])
+    assert r.exit_code == 0, r.output
+    paths = md.DocPaths.for_markdown(tmp_path / "docs" / "results.md")
+    assert paths.summary.is_file() and paths.markdown.is_file()
+    assert f"pose `{DEFAULTS.pose}`" in md.block(readme.read_text(), "defaults")
+    assert md.stale(paths) == []
+    readme.write_text(readme.read_text().replace("**", ""))
+    assert md.stale(paths) == [readme]
+
+
+def test_fill_block_needs_exactly_one_pair():
+    with pytest.raises(ValueError, match="'results'"):
+        md.fill_block("no markers", "results", "x")
+    one = "a\n<!-- results:begin -->\nold\n<!-- results:end -->\nb"
+    assert md.fill_block(one, "results", "new") == "a\n<!-- results:begin -->\nnew\n<!-- results:end -->\nb"
+    with pytest.raises(ValueError, match="found 2"):
+        md.fill_block(one + one, "results", "x")
+
+
+def test_paper_snapper_is_marked():
+    syn = {"snap": {"oracle": [{"snapper": PAPER.snapper, "median": 1.0, "p90": 2.0, "n": 3}]},
+           "detection": {"oracle": {"learned": False, "detection_rate": 1.0}}}
+    assert f"`{PAPER.snapper}` (paper" in md.lead_table(syn)[0]
