@@ -277,7 +277,10 @@ def _num(x, digits: int = 1) -> str:
 
 
 def _value(x, metric: str) -> str:
-    return _px(x) if metric.startswith("corner_err_px") else _pct(x, 2)
+    """A photo error: px to 0.01 px; a relative error in percent to 3 significant digits (as fixed point)."""
+    if x is None or metric.startswith("corner_err_px"):
+        return _px(x)
+    return _pct(x, 2 if abs(x) < 0.1 else 1 if abs(x) < 1 else 0)
 
 
 METRIC_WORDS = {"corner_err_px_snap": "snapped corner error", "aspect_err_rel": "aspect-ratio error"}
@@ -328,12 +331,17 @@ def _pose_label(pose: str) -> str:
 
 
 def _default_sentence(syn: dict) -> str:
-    d = syn["default_method"]
+    """The CLI default method's figures (or that the run lacks it), and whether it is the recommendation."""
+    d, rec = syn["default_method"], syn["recommended"].get(DEFAULTS.detector)
+    same = rec is not None and (rec["snapper"], rec["pose"]) == (DEFAULTS.snapper, DEFAULTS.pose)
+    verdict = (" It is this run's recommendation." if same else
+               " This run recommends another snapper or pose than the CLI default." if rec is not None else "")
     if not d["in_run"]:
         return (f"The CLI's default method, `{d['method']}` (`fenestra.conventions.DEFAULTS`), is not part of "
-                f"this {syn['provenance']['profile']} run, so it is not measured here.")
-    return (f"The CLI's default method, `{d['method']}`, has a median rotation error of {_deg(d['rot_median'])} "
-            f"(p90 {_deg(d['rot_p90'])}) and aspect-ratio error {_pct(d['aspect_median'])} (p90 {_pct(d['aspect_p90'])}).")
+                f"this `{syn['provenance']['profile']}` run, so it is not measured here.{verdict}")
+    return (f"The CLI's default method, `{d['method']}`, has a median corner error of {_px(d['snap_median'])}, "
+            f"rotation error {_deg(d['rot_median'])} (p90 {_deg(d['rot_p90'])}) and aspect-ratio error "
+            f"{_pct(d['aspect_median'])} (p90 {_pct(d['aspect_p90'])}).{verdict}")
 
 
 def _recommend_sentence(syn: dict) -> str:
@@ -481,7 +489,10 @@ def _real_section(real: dict | None) -> list[str]:
             out += [f"No window has a value for {', '.join(unmeasured)} (no usable quad where the truth is known).", ""]
         out += [_real_sentence(real), ""]
     if real["detection"]:
-        out += ["Detection on the photos (COCO AP in percent; '-': not labelled).", ""]
+        out += ["Detection on the photos (COCO AP in percent; '-': not labelled; `DETECTOR @ DATASET`: one dataset). "
+                "The curtain-wall photos label each glass pane as a window, while the learned detectors were taught "
+                "that curtain-wall glazing is not a window void (an ignore region in their training and evaluation; "
+                "[experiments.md](experiments.md)); give such photos their masks (`--masks`).", ""]
         out += _table(["detector", "bbox AP", "bbox AP50", "segm AP", "segm AP50", "labelled windows"],
                       [[f"`{d}`", _num(v["bbox_AP"]), _num(v["bbox_AP50"]), _num(v["segm_AP"]), _num(v["segm_AP50"]),
                         str(v["n_gt"])] for d, v in real["detection"].items()]) + [""]
