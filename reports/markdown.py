@@ -304,7 +304,7 @@ def _snapper_label(s: str) -> str:
 
 def _detector_label(det: str, info: dict) -> str:
     if not info["learned"]:
-        return f"`{det}`" + (" (exact void)" if det == "oracle" else " (perturbed exact masks)")
+        return f"`{det}`" + (" (exact void)" if det == "oracle" else " (Mask-R-CNN-like)")
     return f"`{det}`" + (" (CLI default)" if det == DEFAULTS.detector else "") + " †"
 
 
