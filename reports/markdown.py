@@ -450,7 +450,8 @@ def _per_house_section(syn: dict) -> list[str]:
     out = ["## Learned detectors per house", "",
            "The learned detectors were trained on renders of some of the bench's houses (`trained on`: yes; "
            "training/scripts/make_data.sh, pipeline/models/README.md); `samplehouse4` and the bench's procedural "
-           "houses were never trained on, so only their rows are a held-out measurement. Each detector with "
+           "houses (from the same generator, with seeds the training did not use) were never trained on, so only "
+           "their rows are a held-out measurement. Each detector with "
            "its recommended snapper and pose.", ""]
     for det, v in syn["per_house"].items():
         out += [f"### `{det}` with `{v['snapper']}` + `{v['pose']}`", ""]
