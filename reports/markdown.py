@@ -195,7 +195,6 @@ def collect_synthetic(run_dir: Path) -> dict:
     doc["per_house"] = {d: {"snapper": rec["snapper"], "pose": rec["pose"],
                             "rows": _per_house(df, d, rec["snapper"], rec["pose"])}
                         for d, rec in doc["recommended"].items() if rec is not None}
-    doc["methods"] = sorted(results)
     doc["default_method"] = _method_figures(results, f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}")
     return doc
 
