@@ -30,6 +30,7 @@ from pipeline.detectors.oracle import detections_from_instance_map
 from pipeline.quad import QUAD_SOURCES, QuadParams
 from pipeline.reconstruct import (ReconstructConfig, fit_quads, pose_strategies,
                                   reconstruct, reconstruct_from_quads, to_gray, windows_to_json)
+from pipeline.segments import SegmentCache, to_uint8
 from pipeline.snappers import SNAPPERS
 
 
@@ -71,8 +72,9 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
         from pipeline.detectors import detect  # noqa: PLC0415
 
         detections = detect(detector, image)
+    segment_cache = SegmentCache(to_uint8(to_gray(image)))  # the photo's line segments, found once for all steps
     if camera is None:
-        resolved = _resolve_K(photo, image, detections, cfg, size)
+        resolved = _resolve_K(photo, image, detections, cfg, size, segment_cache)
         camera, K_source = Camera(K=resolved.K), {"source": resolved.source, "detail": resolved.detail}
     else:
         K_source = {"source": "--K" if K_json is not None else "--fx", "detail": str(K_json or "")}
@@ -80,7 +82,7 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     warnings += intrinsics_warnings(K, size)
     for w in warnings:
         typer.echo(f"warning: {w}", err=True)
-    results = reconstruct(image, K, detections, cfg)
+    results = reconstruct(image, K, detections, cfg, segment_cache)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
     doc["K_source"] = K_source
     doc["undistorted"] = camera.has_distortion
@@ -98,9 +100,11 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     return doc
 
 
-def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tuple[int, int]):
+def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tuple[int, int],
+               segment_cache: SegmentCache):
     """Intrinsics of a photo without --K: snap the detections' quads (no K needed), then
-    pipeline.intrinsics.resolve_K (vanishing points, else EXIF, else PipelineError)."""
+    pipeline.intrinsics.resolve_K (vanishing points, else EXIF, else PipelineError); segment_cache:
+    the photo's line segments."""
     from dataclasses import replace  # noqa: PLC0415
 
     from pipeline.intrinsics import resolve_K  # noqa: PLC0415
@@ -111,7 +115,7 @@ def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tupl
                                  replace(cfg, pose="ippe", fallback_focal_px=float(max(size))))
     quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
     # the chosen per-wall strategy's parameters (its façade lines too), the plain wall fit otherwise
-    return resolve_K(photo, quads, size, WALL_STRATEGIES.get(cfg.pose), gray)
+    return resolve_K(photo, quads, size, WALL_STRATEGIES.get(cfg.pose), segment_cache)
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:

@@ -26,6 +26,7 @@ from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
 from pipeline.pose import POSE_SOLVERS, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
+from pipeline.segments import SegmentCache
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult, check_image
 from pipeline.walls import WALL_STRATEGIES, apply_walls
@@ -229,7 +230,8 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
 
 def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                            quads: list[QuadFit], cfg: ReconstructConfig = ReconstructConfig(),
-                           base: list[WindowResult] | None = None) -> list[WindowResult]:
+                           base: list[WindowResult] | None = None,
+                           segment_cache: SegmentCache | None = None) -> list[WindowResult]:
     """:func:`reconstruct` with the quads already fitted: ``quads = fit_quads(detections, cfg.quad,
     image_shape)``, one per detection, in order (so one fit serves every snapper x pose config).
 
@@ -238,6 +240,8 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
     base: for a per-wall strategy, the per-window results it starts from, already computed with the
     same image, K, detections and quads and ``cfg`` with ``pose`` = the strategy's ``base_pose``
     (e.g. by a run of that per-window solver); they are used as they are, not recomputed.
+    segment_cache: the photo's line segments (pipeline.segments.SegmentCache of this gray image),
+    kept across the steps and configs that need them on this photo; None: a new one for this call.
     """
     if len(quads) != len(detections):
         raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
@@ -253,21 +257,25 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
     if wall is None:
         return results
     t0 = time.perf_counter()
-    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, gray)
+    cache = SegmentCache(gray) if segment_cache is None else segment_cache
+    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, cache)
     ms = (time.perf_counter() - t0) * 1e3 / max(len(results), 1)
     return [replace(r, timings_ms={**r.timings_ms, "wall": ms}) for r in results]
 
 
 def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
-                cfg: ReconstructConfig = ReconstructConfig()) -> list[WindowResult]:
+                cfg: ReconstructConfig = ReconstructConfig(),
+                segment_cache: SegmentCache | None = None) -> list[WindowResult]:
     """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as pipeline.io.read_photo gives).
 
     K: (3, 3) intrinsics, or None for an unknown focal length (square pixels, principal point at
     the image centre; f estimated per window by Zhang & He). Returns one WindowResult per
     detection, in order, with per-stage timings (ms) in ``timings_ms`` (quad, snap, aspect, pose).
+    segment_cache: as for :func:`reconstruct_from_quads`.
     """
     gray = to_gray(image)
-    return reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg)
+    return reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg,
+                                  segment_cache=segment_cache)
 
 
 def _list(a: np.ndarray | None):

@@ -100,7 +100,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
         paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)
     paths["overlay"] = _write_png(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results)))
     if substitute is not None:
-        from pipeline.substitute import composite  # noqa: PLC0415
+        from pipeline.export.substitute import composite  # noqa: PLC0415
 
         paths["substituted"] = _write_png(out / "substituted.png",
                                           _timed("substitute_ms", composite, inpainted, K, placed, style))
