@@ -352,3 +352,31 @@ def test_coco_rle_masks_uncompressed_and_compressed(tmp_path):
         np.testing.assert_array_equal(w.mask.dense(), m.astype(bool))
         np.testing.assert_allclose(w.bbox(), [0.5, 1.5, 2.5, 4.5])
         assert w.quad is None and w.box is None and w.aspect is None
+
+
+def test_photo_rows_equal_those_of_the_former_real_evaluator(tmp_path, yolo_dir):
+    """The one evaluation path gives photos the rows bench/real's own evaluator of commit 991c33e
+    gave (tests/golden/photo_view_rows.json, written by that code): a labelled quad with aspect and
+    K, box-only labels (oracles not run), and a coplanar curtain-wall photo (relative sizes, partial
+    panes); every column in the photo table's order, every value, and the COCO material's sizes."""
+    from bench.evaluate import PHOTO_COLUMNS
+
+    golden = json.loads((ROOT / "tests" / "golden" / "photo_view_rows.json").read_text())
+    methods = tuple(Method(*m.split("/")) for m in golden["methods"])
+    folder, *_ = _rectangle_view(tmp_path / "rect")
+    views = [next(iter(read_coco(folder))), next(iter(ADAPTERS["yolo"](yolo_dir))),
+             next(iter(ADAPTERS["curtainwall"](ROOT / "data" / "real" / "curtainwall")))]
+    for v in views:
+        g = golden["views"][v.dataset]
+        out = evaluate_view(v, methods, EvalOptions(detector_long_side=640))
+        assert len(out.rows) == len(g["rows"]) > 0, v.dataset
+        assert out.n_false_positives == g["n_false_positives"] and len(out.coco_gt) == g["n_coco_gt"]
+        assert {k: len(x) for k, x in out.coco_dt.items()} == g["n_coco_dt"]
+        for r, e in zip(out.rows, g["rows"]):
+            assert list(r) == list(PHOTO_COLUMNS) and set(r) == set(e)
+            bad = {k: (r[k], e[k]) for k in r
+                   if not (r[k] == e[k] or (e[k] is None and isinstance(r[k], float) and np.isnan(r[k]))
+                           or (isinstance(r[k], float) and isinstance(e[k], float)
+                               and r[k] == pytest.approx(e[k], rel=1e-9, abs=1e-12)))}
+            assert not bad, (v.dataset, r["method"], r["window_id"], bad)
+    assert sum(e["rel_size_err"] is not None for e in golden["views"]["curtainwall"]["rows"]) > 0
