@@ -400,6 +400,30 @@ def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> 
     return row
 
 
+def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tuple[str, ...], by_gt: dict,
+                 det_for_gt: dict, dets: list, gt_poses: dict) -> list[dict]:
+    """One method's rows, one per labelled window in order: missed, or its result's errors.
+
+    by_gt: {window index: WindowResult}; det_for_gt: {window index: (detection index, IoU)};
+    dets: the detections matched against; gt_poses: {window index: true (R, t)}, filled here once
+    per window of a render (the same for every method)."""
+    rows = []
+    for g, (w, b) in enumerate(zip(view.windows, base)):
+        if g not in by_gt:
+            rows.append(_method_row(b, method, tail, status="missed", reason="missed", aspect_case=None))
+            continue
+        res, (d, iou) = by_gt[g], det_for_gt[g]
+        if view.pose is not None and g not in gt_poses:
+            gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
+        errs = window_errors(res, w, gt_poses.get(g), view.K)
+        errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_error(dets[d], w))
+        rows.append(_method_row(b, method, tail, **errs, aspect_case=res.aspect_case,
+                                status="ok" if res.failure is None else "failed",
+                                reason="" if res.failure is None else f"failed: {res.failure}"))
+    add_relative_sizes(rows, by_gt, view)
+    return rows
+
+
 def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: EvalOptions) -> ViewOutcome:
     """Rows for every (labelled window x method) of one view; see the module docstring."""
     from pipeline.detectors import detector_entry  # noqa: PLC0415
@@ -463,21 +487,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
                 for k, ms in r.timings_ms.items():
                     if k in counted:  # the shared quad fit and reused per-window stages: counted once
                         stage_s[f"reconstruct.{k}"] = stage_s.get(f"reconstruct.{k}", 0.0) + ms / 1000.0
-            rows = []
-            for g, (w, b) in enumerate(zip(view.windows, base)):
-                if g not in by_gt:
-                    rows.append(_method_row(b, method, cols, status="missed", reason="missed", aspect_case=None))
-                    continue
-                res, (d, iou) = by_gt[g], det_for_gt[g]
-                if view.pose is not None and g not in gt_poses:  # the same for every method
-                    gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
-                errs = window_errors(res, w, gt_poses.get(g), view.K)
-                errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_error(dets[d], w))
-                rows.append(_method_row(b, method, cols, **errs, aspect_case=res.aspect_case,
-                                        status="ok" if res.failure is None else "failed",
-                                        reason="" if res.failure is None else f"failed: {res.failure}"))
-            add_relative_sizes(rows, by_gt, view)
-            out.rows += rows
+            out.rows += _method_rows(view, base, method, cols, by_gt, det_for_gt, dets, gt_poses)
             t0 = tick("metrics", t0)
     return out
 
