@@ -78,13 +78,15 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         get_executor(executor)  # an unknown name fails before anything is rendered
         opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
         if is_real_profile(profile):
-            from bench.real.runner import run_real_profile  # noqa: PLC0415
+            from bench.real.profile import load_real_profile, with_user_data  # noqa: PLC0415
 
             if real is not None:
                 raise ValueError(f"--real needs a synthetic profile (a real run's report takes its --sim run), "
                                  f"got profile {profile!r}")
-            info = run_real_profile(profile, out, data, fmt, sim, report=None if no_report else write_report,
-                                    force=force)
+            p = load_real_profile(profile)
+            if data is not None:
+                p = with_user_data(p, data, fmt)
+            info = run_benchmark(p, out_dir=out, report=None if no_report else write_report, force=force, sim_dir=sim)
         elif data is not None or sim is not None:
             raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
         else:

@@ -1,10 +1,13 @@
 """Executors: how the bench spreads its views over processes (``local``) or machines (``ray``).
 
-    outcomes, stage_s = EXECUTORS["local"](plan, workers=2, progress=True)
+    outcomes, stage_s, datasets = EXECUTORS["local"](plan, workers=2, progress=True)
 
 Both executors take the same :class:`Plan` (each house's dataset config, the methods, the
-evaluation settings) and return the ViewOutcomes in one canonical order (house order, then view
-index), so a results table never depends on the executor or on the number of workers.
+evaluation options) and return the ViewOutcomes in one canonical order (house order, then view
+index), so a results table never depends on the executor or on the number of workers. Every view
+is one bench.evaluate.ViewTask (a source that loads its LabelledView, the methods, the options),
+evaluated by bench.evaluate.evaluate_task; :func:`evaluate_local` also evaluates a photo run's
+views (read by bench.real.adapters).
 
 ``local``
     renders the houses in a process pool of ``workers`` processes (one house per task, cached
@@ -32,9 +35,9 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterable, Iterator
 
-from bench.evaluate import Method, ViewOutcome, ViewTask, evaluate_view
+from bench.evaluate import EvalOptions, Method, ViewOutcome, ViewTask, evaluate_task
 from bench.profiles import Profile
 from fenestra.errors import FenestraError
 
@@ -53,12 +56,12 @@ class HousePlan:
 
 @dataclass(frozen=True)
 class Plan:
-    """Everything an executor needs (picklable): houses, methods, profile settings, run folder."""
+    """Everything an executor needs (picklable): houses, methods, evaluation options, run folder."""
 
     houses: tuple[HousePlan, ...]
     profile: Profile
     methods: tuple[Method, ...]
-    detector_options: tuple
+    options: EvalOptions
     run_dir: str
 
 
@@ -92,12 +95,12 @@ def init_worker(threads: int = THREADS_PER_WORKER) -> None:
 
 def view_tasks(plan: Plan, house: str, dataset_dir: Path, indices: range | None = None) -> list[ViewTask]:
     """ViewTasks of one rendered house (all its views, or the given view indices), in index order."""
+    from bench.render_adapter import RenderedViewRef  # noqa: PLC0415
+
     views = sorted(p for p in (Path(dataset_dir) / "views").iterdir() if (p / "view.json").is_file())
     if indices is not None:
         views = [p for p in views if int(p.name) in indices]
-    return [ViewTask(view_dir=str(v), house=house, renderer=plan.profile.render.renderer,
-                     methods=plan.methods, evaluation=plan.profile.evaluation,
-                     height_m=plan.profile.methods.height_m, detector_options=plan.detector_options)
+    return [ViewTask(RenderedViewRef(str(v), house, plan.profile.render.renderer), plan.methods, plan.options)
             for v in views]
 
 
@@ -111,20 +114,24 @@ def _progress(enabled: bool):
 
 # ---------------------------------------------------------------- local
 
-def evaluate_local(tasks: list[ViewTask], workers: int, progress: bool = True) -> list[ViewOutcome]:
-    """evaluate_view over all tasks, in order; a spawned process pool when workers > 1."""
+def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = True,
+                   total: int | None = None) -> list[ViewOutcome]:
+    """evaluate_task over all tasks, in order; a spawned process pool when workers > 1. tasks may
+    be a generator (with workers <= 1 each view is loaded only when its turn comes); total: their
+    number for the progress bar, when known."""
     outcomes: list[ViewOutcome] = []
     with _progress(progress) as bar:
-        job = bar.add_task("evaluating views", total=len(tasks))
+        job = bar.add_task("evaluating views", total=len(tasks) if total is None and hasattr(tasks, "__len__")
+                           else total)
         if workers <= 1:
             init_worker()
             for t in tasks:
-                outcomes.append(evaluate_view(t))
+                outcomes.append(evaluate_task(t))
                 bar.advance(job)
             return outcomes
         ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
         with _environ(thread_env()), ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker) as pool:
-            for o in pool.map(evaluate_view, tasks, chunksize=1):
+            for o in pool.map(evaluate_task, tasks, chunksize=1):
                 outcomes.append(o)
                 bar.advance(job)
     return outcomes
@@ -204,8 +211,7 @@ def plan_shards(plan: Plan, shard_views: int) -> list[Shard]:
         n = h.dataset.n_views
         for start in range(0, n, shard_views):
             views = range(start, min(n, start + shard_views))
-            key = hashlib.sha256(repr((version, h.dataset, plan.profile.evaluation, plan.profile.methods.height_m,
-                                       plan.methods, plan.detector_options, views.start, views.stop))
+            key = hashlib.sha256(repr((version, h.dataset, plan.options, plan.methods, views.start, views.stop))
                                  .encode()).hexdigest()[:16]
             shards.append(Shard(i, h, views, str(Path(plan.run_dir) / "shards" / f"{key}.pkl")))
     return shards
@@ -218,7 +224,7 @@ def run_shard(plan: Plan, shard: Shard) -> str:
     t0 = time.perf_counter()
     ds = Path(render_dataset(shard.house.dataset, progress=False, only=shard.views))
     render_s = time.perf_counter() - t0
-    outcomes = [evaluate_view(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
+    outcomes = [evaluate_task(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
     out = Path(shard.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
@@ -307,5 +313,5 @@ def get_executor(name: str) -> Callable:
     return EXECUTORS[name]
 
 
-__all__ = ["EXECUTORS", "HousePlan", "Plan", "Shard", "get_executor", "plan_shards", "run_shard",
-           "thread_env", "view_tasks"]
+__all__ = ["EXECUTORS", "HousePlan", "Plan", "Shard", "evaluate_local", "get_executor", "plan_shards",
+           "run_shard", "thread_env", "view_tasks"]

@@ -95,9 +95,14 @@ class Profile:
 
     def config_hash(self) -> str:
         """8 hex digits identifying everything that changes results (not name/description)."""
-        d = self.to_dict()
-        d.pop("name"), d.pop("description")
-        return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
+        return config_hash(self.to_dict())
+
+
+def config_hash(config: dict) -> str:
+    """8 hex digits of a profile's plain dict (``to_dict()``) without its ``name`` and
+    ``description``: everything that changes results. Every kind of profile hashes with this."""
+    d = {k: v for k, v in config.items() if k not in ("name", "description")}
+    return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
 
 
 def pose_strategies() -> dict[str, str]:

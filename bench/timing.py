@@ -62,9 +62,9 @@ POSE_FAMILIES = {"per-window (lm, ippe)": ("lm", "ippe"), "wall": ("wall",), "bu
 
 
 def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default") -> dict:
-    """CPU seconds per view of evaluate_view for each pose family (every detector x snapper of
+    """CPU seconds per view of evaluate_task for each pose family (every detector x snapper of
     ``profile``), on the first views of each rendered house under ``renders``, in this process."""
-    from bench.evaluate import evaluate_view  # noqa: PLC0415
+    from bench.evaluate import evaluate_task  # noqa: PLC0415
     from bench.executors import init_worker, view_tasks  # noqa: PLC0415
     from bench.profiles import load_profile  # noqa: PLC0415
     from bench.runner import make_plan, plan_methods  # noqa: PLC0415
@@ -78,11 +78,11 @@ def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default"
         methods = tuple(m for m in allm if m.pose in poses)
         plan = make_plan(p, methods, renders, renders / "unused")
         tasks = [t for d in houses for t in view_tasks(plan, d.name, d)[:views_per_house]]
-        evaluate_view(tasks[0])  # warm-up: detector weights
+        evaluate_task(tasks[0])  # warm-up: detector weights
         stages: dict[str, float] = {}
         t0 = time.process_time()
         for t in tasks:
-            for k, v in evaluate_view(t).stage_s.items():
+            for k, v in evaluate_task(t).stage_s.items():
                 stages[k] = stages.get(k, 0.0) + v
         out[family] = {"methods": len(methods), "views": len(tasks),
                        "cpu_s_per_view": (time.process_time() - t0) / len(tasks),

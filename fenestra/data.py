@@ -118,7 +118,8 @@ def _instances_png(instances: np.ndarray, name: str) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class View:
-    """One rendered view, as :func:`read_view` reads it.
+    """One rendered view's files, as :func:`read_view` reads them: the file contract's record
+    (renders/ builds coco.json from it; the bench turns it into its labelled view).
 
     image: (H, W, 3) uint8 RGB. instances: (H, W) int32, window ``instance_id`` per pixel, 0 = none.
     meta: the view.json dict (K, width, height, R, t, distortion, renderer, seed, windows, ...).

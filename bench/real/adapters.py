@@ -1,11 +1,11 @@
-"""Real-dataset adapters: a folder in a published format -> RealViews (bench.real.contract).
+"""Real-dataset adapters: a folder in a published format -> LabelledViews (bench.views).
 
     ADAPTERS = {"coco": read_coco, "yolo": read_yolo, "labelmap": read_labelmap,
                 "curtainwall": read_curtainwall}
     views = list(ADAPTERS["coco"](Path("my_photos"), category="window"))
 
 Every adapter takes the dataset folder and keyword options (the profile's ``options`` table) and
-yields one RealView per photo, sorted by file name, with exactly the ground truth the format
+yields one LabelledView per photo, sorted by file name, with exactly the ground truth the format
 carries (see each reader). Coordinates are converted from the format's pixel-edge convention
 (pixel (0, 0) covers [0, 1]^2) to fenestra's (pixel centres at integers) by subtracting 0.5.
 Errors name the file and the bad value.
@@ -19,8 +19,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from bench.real.contract import RealView, RealWindow
-from fenestra.data import box_from_coco, read_image, rle_to_mask, segmentation_to_rle, yolo_boxes
+from bench.views import LabelledView, LabelledWindow
+from fenestra.data import SparseMask, box_from_coco, read_image, rle_to_mask, segmentation_to_rle, yolo_boxes
 from pipeline.io import Camera, check_distortion, read_camera, undistort_photo
 from pipeline.quad import order_corners
 
@@ -73,26 +73,27 @@ def quad_from_polygon(poly: list[float]) -> np.ndarray | None:
 
 # ---------------------------------------------------------------- COCO
 
-def _coco_mask(seg, h: int, w: int) -> np.ndarray | None:
-    """(H, W) bool of a COCO segmentation (polygons, RLE or uncompressed RLE); None if absent or empty."""
+def _coco_mask(seg, h: int, w: int) -> SparseMask | None:
+    """The mask of a COCO segmentation (polygons, RLE or uncompressed RLE) of an (h, w) image;
+    None if absent or empty."""
     if not seg:
         return None
     m = rle_to_mask(segmentation_to_rle(seg, h, w))
-    return m if m.any() else None
+    return SparseMask.from_dense(m) if m.any() else None
 
 
-def _coco_window(a: dict, h: int, w: int, where: str) -> RealWindow:
-    """One COCO annotation -> RealWindow (quad only from a single 4-vertex polygon)."""
+def _coco_window(a: dict, h: int, w: int, where: str) -> LabelledWindow:
+    """One COCO annotation -> LabelledWindow (quad only from a single 4-vertex polygon)."""
     seg = a.get("segmentation")
     quad = quad_from_polygon(seg[0]) if isinstance(seg, list) and len(seg) == 1 else None
     size = a.get("size_m")
     aspect = a.get("aspect", size[0] / size[1] if size else None)
     try:
-        return RealWindow(id=str(a.get("id")), quad=quad, mask=_coco_mask(seg, h, w),
-                          box=box_from_coco(a["bbox"]) if a.get("bbox") else None,
-                          aspect=None if aspect is None else float(aspect),
-                          size_m=None if size is None else (float(size[0]), float(size[1])),
-                          partial=bool(a.get("partial", False)))
+        return LabelledWindow(id=str(a.get("id")), quad=quad, mask=_coco_mask(seg, h, w),
+                              box=box_from_coco(a["bbox"]) if a.get("bbox") else None,
+                              aspect=None if aspect is None else float(aspect),
+                              size_m=None if size is None else (float(size[0]), float(size[1])),
+                              partial=bool(a.get("partial", False)))
     except (ValueError, TypeError, KeyError) as e:
         raise ValueError(f"{where}: annotation {a.get('id')!r}: {e}") from e
 
@@ -126,14 +127,14 @@ def _camera_of(img: dict, where: str) -> Camera | None:
 
 
 def read_coco(path: Path, annotations: str = "annotations.json", images: str | None = None,
-              category=None, dataset: str = "coco") -> Iterator[RealView]:
+              category=None, dataset: str = "coco") -> Iterator[LabelledView]:
     """COCO instances JSON: ``path/annotations`` with each ``file_name`` under ``path/images``
     (default: ``path/images`` if the photo is there, else ``path``).
 
     Per annotation: bbox -> box; segmentation (polygons, RLE) -> mask, and a single 4-vertex
     polygon -> quad; optional extension keys ``aspect`` (w/h), ``size_m`` [w, h], ``partial``.
     Per image: optional ``K`` (3x3) and ``distortion`` (labels then in the undistorted frame:
-    the photo is undistorted here). iscrowd annotations are ignore regions (RealView.ignore):
+    the photo is undistorted here). iscrowd annotations are ignore regions (LabelledView.ignore):
     neither windows nor background; detection AP counts detections there neither way.
     """
     js = Path(path) / annotations
@@ -154,18 +155,18 @@ def read_coco(path: Path, annotations: str = "annotations.json", images: str | N
         if cam is not None and cam.has_distortion:
             photo = undistort_photo(photo, cam)
         anns, crowd = by_image.get(img["id"], ([], []))
-        yield RealView(dataset=dataset, name=Path(img["file_name"]).stem, image=photo,
-                       windows=tuple(_coco_window(a, h, w, str(js)) for a in anns),
-                       ignore=tuple(_coco_window(a, h, w, str(js)) for a in crowd),
-                       K=None if cam is None else cam.K,
-                       distortion_removed=None if cam is None or cam.distortion is None
-                       else tuple(cam.distortion.tolist()), coplanar=bool(img.get("coplanar", False)))
+        yield LabelledView(dataset=dataset, name=Path(img["file_name"]).stem, image=photo,
+                           windows=tuple(_coco_window(a, h, w, str(js)) for a in anns),
+                           ignore=tuple(_coco_window(a, h, w, str(js)) for a in crowd),
+                           K=None if cam is None else cam.K,
+                           distortion_removed=None if cam is None or cam.distortion is None
+                           else tuple(cam.distortion.tolist()), coplanar=bool(img.get("coplanar", False)))
 
 
 # ---------------------------------------------------------------- YOLO
 
 def read_yolo(path: Path, images: str = "images", labels: str = "labels", classes=(0,),
-              dataset: str = "yolo") -> Iterator[RealView]:
+              dataset: str = "yolo") -> Iterator[LabelledView]:
     """YOLO txt boxes: ``path/images/NAME.jpg`` with ``path/labels/NAME.txt``; windows are the
     boxes of ``classes`` (ids). Boxes only: quad, mask, aspect and K are missing. A photo without
     a label file has no windows."""
@@ -175,8 +176,8 @@ def read_yolo(path: Path, images: str = "images", labels: str = "labels", classe
         lab = Path(path) / labels / (p.stem + ".txt")
         text = lab.read_text() if lab.is_file() else ""
         boxes = yolo_boxes(text, photo.shape[1], photo.shape[0], classes, str(lab))
-        wins = tuple(RealWindow(id=f"{p.stem}:{i}", box=b) for i, b in enumerate(boxes))
-        yield RealView(dataset=dataset, name=p.stem, image=photo, windows=wins)
+        wins = tuple(LabelledWindow(id=f"{p.stem}:{i}", box=b) for i, b in enumerate(boxes))
+        yield LabelledView(dataset=dataset, name=p.stem, image=photo, windows=wins)
 
 
 # ---------------------------------------------------------------- label maps
@@ -201,7 +202,7 @@ def _read_label(p: Path) -> np.ndarray:
 
 
 def read_labelmap(path: Path, images: str = "images", labels: str = "labels", window=(255, 0, 0),
-                  min_area_px: float = 0.0, dataset: str = "labelmap") -> Iterator[RealView]:
+                  min_area_px: float = 0.0, dataset: str = "labelmap") -> Iterator[LabelledView]:
     """Semantic label maps: ``path/labels/NAME.png`` beside ``path/images/NAME.jpg``; the window
     class is ``window`` (an [r, g, b] colour or an integer id); instances are its 4-connected
     components of at least ``min_area_px`` px. Masks only; components touching the border are
@@ -214,9 +215,9 @@ def read_labelmap(path: Path, images: str = "images", labels: str = "labels", wi
             raise ValueError(f"{lab_path}: label map {lab.shape[1]}x{lab.shape[0]} != photo "
                              f"{photo.shape[1]}x{photo.shape[0]}")
         masks = components(window_pixels(lab, window, str(lab_path)), min_area_px)
-        wins = tuple(RealWindow(id=f"{p.stem}:{i}", mask=m, partial=touches_border(m))
+        wins = tuple(LabelledWindow(id=f"{p.stem}:{i}", mask=SparseMask.from_dense(m), partial=touches_border(m))
                      for i, m in enumerate(masks))
-        yield RealView(dataset=dataset, name=p.stem, image=photo, windows=wins)
+        yield LabelledView(dataset=dataset, name=p.stem, image=photo, windows=wins)
 
 
 # ---------------------------------------------------------------- curtain wall
@@ -244,7 +245,7 @@ def curtain_camera(folder: Path, width: int, height: int) -> Camera:
 
 
 def read_curtainwall(path: Path, min_area_frac: float = CURTAIN_MIN_AREA_FRAC,
-                     dataset: str = "curtainwall") -> Iterator[RealView]:
+                     dataset: str = "curtainwall") -> Iterator[LabelledView]:
     """Glass Curtain Wall Installation Dataset layout: ``images/imgNNN.(png|jpg)`` as taken (lens
     distortion in them), ``masks/maskNNN.png`` (RGBA, in the undistorted frame: glass = blue),
     optional ``K.json``. The photo is undistorted; panes are the 4-connected glass components
@@ -264,12 +265,12 @@ def read_curtainwall(path: Path, min_area_frac: float = CURTAIN_MIN_AREA_FRAC,
         wins = []
         for i, m in enumerate(components(curtain_glass(rgba), min_area_frac * w * h)):
             cut = touches_border(m)
-            wins.append(RealWindow(id=f"{p.stem}:{i}", mask=m, partial=cut,
-                                   aspect=None if cut else CURTAIN_PANE_M[0] / CURTAIN_PANE_M[1],
-                                   size_m=None if cut else CURTAIN_PANE_M))
-        yield RealView(dataset=dataset, name=p.stem, image=undistort_photo(photo, cam), windows=tuple(wins),
-                       K=cam.K, distortion_removed=None if cam.distortion is None else tuple(cam.distortion.tolist()),
-                       coplanar=True)
+            wins.append(LabelledWindow(id=f"{p.stem}:{i}", mask=SparseMask.from_dense(m), partial=cut,
+                                       aspect=None if cut else CURTAIN_PANE_M[0] / CURTAIN_PANE_M[1],
+                                       size_m=None if cut else CURTAIN_PANE_M))
+        yield LabelledView(dataset=dataset, name=p.stem, image=undistort_photo(photo, cam), windows=tuple(wins),
+                           K=cam.K, distortion_removed=None if cam.distortion is None else tuple(cam.distortion.tolist()),
+                           coplanar=True)
 
 
 ADAPTERS = {"coco": read_coco, "yolo": read_yolo, "labelmap": read_labelmap,
