@@ -241,7 +241,12 @@ def test_reconstruct_replaces_its_output_whole(tmp_path):
     umask = os.umask(0o022)
     os.umask(umask)
     assert (tmp_path / "o").stat().st_mode & 0o777 == 0o777 & ~umask  # a normal folder, not mkdtemp's 0700
-    (tmp_path / "o" / "model.glb.old").write_text("stale")
+    manifest = tmp_path / "o" / ".fenestra-output.json"
+    written = json.loads(manifest.read_text())["files"]
+    assert "windows.json" in written and ".fenestra-output.json" in written
+    (tmp_path / "o" / "model.glb.old").write_text("stale")  # as if an older version had written it
+    manifest.write_text(json.dumps({"files": [*written, "model.glb.old"]}))
+    (tmp_path / "o" / "notes.txt").write_text("the user's")  # not Fenestra's: never removed
     first = (tmp_path / "o" / "windows.json").read_bytes()
     # a failing export (disk full at 50 kB: texture.png is larger) leaves the complete first set
     r = reconstruct("o", cwd=tmp_path, limit_bytes=50_000)
@@ -250,6 +255,7 @@ def test_reconstruct_replaces_its_output_whole(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary folder left
     assert reconstruct("o", cwd=tmp_path).returncode == 0
     assert not (tmp_path / "o" / "model.glb.old").exists()  # nothing stale beside the new set
+    assert (tmp_path / "o" / "notes.txt").read_text() == "the user's"
 
 
 def test_reconstruct_refuses_bad_out(tmp_path):
@@ -258,9 +264,22 @@ def test_reconstruct_refuses_bad_out(tmp_path):
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "thesis.tex").write_text("x")
     one_line_error(reconstruct("mine", cwd=tmp_path), "not empty", "--force")
-    assert reconstruct("mine", "--force", cwd=tmp_path).returncode == 0
-    assert not (tmp_path / "mine" / "thesis.tex").exists() and (tmp_path / "mine" / "windows.json").is_file()
+    assert reconstruct("mine", "--force", cwd=tmp_path).returncode == 0  # writes beside the user's files
+    assert (tmp_path / "mine" / "thesis.tex").read_text() == "x" and (tmp_path / "mine" / "windows.json").is_file()
     one_line_error(reconstruct("x" * 300, cwd=tmp_path), "File name too long")
+
+
+def test_reconstruct_force_never_deletes_an_input(tmp_path):
+    (tmp_path / "o").mkdir()
+    photo = tmp_path / "o" / "img017.jpg"
+    shutil.copy(EXAMPLE / "img017.jpg", photo)
+    for extra in ((), ("--force",)):
+        one_line_error(reconstruct("o", *extra, cwd=tmp_path, photo=photo), "--out o holds the input", "img017.jpg")
+    one_line_error(reconstruct(".", "--force", cwd=tmp_path / "o", photo="img017.jpg", K=EXAMPLE / "K.json"),
+                   "holds the input img017.jpg")
+    assert photo.read_bytes() == (EXAMPLE / "img017.jpg").read_bytes()
+    shutil.copy(EXAMPLE / "K.json", tmp_path / "o" / "K.json")  # K inside the output folder: refused too
+    one_line_error(reconstruct("o", "--force", cwd=tmp_path, K=tmp_path / "o" / "K.json"), "holds the input")
 
 
 @pytest.fixture
