@@ -238,9 +238,9 @@ def _annotation_problems(a: dict, i: int, where: str, images: dict) -> list[str]
     if img is None:
         return [f"{what}: image_id {a['image_id']!r} matches no image"]
     out = []
-    if "category_id" not in a:
-        out.append(f"{what} has no 'category_id'")
-    bbox = a.get("bbox")
+    if not _is_id(a.get("category_id")):
+        out.append(f"{what}: 'category_id' must be an integer or string, got {a.get('category_id')!r}")
+    bbox = a.get("bbox") or None  # [] as absent
     if bbox is not None and not (isinstance(bbox, list) and len(bbox) == 4 and all(_is_num(v) for v in bbox)
                                  and bbox[2] > 0 and bbox[3] > 0):
         out.append(f"{what}: bbox must be [x, y, w, h] finite with w, h > 0, got {bbox!r}")
@@ -274,13 +274,15 @@ def coco_problems(doc, where: str) -> list[str]:
     ids = _unique_ids(imgs, "images", where, problems)
     _unique_ids(cats, "categories", where, problems)
     _unique_ids(anns, "annotations", where, problems, required=False)
-    names: dict = {}
+    stems: dict = {}  # a view is named by its photo's stem: two photos may not share one
     for i, img in enumerate(imgs):
         problems += _image_problems(img, i, where)
         n = img.get("file_name")
-        if isinstance(n, str) and n in names:
-            problems.append(f"{where}: images[{i}] file_name {n!r} duplicates images[{names[n]}]")
-        names.setdefault(n, i)
+        if isinstance(n, str) and Path(n).stem in stems:
+            problems.append(f"{where}: images[{i}] file_name {n!r} has the name {Path(n).stem!r} of "
+                            f"images[{stems[Path(n).stem]}] (views are named by it)")
+        if isinstance(n, str):
+            stems.setdefault(Path(n).stem, i)
     by_id = {img["id"]: img for img in imgs if "id" in img and img["id"] in ids}
     for i, a in enumerate(anns):
         problems += _annotation_problems(a, i, where, by_id)
@@ -371,7 +373,7 @@ def _coco_photo(path: Path, images: str | None, img: dict, where: str) -> tuple[
     """(RGB photo, its file) of one COCO image entry: the file inside the dataset folder, a
     regular file, decoding (EXIF orientation applied) to the stated width x height."""
     name = img["file_name"]
-    sub = images if images is not None else ("images" if (Path(path) / "images" / name).is_file() else ".")
+    sub = images if images is not None else ("images" if os.path.lexists(Path(path) / "images" / name) else ".")
     p = inside(path, str(Path(sub) / name), f"{where}: image {img['id']!r} file_name")
     photo = read_image(regular_file(p, "photo"))
     h, w = photo.shape[:2]
