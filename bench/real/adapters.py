@@ -8,7 +8,15 @@ Every adapter takes the dataset folder and keyword options (the profile's ``opti
 yields one RealView per photo, sorted by file name, with exactly the ground truth the format
 carries (see each reader). Coordinates are converted from the format's pixel-edge convention
 (pixel (0, 0) covers [0, 1]^2) to fenestra's (pixel centres at integers) by subtracting 0.5.
-Errors name the file and the bad value.
+
+Ground truth is validated, never silently bent: a problem that makes the labels wrong (an
+annotation of an unknown image, duplicate ids, a malformed polygon or RLE, a box outside its
+photo, a stated size that is not the decoded photo's, a path leading outside the dataset
+folder, a file that is not a regular file, JSON over LIMITS.max_json_bytes) is a DatasetError
+naming the file, entry and field. A label that can be left out without changing the others (a
+YOLO box entirely off its photo, a label file without a photo, a FIFO among the photos) is
+dropped and recorded in the ``refused`` list an adapter takes (a stderr warning when None).
+``check_dataset`` (``fenestra check-data DIR --format F``) reports both without raising.
 """
 from __future__ import annotations
 
