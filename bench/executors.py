@@ -16,9 +16,12 @@ views (read by bench.real.adapters).
     splits each house's views into shards of ``shard_views`` views. A Ray actor per worker (one
     CPU each) renders a shard's views into the same render cache (its own renderer, pyrender
     imported inside the worker), evaluates them and writes the shard's outcomes to
-    ``<run>/shards/<key>.pkl`` (atomically); the driver merges the shards in canonical order.
-    A shard file written by an interrupted run with the same code, config and methods is
-    reused, as cached views are. Connects to a running cluster (``address``, e.g. "auto" or
+    ``<run>/shards/<key>.parquet`` (the rows) and ``<run>/shards/<key>.json`` (its index: the
+    parquet file's sha256 and row count, each view's row count, stage seconds, COCO gt/dt lists
+    and false-positive counts), each atomically; the driver merges the shards in canonical
+    order. Nothing is unpickled from disk. A shard written by an interrupted run with the same
+    code, config and methods is reused, as cached views are; one whose digest or row counts do
+    not match its index is recomputed with a warning, never trusted and never silently short. Connects to a running cluster (``address``, e.g. "auto" or
     "127.0.0.1:6379") or starts a local one with ``workers`` CPUs.
 
 Every worker runs with ``THREADS_PER_WORKER`` BLAS/OpenMP/OpenCV/torch threads, set before numpy
@@ -28,9 +31,10 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import multiprocessing as mp
 import os
-import pickle
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -213,32 +217,106 @@ def plan_shards(plan: Plan, shard_views: int) -> list[Shard]:
             views = range(start, min(n, start + shard_views))
             key = hashlib.sha256(repr((version, h.dataset, plan.options, plan.methods, views.start, views.stop))
                                  .encode()).hexdigest()[:16]
-            shards.append(Shard(i, h, views, str(Path(plan.run_dir) / "shards" / f"{key}.pkl")))
+            shards.append(Shard(i, h, views, str(Path(plan.run_dir) / "shards" / f"{key}.json")))
     return shards
 
 
+SHARD_FORMAT = 1  # version of the shard files (index JSON + rows Parquet)
+
+
+def _jsonable(x):
+    """numpy scalars and arrays as JSON values (json.dumps default)."""
+    import numpy as np  # noqa: PLC0415
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+
+
+def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome], render_s: float) -> Path:
+    """Write a shard: its rows as Parquet beside the JSON index (sha256 of the Parquet bytes, row
+    counts, each view's stage seconds and COCO lists); the index last, so it names a complete file."""
+    import io  # noqa: PLC0415
+
+    import pandas as pd  # noqa: PLC0415
+
+    index_path = Path(index_path)
+    index_path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [{**r, "_view": i} for i, o in enumerate(outcomes) for r in o.rows]
+    buf = io.BytesIO()
+    pd.DataFrame(rows).to_parquet(buf, index=False)
+    data = buf.getvalue()
+    _atomic_write(index_path.with_suffix(".parquet"), data)
+    index = {"format": SHARD_FORMAT, "dataset": dataset, "render_s": render_s,
+             "rows_sha256": hashlib.sha256(data).hexdigest(), "n_rows": len(rows),
+             "views": [{"n_rows": len(o.rows), "stage_s": o.stage_s, "coco_gt": o.coco_gt, "coco_dt": o.coco_dt,
+                        "n_false_positives": o.n_false_positives, "dataset": o.dataset, "view": o.view,
+                        "size": list(o.size), "window_ids": list(o.window_ids)} for o in outcomes]}
+    _atomic_write(index_path, json.dumps(index, default=_jsonable).encode())
+    return index_path
+
+
+def read_shard(index_path: str | Path) -> dict:
+    """{"dataset", "outcomes", "render_s"} of a shard written by :func:`write_shard`; ValueError
+    naming what does not match (index unreadable, Parquet digest, row counts) or OSError."""
+    import io  # noqa: PLC0415
+
+    import pandas as pd  # noqa: PLC0415
+
+    index_path = Path(index_path)
+    try:
+        index = json.loads(index_path.read_bytes())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ValueError(f"index is not valid JSON ({e})") from e
+    if not isinstance(index, dict) or index.get("format") != SHARD_FORMAT:
+        raise ValueError(f"index is not a format-{SHARD_FORMAT} shard index")
+    data = index_path.with_suffix(".parquet").read_bytes()
+    if hashlib.sha256(data).hexdigest() != index.get("rows_sha256"):
+        raise ValueError("rows file does not match the digest in its index")
+    df = pd.read_parquet(io.BytesIO(data)) if data else pd.DataFrame()
+    views = index.get("views")
+    if len(df) != index.get("n_rows") or not isinstance(views, list) or sum(v["n_rows"] for v in views) != len(df):
+        raise ValueError(f"{len(df)} rows, the index says {index.get('n_rows')}")
+    outcomes = []
+    for i, v in enumerate(views):
+        sub = df[df["_view"] == i].drop(columns="_view") if len(df) else df
+        if len(sub) != v["n_rows"]:
+            raise ValueError(f"view {i} has {len(sub)} rows, the index says {v['n_rows']}")
+        outcomes.append(ViewOutcome(sub.to_dict("records"), v["stage_s"], v["coco_gt"], v["coco_dt"],
+                                    v["n_false_positives"], v["dataset"], v["view"], tuple(v["size"]),
+                                    tuple(v["window_ids"])))
+    return {"dataset": index["dataset"], "outcomes": outcomes, "render_s": float(index["render_s"])}
+
+
 def run_shard(plan: Plan, shard: Shard) -> str:
-    """Render and evaluate one shard; write its (house, dataset dir, outcomes) pickle atomically."""
+    """Render and evaluate one shard; write its rows and index (:func:`write_shard`)."""
     from renders.dataset import render_dataset  # noqa: PLC0415  (pyrender: inside the worker)
 
     t0 = time.perf_counter()
     ds = Path(render_dataset(shard.house.dataset, progress=False, only=shard.views))
     render_s = time.perf_counter() - t0
     outcomes = [evaluate_task(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
-    out = Path(shard.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(pickle.dumps({"dataset": str(ds), "outcomes": outcomes, "render_s": render_s}))
-    tmp.replace(out)
-    return str(out)
+    return str(write_shard(shard.out, str(ds), outcomes, render_s))
 
 
-def _load_shard(path: str) -> dict | None:
-    """A shard file's content, or None if absent or unreadable (then it is recomputed)."""
+def _load_shard(path: str, warn: bool = True) -> dict | None:
+    """A shard's content, or None if absent or damaged (then it is recomputed; a damaged one
+    with a warning naming it)."""
+    if not Path(path).exists():
+        return None
     try:
-        with open(path, "rb") as f:
-            return pickle.load(f)
-    except (OSError, pickle.UnpicklingError, EOFError):
+        return read_shard(path)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        if warn:
+            print(f"warning: shard {path} is damaged ({e}); recomputing it", file=sys.stderr)
         return None
 
 

@@ -73,6 +73,8 @@ def load_gates(path: str | Path = DEFAULT_GATES) -> list[Gate]:
         for k in ("min", "max"):
             if k in g and (isinstance(g[k], bool) or not isinstance(g[k], (int, float))):
                 raise GateError(f"{p}: gate #{i + 1} key '{k}' must be a number, got {g[k]!r}")
+            if k in g and not math.isfinite(g[k]):  # inf / -inf / nan would pass (or fail) vacuously
+                raise GateError(f"{p}: gate #{i + 1} ({g['metric']}) has {k} = {g[k]!r}; a bound must be finite")
         if "min" not in g and "max" not in g:
             raise GateError(f"{p}: gate #{i + 1} ({g['metric']}) has neither 'min' nor 'max'")
         gates.append(Gate(g["profile"], g["method"], g["metric"],

@@ -214,12 +214,15 @@ class InputLimits:
         this (INTER_AREA); their masks and boxes are mapped back to full resolution.
     fov_min_deg / fov_max_deg: a horizontal or vertical field of view outside this range
         (from K and the photo size) is reported as a warning: the focal length is probably wrong.
+    max_json_bytes: a JSON input (annotations.json, K.json) larger than this is refused before it
+        is read (json.loads of a 400 MB file takes several GB).
     """
 
     max_windows_per_photo: int = 1000
     detector_max_side_px: int = 1024
     fov_min_deg: float = 1.0
     fov_max_deg: float = 170.0
+    max_json_bytes: int = 64 * 2**20
 
 
 LIMITS = InputLimits()

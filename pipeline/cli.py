@@ -49,7 +49,8 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                              photo_orientation, photo_warnings, read_camera, read_instance_map, read_photo,
                              undistort_photo)
 
-    check_out(out, force)  # before the (slow) pipeline runs
+    inputs = (photo, K_json, masks)  # never inside --out: replacing it would delete them
+    check_out(out, force, inputs)  # before the (slow) pipeline runs
     image = read_photo(photo)
     size = (image.shape[1], image.shape[0])
     if K_json is not None and fx is not None:
@@ -88,7 +89,7 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     doc["undistorted"] = camera.has_distortion
     doc["distortion"] = None if camera.distortion is None else camera.distortion.tolist()
     doc["warnings"] = warnings
-    with staged_dir(out, force) as tmp:
+    with staged_dir(out, force, inputs) as tmp:
         (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
         if export:
             try:

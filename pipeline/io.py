@@ -200,6 +200,11 @@ def _read_K_json(path: str | Path, image_size: tuple[int, int] | None) -> tuple[
     """(K, the parsed JSON object) from an intrinsics file; PipelineError naming the bad value."""
     p = Path(path)
     try:
+        if p.stat().st_size > LIMITS.max_json_bytes:  # refused before reading (LIMITS states the bound)
+            raise PipelineError(f"intrinsics file {p} is {p.stat().st_size / 2**20:.1f} MB, more than the "
+                                f"{LIMITS.max_json_bytes / 2**20:.0f} MB limit (fenestra.conventions.LIMITS)")
+        if not p.is_file():
+            raise PipelineError(f"intrinsics file {p} is not a regular file")
         data = json.loads(p.read_text())
     except FileNotFoundError as e:
         raise PipelineError(f"intrinsics file not found: {p}") from e

@@ -343,9 +343,10 @@ def counterpart(run_dir: Path, summary: dict | None, real_dir: str | Path | None
 
 
 def _lead_sections(lead: lead_mod.Lead, sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None,
-                   fig: Path, runs: str) -> list[tuple]:
+                   fig: Path | None, runs: str) -> list[tuple]:
     """The lead: one figure, what it shows, and the answer in words (never folded)."""
-    return [("h2", LEAD_TITLE), ("img", fig), ("p", lead_mod.caption(lead) + " " + runs),
+    img = [("img", fig)] if fig is not None else []  # no figure when neither bench ranks a method
+    return [("h2", LEAD_TITLE), *img, ("p", lead_mod.caption(lead) + " " + runs),
             *(("p", t) for t in lead_mod.answer(lead, sim_df, real_df)), ("fold",)]
 
 
@@ -366,7 +367,8 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
     results = summarize(df)
     figs = make_figures(df, run_dir / "figures")
     lead = lead_mod.make_lead(sim_df, real_df)
-    fig = plots.ranked_methods(lead_mod.lead_columns(lead), run_dir / "figures" / "lead_ranked.png")
+    columns = lead_mod.lead_columns(lead)  # empty: photos with boxes only and no renders run
+    fig = plots.ranked_methods(columns, run_dir / "figures" / "lead_ranked.png") if columns else None
     runs = " ".join(x for x in (f"Renders: {'this run' if sim_df is df else other}." if sim_df is not None else "",
                                 f"Real photos: {'this run' if real_df is df else other}." if real_df is not None else "",
                                 missing or "") if x)
