@@ -1,7 +1,6 @@
 """Real-dataset adapters: a folder in a published format -> RealViews (bench.real.contract).
 
-    ADAPTERS = {"coco": read_coco, "yolo": read_yolo, "labelmap": read_labelmap,
-                "curtainwall": read_curtainwall}
+    ADAPTERS: Registry("dataset format"): coco, yolo, labelmap, curtainwall (Adapter entries)
     views = list(ADAPTERS["coco"](Path("my_photos"), category="window"))
 
 Every adapter takes the dataset folder and keyword options (the profile's ``options`` table) and
@@ -13,13 +12,15 @@ Errors name the file and the bad value.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from bench.real.contract import RealView, RealWindow
+from fenestra.registry import Registry
 from fenestra.data import box_from_coco, read_image, rle_to_mask, segmentation_to_rle, yolo_boxes
 from pipeline.io import Camera, check_distortion, read_camera, undistort_photo
 from pipeline.quad import order_corners
@@ -272,5 +273,22 @@ def read_curtainwall(path: Path, min_area_frac: float = CURTAIN_MIN_AREA_FRAC,
                        coplanar=True)
 
 
-ADAPTERS = {"coco": read_coco, "yolo": read_yolo, "labelmap": read_labelmap,
-            "curtainwall": read_curtainwall}
+@dataclass(frozen=True)
+class Adapter:
+    """A registered dataset format: ``read(folder, **options) -> Iterator[RealView]``; calling the
+    entry calls its reader. description: one line for CLI help."""
+
+    name: str
+    read: Callable[..., Iterator[RealView]]
+    description: str
+
+    def __call__(self, folder: Path, **options) -> Iterator[RealView]:
+        return self.read(folder, **options)
+
+
+ADAPTERS: Registry[Adapter] = Registry("dataset format", [
+    Adapter("coco", read_coco, "COCO instances JSON: boxes, polygon or RLE masks, 4-vertex polygons as quads"),
+    Adapter("yolo", read_yolo, "YOLO txt: window boxes of the given class ids"),
+    Adapter("labelmap", read_labelmap, "semantic label-map PNGs: window instances as components of one colour or id"),
+    Adapter("curtainwall", read_curtainwall, "the bundled curtain-wall photos: pane masks, known pane size, calibration"),
+])
