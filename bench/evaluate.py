@@ -21,23 +21,11 @@ from bench import matching, metrics, uncertainty
 from bench.profiles import EvalSpec
 from fenestra import data
 from fenestra.conventions import TOL, camera_depths
+from fenestra.methods import Method
 
 AP_SCORE_MIN = 0.05  # detections kept for COCO AP
 MATCH_SCORE_MIN = 0.5  # detections passed on to matching and reconstruction
 NAN = float("nan")
-
-
-@dataclass(frozen=True)
-class Method:
-    """One method combination: detector x corner snapper x pose solver."""
-
-    detector: str
-    snapper: str
-    pose: str
-
-    @property
-    def name(self) -> str:
-        return f"{self.detector}/{self.snapper}/{self.pose}"
 
 
 @dataclass(frozen=True)
@@ -187,12 +175,11 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
     """
     from dataclasses import replace  # noqa: PLC0415
 
-    from pipeline.reconstruct import reconstruct_from_quads  # noqa: PLC0415
-    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+    from pipeline.reconstruct import POSES, reconstruct_from_quads  # noqa: PLC0415
 
     if not dets:
         return [], ()
-    wall = WALL_STRATEGIES.get(cfg.pose)
+    wall = POSES[cfg.pose].wall
     if wall is None:
         results = reconstruct_from_quads(gray, K, dets, quads, cfg)
         per_window[(cfg.snapper, cfg.pose, withhold_K)] = results
@@ -215,6 +202,7 @@ def _detector_options(task: ViewTask, name: str) -> dict:
 def evaluate_view(task: ViewTask) -> ViewOutcome:
     """Rows for every (GT window x method) of one view; see the module docstring."""
     from pipeline.detectors import detect, detector_entry  # noqa: PLC0415
+    from pipeline.quad import QuadParams  # noqa: PLC0415
     from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
@@ -262,8 +250,9 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
         quads: dict = {}  # QuadParams -> fit_quads(rec_dets): the quads are fitted once per detector
         per_window: dict = {}  # (snapper, pose, K withheld) -> per-window results, reused by per-wall strategies
         for method in (m for m in task.methods if m.detector == det_name):
-            pose, withhold_K = uncertainty.split_pose(method.pose)
-            cfg = ReconstructConfig(snapper=method.snapper, pose=pose, height_m=task.height_m)
+            withhold_K = method.withhold_K
+            cfg = ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=task.height_m,
+                                    quad=QuadParams(source=method.quad_source))
             if cfg.quad not in quads:
                 quads[cfg.quad] = fit_quads(rec_dets, cfg.quad, gray.shape)
                 stage_s["reconstruct.quad"] = (stage_s.get("reconstruct.quad", 0.0)
@@ -277,8 +266,7 @@ def evaluate_view(task: ViewTask) -> ViewOutcome:
                     if k in counted:  # the shared quad fit and reused per-window stages: counted once
                         stage_s[f"reconstruct.{k}"] = stage_s.get(f"reconstruct.{k}", 0.0) + ms / 1000.0
             for g, (w, b) in enumerate(zip(wins, base)):
-                row = {**b, "detector": method.detector, "snapper": method.snapper,
-                       "pose": method.pose, "method": method.name}
+                row = {**b, **method.row()}
                 if g not in det_for_gt:
                     row.update({k: NAN for k in (*_ERROR_COLUMNS, *uncertainty.COLUMNS)}, status="missed",
                                reason="missed", aspect_case=None)

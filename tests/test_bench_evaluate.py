@@ -13,7 +13,8 @@ import cv2
 import numpy as np
 import pytest
 
-from bench.evaluate import Method, ViewTask, evaluate_view, window_conditions
+from bench.evaluate import ViewTask, evaluate_view, window_conditions
+from fenestra.methods import Method
 from bench.profiles import EvalSpec
 from fenestra.conventions import K_from_fov, look_at, project
 from renders.quad_image import coverage, pixel_centre_mask

@@ -12,7 +12,8 @@ import cv2
 import numpy as np
 import pytest
 
-from bench.evaluate import Method, ViewOutcome
+from bench.evaluate import ViewOutcome
+from fenestra.methods import Method
 from bench.real import metrics as rm
 from bench.real.adapters import ADAPTERS, CURTAIN_K, read_coco
 from bench.real.contract import RealWindow

@@ -17,7 +17,8 @@ import cv2
 import numpy as np
 
 from bench import matching, metrics
-from bench.evaluate import _ERROR_COLUMNS, AP_SCORE_MIN, MATCH_SCORE_MIN, Method, ViewOutcome
+from bench.evaluate import _ERROR_COLUMNS, AP_SCORE_MIN, MATCH_SCORE_MIN, ViewOutcome
+from fenestra.methods import Method
 from bench.real import metrics as real_metrics
 from bench.real.contract import RealView, RealWindow
 from fenestra import data
@@ -153,8 +154,7 @@ def _iou(dets: list[Detection], view: RealView) -> np.ndarray:
 
 
 def _not_run_rows(base: list[dict], method: Method, why: str) -> list[dict]:
-    return [{**b, "detector": method.detector, "snapper": method.snapper, "pose": method.pose,
-             "method": method.name, **{k: NAN for k in (*_ERROR_COLUMNS, *REAL_COLUMNS)},
+    return [{**b, **method.row(), **{k: NAN for k in (*_ERROR_COLUMNS, *REAL_COLUMNS)},
              "evaluable": False, "eval_reason": "no_gt_masks", "status": "missed",
              "reason": f"not run: {why}", "aspect_case": None} for b in base]
 
@@ -193,7 +193,8 @@ def evaluate_real_view(view: RealView, methods: tuple[Method, ...], spec: RealEv
         quads = fit_quads(rec_dets, ReconstructConfig().quad, gray.shape)
         for m in ms:
             cfg = ReconstructConfig(snapper=m.snapper, pose=m.pose, height_m=spec.height_m)
-            res = reconstruct_from_quads(gray, view.K, rec_dets, quads, cfg) if matched else []
+            K_in = None if m.withhold_K else view.K
+            res = reconstruct_from_quads(gray, K_in, rec_dets, quads, cfg) if matched else []
             by_gt = {matched[r.index][0]: r for r in res}
             rows = [_row(b, m, w, by_gt.get(g), det_for_gt.get(g), dets, view.K is not None)
                     for g, (w, b) in enumerate(zip(view.windows, base))]
@@ -211,7 +212,7 @@ def _tick(stage_s: dict, stage: str, t0: float) -> float:
 
 def _row(base: dict, m: Method, w: RealWindow, res, match, dets: list[Detection], known_K: bool) -> dict:
     """One results row: the window's columns, the method, its outcome and errors."""
-    row = {**base, "detector": m.detector, "snapper": m.snapper, "pose": m.pose, "method": m.name}
+    row = {**base, **m.row()}
     if res is None:
         row.update({k: NAN for k in (*_ERROR_COLUMNS, *REAL_COLUMNS)}, status="missed", reason="missed",
                    aspect_case=None)
