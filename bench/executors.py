@@ -34,9 +34,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
 
-from bench.evaluate import Method, ViewOutcome, ViewTask, evaluate_view
+from bench.evaluate import ViewOutcome, ViewTask, evaluate_view
 from bench.profiles import Profile
 from fenestra.errors import FenestraError
+from fenestra.methods import Method
 
 THREADS_PER_WORKER = 1
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")

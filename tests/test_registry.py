@@ -57,6 +57,24 @@ def test_registry_lookup_select_describe_register():
     assert reg.unregister("d").name == "d" and "d" not in reg
 
 
+def test_every_registry_is_one_type_of_named_described_entries():
+    from bench.real.adapters import ADAPTERS
+    from fenestra.registry import Entry
+    from pipeline.detectors import DETECTORS
+    from pipeline.pose import POSE_SOLVERS
+    from pipeline.reconstruct import POSES
+    from pipeline.snappers import SNAPPERS
+    from renders.backends import RENDERERS
+
+    for reg in (ADAPTERS, DETECTORS, POSE_SOLVERS, POSES, SNAPPERS, RENDERERS):
+        assert isinstance(reg, Registry) and len(reg) >= 2
+        for name, entry in reg.items():
+            assert isinstance(entry, Entry) and entry.name == name and entry.description.strip(), (reg.kind, name)
+            assert set(capabilities(entry)) == {"in_all", "needs_instances", "trainable", "per_wall", "fits_focal"}
+    assert POSES.where(per_wall=True) == POSES.where(fits_focal=True) and POSES.where(per_wall=False) == list(POSE_SOLVERS)
+    assert DETECTORS.where(needs_instances=True) == ["oracle", "oracle-degraded"]
+
+
 def test_method_is_typed_and_labelled_as_the_tables_are():
     m = Method("default", "lsd", "wall", withhold_K=True)
     assert m.label == m.name == "default/lsd/wall+noK"

@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 from training.augment import occluders, photometric, random_scale_crop, shadow_band
 from training.recipes import Recipe

@@ -2,14 +2,12 @@
 SGD with momentum; the weights file holds the resize parameters and fp32 weights."""
 from __future__ import annotations
 
-import dataclasses
 from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
-from training.augment import occluders, photometric, random_scale_crop, shadow_band
+from training.augment import photometric, random_scale_crop
 from training.recipes import Recipe
 
 if TYPE_CHECKING:

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from training.augment import occluders, photometric, random_scale_crop, shadow_band
+from training.augment import photometric, random_scale_crop, shadow_band
 from training.recipes import Recipe
 
 if TYPE_CHECKING:
