@@ -184,8 +184,8 @@ def load_map_predictor(weights: str | Path | None = None):
 
 DETECTORS: Registry[DetectorEntry] = Registry("detector", [
     DetectorEntry("oracle", _oracle, "exact masks from the ground-truth instance map", needs_instances=True),
-    DetectorEntry("oracle-degraded", _oracle_degraded, "the instance map's masks, eroded, dilated, jittered, "
-                  "dropped and merged as a network would (DegradeConfig)", needs_instances=True),
+    DetectorEntry("oracle-degraded", _oracle_degraded, "the true masks spoiled as Mask R-CNN's would be: jittered "
+                  "box, 28 x 28 grid, blurred, wobbly edges (DegradeConfig)", needs_instances=True),
     trainable("default", "effwin", "default", "learned, the shipped default: EffWin (pretrained "
               "EfficientNet-Lite encoder, corner head); loads any trainable detector's weights", any_arch=True),
     trainable("winnet", "winnet", "winnet", "learned from scratch: WinNet, a small U-Net (void and core maps)"),
