@@ -40,23 +40,11 @@ from bench.profiles import EvalSpec
 from bench.views import LabelledView, LabelledWindow
 from fenestra import data
 from fenestra.conventions import TOL, camera_depths
+from fenestra.methods import Method
 
 AP_SCORE_MIN = 0.05  # detections kept for COCO AP
 MATCH_SCORE_MIN = 0.5  # detections passed on to matching and reconstruction
 NAN = float("nan")
-
-
-@dataclass(frozen=True)
-class Method:
-    """One method combination: detector x corner snapper x pose solver."""
-
-    detector: str
-    snapper: str
-    pose: str
-
-    @property
-    def name(self) -> str:
-        return f"{self.detector}/{self.snapper}/{self.pose}"
 
 
 @dataclass(frozen=True)
@@ -366,12 +354,11 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
     once per snapper (or taken from that per-window method's own run) and kept in ``per_window``,
     so every method's results are exactly those of a run of its own.
     """
-    from pipeline.reconstruct import reconstruct_from_quads  # noqa: PLC0415
-    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+    from pipeline.reconstruct import POSES, reconstruct_from_quads  # noqa: PLC0415
 
     if not dets:
         return [], ()
-    wall = WALL_STRATEGIES.get(cfg.pose)
+    wall = POSES[cfg.pose].wall
     if wall is None:
         results = reconstruct_from_quads(gray, K, dets, quads, cfg)
         per_window[(cfg.snapper, cfg.pose, withhold_K)] = results
@@ -394,8 +381,7 @@ def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list
 def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> dict:
     """One results row in the table's column order: the window's columns, the method, then the
     ``tail`` columns (errors: NaN unless in ``values``; status, reason, aspect_case: required)."""
-    row = {**base, "detector": method.detector, "snapper": method.snapper, "pose": method.pose,
-           "method": method.name}
+    row = {**base, **method.row()}
     row.update({k: values[k] if k in ("status", "reason", "aspect_case") else values.get(k, NAN) for k in tail})
     return row
 
@@ -428,6 +414,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     """Rows for every (labelled window x method) of one view; see the module docstring."""
     from pipeline.detectors import detector_entry  # noqa: PLC0415
     from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
+    from pipeline.quad import QuadParams  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
 
@@ -473,8 +460,9 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         quads: dict = {}  # QuadParams -> fit_quads(rec_dets): the quads are fitted once per detector
         per_window: dict = {}  # (snapper, pose, K withheld) -> per-window results, reused by per-wall strategies
         for method in det_methods:
-            pose, withhold_K = uncertainty.split_pose(method.pose)
-            cfg = ReconstructConfig(snapper=method.snapper, pose=pose, height_m=options.height_m)
+            withhold_K = method.withhold_K
+            cfg = ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=options.height_m,
+                                    quad=QuadParams(source=method.quad_source))
             if cfg.quad not in quads:
                 quads[cfg.quad] = fit_quads(rec_dets, cfg.quad, gray.shape)
                 stage_s["reconstruct.quad"] = (stage_s.get("reconstruct.quad", 0.0)

@@ -41,9 +41,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
-from bench.evaluate import EvalOptions, Method, ViewOutcome, ViewTask, evaluate_task
+from bench.evaluate import EvalOptions, ViewOutcome, ViewTask, evaluate_task
 from bench.profiles import Profile
 from fenestra.errors import FenestraError
+from fenestra.methods import Method
 
 THREADS_PER_WORKER = 1
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")

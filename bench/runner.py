@@ -32,11 +32,12 @@ import pandas as pd
 from bench import manifest
 from bench import results as res
 from bench.detection_ap import detection_ap
-from bench.evaluate import EvalOptions, LoadedView, Method, ViewOutcome, ViewTask
+from bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTask
 from bench.executors import HousePlan, Plan, evaluate_local, get_executor
-from bench.profiles import ALL, Profile, pose_strategies
+from bench.profiles import ALL, Profile, selected
 from bench.real.profile import RealProfile
 from fenestra.errors import FenestraError
+from fenestra.methods import Method
 
 OUT_ROOT = Path("out")
 LEARNED_DETECTOR_OPTIONS = {"threads": 1}  # one torch thread per worker process
@@ -62,17 +63,6 @@ def default_run_dir(profile: Profile | RealProfile) -> Path:
 
 # ---------------------------------------------------------------- methods
 
-def _expand(names: tuple[str, ...], registry: dict, what: str) -> list[str]:
-    """["all"] -> every registered name (but entries with ``in_all`` False); otherwise check each
-    name exists."""
-    if names == (ALL,):
-        return [n for n, e in registry.items() if getattr(e, "in_all", True)]
-    bad = [n for n in names if n not in registry]
-    if bad:
-        raise FenestraError(f"unknown {what} {bad}; registered: {sorted(registry)}")
-    return list(names)
-
-
 def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
     """Detectors that can be built here (learned ones need weights); {skipped: reason}."""
     from pipeline.detectors import DETECTORS, get_detector  # noqa: PLC0415
@@ -89,17 +79,20 @@ def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
 
 
 def plan_methods(profile: Profile | RealProfile) -> tuple[tuple[Method, ...], dict[str, str]]:
-    """Every available detector x snapper x pose solver of the profile, and skipped detectors."""
-    from pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from pipeline.snappers import SNAPPERS  # noqa: PLC0415
+    """Every available detector x snapper x pose strategy x K condition the profile selects
+    (bench.profiles.MethodsSpec; K withheld only where the strategy fits the focal length), and
+    the skipped detectors. Order: detector, snapper, then the K-given poses and the K-withheld ones."""
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
 
-    requested = _expand(profile.methods.detectors, DETECTORS, "detector(s)")
+    spec = profile.methods
+    requested = selected(spec, "detectors")
     dets, skipped = available_detectors(requested)
     if not dets:
         raise FenestraError(f"no detector of {requested} is available: {skipped}")
-    snaps = _expand(profile.methods.snappers, SNAPPERS, "snapper(s)")
-    poses = _expand(profile.methods.pose_solvers, pose_strategies(), "pose solver(s)")
-    return tuple(Method(d, s, p) for d, s, p in itertools.product(dets, snaps, poses)), skipped
+    poses = selected(spec, "pose_solvers")
+    conditions = [(p, wk) for wk in spec.withhold_K for p in poses if not wk or POSES[p].fits_focal]
+    return tuple(Method(d, s, p, withhold_K=wk) for d, s, (p, wk)
+                 in itertools.product(dets, selected(spec, "snappers"), conditions)), skipped
 
 
 # ---------------------------------------------------------------- renders

@@ -57,8 +57,16 @@ def bench_run(profile: str, executor: str, cwd: Path, label: str) -> dict:
             "stage_ms_per_window": meta.get("stage_ms_per_window")}
 
 
-POSE_FAMILIES = {"per-window (lm, ippe)": ("lm", "ippe"), "wall": ("wall",), "building": ("building",),
-                 "wall+noK": ("wall+noK",), "building+noK": ("building+noK",)}
+def pose_families(methods) -> dict[str, list]:
+    """Methods (fenestra.methods.Method) by pose family, chosen by capability: every per-window
+    solver together, then each per-wall strategy with K given, then with K withheld."""
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
+
+    per_window = f"per-window ({', '.join(POSES.where(per_wall=False))})"
+    out: dict[str, list] = {}
+    for m in sorted(methods, key=lambda m: (POSES[m.pose].per_wall, m.withhold_K)):
+        out.setdefault(m.pose_label if POSES[m.pose].per_wall else per_window, []).append(m)
+    return out
 
 
 def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default") -> dict:
@@ -71,11 +79,12 @@ def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default"
 
     init_worker()
     p = load_profile(profile)
-    allm, _ = plan_methods(dataclasses.replace(p, methods=dataclasses.replace(p.methods, pose_solvers=("all",))))
+    allm, _ = plan_methods(dataclasses.replace(p, methods=dataclasses.replace(
+        p.methods, pose_solvers=("all",), withhold_K=(False, True))))
     houses = sorted(d for d in renders.iterdir() if (d / "views").is_dir())
     out = {}
-    for family, poses in POSE_FAMILIES.items():
-        methods = tuple(m for m in allm if m.pose in poses)
+    for family, members in pose_families(allm).items():
+        methods = tuple(members)
         plan = make_plan(p, methods, renders, renders / "unused")
         tasks = [t for d in houses for t in view_tasks(plan, d.name, d)[:views_per_house]]
         evaluate_task(tasks[0])  # warm-up: detector weights

@@ -1,6 +1,6 @@
 """Bench columns of the per-wall strategies: estimated focal length and uncertainty calibration.
 
-Methods whose pose name ends in :data:`NO_K_SUFFIX` (e.g. ``wall+noK``) run the pipeline with
+Methods with K withheld (``fenestra.methods.Method.withhold_K``; pose column ``wall+noK``) run the pipeline with
 K withheld (the principal point is then the image centre, as for a user's photo): their rows
 carry the focal length the pipeline found (``focal_est_px``) and its relative error.
 
@@ -15,18 +15,10 @@ import math
 import numpy as np
 
 
-NO_K_SUFFIX = "+noK"
 NAN = float("nan")
 COLUMNS = ("focal_est_px", "focal_err_rel", "aspect_in90", "rot_in90", "trans_in90",
            "aspect_ci90_rel", "rot_ci90_deg", "wall_id")
 CALIBRATION = ("aspect_in90", "rot_in90", "trans_in90")
-
-
-def split_pose(pose: str) -> tuple[str, bool]:
-    """(pipeline pose strategy, K withheld?) of a bench pose name like ``wall+noK``."""
-    if pose.endswith(NO_K_SUFFIX):
-        return pose[: -len(NO_K_SUFFIX)], True
-    return pose, False
 
 
 def columns(res, aspect_gt: float, gt_pose: tuple[np.ndarray, np.ndarray], K: np.ndarray, errors: dict) -> dict:

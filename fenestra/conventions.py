@@ -35,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fenestra.methods import Method
+
 # Corner names in the documented order.
 CORNER_NAMES: tuple[str, ...] = ("TL", "TR", "BR", "BL")
 
@@ -45,24 +47,15 @@ CV_TO_GL = np.diag([1.0, -1.0, -1.0])
 PYRENDER_PIXEL_OFFSET = 0.5
 
 
-@dataclass(frozen=True)
-class Strategies:
-    """One choice per pluggable stage: a detector, a corner snapper and a pose strategy (registry names:
-    ``pipeline.detectors.DETECTORS``, ``pipeline.snappers.SNAPPERS``, ``pipeline.reconstruct.pose_strategies()``),
-    and where the quad comes from (``pipeline.quad.QUAD_SOURCES``: the mask fit, or a corner head's
-    predicted corners with the mask fit as fallback)."""
-
-    detector: str
-    snapper: str
-    pose: str
-    quad_source: str = "mask"
+# One choice per pluggable stage is a fenestra.methods.Method: the same type for the defaults, the
+# bench's methods and the reports' rows.
 
 
 # What `fenestra reconstruct` and ReconstructConfig() use: the README's measured best for a learned
 # detector's masks (line-based snapping, the per-wall shared plane with the façade's line segments).
-DEFAULTS = Strategies(detector="default", snapper="linefit", pose="wall+lines")
+DEFAULTS = Method(detector="default", snapper="linefit", pose="wall+lines")
 # The paper's method (Mask R-CNN, Harris snapping, per-window iterative PnP): the reference in comparisons.
-PAPER = Strategies(detector="maskrcnn", snapper="harris", pose="lm")
+PAPER = Method(detector="maskrcnn", snapper="harris", pose="lm")
 
 
 @dataclass(frozen=True)

@@ -22,14 +22,13 @@ from typing import Optional
 import numpy as np
 import typer
 
-from fenestra.config import choices
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from pipeline.outdir import check_out, staged_dir
 from pipeline.detectors.oracle import detections_from_instance_map
 from pipeline.quad import QUAD_SOURCES, QuadParams
-from pipeline.reconstruct import (ReconstructConfig, fit_quads, pose_strategies,
-                                  reconstruct, reconstruct_from_quads, to_gray, windows_to_json)
+from pipeline.reconstruct import (POSES, ReconstructConfig, fit_quads, reconstruct, reconstruct_from_quads, to_gray,
+                                  windows_to_json)
 from pipeline.segments import SegmentCache, to_uint8
 from pipeline.snappers import SNAPPERS
 
@@ -109,14 +108,15 @@ def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tupl
     from dataclasses import replace  # noqa: PLC0415
 
     from pipeline.intrinsics import resolve_K  # noqa: PLC0415
-    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
 
     gray = to_gray(image)
+    strategy = POSES[cfg.pose]
+    # the snapped quads do not depend on the pose: the strategy's own per-window solver serves
     per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
-                                 replace(cfg, pose="ippe", fallback_focal_px=float(max(size))))
+                                 replace(cfg, pose=strategy.per_window_pose, fallback_focal_px=float(max(size))))
     quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
     # the chosen per-wall strategy's parameters (its façade lines too), the plain wall fit otherwise
-    return resolve_K(photo, quads, size, WALL_STRATEGIES.get(cfg.pose), segment_cache)
+    return resolve_K(photo, quads, size, strategy.wall, segment_cache)
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
@@ -154,8 +154,6 @@ def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app (choices in the help: from the registries)."""
     from pipeline.detectors import DETECTORS  # noqa: PLC0415
 
-    detector_names = ", ".join(DETECTORS)
-
     @app.command("reconstruct")
     def reconstruct_cmd(
         photo: Path = typer.Argument(..., help="the photo (any format OpenCV reads)"),
@@ -169,9 +167,9 @@ def register(app: typer.Typer) -> None:
         cy: Optional[float] = typer.Option(None, "--cy", help="principal point y, px (default image centre)"),
         masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector; with "
                                               "lens distortion in --K it must be in the undistorted photo's frame"),
-        detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {detector_names}"),
-        snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {choices(SNAPPERS)}"),
-        pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {choices(pose_strategies())}"),
+        detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {DETECTORS.describe()}"),
+        snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {SNAPPERS.describe()}"),
+        pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {POSES.describe()}"),
         height: float = typer.Option(ReconstructConfig.height_m, "--height", help="window height, m (the scale parameter)"),
         width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),

@@ -23,38 +23,75 @@ import numpy as np
 
 from fenestra.conventions import DEFAULTS, check_K
 from fenestra.errors import PipelineError
+from fenestra.registry import Registry
 from pipeline.aspect import aspect_ratio
-from pipeline.pose import POSE_SOLVERS, estimate_pose
+from pipeline.pose import POSE_SOLVERS, PoseSolver, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from pipeline.segments import SegmentCache
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult, check_image
-from pipeline.walls import WALL_STRATEGIES, apply_walls
+from pipeline.walls import WALL_STRATEGIES, WallParams, apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
 
 
 @dataclass(frozen=True)
 class PoseStrategy:
-    """A pose strategy as :func:`reconstruct` offers it (``ReconstructConfig.pose``).
+    """A pose strategy as :func:`reconstruct` offers it (``ReconstructConfig.pose``): an entry of
+    :data:`POSES`.
 
-    per_wall: False for a per-window solver (``pipeline.pose.POSE_SOLVERS``: each window from its
-    own quad; with K None, from the focal length of its own quad), True for a per-wall strategy
-    (``pipeline.walls.WALL_STRATEGIES``: windows grouped into walls, each wall fitted once; with K
+    Exactly one of ``solver`` (a per-window :class:`~pipeline.pose.PoseSolver`: each window from its
+    own quad; with K None, from the focal length of its own quad) and ``wall`` (a per-wall
+    :class:`~pipeline.walls.WallParams`: windows grouped into walls, each wall fitted once; with K
     None the focal length is a parameter of that fit). description: one line for CLI help and docs.
-    No strategy needs K.
+    Capabilities (fenestra.registry): ``per_wall``, and ``fits_focal`` (the per-wall ones: the bench
+    runs them with K withheld too).
     """
 
     name: str
     description: str
-    per_wall: bool
+    solver: PoseSolver | None = None
+    wall: WallParams | None = None
+
+    def __post_init__(self) -> None:
+        if (self.solver is None) == (self.wall is None):
+            raise ValueError(f"pose strategy {self.name!r} needs exactly one of solver= (per window) or wall= (per wall)")
+
+    @property
+    def per_wall(self) -> bool:
+        return self.wall is not None
+
+    @property
+    def fits_focal(self) -> bool:
+        return self.wall is not None
+
+    @property
+    def per_window_pose(self) -> str:
+        """The per-window solver whose results it starts from (itself, or the wall's base_pose)."""
+        return self.name if self.wall is None else self.wall.base_pose
+
+    @classmethod
+    def per_window(cls, solver: PoseSolver) -> PoseStrategy:
+        return cls(solver.name, solver.description, solver=solver)
+
+    @classmethod
+    def walls(cls, name: str, params: WallParams) -> PoseStrategy:
+        return cls(name, params.description, wall=params)
 
 
-def pose_strategies() -> dict[str, PoseStrategy]:
-    """Every pose strategy, per-window solvers first, read from the two registries (so an entry
-    added to either is offered everywhere: CLI, profiles, the bench)."""
-    return {**{n: PoseStrategy(n, s.description, False) for n, s in POSE_SOLVERS.items()},
-            **{n: PoseStrategy(n, w.description, True) for n, w in WALL_STRATEGIES.items()}}
+# Every pose strategy, per-window solvers first: the one registry that the CLI, profiles, the bench,
+# the gates and the reports read. A new solver is a line of pipeline.pose.POSE_SOLVERS, a new
+# per-wall strategy a line of pipeline.walls.WALL_STRATEGIES; a plug-in (or a test) registers a
+# PoseStrategy here.
+POSES: Registry[PoseStrategy] = Registry("pose strategy", [
+    *(PoseStrategy.per_window(s) for s in POSE_SOLVERS.snapshot()),
+    *(PoseStrategy.walls(n, w) for n, w in WALL_STRATEGIES.items()),
+])
+
+
+def pose_strategies() -> Registry[PoseStrategy]:
+    """:data:`POSES` (the name it had before it was a registry)."""
+    return POSES
 
 
 @dataclass(frozen=True)
@@ -62,8 +99,8 @@ class ReconstructConfig:
     """Strategy choices and parameters of :func:`reconstruct`.
 
     snapper: a key of ``pipeline.snappers.SNAPPERS``; snapper_params: its dataclass (None: defaults).
-    pose: a key of :func:`pose_strategies`: of ``pipeline.pose.POSE_SOLVERS`` (per window) or of
-    ``pipeline.walls.WALL_STRATEGIES`` (per wall: windows grouped into walls, each wall fitted once).
+    pose: a key of :data:`POSES`: per window, or per wall (windows grouped into walls, each wall
+    fitted once).
     The defaults are ``fenestra.conventions.DEFAULTS``.
     height_m / width_m: the scale parameter (the window's height, or its width if given), m.
     fallback_focal_px: focal length used when K is None and the quad cannot give one.
@@ -79,10 +116,8 @@ class ReconstructConfig:
     quad: QuadParams = field(default_factory=QuadParams)
 
     def __post_init__(self) -> None:
-        if self.snapper not in SNAPPERS:
-            raise ValueError(f"unknown snapper {self.snapper!r}; choose from {sorted(SNAPPERS)}")
-        if self.pose not in pose_strategies():
-            raise ValueError(f"unknown pose solver {self.pose!r}; choose from {list(pose_strategies())}")
+        SNAPPERS.lookup(self.snapper)  # UnknownName (a ValueError) naming the choices
+        POSES.lookup(self.pose)
         for name in ("height_m", "width_m"):
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and v > 0):
@@ -219,7 +254,7 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
         K_used = K
     t0 = time.perf_counter()
     try:
-        pr = estimate_pose(snapped, K_used, ar.ratio, cfg.height_m, cfg.width_m, cfg.pose)
+        pr = estimate_pose(snapped, K_used, ar.ratio, cfg.height_m, cfg.width_m, POSES[cfg.pose].solver)
     except (PipelineError, ValueError) as e:
         timings["pose"] = (time.perf_counter() - t0) * 1e3
         return _result(i, det, cfg, timings, f"pose: {e}", **done)
@@ -247,7 +282,7 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
         raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
     gray = to_gray(image)
     K = None if K is None else check_K(K)
-    wall = WALL_STRATEGIES.get(cfg.pose)
+    wall = POSES[cfg.pose].wall
     if base is not None and (wall is None or len(base) != len(detections)):
         raise ValueError(f"base: {len(base)} per-window results given for pose {cfg.pose!r} and "
                          f"{len(detections)} detections; only a per-wall strategy takes them, one per detection")

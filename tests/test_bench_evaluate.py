@@ -17,8 +17,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.evaluate import (PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, Method, ViewTask, evaluate_task,
+from bench.evaluate import (PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask, evaluate_task,
                             evaluate_view, render_conditions)
+from fenestra.methods import Method
 from bench.profiles import EvalSpec
 from bench.render_adapter import RenderedViewRef, read_rendered_view
 from fenestra.conventions import K_from_fov, look_at, project
@@ -141,7 +142,7 @@ def test_rows_equal_those_of_the_former_render_evaluator(view_dir):
     gave (tests/golden/hand_view_rows.json, written by that code): every column and value, for
     per-window, per-wall, K-withheld and degraded-oracle methods."""
     golden = json.loads((Path(__file__).parent / "golden" / "hand_view_rows.json").read_text())
-    methods = tuple(Method(*m.split("/")) for m in golden["methods"])
+    methods = tuple(Method.from_label(m) for m in golden["methods"])
     rows = _run(view_dir, methods).rows
     assert len(rows) == len(golden["rows"]) == 20
     for r, g in zip(rows, golden["rows"]):

@@ -127,24 +127,39 @@ def test_profiles_load_and_validate():
 
 
 def test_profile_names_are_checked_against_the_registries(monkeypatch):
+    import dataclasses
+
+    from bench.runner import plan_methods
+    from pipeline.reconstruct import POSES
     from pipeline.snappers import SNAPPERS
     from renders.backends import RENDERERS
 
     snappers = list(SNAPPERS)
-    with pytest.raises(ProfileError, match=rf"x: methods.snappers has unknown name\(s\) \['sift'\]; registered: "
+    with pytest.raises(ProfileError, match=rf"x: methods.snappers: unknown snapper 'sift'; choose from "
                                            rf"{re.escape(str(snappers))}"):
         profile_from_dict({"name": "x", "methods": {"snappers": ["none", "sift"]}}, where="x")
     with pytest.raises(ProfileError, match=rf"render.renderer has bad value 'povray'; registered: "
                                            rf"{re.escape(str(list(RENDERERS)))}"):
         profile_from_dict({"name": "x", "render": {"renderer": "povray"}})
-    with pytest.raises(ProfileError, match=r"methods.pose_solvers has unknown name\(s\) \['lm\+noK'\]"):
-        profile_from_dict({"name": "x", "methods": {"pose_solvers": ["wall+noK", "lm+noK"]}})
-    with pytest.raises(ProfileError, match=r"methods.detectors has unknown name\(s\) \['all'\]"):
+    # K withheld is a typed field of the method, not a '+noK' name
+    with pytest.raises(ProfileError, match=r"methods.pose_solvers: unknown pose strategy 'wall\+noK'"):
+        profile_from_dict({"name": "x", "methods": {"pose_solvers": ["wall+noK"]}})
+    with pytest.raises(ProfileError, match=r"methods.detectors: unknown detector 'all'"):
         profile_from_dict({"name": "x", "methods": {"detectors": ["all", "oracle"]}})
-    with pytest.raises(ProfileError, match="methods.detectors is empty"):
+    with pytest.raises(ProfileError, match="methods.detectors: empty detector selection"):
         profile_from_dict({"name": "x", "methods": {"detectors": []}})
+    with pytest.raises(ProfileError, match=r"methods.pose_solvers: unknown capability \['round'\]"):
+        profile_from_dict({"name": "x", "methods": {"pose_solvers": {"round": True}}})
+    with pytest.raises(ProfileError, match=r"methods.withhold_K must be"):
+        profile_from_dict({"name": "x", "methods": {"withhold_K": []}})
+    # selection by capability: per-window solvers, and K withheld only where the strategy fits f
+    p = profile_from_dict({"name": "x", "methods": {"pose_solvers": {"per_wall": False}, "snappers": ["none"]}})
+    assert [m.pose for m in plan_methods(p)[0]] == POSES.where(per_wall=False) == ["lm", "ippe"]
+    p = profile_from_dict({"name": "x", "methods": {"pose_solvers": ["lm", "wall"], "snappers": ["none"],
+                                                    "withhold_K": [False, True]}})
+    assert [m.label for m in plan_methods(p)[0]] == ["oracle/none/lm", "oracle/none/wall", "oracle/none/wall+noK"]
     # a strategy registered anywhere is accepted (and run by ["all"]) with no edit to bench/
-    monkeypatch.setitem(SNAPPERS, "tmp", SNAPPERS["none"])
+    monkeypatch.setitem(SNAPPERS, "tmp", dataclasses.replace(SNAPPERS["none"], name="tmp"))
     assert profile_from_dict({"name": "x", "methods": {"snappers": ["tmp"]}}).methods.snappers == ("tmp",)
 
 

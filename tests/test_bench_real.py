@@ -15,7 +15,8 @@ import pytest
 
 from bench import metrics as rm
 from bench.detection_ap import coco_ap_of
-from bench.evaluate import EvalOptions, Method, ViewOutcome, evaluate_view, gt_coco, window_errors
+from bench.evaluate import EvalOptions, ViewOutcome, evaluate_view, gt_coco, window_errors
+from fenestra.methods import Method
 from bench.real.adapters import ADAPTERS, CURTAIN_K, read_coco
 from bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
 from bench.real.simreal import ranking
@@ -362,7 +363,7 @@ def test_photo_rows_equal_those_of_the_former_real_evaluator(tmp_path, yolo_dir)
     from bench.evaluate import PHOTO_COLUMNS
 
     golden = json.loads((ROOT / "tests" / "golden" / "photo_view_rows.json").read_text())
-    methods = tuple(Method(*m.split("/")) for m in golden["methods"])
+    methods = tuple(Method.from_label(m) for m in golden["methods"])
     folder, *_ = _rectangle_view(tmp_path / "rect")
     views = [next(iter(read_coco(folder))), next(iter(ADAPTERS["yolo"](yolo_dir))),
              next(iter(ADAPTERS["curtainwall"](ROOT / "data" / "real" / "curtainwall")))]

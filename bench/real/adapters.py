@@ -1,7 +1,6 @@
 """Real-dataset adapters: a folder in a published format -> LabelledViews (bench.views).
 
-    ADAPTERS = {"coco": read_coco, "yolo": read_yolo, "labelmap": read_labelmap,
-                "curtainwall": read_curtainwall}
+    ADAPTERS: Registry("dataset format"): coco, yolo, labelmap, curtainwall (Adapter entries)
     views = list(ADAPTERS["coco"](Path("my_photos"), category="window"))
 
 Every adapter takes the dataset folder and keyword options (the profile's ``options`` table) and
@@ -23,7 +22,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,6 +32,7 @@ from scipy import ndimage
 
 from bench.views import LabelledView, LabelledWindow
 from fenestra.conventions import LIMITS
+from fenestra.registry import Registry
 from fenestra.data import DatasetError, SparseMask, box_from_coco, read_image, rle_to_mask, segmentation_to_rle
 from fenestra.userfiles import inside, is_regular, read_json, regular_file
 from pipeline.io import Camera, check_distortion, photo_orientation, read_camera, undistort_photo
@@ -627,8 +627,25 @@ def read_curtainwall(path: Path, min_area_frac: float = CURTAIN_MIN_AREA_FRAC,
                            coplanar=True)
 
 
-ADAPTERS = {"coco": read_coco, "yolo": read_yolo, "labelmap": read_labelmap,
-            "curtainwall": read_curtainwall}
+@dataclass(frozen=True)
+class Adapter:
+    """A registered dataset format: ``read(folder, **options) -> Iterator[LabelledView]``; calling the
+    entry calls its reader. description: one line for CLI help."""
+
+    name: str
+    read: Callable[..., Iterator[LabelledView]]
+    description: str
+
+    def __call__(self, folder: Path, **options) -> Iterator[LabelledView]:
+        return self.read(folder, **options)
+
+
+ADAPTERS: Registry[Adapter] = Registry("dataset format", [
+    Adapter("coco", read_coco, "COCO instances JSON: boxes, polygon or RLE masks, 4-vertex polygons as quads"),
+    Adapter("yolo", read_yolo, "YOLO txt: window boxes of the given class ids"),
+    Adapter("labelmap", read_labelmap, "semantic label-map PNGs: window instances as components of one colour or id"),
+    Adapter("curtainwall", read_curtainwall, "the bundled curtain-wall photos: pane masks, known pane size, calibration"),
+])
 
 
 # ---------------------------------------------------------------- checking a dataset
