@@ -9,7 +9,7 @@ window gets one row per method combination (see bench.evaluate). The run folder 
 ``out/bench/<profile>-<config hash>``) receives results.parquet/.csv, summary.json and, when a
 report writer is passed, the report; renders go to ``out/renders`` (renders.dataset names and
 reuses them by config hash). bench/ never imports reports/ (reports read bench's tables): the CLI
-(fenestra/cli.py) passes the report writer in.
+(app/cli.py) passes the report writer in.
 """
 from __future__ import annotations
 

@@ -11,3 +11,8 @@ class SceneError(FenestraError):
 
 class PipelineError(FenestraError):
     """Bad input to the reconstruction pipeline (photo, K, masks)."""
+
+
+def one_line(e: BaseException) -> str:
+    """The error's message on one line (without a message: its class name): how the CLI prints it."""
+    return " ".join(str(e).split()) or type(e).__name__

@@ -1,4 +1,4 @@
-"""CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of pipeline/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra reconstruct PHOTO [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
         [--detector NAME] [--snapper NAME] [--pose NAME] [--height M] [--width M]

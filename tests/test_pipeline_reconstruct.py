@@ -105,7 +105,7 @@ def test_io_errors(tmp_path):
 
 
 def test_cli_reconstruct(tmp_path):
-    from fenestra.cli import app
+    from app.cli import app
     rgb, inst, _ = scene()
     cv2.imwrite(str(tmp_path / "photo.png"), rgb)
     cv2.imwrite(str(tmp_path / "inst.png"), inst)

@@ -98,7 +98,7 @@ def test_detectors_package_imports_torch_lazily():
     import subprocess
     import sys
 
-    code = "import sys, pipeline.detectors, fenestra.cli; print('torch' in sys.modules)"
+    code = "import sys, pipeline.detectors, app.cli; print('torch' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
 
@@ -254,7 +254,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     import torch
     from typer.testing import CliRunner
 
-    from fenestra.cli import app
+    from app.cli import app
     from fenestra.errors import FenestraError
 
     src = _untrained_weights(tmp_path / "w.pt", "winnet")
