@@ -15,7 +15,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fenestra.conventions import LIMITS, check_K, make_K
+from fenestra.checks import check_K
+from fenestra.conventions import LIMITS, make_K
 from fenestra.errors import PipelineError
 
 

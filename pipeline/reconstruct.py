@@ -21,13 +21,14 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from fenestra.conventions import DEFAULTS, check_K
+from fenestra.checks import check_image, check_K
+from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from pipeline.aspect import aspect_ratio
 from pipeline.pose import POSE_SOLVERS, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from pipeline.snappers import SNAPPERS
-from pipeline.types import Detection, WindowResult, check_image
+from pipeline.types import Detection, WindowResult
 from pipeline.walls import WALL_STRATEGIES, apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
@@ -89,7 +90,7 @@ class ReconstructConfig:
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
-    """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (pipeline.types.check_image), or an
+    """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (fenestra.checks.check_image), or an
     (H, W) gray one, returned as float32 (not copied when it is already). Gray = 0.299 R + 0.587 G + 0.114 B
     (OpenCV, rounded to uint8)."""
     img = np.asarray(image)

@@ -11,7 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from fenestra.conventions import TOL, look_at, make_K, project, rotation_error_deg
+from fenestra.conventions import look_at, make_K, project, rotation_error_deg
+from fenestra.tolerances import TOL
 from pipeline import facade, walls
 from pipeline.types import WindowResult
 

@@ -160,13 +160,13 @@ def test_pose_strategies_come_from_both_registries():
 
 
 def test_one_image_check_and_rgb_at_every_boundary(tmp_path):
-    """One check_image (pipeline.types) guards detect, reconstruct and the export, with one error that
+    """One check_image (fenestra.checks) guards detect, reconstruct and the export, with one error that
     is both a PipelineError and a ValueError; colour images are read as RGB (gray = 0.299 R + 0.587 G
     + 0.114 B: pure red is 76, as BGR it would be 29)."""
     from pipeline.detectors import detect
     from pipeline.export import write_outputs
     from pipeline.reconstruct import to_gray
-    from pipeline.types import ImageError
+    from fenestra.checks import ImageError
 
     red = np.zeros((20, 30, 3), np.uint8)
     red[..., 0] = 255

@@ -16,7 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fenestra.conventions import check_K
+from fenestra.checks import check_image, check_K
 from fenestra.errors import PipelineError
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import CAMERA_TO_EXPORT, PlacedWindow, place, texture_layout
@@ -24,7 +24,7 @@ from pipeline.export.ifc import write_ifc
 from pipeline.export.inpaint import inpaint_voids
 from pipeline.export.mesh import model_parts, write_glb, write_obj
 from pipeline.export.overlay import draw_overlay
-from pipeline.types import WindowResult, check_image
+from pipeline.types import WindowResult
 
 DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
 
