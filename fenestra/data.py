@@ -38,7 +38,8 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from fenestra.errors import FenestraError
+from fenestra.errors import DatasetError
+from fenestra.images import decode_file, read_image, read_instances
 
 VIEW_FILES = ("image.png", "instances.png")  # every view; ignore.png only where view.json lists ignore regions
 VIEW_KEYS = ("K", "width", "height", "R", "t", "windows")  # view.json keys every reader relies on
@@ -47,10 +48,6 @@ COCO_STATS = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large",
               "AR1", "AR10", "AR100", "AR_small", "AR_medium", "AR_large")  # COCOeval.stats, in order
 SCORE_NAMES = COCO_STATS + ("R50",)  # R50: recall at IoU 0.5, all areas, 100 detections per image
 IOU_TYPES = ("bbox", "segm")
-
-
-class DatasetError(FenestraError, ValueError):
-    """A file or folder that does not follow the data contract (the message names it)."""
 
 
 # ---------------------------------------------------------------- files
@@ -79,29 +76,6 @@ def write_text_atomic(path: str | Path, text: str) -> None:
 
 def _write_png(path: Path, img: np.ndarray) -> None:
     write_file_atomic(path, lambda p: bool(cv2.imwrite(str(p), img)))
-
-
-def read_image(path: str | Path) -> np.ndarray:
-    """(H, W, 3) uint8 **RGB** from any image file cv2 decodes (alpha dropped, grey expanded);
-    DatasetError naming the file when it is missing or undecodable."""
-    raw = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if raw is None:
-        raise DatasetError(f"cannot read image {path} (missing or not decodable)")
-    return cv2.cvtColor(raw, cv2.COLOR_BGR2RGB)
-
-
-def read_instances(path: str | Path) -> np.ndarray:
-    """(H, W) **int32** instance map (0 = none, k = instance k) from a single-channel 8/16-bit PNG.
-
-    int32, not the file's uint16: differences and sentinels (-1) are safe, and ids stay exact.
-    """
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise DatasetError(f"cannot read instance map {path} (missing or not decodable)")
-    if raw.ndim != 2 or raw.dtype not in (np.uint8, np.uint16):
-        raise DatasetError(f"instance map {path} must be a single-channel 8/16-bit PNG, "
-                           f"got shape {raw.shape}, dtype {raw.dtype}")
-    return raw.astype(np.int32)
 
 
 def _instances_png(instances: np.ndarray, name: str) -> np.ndarray:
@@ -226,7 +200,10 @@ def check_view(view_dir: str | Path) -> str | None:
             return f"{name} missing"
         if name in sizes and p.stat().st_size != sizes[name]:
             return f"{name} is {p.stat().st_size} bytes, view.json recorded {sizes[name]}"
-        img = cv2.imread(str(p), cv2.IMREAD_COLOR if name == "image.png" else cv2.IMREAD_UNCHANGED)
+        try:
+            img = decode_file(p, cv2.IMREAD_COLOR if name == "image.png" else cv2.IMREAD_UNCHANGED, name)
+        except DatasetError:
+            img = None
         if img is None or img.shape[:2] != (meta.get("height"), meta.get("width")):
             return f"{name} does not decode to {meta.get('width')}x{meta.get('height')} px"
     return None

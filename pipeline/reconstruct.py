@@ -261,7 +261,7 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
 
 def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                 cfg: ReconstructConfig = ReconstructConfig()) -> list[WindowResult]:
-    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as pipeline.io.read_photo gives).
+    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as fenestra.images.read_image gives).
 
     K: (3, 3) intrinsics, or None for an unknown focal length (square pixels, principal point at
     the image centre; f estimated per window by Zhang & He). Returns one WindowResult per

@@ -1,7 +1,7 @@
 """Data types passed between pipeline stages (the pipeline/ contract).
 
 pipeline/ is the system a user runs on one photo: it must not import bench/, renders/ or scenes/.
-Images cross every pipeline API boundary (read_photo, detect, reconstruct, write_outputs,
+Images cross every pipeline API boundary (fenestra.images.read_image, detect, reconstruct, write_outputs,
 substitute) as (H, W, 3) uint8 **RGB**, checked by :func:`fenestra.checks.check_image`; BGR exists
 only inside calls to OpenCV's reading, writing and drawing functions.
 """

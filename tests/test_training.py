@@ -9,7 +9,7 @@ import pytest
 from pipeline.detectors import detect
 from pipeline.detectors.winnet import core_targets
 from toy_data import write_toy_dataset
-from fenestra.data import read_image
+from fenestra.images import read_image
 from training.train import load_config, train
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -36,7 +36,7 @@ import torch
 import torch.nn.functional as F
 
 from fenestra.config import from_table, read_toml
-from fenestra.data import read_image, read_instances
+from fenestra.images import read_image, read_instances
 from pipeline.detectors import DEFAULT_WEIGHTS, WINNET_WEIGHTS
 from pipeline.detectors.maskrcnn import DEFAULT_MASKRCNN_WEIGHTS
 from training.augment import AugmentConfig, occluders, photometric, random_scale_crop, shadow_band
