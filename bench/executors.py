@@ -37,6 +37,7 @@ from typing import Callable, Iterator
 from bench.evaluate import Method, ViewOutcome, ViewTask, evaluate_view
 from bench.profiles import Profile
 from fenestra.errors import FenestraError
+from fenestra.files import write_bytes
 
 THREADS_PER_WORKER = 1
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -221,9 +222,7 @@ def run_shard(plan: Plan, shard: Shard) -> str:
     outcomes = [evaluate_view(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
     out = Path(shard.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(pickle.dumps({"dataset": str(ds), "outcomes": outcomes, "render_s": render_s}))
-    tmp.replace(out)
+    write_bytes(out, pickle.dumps({"dataset": str(ds), "outcomes": outcomes, "render_s": render_s}))
     return str(out)
 
 

@@ -10,14 +10,12 @@ A non-empty ``out`` that holds no Fenestra result (no ``windows.json``) is refus
 """
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from fenestra.errors import PipelineError
+from fenestra.files import replace_dir
 
 MARKER = "windows.json"  # what makes a folder a reconstruct output
 
@@ -34,21 +32,9 @@ def check_out(out: Path, force: bool) -> None:
 @contextmanager
 def staged_dir(out: str | Path, force: bool = False) -> Iterator[Path]:
     """Yield a fresh temporary folder beside ``out``; swap it in as ``out`` when the block ends
-    without error (see the module docstring). OSError (read-only, name too long) propagates."""
+    without error (see the module docstring; :func:`fenestra.files.replace_dir` after
+    :func:`check_out`). OSError (read-only, name too long) propagates."""
     out = Path(out)
     check_out(out, force)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    umask = os.umask(0o022)
-    os.umask(umask)
-    tmp.chmod(0o777 & ~umask)  # mkdtemp makes it 0o700; the result gets a normal folder's mode
-    try:
+    with replace_dir(out) as tmp:
         yield tmp
-        old = out.with_name(f".{out.name}.old{os.getpid()}") if out.exists() else None
-        if old is not None:
-            out.rename(old)
-        tmp.rename(out)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)

@@ -1,6 +1,5 @@
 """Pin the conventions of fenestra/conventions.py with hand-checked geometry."""
 import numpy as np
-import pytest
 
 from fenestra import conventions as C
 

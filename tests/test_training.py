@@ -263,7 +263,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     assert r.exit_code == 0, r.output
     assert dest.read_bytes() == src.read_bytes()
     assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'winnet'" in r.output
-    assert not list(dest.parent.glob("*.tmp"))
+    assert [p.name for p in dest.parent.iterdir()] == ["default.pt"]  # no temporary file left
     (tmp_path / "junk.pt").write_bytes(b"not a model")
     torch.save({"arch": "yolo", "state_dict": {}}, tmp_path / "yolo.pt")
     for bad, message in (("junk.pt", "is not a weights file"), ("yolo.pt", "holds arch 'yolo'"),
