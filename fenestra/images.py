@@ -4,7 +4,7 @@ image, an instance map given with ``--masks``).
 Files are read as bytes (``np.fromfile``) and decoded from the buffer (``cv2.imdecode``), so a
 file name cv2.imread cannot take (non-UTF-8, odd characters) reads like any other. As
 ``cv2.imread`` does, the decoder applies a JPEG's EXIF orientation: an image comes out as it is
-displayed.
+displayed, and a truncated JPEG decodes with its missing part grey.
 
 - :func:`read_image`: any image file cv2 decodes -> (H, W, 3) **uint8 RGB** (alpha dropped,
   grey expanded).
@@ -26,6 +26,8 @@ import numpy as np
 from fenestra.checks import INSTANCE_DTYPE
 from fenestra.errors import DatasetError
 
+JPEG_SOI, JPEG_EOI = b"\xff\xd8", b"\xff\xd9"  # a JPEG's start- and end-of-image markers
+
 
 def decode_file(path: str | Path, flags: int, what: str = "image") -> np.ndarray:
     """``cv2.imdecode(bytes of path, flags)``; DatasetError naming ``what`` and the file when it is
@@ -38,6 +40,10 @@ def decode_file(path: str | Path, flags: int, what: str = "image") -> np.ndarray
     except OSError as e:
         raise DatasetError(f"cannot read {what} {p}: {' '.join(str(e).split())}") from e
     img = cv2.imdecode(buf, flags) if buf.size else None
+    if img is None and buf[:2].tobytes() == JPEG_SOI:
+        # a truncated JPEG: end it as libjpeg's file reader (cv2.imread) does, with an end-of-image
+        # marker, so its missing part decodes grey as there (pipeline.io.photo_warnings tells)
+        img = cv2.imdecode(np.concatenate([buf, np.frombuffer(JPEG_EOI, np.uint8)]), flags)
     if img is None or img.size == 0:
         raise DatasetError(f"cannot read {what} {p} (not an image cv2 can decode)")
     return img

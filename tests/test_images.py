@@ -61,3 +61,15 @@ def test_errors_name_the_file(tmp_path):
         with pytest.raises(DatasetError, match=msg) as e:
             call()
         assert isinstance(e.value, FenestraError) and isinstance(e.value, ValueError)
+
+
+def test_a_truncated_jpeg_decodes_as_cv2_imread_does(tmp_path):
+    """The first part of a JPEG: its missing rows grey, pixel for pixel what cv2.imread gives."""
+    rng = np.random.default_rng(0)
+    img = cv2.GaussianBlur(rng.integers(0, 255, (120, 160, 3), dtype=np.uint8), (7, 7), 2)
+    ok, jpg = cv2.imencode(".jpg", img)
+    p = tmp_path / "cut.jpg"
+    p.write_bytes(jpg.tobytes()[: jpg.size // 2])
+    want = cv2.cvtColor(cv2.imread(str(p), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    np.testing.assert_array_equal(read_image(p), want)
+    assert np.all(want[-1] == 128)  # the missing part: grey
