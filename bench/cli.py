@@ -1,11 +1,11 @@
-"""CLI commands of bench/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of bench/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report] [--executor local|ray] [--real RUN_DIR]
     fenestra bench --profile real [--data DIR --format coco|yolo|labelmap|curtainwall] [--sim RUN_DIR]
     fenestra gate RUN_DIR [--gates FILE] [--profile NAME]
     fenestra check-data DIR --format coco|yolo|labelmap|curtainwall [--option KEY=JSON ...]
 
-bench/ never imports reports/: fenestra/cli.py passes the report writer (reports.cli.write_report)
+bench/ never imports reports/: app/cli.py passes the report writer (reports.cli.write_report)
 to :func:`register`, and ``fenestra bench`` calls it on the finished run folder.
 """
 from __future__ import annotations

@@ -39,7 +39,8 @@ from bench import matching, metrics, uncertainty
 from bench.profiles import EvalSpec
 from bench.views import LabelledView, LabelledWindow
 from fenestra import data
-from fenestra.conventions import TOL, camera_depths
+from fenestra.conventions import camera_depths
+from fenestra.tolerances import TOL
 from fenestra.methods import Method
 
 AP_SCORE_MIN = 0.05  # detections kept for COCO AP

@@ -45,6 +45,7 @@ from bench.evaluate import EvalOptions, ViewOutcome, ViewTask, evaluate_task
 from bench.profiles import Profile
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
+from fenestra.files import write_bytes
 
 THREADS_PER_WORKER = 1
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -236,12 +237,6 @@ def _jsonable(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
-
-
 def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome], render_s: float) -> Path:
     """Write a shard: its rows as Parquet beside the JSON index (sha256 of the Parquet bytes, row
     counts, each view's stage seconds and COCO lists); the index last, so it names a complete file."""
@@ -255,13 +250,13 @@ def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome
     buf = io.BytesIO()
     pd.DataFrame(rows).to_parquet(buf, index=False)
     data = buf.getvalue()
-    _atomic_write(index_path.with_suffix(".parquet"), data)
+    write_bytes(index_path.with_suffix(".parquet"), data)
     index = {"format": SHARD_FORMAT, "dataset": dataset, "render_s": render_s,
              "rows_sha256": hashlib.sha256(data).hexdigest(), "n_rows": len(rows),
              "views": [{"n_rows": len(o.rows), "stage_s": o.stage_s, "coco_gt": o.coco_gt, "coco_dt": o.coco_dt,
                         "n_false_positives": o.n_false_positives, "dataset": o.dataset, "view": o.view,
                         "size": list(o.size), "window_ids": list(o.window_ids)} for o in outcomes]}
-    _atomic_write(index_path, json.dumps(index, default=_jsonable).encode())
+    write_bytes(index_path, json.dumps(index, default=_jsonable).encode())
     return index_path
 
 

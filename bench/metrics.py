@@ -13,7 +13,9 @@ from __future__ import annotations
 import numpy as np
 from shapely.geometry import Polygon
 
-from fenestra.conventions import TOL, check_quad, rotation_error_deg
+from fenestra.checks import check_quad, check_rotation
+from fenestra.conventions import rotation_error_deg
+from fenestra.tolerances import TOL
 
 __all__ = [
     "corner_errors_px", "mean_corner_error_px", "aspect_error_rel", "gt_window_pose",
@@ -21,18 +23,6 @@ __all__ = [
     "recall_at", "error_stats", "box_iou_matrix", "reprojection_consistency_px", "plane_distance",
     "relative_size_errors",
 ]
-
-
-def _rotation(R: np.ndarray, name: str) -> np.ndarray:
-    """Validate a rotation matrix: (3, 3), finite, orthonormal with det +1 (to 1e-6)."""
-    R = np.asarray(R, dtype=np.float64)
-    if R.shape != (3, 3):
-        raise ValueError(f"{name} must have shape (3, 3), got {R.shape}")
-    if not np.all(np.isfinite(R)):
-        raise ValueError(f"{name} has non-finite entries: {R.tolist()}")
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise ValueError(f"{name} is not a rotation matrix (R R^T != I or det < 0): {R.tolist()}")
-    return R
 
 
 def corner_errors_px(quad_est: np.ndarray, quad_gt: np.ndarray) -> np.ndarray:
@@ -64,7 +54,7 @@ def gt_window_pose(R: np.ndarray, t: np.ndarray, corners_world: np.ndarray
     Window frame: x along TL->TR, y along BL->TL, z = x cross y (outward), origin at BL.
     Returns (R_wc (3, 3), t_wc (3,) m) with X_cam = R_wc @ X_window + t_wc.
     """
-    R = _rotation(R, "R")
+    R = check_rotation(R, "R")
     t = np.asarray(t, dtype=np.float64).reshape(3)
     C = np.asarray(corners_world, dtype=np.float64)
     if C.shape != (4, 3):
@@ -83,8 +73,8 @@ def gt_window_pose(R: np.ndarray, t: np.ndarray, corners_world: np.ndarray
 
 def normal_error_deg(R_est: np.ndarray, R_gt: np.ndarray) -> float:
     """Angle (deg) between the window normals (third columns, window z in camera) of two poses."""
-    n1 = _rotation(R_est, "R_est")[:, 2]
-    n2 = _rotation(R_gt, "R_gt")[:, 2]
+    n1 = check_rotation(R_est, "R_est")[:, 2]
+    n2 = check_rotation(R_gt, "R_gt")[:, 2]
     return float(np.degrees(np.arccos(np.clip(n1 @ n2, -1.0, 1.0))))
 
 

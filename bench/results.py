@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from bench.metrics import error_stats, recall_at
-from fenestra.conventions import TOL
+from fenestra.tolerances import TOL
 
 RESULTS_PARQUET = "results.parquet"
 RESULTS_CSV = "results.csv"

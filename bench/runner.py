@@ -16,7 +16,7 @@ results.parquet/.csv, manifest.json, summary.json (metadata, per-method results,
 detection AP), ``simreal.json`` for a real profile given a synthetic run folder
 (bench.real.simreal) and, when a report writer is passed, the report; renders go to
 ``out/renders`` (renders.dataset names and reuses them by config hash). bench/ never imports
-reports/ (reports read bench's tables): the CLI (fenestra/cli.py) passes the report writer in.
+reports/ (reports read bench's tables): the CLI (app/cli.py) passes the report writer in.
 """
 from __future__ import annotations
 

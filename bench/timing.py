@@ -25,12 +25,17 @@ import tempfile
 import time
 from pathlib import Path
 
+ROOT = Path(__file__).resolve().parent.parent  # the checkout whose `app` (command line) runs
+
 
 def _fenestra(args: list[str], cwd: Path) -> float:
-    """Run ``python -m fenestra ARGS`` in cwd; its wall seconds (raises on failure)."""
+    """Run ``python -m app ARGS`` (the ``fenestra`` command of this checkout) in cwd; its wall
+    seconds (raises on failure)."""
     t0 = time.perf_counter()
-    env = {**os.environ, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"), "MPLBACKEND": "Agg"}
-    r = subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=cwd, env=env, capture_output=True, text=True)
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "PYTHONPATH": path, "MPLBACKEND": "Agg",
+           "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
+    r = subprocess.run([sys.executable, "-m", "app", *args], cwd=cwd, env=env, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"fenestra {' '.join(args)} failed ({r.returncode}): {r.stderr[-2000:]}")
     return time.perf_counter() - t0

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fenestra.conventions import check_K, check_quad
+from fenestra.checks import check_K, check_quad
 from fenestra.data import SparseMask
 
 NAN = float("nan")

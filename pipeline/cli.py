@@ -1,4 +1,4 @@
-"""CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of pipeline/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra reconstruct PHOTO [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
         [--detector NAME] [--snapper NAME] [--pose NAME] [--height M] [--width M]
@@ -44,13 +44,13 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     Everything is written to a temporary folder that replaces ``out`` when complete
     (pipeline.outdir.staged_dir; ``force``: replace a non-empty folder that is not an output).
     """
+    from fenestra.images import read_image, read_instances  # noqa: PLC0415
     from pipeline.io import (Camera, K_from_values, fit_camera_to_photo, intrinsics_warnings,  # noqa: PLC0415
-                             photo_orientation, photo_warnings, read_camera, read_instance_map, read_photo,
-                             undistort_photo)
+                             photo_orientation, photo_warnings, read_camera, undistort_photo)
 
     inputs = (photo, K_json, masks)  # never inside --out: replacing it would delete them
     check_out(out, force, inputs)  # before the (slow) pipeline runs
-    image = read_photo(photo)
+    image = read_image(photo, "photo")
     size = (image.shape[1], image.shape[0])
     if K_json is not None and fx is not None:
         raise PipelineError("give either --K or --fx, not both")
@@ -67,7 +67,7 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width,
                             quad=QuadParams(source=quad_source))
     if masks is not None:
-        detections = detections_from_instance_map(read_instance_map(masks, size))
+        detections = detections_from_instance_map(read_instances(masks, size))
     else:
         from pipeline.detectors import detect  # noqa: PLC0415
 
@@ -122,13 +122,13 @@ def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tupl
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
     """The `calibrate` command as a function: returns the K.json dict it wrote."""
     from pipeline.intrinsics import calibrate_chessboard, calibration_json  # noqa: PLC0415
-    from pipeline.io import read_photo  # noqa: PLC0415
+    from fenestra.images import read_image  # noqa: PLC0415
 
     try:
         cols, rows = (int(v) for v in pattern.lower().split("x"))
     except ValueError as e:
         raise PipelineError(f"--pattern must be COLSxROWS inner corners (e.g. 9x6), got {pattern!r}") from e
-    cal = calibrate_chessboard([read_photo(p) for p in photos], (cols, rows), square)
+    cal = calibrate_chessboard([read_image(p, "photo") for p in photos], (cols, rows), square)
     doc = calibration_json(cal)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(doc, indent=2))

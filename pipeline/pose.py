@@ -17,7 +17,8 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from fenestra.conventions import PAPER, check_K
+from fenestra.checks import check_K
+from fenestra.conventions import PAPER
 from fenestra.errors import PipelineError
 from fenestra.registry import Registry
 

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from fenestra.conventions import DEFAULTS, check_K
+from fenestra.checks import check_image, check_K
+from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from fenestra.registry import Registry
 from pipeline.aspect import aspect_ratio
@@ -29,7 +30,7 @@ from pipeline.pose import POSE_SOLVERS, PoseSolver, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from pipeline.segments import SegmentCache
 from pipeline.snappers import SNAPPERS
-from pipeline.types import Detection, WindowResult, check_image
+from pipeline.types import Detection, WindowResult
 from pipeline.walls import WALL_STRATEGIES, WallParams, apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
@@ -125,7 +126,7 @@ class ReconstructConfig:
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
-    """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (pipeline.types.check_image), or an
+    """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (fenestra.checks.check_image), or an
     (H, W) gray one, returned as float32 (not copied when it is already). Gray = 0.299 R + 0.587 G + 0.114 B
     (OpenCV, rounded to uint8)."""
     img = np.asarray(image)
@@ -301,7 +302,7 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
 def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                 cfg: ReconstructConfig = ReconstructConfig(),
                 segment_cache: SegmentCache | None = None) -> list[WindowResult]:
-    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as pipeline.io.read_photo gives).
+    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as fenestra.images.read_image gives).
 
     K: (3, 3) intrinsics, or None for an unknown focal length (square pixels, principal point at
     the image centre; f estimated per window by Zhang & He). Returns one WindowResult per

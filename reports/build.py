@@ -14,7 +14,7 @@ table. The photo column comes from ``real_dir`` (a real-photo run) for a synthet
 the synthetic run named in simreal.json for a real run.
 
 reports/ reads what bench/ writes (bench.results, bench.manifest, bench.paired, bench.real.simreal)
-and bench/ never imports reports/; the CLI composes the two (fenestra/cli.py).
+and bench/ never imports reports/; the CLI composes the two (app/cli.py).
 """
 from __future__ import annotations
 

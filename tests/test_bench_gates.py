@@ -84,12 +84,12 @@ def test_gate_cli_exit_codes(run_dir, tmp_path):
     p = tmp_path / "g.toml"
     p.write_text('[[gate]]\nprofile = "synthetic"\nmethod = "oracle/*/*"\n'
                  'metric = "corner_err_px_snap.median"\nmax = 2.0\n')
-    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
+    r = subprocess.run([sys.executable, "-m", "app", "gate", str(run_dir), "--gates", str(p)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1
     assert "oracle/bad/lm: corner_err_px_snap.median =" in r.stderr and "<= 2" in r.stderr
     p.write_text(p.read_text().replace("max = 2.0", "max = 50.0"))
-    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
+    r = subprocess.run([sys.executable, "-m", "app", "gate", str(run_dir), "--gates", str(p)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
 
@@ -181,10 +181,10 @@ def test_suggested_gates_pass_their_own_run_and_catch_a_worse_one(run_dir, tmp_p
 @pytest.mark.slow
 def test_cli_bench_smoke_then_gate(tmp_path):
     out = tmp_path / "smoke"
-    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--out", str(out)],
+    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "smoke", "--out", str(out)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "wall time" in r.stdout and "report:" in r.stdout
-    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(out)],
+    r = subprocess.run([sys.executable, "-m", "app", "gate", str(out)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr

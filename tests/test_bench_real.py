@@ -296,7 +296,7 @@ def test_simreal_ranking_hand_computed():
 def test_cli_bench_on_a_user_coco_folder(tmp_path):
     folder, *_ = _rectangle_view(tmp_path / "mydata")
     env = {**os.environ, "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg"}
-    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "real", "--data", str(folder),
+    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "real", "--data", str(folder),
                         "--format", "coco", "--out", str(tmp_path / "run")], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
@@ -304,7 +304,7 @@ def test_cli_bench_on_a_user_coco_folder(tmp_path):
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["metadata"]["profile"] == "real-mydata"
     assert s["results"]["oracle/none/lm"]["aspect_err_rel"]["median"] < 0.01
-    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--data", str(folder)],
+    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "smoke", "--data", str(folder)],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "need a real profile" in r.stderr
 

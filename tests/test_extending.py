@@ -91,7 +91,7 @@ def test_worked_example_is_offered_where_the_page_says():
 
     from bench.profiles import load_profile
     from bench.runner import plan_methods
-    from fenestra.cli import app
+    from app.cli import app
     from pipeline.snappers import SNAPPERS
 
     assert SNAPPERS["lsd"].name == "lsd"

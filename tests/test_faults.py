@@ -1,4 +1,4 @@
-"""Fault injection, as a user meets faults: every case runs ``python -m fenestra ...`` in a
+"""Fault injection, as a user meets faults: every case runs ``python -m app ...`` (the ``fenestra`` command) in a
 subprocess (README: "What Fenestra guarantees").
 
 Disk full is a real failing write: the child runs under RLIMIT_FSIZE (a file-size limit the
@@ -61,7 +61,7 @@ def fenestra(*args, cwd: Path, limit_bytes: int | None = None, timeout: float = 
     def limit():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env(),
+    return subprocess.run([sys.executable, "-m", "app", *map(str, args)], cwd=cwd, env=env(),
                           capture_output=True, text=True, timeout=timeout,
                           preexec_fn=limit if limit_bytes is not None else None)
 
@@ -206,7 +206,7 @@ def test_poisoned_cache_is_rerendered_with_a_message(tmp_path):
 
 def test_sigterm_mid_render_then_resume(tmp_path):
     args = [*RENDER_ARGS[:2], "40", *RENDER_ARGS[3:]]
-    p = subprocess.Popen([sys.executable, "-m", "fenestra", *args], cwd=tmp_path, env=env(),
+    p = subprocess.Popen([sys.executable, "-m", "app", *args], cwd=tmp_path, env=env(),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
     while not list(tmp_path.glob("out/renders/*/views/000001/view.json")) and time.time() < deadline:
@@ -319,7 +319,7 @@ MEASURE = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); 
 
 def run_measured(args: list, cwd: Path) -> tuple[int, str, float]:
     """(exit code, stderr, peak RSS in GB) of one CLI run."""
-    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
+    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "app", *map(str, args)],
                        cwd=cwd, env=env(), capture_output=True, text=True, timeout=300)
     kb = int(r.stderr.rsplit("MAXRSS_KB ", 1)[1])
     return r.returncode, r.stderr, kb / 2**20

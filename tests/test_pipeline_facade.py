@@ -11,7 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from fenestra.conventions import TOL, look_at, make_K, project, rotation_error_deg
+from fenestra.conventions import look_at, make_K, project, rotation_error_deg
+from fenestra.tolerances import TOL
 from pipeline.segments import SegmentCache, detect_segments
 from pipeline.walls import WALL_FIT
 from pipeline.walls import fit as wallfit

@@ -260,7 +260,7 @@ def test_a_plugin_package_is_benchmarked(tmp_path):
         """))
     env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "OMP_NUM_THREADS": "1",
            "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg", "HOME": str(tmp_path)}
-    r = subprocess.run([py, "-m", "fenestra", "bench", "--profile", str(profile), "--out", str(tmp_path / "run"),
+    r = subprocess.run([py, "-m", "app", "bench", "--profile", str(profile), "--out", str(tmp_path / "run"),
                         "--workers", "1", "--no-report"], cwd=tmp_path, env=env, capture_output=True, text=True,
                        timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]

@@ -9,7 +9,7 @@ import pytest
 from pipeline.detectors import detect
 from pipeline.detectors.winnet import core_targets
 from toy_data import write_toy_dataset
-from fenestra.data import read_image
+from fenestra.images import read_image
 from training.train import load_config, train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -98,7 +98,7 @@ def test_detectors_package_imports_torch_lazily():
     import subprocess
     import sys
 
-    code = "import sys, pipeline.detectors, fenestra.cli; print('torch' in sys.modules)"
+    code = "import sys, pipeline.detectors, app.cli; print('torch' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
 
@@ -258,7 +258,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     import torch
     from typer.testing import CliRunner
 
-    from fenestra.cli import app
+    from app.cli import app
     from fenestra.errors import FenestraError
 
     src = _untrained_weights(tmp_path / "w.pt", "winnet")
@@ -267,7 +267,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     assert r.exit_code == 0, r.output
     assert dest.read_bytes() == src.read_bytes()
     assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'winnet'" in r.output
-    assert not list(dest.parent.glob("*.tmp"))
+    assert [p.name for p in dest.parent.iterdir()] == ["default.pt"]  # no temporary file left
     (tmp_path / "junk.pt").write_bytes(b"not a model")
     torch.save({"arch": "yolo", "state_dict": {}}, tmp_path / "yolo.pt")
     for bad, message in (("junk.pt", "is not a model checkpoint"), ("yolo.pt", "holds a 'yolo' model"),

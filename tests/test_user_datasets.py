@@ -27,7 +27,7 @@ def panes():
 def cli(*args, cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg",
            "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "app", *map(str, args)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=600)
 
 

@@ -8,13 +8,13 @@ detector loads it, after checking that the detector builds from it and runs on a
 from __future__ import annotations
 
 import hashlib
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from fenestra.errors import FenestraError
+from fenestra.files import write_bytes
 from pipeline.detectors import DETECTORS, read_weights
 
 CHECK_IMAGE_HW = (64, 96)  # the blank image the shipped detector must run on
@@ -49,7 +49,5 @@ def ship_weights(src: str | Path, dest: str | Path | None = None) -> Shipped:
         raise FenestraError(f"detector {detector!r} with {src} returned {type(dets).__name__}, not a list")
     data = src.read_bytes()
     dest.parent.mkdir(parents=True, exist_ok=True)
-    tmp = dest.with_name(dest.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, dest)
+    write_bytes(dest, data)
     return Shipped(dest, detector, hashlib.sha256(data).hexdigest(), ckpt.get("meta", {}))

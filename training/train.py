@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from fenestra.config import from_table, read_toml
-from fenestra.data import read_image, read_instances
+from fenestra.images import read_image, read_instances
 from training.augment import AugmentConfig
 from training.recipes import recipe
 from training.dataset import find_datasets, list_views, read_box_photo, real_box_photos, view_corners

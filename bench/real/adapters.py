@@ -33,7 +33,8 @@ from scipy import ndimage
 from bench.views import LabelledView, LabelledWindow
 from fenestra.conventions import LIMITS
 from fenestra.registry import Registry
-from fenestra.data import DatasetError, SparseMask, box_from_coco, read_image, rle_to_mask, segmentation_to_rle
+from fenestra.data import DatasetError, SparseMask, box_from_coco, rle_to_mask, segmentation_to_rle
+from fenestra.images import decode_file, read_image
 from fenestra.userfiles import inside, is_regular, read_json, regular_file
 from pipeline.io import Camera, check_distortion, photo_orientation, read_camera, undistort_photo
 from pipeline.quad import order_corners
@@ -356,7 +357,7 @@ def _camera_of(img: dict, where: str) -> Camera | None:
     if img.get("K") is None:
         return None
     try:
-        from fenestra.conventions import check_K  # noqa: PLC0415
+        from fenestra.checks import check_K  # noqa: PLC0415
 
         return Camera(K=check_K(np.asarray(img["K"], dtype=np.float64)),
                       distortion=check_distortion(img.get("distortion")))
@@ -545,9 +546,7 @@ def window_pixels(label: np.ndarray, value, where: str) -> np.ndarray:
 
 
 def _read_label(p: Path) -> np.ndarray:
-    m = cv2.imread(str(regular_file(p, "label map")), cv2.IMREAD_UNCHANGED)
-    if m is None:
-        raise DatasetError(f"cannot read label map {p} (not a decodable image)")
+    m = decode_file(regular_file(p, "label map"), cv2.IMREAD_UNCHANGED, "label map")
     return m if m.ndim == 2 else cv2.cvtColor(m[..., :3], cv2.COLOR_BGR2RGB)
 
 
@@ -610,7 +609,7 @@ def read_curtainwall(path: Path, min_area_frac: float = CURTAIN_MIN_AREA_FRAC,
         photo = read_image(p)
         h, w = photo.shape[:2]
         mpath = folder / "masks" / (p.stem.replace("img", "mask") + ".png")
-        rgba = cv2.imread(str(mpath), cv2.IMREAD_UNCHANGED) if is_regular(mpath) else None
+        rgba = decode_file(mpath, cv2.IMREAD_UNCHANGED, "curtain-wall mask") if is_regular(mpath) else None
         if rgba is None:
             raise FileNotFoundError(f"curtain-wall mask not found: {mpath}")
         if rgba.shape[:2] != (h, w):

@@ -29,12 +29,13 @@ from typing import Callable
 import cv2
 import numpy as np
 
+from fenestra.checks import check_image, check_instances
 from fenestra.conventions import LIMITS
 from fenestra.errors import FenestraError
 from fenestra.registry import Registry
 from pipeline.detectors.checkpoint import check_device, read_checkpoint
-from pipeline.detectors.oracle import DegradeConfig, check_instances, degraded_detections, oracle_detections
-from pipeline.types import Detection, check_image
+from pipeline.detectors.oracle import DegradeConfig, degraded_detections, oracle_detections
+from pipeline.types import Detection
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_WEIGHTS = MODELS_DIR / "default.pt"  # DETECTORS["default"].model.weights
@@ -284,5 +285,5 @@ def box_to_full(box: np.ndarray, scale: float) -> np.ndarray:
     return points_to_full(box, scale)
 
 
-__all__ = ["DETECTORS", "Checkpointed", "DetectorEntry", "trainable", "DegradeConfig", "Detection", "detect", "detector_entry", "get_detector",
-           "check_image"]
+__all__ = ["DETECTORS", "Checkpointed", "DetectorEntry", "trainable", "DegradeConfig", "Detection", "detect",
+           "detector_entry", "get_detector"]

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import chi2, norm
 
-from fenestra.conventions import check_K, check_quad
+from fenestra.checks import check_K, check_quad
 from pipeline.walls.settings import WALL_FIT
 from pipeline.walls.vanishing import FacadeError, homog
 

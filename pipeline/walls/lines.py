@@ -21,7 +21,7 @@ from itertools import combinations
 import cv2
 import numpy as np
 
-from fenestra.conventions import check_K
+from fenestra.checks import check_K
 from pipeline.segments import SegmentCache
 from pipeline.walls.fit import WallFit, left_jacobian
 from pipeline.walls.settings import WALL_FIT, WallParams

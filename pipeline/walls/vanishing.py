@@ -26,7 +26,8 @@ from itertools import combinations
 
 import numpy as np
 
-from fenestra.conventions import check_K, rotation_error_deg
+from fenestra.checks import check_K
+from fenestra.conventions import rotation_error_deg
 from fenestra.errors import PipelineError
 from pipeline.walls.settings import WALL_FIT
 
