@@ -26,6 +26,7 @@ import time
 import numpy as np
 
 from fenestra.conventions import PAPER
+from fenestra.methods import read_methods
 from renders.base import DENOISERS, RenderSettings
 
 OLD = RenderSettings(spp=16, denoise="none")  # the photoreal profile before issue 17 (RenderSettings defaults then)
@@ -162,9 +163,10 @@ def bench(workers: int, reuse: bool = False) -> str:
              "", "| detector | segm AP old → new | snapper | detected old → new "
              "| median corner error px old → new | paired: new lower on | Wilcoxon p |", "|---|---|---|---|---|---|---|"]
     pairs = paired_snap_errors(dirs["old"], dirs["new"])
-    for m in sorted(s["new"]["results"]):
-        det, snap, pose = m.split("/") if m.count("/") == 2 else (m, "", "")
-        if pose and pose != PAPER.pose:
+    methods = read_methods(s["new"]["results"])
+    for m in sorted(methods):
+        det, snap = methods[m].detector, methods[m].snapper
+        if methods[m].pose_label != PAPER.pose:
             continue
         ro, rn = s["old"]["results"][m], s["new"]["results"][m]
         ap = lambda k: 100 * s[k]["detection"][det]["segm_AP"] if det in s[k]["detection"] else None  # noqa: E731

@@ -1,10 +1,11 @@
-"""CLI commands of bench/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of bench/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra bench --profile smoke [--out DIR] [--workers N] [--no-report] [--executor local|ray] [--real RUN_DIR]
     fenestra bench --profile real [--data DIR --format coco|yolo|labelmap|curtainwall] [--sim RUN_DIR]
     fenestra gate RUN_DIR [--gates FILE] [--profile NAME]
+    fenestra check-data DIR --format coco|yolo|labelmap|curtainwall [--option KEY=JSON ...]
 
-bench/ never imports reports/: fenestra/cli.py passes the report writer (reports.cli.write_report)
+bench/ never imports reports/: app/cli.py passes the report writer (reports.cli.write_report)
 to :func:`register`, and ``fenestra bench`` calls it on the finished run folder.
 """
 from __future__ import annotations
@@ -78,13 +79,15 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         get_executor(executor)  # an unknown name fails before anything is rendered
         opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
         if is_real_profile(profile):
-            from bench.real.runner import run_real_profile  # noqa: PLC0415
+            from bench.real.profile import load_real_profile, with_user_data  # noqa: PLC0415
 
             if real is not None:
                 raise ValueError(f"--real needs a synthetic profile (a real run's report takes its --sim run), "
                                  f"got profile {profile!r}")
-            info = run_real_profile(profile, out, data, fmt, sim, report=None if no_report else write_report,
-                                    force=force)
+            p = load_real_profile(profile)
+            if data is not None:
+                p = with_user_data(p, data, fmt)
+            info = run_benchmark(p, out_dir=out, report=None if no_report else write_report, force=force, sim_dir=sim)
         elif data is not None or sim is not None:
             raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
         else:
@@ -134,7 +137,47 @@ def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.par
     typer.echo("all gates passed")
 
 
+def _options(items: list[str]) -> dict:
+    """``--option KEY=JSON`` values as adapter keyword options (a value that is not JSON: a string)."""
+    import json  # noqa: PLC0415
+
+    out = {}
+    for it in items:
+        key, sep, val = it.partition("=")
+        if not sep or not key.isidentifier():
+            raise ValueError(f"--option {it!r}: expected KEY=VALUE, e.g. classes=[0,4]")
+        try:
+            out[key] = json.loads(val)
+        except json.JSONDecodeError:
+            out[key] = val
+    return out
+
+
+def check_data(folder: Path = typer.Argument(..., help="a labelled photo folder"),
+               fmt: str = typer.Option("coco", "--format", help=f"{choices(ADAPTERS)}"),
+               option: list[str] = typer.Option([], "--option",
+                                                help="adapter option KEY=JSON, e.g. classes=[0,4] (repeatable)")) -> None:
+    """Read a dataset as `fenestra bench --data` would: print each photo's windows, what was
+    refused and why; exit 2 with the first problem when the dataset cannot be used."""
+    from bench.real.adapters import check_dataset  # noqa: PLC0415
+    from fenestra.data import DatasetError  # noqa: PLC0415
+
+    c = check_dataset(folder, fmt, **_options(option))
+    typer.echo(f"{c.format} dataset {c.folder}: {len(c.views)} photo(s), {c.n_windows} window(s), "
+               f"{len(c.refused)} refused, {len(c.problems)} problem(s)")
+    for line in c.views:
+        typer.echo(f"  found: {line}")
+    for line in c.refused:
+        typer.echo(f"  refused: {line}")
+    for line in c.problems:
+        typer.echo(f"  problem: {line}")
+    if c.problems:
+        more = f" (and {len(c.problems) - 1} more, listed above)" if len(c.problems) > 1 else ""
+        raise DatasetError(c.problems[0] + more)
+
+
 def register(app: typer.Typer, write_report: WriteReport) -> None:
     """Add this stage's commands to the top-level app; ``fenestra bench`` reports with write_report."""
     app.command("bench")(bench_command(write_report))
     app.command("gate")(gate)
+    app.command("check-data")(check_data)

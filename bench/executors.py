@@ -1,10 +1,13 @@
 """Executors: how the bench spreads its views over processes (``local``) or machines (``ray``).
 
-    outcomes, stage_s = EXECUTORS["local"](plan, workers=2, progress=True)
+    outcomes, stage_s, datasets = EXECUTORS["local"](plan, workers=2, progress=True)
 
 Both executors take the same :class:`Plan` (each house's dataset config, the methods, the
-evaluation settings) and return the ViewOutcomes in one canonical order (house order, then view
-index), so a results table never depends on the executor or on the number of workers.
+evaluation options) and return the ViewOutcomes in one canonical order (house order, then view
+index), so a results table never depends on the executor or on the number of workers. Every view
+is one bench.evaluate.ViewTask (a source that loads its LabelledView, the methods, the options),
+evaluated by bench.evaluate.evaluate_task; :func:`evaluate_local` also evaluates a photo run's
+views (read by bench.real.adapters).
 
 ``local``
     renders the houses in a process pool of ``workers`` processes (one house per task, cached
@@ -13,9 +16,12 @@ index), so a results table never depends on the executor or on the number of wor
     splits each house's views into shards of ``shard_views`` views. A Ray actor per worker (one
     CPU each) renders a shard's views into the same render cache (its own renderer, pyrender
     imported inside the worker), evaluates them and writes the shard's outcomes to
-    ``<run>/shards/<key>.pkl`` (atomically); the driver merges the shards in canonical order.
-    A shard file written by an interrupted run with the same code, config and methods is
-    reused, as cached views are. Connects to a running cluster (``address``, e.g. "auto" or
+    ``<run>/shards/<key>.parquet`` (the rows) and ``<run>/shards/<key>.json`` (its index: the
+    parquet file's sha256 and row count, each view's row count, stage seconds, COCO gt/dt lists
+    and false-positive counts), each atomically; the driver merges the shards in canonical
+    order. Nothing is unpickled from disk. A shard written by an interrupted run with the same
+    code, config and methods is reused, as cached views are; one whose digest or row counts do
+    not match its index is recomputed with a warning, never trusted and never silently short. Connects to a running cluster (``address``, e.g. "auto" or
     "127.0.0.1:6379") or starts a local one with ``workers`` CPUs.
 
 Every worker runs with ``THREADS_PER_WORKER`` BLAS/OpenMP/OpenCV/torch threads, set before numpy
@@ -25,18 +31,21 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import multiprocessing as mp
 import os
-import pickle
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterable, Iterator
 
-from bench.evaluate import Method, ViewOutcome, ViewTask, evaluate_view
+from bench.evaluate import EvalOptions, ViewOutcome, ViewTask, evaluate_task
 from bench.profiles import Profile
 from fenestra.errors import FenestraError
+from fenestra.methods import Method
+from fenestra.files import write_bytes
 
 THREADS_PER_WORKER = 1
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -53,12 +62,12 @@ class HousePlan:
 
 @dataclass(frozen=True)
 class Plan:
-    """Everything an executor needs (picklable): houses, methods, profile settings, run folder."""
+    """Everything an executor needs (picklable): houses, methods, evaluation options, run folder."""
 
     houses: tuple[HousePlan, ...]
     profile: Profile
     methods: tuple[Method, ...]
-    detector_options: tuple
+    options: EvalOptions
     run_dir: str
 
 
@@ -92,12 +101,12 @@ def init_worker(threads: int = THREADS_PER_WORKER) -> None:
 
 def view_tasks(plan: Plan, house: str, dataset_dir: Path, indices: range | None = None) -> list[ViewTask]:
     """ViewTasks of one rendered house (all its views, or the given view indices), in index order."""
+    from bench.render_adapter import RenderedViewRef  # noqa: PLC0415
+
     views = sorted(p for p in (Path(dataset_dir) / "views").iterdir() if (p / "view.json").is_file())
     if indices is not None:
         views = [p for p in views if int(p.name) in indices]
-    return [ViewTask(view_dir=str(v), house=house, renderer=plan.profile.render.renderer,
-                     methods=plan.methods, evaluation=plan.profile.evaluation,
-                     height_m=plan.profile.methods.height_m, detector_options=plan.detector_options)
+    return [ViewTask(RenderedViewRef(str(v), house, plan.profile.render.renderer), plan.methods, plan.options)
             for v in views]
 
 
@@ -111,20 +120,24 @@ def _progress(enabled: bool):
 
 # ---------------------------------------------------------------- local
 
-def evaluate_local(tasks: list[ViewTask], workers: int, progress: bool = True) -> list[ViewOutcome]:
-    """evaluate_view over all tasks, in order; a spawned process pool when workers > 1."""
+def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = True,
+                   total: int | None = None) -> list[ViewOutcome]:
+    """evaluate_task over all tasks, in order; a spawned process pool when workers > 1. tasks may
+    be a generator (with workers <= 1 each view is loaded only when its turn comes); total: their
+    number for the progress bar, when known."""
     outcomes: list[ViewOutcome] = []
     with _progress(progress) as bar:
-        job = bar.add_task("evaluating views", total=len(tasks))
+        job = bar.add_task("evaluating views", total=len(tasks) if total is None and hasattr(tasks, "__len__")
+                           else total)
         if workers <= 1:
             init_worker()
             for t in tasks:
-                outcomes.append(evaluate_view(t))
+                outcomes.append(evaluate_task(t))
                 bar.advance(job)
             return outcomes
         ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
         with _environ(thread_env()), ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker) as pool:
-            for o in pool.map(evaluate_view, tasks, chunksize=1):
+            for o in pool.map(evaluate_task, tasks, chunksize=1):
                 outcomes.append(o)
                 bar.advance(job)
     return outcomes
@@ -204,35 +217,102 @@ def plan_shards(plan: Plan, shard_views: int) -> list[Shard]:
         n = h.dataset.n_views
         for start in range(0, n, shard_views):
             views = range(start, min(n, start + shard_views))
-            key = hashlib.sha256(repr((version, h.dataset, plan.profile.evaluation, plan.profile.methods.height_m,
-                                       plan.methods, plan.detector_options, views.start, views.stop))
+            key = hashlib.sha256(repr((version, h.dataset, plan.options, plan.methods, views.start, views.stop))
                                  .encode()).hexdigest()[:16]
-            shards.append(Shard(i, h, views, str(Path(plan.run_dir) / "shards" / f"{key}.pkl")))
+            shards.append(Shard(i, h, views, str(Path(plan.run_dir) / "shards" / f"{key}.json")))
     return shards
 
 
+SHARD_FORMAT = 1  # version of the shard files (index JSON + rows Parquet)
+
+
+def _jsonable(x):
+    """numpy scalars and arrays as JSON values (json.dumps default)."""
+    import numpy as np  # noqa: PLC0415
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome], render_s: float) -> Path:
+    """Write a shard: its rows as Parquet beside the JSON index (sha256 of the Parquet bytes, row
+    counts, each view's stage seconds and COCO lists); the index last, so it names a complete file."""
+    import io  # noqa: PLC0415
+
+    import pandas as pd  # noqa: PLC0415
+
+    index_path = Path(index_path)
+    index_path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [{**r, "_view": i} for i, o in enumerate(outcomes) for r in o.rows]
+    buf = io.BytesIO()
+    pd.DataFrame(rows).to_parquet(buf, index=False)
+    data = buf.getvalue()
+    write_bytes(index_path.with_suffix(".parquet"), data)
+    index = {"format": SHARD_FORMAT, "dataset": dataset, "render_s": render_s,
+             "rows_sha256": hashlib.sha256(data).hexdigest(), "n_rows": len(rows),
+             "views": [{"n_rows": len(o.rows), "stage_s": o.stage_s, "coco_gt": o.coco_gt, "coco_dt": o.coco_dt,
+                        "n_false_positives": o.n_false_positives, "dataset": o.dataset, "view": o.view,
+                        "size": list(o.size), "window_ids": list(o.window_ids)} for o in outcomes]}
+    write_bytes(index_path, json.dumps(index, default=_jsonable).encode())
+    return index_path
+
+
+def read_shard(index_path: str | Path) -> dict:
+    """{"dataset", "outcomes", "render_s"} of a shard written by :func:`write_shard`; ValueError
+    naming what does not match (index unreadable, Parquet digest, row counts) or OSError."""
+    import io  # noqa: PLC0415
+
+    import pandas as pd  # noqa: PLC0415
+
+    index_path = Path(index_path)
+    try:
+        index = json.loads(index_path.read_bytes())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ValueError(f"index is not valid JSON ({e})") from e
+    if not isinstance(index, dict) or index.get("format") != SHARD_FORMAT:
+        raise ValueError(f"index is not a format-{SHARD_FORMAT} shard index")
+    data = index_path.with_suffix(".parquet").read_bytes()
+    if hashlib.sha256(data).hexdigest() != index.get("rows_sha256"):
+        raise ValueError("rows file does not match the digest in its index")
+    df = pd.read_parquet(io.BytesIO(data)) if data else pd.DataFrame()
+    views = index.get("views")
+    if len(df) != index.get("n_rows") or not isinstance(views, list) or sum(v["n_rows"] for v in views) != len(df):
+        raise ValueError(f"{len(df)} rows, the index says {index.get('n_rows')}")
+    outcomes = []
+    for i, v in enumerate(views):
+        sub = df[df["_view"] == i].drop(columns="_view") if len(df) else df
+        if len(sub) != v["n_rows"]:
+            raise ValueError(f"view {i} has {len(sub)} rows, the index says {v['n_rows']}")
+        outcomes.append(ViewOutcome(sub.to_dict("records"), v["stage_s"], v["coco_gt"], v["coco_dt"],
+                                    v["n_false_positives"], v["dataset"], v["view"], tuple(v["size"]),
+                                    tuple(v["window_ids"])))
+    return {"dataset": index["dataset"], "outcomes": outcomes, "render_s": float(index["render_s"])}
+
+
 def run_shard(plan: Plan, shard: Shard) -> str:
-    """Render and evaluate one shard; write its (house, dataset dir, outcomes) pickle atomically."""
+    """Render and evaluate one shard; write its rows and index (:func:`write_shard`)."""
     from renders.dataset import render_dataset  # noqa: PLC0415  (pyrender: inside the worker)
 
     t0 = time.perf_counter()
     ds = Path(render_dataset(shard.house.dataset, progress=False, only=shard.views))
     render_s = time.perf_counter() - t0
-    outcomes = [evaluate_view(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
-    out = Path(shard.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(pickle.dumps({"dataset": str(ds), "outcomes": outcomes, "render_s": render_s}))
-    tmp.replace(out)
-    return str(out)
+    outcomes = [evaluate_task(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
+    return str(write_shard(shard.out, str(ds), outcomes, render_s))
 
 
-def _load_shard(path: str) -> dict | None:
-    """A shard file's content, or None if absent or unreadable (then it is recomputed)."""
+def _load_shard(path: str, warn: bool = True) -> dict | None:
+    """A shard's content, or None if absent or damaged (then it is recomputed; a damaged one
+    with a warning naming it)."""
+    if not Path(path).exists():
+        return None
     try:
-        with open(path, "rb") as f:
-            return pickle.load(f)
-    except (OSError, pickle.UnpicklingError, EOFError):
+        return read_shard(path)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        if warn:
+            print(f"warning: shard {path} is damaged ({e}); recomputing it", file=sys.stderr)
         return None
 
 
@@ -307,5 +387,5 @@ def get_executor(name: str) -> Callable:
     return EXECUTORS[name]
 
 
-__all__ = ["EXECUTORS", "HousePlan", "Plan", "Shard", "get_executor", "plan_shards", "run_shard",
-           "thread_env", "view_tasks"]
+__all__ = ["EXECUTORS", "HousePlan", "Plan", "Shard", "evaluate_local", "get_executor", "plan_shards",
+           "run_shard", "thread_env", "view_tasks"]

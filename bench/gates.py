@@ -2,12 +2,16 @@
 
     [[gate]]
     profile = "smoke"                       # applies to runs of this profile
-    method = "oracle/*/*"                   # fnmatch pattern over method names (detector/snapper/pose)
+    method = "oracle/*/*"                   # fnmatch pattern over method labels (detector/snapper/pose)
+    pose = { per_wall = false }             # optional: capabilities the pose strategy must have
     metric = "corner_err_px_snap.median"    # dotted path into summary.json results[method]
     max = 1.0                               # and/or min = ...
 
-Every method matching the pattern must satisfy the bound. A NaN/missing value, or a pattern that
-matches no method of the run, is a violation too: a gate never passes by finding nothing.
+Every method matching the pattern (and, where given, whose detector / snapper / pose strategy has
+the capabilities of the ``detector`` / ``snapper`` / ``pose`` table: fenestra.registry) must satisfy
+the bound; so a new per-window solver is gated by ``pose = { per_wall = false }`` with no edit here.
+A NaN/missing value, or a selection that matches no method of the run, is a violation too: a
+gate never passes by finding nothing.
 """
 from __future__ import annotations
 
@@ -15,11 +19,14 @@ import fnmatch
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from bench.manifest import load_verified_results
 from bench.results import load_summary, summarize
 from fenestra.config import read_toml
 from fenestra.errors import FenestraError
+from fenestra.methods import Method, read_methods
+from fenestra.registry import CAPABILITIES
 
 DEFAULT_GATES = Path(__file__).parent / "gates.toml"
 
@@ -37,6 +44,33 @@ class Gate:
     metric: str
     min: float | None = None
     max: float | None = None
+    detector: tuple[tuple[str, Any], ...] = ()  # required capabilities, as sorted (name, value) pairs
+    snapper: tuple[tuple[str, Any], ...] = ()
+    pose: tuple[tuple[str, Any], ...] = ()
+
+    def selects(self, label: str, method: Method) -> bool:
+        """Whether this gate bounds the method ``label`` (its pattern and capability tables)."""
+        return fnmatch.fnmatchcase(label, self.method) and all(
+            getattr(method, stage) in registry.where(**dict(required))
+            for stage, registry, required in zip(CAPABILITY_KEYS, stage_registries(), (self.detector, self.snapper, self.pose))
+            if required)
+
+    def describe(self) -> str:
+        """The selection in words, for a violation that found no method."""
+        caps = [f"{k} {dict(v)}" for k, v in zip(CAPABILITY_KEYS, (self.detector, self.snapper, self.pose)) if v]
+        return f"a method matching {self.method!r}" + (f" with {', '.join(caps)}" if caps else "")
+
+
+CAPABILITY_KEYS = ("detector", "snapper", "pose")
+
+
+def stage_registries() -> tuple:
+    """The registries whose capabilities a gate's ``detector``, ``snapper`` and ``pose`` tables test."""
+    from pipeline.detectors import DETECTORS  # noqa: PLC0415
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
+    from pipeline.snappers import SNAPPERS  # noqa: PLC0415
+
+    return DETECTORS, SNAPPERS, POSES
 
 
 @dataclass(frozen=True)
@@ -62,7 +96,7 @@ def load_gates(path: str | Path = DEFAULT_GATES) -> list[Gate]:
     if extra:
         raise GateError(f"{p}: unknown top-level key(s) {extra}; use [[gate]] tables")
     gates = []
-    allowed = {"profile", "method", "metric", "min", "max"}
+    allowed = {"profile", "method", "metric", "min", "max", *CAPABILITY_KEYS}
     for i, g in enumerate(data.get("gate", [])):
         bad = sorted(set(g) - allowed)
         if bad:
@@ -73,11 +107,20 @@ def load_gates(path: str | Path = DEFAULT_GATES) -> list[Gate]:
         for k in ("min", "max"):
             if k in g and (isinstance(g[k], bool) or not isinstance(g[k], (int, float))):
                 raise GateError(f"{p}: gate #{i + 1} key '{k}' must be a number, got {g[k]!r}")
+            if k in g and not math.isfinite(g[k]):  # inf / -inf / nan would pass (or fail) vacuously
+                raise GateError(f"{p}: gate #{i + 1} ({g['metric']}) has {k} = {g[k]!r}; a bound must be finite")
         if "min" not in g and "max" not in g:
             raise GateError(f"{p}: gate #{i + 1} ({g['metric']}) has neither 'min' nor 'max'")
+        caps = {}
+        for k in CAPABILITY_KEYS:
+            table = g.get(k, {})
+            if not isinstance(table, dict) or sorted(set(table) - set(CAPABILITIES)):
+                raise GateError(f"{p}: gate #{i + 1} key '{k}' must be a table of capabilities "
+                                f"{list(CAPABILITIES)}, got {table!r}")
+            caps[k] = tuple(sorted(table.items()))
         gates.append(Gate(g["profile"], g["method"], g["metric"],
                           float(g["min"]) if "min" in g else None,
-                          float(g["max"]) if "max" in g else None))
+                          float(g["max"]) if "max" in g else None, **caps))
     return gates
 
 
@@ -94,10 +137,11 @@ def metric_value(method_summary: dict, metric: str) -> float | None:
 def check_results(results: dict, profile: str, gates: list[Gate]) -> list[Violation]:
     """Violations of ``gates`` (those for ``profile``) by a summary's results {method: {...}}."""
     out = []
+    typed = read_methods(results)
     for g in (g for g in gates if g.profile == profile):
-        methods = [m for m in results if fnmatch.fnmatchcase(m, g.method)]
+        methods = [m for m in results if g.selects(m, typed[m])]
         if not methods:
-            out.append(Violation(profile, g.method, g.metric, None, f"a method matching {g.method!r}"))
+            out.append(Violation(profile, g.method, g.metric, None, g.describe()))
         for m in methods:
             v = metric_value(results[m], g.metric)
             finite = v is not None and math.isfinite(v)
@@ -153,10 +197,9 @@ def suggest_gates(results: dict, profile: str, margin: float = 0.5) -> str:
     """gates.toml text from a run's results: per detector ("det/*/*", worst snapper) and per
     detector x snapper ("det/snapper/*", worst pose), measured values and margin in comments."""
     groups: dict[str, list[str]] = {}
-    for m in results:
-        det, snapper, _ = m.split("/")
-        groups.setdefault(f"{det}/*/*", []).append(m)
-        groups.setdefault(f"{det}/{snapper}/*", []).append(m)
+    for m, method in read_methods(results).items():
+        groups.setdefault(f"{method.detector}/*/*", []).append(m)
+        groups.setdefault(f"{method.detector}/{method.snapper}/*", []).append(m)
     lines = [f"# Accuracy gates, suggested from measured {profile!r} numbers with margin {margin:.0%}:",
              "# error ceilings = worst measured * (1 + margin) + slack; rate ceilings = worst + slack;",
              "# floors = worst measured - slack (slacks: bench/gates.py GROUP_METRICS, METHOD_METRICS).",

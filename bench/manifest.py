@@ -21,7 +21,6 @@ beside new results.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 from collections import Counter
 from pathlib import Path
@@ -30,7 +29,7 @@ import pandas as pd
 
 from bench.results import RESULTS_CSV, RESULTS_PARQUET, load_results
 from fenestra.errors import FenestraError
-from fenestra.files import file_sha256
+from fenestra.files import file_sha256, write_json
 
 MANIFEST_JSON = "manifest.json"
 RUN_JSON = "run.json"
@@ -41,14 +40,6 @@ MAX_NAMED = 5  # how many missing/extra rows an error message names
 
 class RunIntegrityError(FenestraError):
     """A run folder whose results table does not match its manifest, or a foreign run folder."""
-
-
-def write_json_atomic(path: Path, doc: dict) -> Path:
-    """Write ``doc`` as JSON to a temporary name beside ``path``, then rename it over ``path``."""
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(doc, indent=1))
-    tmp.replace(path)
-    return path
 
 
 def expected_rows(views: list[tuple[str, Path]], methods: list[str]) -> list[tuple[str, str, str, str]]:
@@ -75,7 +66,7 @@ def write_manifest(run_dir: str | Path, rows: list[tuple], profile: str, profile
             if (run_dir / name).is_file()}
     doc = {"format": FORMAT, "profile": profile, "profile_hash": profile_hash, "n_rows": len(rows),
            "keys": list(KEY_COLUMNS), "rows": [list(r) for r in rows], "sha256": sums}
-    return write_json_atomic(run_dir / MANIFEST_JSON, doc)
+    return write_json(run_dir / MANIFEST_JSON, doc)
 
 
 def seal(run_dir: str | Path, df: pd.DataFrame, profile: str, profile_hash: str = "") -> Path:
@@ -158,7 +149,7 @@ def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: b
     for stale in (MANIFEST_JSON, "report.html", "report.md", "figures"):  # outputs of an earlier run
         p = run_dir / stale
         shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
-    write_json_atomic(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash})
+    write_json(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash})
     return run_dir
 
 

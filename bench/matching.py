@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from fenestra.conventions import TOL
+from fenestra.tolerances import TOL
 from fenestra.data import SparseMask
 
 

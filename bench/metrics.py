@@ -13,25 +13,16 @@ from __future__ import annotations
 import numpy as np
 from shapely.geometry import Polygon
 
-from fenestra.conventions import TOL, check_quad, rotation_error_deg
+from fenestra.checks import check_quad, check_rotation
+from fenestra.conventions import rotation_error_deg
+from fenestra.tolerances import TOL
 
 __all__ = [
     "corner_errors_px", "mean_corner_error_px", "aspect_error_rel", "gt_window_pose",
     "rotation_error_deg", "normal_error_deg", "translation_error_m", "quad_iou", "mask_iou",
-    "recall_at", "error_stats",
+    "recall_at", "error_stats", "box_iou_matrix", "reprojection_consistency_px", "plane_distance",
+    "relative_size_errors",
 ]
-
-
-def _rotation(R: np.ndarray, name: str) -> np.ndarray:
-    """Validate a rotation matrix: (3, 3), finite, orthonormal with det +1 (to 1e-6)."""
-    R = np.asarray(R, dtype=np.float64)
-    if R.shape != (3, 3):
-        raise ValueError(f"{name} must have shape (3, 3), got {R.shape}")
-    if not np.all(np.isfinite(R)):
-        raise ValueError(f"{name} has non-finite entries: {R.tolist()}")
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise ValueError(f"{name} is not a rotation matrix (R R^T != I or det < 0): {R.tolist()}")
-    return R
 
 
 def corner_errors_px(quad_est: np.ndarray, quad_gt: np.ndarray) -> np.ndarray:
@@ -63,7 +54,7 @@ def gt_window_pose(R: np.ndarray, t: np.ndarray, corners_world: np.ndarray
     Window frame: x along TL->TR, y along BL->TL, z = x cross y (outward), origin at BL.
     Returns (R_wc (3, 3), t_wc (3,) m) with X_cam = R_wc @ X_window + t_wc.
     """
-    R = _rotation(R, "R")
+    R = check_rotation(R, "R")
     t = np.asarray(t, dtype=np.float64).reshape(3)
     C = np.asarray(corners_world, dtype=np.float64)
     if C.shape != (4, 3):
@@ -82,8 +73,8 @@ def gt_window_pose(R: np.ndarray, t: np.ndarray, corners_world: np.ndarray
 
 def normal_error_deg(R_est: np.ndarray, R_gt: np.ndarray) -> float:
     """Angle (deg) between the window normals (third columns, window z in camera) of two poses."""
-    n1 = _rotation(R_est, "R_est")[:, 2]
-    n2 = _rotation(R_gt, "R_gt")[:, 2]
+    n1 = check_rotation(R_est, "R_est")[:, 2]
+    n2 = check_rotation(R_gt, "R_gt")[:, 2]
     return float(np.degrees(np.arccos(np.clip(n1 @ n2, -1.0, 1.0))))
 
 
@@ -156,3 +147,53 @@ def error_stats(errors: np.ndarray) -> dict[str, float]:
     else:
         out.update(median=float("nan"), p90=float("nan"), max=float("nan"), mean=float("nan"))
     return out
+
+
+# ---------------------------------------------------------------- little or no ground truth (photos)
+
+def box_iou_matrix(det_boxes: list[np.ndarray], gt_boxes: list[np.ndarray]) -> np.ndarray:
+    """Box IoU of every detection box with every ground-truth box: (D, G) float64 in [0, 1]."""
+    if not det_boxes or not gt_boxes:
+        return np.zeros((len(det_boxes), len(gt_boxes)))
+    D = np.asarray(det_boxes, dtype=np.float64).reshape(-1, 4)
+    G = np.asarray(gt_boxes, dtype=np.float64).reshape(-1, 4)
+    iw = np.clip(np.minimum(D[:, None, 2], G[None, :, 2]) - np.maximum(D[:, None, 0], G[None, :, 0]), 0, None)
+    ih = np.clip(np.minimum(D[:, None, 3], G[None, :, 3]) - np.maximum(D[:, None, 1], G[None, :, 1]), 0, None)
+    inter = iw * ih
+    area = lambda B: (B[:, 2] - B[:, 0]) * (B[:, 3] - B[:, 1])  # noqa: E731
+    union = area(D)[:, None] + area(G)[None, :] - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+
+
+def reprojection_consistency_px(quad_snapped: np.ndarray, quad_reprojected: np.ndarray) -> float:
+    """Mean corner distance (px) between the snapped quad and the rectangle reprojected from the
+    estimated pose: how well one rectangle explains the four image corners (no ground truth)."""
+    a = check_quad(quad_snapped, "quad_snapped")
+    b = check_quad(quad_reprojected, "quad_reprojected")
+    return float(np.linalg.norm(a - b, axis=1).mean())
+
+
+def plane_distance(R: np.ndarray, t: np.ndarray) -> float:
+    """Camera-to-window-plane distance |n . t| in the pose's scale units (n = R[:, 2])."""
+    return float(abs(np.asarray(R, dtype=np.float64)[:, 2] @ np.asarray(t, dtype=np.float64).reshape(3)))
+
+
+def relative_size_errors(plane_dists: np.ndarray, true_heights_m: np.ndarray) -> np.ndarray:
+    """Relative pane-size error of windows on one plane seen in one photo (no scale needed).
+
+    Each pose is solved with the same height parameter h0, so window i's true height is
+    H_i = D / d_i * h0 for the common camera-plane distance D: heights relative to their median
+    follow from the plane distances d_i (N,) alone. Returns (N,) |est_i / true_i - 1| with
+    est_i = (1/d_i) / median(1/d) and true_i = H_i / median(H); NaN for all when N < 2.
+    """
+    d = np.asarray(plane_dists, dtype=np.float64).reshape(-1)
+    H = np.asarray(true_heights_m, dtype=np.float64).reshape(-1)
+    if d.shape != H.shape:
+        raise ValueError(f"plane_dists {d.shape} and true_heights_m {H.shape} differ in shape")
+    if d.size < 2:
+        return np.full(d.size, np.nan)
+    if np.any(~np.isfinite(d) | (d <= 0)) or np.any(~np.isfinite(H) | (H <= 0)):
+        raise ValueError(f"plane distances and heights must be positive, got {d.tolist()}, {H.tolist()}")
+    est = (1.0 / d) / np.median(1.0 / d)
+    true = H / np.median(H)
+    return np.abs(est / true - 1.0)

@@ -6,14 +6,15 @@ values raise :class:`ProfileError` naming the file, the key and the value.
 
     [scenes]      houses = ["all"] | [names], procedural = N, procedural_seed = S
     [render]      renderer, views_per_house, width, height, options = {...}  (options go to renders/)
-    [methods]     detectors, snappers, pose_solvers (lists; ["all"] = every registered one), height_m
+    [methods]     detectors, snappers, pose_solvers: names, ["all"] or {capability = value};
+                  withhold_K = [false] | [true] | [false, true]; height_m
     [evaluation]  min_visible_fraction, require_corners_in_frame, min_window_px, max_incidence_deg
 
 Tables become the dataclasses below through ``fenestra.config.from_table``. Names are checked
 against the registries, not against lists kept here: ``render.renderer`` against
 ``renders.backends.RENDERERS``, ``[methods]`` against ``pipeline.detectors.DETECTORS``,
-``pipeline.snappers.SNAPPERS`` and :func:`pose_strategies` (so a newly registered strategy is
-accepted, and ``["all"]`` runs it, with no edit here).
+``pipeline.snappers.SNAPPERS`` and ``pipeline.reconstruct.POSES`` (so a newly registered strategy is
+accepted, and ``["all"]`` or a capability table that it matches runs it, with no edit here).
 """
 from __future__ import annotations
 
@@ -55,13 +56,23 @@ class RenderSpec:
     options: tuple[tuple[str, Any], ...] = ()
 
 
+Selector = tuple[str, ...] | dict  # names, ["all"], or a capability table {capability = value}
+
+
 @dataclass(frozen=True)
 class MethodsSpec:
-    """Method combinations: every detector x snapper x pose solver; ["all"] = every registered."""
+    """Method combinations: every detector x snapper x pose strategy x K condition.
 
-    detectors: tuple[str, ...] = ("oracle",)
-    snappers: tuple[str, ...] = (ALL,)
-    pose_solvers: tuple[str, ...] = (ALL,)
+    detectors, snappers, pose_solvers: each a list of registered names, ``["all"]`` (every entry
+    with ``in_all``) or a capability table such as ``{per_wall = false}`` (fenestra.registry);
+    withhold_K: the K conditions to run, ``[false]`` (K given), ``[true]`` or ``[false, true]``;
+    K is withheld only from the strategies that fit the focal length (capability ``fits_focal``).
+    """
+
+    detectors: Selector = ("oracle",)
+    snappers: Selector = (ALL,)
+    pose_solvers: Selector = (ALL,)
+    withhold_K: tuple[bool, ...] = (False,)
     height_m: float = 1.0  # the pose's scale parameter (errors are rescaled with the true height)
 
 
@@ -95,43 +106,48 @@ class Profile:
 
     def config_hash(self) -> str:
         """8 hex digits identifying everything that changes results (not name/description)."""
-        d = self.to_dict()
-        d.pop("name"), d.pop("description")
-        return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
+        return config_hash(self.to_dict())
 
 
-def pose_strategies() -> dict[str, str]:
-    """Bench pose names -> description: every pipeline pose strategy (pipeline.reconstruct.pose_strategies:
-    per-window solvers, then per-wall ones), then each per-wall one with K withheld (``wall+noK``:
-    the focal length estimated from the photo, bench.uncertainty)."""
-    from bench.uncertainty import NO_K_SUFFIX  # noqa: PLC0415
-    from pipeline.reconstruct import pose_strategies as pipeline_poses  # noqa: PLC0415
-
-    poses = pipeline_poses()
-    return {**{n: s.description for n, s in poses.items()},
-            **{n + NO_K_SUFFIX: f"{s.description}; K withheld (focal length from the photo)"
-               for n, s in poses.items() if s.per_wall}}
+def config_hash(config: dict) -> str:
+    """8 hex digits of a profile's plain dict (``to_dict()``) without its ``name`` and
+    ``description``: everything that changes results. Every kind of profile hashes with this."""
+    d = {k: v for k, v in config.items() if k not in ("name", "description")}
+    return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
 
 
-def method_registries() -> dict[str, dict]:
-    """The registry each ``[methods]`` list names entries of (its keys are the choices)."""
+def method_registries() -> dict[str, Any]:
+    """The registry each ``[methods]`` selector chooses entries of."""
     from pipeline.detectors import DETECTORS  # noqa: PLC0415
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
     from pipeline.snappers import SNAPPERS  # noqa: PLC0415
 
-    return {"detectors": DETECTORS, "snappers": SNAPPERS, "pose_solvers": pose_strategies()}
+    return {"detectors": DETECTORS, "snappers": SNAPPERS, "pose_solvers": POSES}
+
+
+def selected(methods: MethodsSpec, key: str) -> list[str]:
+    """The names ``methods.<key>`` selects (fenestra.registry.Registry.select); ProfileError naming
+    the key, the bad value and the choices."""
+    registry = method_registries()[key]
+    try:
+        return registry.select(getattr(methods, key))
+    except ValueError as e:  # an unknown name or capability, or an empty list
+        raise ProfileError(f"methods.{key}: {e}") from e
 
 
 def check_methods(methods: MethodsSpec, where: str) -> None:
-    """Every name in ``[methods]`` is registered (or the list is ["all"]); ProfileError naming the
-    key, the bad names and the choices."""
-    for key, registry in method_registries().items():
-        names = getattr(methods, key)
+    """Every ``[methods]`` selector chooses registered entries, at least one, and withhold_K is a
+    non-empty list of distinct bools; ProfileError naming the key, the bad value and the choices."""
+    for key in method_registries():
+        try:
+            names = selected(methods, key)
+        except ProfileError as e:
+            raise ProfileError(f"{where}: {e}") from e
         if not names:
-            raise ProfileError(f"{where}: methods.{key} is empty; give names of {list(registry)} or [\"all\"]")
-        bad = [n for n in names if n not in registry] if names != (ALL,) else []
-        if bad:
-            raise ProfileError(f"{where}: methods.{key} has unknown name(s) {bad}; registered: {list(registry)} "
-                               "(or [\"all\"] alone)")
+            raise ProfileError(f"{where}: methods.{key} = {getattr(methods, key)!r} selects nothing")
+    if not methods.withhold_K or len(set(methods.withhold_K)) != len(methods.withhold_K):
+        raise ProfileError(f"{where}: methods.withhold_K must be [false], [true] or [false, true], got "
+                           f"{list(methods.withhold_K)}")
 
 
 def _validate(p: Profile, where: str) -> None:

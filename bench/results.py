@@ -10,7 +10,7 @@ combination, errors with their unit in the column name) and ``summary.json``::
                           aspect_err_rel / rot_err_deg / normal_err_deg / trans_err_m / iou_2d: {...}}},
      "detection": {detector: {bbox_AP, bbox_AP50, segm_AP, segm_AP50, ...}}}
 
-Statistics are over *evaluable* rows (see bench.evaluate.window_conditions). Medians/p90 are
+Statistics are over *evaluable* rows (see bench.evaluate.window_base). Medians/p90 are
 over windows with an estimate; recall counts a missed or failed window as not recalled.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from bench.metrics import error_stats, recall_at
-from fenestra.conventions import TOL
+from fenestra.tolerances import TOL
 
 RESULTS_PARQUET = "results.parquet"
 RESULTS_CSV = "results.csv"

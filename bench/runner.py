@@ -1,15 +1,22 @@
-"""The benchmark end to end: render (cached) -> detect -> match -> reconstruct -> measure -> tables.
+"""The benchmark end to end, renders and photos alike: views -> detect -> match -> reconstruct ->
+measure -> tables, summary, report.
 
     from bench.runner import run_benchmark
-    run_dir = run_benchmark(load_profile("smoke"), workers=2)
+    info = run_benchmark(load_profile("smoke"), workers=2)                       # renders
+    info = run_benchmark(load_real_profile("real"), sim_dir="out/bench/smoke")  # photos
 
-Views are rendered and evaluated by an executor (bench.executors: a local process pool of
-``workers`` processes, or a Ray cluster), with a rich progress bar. Every ground-truth
-window gets one row per method combination (see bench.evaluate). The run folder (default
-``out/bench/<profile>-<config hash>``) receives results.parquet/.csv, summary.json and, when a
-report writer is passed, the report; renders go to ``out/renders`` (renders.dataset names and
-reuses them by config hash). bench/ never imports reports/ (reports read bench's tables): the CLI
-(fenestra/cli.py) passes the report writer in.
+A synthetic profile (bench.profiles.Profile) renders its houses (cached) and evaluates their views
+with an executor (bench.executors: a local process pool of ``workers`` processes, or a Ray
+cluster); a real profile (bench.real.profile.RealProfile) reads its labelled datasets with
+bench.real.adapters (optional datasets whose folder is absent are skipped and listed in the
+metadata) and evaluates them in this process. Either way every view is a bench.views.LabelledView
+evaluated by the one bench.evaluate.evaluate_view, and every labelled window gets one row per
+method combination. The run folder (default ``out/bench/<profile>-<config hash>``) receives
+results.parquet/.csv, manifest.json, summary.json (metadata, per-method results, per-detector
+detection AP), ``simreal.json`` for a real profile given a synthetic run folder
+(bench.real.simreal) and, when a report writer is passed, the report; renders go to
+``out/renders`` (renders.dataset names and reuses them by config hash). bench/ never imports
+reports/ (reports read bench's tables): the CLI (app/cli.py) passes the report writer in.
 """
 from __future__ import annotations
 
@@ -24,10 +31,13 @@ import pandas as pd
 
 from bench import manifest
 from bench import results as res
-from bench.evaluate import Method, ViewOutcome
-from bench.executors import HousePlan, Plan, get_executor
-from bench.profiles import ALL, Profile, pose_strategies
+from bench.detection_ap import detection_ap
+from bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTask
+from bench.executors import HousePlan, Plan, evaluate_local, get_executor
+from bench.profiles import ALL, Profile, selected
+from bench.real.profile import RealProfile
 from fenestra.errors import FenestraError
+from fenestra.methods import Method
 
 OUT_ROOT = Path("out")
 LEARNED_DETECTOR_OPTIONS = {"threads": 1}  # one torch thread per worker process
@@ -46,23 +56,12 @@ class RunInfo:
     n_rows: int
 
 
-def default_run_dir(profile: Profile) -> Path:
+def default_run_dir(profile: Profile | RealProfile) -> Path:
     """out/bench/<profile name>-<config hash>."""
     return OUT_ROOT / "bench" / f"{profile.name}-{profile.config_hash()}"
 
 
 # ---------------------------------------------------------------- methods
-
-def _expand(names: tuple[str, ...], registry: dict, what: str) -> list[str]:
-    """["all"] -> every registered name (but entries with ``in_all`` False); otherwise check each
-    name exists."""
-    if names == (ALL,):
-        return [n for n, e in registry.items() if getattr(e, "in_all", True)]
-    bad = [n for n in names if n not in registry]
-    if bad:
-        raise FenestraError(f"unknown {what} {bad}; registered: {sorted(registry)}")
-    return list(names)
-
 
 def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
     """Detectors that can be built here (learned ones need weights); {skipped: reason}."""
@@ -79,18 +78,21 @@ def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
     return ok, skipped
 
 
-def plan_methods(profile: Profile) -> tuple[tuple[Method, ...], dict[str, str]]:
-    """Every available detector x snapper x pose solver of the profile, and skipped detectors."""
-    from pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from pipeline.snappers import SNAPPERS  # noqa: PLC0415
+def plan_methods(profile: Profile | RealProfile) -> tuple[tuple[Method, ...], dict[str, str]]:
+    """Every available detector x snapper x pose strategy x K condition the profile selects
+    (bench.profiles.MethodsSpec; K withheld only where the strategy fits the focal length), and
+    the skipped detectors. Order: detector, snapper, then the K-given poses and the K-withheld ones."""
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
 
-    requested = _expand(profile.methods.detectors, DETECTORS, "detector(s)")
+    spec = profile.methods
+    requested = selected(spec, "detectors")
     dets, skipped = available_detectors(requested)
     if not dets:
         raise FenestraError(f"no detector of {requested} is available: {skipped}")
-    snaps = _expand(profile.methods.snappers, SNAPPERS, "snapper(s)")
-    poses = _expand(profile.methods.pose_solvers, pose_strategies(), "pose solver(s)")
-    return tuple(Method(d, s, p) for d, s, p in itertools.product(dets, snaps, poses)), skipped
+    poses = selected(spec, "pose_solvers")
+    conditions = [(p, wk) for wk in spec.withhold_K for p in poses if not wk or POSES[p].fits_focal]
+    return tuple(Method(d, s, p, withhold_K=wk) for d, s, (p, wk)
+                 in itertools.product(dets, selected(spec, "snappers"), conditions)), skipped
 
 
 # ---------------------------------------------------------------- renders
@@ -111,7 +113,8 @@ def house_list(profile: Profile) -> list[str]:
 
 def make_plan(profile: Profile, methods: tuple[Method, ...], renders_dir: str | Path | None,
               run_dir: Path) -> Plan:
-    """The executor's plan: each house's dataset config (procedural IFCs generated here), methods."""
+    """The executor's plan: each house's dataset config (procedural IFCs generated here), methods,
+    evaluation options (learned detectors: one torch thread, full-size images)."""
     from bench.render_adapter import dataset_config  # noqa: PLC0415
     from pipeline.detectors import DETECTORS  # noqa: PLC0415
 
@@ -119,8 +122,51 @@ def make_plan(profile: Profile, methods: tuple[Method, ...], renders_dir: str | 
     opts = tuple((d, tuple(LEARNED_DETECTOR_OPTIONS.items()))
                  for d in dict.fromkeys(m.detector for m in methods)
                  if not DETECTORS[d].needs_instances)
+    options = EvalOptions(evaluation=profile.evaluation, height_m=profile.methods.height_m, detector_options=opts)
     houses = tuple(HousePlan(h, dataset_config(profile, h, root)) for h in house_list(profile))
-    return Plan(houses=houses, profile=profile, methods=methods, detector_options=opts, run_dir=str(run_dir))
+    return Plan(houses=houses, profile=profile, methods=methods, options=options, run_dir=str(run_dir))
+
+
+@dataclass(frozen=True)
+class Evaluated:
+    """What a profile's views gave: outcomes (canonical order), wall seconds per stage, the run
+    manifest's expected rows (house, view, window_id, method) and the source's metadata."""
+
+    outcomes: list[ViewOutcome]
+    stage_s: dict[str, float]
+    expected: list[tuple[str, str, str, str]]
+    meta: dict
+
+
+def evaluate_renders(profile: Profile, methods: tuple[Method, ...], run_dir: Path, workers: int,
+                     progress: bool, renders_dir: str | Path | None, executor: str,
+                     executor_options: dict | None) -> Evaluated:
+    """Render (cached) and evaluate a synthetic profile's views with an executor; the expected rows
+    come from the rendered view.json files, not from the outcomes (a dropped view shows)."""
+    plan = make_plan(profile, methods, renders_dir, run_dir)
+    outcomes, stage_s, datasets = get_executor(executor)(plan, workers, progress, **(executor_options or {}))
+    views = [(house, v) for house, ds in datasets for v in sorted((Path(ds) / "views").iterdir())
+             if (v / "view.json").is_file()]
+    return Evaluated(outcomes, stage_s, manifest.expected_rows(views, [m.name for m in methods]),
+                     {"workers": workers, "executor": executor, "datasets": {h: str(p) for h, p in datasets}})
+
+
+def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress: bool) -> Evaluated:
+    """Evaluate every view of a real profile's datasets, in order, in this process (the real
+    datasets are a few photos, read one at a time; the learned detectors use one thread); the
+    expected rows are every labelled window x method."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    datasets, skipped = profile.available_datasets()
+    options = profile.eval_options()
+    tasks = (ViewTask(LoadedView(v), methods, options) for ds in datasets for v in ds.views())
+    t0 = time.perf_counter()
+    outcomes = evaluate_local(tasks, workers=1, progress=progress)
+    stage_s = {"evaluate_wall": time.perf_counter() - t0}
+    expected = [(o.dataset, o.view, w, m.name) for o in outcomes for w in o.window_ids for m in methods]
+    n_windows = {d.name: sum(len(o.coco_gt) for o in outcomes if o.dataset == d.name) for d in datasets}
+    return Evaluated(outcomes, stage_s, expected,
+                     {"kind": "real", "workers": 1, "executor": "local", "skipped_datasets": skipped,
+                      "datasets": {d.name: str(d.folder()) for d in datasets}, "n_windows": n_windows})
 
 
 def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
@@ -142,69 +188,66 @@ def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) ->
             "stage_ms_per_window": {k: 1000.0 * v / max(1, n_windows) for k, v in cpu.items()}}
 
 
-def detection_ap(outcomes: list[ViewOutcome], fp_counts: bool = True) -> dict[str, dict]:
-    """COCO AP per detector over all views (bench.detection_ap), plus false positives."""
-    from bench.detection_ap import coco_ap  # noqa: PLC0415
-
-    gt = [g for o in outcomes for g in o.coco_gt]
-    out = {}
-    for det in dict.fromkeys(d for o in outcomes for d in o.coco_dt):
-        dt = [d for o in outcomes for d in o.coco_dt.get(det, [])]
-        out[det] = coco_ap(gt, dt)
-        if fp_counts:
-            out[det]["false_positives"] = sum(o.n_false_positives.get(det, 0) for o in outcomes)
-            out[det]["n_detections"] = len(dt)
-            out[det]["n_gt"] = sum(not g["iscrowd"] for g in gt)  # windows, not ignore regions
-    return out
-
-
-def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: int | None = None,
+def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = None, workers: int | None = None,
                   progress: bool = True, report: ReportWriter | None = None,
                   methods: tuple[Method, ...] | None = None,
                   renders_dir: str | Path | None = None, executor: str = "local",
-                  executor_options: dict | None = None, force: bool = False) -> RunInfo:
-    """Run a profile end to end; see the module docstring. Returns a RunInfo.
+                  executor_options: dict | None = None, force: bool = False,
+                  sim_dir: str | Path | None = None) -> RunInfo:
+    """Run a profile, synthetic or real, end to end; see the module docstring. Returns a RunInfo.
 
     methods: override the profile's method combinations (e.g. a test's extra snapper);
     renders_dir: where cached renders live (default out/renders);
     executor: a key of bench.executors.EXECUTORS ("local" process pool, "ray" cluster), with
     executor_options (ray: address, shard_views); force: replace a run folder that holds another
-    profile's run or foreign files (bench.manifest.claim_run_dir); report: called with the run
-    folder once the tables are written, its time recorded as stage "report" (None or False: no report).
+    profile's run or foreign files (bench.manifest.claim_run_dir); sim_dir: a real profile's
+    synthetic run folder for simreal.json (FileNotFoundError if it is not a run folder); report:
+    called with the run folder once the tables (and simreal.json) are written, its time recorded
+    as stage "report" (None or False: no report).
     """
     t_start = time.perf_counter()
+    photos = isinstance(profile, RealProfile)
+    if sim_dir is not None and not photos:
+        raise ValueError(f"sim_dir needs a real profile, got profile {profile.name!r}")
+    if sim_dir is not None and not (Path(sim_dir) / res.SUMMARY_JSON).is_file():
+        raise FileNotFoundError(f"--sim {sim_dir}: not a benchmark run folder (no {res.SUMMARY_JSON})")
     run_dir = manifest.claim_run_dir(Path(out_dir) if out_dir else default_run_dir(profile),
                                      profile.name, profile.config_hash(), force)
     workers = workers or max(1, min(os.cpu_count() or 1, 8))
     skipped: dict[str, str] = {}
     if methods is None:
         methods, skipped = plan_methods(profile)
-    plan = make_plan(profile, methods, renders_dir, run_dir)
-    outcomes, stage_s, datasets = get_executor(executor)(plan, workers, progress, **(executor_options or {}))
+    ev = (evaluate_photos(profile, methods, progress) if photos else
+          evaluate_renders(profile, methods, run_dir, workers, progress, renders_dir, executor, executor_options))
+    outcomes, stage_s = ev.outcomes, dict(ev.stage_s)
     stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
 
     t0 = time.perf_counter()
-    df = pd.DataFrame([r for o in outcomes for r in o.rows])
+    rows = [r for o in outcomes for r in o.rows]
+    if not rows:
+        raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
+    df = pd.DataFrame(rows)
     df.insert(0, "profile", profile.name)
     res.write_results(df, run_dir)
-    views = [(house, v) for house, ds in datasets for v in sorted((Path(ds) / "views").iterdir())
-             if (v / "view.json").is_file()]  # from the renders, not from the outcomes
-    manifest.write_manifest(run_dir, manifest.expected_rows(views, [m.name for m in methods]),
-                            profile.name, profile.config_hash())
-    det = detection_ap(outcomes)
+    manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
+    det = detection_ap(outcomes, per_dataset=photos)
     stage_s["summarize"] = time.perf_counter() - t0
     wall = time.perf_counter() - t_start
     meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
-                             workers=workers, executor=executor, n_views=len(outcomes), n_rows=len(df),
+                             n_views=len(outcomes), n_rows=len(df),
                              **per_unit_timings(stage_s, len(outcomes), len(df) // max(1, len(methods))),
-                             methods=[m.name for m in methods], skipped_detectors=skipped,
-                             datasets={h: str(p) for h, p in datasets})
-    res.write_summary(run_dir, meta, res.summarize(df), det)
+                             methods=[m.name for m in methods], skipped_detectors=skipped, **ev.meta)
+    summary = res.summarize(df)
+    res.write_summary(run_dir, meta, summary, det)
+    if sim_dir is not None:
+        from bench.real.simreal import write_simreal  # noqa: PLC0415
+
+        write_simreal(Path(sim_dir), run_dir)
     if report:
         t0 = time.perf_counter()
         report(run_dir)
         stage_s["report"] = time.perf_counter() - t0
         meta["stage_time_s"] = stage_s
         meta["wall_time_s"] = time.perf_counter() - t_start
-        res.write_summary(run_dir, meta, res.summarize(df), det)
+        res.write_summary(run_dir, meta, summary, det)
     return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))

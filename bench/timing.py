@@ -25,12 +25,17 @@ import tempfile
 import time
 from pathlib import Path
 
+ROOT = Path(__file__).resolve().parent.parent  # the checkout whose `app` (command line) runs
+
 
 def _fenestra(args: list[str], cwd: Path) -> float:
-    """Run ``python -m fenestra ARGS`` in cwd; its wall seconds (raises on failure)."""
+    """Run ``python -m app ARGS`` (the ``fenestra`` command of this checkout) in cwd; its wall
+    seconds (raises on failure)."""
     t0 = time.perf_counter()
-    env = {**os.environ, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"), "MPLBACKEND": "Agg"}
-    r = subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=cwd, env=env, capture_output=True, text=True)
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "PYTHONPATH": path, "MPLBACKEND": "Agg",
+           "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
+    r = subprocess.run([sys.executable, "-m", "app", *args], cwd=cwd, env=env, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"fenestra {' '.join(args)} failed ({r.returncode}): {r.stderr[-2000:]}")
     return time.perf_counter() - t0
@@ -57,32 +62,41 @@ def bench_run(profile: str, executor: str, cwd: Path, label: str) -> dict:
             "stage_ms_per_window": meta.get("stage_ms_per_window")}
 
 
-POSE_FAMILIES = {"per-window (lm, ippe)": ("lm", "ippe"), "wall": ("wall",), "building": ("building",),
-                 "wall+noK": ("wall+noK",), "building+noK": ("building+noK",)}
+def pose_families(methods) -> dict[str, list]:
+    """Methods (fenestra.methods.Method) by pose family, chosen by capability: every per-window
+    solver together, then each per-wall strategy with K given, then with K withheld."""
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
+
+    per_window = f"per-window ({', '.join(POSES.where(per_wall=False))})"
+    out: dict[str, list] = {}
+    for m in sorted(methods, key=lambda m: (POSES[m.pose].per_wall, m.withhold_K)):
+        out.setdefault(m.pose_label if POSES[m.pose].per_wall else per_window, []).append(m)
+    return out
 
 
 def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default") -> dict:
-    """CPU seconds per view of evaluate_view for each pose family (every detector x snapper of
+    """CPU seconds per view of evaluate_task for each pose family (every detector x snapper of
     ``profile``), on the first views of each rendered house under ``renders``, in this process."""
-    from bench.evaluate import evaluate_view  # noqa: PLC0415
+    from bench.evaluate import evaluate_task  # noqa: PLC0415
     from bench.executors import init_worker, view_tasks  # noqa: PLC0415
     from bench.profiles import load_profile  # noqa: PLC0415
     from bench.runner import make_plan, plan_methods  # noqa: PLC0415
 
     init_worker()
     p = load_profile(profile)
-    allm, _ = plan_methods(dataclasses.replace(p, methods=dataclasses.replace(p.methods, pose_solvers=("all",))))
+    allm, _ = plan_methods(dataclasses.replace(p, methods=dataclasses.replace(
+        p.methods, pose_solvers=("all",), withhold_K=(False, True))))
     houses = sorted(d for d in renders.iterdir() if (d / "views").is_dir())
     out = {}
-    for family, poses in POSE_FAMILIES.items():
-        methods = tuple(m for m in allm if m.pose in poses)
+    for family, members in pose_families(allm).items():
+        methods = tuple(members)
         plan = make_plan(p, methods, renders, renders / "unused")
         tasks = [t for d in houses for t in view_tasks(plan, d.name, d)[:views_per_house]]
-        evaluate_view(tasks[0])  # warm-up: detector weights
+        evaluate_task(tasks[0])  # warm-up: detector weights
         stages: dict[str, float] = {}
         t0 = time.process_time()
         for t in tasks:
-            for k, v in evaluate_view(t).stage_s.items():
+            for k, v in evaluate_task(t).stage_s.items():
                 stages[k] = stages.get(k, 0.0) + v
         out[family] = {"methods": len(methods), "views": len(tasks),
                        "cpu_s_per_view": (time.process_time() - t0) / len(tasks),

@@ -1,6 +1,6 @@
 """Bench columns of the per-wall strategies: estimated focal length and uncertainty calibration.
 
-Methods whose pose name ends in :data:`NO_K_SUFFIX` (e.g. ``wall+noK``) run the pipeline with
+Methods with K withheld (``fenestra.methods.Method.withhold_K``; pose column ``wall+noK``) run the pipeline with
 K withheld (the principal point is then the image centre, as for a user's photo): their rows
 carry the focal length the pipeline found (``focal_est_px``) and its relative error.
 
@@ -15,23 +15,16 @@ import math
 import numpy as np
 
 
-NO_K_SUFFIX = "+noK"
 NAN = float("nan")
 COLUMNS = ("focal_est_px", "focal_err_rel", "aspect_in90", "rot_in90", "trans_in90",
            "aspect_ci90_rel", "rot_ci90_deg", "wall_id")
 CALIBRATION = ("aspect_in90", "rot_in90", "trans_in90")
 
 
-def split_pose(pose: str) -> tuple[str, bool]:
-    """(pipeline pose strategy, K withheld?) of a bench pose name like ``wall+noK``."""
-    if pose.endswith(NO_K_SUFFIX):
-        return pose[: -len(NO_K_SUFFIX)], True
-    return pose, False
-
-
-def columns(res, win: dict, gt_pose: tuple[np.ndarray, np.ndarray], K: np.ndarray, errors: dict) -> dict:
-    """The COLUMNS of one WindowResult against its GT window; ``gt_pose``: the window's true (R, t)
-    (metrics.gt_window_pose); ``errors``: its bench._errors row."""
+def columns(res, aspect_gt: float, gt_pose: tuple[np.ndarray, np.ndarray], K: np.ndarray, errors: dict) -> dict:
+    """The COLUMNS of one WindowResult against its GT window: ``aspect_gt`` its true width / height,
+    ``gt_pose`` its true (R, t) (metrics.gt_window_pose), K the true intrinsics (3, 3) px;
+    ``errors``: its bench.evaluate.window_errors row."""
     out = {k: NAN for k in COLUMNS}
     f_true = float(np.sqrt(K[0, 0] * K[1, 1]))
     if res.focal_estimate_px is not None and math.isfinite(res.focal_estimate_px):
@@ -42,9 +35,7 @@ def columns(res, win: dict, gt_pose: tuple[np.ndarray, np.ndarray], K: np.ndarra
     u = res.uncertainty
     if u is None or res.R is None:
         return out
-    Cw = np.asarray(win["corners_world"], dtype=np.float64)
-    a_gt = float(np.linalg.norm(Cw[1] - Cw[0]) / np.linalg.norm(Cw[0] - Cw[3]))
-    out["aspect_in90"] = float(u["aspect_lo"] <= a_gt <= u["aspect_hi"])
+    out["aspect_in90"] = float(u["aspect_lo"] <= aspect_gt <= u["aspect_hi"])
     out["aspect_ci90_rel"] = 0.5 * (u["aspect_hi"] - u["aspect_lo"]) / res.aspect_ratio
     out["rot_ci90_deg"] = u["rot_deg"]
     out["rot_in90"] = float(errors["rot_err_deg"] <= u["rot_deg"])

@@ -1,4 +1,5 @@
-"""The one place that states Fenestra's conventions and tolerances.
+"""The one place that states Fenestra's conventions (tolerances: :mod:`fenestra.tolerances`; the
+checks of values that follow them: :mod:`fenestra.checks`).
 
 Every other module imports from here; tests in ``tests/test_conventions.py`` pin them.
 
@@ -35,6 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fenestra.checks import check_K
+from fenestra.methods import Method
+
 # Corner names in the documented order.
 CORNER_NAMES: tuple[str, ...] = ("TL", "TR", "BR", "BL")
 
@@ -45,88 +49,15 @@ CV_TO_GL = np.diag([1.0, -1.0, -1.0])
 PYRENDER_PIXEL_OFFSET = 0.5
 
 
-@dataclass(frozen=True)
-class Strategies:
-    """One choice per pluggable stage: a detector, a corner snapper and a pose strategy (registry names:
-    ``pipeline.detectors.DETECTORS``, ``pipeline.snappers.SNAPPERS``, ``pipeline.reconstruct.pose_strategies()``),
-    and where the quad comes from (``pipeline.quad.QUAD_SOURCES``: the mask fit, or a corner head's
-    predicted corners with the mask fit as fallback)."""
-
-    detector: str
-    snapper: str
-    pose: str
-    quad_source: str = "mask"
+# One choice per pluggable stage is a fenestra.methods.Method: the same type for the defaults, the
+# bench's methods and the reports' rows.
 
 
 # What `fenestra reconstruct` and ReconstructConfig() use: the README's measured best for a learned
 # detector's masks (line-based snapping, the per-wall shared plane with the façade's line segments).
-DEFAULTS = Strategies(detector="default", snapper="linefit", pose="wall+lines")
+DEFAULTS = Method(detector="default", snapper="linefit", pose="wall+lines")
 # The paper's method (Mask R-CNN, Harris snapping, per-window iterative PnP): the reference in comparisons.
-PAPER = Strategies(detector="maskrcnn", snapper="harris", pose="lm")
-
-
-@dataclass(frozen=True)
-class Tolerances:
-    """Numerical tolerances used by checks and tests (units in the names)."""
-
-    gt_size_vs_ifc_m: float = 0.005  # loader width/height vs IfcWindow OverallWidth/Height
-    gt_right_angle_deg: float = 0.01  # ground-truth rectangle corners
-    gt_coplanar_m: float = 1e-6  # corners vs wall face plane
-    generator_roundtrip_m: float = 1e-6  # procedural house: loader vs generator parameters
-    projection_vs_mask_px: float = 0.1  # projected GT corners vs instance-map edges
-    distortion_roundtrip_px: float = 1e-3
-    backend_instance_iou: float = 0.99  # pyrender vs mitsuba instance maps
-    exact_aspect_rel: float = 1e-6  # aspect ratio from an exact synthetic quad
-    exact_rotation_deg: float = 1e-4  # pose from an exact synthetic quad
-    parallel_sides_deg: float = 0.05  # opposite image sides closer than this count as parallel
-    match_iou: float = 0.5  # detection <-> ground truth matching
-    recall_thresholds_px: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0)
-    # façade geometry (pipeline/facade.py, pipeline/walls.py)
-    wall_vp_angle_deg: float = 1.5  # a side points at its wall's vanishing point within this ...
-    wall_corner_noise_px: float = 1.5  # ... plus the angle that this corner noise makes on its length
-    wall_sigma_px: float = 0.5  # prior corner sigma (px) pooled with the wall fit's residuals
-    wall_sigma_prior_dof: float = 4.0  # pseudo-observations given to that prior
-    ill_conditioned_aspect_rel: float = 0.05  # 90 % half-width of w/h above this: ill-conditioned
-    ill_conditioned_rot_deg: float = 5.0  # 90 % bound of the rotation error above this: ill-conditioned
-    wall_outlier_factor: float = 3.0  # a window whose corner RMS in its wall fit exceeds this x the median ...
-    wall_outlier_px: float = 1.0  # ... and this (px) is split off into a wall of its own
-    manhattan_deg: float = 8.0  # walls this close to k x 90 deg about a shared vertical are tied
-    focal_max_rel_sd: float = 0.25  # a wall's focal estimate with larger relative sd is not used
-    interval_level: float = 0.90  # the reported uncertainty intervals
-
-
-TOL = Tolerances()
-
-
-def check_K(K: np.ndarray) -> np.ndarray:
-    """Validate an intrinsics matrix; return it as float64 (3, 3).
-
-    Raises ValueError naming the bad value: wrong shape, non-finite, non-positive focal lengths,
-    or a last row other than (0, 0, 1).
-    """
-    K = np.asarray(K, dtype=np.float64)
-    if K.shape != (3, 3):
-        raise ValueError(f"K must be 3x3, got shape {K.shape}")
-    if not np.all(np.isfinite(K)):
-        raise ValueError(f"K has non-finite entries: {K.tolist()}")
-    if K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise ValueError(f"K focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
-    if not np.allclose(K[2], [0.0, 0.0, 1.0]):
-        raise ValueError(f"K last row must be [0, 0, 1], got {K[2].tolist()}")
-    return K
-
-
-def check_quad(quad: np.ndarray, name: str = "quad") -> np.ndarray:
-    """Validate an image quadrilateral: (4, 2) finite px, TL TR BR BL; return it as float64.
-
-    Raises ValueError naming ``name`` and the bad value.
-    """
-    q = np.asarray(quad, dtype=np.float64)
-    if q.shape != (4, 2):
-        raise ValueError(f"{name} must have shape (4, 2) (TL, TR, BR, BL px), got {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError(f"{name} has non-finite entries: {q.tolist()}")
-    return q
+PAPER = Method(detector="maskrcnn", snapper="harris", pose="lm")
 
 
 def make_K(fx: float, fy: float | None = None, cx: float = 0.0, cy: float = 0.0) -> np.ndarray:
@@ -214,12 +145,15 @@ class InputLimits:
         this (INTER_AREA); their masks and boxes are mapped back to full resolution.
     fov_min_deg / fov_max_deg: a horizontal or vertical field of view outside this range
         (from K and the photo size) is reported as a warning: the focal length is probably wrong.
+    max_json_bytes: a JSON input (annotations.json, K.json) larger than this is refused before it
+        is read (json.loads of a 400 MB file takes several GB).
     """
 
     max_windows_per_photo: int = 1000
     detector_max_side_px: int = 1024
     fov_min_deg: float = 1.0
     fov_max_deg: float = 170.0
+    max_json_bytes: int = 64 * 2**20
 
 
 LIMITS = InputLimits()

@@ -1,7 +1,7 @@
 """The data contracts every stage shares, written once (docs/DESIGN.md, "Data contracts").
 
-- **Files**: :func:`write_file_atomic` (temporary name, then rename), :func:`read_image` (any photo
-  -> (H, W, 3) uint8 RGB), :func:`read_instances` (16-bit instance PNG -> (H, W) **int32**).
+- **Files**: written atomically by :mod:`fenestra.files` (temporary name, then rename), read by
+  :mod:`fenestra.images` (any photo -> (H, W, 3) uint8 RGB; 16-bit instance PNG -> (H, W) **int32**).
 - **A rendered view** (``image.png``, ``instances.png``, optional ``ignore.png``, ``view.json``):
   :func:`write_view` (atomic, ``view.json`` last), :func:`write_ignore` (add ignore regions to a
   view written before), :func:`check_view` (can a cached view be reused?) and :func:`read_view` ->
@@ -29,16 +29,16 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import cv2
 import numpy as np
 
-from fenestra.errors import FenestraError
+from fenestra.errors import DatasetError
+from fenestra.files import write_image, write_json
+from fenestra.images import decode_file, read_image, read_instances
 
 VIEW_FILES = ("image.png", "instances.png")  # every view; ignore.png only where view.json lists ignore regions
 VIEW_KEYS = ("K", "width", "height", "R", "t", "windows")  # view.json keys every reader relies on
@@ -49,60 +49,7 @@ SCORE_NAMES = COCO_STATS + ("R50",)  # R50: recall at IoU 0.5, all areas, 100 de
 IOU_TYPES = ("bbox", "segm")
 
 
-class DatasetError(FenestraError, ValueError):
-    """A file or folder that does not follow the data contract (the message names it)."""
-
-
 # ---------------------------------------------------------------- files
-
-def write_file_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
-    """Call ``write(tmp_path)`` on a temporary name beside ``path``, then rename it over ``path``.
-
-    OSError naming the file when the writer returns False, leaves no file, or raises (the
-    temporary file is removed in every case).
-    """
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
-    try:
-        ok = write(tmp)
-        if ok is False or not tmp.is_file():
-            raise OSError(f"cannot write {path} (disk full or not writable?)")
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def write_text_atomic(path: str | Path, text: str) -> None:
-    """:func:`write_file_atomic` of a text file."""
-    write_file_atomic(path, lambda p: p.write_text(text) == len(text))
-
-
-def _write_png(path: Path, img: np.ndarray) -> None:
-    write_file_atomic(path, lambda p: bool(cv2.imwrite(str(p), img)))
-
-
-def read_image(path: str | Path) -> np.ndarray:
-    """(H, W, 3) uint8 **RGB** from any image file cv2 decodes (alpha dropped, grey expanded);
-    DatasetError naming the file when it is missing or undecodable."""
-    raw = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if raw is None:
-        raise DatasetError(f"cannot read image {path} (missing or not decodable)")
-    return cv2.cvtColor(raw, cv2.COLOR_BGR2RGB)
-
-
-def read_instances(path: str | Path) -> np.ndarray:
-    """(H, W) **int32** instance map (0 = none, k = instance k) from a single-channel 8/16-bit PNG.
-
-    int32, not the file's uint16: differences and sentinels (-1) are safe, and ids stay exact.
-    """
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise DatasetError(f"cannot read instance map {path} (missing or not decodable)")
-    if raw.ndim != 2 or raw.dtype not in (np.uint8, np.uint16):
-        raise DatasetError(f"instance map {path} must be a single-channel 8/16-bit PNG, "
-                           f"got shape {raw.shape}, dtype {raw.dtype}")
-    return raw.astype(np.int32)
-
 
 def _instances_png(instances: np.ndarray, name: str) -> np.ndarray:
     """An (H, W) integer map as the uint16 a 16-bit PNG stores; ValueError naming bad ids."""
@@ -118,7 +65,8 @@ def _instances_png(instances: np.ndarray, name: str) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class View:
-    """One rendered view, as :func:`read_view` reads it.
+    """One rendered view's files, as :func:`read_view` reads them: the file contract's record
+    (renders/ builds coco.json from it; the bench turns it into its labelled view).
 
     image: (H, W, 3) uint8 RGB. instances: (H, W) int32, window ``instance_id`` per pixel, 0 = none.
     meta: the view.json dict (K, width, height, R, t, distortion, renderer, seed, windows, ...).
@@ -162,7 +110,7 @@ def write_view(view_dir: str | Path, image: np.ndarray, instances: np.ndarray, m
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
         raise ValueError(f"image must be (H, W, 3) uint8 RGB, got shape {img.shape}, dtype {img.dtype}")
-    pngs = {"image.png": img[..., ::-1], "instances.png": _instances_png(instances, "instances")}
+    pngs = {"image.png": img, "instances.png": _instances_png(instances, "instances")}
     if ignore is not None:
         pngs["ignore.png"] = _instances_png(ignore, "ignore")
         listed = {int(r["instance_id"]) for r in meta.get("ignore", [])}
@@ -175,9 +123,9 @@ def write_view(view_dir: str | Path, image: np.ndarray, instances: np.ndarray, m
     view_dir.mkdir(parents=True, exist_ok=True)
     (view_dir / "view.json").unlink(missing_ok=True)  # not complete until rewritten last
     for name, a in pngs.items():
-        _write_png(view_dir / name, a)
+        write_image(view_dir / name, a)
     meta = {**meta, "files": {name: (view_dir / name).stat().st_size for name in pngs}}
-    write_text_atomic(view_dir / "view.json", json.dumps(meta, indent=1))
+    write_json(view_dir / "view.json", meta)
 
 
 def write_ignore(view_dir: str | Path, ignore: np.ndarray | None, regions: Sequence[dict]) -> None:
@@ -197,11 +145,11 @@ def write_ignore(view_dir: str | Path, ignore: np.ndarray | None, regions: Seque
         listed = {int(r["instance_id"]) for r in regions}
         if not present <= listed:
             raise ValueError(f"ignore map ids {sorted(present - listed)} are not listed in regions")
-        _write_png(view_dir / "ignore.png", a)
+        write_image(view_dir / "ignore.png", a)
         files["ignore.png"] = (view_dir / "ignore.png").stat().st_size
     else:
         files.pop("ignore.png", None)
-    write_text_atomic(view_dir / "view.json", json.dumps({**meta, "files": files}, indent=1))
+    write_json(view_dir / "view.json", {**meta, "files": files})
 
 
 def _view_pngs(meta: dict) -> tuple[str, ...]:
@@ -226,7 +174,10 @@ def check_view(view_dir: str | Path) -> str | None:
             return f"{name} missing"
         if name in sizes and p.stat().st_size != sizes[name]:
             return f"{name} is {p.stat().st_size} bytes, view.json recorded {sizes[name]}"
-        img = cv2.imread(str(p), cv2.IMREAD_COLOR if name == "image.png" else cv2.IMREAD_UNCHANGED)
+        try:
+            img = decode_file(p, cv2.IMREAD_COLOR if name == "image.png" else cv2.IMREAD_UNCHANGED, name)
+        except DatasetError:
+            img = None
         if img is None or img.shape[:2] != (meta.get("height"), meta.get("width")):
             return f"{name} does not decode to {meta.get('width')}x{meta.get('height')} px"
     return None

@@ -11,3 +11,13 @@ class SceneError(FenestraError):
 
 class PipelineError(FenestraError):
     """Bad input to the reconstruction pipeline (photo, K, masks)."""
+
+
+class DatasetError(FenestraError, ValueError):
+    """A file or folder that does not follow the data contract (the message names it): also an
+    image or instance map that is missing or cannot be decoded (fenestra.images)."""
+
+
+def one_line(e: BaseException) -> str:
+    """The error's message on one line (without a message: its class name): how the CLI prints it."""
+    return " ".join(str(e).split()) or type(e).__name__

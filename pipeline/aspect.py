@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fenestra.conventions import TOL, check_K, check_quad
+from fenestra.checks import check_K, check_quad
+from fenestra.tolerances import TOL
 from fenestra.errors import PipelineError
 
 CASES = ("general", "one_pair_parallel", "fronto_parallel")

@@ -1,4 +1,4 @@
-"""CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of pipeline/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra reconstruct PHOTO [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
         [--detector NAME] [--snapper NAME] [--pose NAME] [--height M] [--width M]
@@ -22,14 +22,14 @@ from typing import Optional
 import numpy as np
 import typer
 
-from fenestra.config import choices
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from pipeline.outdir import check_out, staged_dir
 from pipeline.detectors.oracle import detections_from_instance_map
 from pipeline.quad import QUAD_SOURCES, QuadParams
-from pipeline.reconstruct import (ReconstructConfig, fit_quads, pose_strategies,
-                                  reconstruct, reconstruct_from_quads, to_gray, windows_to_json)
+from pipeline.reconstruct import (POSES, ReconstructConfig, fit_quads, reconstruct, reconstruct_from_quads, to_gray,
+                                  windows_to_json)
+from pipeline.segments import SegmentCache, to_uint8
 from pipeline.snappers import SNAPPERS
 
 
@@ -44,12 +44,13 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     Everything is written to a temporary folder that replaces ``out`` when complete
     (pipeline.outdir.staged_dir; ``force``: replace a non-empty folder that is not an output).
     """
+    from fenestra.images import read_image, read_instances  # noqa: PLC0415
     from pipeline.io import (Camera, K_from_values, fit_camera_to_photo, intrinsics_warnings,  # noqa: PLC0415
-                             photo_orientation, photo_warnings, read_camera, read_instance_map, read_photo,
-                             undistort_photo)
+                             photo_orientation, photo_warnings, read_camera, undistort_photo)
 
-    check_out(out, force)  # before the (slow) pipeline runs
-    image = read_photo(photo)
+    inputs = (photo, K_json, masks)  # never inside --out: replacing it would delete them
+    check_out(out, force, inputs)  # before the (slow) pipeline runs
+    image = read_image(photo, "photo")
     size = (image.shape[1], image.shape[0])
     if K_json is not None and fx is not None:
         raise PipelineError("give either --K or --fx, not both")
@@ -66,13 +67,14 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width,
                             quad=QuadParams(source=quad_source))
     if masks is not None:
-        detections = detections_from_instance_map(read_instance_map(masks, size))
+        detections = detections_from_instance_map(read_instances(masks, size))
     else:
         from pipeline.detectors import detect  # noqa: PLC0415
 
         detections = detect(detector, image)
+    segment_cache = SegmentCache(to_uint8(to_gray(image)))  # the photo's line segments, found once for all steps
     if camera is None:
-        resolved = _resolve_K(photo, image, detections, cfg, size)
+        resolved = _resolve_K(photo, image, detections, cfg, size, segment_cache)
         camera, K_source = Camera(K=resolved.K), {"source": resolved.source, "detail": resolved.detail}
     else:
         K_source = {"source": "--K" if K_json is not None else "--fx", "detail": str(K_json or "")}
@@ -80,13 +82,13 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     warnings += intrinsics_warnings(K, size)
     for w in warnings:
         typer.echo(f"warning: {w}", err=True)
-    results = reconstruct(image, K, detections, cfg)
+    results = reconstruct(image, K, detections, cfg, segment_cache)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
     doc["K_source"] = K_source
     doc["undistorted"] = camera.has_distortion
     doc["distortion"] = None if camera.distortion is None else camera.distortion.tolist()
     doc["warnings"] = warnings
-    with staged_dir(out, force) as tmp:
+    with staged_dir(out, force, inputs) as tmp:
         (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
         if export:
             try:
@@ -98,32 +100,35 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     return doc
 
 
-def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tuple[int, int]):
+def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tuple[int, int],
+               segment_cache: SegmentCache):
     """Intrinsics of a photo without --K: snap the detections' quads (no K needed), then
-    pipeline.intrinsics.resolve_K (vanishing points, else EXIF, else PipelineError)."""
+    pipeline.intrinsics.resolve_K (vanishing points, else EXIF, else PipelineError); segment_cache:
+    the photo's line segments."""
     from dataclasses import replace  # noqa: PLC0415
 
     from pipeline.intrinsics import resolve_K  # noqa: PLC0415
-    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
 
     gray = to_gray(image)
+    strategy = POSES[cfg.pose]
+    # the snapped quads do not depend on the pose: the strategy's own per-window solver serves
     per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
-                                 replace(cfg, pose="ippe", fallback_focal_px=float(max(size))))
+                                 replace(cfg, pose=strategy.per_window_pose, fallback_focal_px=float(max(size))))
     quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
     # the chosen per-wall strategy's parameters (its façade lines too), the plain wall fit otherwise
-    return resolve_K(photo, quads, size, WALL_STRATEGIES.get(cfg.pose), gray)
+    return resolve_K(photo, quads, size, strategy.wall, segment_cache)
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
     """The `calibrate` command as a function: returns the K.json dict it wrote."""
     from pipeline.intrinsics import calibrate_chessboard, calibration_json  # noqa: PLC0415
-    from pipeline.io import read_photo  # noqa: PLC0415
+    from fenestra.images import read_image  # noqa: PLC0415
 
     try:
         cols, rows = (int(v) for v in pattern.lower().split("x"))
     except ValueError as e:
         raise PipelineError(f"--pattern must be COLSxROWS inner corners (e.g. 9x6), got {pattern!r}") from e
-    cal = calibrate_chessboard([read_photo(p) for p in photos], (cols, rows), square)
+    cal = calibrate_chessboard([read_image(p, "photo") for p in photos], (cols, rows), square)
     doc = calibration_json(cal)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(doc, indent=2))
@@ -149,8 +154,6 @@ def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app (choices in the help: from the registries)."""
     from pipeline.detectors import DETECTORS  # noqa: PLC0415
 
-    detector_names = ", ".join(DETECTORS)
-
     @app.command("reconstruct")
     def reconstruct_cmd(
         photo: Path = typer.Argument(..., help="the photo (any format OpenCV reads)"),
@@ -164,9 +167,9 @@ def register(app: typer.Typer) -> None:
         cy: Optional[float] = typer.Option(None, "--cy", help="principal point y, px (default image centre)"),
         masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector; with "
                                               "lens distortion in --K it must be in the undistorted photo's frame"),
-        detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {detector_names}"),
-        snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {choices(SNAPPERS)}"),
-        pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {choices(pose_strategies())}"),
+        detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {DETECTORS.describe()}"),
+        snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {SNAPPERS.describe()}"),
+        pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {POSES.describe()}"),
         height: float = typer.Option(ReconstructConfig.height_m, "--height", help="window height, m (the scale parameter)"),
         width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),

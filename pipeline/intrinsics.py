@@ -25,6 +25,7 @@ import numpy as np
 from fenestra.errors import PipelineError
 
 if TYPE_CHECKING:  # annotations only; pipeline.walls is imported lazily below
+    from pipeline.segments import SegmentCache
     from pipeline.walls import WallParams
 
 FULL_FRAME_WIDTH_MM = 36.0  # the 35 mm-equivalent focal length refers to a 36 x 24 mm frame
@@ -93,12 +94,12 @@ class ResolvedK:
 
 
 def resolve_K(photo: str | Path, quads: np.ndarray, image_size: tuple[int, int],
-              wall: WallParams | None = None, gray: np.ndarray | None = None) -> ResolvedK:
+              wall: WallParams | None = None, segment_cache: SegmentCache | None = None) -> ResolvedK:
     """Intrinsics for a photo without --K: façade vanishing points, else EXIF, else PipelineError.
 
     quads: (N, 4, 2) px snapped window quads of the photo; image_size (W, H); wall: the per-wall
     strategy's parameters (default ``WallParams()``; with ``lines`` the photo's façade segments join
-    the focal fit, which needs gray (H, W), the photo).
+    the focal fit, which needs segment_cache, the photo's pipeline.segments.SegmentCache).
     """
     from pipeline.walls import WallParams, focal_from_walls  # noqa: PLC0415
 
@@ -106,7 +107,7 @@ def resolve_K(photo: str | Path, quads: np.ndarray, image_size: tuple[int, int],
     why = "no window quads"
     if len(quads):
         try:
-            f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), gray)
+            f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), segment_cache)
             return ResolvedK(centred_K(f, image_size), "vanishing points",
                              f"f = {f:.1f} +- {sd:.1f} px from {len(quads)} window(s)"
                              f"{' and the facade line segments' if wall is not None and wall.lines else ''}, "

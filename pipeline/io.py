@@ -1,4 +1,6 @@
-"""Reading the pipeline's inputs: photo, intrinsics (JSON or fx/fy/cx/cy), lens distortion, masks.
+"""Reading the pipeline's inputs besides the pixels: intrinsics (JSON or fx/fy/cx/cy), lens
+distortion, and what the photo file says about itself (EXIF orientation, damage). The photo and an
+instance map (``--masks``) are read by the one reader of every stage, :mod:`fenestra.images`.
 
 Every problem raises :class:`fenestra.errors.PipelineError` naming the file or the bad value.
 
@@ -15,19 +17,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fenestra.conventions import LIMITS, check_K, make_K
+from fenestra.checks import check_K
+from fenestra.conventions import LIMITS, make_K
 from fenestra.errors import PipelineError
-
-
-def read_photo(path: str | Path) -> np.ndarray:
-    """(H, W, 3) uint8 **RGB** image from any format cv2 reads; PipelineError if unreadable."""
-    p = Path(path)
-    if not p.is_file():
-        raise PipelineError(f"photo not found: {p}")
-    img = cv2.imread(str(p), cv2.IMREAD_COLOR)
-    if img is None or img.size == 0:
-        raise PipelineError(f"cannot read photo {p} (not an image cv2 can decode)")
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
 def K_from_values(fx: float, fy: float | None, cx: float | None, cy: float | None,
@@ -200,6 +192,11 @@ def _read_K_json(path: str | Path, image_size: tuple[int, int] | None) -> tuple[
     """(K, the parsed JSON object) from an intrinsics file; PipelineError naming the bad value."""
     p = Path(path)
     try:
+        if p.stat().st_size > LIMITS.max_json_bytes:  # refused before reading (LIMITS states the bound)
+            raise PipelineError(f"intrinsics file {p} is {p.stat().st_size / 2**20:.1f} MB, more than the "
+                                f"{LIMITS.max_json_bytes / 2**20:.0f} MB limit (fenestra.conventions.LIMITS)")
+        if not p.is_file():
+            raise PipelineError(f"intrinsics file {p} is not a regular file")
         data = json.loads(p.read_text())
     except FileNotFoundError as e:
         raise PipelineError(f"intrinsics file not found: {p}") from e
@@ -218,24 +215,3 @@ def _read_K_json(path: str | Path, image_size: tuple[int, int] | None) -> tuple[
     except (TypeError, ValueError) as e:
         raise PipelineError(f"{p}: bad intrinsics: {e}") from e
     raise PipelineError(f"{p}: expected key 'K' (3x3) or 'fx' (+ 'fy', 'cx', 'cy'), got keys {sorted(data)}")
-
-
-def read_instance_map(path: str | Path, image_size: tuple[int, int] | None = None) -> np.ndarray:
-    """(H, W) uint16 instance ids from a single-channel 8- or 16-bit PNG (0 = background).
-
-    image_size: (W, H) of the photo; the map must match it. PipelineError otherwise.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise PipelineError(f"instance map not found: {p}")
-    m = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-    if m is None:
-        raise PipelineError(f"cannot read instance map {p}")
-    if m.ndim != 2:
-        raise PipelineError(f"instance map {p} must be single-channel (16-bit ids), got shape {m.shape}")
-    if m.dtype not in (np.uint8, np.uint16):
-        raise PipelineError(f"instance map {p} must be 8- or 16-bit integer, got {m.dtype}")
-    if image_size is not None and (m.shape[1], m.shape[0]) != tuple(image_size):
-        raise PipelineError(f"instance map {p} is {m.shape[1]}x{m.shape[0]} but the photo is "
-                            f"{image_size[0]}x{image_size[1]}")
-    return m.astype(np.uint16)

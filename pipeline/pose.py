@@ -17,8 +17,10 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from fenestra.conventions import PAPER, check_K
+from fenestra.checks import check_K
+from fenestra.conventions import PAPER
 from fenestra.errors import PipelineError
+from fenestra.registry import Registry
 
 
 class PoseError(PipelineError):
@@ -98,28 +100,28 @@ class PoseSolver:
     description: str
 
 
-POSE_SOLVERS: dict[str, PoseSolver] = {
-    "lm": PoseSolver("lm", solve_lm, "per window, cv2.solvePnP iterative Levenberg-Marquardt, the paper's"),
-    "ippe": PoseSolver("ippe", solve_ippe, "per window, cv2.solvePnP IPPE, the solution facing the camera"),
-}
+POSE_SOLVERS: Registry[PoseSolver] = Registry("pose solver", [
+    PoseSolver("lm", solve_lm, "per window, cv2.solvePnP iterative Levenberg-Marquardt, the paper's"),
+    PoseSolver("ippe", solve_ippe, "per window, cv2.solvePnP IPPE, the solution facing the camera"),
+])
 
 
 def estimate_pose(quad: np.ndarray, K: np.ndarray, ratio: float, height_m: float | None = 1.0,
-                  width_m: float | None = None, solver: str = PAPER.pose) -> PoseResult:
+                  width_m: float | None = None, solver: str | PoseSolver = PAPER.pose) -> PoseResult:
     """Pose of the w x h window imaged as ``quad`` (4, 2) px TL TR BR BL, with intrinsics K (3, 3).
 
     w = ratio * h with h = ``height_m`` (default 1 m), or h = width_m / ratio if ``width_m`` is
-    given. Raises ValueError for bad input or an unknown solver, PoseError if no valid pose.
+    given. solver: a name of POSE_SOLVERS or a PoseSolver. Raises ValueError for bad input or an
+    unknown solver, PoseError if no valid pose.
     """
-    if solver not in POSE_SOLVERS:
-        raise ValueError(f"unknown pose solver {solver!r}; choose from {sorted(POSE_SOLVERS)}")
+    solver = POSE_SOLVERS[solver] if isinstance(solver, str) else solver
     img = np.asarray(quad, dtype=np.float64)
     if img.shape != (4, 2) or not np.all(np.isfinite(img)):
         raise ValueError(f"quad must be finite with shape (4, 2), got {img.tolist()}")
     K = check_K(K)
     w, h = window_size(ratio, height_m, width_m)
     obj = object_points(w, h)
-    R, t, proj, rms = POSE_SOLVERS[solver].solve(obj, img.reshape(4, 1, 2), K)
+    R, t, proj, rms = solver.solve(obj, img.reshape(4, 1, 2), K)
     if not _faces_camera(R, t):
         raise PoseError(f"pose puts the window behind the camera or facing away (t={t.round(3).tolist()})")
     return PoseResult(R=R, t=t, reprojected=proj, width_m=w, height_m=h, rms_px=rms)

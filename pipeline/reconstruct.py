@@ -21,39 +21,78 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from fenestra.conventions import DEFAULTS, check_K
+from fenestra.checks import check_image, check_K
+from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
+from fenestra.registry import Registry
 from pipeline.aspect import aspect_ratio
-from pipeline.pose import POSE_SOLVERS, estimate_pose
+from pipeline.pose import POSE_SOLVERS, PoseSolver, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
+from pipeline.segments import SegmentCache
 from pipeline.snappers import SNAPPERS
-from pipeline.types import Detection, WindowResult, check_image
-from pipeline.walls import WALL_STRATEGIES, apply_walls
+from pipeline.types import Detection, WindowResult
+from pipeline.walls import WALL_STRATEGIES, WallParams, apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
 
 
 @dataclass(frozen=True)
 class PoseStrategy:
-    """A pose strategy as :func:`reconstruct` offers it (``ReconstructConfig.pose``).
+    """A pose strategy as :func:`reconstruct` offers it (``ReconstructConfig.pose``): an entry of
+    :data:`POSES`.
 
-    per_wall: False for a per-window solver (``pipeline.pose.POSE_SOLVERS``: each window from its
-    own quad; with K None, from the focal length of its own quad), True for a per-wall strategy
-    (``pipeline.walls.WALL_STRATEGIES``: windows grouped into walls, each wall fitted once; with K
+    Exactly one of ``solver`` (a per-window :class:`~pipeline.pose.PoseSolver`: each window from its
+    own quad; with K None, from the focal length of its own quad) and ``wall`` (a per-wall
+    :class:`~pipeline.walls.WallParams`: windows grouped into walls, each wall fitted once; with K
     None the focal length is a parameter of that fit). description: one line for CLI help and docs.
-    No strategy needs K.
+    Capabilities (fenestra.registry): ``per_wall``, and ``fits_focal`` (the per-wall ones: the bench
+    runs them with K withheld too).
     """
 
     name: str
     description: str
-    per_wall: bool
+    solver: PoseSolver | None = None
+    wall: WallParams | None = None
+
+    def __post_init__(self) -> None:
+        if (self.solver is None) == (self.wall is None):
+            raise ValueError(f"pose strategy {self.name!r} needs exactly one of solver= (per window) or wall= (per wall)")
+
+    @property
+    def per_wall(self) -> bool:
+        return self.wall is not None
+
+    @property
+    def fits_focal(self) -> bool:
+        return self.wall is not None
+
+    @property
+    def per_window_pose(self) -> str:
+        """The per-window solver whose results it starts from (itself, or the wall's base_pose)."""
+        return self.name if self.wall is None else self.wall.base_pose
+
+    @classmethod
+    def per_window(cls, solver: PoseSolver) -> PoseStrategy:
+        return cls(solver.name, solver.description, solver=solver)
+
+    @classmethod
+    def walls(cls, name: str, params: WallParams) -> PoseStrategy:
+        return cls(name, params.description, wall=params)
 
 
-def pose_strategies() -> dict[str, PoseStrategy]:
-    """Every pose strategy, per-window solvers first, read from the two registries (so an entry
-    added to either is offered everywhere: CLI, profiles, the bench)."""
-    return {**{n: PoseStrategy(n, s.description, False) for n, s in POSE_SOLVERS.items()},
-            **{n: PoseStrategy(n, w.description, True) for n, w in WALL_STRATEGIES.items()}}
+# Every pose strategy, per-window solvers first: the one registry that the CLI, profiles, the bench,
+# the gates and the reports read. A new solver is a line of pipeline.pose.POSE_SOLVERS, a new
+# per-wall strategy a line of pipeline.walls.WALL_STRATEGIES; a plug-in (or a test) registers a
+# PoseStrategy here.
+POSES: Registry[PoseStrategy] = Registry("pose strategy", [
+    *(PoseStrategy.per_window(s) for s in POSE_SOLVERS.snapshot()),
+    *(PoseStrategy.walls(n, w) for n, w in WALL_STRATEGIES.items()),
+])
+
+
+def pose_strategies() -> Registry[PoseStrategy]:
+    """:data:`POSES` (the name it had before it was a registry)."""
+    return POSES
 
 
 @dataclass(frozen=True)
@@ -61,8 +100,8 @@ class ReconstructConfig:
     """Strategy choices and parameters of :func:`reconstruct`.
 
     snapper: a key of ``pipeline.snappers.SNAPPERS``; snapper_params: its dataclass (None: defaults).
-    pose: a key of :func:`pose_strategies`: of ``pipeline.pose.POSE_SOLVERS`` (per window) or of
-    ``pipeline.walls.WALL_STRATEGIES`` (per wall: windows grouped into walls, each wall fitted once).
+    pose: a key of :data:`POSES`: per window, or per wall (windows grouped into walls, each wall
+    fitted once).
     The defaults are ``fenestra.conventions.DEFAULTS``.
     height_m / width_m: the scale parameter (the window's height, or its width if given), m.
     fallback_focal_px: focal length used when K is None and the quad cannot give one.
@@ -78,10 +117,8 @@ class ReconstructConfig:
     quad: QuadParams = field(default_factory=QuadParams)
 
     def __post_init__(self) -> None:
-        if self.snapper not in SNAPPERS:
-            raise ValueError(f"unknown snapper {self.snapper!r}; choose from {sorted(SNAPPERS)}")
-        if self.pose not in pose_strategies():
-            raise ValueError(f"unknown pose solver {self.pose!r}; choose from {list(pose_strategies())}")
+        SNAPPERS.lookup(self.snapper)  # UnknownName (a ValueError) naming the choices
+        POSES.lookup(self.pose)
         for name in ("height_m", "width_m"):
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and v > 0):
@@ -89,7 +126,7 @@ class ReconstructConfig:
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
-    """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (pipeline.types.check_image), or an
+    """(H, W) float32 gray from an (H, W, 3) uint8 RGB image (fenestra.checks.check_image), or an
     (H, W) gray one, returned as float32 (not copied when it is already). Gray = 0.299 R + 0.587 G + 0.114 B
     (OpenCV, rounded to uint8)."""
     img = np.asarray(image)
@@ -218,7 +255,7 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
         K_used = K
     t0 = time.perf_counter()
     try:
-        pr = estimate_pose(snapped, K_used, ar.ratio, cfg.height_m, cfg.width_m, cfg.pose)
+        pr = estimate_pose(snapped, K_used, ar.ratio, cfg.height_m, cfg.width_m, POSES[cfg.pose].solver)
     except (PipelineError, ValueError) as e:
         timings["pose"] = (time.perf_counter() - t0) * 1e3
         return _result(i, det, cfg, timings, f"pose: {e}", **done)
@@ -229,7 +266,8 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
 
 def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                            quads: list[QuadFit], cfg: ReconstructConfig = ReconstructConfig(),
-                           base: list[WindowResult] | None = None) -> list[WindowResult]:
+                           base: list[WindowResult] | None = None,
+                           segment_cache: SegmentCache | None = None) -> list[WindowResult]:
     """:func:`reconstruct` with the quads already fitted: ``quads = fit_quads(detections, cfg.quad,
     image_shape)``, one per detection, in order (so one fit serves every snapper x pose config).
 
@@ -238,12 +276,14 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
     base: for a per-wall strategy, the per-window results it starts from, already computed with the
     same image, K, detections and quads and ``cfg`` with ``pose`` = the strategy's ``base_pose``
     (e.g. by a run of that per-window solver); they are used as they are, not recomputed.
+    segment_cache: the photo's line segments (pipeline.segments.SegmentCache of this gray image),
+    kept across the steps and configs that need them on this photo; None: a new one for this call.
     """
     if len(quads) != len(detections):
         raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
     gray = to_gray(image)
     K = None if K is None else check_K(K)
-    wall = WALL_STRATEGIES.get(cfg.pose)
+    wall = POSES[cfg.pose].wall
     if base is not None and (wall is None or len(base) != len(detections)):
         raise ValueError(f"base: {len(base)} per-window results given for pose {cfg.pose!r} and "
                          f"{len(detections)} detections; only a per-wall strategy takes them, one per detection")
@@ -253,21 +293,25 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
     if wall is None:
         return results
     t0 = time.perf_counter()
-    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, gray)
+    cache = SegmentCache(gray) if segment_cache is None else segment_cache
+    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, cache)
     ms = (time.perf_counter() - t0) * 1e3 / max(len(results), 1)
     return [replace(r, timings_ms={**r.timings_ms, "wall": ms}) for r in results]
 
 
 def reconstruct(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
-                cfg: ReconstructConfig = ReconstructConfig()) -> list[WindowResult]:
-    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as pipeline.io.read_photo gives).
+                cfg: ReconstructConfig = ReconstructConfig(),
+                segment_cache: SegmentCache | None = None) -> list[WindowResult]:
+    """Reconstruct every detection in ``image`` ((H, W, 3) uint8 **RGB**, as fenestra.images.read_image gives).
 
     K: (3, 3) intrinsics, or None for an unknown focal length (square pixels, principal point at
     the image centre; f estimated per window by Zhang & He). Returns one WindowResult per
     detection, in order, with per-stage timings (ms) in ``timings_ms`` (quad, snap, aspect, pose).
+    segment_cache: as for :func:`reconstruct_from_quads`.
     """
     gray = to_gray(image)
-    return reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg)
+    return reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg,
+                                  segment_cache=segment_cache)
 
 
 def _list(a: np.ndarray | None):

@@ -1,39 +1,15 @@
-"""Data types passed between pipeline stages (the pipeline/ contract), and the one image check.
+"""Data types passed between pipeline stages (the pipeline/ contract).
 
 pipeline/ is the system a user runs on one photo: it must not import bench/, renders/ or scenes/.
-Images cross every pipeline API boundary (read_photo, detect, reconstruct, write_outputs,
-substitute) as (H, W, 3) uint8 **RGB**, checked by :func:`check_image`; BGR exists only inside
-calls to OpenCV's reading, writing and drawing functions.
+Images cross every pipeline API boundary (fenestra.images.read_image, detect, reconstruct, write_outputs,
+substitute) as (H, W, 3) uint8 **RGB**, checked by :func:`fenestra.checks.check_image`; BGR exists
+only inside calls to OpenCV's reading, writing and drawing functions.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from fenestra.errors import PipelineError
-
-MIN_IMAGE_SIDE_PX = 8
-
-
-class ImageError(PipelineError, ValueError):
-    """An image that is not (H, W, 3) uint8 RGB of at least MIN_IMAGE_SIDE_PX per side."""
-
-
-def check_image(image: np.ndarray, name: str = "image") -> np.ndarray:
-    """Validate an RGB image (H, W, 3) uint8 and return it (as an array, not copied).
-
-    Raises :class:`ImageError` (a PipelineError and a ValueError) naming ``name`` and the problem:
-    wrong shape, dtype other than uint8, or a side shorter than MIN_IMAGE_SIDE_PX.
-    """
-    a = np.asarray(image)
-    if a.ndim != 3 or a.shape[2] != 3:
-        raise ImageError(f"{name} must be (H, W, 3) RGB, got shape {a.shape}")
-    if a.dtype != np.uint8:
-        raise ImageError(f"{name} must be uint8, got dtype {a.dtype}")
-    if min(a.shape[:2]) < MIN_IMAGE_SIDE_PX:
-        raise ImageError(f"{name} too small: {a.shape[1]}x{a.shape[0]} px (at least {MIN_IMAGE_SIDE_PX} per side)")
-    return a
 
 
 @dataclass(frozen=True)

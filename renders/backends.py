@@ -13,6 +13,7 @@ import functools
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
+from fenestra.registry import Registry
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera
 from renders.gt import WindowView
@@ -62,17 +63,15 @@ def occluder_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView,
     return ground_truth(renderer.occluders, camera)[2]
 
 
-RENDERERS: dict[str, RendererEntry] = {
-    "pyrender": RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", occluder_visibility),
-    "mitsuba": RendererEntry("mitsuba", _mitsuba, "mitsuba path tracing, photoreal (optional OIDN denoising)",
-                             occluder_visibility),
-}
+RENDERERS: Registry[RendererEntry] = Registry("renderer", [
+    RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", occluder_visibility),
+    RendererEntry("mitsuba", _mitsuba, "mitsuba path tracing, photoreal (optional OIDN denoising)",
+                  occluder_visibility),
+])
 
 
 def renderer_entry(name: str) -> RendererEntry:
-    """The registry entry ``name``; ValueError naming it and the registered ones."""
-    if name not in RENDERERS:
-        raise ValueError(f"unknown renderer {name!r}; choose one of {sorted(RENDERERS)}")
+    """The registry entry ``name``; ValueError (fenestra.registry.UnknownName) naming it and the registered ones."""
     return RENDERERS[name]
 
 

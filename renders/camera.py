@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from fenestra.conventions import K_from_fov, camera_depths, check_K
+from fenestra.checks import check_K
+from fenestra.conventions import K_from_fov, camera_depths
 
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
 

@@ -1,4 +1,4 @@
-"""CLI commands of renders/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of renders/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra render --scene fzk-haus --views 50 --seed 0 --renderer pyrender --out out/renders
 

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fenestra import data
+from fenestra import data, files
 from renders.backends import RENDERERS, make_renderer, visibility_function
 from renders.base import RenderSettings
 from renders.sampler import SamplerConfig, sample_views
@@ -111,7 +111,7 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     indices = range(config.n_views) if only is None else only
     if indices.start < 0 or indices.stop > config.n_views:
         raise ValueError(f"only={indices} is outside the dataset's views 0..{config.n_views - 1}")
-    data.write_text_atomic(root / "config.json", json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
+    files.write_text(root / "config.json", json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
                                                   "scene_sha256": scene.sha256}, indent=1, default=list))
     missing = [i for i in indices if not _reusable(root / "views" / f"{i:06d}")]
     stats = {"rendered": 0, "reused": config.n_views - len(missing), "seconds": 0.0}
@@ -126,7 +126,7 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
         try:
             vis = visibility_function(config.renderer, renderer) if config.sampler.min_visible_fraction > 0 else None
             sampling = sample_views(scene, config.sampler, config.n_views, config.seed, visibility=vis)
-            data.write_text_atomic(root / "sampling.json", json.dumps({"rejected": sampling.rejected, "tries": sampling.tries,
+            files.write_text(root / "sampling.json", json.dumps({"rejected": sampling.rejected, "tries": sampling.tries,
                                                             "accepted": len(sampling.views)}, indent=1))
             t0 = time.perf_counter()
             for i in _progress(missing, progress, f"render {scene.name} ({config.renderer})"):
@@ -145,8 +145,8 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
         finally:
             renderer.close()
     if only is None:
-        data.write_text_atomic(root / "coco.json", json.dumps(coco_from_views(root, config.n_views)))
-        data.write_text_atomic(root / "stats.json", json.dumps(stats))
+        files.write_text(root / "coco.json", json.dumps(coco_from_views(root, config.n_views)))
+        files.write_text(root / "stats.json", json.dumps(stats))
     return root
 
 

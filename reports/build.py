@@ -14,11 +14,12 @@ table. The photo column comes from ``real_dir`` (a real-photo run) for a synthet
 the synthetic run named in simreal.json for a real run.
 
 reports/ reads what bench/ writes (bench.results, bench.manifest, bench.paired, bench.real.simreal)
-and bench/ never imports reports/; the CLI composes the two (fenestra/cli.py).
+and bench/ never imports reports/; the CLI composes the two (app/cli.py).
 """
 from __future__ import annotations
 
 import base64
+import dataclasses
 import html as html_lib
 import json
 import math
@@ -32,6 +33,7 @@ from bench.manifest import load_verified_results
 from bench.paired import paired_comparison
 from bench.real.simreal import SIMREAL_JSON
 from bench.results import CORNER_STAGES, STAGE_LABELS, summarize
+from fenestra.methods import read_methods
 from reports import lead as lead_mod
 from reports import plots
 from reports.real import real_sections
@@ -126,29 +128,30 @@ def narrative(df: pd.DataFrame, results: dict) -> list[str]:
     out.append(f"{n_rows} rows ({df['method'].nunique()} method combinations); {n_ev} are evaluable"
                + (f", the rest are not ({', '.join(f'{k}: {v}' for k, v in reasons.items())})."
                   if reasons else "."))
+    methods = read_methods(results)
     for det in sorted(df["detector"].unique()):
-        ms = [m for m in results if m.startswith(det + "/")]
+        ms = [m for m in results if methods[m].detector == det]
         best = best_method(results, methods=ms)
         if best is None:
             out.append(f"With detector {det}, no corner error was measured: no method produced a snapped "
                        "quad, or (real photos) no window has a labelled quad.")
             continue
         r = results[best]
-        snapper = best.split("/")[1]
+        snapper = methods[best].snapper
         text = (f"With detector **{det}**, the best snapper is **{snapper}** ({best}): median "
                 f"snapped corner error {_fmt(r['corner_err_px_snap']['median'])} px "
                 f"(mask-fit alone {_fmt(r['corner_err_px_mask']['median'])} px), "
                 f"{_fmt(100 * (r['corner_err_px_snap']['recall']['2'] or 0), 0)}% of evaluable windows within 2 px, "
                 f"{_fmt(100 * r['detection_rate'], 0)}% detected.")
-        pose = best.split("/")[2]
-        others = [m for m in ms if m.split("/")[2] == pose and m != best]
+        # the other snappers with the same detector and pose (and K condition, quad source)
+        others = [m for m in ms if m != best and dataclasses.replace(methods[m], snapper=methods[best].snapper) == methods[best]]
         worst = max(others, key=lambda m: np.nan_to_num(results[m]["corner_err_px_snap"]["median"],
                                                          nan=np.inf), default=None)
         if worst is not None:
             c = paired_comparison(df, best, worst)
-            text += (f" The worst snapper, {worst.split('/')[1]}, has median "
+            text += (f" The worst snapper, {methods[worst].snapper}, has median "
                      f"{_fmt(c['median_b'])} px on the same {c['n']} windows (paired median "
-                     f"difference {_fmt(c['median_diff'])} px, {best.split('/')[1]} better on "
+                     f"difference {_fmt(c['median_diff'])} px, {methods[best].snapper} better on "
                      f"{_fmt(100 * c['a_better'], 0)}% of them, Wilcoxon p = {_fmt(c['p_value'], 3)}).")
             where = _where_gap(df, best, worst)
             if where:
@@ -343,9 +346,10 @@ def counterpart(run_dir: Path, summary: dict | None, real_dir: str | Path | None
 
 
 def _lead_sections(lead: lead_mod.Lead, sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None,
-                   fig: Path, runs: str) -> list[tuple]:
+                   fig: Path | None, runs: str) -> list[tuple]:
     """The lead: one figure, what it shows, and the answer in words (never folded)."""
-    return [("h2", LEAD_TITLE), ("img", fig), ("p", lead_mod.caption(lead) + " " + runs),
+    img = [("img", fig)] if fig is not None else []  # no figure when neither bench ranks a method
+    return [("h2", LEAD_TITLE), *img, ("p", lead_mod.caption(lead) + " " + runs),
             *(("p", t) for t in lead_mod.answer(lead, sim_df, real_df)), ("fold",)]
 
 
@@ -366,7 +370,8 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
     results = summarize(df)
     figs = make_figures(df, run_dir / "figures")
     lead = lead_mod.make_lead(sim_df, real_df)
-    fig = plots.ranked_methods(lead_mod.lead_columns(lead), run_dir / "figures" / "lead_ranked.png")
+    columns = lead_mod.lead_columns(lead)  # empty: photos with boxes only and no renders run
+    fig = plots.ranked_methods(columns, run_dir / "figures" / "lead_ranked.png") if columns else None
     runs = " ".join(x for x in (f"Renders: {'this run' if sim_df is df else other}." if sim_df is not None else "",
                                 f"Real photos: {'this run' if real_df is df else other}." if real_df is not None else "",
                                 missing or "") if x)

@@ -1,9 +1,9 @@
-"""CLI command of reports/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI command of reports/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra report RUN_DIR [--real REAL_RUN_DIR]
     fenestra report RUN_DIR --markdown docs/results.md [--real REAL_RUN_DIR]   (the results docs, reports.markdown)
 
-:func:`write_report` is also what fenestra/cli.py hands to bench.cli, so ``fenestra bench`` ends
+:func:`write_report` is also what app/cli.py hands to bench.cli, so ``fenestra bench`` ends
 with the same report without bench/ importing reports/.
 """
 from __future__ import annotations

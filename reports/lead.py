@@ -21,6 +21,7 @@ import pandas as pd
 from bench.paired import paired_comparison
 from bench.real.simreal import method_medians, ranking
 from bench.results import summarize
+from fenestra.methods import read_methods
 from reports.plots import main_pose
 
 SIM_METRIC = "corner_err_px_snap"
@@ -172,7 +173,7 @@ def _photo_sentence(det: str, rk: list[Rank], lead: Lead, sim_df: pd.DataFrame |
         if r is not None and r["best_sim"] == r["best_real"]:
             text += f"; by the same error renders choose it too (Spearman {r['spearman']:.2f} over {r['n']} snappers)"
         elif r is not None:
-            text += (f"; by the same error renders choose {r['best_sim'].split('/')[1]}, which ranks "
+            text += (f"; by the same error renders choose {read_methods([r['best_sim']])[r['best_sim']].snapper}, which ranks "
                      f"{r['best_sim_real_rank']:.0f} of {r['n']} here and costs {_v(r['regret'], m)} in median "
                      f"(Spearman {r['spearman']:.2f})")
         if m != SIM_METRIC:

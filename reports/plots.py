@@ -19,6 +19,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from bench.results import CORNER_STAGES, STAGE_LABELS  # noqa: E402
+from fenestra.conventions import PAPER  # noqa: E402
 
 HIST_MAX_PX = 20.0  # histogram range; larger errors go to the overflow bar
 STAGE_COLOURS = {"mask": "#888888", "snap": "#1f77b4", "reproj": "#d62728"}
@@ -35,9 +36,10 @@ LINESTYLES = ("-", "--", ":", "-.")
 
 
 def main_pose(df: pd.DataFrame) -> str:
-    """The pose solver the curves show ("lm", the paper's, if present; else the first)."""
+    """The pose column the curves show: the paper's solver (fenestra.conventions.PAPER) if present,
+    else the first."""
     poses = sorted(df["pose"].unique())
-    return "lm" if "lm" in poses else poses[0]
+    return PAPER.pose if PAPER.pose in poses else poses[0]
 
 
 def line_styles(df: pd.DataFrame) -> dict[str, dict]:

@@ -2,19 +2,43 @@
 windows, the focal length found with K withheld, and the calibration of the 90 % intervals."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 
 from bench.paired import paired_comparison
+from fenestra.conventions import PAPER
+from fenestra.methods import Method, read_methods
 
-PER_WINDOW, NO_K_SUFFIX, LINES_SUFFIX = "lm", "+noK", "+lines"
+PER_WINDOW = PAPER.pose  # the reference of the comparisons: the paper's per-window solver
 
 
 def wall_poses(df: pd.DataFrame) -> list[str]:
-    """The per-wall strategies (pipeline.walls.WALL_STRATEGIES) present in a results table."""
-    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+    """The per-wall strategies (capability ``per_wall`` of pipeline.reconstruct.POSES) present, with
+    K given, in a results table."""
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
 
-    return [p for p in WALL_STRATEGIES if (df["pose"] == p).any()]
+    return [p for p in POSES.where(per_wall=True) if (df["pose"] == p).any()]
+
+
+def without_lines(pose: str, poses: list[str]) -> str | None:
+    """The per-wall strategy of ``poses`` that is ``pose`` without the façade's line segments (its
+    WallParams with ``lines`` and ``snap_sigma`` off), or None (``pose`` uses no lines, or that
+    strategy is not there)."""
+    from pipeline.reconstruct import POSES  # noqa: PLC0415
+
+    w = POSES[pose].wall
+    if w is None or not w.lines:
+        return None
+    plain = dataclasses.replace(w, lines=False, snap_sigma=False)
+    return next((p for p in poses if POSES[p].wall == plain), None)
+
+
+def k_withheld(df: pd.DataFrame) -> pd.Series:
+    """Per row: whether its method ran with K withheld."""
+    methods = read_methods(df["method"])
+    return df["method"].map(lambda m: methods[m].withhold_K).astype(bool)
 
 
 def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW) -> list[list]:
@@ -23,7 +47,7 @@ def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW) -> list[list
     estimate, and the Wilcoxon p of the rotation."""
     rows = []
     for (det, snap), _ in df.groupby(["detector", "snapper"]):
-        a, b = f"{det}/{snap}/{ref}", f"{det}/{snap}/{pose}"
+        a, b = Method(det, snap, ref).label, Method(det, snap, pose).label
         if not {a, b} <= set(df["method"]):
             continue
         rot = paired_comparison(df, b, a, "rot_err_deg")
@@ -42,7 +66,7 @@ def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW) -> list[list
 
 def focal_rows(df: pd.DataFrame) -> list[list]:
     """Per K-withheld method: windows with a focal estimate, median and p90 relative error, failures."""
-    ev = df[df["evaluable"].astype(bool) & df["pose"].str.endswith(NO_K_SUFFIX)]
+    ev = df[df["evaluable"].astype(bool) & k_withheld(df)]
     rows = []
     for m, g in ev.groupby("method"):
         e = g["focal_err_rel"].to_numpy(float)
@@ -75,19 +99,19 @@ def wall_sections(df: pd.DataFrame) -> list[tuple]:
     s: list[tuple] = [("h2", "Per window or per wall (shared plane)")]
     s.append(("p", "Same evaluable windows, paired (both estimates present). 'wall' groups a view's windows into "
                    "walls by their vanishing directions and fits one rotation per wall over all their corners; "
-                   "'building' also ties walls at right angles into one rotation (pipeline/walls.py); '+lines' "
-                   "adds the photo's line segments along the walls' two directions; 'lm' is the paper's "
-                   "per-window solvePnP."))
+                   "'building' also ties walls at right angles into one rotation (pipeline/walls/strategies.py); '+lines' "
+                   f"adds the photo's line segments along the walls' two directions; '{PER_WINDOW}' is the paper's "
+                   "per-window solver."))
     poses = wall_poses(df)
-    pairs = [(p, PER_WINDOW) for p in poses] + [(p, p[: -len(LINES_SUFFIX)]) for p in poses
-                                                 if p.endswith(LINES_SUFFIX) and p[: -len(LINES_SUFFIX)] in poses]
+    pairs = [(p, PER_WINDOW) for p in poses] + [(p, without_lines(p, poses)) for p in poses
+                                                 if without_lines(p, poses) is not None]
     for pose, ref in pairs:
         if ref != PER_WINDOW:
             s.append(("p", f"With and without the façade's line segments: '{pose}' against '{ref}'."))
         s.append(("table", ["detector/snapper", "n paired", f"rot median {ref}", f"rot median {pose}", f"rot p90 {ref}",
                             f"rot p90 {pose}", f"aspect p90 {ref}", f"aspect p90 {pose}", f"{pose} better on",
                             "Wilcoxon p"], paired_rows(df, pose, ref)))
-    if df["pose"].str.endswith(NO_K_SUFFIX).any():
+    if k_withheld(df).any():
         s.append(("h3", "Focal length with K withheld ('+noK')"))
         s.append(("p", "The pipeline gets the image only (principal point assumed at the image centre); relative "
                        "error of the focal length it finds. A view whose walls leave f unobservable fails."))

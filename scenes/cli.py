@@ -1,4 +1,4 @@
-"""CLI commands of scenes/ (registered on the `fenestra` app by fenestra/cli.py).
+"""CLI commands of scenes/ (registered on the `fenestra` app by app/cli.py).
 
     fenestra scenes list                       bundled houses: schema, windows, skipped
     fenestra scenes show NAME_OR_PATH [--json] every window's ground truth, skipped windows + reasons

@@ -22,14 +22,13 @@ import functools
 import json
 import multiprocessing
 import os
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 from fenestra.errors import SceneError
-from fenestra.files import file_sha256, source_digest
+from fenestra.files import file_sha256, source_digest, write_atomic, write_json
 from scenes.model import ElementMesh, Scene, SkippedWindow, WindowGT
 from scenes.registry import BUNDLED, resolve, scene_name
 
@@ -196,12 +195,8 @@ def _save_cache(scene: Scene, cache_dir: Path) -> None:
     meta = {"name": scene.name, "schema": scene.schema, "sha256": scene.sha256,
             "meshes": meshes_meta, "windows": windows_meta,
             "skipped": [{"id": s.id, "name": s.name, "reason": s.reason} for s in scene.skipped]}
-    with tempfile.NamedTemporaryFile(dir=cache_dir, suffix=".npz", delete=False) as f:
-        np.savez(f, **arrays)
-    os.replace(f.name, npz_path)
-    with tempfile.NamedTemporaryFile("w", dir=cache_dir, suffix=".json", delete=False) as f:
-        json.dump(meta, f)
-    os.replace(f.name, json_path)
+    write_atomic(npz_path, lambda p: np.savez(p, **arrays))
+    write_json(json_path, meta, indent=None)
 
 
 def _load_cache(cache_dir: Path, sha: str, path: Path, name: str) -> Scene | None:

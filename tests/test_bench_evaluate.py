@@ -1,4 +1,5 @@
-"""bench.evaluate on a view folder built by hand in this test (not a renders/ output).
+"""bench.evaluate on a view folder built by hand in this test (not a renders/ output), read by the
+rendered-view adapter (bench.render_adapter.read_rendered_view) into the one LabelledView.
 
 A wall in the plane y = 0 (outward normal -y) with three window voids seen by a known camera:
 the image is drawn with exact area coverage (renders.quad_image, independent of the code under
@@ -7,14 +8,20 @@ third window hangs off the image edge; a fourth is listed but hidden (absent fro
 """
 from __future__ import annotations
 
+import dataclasses
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
+import pandas as pd
 import pytest
 
-from bench.evaluate import Method, ViewTask, evaluate_view, window_conditions
+from bench.evaluate import (PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask, evaluate_task,
+                            evaluate_view, render_conditions)
+from fenestra.methods import Method
 from bench.profiles import EvalSpec
+from bench.render_adapter import RenderedViewRef, read_rendered_view
 from fenestra.conventions import K_from_fov, look_at, project
 from renders.quad_image import coverage, pixel_centre_mask
 
@@ -60,7 +67,7 @@ def view_dir(tmp_path_factory):
 
 
 def _run(view_dir, methods):
-    return evaluate_view(ViewTask(str(view_dir), "hand", "hand", tuple(methods), EvalSpec()))
+    return evaluate_view(read_rendered_view(view_dir, "hand", "hand"), tuple(methods), EvalOptions())
 
 
 def test_every_gt_window_gets_a_row_per_method(view_dir):
@@ -88,19 +95,106 @@ def test_every_gt_window_gets_a_row_per_method(view_dir):
 
 
 def test_window_conditions_reasons(view_dir):
-    meta = json.loads((view_dir / "view.json").read_text())
+    view = read_rendered_view(view_dir, "hand", "hand")
     inst = cv2.imread(str(view_dir / "instances.png"), cv2.IMREAD_UNCHANGED).astype(np.int32)
-    w1 = meta["windows"][0]
-    px = int(np.count_nonzero(inst == w1["instance_id"]))
-    c = window_conditions(w1, meta, px, EvalSpec())
+    w1 = view.windows[0]
+    c = render_conditions(view, w1, EvalSpec())
     assert c["evaluable"] and c["corners_in_frame"]
     assert c["gt_aspect"] == pytest.approx(1.2 / 1.4)
+    assert c["gt_width_m"] == pytest.approx(1.2) and c["gt_height_m"] == pytest.approx(1.4)
+    assert c["mask_px"] == int(np.count_nonzero(inst == 1))
     # independent check of the size columns: pixel count of the mask vs polygon area
     assert c["mask_px"] == pytest.approx(c["window_area_px"], rel=0.02)
     strict = EvalSpec(min_window_px=1000.0)
-    assert window_conditions(w1, meta, px, strict)["eval_reason"] == "too_small"
-    part = dict(w1, visible_fraction=0.5)
-    assert window_conditions(part, meta, px, EvalSpec())["eval_reason"] == "occluded"
+    assert render_conditions(view, w1, strict)["eval_reason"] == "too_small"
+    part = dataclasses.replace(w1, visible_fraction=0.5)
+    assert render_conditions(view, part, EvalSpec())["eval_reason"] == "occluded"
+
+
+def test_rendered_view_adapter_reads_the_contract(view_dir):
+    """Exact truth of a render: view.json's corners, world corners and pose, masks from
+    instances.png (the hidden window's empty), K; no ignore region listed."""
+    meta = json.loads((view_dir / "view.json").read_text())
+    v = read_rendered_view(view_dir, "hand", "hand")
+    assert (v.dataset, v.name, v.key, v.renderer, v.size) == ("hand", "000000", "hand/000000", "hand", (H, W))
+    np.testing.assert_array_equal(v.K, meta["K"])
+    np.testing.assert_array_equal(v.pose[0], meta["R"])
+    assert [w.id for w in v.windows] == ["W1", "W2", "W3", "W4"] and v.ignore == ()
+    for w, m in zip(v.windows, meta["windows"]):
+        np.testing.assert_array_equal(w.quad, m["corners_px"])
+        np.testing.assert_array_equal(w.corners_world, m["corners_world"])
+        assert w.instance_id == m["instance_id"] and w.box is None and not w.partial
+    assert [w.mask.area for w in v.windows][3] == 0 and all(w.mask.area > 0 for w in v.windows[:3])
+    assert v.instance_map() is v.instances
+
+
+def _same(a, b) -> bool:
+    """Equal, NaN == NaN (None for NaN in JSON), floats to 1e-9 relative."""
+    if isinstance(a, float) and np.isnan(a):
+        return b is None or (isinstance(b, float) and np.isnan(b))
+    if isinstance(a, float) and isinstance(b, float):
+        return a == pytest.approx(b, rel=1e-9, abs=1e-12)
+    return a == b
+
+
+def test_rows_equal_those_of_the_former_render_evaluator(view_dir):
+    """The one evaluation path gives a render the rows the render-only evaluator of commit 991c33e
+    gave (tests/golden/hand_view_rows.json, written by that code): every column and value, for
+    per-window, per-wall, K-withheld and degraded-oracle methods."""
+    golden = json.loads((Path(__file__).parent / "golden" / "hand_view_rows.json").read_text())
+    methods = tuple(Method.from_label(m) for m in golden["methods"])
+    rows = _run(view_dir, methods).rows
+    assert len(rows) == len(golden["rows"]) == 20
+    for r, g in zip(rows, golden["rows"]):
+        assert list(r) == list(RENDER_COLUMNS) and set(r) == set(g), set(r) ^ set(g)
+        bad = {k: (r[k], g[k]) for k in r if not _same(r[k], g[k])}
+        assert not bad, (r["method"], r["window_id"], bad)
+
+
+def test_render_and_photo_tables_share_columns_and_dtypes(view_dir, tmp_path):
+    """A render's and a photo's rows (the same oracle method) make tables whose columns are the
+    two kinds' pinned ones (as results tables of commit 991c33e had them) and whose common columns
+    have the same dtypes."""
+    from bench.real.adapters import read_coco
+    from test_bench_real import _rectangle_view
+
+    m = (Method("oracle", "none", "lm"),)
+    render = pd.DataFrame(_run(view_dir, m).rows)
+    folder, *_ = _rectangle_view(tmp_path)
+    (photo_view,) = list(read_coco(folder))
+    photo = pd.DataFrame(evaluate_view(photo_view, m, EvalOptions(detector_long_side=640)).rows)
+    before_render = ["house", "renderer", "view", "window_id", "instance_id", "incidence_deg", "distance_m",
+                     "visible_fraction", "n_corners_visible", "corners_in_frame", "window_px", "window_area_px",
+                     "mask_px", "gt_width_m", "gt_height_m", "gt_aspect", "evaluable", "eval_reason"]
+    before_photo = ["house", "dataset", "renderer", "view", "window_id", "instance_id", "incidence_deg",
+                    "distance_m", "visible_fraction", "window_px", "gt_aspect", "has_quad", "has_box", "has_mask",
+                    "has_aspect", "has_size", "has_pose", "known_K", "evaluable", "eval_reason"]
+    errors = ["corner_err_px_mask", "corner_err_px_mask_max", "corner_err_px_snap", "corner_err_px_snap_max",
+              "corner_err_px_reproj", "corner_err_px_reproj_max", "snap_gain_px", "aspect_est", "aspect_err_rel",
+              "rot_err_deg", "normal_err_deg", "trans_err_m", "iou_2d", "iou_2d_mask", "iou_2d_reproj",
+              "match_iou", "det_score", "corner_err_px_head"]
+    method = ["detector", "snapper", "pose", "method"]
+    assert list(render.columns) == list(RENDER_COLUMNS) == before_render + method + errors + [
+        "focal_est_px", "focal_err_rel", "aspect_in90", "rot_in90", "trans_in90", "aspect_ci90_rel", "rot_ci90_deg",
+        "wall_id", "status", "reason", "aspect_case"]
+    assert list(photo.columns) == list(PHOTO_COLUMNS) == before_photo + method + errors + [
+        "reproj_consistency_px", "rel_size_err", "aspect_case", "status", "reason"]
+    common = [c for c in render.columns if c in photo.columns]
+    assert len(common) == 12 + 4 + 18 + 3
+    assert {c: (render[c].dtype, photo[c].dtype) for c in common if render[c].dtype != photo[c].dtype} == {}
+    # a photo has no pose truth: pose errors absent (NaN), not 0; the render has them
+    assert photo["rot_err_deg"].isna().all() and render.loc[render.status == "ok", "rot_err_deg"].notna().all()
+    assert (photo["renderer"] == "photo").all() and (photo["instance_id"] == -1).all()
+
+
+def test_task_reads_the_view_in_the_worker(view_dir):
+    """evaluate_task (what the executors run) gives evaluate_view's rows and times the load."""
+    m = (Method("oracle", "none", "lm"),)
+    out = evaluate_task(ViewTask(RenderedViewRef(str(view_dir), "hand", "hand"), m, EvalOptions()))
+    ref = _run(view_dir, m)
+    assert out.key == "hand/000000" and out.size == (H, W) and out.window_ids == ("W1", "W2", "W3", "W4")
+    assert out.stage_s["load"] > 0
+    assert all(a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a) for a, b in zip(out.rows, ref.rows))
 
 
 def test_rows_identical_with_dense_reference_matching(view_dir, monkeypatch):

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.evaluate import Method
+from fenestra.methods import Method
 from bench.executors import EXECUTORS, plan_shards
 from bench.profiles import load_profile
 from bench.results import load_results

@@ -84,12 +84,12 @@ def test_gate_cli_exit_codes(run_dir, tmp_path):
     p = tmp_path / "g.toml"
     p.write_text('[[gate]]\nprofile = "synthetic"\nmethod = "oracle/*/*"\n'
                  'metric = "corner_err_px_snap.median"\nmax = 2.0\n')
-    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
+    r = subprocess.run([sys.executable, "-m", "app", "gate", str(run_dir), "--gates", str(p)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1
     assert "oracle/bad/lm: corner_err_px_snap.median =" in r.stderr and "<= 2" in r.stderr
     p.write_text(p.read_text().replace("max = 2.0", "max = 50.0"))
-    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
+    r = subprocess.run([sys.executable, "-m", "app", "gate", str(run_dir), "--gates", str(p)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
 
@@ -127,24 +127,39 @@ def test_profiles_load_and_validate():
 
 
 def test_profile_names_are_checked_against_the_registries(monkeypatch):
+    import dataclasses
+
+    from bench.runner import plan_methods
+    from pipeline.reconstruct import POSES
     from pipeline.snappers import SNAPPERS
     from renders.backends import RENDERERS
 
     snappers = list(SNAPPERS)
-    with pytest.raises(ProfileError, match=rf"x: methods.snappers has unknown name\(s\) \['sift'\]; registered: "
+    with pytest.raises(ProfileError, match=rf"x: methods.snappers: unknown snapper 'sift'; choose from "
                                            rf"{re.escape(str(snappers))}"):
         profile_from_dict({"name": "x", "methods": {"snappers": ["none", "sift"]}}, where="x")
     with pytest.raises(ProfileError, match=rf"render.renderer has bad value 'povray'; registered: "
                                            rf"{re.escape(str(list(RENDERERS)))}"):
         profile_from_dict({"name": "x", "render": {"renderer": "povray"}})
-    with pytest.raises(ProfileError, match=r"methods.pose_solvers has unknown name\(s\) \['lm\+noK'\]"):
-        profile_from_dict({"name": "x", "methods": {"pose_solvers": ["wall+noK", "lm+noK"]}})
-    with pytest.raises(ProfileError, match=r"methods.detectors has unknown name\(s\) \['all'\]"):
+    # K withheld is a typed field of the method, not a '+noK' name
+    with pytest.raises(ProfileError, match=r"methods.pose_solvers: unknown pose strategy 'wall\+noK'"):
+        profile_from_dict({"name": "x", "methods": {"pose_solvers": ["wall+noK"]}})
+    with pytest.raises(ProfileError, match=r"methods.detectors: unknown detector 'all'"):
         profile_from_dict({"name": "x", "methods": {"detectors": ["all", "oracle"]}})
-    with pytest.raises(ProfileError, match="methods.detectors is empty"):
+    with pytest.raises(ProfileError, match="methods.detectors: empty detector selection"):
         profile_from_dict({"name": "x", "methods": {"detectors": []}})
+    with pytest.raises(ProfileError, match=r"methods.pose_solvers: unknown capability \['round'\]"):
+        profile_from_dict({"name": "x", "methods": {"pose_solvers": {"round": True}}})
+    with pytest.raises(ProfileError, match=r"methods.withhold_K must be"):
+        profile_from_dict({"name": "x", "methods": {"withhold_K": []}})
+    # selection by capability: per-window solvers, and K withheld only where the strategy fits f
+    p = profile_from_dict({"name": "x", "methods": {"pose_solvers": {"per_wall": False}, "snappers": ["none"]}})
+    assert [m.pose for m in plan_methods(p)[0]] == POSES.where(per_wall=False) == ["lm", "ippe"]
+    p = profile_from_dict({"name": "x", "methods": {"pose_solvers": ["lm", "wall"], "snappers": ["none"],
+                                                    "withhold_K": [False, True]}})
+    assert [m.label for m in plan_methods(p)[0]] == ["oracle/none/lm", "oracle/none/wall", "oracle/none/wall+noK"]
     # a strategy registered anywhere is accepted (and run by ["all"]) with no edit to bench/
-    monkeypatch.setitem(SNAPPERS, "tmp", SNAPPERS["none"])
+    monkeypatch.setitem(SNAPPERS, "tmp", dataclasses.replace(SNAPPERS["none"], name="tmp"))
     assert profile_from_dict({"name": "x", "methods": {"snappers": ["tmp"]}}).methods.snappers == ("tmp",)
 
 
@@ -166,10 +181,10 @@ def test_suggested_gates_pass_their_own_run_and_catch_a_worse_one(run_dir, tmp_p
 @pytest.mark.slow
 def test_cli_bench_smoke_then_gate(tmp_path):
     out = tmp_path / "smoke"
-    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--out", str(out)],
+    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "smoke", "--out", str(out)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "wall time" in r.stdout and "report:" in r.stdout
-    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(out)],
+    r = subprocess.run([sys.executable, "-m", "app", "gate", str(out)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr

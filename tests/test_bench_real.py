@@ -1,5 +1,6 @@
-"""The real-photo bench (bench/real): adapters on small hand-made files, metrics against
-hand-computed numbers, one row per labelled window per method, the profile and the CLI."""
+"""The real-photo bench: adapters (bench/real) on small hand-made files, metrics against
+hand-computed numbers, one row per labelled window per method through the one evaluation path
+(bench.evaluate, bench.runner), the profile and the CLI."""
 from __future__ import annotations
 
 import json
@@ -12,14 +13,15 @@ import cv2
 import numpy as np
 import pytest
 
-from bench.evaluate import Method, ViewOutcome
-from bench.real import metrics as rm
+from bench import metrics as rm
+from bench.detection_ap import coco_ap_of
+from bench.evaluate import EvalOptions, ViewOutcome, evaluate_view, gt_coco, window_errors
+from fenestra.methods import Method
 from bench.real.adapters import ADAPTERS, CURTAIN_K, read_coco
-from bench.real.contract import RealWindow
-from bench.real.evaluate import RealEvalSpec, evaluate_real_view, gt_coco, window_errors
 from bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
-from bench.real.runner import LabelledOutcome, coco_ap_of, run_real
 from bench.real.simreal import ranking
+from bench.runner import run_benchmark
+from bench.views import LabelledWindow
 from fenestra.data import coco_result
 from pipeline.types import WindowResult
 
@@ -68,12 +70,13 @@ def test_box_ap_hand_computed(yolo_dir):
     IoU thresholds 0.5-0.6: precision 1 up to recall 0.5, then 2/3 up to 1: AP = (51 + 50 * 2/3) / 101;
     thresholds 0.65-0.95: only A: AP = 51 / 101. Mean over the 10 thresholds."""
     (v,) = list(ADAPTERS["yolo"](yolo_dir))
-    key = f"{v.dataset}/{v.name}"
+    key = v.key
     dt = [coco_result(key, 0.9, [14.5, 14.5, 34.5, 34.5]), coco_result(key, 0.8, [79.5, -0.5, 89.5, 9.5]),
           coco_result(key, 0.7, [59.5, 49.5, 79.5, 62.0])]
     assert [d["bbox"] for d in dt] == [[15.0, 15.0, 20.0, 20.0], [80.0, 0.0, 10.0, 10.0], [60.0, 50.0, 20.0, 12.5]]
-    out = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v), coco_dt={"d": dt})
-    s = coco_ap_of([LabelledOutcome(v.dataset, key, (100, 100), out)], "d")
+    out = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v), coco_dt={"d": dt}, dataset=v.dataset, view=v.name,
+                      size=(100, 100))
+    s = coco_ap_of([out], "d")
     ap_low, ap_high = (51 + 50 * 2 / 3) / 101, 51 / 101
     assert s["bbox_AP50"] == pytest.approx(ap_low, abs=1e-9)
     assert s["bbox_AP"] == pytest.approx((3 * ap_low + 7 * ap_high) / 10, abs=1e-9)
@@ -96,15 +99,17 @@ def test_coco_crowd_region_is_ignored_in_box_ap(tmp_path):
     (tmp_path / "annotations.json").write_text(json.dumps(doc))
     (v,) = list(read_coco(tmp_path))
     assert [w.id for w in v.windows] == ["1", "2"] and [w.id for w in v.ignore] == ["3"]
-    key = f"{v.dataset}/{v.name}"
+    key = v.key
     dt = [coco_result(key, 0.9, [19.5, 64.5, 39.5, 84.5]), coco_result(key, 0.8, [79.5, 39.5, 95.5, 49.5]),
           coco_result(key, 0.7, [9.5, 9.5, 29.5, 29.5])]
-    out = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v), coco_dt={"d": dt})
-    s = coco_ap_of([LabelledOutcome(v.dataset, key, (100, 100), out)], "d")
+    out = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v), coco_dt={"d": dt}, dataset=v.dataset, view=v.name,
+                      size=(100, 100))
+    s = coco_ap_of([out], "d")
     assert s["bbox_AP"] == pytest.approx(0.5 * 51 / 101, abs=1e-12) and s["bbox_R50"] == pytest.approx(0.5)
     assert s["n_gt"] == 2 and np.isnan(s["segm_AP"])
-    no_ignore = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v)[:2], coco_dt={"d": dt})
-    assert coco_ap_of([LabelledOutcome(v.dataset, key, (100, 100), no_ignore)], "d")["bbox_AP"] == pytest.approx(
+    no_ignore = ViewOutcome(rows=[], stage_s={}, coco_gt=gt_coco(v)[:2], coco_dt={"d": dt}, dataset=v.dataset,
+                            view=v.name, size=(100, 100))
+    assert coco_ap_of([no_ignore], "d")["bbox_AP"] == pytest.approx(
         51 / 101 / 3, abs=1e-12)
 
 
@@ -122,14 +127,14 @@ def test_labelmap_colour_and_id(tmp_path):
     _write_rgb(tmp_path / "labels" / "f.png", lab)
     _write_rgb(tmp_path / "images" / "f.jpg", _photo(20, 30))
     (v,) = list(ADAPTERS["labelmap"](tmp_path, window=[255, 0, 0]))
-    assert [int(w.mask.sum()) for w in v.windows] == [24, 50]
+    assert [w.mask.area for w in v.windows] == [24, 50]
     assert [w.partial for w in v.windows] == [False, True]
     np.testing.assert_allclose(v.windows[0].bbox(), [2.5, 1.5, 8.5, 5.5])
     ids = np.zeros((20, 30), np.uint8)
     ids[2:6, 3:9] = 7
     cv2.imwrite(str(tmp_path / "labels" / "f.png"), ids)
     (v,) = list(ADAPTERS["labelmap"](tmp_path, window=7))
-    assert len(v.windows) == 1 and int(v.windows[0].mask.sum()) == 24
+    assert len(v.windows) == 1 and v.windows[0].mask.area == 24
     with pytest.raises(ValueError, match="colour"):
         list(ADAPTERS["labelmap"](tmp_path, window=[255, 0, 0]))
 
@@ -175,17 +180,18 @@ def test_window_errors_hand_computed():
     """A result whose quads sit 3, 4 px off the labelled quad and whose aspect is 0.7 against a
     true 2/3: corner error 5 px, aspect error 0.05; reprojection consistency 5 px between them."""
     q = np.array([[10.0, 10], [50, 10], [50, 70], [10, 70]])
-    w = RealWindow(id="w", quad=q, aspect=2 / 3)
+    w = LabelledWindow(id="w", quad=q, aspect=2 / 3)
     res = WindowResult(index=0, score=1.0, quad_mask=q + [3, 4], quad_snapped=q + [3, 4], aspect_ratio=0.7,
                        aspect_case="general", focal_estimate_px=None, R=np.eye(3), t=np.array([0, 0, 2.0]),
                        height_m=1.0, quad_reprojected=q + [6, 8], failure=None)
-    e = window_errors(res, w)
+    K = np.array([[300.0, 0, 30], [0, 300.0, 40], [0, 0, 1]])
+    e = window_errors(res, w, None, K)
     assert e["corner_err_px_snap"] == pytest.approx(5.0) and e["corner_err_px_reproj"] == pytest.approx(10.0)
     assert e["aspect_err_rel"] == pytest.approx(0.05)
     assert e["reproj_consistency_px"] == pytest.approx(5.0)
     assert np.isnan(e["rot_err_deg"]) and np.isnan(e["trans_err_m"])  # no true pose: absent
-    assert np.isnan(window_errors(res, w, known_K=False)["reproj_consistency_px"])  # 0 by construction
-    e = window_errors(res, RealWindow(id="w", box=np.array([0, 0, 5, 5.0])))
+    assert np.isnan(window_errors(res, w, None, None)["reproj_consistency_px"])  # 0 by construction
+    e = window_errors(res, LabelledWindow(id="w", box=np.array([0, 0, 5, 5.0])), None, K)
     assert np.isnan(e["corner_err_px_snap"]) and np.isnan(e["aspect_err_rel"])  # no quad, no aspect
 
 
@@ -202,7 +208,7 @@ def test_rectangle_end_to_end_with_oracle_masks(tmp_path):
     folder, quad, aspect, K = _rectangle_view(tmp_path)
     (v,) = list(read_coco(folder))
     methods = (Method("oracle", "none", "lm"),)
-    out = evaluate_real_view(v, methods, RealEvalSpec())
+    out = evaluate_view(v, methods, EvalOptions(detector_long_side=640))
     (row,) = out.rows
     assert row["status"] == "ok", row["reason"]
     assert row["corner_err_px_mask"] < 0.5  # the mask was drawn from the labelled quad
@@ -223,7 +229,7 @@ def test_curtainwall_adapter_small_hand_made(tmp_path):
     s = 96 / 1536
     np.testing.assert_allclose(v.K[0], [CURTAIN_K[0][0] * s, 0, (CURTAIN_K[0][2] + 0.5) * s - 0.5])
     assert v.coplanar and v.distortion_removed is not None
-    assert [int(w.mask.sum()) for w in v.windows] == [600, 68 * 20]
+    assert [w.mask.area for w in v.windows] == [600, 68 * 20]
     assert v.windows[0].aspect == pytest.approx(93.2 / 143.2) and not v.windows[0].partial
     assert v.windows[1].partial and v.windows[1].aspect is None
 
@@ -239,7 +245,7 @@ def test_every_labelled_window_one_row_per_method(tmp_path, yolo_dir):
         "datasets": [{"name": "cw", "format": "curtainwall", "path": str(ROOT / "data/real/curtainwall")},
                      {"name": "boxes", "format": "yolo", "path": str(yolo_dir)},
                      {"name": "absent", "format": "coco", "path": str(tmp_path / "nope"), "optional": True}]})
-    info = run_real(prof, out_dir=tmp_path / "run", progress=False, report=False)
+    info = run_benchmark(prof, out_dir=tmp_path / "run", progress=False, report=False)
     import pandas as pd
 
     df = pd.read_parquet(info.run_dir / "results.parquet")
@@ -290,7 +296,7 @@ def test_simreal_ranking_hand_computed():
 def test_cli_bench_on_a_user_coco_folder(tmp_path):
     folder, *_ = _rectangle_view(tmp_path / "mydata")
     env = {**os.environ, "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg"}
-    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "real", "--data", str(folder),
+    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "real", "--data", str(folder),
                         "--format", "coco", "--out", str(tmp_path / "run")], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
@@ -298,7 +304,7 @@ def test_cli_bench_on_a_user_coco_folder(tmp_path):
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["metadata"]["profile"] == "real-mydata"
     assert s["results"]["oracle/none/lm"]["aspect_err_rel"]["median"] < 0.01
-    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--data", str(folder)],
+    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "smoke", "--data", str(folder)],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "need a real profile" in r.stderr
 
@@ -315,7 +321,7 @@ def test_simreal_section_in_the_report(tmp_path):
     prof = real_profile_from_dict({"name": "t", "kind": "real", "data": str(folder),
                                    "methods": {"detectors": ["oracle"], "snappers": ["none", "harris"],
                                                "pose_solvers": ["lm"]}})
-    info = run_real(prof, out_dir=tmp_path / "real", progress=False, report=False)
+    info = run_benchmark(prof, out_dir=tmp_path / "real", progress=False, report=False)
     shutil.copytree(info.run_dir, tmp_path / "sim")
     doc = json.loads(write_simreal(tmp_path / "sim", info.run_dir).read_text())
     (r,) = [x for x in doc["rankings"] if x["metric"] == "aspect_err_rel"]
@@ -344,6 +350,34 @@ def test_coco_rle_masks_uncompressed_and_compressed(tmp_path):
     (tmp_path / "annotations.json").write_text(json.dumps(doc))
     (v,) = list(read_coco(tmp_path))
     for w in v.windows:
-        np.testing.assert_array_equal(w.mask, m.astype(bool))
+        np.testing.assert_array_equal(w.mask.dense(), m.astype(bool))
         np.testing.assert_allclose(w.bbox(), [0.5, 1.5, 2.5, 4.5])
         assert w.quad is None and w.box is None and w.aspect is None
+
+
+def test_photo_rows_equal_those_of_the_former_real_evaluator(tmp_path, yolo_dir):
+    """The one evaluation path gives photos the rows bench/real's own evaluator of commit 991c33e
+    gave (tests/golden/photo_view_rows.json, written by that code): a labelled quad with aspect and
+    K, box-only labels (oracles not run), and a coplanar curtain-wall photo (relative sizes, partial
+    panes); every column in the photo table's order, every value, and the COCO material's sizes."""
+    from bench.evaluate import PHOTO_COLUMNS
+
+    golden = json.loads((ROOT / "tests" / "golden" / "photo_view_rows.json").read_text())
+    methods = tuple(Method.from_label(m) for m in golden["methods"])
+    folder, *_ = _rectangle_view(tmp_path / "rect")
+    views = [next(iter(read_coco(folder))), next(iter(ADAPTERS["yolo"](yolo_dir))),
+             next(iter(ADAPTERS["curtainwall"](ROOT / "data" / "real" / "curtainwall")))]
+    for v in views:
+        g = golden["views"][v.dataset]
+        out = evaluate_view(v, methods, EvalOptions(detector_long_side=640))
+        assert len(out.rows) == len(g["rows"]) > 0, v.dataset
+        assert out.n_false_positives == g["n_false_positives"] and len(out.coco_gt) == g["n_coco_gt"]
+        assert {k: len(x) for k, x in out.coco_dt.items()} == g["n_coco_dt"]
+        for r, e in zip(out.rows, g["rows"]):
+            assert list(r) == list(PHOTO_COLUMNS) and set(r) == set(e)
+            bad = {k: (r[k], e[k]) for k in r
+                   if not (r[k] == e[k] or (e[k] is None and isinstance(r[k], float) and np.isnan(r[k]))
+                           or (isinstance(r[k], float) and isinstance(e[k], float)
+                               and r[k] == pytest.approx(e[k], rel=1e-9, abs=1e-12)))}
+            assert not bad, (v.dataset, r["method"], r["window_id"], bad)
+    assert sum(e["rel_size_err"] is not None for e in golden["views"]["curtainwall"]["rows"]) > 0

@@ -173,7 +173,7 @@ def test_a_run_without_the_cli_default_method_says_so(run):
 def test_cli_writes_the_docs_and_they_render_again_identically(run, tmp_path):
     from typer.testing import CliRunner
 
-    from fenestra.cli import app
+    from app.cli import app
 
     d, _ = run
     (tmp_path / "docs").mkdir()

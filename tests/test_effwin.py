@@ -117,7 +117,7 @@ def test_real_box_photos_split_and_box_instances(tmp_path):
 
 def test_effwin_tiny_training_loss_decreases_and_detects(tmp_path):
     from pipeline.detectors import detect
-    from fenestra.data import read_image
+    from fenestra.images import read_image
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
     cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / "e.pt"),

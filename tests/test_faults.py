@@ -1,4 +1,4 @@
-"""Fault injection, as a user meets faults: every case runs ``python -m fenestra ...`` in a
+"""Fault injection, as a user meets faults: every case runs ``python -m app ...`` (the ``fenestra`` command) in a
 subprocess (README: "What Fenestra guarantees").
 
 Disk full is a real failing write: the child runs under RLIMIT_FSIZE (a file-size limit the
@@ -61,7 +61,7 @@ def fenestra(*args, cwd: Path, limit_bytes: int | None = None, timeout: float = 
     def limit():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env(),
+    return subprocess.run([sys.executable, "-m", "app", *map(str, args)], cwd=cwd, env=env(),
                           capture_output=True, text=True, timeout=timeout,
                           preexec_fn=limit if limit_bytes is not None else None)
 
@@ -206,7 +206,7 @@ def test_poisoned_cache_is_rerendered_with_a_message(tmp_path):
 
 def test_sigterm_mid_render_then_resume(tmp_path):
     args = [*RENDER_ARGS[:2], "40", *RENDER_ARGS[3:]]
-    p = subprocess.Popen([sys.executable, "-m", "fenestra", *args], cwd=tmp_path, env=env(),
+    p = subprocess.Popen([sys.executable, "-m", "app", *args], cwd=tmp_path, env=env(),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
     while not list(tmp_path.glob("out/renders/*/views/000001/view.json")) and time.time() < deadline:
@@ -241,7 +241,12 @@ def test_reconstruct_replaces_its_output_whole(tmp_path):
     umask = os.umask(0o022)
     os.umask(umask)
     assert (tmp_path / "o").stat().st_mode & 0o777 == 0o777 & ~umask  # a normal folder, not mkdtemp's 0700
-    (tmp_path / "o" / "model.glb.old").write_text("stale")
+    manifest = tmp_path / "o" / ".fenestra-output.json"
+    written = json.loads(manifest.read_text())["files"]
+    assert "windows.json" in written and ".fenestra-output.json" in written
+    (tmp_path / "o" / "model.glb.old").write_text("stale")  # as if an older version had written it
+    manifest.write_text(json.dumps({"files": [*written, "model.glb.old"]}))
+    (tmp_path / "o" / "notes.txt").write_text("the user's")  # not Fenestra's: never removed
     first = (tmp_path / "o" / "windows.json").read_bytes()
     # a failing export (disk full at 50 kB: texture.png is larger) leaves the complete first set
     r = reconstruct("o", cwd=tmp_path, limit_bytes=50_000)
@@ -250,6 +255,7 @@ def test_reconstruct_replaces_its_output_whole(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]  # no temporary folder left
     assert reconstruct("o", cwd=tmp_path).returncode == 0
     assert not (tmp_path / "o" / "model.glb.old").exists()  # nothing stale beside the new set
+    assert (tmp_path / "o" / "notes.txt").read_text() == "the user's"
 
 
 def test_reconstruct_refuses_bad_out(tmp_path):
@@ -258,9 +264,22 @@ def test_reconstruct_refuses_bad_out(tmp_path):
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "thesis.tex").write_text("x")
     one_line_error(reconstruct("mine", cwd=tmp_path), "not empty", "--force")
-    assert reconstruct("mine", "--force", cwd=tmp_path).returncode == 0
-    assert not (tmp_path / "mine" / "thesis.tex").exists() and (tmp_path / "mine" / "windows.json").is_file()
+    assert reconstruct("mine", "--force", cwd=tmp_path).returncode == 0  # writes beside the user's files
+    assert (tmp_path / "mine" / "thesis.tex").read_text() == "x" and (tmp_path / "mine" / "windows.json").is_file()
     one_line_error(reconstruct("x" * 300, cwd=tmp_path), "File name too long")
+
+
+def test_reconstruct_force_never_deletes_an_input(tmp_path):
+    (tmp_path / "o").mkdir()
+    photo = tmp_path / "o" / "img017.jpg"
+    shutil.copy(EXAMPLE / "img017.jpg", photo)
+    for extra in ((), ("--force",)):
+        one_line_error(reconstruct("o", *extra, cwd=tmp_path, photo=photo), "--out o holds the input", "img017.jpg")
+    one_line_error(reconstruct(".", "--force", cwd=tmp_path / "o", photo="img017.jpg", K=EXAMPLE / "K.json"),
+                   "holds the input img017.jpg")
+    assert photo.read_bytes() == (EXAMPLE / "img017.jpg").read_bytes()
+    shutil.copy(EXAMPLE / "K.json", tmp_path / "o" / "K.json")  # K inside the output folder: refused too
+    one_line_error(reconstruct("o", "--force", cwd=tmp_path, K=tmp_path / "o" / "K.json"), "holds the input")
 
 
 @pytest.fixture
@@ -300,7 +319,7 @@ MEASURE = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); 
 
 def run_measured(args: list, cwd: Path) -> tuple[int, str, float]:
     """(exit code, stderr, peak RSS in GB) of one CLI run."""
-    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
+    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "app", *map(str, args)],
                        cwd=cwd, env=env(), capture_output=True, text=True, timeout=300)
     kb = int(r.stderr.rsplit("MAXRSS_KB ", 1)[1])
     return r.returncode, r.stderr, kb / 2**20
@@ -434,3 +453,204 @@ def test_evaluate_detector_bad_options(small_dataset, tmp_path):
                             cwd=tmp_path), "README.md is not a model checkpoint")
     one_line_error(fenestra("evaluate-detector", "--data", small_dataset, "--device", "cuda:99", cwd=tmp_path),
                    "--device cuda:99")
+
+
+# ---------------------------------------------------------------- 7. a user's dataset and other inputs
+
+def _photo(path: Path, w: int = 64, h: int = 48) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), np.random.default_rng(0).integers(60, 200, (h, w, 3), dtype=np.uint8))
+
+
+def coco_case(edit=None, photos=("a.png",)):
+    """A builder: a COCO folder ds/ (64x48 photos, one window each) whose document went through
+    ``edit(doc)`` (which may return a replacement); the check-data command line for it."""
+    def build(d: Path) -> list:
+        for p in photos:
+            _photo(d / "ds" / "images" / p)
+        doc = {"images": [{"id": i + 1, "file_name": p, "width": 64, "height": 48} for i, p in enumerate(photos)],
+               "categories": [{"id": 1, "name": "window"}],
+               "annotations": [{"id": 1, "image_id": 1, "category_id": 1, "bbox": [10, 10, 20, 15]}]}
+        new = edit(doc) if edit else None
+        doc = doc if new is None else new
+        (d / "ds" / "annotations.json").write_text(json.dumps(doc))
+        return ["check-data", "ds", "--format", "coco"]
+    return build
+
+
+def _set(path: str, value):
+    """An edit setting doc[k1][k2]...= value (path 'annotations.0.size_m')."""
+    def edit(doc):
+        *keys, last = [int(k) if k.isdigit() else k for k in path.split(".")]
+        node = doc
+        for k in keys:
+            node = node[k]
+        if value is KeyError:
+            del node[last]
+        else:
+            node[last] = value
+    return edit
+
+
+def _then(build, after):
+    def b(d: Path) -> list:
+        args = build(d)
+        after(d)
+        return args
+    return b
+
+
+def _replace(rel: str, make):
+    """After building: replace ds/<rel> by ``make(path)`` (a symlink, a FIFO, a sparse file...)."""
+    def after(d: Path) -> None:
+        p = d / "ds" / rel
+        p.unlink(missing_ok=True)
+        make(p)
+    return after
+
+
+def _sparse(size: int):
+    def make(p: Path) -> None:
+        with open(p, "wb") as f:
+            f.truncate(size)
+    return make
+
+
+def _exif6(d: Path) -> None:
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[0x0112] = 6  # displayed turned 90 deg: 300 wide, 400 high
+    Image.fromarray(np.full((300, 400, 3), 150, np.uint8)).save(d / "ds" / "images" / "a.jpg", exif=exif)
+
+
+def yolo_case(label: str, fmt: str = "yolo"):
+    def build(d: Path) -> list:
+        _photo(d / "ds" / "images" / "a.png")
+        (d / "ds" / "labels").mkdir(parents=True)
+        (d / "ds" / "labels" / "a.txt").write_text(label)
+        return ["check-data", "ds", "--format", fmt]
+    return build
+
+
+def checkerboard_case(d: Path) -> list:
+    """A 640x480 label map whose window class is a 1-px checkerboard: 153600 components."""
+    _photo(d / "ds" / "images" / "a.png", 640, 480)
+    lab = np.zeros((480, 640, 3), np.uint8)
+    lab[(np.indices((480, 640)).sum(axis=0) % 2) == 0] = (0, 0, 255)  # red in RGB, written as BGR
+    (d / "ds" / "labels").mkdir()
+    cv2.imwrite(str(d / "ds" / "labels" / "a.png"), lab)
+    return ["check-data", "ds", "--format", "labelmap"]
+
+
+def gate_case(bound: str):
+    def build(d: Path) -> list:
+        (d / "g.toml").write_text(f'[[gate]]\nprofile = "tiny"\nmethod = "*"\nmetric = "detection_rate"\n{bound}\n')
+        return ["gate", "run", "--gates", "g.toml"]
+    return build
+
+
+def big_K(d: Path) -> list:
+    _sparse(65 * 2**20)(d / "K.json")
+    return ["reconstruct", EXAMPLE / "img017.jpg", "--K", "K.json", "--out", "o"]
+
+
+def bench_case(build):
+    def b(d: Path) -> list:
+        build(d)
+        return ["bench", "--profile", "real", "--data", "ds", "--format", "coco", "--out", "run"]
+    return b
+
+
+def _fifo(p: Path) -> None:
+    os.mkfifo(p)
+
+
+OUTSIDE = "../../outside/secret.png"
+# (case, builder of the input in a fresh folder -> command line, the one error line's needles)
+FAULTS = [
+    ("coco top level a list", coco_case(lambda doc: []), ["the top level must be a JSON object", "got list"]),
+    ("coco annotation without image_id", coco_case(_set("annotations.0.image_id", KeyError)),
+     ["annotations.json: annotations[0] (id 1) has no 'image_id'"]),
+    ("coco unknown image_id", coco_case(_set("annotations.0.image_id", 99)),
+     ["annotations[0] (id 1): image_id 99 matches no image"]),
+    ("coco duplicate image ids", coco_case(_set("images.1.id", 1), photos=("a.png", "b.png")),
+     ["images[1] 'id' 1 duplicates images[0]"]),
+    ("coco duplicate annotation ids", coco_case(lambda doc: doc["annotations"].append(dict(doc["annotations"][0]))),
+     ["annotations[1] 'id' 1 duplicates annotations[0]"]),
+    ("coco category_id a list", coco_case(_set("annotations.0.category_id", [1])),
+     ["annotations[0] (id 1): 'category_id' must be an integer or string, got [1]"]),
+    ("coco two photos of one name", coco_case(_set("images.1.file_name", "sub/a.png"), photos=("a.png", "b.png")),
+     ["images[1] file_name 'sub/a.png' has the name 'a' of images[0]"]),
+    ("coco image without file_name", coco_case(_set("images.0.file_name", KeyError)),
+     ["images[0] needs a 'file_name' string, got None"]),
+    ("coco category without id", coco_case(_set("categories.0.id", KeyError)), ["categories[0] has no 'id'"]),
+    ("coco size_m [1, 0]", coco_case(_set("annotations.0.size_m", [1, 0])),
+     ["annotations[0] (id 1): size_m must be [width, height] positive metres, got [1, 0]"]),
+    ("coco size_m 'ab'", coco_case(_set("annotations.0.size_m", "ab")), ["size_m must be", "got 'ab'"]),
+    ("coco polygon with odd coordinates", coco_case(_set("annotations.0.segmentation", [[10, 10, 30, 10, 30, 25, 10]])),
+     ["segmentation[0] has an odd number of coordinates (7)"]),
+    ("coco 1-point polygon", coco_case(_set("annotations.0.segmentation", [[10, 10]])),
+     ["segmentation[0] has 1 point(s); a polygon needs at least 3"]),
+    ("coco RLE of another size", coco_case(_set("annotations.0.segmentation", {"size": [10, 10], "counts": [5, 95]})),
+     ["RLE size [10, 10] != the image's stated [height, width] [48, 64]"]),
+    ("coco bbox outside the photo", coco_case(_set("annotations.0.bbox", [100, 10, 20, 15])),
+     ["annotations[0] (id 1): bbox lies outside the 64x48 photo"]),
+    ("coco file_name ../..", coco_case(_set("images.0.file_name", OUTSIDE)),
+     [f"file_name '{OUTSIDE}' must be a path inside the dataset folder"]),
+    ("coco absolute file_name", coco_case(_set("images.0.file_name", "/etc/hostname")),
+     ["file_name '/etc/hostname' must be a path inside the dataset folder"]),
+    ("coco photo symlinked outside", _then(coco_case(), _replace("images/a.png", lambda p: (
+        _photo(p.parents[2] / "secret.png"), p.symlink_to(p.parents[2] / "secret.png")))),
+     ["'images/a.png' leads outside the dataset folder"]),
+    ("coco photo a FIFO", _then(coco_case(), _replace("images/a.png", _fifo)), ["a.png is not a regular file"]),
+    ("coco EXIF-rotated photo, sensor size stated",
+     _then(coco_case(lambda doc: doc["images"][0].update(file_name="a.jpg", width=400, height=300)), _exif6),
+     ["image 1 (a.jpg) states width 400, height 300 but the photo decodes to 300x400 (EXIF orientation 6 applied)"]),
+    ("coco annotations.json of 65 MB", _then(coco_case(), _replace("annotations.json", _sparse(65 * 2**20))),
+     ["annotations.json is 65.0 MB, more than the 64 MB limit"]),
+    ("coco annotations.json a FIFO", _then(coco_case(), _replace("annotations.json", _fifo)),
+     ["annotations.json is not a regular file"]),
+    ("bench on coco with an unknown image_id", bench_case(coco_case(_set("annotations.0.image_id", 99))),
+     ["annotations[0] (id 1): image_id 99 matches no image"]),
+    ("yolo class inf", yolo_case("inf 0.5 0.5 0.2 0.2\n"), ["a.txt:1: class 'inf' is not a non-negative integer"]),
+    ("yolo line of 3 fields", yolo_case("0 0.5 0.5\n"), ["a.txt:1: bad YOLO line '0 0.5 0.5'"]),
+    ("yolo box of zero width", yolo_case("0 0.5 0.5 0 0.2\n"), ["a.txt:1: box", "w, h > 0"]),
+    ("yolo label file a FIFO", _then(yolo_case(""), _replace("labels/a.txt", _fifo)), ["a.txt is not a regular file"]),
+    ("label map of 153600 components", checkerboard_case, ["153600 window components, more than the 1000 per photo"]),
+    ("gate max = inf", gate_case("max = inf"), ["gate #1 (detection_rate) has max = inf; a bound must be finite"]),
+    ("gate min = -inf", gate_case("min = -inf"), ["has min = -inf; a bound must be finite"]),
+    ("gate min = nan", gate_case("min = nan"), ["has min = nan; a bound must be finite"]),
+    ("K.json of 65 MB", big_K, ["K.json is 65.0 MB, more than the 64 MB limit"]),
+]
+
+
+@pytest.mark.parametrize("case, build, needles", FAULTS, ids=[c for c, _, _ in FAULTS])
+def test_bad_input_is_one_line_error(case, build, needles, tmp_path):
+    args = build(tmp_path)
+    one_line_error(fenestra(*args, cwd=tmp_path, timeout=120), *needles)
+
+
+# (case, builder, needles in stdout): the dataset is usable, the label or file is left out with its reason
+REFUSED = [
+    ("yolo box entirely off the photo", yolo_case("0 1.5 1.5 0.2 0.2\n0 0.5 0.5 0.2 0.2\n"),
+     ["1 window(s), 1 refused", "a.txt:1: box (cx 1.5, cy 1.5, w 0.2, h 0.2) lies entirely outside the photo; dropped"]),
+    ("yolo photo a FIFO", _then(yolo_case(""), lambda d: os.mkfifo(d / "ds" / "images" / "b.jpg")),
+     ["1 photo(s)", "b.jpg: not a regular file (a folder, FIFO or device); skipped"]),
+    ("yolo labels without photo", _then(yolo_case(""), lambda d: (d / "ds" / "labels" / "z.txt").write_text("")),
+     ["z.txt: no photo z.* in"]),
+]
+
+
+@pytest.mark.parametrize("case, build, needles", REFUSED, ids=[c for c, _, _ in REFUSED])
+def test_bad_label_is_refused_with_its_reason(case, build, needles, tmp_path):
+    r = fenestra(*build(tmp_path), cwd=tmp_path, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    for n in needles:
+        assert n in r.stdout, r.stdout
+
+
+def test_label_map_checkerboard_in_bounded_memory(tmp_path):
+    rc, err, gb = run_measured(checkerboard_case(tmp_path), tmp_path)
+    assert rc == 2 and "153600 window components, more than the 1000 per photo" in err, err[-2000:]
+    assert gb < 0.5, gb

@@ -1,4 +1,4 @@
-"""pipeline/export, pipeline/substitute, pipeline/catalogue against an independent synthetic view.
+"""pipeline/export (with export/substitute), pipeline/catalogue against an independent synthetic view.
 
 Ground truth: a planar facade with window voids, photographed by a known camera. The photo is made
 here with cv2.warpPerspective of a metric facade canvas (the plane homography K [r1 r2 t]); quads
@@ -22,7 +22,7 @@ from fenestra.conventions import K_from_fov, look_at
 from fenestra.errors import PipelineError
 from pipeline.catalogue import CATALOGUE, window_mesh
 from pipeline.export import write_outputs
-from pipeline.substitute import substitute
+from pipeline.export.substitute import substitute
 from pipeline.types import WindowResult
 
 IMG_W, IMG_H = 640, 480

@@ -1,4 +1,4 @@
-"""Façade geometry (pipeline/facade.py, pipeline/walls.py) on synthetic walls with known answers.
+"""Per-wall geometry (pipeline/walls/, pipeline/segments.py) on synthetic walls with known answers.
 
 Ground truth by construction: window rectangles on known world planes, a camera from
 fenestra.conventions.look_at, corners projected with conventions.project (plain pinhole algebra,
@@ -11,8 +11,14 @@ import cv2
 import numpy as np
 import pytest
 
-from fenestra.conventions import TOL, look_at, make_K, project, rotation_error_deg
-from pipeline import facade, walls
+from fenestra.conventions import look_at, make_K, project, rotation_error_deg
+from fenestra.tolerances import TOL
+from pipeline.segments import SegmentCache, detect_segments
+from pipeline.walls import WALL_FIT
+from pipeline.walls import fit as wallfit
+from pipeline.walls import lines as facade_lines
+from pipeline.walls import strategies as walls
+from pipeline.walls import vanishing
 from pipeline.types import WindowResult
 
 K = make_K(820.0, 820.0, 319.5, 239.5)
@@ -56,11 +62,11 @@ def scene():
 def test_vanishing_direction_is_the_walls_horizontal():
     R, _, quads, labels, _ = scene()
     for lab, ex in ((0, EX_FRONT), (1, EX_SIDE)):
-        seg = facade.side_segments(quads[labels == lab], facade.H_SIDES)
-        d = facade.orient(facade.vanishing_direction(facade.edge_normals(seg, K)), seg, K)
+        seg = vanishing.side_segments(quads[labels == lab], vanishing.H_SIDES)
+        d = vanishing.orient(vanishing.vanishing_direction(vanishing.edge_normals(seg, K)), seg, K)
         np.testing.assert_allclose(d, R @ ex, atol=1e-9)
-        segv = facade.side_segments(quads[labels == lab], facade.V_SIDES)
-        dv = facade.orient(facade.vanishing_direction(facade.edge_normals(segv, K)), segv, K)
+        segv = vanishing.side_segments(quads[labels == lab], vanishing.V_SIDES)
+        dv = vanishing.orient(vanishing.vanishing_direction(vanishing.edge_normals(segv, K)), segv, K)
         np.testing.assert_allclose(dv, R @ UP, atol=1e-9)
 
 
@@ -69,17 +75,17 @@ def test_vanishing_direction_at_infinity():
     R, t = look_at(np.array([0.5, -8.0, 2.0]), np.array([0.5, 0.0, 2.0]))
     C = wall_windows([0.0, 0.0, 0.0], EX_FRONT, FRONT[:3])
     quads = np.array([project(K, R, t, c) for c in C])
-    seg = facade.side_segments(quads, facade.H_SIDES)
-    d = facade.orient(facade.vanishing_direction(facade.edge_normals(seg, K)), seg, K)
+    seg = vanishing.side_segments(quads, vanishing.H_SIDES)
+    d = vanishing.orient(vanishing.vanishing_direction(vanishing.edge_normals(seg, K)), seg, K)
     np.testing.assert_allclose(d, [1.0, 0.0, 0.0], atol=1e-9)
-    assert facade.focal_from_vanishing(d, R @ UP, K) is None
+    assert vanishing.focal_from_vanishing(d, R @ UP, K) is None
 
 
 def test_group_walls_separates_the_two_walls_under_noise():
     _, _, quads, labels, _ = scene()
     rng = np.random.default_rng(3)
     noisy = quads + rng.normal(0.0, 0.3, quads.shape)
-    groups = facade.group_walls(noisy, K)
+    groups = vanishing.group_walls(noisy, K)
     found = sorted(sorted(g.members) for g in groups)
     expected = sorted(sorted(np.flatnonzero(labels == lab).tolist()) for lab in (0, 1))
     assert found == expected
@@ -88,8 +94,8 @@ def test_group_walls_separates_the_two_walls_under_noise():
 def test_focal_from_vanishing_exact():
     R, _, quads, labels, _ = scene()
     K0 = walls.pseudo_K(SHAPE, 500.0)  # wrong focal, right principal point
-    d_h, d_v = facade.fit_vps(quads, np.flatnonzero(labels == 0).tolist(), K0)
-    f = facade.focal_from_vanishing(d_h, d_v, K0)
+    d_h, d_v = vanishing.fit_vps(quads, np.flatnonzero(labels == 0).tolist(), K0)
+    f = vanishing.focal_from_vanishing(d_h, d_v, K0)
     assert f == pytest.approx(820.0, rel=1e-9)
 
 
@@ -104,8 +110,8 @@ def test_joint_rotation_exact_and_better_than_single_windows():
     R, t, quads, labels, C = scene()
     members = np.flatnonzero(labels == 0)
     R_gt = true_R(R, EX_FRONT)
-    g = facade.group_walls(quads, K)[0]
-    fit = facade.refine_walls(quads[members], K, facade.initial_rotation(g.d_h, g.d_v))
+    g = vanishing.group_walls(quads, K)[0]
+    fit = wallfit.refine_walls(quads[members], K, vanishing.initial_rotation(g.d_h, g.d_v))
     assert rotation_error_deg(fit.R[0], R_gt) < TOL.exact_rotation_deg
     widths = np.linalg.norm(C[members, 1] - C[members, 0], axis=1)
     heights = np.linalg.norm(C[members, 0] - C[members, 3], axis=1)
@@ -115,11 +121,11 @@ def test_joint_rotation_exact_and_better_than_single_windows():
     joint, single = [], []
     for _ in range(8):
         q = quads[members] + rng.normal(0.0, 0.5, (len(members), 4, 2))
-        R0 = facade.initial_rotation(*facade.fit_vps(q, list(range(len(q))), K))
-        joint.append(rotation_error_deg(facade.refine_walls(q, K, R0).R[0], R_gt))
+        R0 = vanishing.initial_rotation(*vanishing.fit_vps(q, list(range(len(q))), K))
+        joint.append(rotation_error_deg(wallfit.refine_walls(q, K, R0).R[0], R_gt))
         for k in range(len(q)):
-            Rk = facade.initial_rotation(*facade.fit_vps(q, [k], K))
-            single.append(rotation_error_deg(facade.refine_walls(q[k:k + 1], K, Rk).R[0], R_gt))
+            Rk = vanishing.initial_rotation(*vanishing.fit_vps(q, [k], K))
+            single.append(rotation_error_deg(wallfit.refine_walls(q[k:k + 1], K, Rk).R[0], R_gt))
     assert np.median(joint) < 0.5 * np.median(single)
 
 
@@ -127,12 +133,12 @@ def test_covariance_matches_monte_carlo():
     R, _, quads, labels, _ = scene()
     q0 = quads[labels == 0]
     sigma = 0.4
-    R0 = facade.initial_rotation(*facade.fit_vps(q0, list(range(len(q0))), K))
-    ref = facade.refine_walls(q0, K, R0, sigma_px=sigma, prior_dof=np.inf)
+    R0 = vanishing.initial_rotation(*vanishing.fit_vps(q0, list(range(len(q0))), K))
+    ref = wallfit.refine_walls(q0, K, R0, sigma_px=sigma, prior_dof=np.inf)
     rng = np.random.default_rng(7)
     widths, rotvecs = [], []
     for _ in range(150):
-        fit = facade.refine_walls(q0 + rng.normal(0.0, sigma, q0.shape), K, ref.R[0])
+        fit = wallfit.refine_walls(q0 + rng.normal(0.0, sigma, q0.shape), K, ref.R[0])
         widths.append(fit.width)
         dR = fit.R[0] @ ref.R[0].T
         rotvecs.append(np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]]) / 2.0)
@@ -199,17 +205,17 @@ def test_wall_jacobian_matches_finite_differences():
     from scipy.optimize._numdiff import approx_derivative
 
     _, _, quads, labels, _ = scene()
-    R0 = np.array([facade.initial_rotation(*facade.fit_vps(quads, list(np.flatnonzero(labels == g)), K))
+    R0 = np.array([vanishing.initial_rotation(*vanishing.fit_vps(quads, list(np.flatnonzero(labels == g)), K))
                    for g in (0, 1)])
     rng = np.random.default_rng(0)
     x = np.concatenate([rng.normal(0, 0.1, 6), rng.normal(0, 1, 4 * len(quads)) + np.tile([0, 0, 10, 1], len(quads)),
                         [800.0]])
 
     def residuals(x):
-        R, t, w, Kx = facade._unpack(x, 2, len(quads), R0, K, True)
-        return (facade.project_wall(R[labels], t, w, 1.0, Kx) - quads).ravel()
+        R, t, w, Kx = wallfit._unpack(x, 2, len(quads), R0, K, True)
+        return (wallfit.project_wall(R[labels], t, w, 1.0, Kx) - quads).ravel()
 
-    J = facade.wall_jacobian(x, 2, labels, R0, K, 1.0, True)
+    J = wallfit.wall_jacobian(x, 2, labels, R0, K, 1.0, True)
     np.testing.assert_allclose(J, approx_derivative(residuals, x, method="3-point"), atol=1e-6 * np.abs(J).max())
 
 
@@ -217,7 +223,7 @@ def test_tie_walls_right_angles_only():
     R, _, _, _, _ = scene()
     front, side = true_R(R, EX_FRONT), true_R(R, EX_SIDE)
     oblique = true_R(R, np.array([np.cos(np.radians(45)), np.sin(np.radians(45)), 0.0]))
-    group, Q = facade.tie_walls(np.array([front, side, oblique]))
+    group, Q = vanishing.tie_walls(np.array([front, side, oblique]))
     assert group.tolist() == [0, 0, 1]
     np.testing.assert_allclose(front @ Q[1], side, atol=1e-12)
 
@@ -272,68 +278,90 @@ def edge_segments(R, t, names):
     return np.array(out)
 
 
-@pytest.mark.parametrize("method,tol_px", [("lsd", 0.3), ("hough", 1.5)])
-def test_detect_segments_on_a_drawn_edge(method, tol_px):
-    """A step edge along the line 0.28 x - 0.96 y = -150 (drawn by 8 x 8 supersampling): a segment
-    lies on it, within tol_px at both ends; nothing shorter than the minimum comes back."""
+def drawn_edge() -> tuple[np.ndarray, np.ndarray]:
+    """A gray uint8 image (H, W) with a step edge along the line n . (x, y) = -150, n = (0.28, -0.96)
+    (drawn by 8 x 8 supersampling, pixel centres at integers), and n."""
     n = np.array([0.28, -0.96])
     ss = 8
     yy, xx = np.mgrid[0:SHAPE[0] * ss, 0:SHAPE[1] * ss]
     inside = (n[0] * ((xx + 0.5) / ss - 0.5) + n[1] * ((yy + 0.5) / ss - 0.5)) > -150.0
-    img = (40 + 160 * inside.reshape(SHAPE[0], ss, SHAPE[1], ss).mean(axis=(1, 3))).round().astype(np.uint8)
-    seg = facade.detect_segments(img, 100.0, method)
-    assert len(seg) >= 1
+    return (40 + 160 * inside.reshape(SHAPE[0], ss, SHAPE[1], ss).mean(axis=(1, 3))).round().astype(np.uint8), n
+
+
+@pytest.mark.parametrize("scale", [WALL_FIT.lsd_scale, 1.0])
+def test_detect_segments_on_a_drawn_edge(scale):
+    """LSD at the walls' scale and the snapper's: a segment lies on the drawn edge within 0.3 px at
+    both ends; the cache gives the same, and nothing shorter than the minimum length."""
+    img, n = drawn_edge()
+    seg = detect_segments(img, scale)
+    assert seg.shape[1:] == (2, 2) and seg.dtype == np.float64 and len(seg) >= 1
     longest = seg[np.argmax(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1))]
     assert np.linalg.norm(longest[1] - longest[0]) > 300.0
-    assert np.all(np.abs(longest @ n + 150.0) < tol_px)
-    assert len(facade.detect_segments(img, 2000.0, method)) == 0
+    assert np.all(np.abs(longest @ n + 150.0) < 0.3)
+    cache = SegmentCache(img.astype(np.float32))  # as reconstruct.to_gray gives it
+    long_ones = cache.segments(scale, 100.0)
+    assert len(long_ones) >= 1 and np.all(np.linalg.norm(long_ones[:, 1] - long_ones[:, 0], axis=1) >= 100.0)
+    assert np.array_equal(long_ones, seg[np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= 100.0])
+    assert len(cache.segments(scale, 2000.0)) == 0
+
+
+def test_detect_segments_in_a_crop_are_in_image_coordinates():
+    """A box around part of the edge: its segments lie on the same line in full-image pixels, and
+    within the box."""
+    img, n = drawn_edge()
+    box = (200, 150, 420, 330)
+    seg = detect_segments(img, 1.0, box)
+    assert len(seg) >= 1
+    assert np.all(np.abs(seg @ n + 150.0) < 0.3)
+    assert np.all((seg[..., 0] >= box[0] - 0.5) & (seg[..., 0] <= box[2] - 0.5))
+    assert np.all((seg[..., 1] >= box[1] - 0.5) & (seg[..., 1] <= box[3] - 0.5))
 
 
 def test_detect_segments_rejects_bad_input():
     with pytest.raises(ValueError, match="uint8 or float"):
-        facade.detect_segments(np.zeros((*SHAPE, 3), np.uint8), 20.0)
-    with pytest.raises(ValueError, match="unknown segment detector"):
-        facade.detect_segments(np.zeros(SHAPE, np.uint8), 20.0, "canny")
+        detect_segments(np.zeros((*SHAPE, 3), np.uint8), 1.0)
+    with pytest.raises(ValueError, match="uint8 or float"):
+        SegmentCache(np.zeros(SHAPE, np.int32))
 
 
-def test_detect_segments_runs_once_per_image_content(monkeypatch):
-    """The same photo asked twice (as uint8, then as float32 gray: a new array with the same
-    content) runs the segment detector once and gives equal segments; the image changed in place
-    (the same array object) or another minimum length runs it again. The counter wraps the real
-    LSD."""
+def test_segment_cache_runs_the_detector_once_per_scale(monkeypatch):
+    """One photo's cache asked again (another minimum length too) runs the detector once per
+    scale; what it returns is the caller's (changing it leaves the kept segments). The counter
+    wraps the real detector."""
+    import pipeline.segments as segments_module  # noqa: PLC0415
+
     calls = []
+    real = segments_module.detect_segments
 
-    def counted(g, min_length_px):
-        calls.append(g.shape)
-        return facade._lsd(g, min_length_px)
+    def counted(gray, scale, box=None):
+        calls.append(scale)
+        return real(gray, scale, box)
 
-    monkeypatch.setitem(facade.SEGMENT_DETECTORS, "lsd", counted)
+    monkeypatch.setattr(segments_module, "detect_segments", counted)
     img = np.full(SHAPE, 60, np.uint8)
     img[:, SHAPE[1] // 2:] = 200  # one vertical step edge
-    a = facade.detect_segments(img, 100.0)
-    b = facade.detect_segments(img.astype(np.float32), 100.0)
-    assert len(calls) == 1 and len(a) >= 1 and np.array_equal(a, b)
-    a[:] = 0  # the caller's copy: the kept result is not changed
-    assert np.array_equal(facade.detect_segments(img, 100.0), b) and len(calls) == 1
-    img[SHAPE[0] // 2:, :] = 60  # the edge now covers half the height only
-    c = facade.detect_segments(img, 100.0)
-    assert len(calls) == 2 and np.abs(c[..., 1]).max() < SHAPE[0] / 2 + 2 < np.abs(b[..., 1]).max()
-    facade.detect_segments(img, 50.0)
-    assert len(calls) == 3
+    cache = SegmentCache(img)
+    a = cache.segments(0.8, 100.0)
+    b = cache.segments(0.8, 100.0)
+    assert calls == [0.8] and len(a) >= 1 and np.array_equal(a, b)
+    a[:] = 0
+    assert np.array_equal(cache.segments(0.8, 100.0), b) and len(cache.segments(0.8, 50.0)) >= len(b)
+    cache.segments(1.0)
+    assert calls == [0.8, 1.0]
 
 
 def test_segment_families_follow_the_walls_vanishing_points():
     """Front-wall edges go to its horizontal (0) or vertical (1) vanishing point; a side-wall
     horizontal and a roof rake (45 deg on the front wall) follow neither (-1)."""
     R, t, quads, labels, _ = scene()
-    d_h, d_v = facade.fit_vps(quads, np.flatnonzero(labels == 0).tolist(), K)
+    d_h, d_v = vanishing.fit_vps(quads, np.flatnonzero(labels == 0).tolist(), K)
     names = ["front", "front_top", "corner", "front_left", "side"]
     rake = project(K, R, t, np.array([[-3.0, 0.0, 5.5], [0.25, 0.0, 8.75]]))[None]
     seg = np.concatenate([edge_segments(R, t, names), rake])
-    fam = facade.segment_families(seg, d_h, d_v, K, 0.5, 0.5)
+    fam = facade_lines.segment_families(seg, d_h, d_v, K, 0.5, 0.5)
     assert fam.tolist() == [0, 0, 1, 1, -1, -1]
     # direction-free: a segment given end to start is the same line
-    np.testing.assert_array_equal(facade.segment_families(seg[:, ::-1], d_h, d_v, K, 0.5, 0.5), fam)
+    np.testing.assert_array_equal(facade_lines.segment_families(seg[:, ::-1], d_h, d_v, K, 0.5, 0.5), fam)
 
 
 def test_wall_segments_keep_the_walls_own_lines():
@@ -345,18 +373,18 @@ def test_wall_segments_keep_the_walls_own_lines():
     seg = np.concatenate([edge_segments(R, t, ["front", "corner", "side_right", "front_left"]), rake])
     # midpoints 83, 76, 201 and 39 px off the hull of the front windows (median size 64 px)
     params = walls.WallParams(lines=True, line_margin=2.0)
-    (kept, fam), vp = walls.wall_segments(seg, quads, front, K, params)
+    (kept, fam), vp = facade_lines.wall_segments(seg, quads, front, K, params)
     np.testing.assert_allclose(kept, seg[[0, 1, 3, 4]])  # side_right is beyond the front wall's windows
     assert fam.tolist() == [0, 1, 1, -1]
     np.testing.assert_allclose(vp, (R @ EX_FRONT, R @ UP), atol=1e-9)
     noisy = quads + np.random.default_rng(0).normal(0.0, 1.0, quads.shape)
-    (_, fam), vp = walls.wall_segments(seg, noisy, front, K, params)
+    (_, fam), vp = facade_lines.wall_segments(seg, noisy, front, K, params)
     assert fam.tolist() == [0, 1, 1, -1]
 
     def err(vp):
         return max(np.degrees(np.arccos(min(abs(d @ g), 1.0))) for d, g in zip(vp, (R @ EX_FRONT, R @ UP)))
 
-    assert err(vp) < 0.25 * err(facade.fit_vps(noisy, front, K))  # measured 0.16 deg vs 2.4 deg
+    assert err(vp) < 0.25 * err(vanishing.fit_vps(noisy, front, K))  # measured 0.16 deg vs 2.4 deg
 
 
 def test_vanishing_points_from_lines_and_quads():
@@ -364,14 +392,14 @@ def test_vanishing_points_from_lines_and_quads():
     corner noise on a single window far closer than the window alone."""
     R, t, quads, labels, _ = scene()
     lines = (edge_segments(R, t, ["front", "front_top"]), edge_segments(R, t, ["corner", "front_left"]))
-    d_h, d_v = facade.fit_vps(quads, [0], K, lines=lines, line_sigma_px=0.5)
+    d_h, d_v = vanishing.fit_vps(quads, [0], K, lines=lines, line_sigma_px=0.5)
     np.testing.assert_allclose(d_h, R @ EX_FRONT, atol=1e-9)
     np.testing.assert_allclose(d_v, R @ UP, atol=1e-9)
     rng = np.random.default_rng(2)
     err_q, err_l = [], []
     for _ in range(20):
         q = quads + rng.normal(0.0, 1.0, quads.shape)
-        for fit, err in ((facade.fit_vps(q, [1], K), err_q), (facade.fit_vps(q, [1], K, lines=lines), err_l)):
+        for fit, err in ((vanishing.fit_vps(q, [1], K), err_q), (vanishing.fit_vps(q, [1], K, lines=lines), err_l)):
             err.append(max(np.degrees(np.arccos(np.clip(abs(d @ g), 0, 1)))
                            for d, g in zip(fit, (R @ EX_FRONT, R @ UP))))
     assert np.median(err_l) < 0.1 * np.median(err_q)
@@ -381,20 +409,20 @@ def test_line_jacobian_matches_finite_differences():
     from scipy.optimize._numdiff import approx_derivative
 
     R, t, quads, labels, _ = scene()
-    R0 = np.array([facade.initial_rotation(*facade.fit_vps(quads, list(np.flatnonzero(labels == g)), K))
+    R0 = np.array([vanishing.initial_rotation(*vanishing.fit_vps(quads, list(np.flatnonzero(labels == g)), K))
                    for g in (0, 1)])
     seg = edge_segments(R, t, ["front", "corner", "side", "side_right"])
-    obs = facade.LineObs(seg, np.array([0, 0, 1, 1]), np.repeat(np.eye(3)[None], 4, axis=0),
+    obs = facade_lines.LineObs(seg, np.array([0, 0, 1, 1]), np.repeat(np.eye(3)[None], 4, axis=0),
                          np.array([0, 1, 0, 1]), np.array([1.0, 2.0, 0.5, 1.0]))
     rng = np.random.default_rng(4)
     for focal_free in (False, True):
         x = np.concatenate([rng.normal(0, 0.1, 6), [790.0] if focal_free else []])
 
         def residuals(x):
-            Rx, _, _, Kx = facade._unpack(x, 2, 0, R0, K, focal_free)
+            Rx, _, _, Kx = wallfit._unpack(x, 2, 0, R0, K, focal_free)
             return obs.residuals(Rx, Kx)
 
-        Rx, _, _, Kx = facade._unpack(x, 2, 0, R0, K, focal_free)
+        Rx, _, _, Kx = wallfit._unpack(x, 2, 0, R0, K, focal_free)
         J = obs.jacobian(x, Rx, Kx, len(x), focal_free)
         np.testing.assert_allclose(J, approx_derivative(residuals, x, method="3-point"), atol=1e-6 * np.abs(J).max())
 
@@ -406,18 +434,18 @@ def test_refine_walls_with_lines_exact_and_better_under_noise():
     front = np.flatnonzero(labels == 0)
     R_gt = true_R(R, EX_FRONT)
     seg = edge_segments(R, t, ["front", "front_top", "corner", "front_left"])
-    obs = facade.LineObs(seg, np.zeros(4, int), np.repeat(np.eye(3)[None], 4, axis=0), np.array([0, 0, 1, 1]),
+    obs = facade_lines.LineObs(seg, np.zeros(4, int), np.repeat(np.eye(3)[None], 4, axis=0), np.array([0, 0, 1, 1]),
                          np.ones(4))
-    R0 = facade.initial_rotation(*facade.fit_vps(quads, front.tolist(), K))
-    fit = facade.refine_walls(quads[front], K, R0, lines=obs)
+    R0 = vanishing.initial_rotation(*vanishing.fit_vps(quads, front.tolist(), K))
+    fit = wallfit.refine_walls(quads[front], K, R0, lines=obs)
     assert rotation_error_deg(fit.R[0], R_gt) < TOL.exact_rotation_deg and fit.n_lines == 4
     rng = np.random.default_rng(6)
     plain, with_lines = [], []
     for _ in range(10):
         q = quads[front] + rng.normal(0.0, 1.0, (len(front), 4, 2))
-        R0 = facade.initial_rotation(*facade.fit_vps(q, list(range(len(q))), K))
-        plain.append(rotation_error_deg(facade.refine_walls(q, K, R0).R[0], R_gt))
-        with_lines.append(rotation_error_deg(facade.refine_walls(q, K, R0, lines=obs).R[0], R_gt))
+        R0 = vanishing.initial_rotation(*vanishing.fit_vps(q, list(range(len(q))), K))
+        plain.append(rotation_error_deg(wallfit.refine_walls(q, K, R0).R[0], R_gt))
+        with_lines.append(rotation_error_deg(wallfit.refine_walls(q, K, R0, lines=obs).R[0], R_gt))
     assert np.median(with_lines) < 0.3 * np.median(plain)
 
 
@@ -433,7 +461,7 @@ def test_focal_with_lines():
         q = quads[[2]] + rng.normal(0.0, 0.5, (1, 4, 2))
         try:
             err_q.append(abs(walls.fit_walls_focal(q, SHAPE, 1.0, walls.WallParams())[2].focal_px / 820.0 - 1))
-        except facade.FacadeError:
+        except vanishing.FacadeError:
             err_q.append(np.inf)
         err_l.append(abs(walls.fit_walls_focal(q, SHAPE, 1.0, params, seg)[2].focal_px / 820.0 - 1))
     assert np.max(err_l) < 0.01
@@ -452,11 +480,14 @@ def test_wall_lines_strategy_on_a_drawn_photo():
     for _ in range(5):
         res = _results(quads + rng.normal(0.0, 1.0, quads.shape))
         for name in err:
-            out = walls.apply_walls(res, K, SHAPE, 1.0, None, walls.WALL_STRATEGIES[name], gray)
+            out = walls.apply_walls(res, K, SHAPE, 1.0, None, walls.WALL_STRATEGIES[name], SegmentCache(gray))
             err[name] += [rotation_error_deg(r.R, g) for r, g in zip(out, truth)]
     assert np.median(err["wall+lines"]) < 0.4 * np.median(err["wall"])  # measured 0.27 deg vs 1.05 deg
-    with pytest.raises(ValueError, match="gray image"):
+    with pytest.raises(ValueError, match="SegmentCache"):
         walls.apply_walls(_results(quads), K, SHAPE, 1.0, None, walls.WALL_STRATEGIES["wall+lines"])
+    with pytest.raises(ValueError, match="segment cache's photo"):
+        walls.apply_walls(_results(quads), K, SHAPE, 1.0, None, walls.WALL_STRATEGIES["wall+lines"],
+                          SegmentCache(gray[:, :-1]))
 
 
 def test_corner_sigmas_from_snapping():
@@ -467,7 +498,7 @@ def test_corner_sigmas_from_snapping():
     moves[2, 0] = [3.0, 4.0]  # one corner 5 px
     res = [replace(r, quad_snapped=r.quad_mask + m) for r, m in zip(_results(quads[:3]), moves)]
     sig = walls.corner_sigmas(res, walls.WallParams(snap_sigma=True))
-    np.testing.assert_allclose(sig, [TOL.wall_sigma_px, 2.0, 2.5])
+    np.testing.assert_allclose(sig, [WALL_FIT.sigma_px, 2.0, 2.5])
     assert walls.corner_sigmas(res, walls.WallParams()) is None
 
 
@@ -477,12 +508,12 @@ def test_per_window_sigma_covariance_matches_monte_carlo():
     _, _, quads, labels, _ = scene()
     q0 = quads[labels == 0]
     sig = np.array([0.2, 1.5, 0.2, 1.5, 0.2])
-    R0 = facade.initial_rotation(*facade.fit_vps(q0, list(range(len(q0))), K))
-    ref = facade.refine_walls(q0, K, R0, sigma_px=0.2, prior_dof=np.inf, corner_sigma=sig)
+    R0 = vanishing.initial_rotation(*vanishing.fit_vps(q0, list(range(len(q0))), K))
+    ref = wallfit.refine_walls(q0, K, R0, sigma_px=0.2, prior_dof=np.inf, corner_sigma=sig)
     rng = np.random.default_rng(12)
-    widths = [facade.refine_walls(q0 + rng.normal(0.0, 1.0, q0.shape) * sig[:, None, None], K, ref.R[0]).width
+    widths = [wallfit.refine_walls(q0 + rng.normal(0.0, 1.0, q0.shape) * sig[:, None, None], K, ref.R[0]).width
               for _ in range(150)]
     sd_w = np.sqrt([ref.cov[ref.window_block(i), ref.window_block(i)][3, 3] for i in range(len(q0))])
     np.testing.assert_allclose(sd_w, np.std(widths, axis=0), rtol=0.2)
-    plain = facade.refine_walls(q0, K, R0, sigma_px=0.2, prior_dof=np.inf)
+    plain = wallfit.refine_walls(q0, K, R0, sigma_px=0.2, prior_dof=np.inf)
     np.testing.assert_allclose(plain.width, ref.width)  # the estimate itself is unweighted

@@ -6,7 +6,8 @@ pinhole algebra (renders.quad_image.view_window), independent of pipeline.aspect
 import numpy as np
 import pytest
 
-from fenestra.conventions import TOL, make_K, rotation_error_deg
+from fenestra.conventions import make_K, rotation_error_deg
+from fenestra.tolerances import TOL
 from pipeline.aspect import AspectError, aspect_ratio, classify, focal_from_quad
 from pipeline.pose import POSE_SOLVERS, PoseError, estimate_pose
 from renders.quad_image import view_window

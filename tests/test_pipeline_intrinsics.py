@@ -88,6 +88,26 @@ def test_reconstruct_without_K_uses_vanishing_points(tmp_path):
     assert plain["K"][0][0] == pytest.approx(700.0, rel=0.02)
 
 
+def test_reconstruct_without_K_finds_the_photos_segments_once(tmp_path, monkeypatch):
+    """Without K and with façade lines, the focal fit and then the wall fit both use the photo's
+    segments: one SegmentCache per photo runs LSD on the whole photo once. The counter wraps the
+    real detector."""
+    import pipeline.segments as segments_module  # noqa: PLC0415
+
+    calls, real = [], segments_module.detect_segments
+
+    def counted(gray, scale, box=None):
+        if box is None:  # the whole photo (the lsd snapper asks for crops)
+            calls.append(gray.shape)
+        return real(gray, scale, box)
+
+    monkeypatch.setattr(segments_module, "detect_segments", counted)
+    photo, masks = _facade_photo(tmp_path, make_K(700.0, 700.0, 319.5, 239.5))
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", pose="wall+lines", export=False)
+    assert "line segments" in doc["K_source"]["detail"] and all(w["wall"] is not None for w in doc["windows"])
+    assert calls == [(SIZE[1], SIZE[0])]
+
+
 def _chessboard_views(K, n=6, squares=(10, 7), square_px=40, seed=0):
     """Photos (H, W) uint8 of a chessboard (``squares`` cols x rows, inner corners one fewer) of
     1 m squares seen from known poses: the texture is warped by the homography K [r1 r2 t] S."""

@@ -7,8 +7,9 @@ import pytest
 from typer.testing import CliRunner
 
 from fenestra.conventions import make_K, rotation_error_deg
-from fenestra.errors import PipelineError
-from pipeline.io import read_instance_map, read_K, read_photo
+from fenestra.errors import DatasetError, PipelineError
+from fenestra.images import read_image, read_instances
+from pipeline.io import read_K
 from pipeline.detectors.oracle import detections_from_instance_map
 from pipeline.reconstruct import ReconstructConfig, reconstruct, windows_to_json
 from renders.quad_image import coverage, pixel_centre_mask, view_window
@@ -84,10 +85,10 @@ def test_empty_mask_and_wrong_shape_mask():
 def test_io_errors(tmp_path):
     bad = tmp_path / "photo.png"
     bad.write_bytes(b"not a png")
-    with pytest.raises(PipelineError, match="photo.png"):
-        read_photo(bad)
-    with pytest.raises(PipelineError, match="not found"):
-        read_photo(tmp_path / "missing.jpg")
+    with pytest.raises(DatasetError, match="cannot read photo .*photo.png"):
+        read_image(bad, "photo")
+    with pytest.raises(DatasetError, match="photo not found"):
+        read_image(tmp_path / "missing.jpg", "photo")
     kf = tmp_path / "K.json"
     kf.write_text(json.dumps({"K": [[800, 0, 320], [0, 800, 240]]}))
     with pytest.raises(PipelineError, match=r"K must be 3x3, got shape \(2, 3\)"):
@@ -99,13 +100,13 @@ def test_io_errors(tmp_path):
         read_K(kf)
     m = tmp_path / "inst.png"
     cv2.imwrite(str(m), np.zeros((20, 30), np.uint16))
-    with pytest.raises(PipelineError, match="30x20 but the photo is 640x480"):
-        read_instance_map(m, (640, 480))
-    assert read_instance_map(m, (30, 20)).dtype == np.uint16
+    with pytest.raises(DatasetError, match="30x20 but the photo is 640x480"):
+        read_instances(m, (640, 480))
+    assert read_instances(m, (30, 20)).dtype == np.int32
 
 
 def test_cli_reconstruct(tmp_path):
-    from fenestra.cli import app
+    from app.cli import app
     rgb, inst, _ = scene()
     cv2.imwrite(str(tmp_path / "photo.png"), rgb)
     cv2.imwrite(str(tmp_path / "inst.png"), inst)
@@ -160,19 +161,19 @@ def test_pose_strategies_come_from_both_registries():
 
 
 def test_one_image_check_and_rgb_at_every_boundary(tmp_path):
-    """One check_image (pipeline.types) guards detect, reconstruct and the export, with one error that
+    """One check_image (fenestra.checks) guards detect, reconstruct and the export, with one error that
     is both a PipelineError and a ValueError; colour images are read as RGB (gray = 0.299 R + 0.587 G
     + 0.114 B: pure red is 76, as BGR it would be 29)."""
     from pipeline.detectors import detect
     from pipeline.export import write_outputs
     from pipeline.reconstruct import to_gray
-    from pipeline.types import ImageError
+    from fenestra.checks import ImageError
 
     red = np.zeros((20, 30, 3), np.uint8)
     red[..., 0] = 255
     assert np.all(to_gray(red) == 76)
     cv2.imwrite(str(tmp_path / "red.png"), red[:, :, ::-1])  # cv2 writes BGR
-    np.testing.assert_array_equal(read_photo(tmp_path / "red.png"), red)
+    np.testing.assert_array_equal(read_image(tmp_path / "red.png"), red)
     rgba = np.zeros((20, 30, 4), np.uint8)
     for call in (lambda: detect("oracle", rgba, instances=np.zeros((20, 30), np.int32)),
                  lambda: reconstruct(rgba, K, []), lambda: write_outputs(tmp_path / "o", rgba, K, [])):

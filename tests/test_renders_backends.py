@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from fenestra.conventions import TOL, look_at, make_K
+from fenestra.conventions import look_at, make_K
+from fenestra.tolerances import TOL
 from renders.base import RenderSettings
 from renders.camera import Camera
 from fenestra.data import read_view

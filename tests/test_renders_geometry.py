@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from matplotlib.path import Path as MplPath
 
-from fenestra.conventions import TOL, look_at, project
+from fenestra.conventions import look_at, project
+from fenestra.tolerances import TOL
 from renders.camera import Camera, distort_image
 from renders.synthetic import Opening, box, wall_scene
 from scenes.model import ElementMesh, Scene

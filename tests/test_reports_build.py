@@ -94,7 +94,7 @@ def _snap(df, snapper):
 def with_real(tmp_path_factory):
     """A synthetic run and a "real-photo" run (kind real) whose snapper order is reversed; the
     synthetic run's report made by the CLI with --real."""
-    from fenestra.cli import app
+    from app.cli import app
 
     root = tmp_path_factory.mktemp("lead")
     sim_df = synthetic_results(n_windows=80, seed=3)
@@ -199,7 +199,7 @@ REPORTS_READ_FROM_BENCH = {"bench.results", "bench.manifest", "bench.paired", "b
 def test_bench_and_reports_do_not_import_each_other():
     """The data flows bench -> reports: reports read bench's tables through its results contract
     (REPORTS_READ_FROM_BENCH), bench never imports reports, and only the CLI's composition root
-    (fenestra/cli.py) joins them."""
+    (app/cli.py) joins them."""
     for path in sorted((ROOT / "bench").rglob("*.py")):
         assert not [n for n in _imports(path) if n.split(".")[0] == "reports"], f"{path} imports reports"
     for path in sorted((ROOT / "reports").rglob("*.py")):
@@ -207,14 +207,14 @@ def test_bench_and_reports_do_not_import_each_other():
         bad = sorted(m for m in _imports(path) if m.split(".")[0] == "bench" and not any(
             m == a or m.startswith(a + ".") or a.startswith(m + ".") for a in REPORTS_READ_FROM_BENCH))
         assert not bad, f"{path} imports {bad}; reports read bench only through {sorted(REPORTS_READ_FROM_BENCH)}"
-    importers = {p.relative_to(ROOT).as_posix() for pkg in ("scenes", "renders", "pipeline", "bench", "fenestra")
+    importers = {p.relative_to(ROOT).as_posix() for pkg in ("scenes", "renders", "pipeline", "bench", "fenestra", "app")
                  for p in (ROOT / pkg).rglob("*.py") if any(n.split(".")[0] == "reports" for n in _imports(p))}
-    assert importers == {"fenestra/cli.py"}
+    assert importers == {"app/cli.py"}
 
 
 def test_bench_refuses_a_real_dir_that_is_not_a_real_run_before_running(with_real):
     """fenestra bench --real checks the folder before rendering anything (a synthetic run is refused)."""
-    from fenestra.cli import app
+    from app.cli import app
 
     sim, _, _, _ = with_real
     r = CliRunner().invoke(app, ["bench", "--profile", "smoke", "--real", str(sim), "--no-report"])

@@ -22,7 +22,7 @@ def fenestra(*args: str, cache: Path | None = None) -> subprocess.CompletedProce
     env = dict(os.environ, PYOPENGL_PLATFORM="egl")
     if cache is not None:
         env["FENESTRA_CACHE"] = str(cache)
-    return subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=ROOT, env=env,
+    return subprocess.run([sys.executable, "-m", "app", *args], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=300)
 
 

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from fenestra.conventions import TOL
+from fenestra.tolerances import TOL
 from scenes.generate import (DEFAULT_FOOTPRINT, HouseSpec, check_footprint, corner_margins,
                              make_house, offset_polygon, plan_windows, rotate_xy)
 from scenes.loader import load_scene

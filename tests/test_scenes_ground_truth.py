@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fenestra.conventions import TOL
+from fenestra.tolerances import TOL
 from scenes import ground_truth as gt
 from scenes.loader import load_scene
 from scenes.registry import BUNDLED

@@ -9,7 +9,7 @@ import pytest
 from pipeline.detectors import detect
 from pipeline.detectors.winnet import core_targets
 from toy_data import write_toy_dataset
-from fenestra.data import read_image
+from fenestra.images import read_image
 from training.train import load_config, train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -98,7 +98,7 @@ def test_detectors_package_imports_torch_lazily():
     import subprocess
     import sys
 
-    code = "import sys, pipeline.detectors, fenestra.cli; print('torch' in sys.modules)"
+    code = "import sys, pipeline.detectors, app.cli; print('torch' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
 
@@ -225,15 +225,19 @@ def _untrained_weights(path: Path, arch: str) -> Path:
 
 
 def test_every_trainable_architecture_is_loaded_by_its_detector(tmp_path):
-    """Each ARCHS entry's weights file is read back by the registry detector it names, which runs."""
+    """Each trainable detector's recipe (training/recipes/<arch>.py) writes a weights file that the
+    detector reads back and runs; the default detector reads every such file."""
     from pipeline.detectors import DETECTORS
-    from training.train import ARCHS
 
-    for name, arch in ARCHS.items():
-        path = _untrained_weights(tmp_path / f"{name}.pt", name)
-        assert not DETECTORS[arch.detector].needs_instances
-        run = DETECTORS[arch.detector].build(weights=path)
-        assert isinstance(run(np.zeros((64, 96, 3), np.uint8)), list)
+    trainable = DETECTORS.where(trainable=True)
+    assert trainable == ["default", "winnet", "maskrcnn"]
+    for name in trainable:
+        arch = DETECTORS[name].model.arch
+        path = _untrained_weights(tmp_path / f"{arch}.pt", arch)
+        assert not DETECTORS[name].needs_instances
+        for loader in (name, "default"):
+            run = DETECTORS[loader].build(weights=path)
+            assert isinstance(run(np.zeros((64, 96, 3), np.uint8)), list)
 
 
 def test_training_writes_under_out_not_into_the_shipped_weights():
@@ -254,7 +258,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     import torch
     from typer.testing import CliRunner
 
-    from fenestra.cli import app
+    from app.cli import app
     from fenestra.errors import FenestraError
 
     src = _untrained_weights(tmp_path / "w.pt", "winnet")
@@ -263,10 +267,10 @@ def test_ship_weights_checks_then_copies(tmp_path):
     assert r.exit_code == 0, r.output
     assert dest.read_bytes() == src.read_bytes()
     assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'winnet'" in r.output
-    assert not list(dest.parent.glob("*.tmp"))
+    assert [p.name for p in dest.parent.iterdir()] == ["default.pt"]  # no temporary file left
     (tmp_path / "junk.pt").write_bytes(b"not a model")
     torch.save({"arch": "yolo", "state_dict": {}}, tmp_path / "yolo.pt")
-    for bad, message in (("junk.pt", "is not a weights file"), ("yolo.pt", "holds arch 'yolo'"),
+    for bad, message in (("junk.pt", "is not a model checkpoint"), ("yolo.pt", "holds a 'yolo' model"),
                          ("missing.pt", "no weights file")):
         r = CliRunner().invoke(app, ["ship-weights", str(tmp_path / bad), "--to", str(tmp_path / "x" / "d.pt")])
         assert isinstance(r.exception, FenestraError) and message in str(r.exception), (bad, r.exception)

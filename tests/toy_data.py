@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fenestra import data
+from fenestra import data, files
 
 
 def toy_view(rng: np.random.Generator, width: int = 160, height: int = 120,
@@ -59,5 +59,5 @@ def write_toy_dataset(out_dir: str | Path, n_views: int = 4, seed: int = 0, widt
         key = f"views/{i:06d}/image.png"
         images.append((key, height, width))
         anns += [data.gt_annotation(key, m.rle()) for m in data.instance_masks(inst, range(1, len(quads) + 1))]
-    data.write_text_atomic(out / "coco.json", json.dumps(data.coco_ground_truth(images, anns)))
+    files.write_text(out / "coco.json", json.dumps(data.coco_ground_truth(images, anns)))
     return out

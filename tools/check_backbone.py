@@ -29,7 +29,7 @@ def main() -> None:
     import numpy as np
     import torch
 
-    from fenestra.data import read_image
+    from fenestra.images import read_image
     from pipeline.detectors.effwin import efficientnet_lite
 
     files = sorted(glob.glob(args.photos))[:args.n]

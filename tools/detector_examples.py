@@ -16,7 +16,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from pipeline.detectors import detect  # noqa: E402
-from fenestra.data import read_image, read_instances  # noqa: E402
+from fenestra.images import read_image, read_instances  # noqa: E402
 from training.dataset import find_datasets, list_views  # noqa: E402
 
 

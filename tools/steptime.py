@@ -19,7 +19,8 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from training.train import build_model, load_config, make_batch, read_views, select_views, winnet_loss  # noqa: E402
+from training.recipes.winnet import winnet_loss  # noqa: E402
+from training.train import build_model, load_config, make_batch, read_views, select_views  # noqa: E402
 
 VARIANTS = {"fp32": (False, False), "fp32 channels_last": (False, True), "bf16 channels_last": (True, True)}
 

@@ -1,6 +1,7 @@
 """The training lab: a stage after renders/, making and measuring the detectors that pipeline/ ships.
 
-    train.py       TrainConfig, ARCHS (trainable architectures), train()    `fenestra train`
+    train.py       TrainConfig, train() (one loop for every architecture)     `fenestra train`
+    recipes/       one training recipe per trainable detector (recipes/<arch>.py: RECIPE)
     augment.py     domain randomisation at training time
     dataset.py     reading rendered dataset folders (views, instance maps, coco.json)
     evaluate.py    COCO bbox/segm AP of a detector on a dataset              `fenestra evaluate-detector`

@@ -1,4 +1,4 @@
-"""CLI commands of training/ (registered on the `fenestra` app by fenestra/cli.py):
+"""CLI commands of training/ (registered on the `fenestra` app by app/cli.py):
 
     fenestra train [--config training/configs/default.toml] [--data DIR ...] [--out W.pt]   # -> out/train/
     fenestra evaluate-detector --data DIR [--detector NAME] [--weights W.pt] [--json OUT]

@@ -13,7 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fenestra.data import DatasetError, read_image, yolo_boxes
+from fenestra.data import yolo_boxes
+from fenestra.errors import DatasetError
+from fenestra.images import read_image
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from fenestra import data
-from fenestra.data import DatasetError, read_image, read_instances
+from fenestra.errors import DatasetError
+from fenestra.images import read_image, read_instances
 from pipeline.detectors import DETECTORS, get_detector
 from pipeline.types import Detection
 from training.dataset import coco_image_path, find_datasets, load_coco

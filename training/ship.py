@@ -8,15 +8,14 @@ detector loads it, after checking that the detector builds from it and runs on a
 from __future__ import annotations
 
 import hashlib
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from fenestra.errors import FenestraError
-from pipeline.detectors import detector_entry
-from training.train import ARCHS
+from fenestra.files import write_bytes
+from pipeline.detectors import DETECTORS, read_weights
 
 CHECK_IMAGE_HW = (64, 96)  # the blank image the shipped detector must run on
 
@@ -31,40 +30,24 @@ class Shipped:
     meta: dict
 
 
-def read_weights(path: Path) -> dict:
-    """A weights file's dict (torch.load on the CPU); FenestraError naming the file if it is not
-    one of a trainable architecture (ARCHS)."""
-    import torch  # noqa: PLC0415
-
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as e:  # noqa: BLE001 - pickle, zip and torch errors all mean "not weights"
-        raise FenestraError(f"{path} is not a weights file ({type(e).__name__})") from e
-    arch = ckpt.get("arch") if isinstance(ckpt, dict) else None
-    if arch not in ARCHS:
-        raise FenestraError(f"{path} holds arch {arch!r}; trainable architectures: {sorted(ARCHS)}")
-    return ckpt
-
-
 def ship_weights(src: str | Path, dest: str | Path | None = None) -> Shipped:
     """Check ``src`` (its architecture's detector builds from it and runs on a blank
     CHECK_IMAGE_HW image), then copy it atomically to ``dest`` (default: the file that detector
-    loads, ARCHS[arch].shipped). FenestraError naming the problem; nothing is written then."""
+    loads: the registered trainable detector of its arch, ``DETECTORS[name].model.weights``).
+    FenestraError naming the problem; nothing is written then."""
     src = Path(src)
     if not src.is_file():
         raise FenestraError(f"no weights file at {src}")
-    ckpt = read_weights(src)
-    arch = ARCHS[ckpt["arch"]]
-    dest = Path(dest) if dest is not None else arch.shipped
+    ckpt = read_weights(src)  # FenestraError unless it is a trainable detector's weights file
+    detector = next(n for n in DETECTORS.where(trainable=True) if DETECTORS[n].model.arch == ckpt["arch"])
+    dest = Path(dest) if dest is not None else DETECTORS[detector].model.weights
     if dest.resolve() == src.resolve():
         raise FenestraError(f"{src} is already the destination")
-    run = detector_entry(arch.detector).build(weights=src)
+    run = DETECTORS[detector].build(weights=src)
     dets = run(np.zeros((*CHECK_IMAGE_HW, 3), np.uint8))
     if not isinstance(dets, list):
-        raise FenestraError(f"detector {arch.detector!r} with {src} returned {type(dets).__name__}, not a list")
+        raise FenestraError(f"detector {detector!r} with {src} returned {type(dets).__name__}, not a list")
     data = src.read_bytes()
     dest.parent.mkdir(parents=True, exist_ok=True)
-    tmp = dest.with_name(dest.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, dest)
-    return Shipped(dest, arch.detector, hashlib.sha256(data).hexdigest(), ckpt.get("meta", {}))
+    write_bytes(dest, data)
+    return Shipped(dest, detector, hashlib.sha256(data).hexdigest(), ckpt.get("meta", {}))

@@ -6,7 +6,7 @@
     fenestra ship-weights out/train/default.pt                       # then: the shipped weights
 
 What differs between architectures (model and optimizer, batches, losses, the weights file) is one
-``TrainableArch`` entry of ``ARCHS``; ``train`` itself is the same loop for every architecture.
+recipe, ``training/recipes/<arch>.py``; ``train`` itself is the same loop for every architecture.
 
 Deterministic for a given seed, thread count and device: the batch of iteration ``it`` is drawn with
 ``np.random.default_rng([seed, it])``, so ``workers`` > 0 (batches made ahead in worker processes,
@@ -29,17 +29,14 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 from fenestra.config import from_table, read_toml
-from fenestra.data import read_image, read_instances
-from pipeline.detectors import DEFAULT_WEIGHTS, WINNET_WEIGHTS
-from pipeline.detectors.maskrcnn import DEFAULT_MASKRCNN_WEIGHTS
-from training.augment import AugmentConfig, occluders, photometric, random_scale_crop, shadow_band
+from fenestra.images import read_image, read_instances
+from training.augment import AugmentConfig
+from training.recipes import recipe
 from training.dataset import find_datasets, list_views, read_box_photo, real_box_photos, view_corners
 
 DEVICES = ("cpu", "cuda")
@@ -94,8 +91,7 @@ class TrainConfig:
     augment: AugmentConfig = field(default_factory=AugmentConfig)
 
     def __post_init__(self) -> None:
-        if self.arch not in ARCHS:
-            raise ValueError(f"arch must be one of {tuple(ARCHS)}, got {self.arch!r}")
+        arch = recipe(self.arch)  # ValueError naming the trainable archs
         for name in ("iterations", "batch_size", "threads", "log_every", "save_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -107,8 +103,8 @@ class TrainConfig:
             raise ValueError(f"lr must be positive, got {self.lr}")
         if any(c < 32 or c % 32 for c in self.crop_hw):
             raise ValueError(f"crop_hw must be multiples of 32 and >= 32, got {self.crop_hw}")
-        if self.arch == "effwin" and any(c % 64 for c in self.crop_hw):
-            raise ValueError(f"effwin: crop_hw must be multiples of 64, got {self.crop_hw}")
+        if arch.check is not None:
+            arch.check(self)
         if not 0.0 <= self.real_fraction <= 1.0:
             raise ValueError(f"real_fraction must be in [0, 1], got {self.real_fraction}")
         if self.real_fraction > 0 and not self.real_data:
@@ -169,51 +165,10 @@ def load_training_data(cfg: TrainConfig, log=print) -> list[tuple]:
     return data
 
 
-def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
-    """One augmented batch: images (B, 3, h, w) normalised, targets (B, 2, h, w) {0, 1} [void, core]."""
-    from pipeline.detectors.winnet import core_targets, to_tensor  # noqa: PLC0415
-
-    imgs, tgts = [], []
-    for _ in range(cfg.batch_size):
-        image, inst = data[int(rng.integers(len(data)))][:2]
-        img, ins, _ = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
-        imgs.append(photometric(shadow_band(img, ins, cfg.augment, rng), cfg.augment, rng))
-        tgts.append(np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]))
-    return to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32))
-
-
-def winnet_loss(logits: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
-    """BCE + soft Dice per map; returns the parts and their sum under "loss"."""
-    bce = F.binary_cross_entropy_with_logits(logits, target, reduction="none").mean(dim=(0, 2, 3))
-    p = torch.sigmoid(logits)
-    inter = (p * target).sum(dim=(0, 2, 3))
-    dice = 1.0 - (2 * inter + 1.0) / (p.sum(dim=(0, 2, 3)) + target.sum(dim=(0, 2, 3)) + 1.0)
-    parts = {"void_bce": bce[0], "core_bce": bce[1], "void_dice": dice[0], "core_dice": dice[1]}
-    parts["loss"] = sum(parts.values())
-    return parts
-
-
-def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
-    """One augmented batch for torchvision Mask R-CNN: (list of (3, h, w) [0,1] tensors, targets)."""
-    from pipeline.detectors.maskrcnn import maskrcnn_targets  # noqa: PLC0415
-
-    imgs, tgts = [], []
-    while len(imgs) < cfg.batch_size:
-        image, inst = data[int(rng.integers(len(data)))][:2]
-        img, ins, _ = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
-        ids = [k for k in np.unique(ins) if k]
-        ins = np.where(np.isin(ins, [k for k in ids if (ins == k).sum() >= 16]), ins, 0)
-        if not ins.any():
-            continue  # torchvision accepts empty targets, but they teach little
-        imgs.append(torch.from_numpy(photometric(img, cfg.augment, rng)).permute(2, 0, 1).float() / 255.0)
-        tgts.append(maskrcnn_targets(ins))
-    return imgs, tgts
-
-
 def make_batch(data, cfg: TrainConfig, it: int):
     """The batch of iteration ``it`` (same for any number of workers): see winnet_batch, maskrcnn_batch."""
     rng = np.random.default_rng([cfg.seed, it])
-    return ARCHS[cfg.arch].batch(data, cfg, rng)
+    return recipe(cfg.arch).batch(data, cfg, rng)
 
 
 _WORKER_DATA: list = []  # the training views, loaded once per worker process
@@ -261,13 +216,13 @@ def _lr_at(it: int, cfg: TrainConfig) -> float:
 
 def build_model(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
     """The untrained model of cfg.arch and its optimizer (draws from torch's RNG: seed it first)."""
-    return ARCHS[cfg.arch].build(cfg)
+    return recipe(cfg.arch).build(cfg)
 
 
 def checkpoint(model: torch.nn.Module, cfg: TrainConfig, meta: dict) -> dict:
     """The weights file's contents: the architecture's keys (arch, its parameters, weights), then
     the training config and metadata."""
-    return {**ARCHS[cfg.arch].checkpoint(model, cfg), "train_config": dataclasses.asdict(cfg), "meta": meta}
+    return {**recipe(cfg.arch).checkpoint(model, cfg), "train_config": dataclasses.asdict(cfg), "meta": meta}
 
 
 def _device_name(device: str) -> str:
@@ -311,7 +266,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
             for g in opt.param_groups:
                 g["lr"] = lr * g.get("lr_scale", 1.0)
             with torch.autocast(cfg.device, dtype=torch.bfloat16, enabled=cfg.amp):
-                parts = ARCHS[cfg.arch].losses(model, batch, cfg)
+                parts = recipe(cfg.arch).losses(model, batch, cfg)
             opt.zero_grad()
             parts["loss"].backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
@@ -337,160 +292,3 @@ def train(cfg: TrainConfig, log=print) -> Path:
     return out
 
 
-# ---------------------------------------------------------------- trainable architectures
-
-def winnet_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
-    """WinNet of cfg.winnet_widths and AdamW."""
-    from pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
-
-    model = WinNet(WinNetConfig(cfg.winnet_widths))
-    return model, torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-
-
-def winnet_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, torch.Tensor]:
-    """winnet_loss of one batch (images, targets) moved to cfg.device (channels-last if set)."""
-    x, y = (t.to(cfg.device) for t in batch)
-    if cfg.channels_last:
-        x = x.contiguous(memory_format=torch.channels_last)
-    return winnet_loss(model(x).float(), y)
-
-
-def winnet_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
-    """arch, widths, fp16 weights and the post-processing defaults (PostConfig)."""
-    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
-
-    sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
-    return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
-            "post": dataclasses.asdict(PostConfig())}
-
-
-def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
-    """One augmented batch: images (B, 3, h, w) normalised, targets (B, 6, h, w) [void, core, TL, TR,
-    BR, BL heatmaps] and per-sample corner weights (B,) (0 for real photos: boxes, no corners).
-    A sample is a real photo with probability cfg.real_fraction."""
-    from pipeline.detectors.effwin import corner_heatmaps, to_tensor  # noqa: PLC0415
-    from pipeline.detectors.winnet import core_targets  # noqa: PLC0415
-
-    real = [i for i, d in enumerate(data) if d[2] is None]
-    synth = [i for i, d in enumerate(data) if d[2] is not None]
-    imgs, tgts, wts = [], [], []
-    for _ in range(cfg.batch_size):
-        pool = real if real and (not synth or rng.random() < cfg.real_fraction) else synth
-        image, inst, corners = data[pool[int(rng.integers(len(pool)))]]
-        img, ins, warp = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
-        img, ins, occ = occluders(img, ins, cfg.augment, rng)
-        imgs.append(photometric(shadow_band(img, ins, cfg.augment, rng), cfg.augment, rng))
-        if corners is None:
-            heat, w = np.zeros((4, *ins.shape), np.float32), 0.0
-        else:
-            c = warp.points(corners)
-            heat, w = corner_heatmaps(c[:, [1, 0, 3, 2]] if warp.flip else c, ins.shape) * ~occ, 1.0
-        tgts.append(np.concatenate([np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]), heat]))
-        wts.append(w)
-    return (to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32)),
-            torch.tensor(wts, dtype=torch.float32))
-
-
-def corner_focal_loss(logits: torch.Tensor, heat: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
-    """CenterNet's penalty-reduced focal loss on corner heatmaps (B, 4, h, w): pixels with target
-    >= 0.7 (within ~1.3 sigma of a corner) are positives, the rest negatives down-weighted by
-    (1 - target)^4; per-sample weights (B,) (0: no corner labels); normalised by the positives."""
-    p = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
-    pos = (heat >= 0.7).float()
-    w = weight.view(-1, 1, 1, 1)
-    pos_l = -(torch.log(p) * (1 - p) ** 2 * pos * w).sum()
-    neg_l = -(torch.log(1 - p) * p ** 2 * (1 - heat) ** 4 * (1 - pos) * w).sum()
-    return (pos_l + neg_l) / (pos * w).sum().clamp_min(1.0)
-
-
-def effwin_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, torch.Tensor]:
-    """winnet_loss on the void/core maps plus cfg.corner_weight x corner_focal_loss."""
-    x, y, w = (t.to(cfg.device) for t in batch)
-    if cfg.channels_last:
-        x = x.contiguous(memory_format=torch.channels_last)
-    logits = model(x).float()
-    parts = winnet_loss(logits[:, :2], y[:, :2])
-    parts["corner_focal"] = cfg.corner_weight * corner_focal_loss(logits[:, 2:], y[:, 2:], w)
-    parts["loss"] = parts["loss"] + parts["corner_focal"]
-    return parts
-
-
-def effwin_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
-    """EffWin (backbone from its ImageNet weights if cfg.pretrained) and AdamW; the pretrained
-    backbone learns at a tenth of cfg.lr."""
-    from pipeline.detectors.effwin import EffWin  # noqa: PLC0415
-
-    model = EffWin(effwin_config(cfg), pretrained=cfg.pretrained)
-    backbone = [p for n, p in model.named_parameters() if n.startswith(("stem.", "blocks."))]
-    rest = [p for n, p in model.named_parameters() if not n.startswith(("stem.", "blocks."))]
-    groups = [{"params": backbone, "lr_scale": 0.1 if cfg.pretrained else 1.0}, {"params": rest, "lr_scale": 1.0}]
-    return model, torch.optim.AdamW(groups, lr=cfg.lr, weight_decay=cfg.weight_decay)
-
-
-def effwin_config(cfg: TrainConfig):
-    """The EffWinConfig of a TrainConfig."""
-    from pipeline.detectors.effwin import EffWinConfig  # noqa: PLC0415
-
-    return EffWinConfig(cfg.effwin_backbone, tuple(cfg.effwin_fine), tuple(cfg.effwin_decoder))
-
-
-def effwin_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
-    """arch, EffWinConfig, fp16 weights and the post-processing defaults (PostConfig)."""
-    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
-
-    sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
-    return {"arch": "effwin", "config": dataclasses.asdict(effwin_config(cfg)), "state_dict": sd,
-            "post": dataclasses.asdict(PostConfig())}
-
-
-def maskrcnn_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
-    """torchvision Mask R-CNN (cfg.maskrcnn_min_size/max_size) and SGD with momentum."""
-    from pipeline.detectors.maskrcnn import build_maskrcnn  # noqa: PLC0415
-
-    model = build_maskrcnn(cfg.maskrcnn_min_size, cfg.maskrcnn_max_size)
-    params = [p for p in model.parameters() if p.requires_grad]
-    return model, torch.optim.SGD(params, lr=cfg.lr, momentum=0.9, weight_decay=cfg.weight_decay)
-
-
-def maskrcnn_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, torch.Tensor]:
-    """torchvision's loss parts of one batch (images, targets) moved to cfg.device, and their sum."""
-    imgs, tgts = batch
-    parts = model([i.to(cfg.device) for i in imgs], [{k: v.to(cfg.device) for k, v in t.items()} for t in tgts])
-    parts["loss"] = sum(parts.values())
-    return parts
-
-
-def maskrcnn_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
-    """arch, the resize parameters and fp32 weights."""
-    return {"arch": "maskrcnn", "model_kw": {"min_size": cfg.maskrcnn_min_size, "max_size": cfg.maskrcnn_max_size},
-            "state_dict": {k: v.cpu() for k, v in model.state_dict().items()}}
-
-
-@dataclass(frozen=True)
-class TrainableArch:
-    """Everything ``train`` does differently for one architecture.
-
-    build(cfg) -> (model, optimizer); batch(data, cfg, rng) -> one augmented batch on the CPU (data:
-    load_views' list); losses(model, batch, cfg) -> {part: scalar tensor, ..., "loss": their sum},
-    the batch moved to cfg.device; checkpoint(model, cfg) -> the weights file's architecture keys
-    ("arch", its parameters, "state_dict"), which pipeline.detectors reads back; detector: the
-    pipeline.detectors registry name that loads such a file; shipped: the file that detector loads
-    by default (where `fenestra ship-weights` copies to).
-    """
-
-    build: Callable[[TrainConfig], tuple]
-    batch: Callable[..., object]
-    losses: Callable[..., dict]
-    checkpoint: Callable[[torch.nn.Module, TrainConfig], dict]
-    detector: str
-    shipped: Path
-
-
-ARCHS: dict[str, TrainableArch] = {
-    "winnet": TrainableArch(winnet_build, winnet_batch, winnet_losses, winnet_checkpoint,
-                            detector="winnet", shipped=WINNET_WEIGHTS),
-    "effwin": TrainableArch(effwin_build, effwin_batch, effwin_losses, effwin_checkpoint,
-                            detector="default", shipped=DEFAULT_WEIGHTS),
-    "maskrcnn": TrainableArch(maskrcnn_build, maskrcnn_batch, maskrcnn_losses, maskrcnn_checkpoint,
-                              detector="maskrcnn", shipped=DEFAULT_MASKRCNN_WEIGHTS),
-}

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from fenestra.data import coco_ground_truth, coco_scores, gt_annotation, instance_masks, read_image, read_instances
+from fenestra.data import coco_ground_truth, coco_scores, gt_annotation, instance_masks
+from fenestra.images import read_image, read_instances
 from pipeline.detectors import DEFAULT_WEIGHTS, load_map_predictor
 from pipeline.detectors.winnet import PostConfig, instances_from_maps
 from training.dataset import find_datasets, list_views

@@ -18,15 +18,16 @@ against the current directory.
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import os
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from bench.profiles import PROFILE_DIR, MethodsSpec, ProfileError, check_methods
+from bench.evaluate import EvalOptions
+from bench.profiles import PROFILE_DIR, EvalSpec, MethodsSpec, ProfileError, check_methods, config_hash
 from bench.real.adapters import ADAPTERS
+from bench.views import LabelledView
 from fenestra.config import from_table, read_toml
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -47,6 +48,10 @@ class DatasetSpec:
         """The dataset folder: absolute, or relative to the repository root."""
         p = Path(self.path).expanduser()
         return p if p.is_absolute() else Path(os.path.normpath(REPO_ROOT / p))
+
+    def views(self) -> Iterator[LabelledView]:
+        """Its LabelledViews, read by its adapter (bench.real.adapters) with its options."""
+        return ADAPTERS[self.format](self.folder(), **{"dataset": self.name, **dict(self.options)})
 
 
 @dataclass(frozen=True)
@@ -70,9 +75,27 @@ class RealProfile:
         return d
 
     def config_hash(self) -> str:
-        d = self.to_dict()
-        d.pop("name"), d.pop("description")
-        return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
+        """8 hex digits identifying everything that changes results (bench.profiles.config_hash)."""
+        return config_hash(self.to_dict())
+
+    def eval_options(self) -> EvalOptions:
+        """How its views are evaluated (bench.evaluate.EvalOptions): windows below min_window_px
+        are not evaluable; learned detectors see photos at detector_long_side."""
+        return EvalOptions(evaluation=EvalSpec(min_window_px=self.min_window_px), height_m=self.methods.height_m,
+                           detector_long_side=self.detector_long_side, detector_options=self.detector_options)
+
+    def available_datasets(self) -> tuple[list[DatasetSpec], dict[str, str]]:
+        """(datasets whose folder exists, {skipped optional dataset: reason}); FileNotFoundError
+        naming a required dataset's missing folder."""
+        ok, skipped = [], {}
+        for ds in self.datasets:
+            if ds.folder().is_dir():
+                ok.append(ds)
+            elif ds.optional:
+                skipped[ds.name] = f"folder {ds.folder()} not present"
+            else:
+                raise FileNotFoundError(f"dataset {ds.name!r}: folder {ds.folder()} not found")
+        return ok, skipped
 
 
 def _dataset(t: dict, where: str) -> DatasetSpec:

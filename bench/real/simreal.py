@@ -25,6 +25,7 @@ from scipy.stats import kendalltau, rankdata, spearmanr
 from bench.paired import paired_comparison
 from bench.results import TRUTH_FLAGS, _jsonable, load_results
 from fenestra.conventions import PAPER
+from fenestra.methods import read_methods
 
 METRICS = ("aspect_err_rel", "corner_err_px_mask", "corner_err_px_snap", "corner_err_px_reproj", "iou_2d")
 POSE_FREE = ("aspect_err_rel", "corner_err_px_mask", "corner_err_px_snap")
@@ -116,7 +117,7 @@ def simreal_table(sim_df: pd.DataFrame, real_df: pd.DataFrame) -> dict:
 
 
 def _snapper(method: str) -> str:
-    return method.split("/")[1]
+    return read_methods([method])[method].snapper
 
 
 def answer(rankings: list[dict]) -> list[str]:

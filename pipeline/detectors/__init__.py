@@ -7,10 +7,11 @@
     dets = detect("oracle-degraded", image, instances=inst, config=DegradeConfig(seed=1))
     dets = detect("maskrcnn", image, weights="pipeline/models/maskrcnn.pt")
 
-``DETECTORS[name]`` is a ``DetectorEntry``: ``.build(**options)`` makes a detector, a callable
-``(image, **per_image) -> list[Detection]`` (every candidate, best first), and its capabilities say
-how to call it (``needs_instances``: the oracles take the ground-truth instance map, per image, and
-run at full resolution). ``detect`` caches the built detector, applies
+``DETECTORS`` is a :class:`fenestra.registry.Registry` of ``DetectorEntry``: ``.build(**options)``
+makes a detector, a callable ``(image, **per_image) -> list[Detection]`` (every candidate, best
+first), and its capabilities say how to call it (``needs_instances``: the oracles take the
+ground-truth instance map, per image, and run at full resolution; ``trainable``: it loads a weights
+file, see :func:`trainable`). ``detect`` caches the built detector, applies
 ``score_threshold`` and checks the input; learned detectors see photos larger than
 ``LIMITS.detector_max_side_px`` resized, their masks come back sparse at full resolution
 (Detection.origin). Detection.box is (x0, y0, x1, y1) on the pixel-edge
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -27,15 +29,16 @@ from typing import Callable
 import cv2
 import numpy as np
 
+from fenestra.checks import check_image, check_instances
 from fenestra.conventions import LIMITS
 from fenestra.errors import FenestraError
+from fenestra.registry import Registry
 from pipeline.detectors.checkpoint import check_device, read_checkpoint
-from pipeline.detectors.oracle import DegradeConfig, check_instances, degraded_detections, oracle_detections
-from pipeline.types import Detection, check_image
+from pipeline.detectors.oracle import DegradeConfig, degraded_detections, oracle_detections
+from pipeline.types import Detection
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
-DEFAULT_WEIGHTS = MODELS_DIR / "default.pt"
-WINNET_WEIGHTS = MODELS_DIR / "winnet.pt"
+DEFAULT_WEIGHTS = MODELS_DIR / "default.pt"  # DETECTORS["default"].model.weights
 
 Detector = Callable[..., list[Detection]]
 
@@ -64,115 +67,137 @@ def _oracle_degraded(config: DegradeConfig = DegradeConfig()) -> Detector:
     return run
 
 
-def _winnet_model(ckpt: dict):
-    from pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
+@dataclass(frozen=True)
+class Checkpointed:
+    """How a trainable detector's weights file becomes a detector.
 
-    return WinNet(WinNetConfig(tuple(ckpt["widths"])))
+    arch: the file's ``"arch"`` key (what training/recipes/<arch>.py writes); module: the inference
+    file, ``pipeline/detectors/<arch>.py`` as a dotted name (imported when the detector is built:
+    torch stays unimported until then), which defines ``model_from_checkpoint(ckpt) -> model`` (eval
+    mode, CPU), ``detector_from_model(model, ckpt) -> Detector`` and, for detectors with void/core
+    maps, ``void_core_maps(model) -> image -> (void, core)``; weights: the shipped file (what
+    ``build(weights=None)`` loads, where ``fenestra ship-weights`` copies to); config: its training
+    config (training/configs/).
+    """
 
+    arch: str
+    module: str
+    weights: Path
+    config: str
 
-def _effwin_model(ckpt: dict):
-    from pipeline.detectors.effwin import EffWin, EffWinConfig  # noqa: PLC0415
-
-    c = ckpt["config"]  # only the model code is needed: the ImageNet weights are in the checkpoint
-    return EffWin(EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"])))
-
-
-MAP_MODELS = {"winnet": _winnet_model, "effwin": _effwin_model}  # arch -> model from its checkpoint
-
-
-def load_map_model(weights: str | Path | None = None, default: Path = DEFAULT_WEIGHTS, archs=tuple(MAP_MODELS)):
-    """(arch, model in eval mode, PostConfig) from a WinNet or EffWin weights file (default: the
-    shipped ``default``), read once; FenestraError naming the file if it is missing or holds
-    another architecture."""
-    import torch  # noqa: PLC0415
-
-    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
-
-    path = Path(weights) if weights is not None else default
-    if not path.is_file():
-        raise FenestraError(f"no detector weights at {path}: train them with `fenestra train --config "
-                            "training/configs/<arch>.toml` (see pipeline/models/README.md)")
-    ckpt = read_checkpoint(path, archs)
-    model = MAP_MODELS[ckpt["arch"]](ckpt)
-    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in ckpt["state_dict"].items()})
-    model.to(memory_format=torch.channels_last)  # NHWC: faster convolutions on CPU (oneDNN)
-    return ckpt["arch"], model.eval(), PostConfig(**ckpt.get("post", {}))
-
-
-def load_map_predictor(weights: str | Path | None = None):
-    """(predict, PostConfig) of a winnet or effwin weights file (default: the shipped default):
-    predict(image (H, W, 3) uint8 RGB) -> (void, core) probability maps (H, W) float32, the inputs
-    of winnet.instances_from_maps (post-processing tuning: training/tune.py)."""
-    from pipeline.detectors import effwin, winnet  # noqa: PLC0415
-
-    arch, model, post = load_map_model(weights)
-    if arch == "winnet":
-        return (lambda image: winnet.predict_maps(model, image)), post
-    return (lambda image: tuple(effwin.predict_maps(model, image)[:2])), post
-
-
-def _map_detector(weights: str | Path | None, threads: int | None, device: str, default: Path,
-                  archs: tuple[str, ...]) -> Detector:
-    """A WinNet or EffWin detector (EffWin's detections carry corners)."""
-    from pipeline.detectors import effwin, winnet  # noqa: PLC0415
-
-    arch, model, post = load_map_model(weights, default, archs)
-    model.to(check_device(device))
-    set_cpu_threads(threads)
-    if arch == "winnet":
-        return lambda image, **_: winnet.instances_from_maps(*winnet.predict_maps(model, image), post)
-    return lambda image, **_: effwin.detections_from_maps(effwin.predict_maps(model, image), post)
-
-
-def _winnet(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
-    return _map_detector(weights, threads, device, WINNET_WEIGHTS, ("winnet",))
-
-
-def _default(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
-    """The shipped default (pipeline/models/default.pt, EffWin), or any winnet/effwin weights file."""
-    return _map_detector(weights, threads, device, DEFAULT_WEIGHTS, tuple(MAP_MODELS))
-
-
-def _maskrcnn(weights: str | Path | None = None, threads: int | None = None, device: str = "cpu") -> Detector:
-    from pipeline.detectors.maskrcnn import load_maskrcnn, maskrcnn_detect  # noqa: PLC0415
-
-    model = load_maskrcnn(weights, device)
-    set_cpu_threads(threads)
-
-    def run(image: np.ndarray, **_: object) -> list[Detection]:
-        return maskrcnn_detect(model, image)
-    return run
+    def load(self, ckpt: dict, device: str = "cpu"):
+        """(the inference module, the model on ``device``) of a checkpoint dict of this arch."""
+        mod = importlib.import_module(self.module)
+        return mod, mod.model_from_checkpoint(ckpt).to(check_device(device))
 
 
 @dataclass(frozen=True)
 class DetectorEntry:
     """A registered detector: how to build it, and what it needs.
 
-    build(**options) -> Detector. needs_instances: it reads the ground-truth instance map
-    (``instances=`` (H, W) int, per image; the oracles), so it runs only where one exists (renders,
-    labelled masks) and always at the image's full resolution. in_all: part of a profile's
-    ``detectors = ["all"]`` (False for maskrcnn, whose weights are not shipped: a fresh clone
-    would have to skip it).
+    build(**options) -> Detector; description: one line for CLI help. Capabilities
+    (fenestra.registry): needs_instances: it reads the ground-truth instance map (``instances=``
+    (H, W) int, per image; the oracles), so it runs only where one exists (renders, labelled masks)
+    and always at the image's full resolution. in_all: part of a profile's ``detectors = ["all"]``
+    (False for maskrcnn, whose weights are not shipped: a fresh clone would have to skip it).
+    trainable: it loads a weights file (``model``: :class:`Checkpointed`) that a training recipe
+    (training/recipes/<arch>.py) writes.
     """
 
+    name: str
     build: Callable[..., Detector]
+    description: str
     needs_instances: bool = False
     in_all: bool = True
+    model: Checkpointed | None = None
+
+    @property
+    def trainable(self) -> bool:
+        return self.model is not None
 
 
-DETECTORS: dict[str, DetectorEntry] = {
-    "oracle": DetectorEntry(_oracle, needs_instances=True),
-    "oracle-degraded": DetectorEntry(_oracle_degraded, needs_instances=True),
-    "default": DetectorEntry(_default),
-    "winnet": DetectorEntry(_winnet),
-    "maskrcnn": DetectorEntry(_maskrcnn, in_all=False),
-}
+def trainable(name: str, arch: str, weights: str, description: str, any_arch: bool = False,
+              **capabilities: bool) -> DetectorEntry:
+    """The entry of a trainable detector: inference in pipeline/detectors/<arch>.py, shipped weights
+    pipeline/models/<weights>.pt, training config training/configs/<weights>.toml. Its build takes
+    ``weights`` (a file; default the shipped one), ``threads`` and ``device``; any_arch: it also
+    loads the weights of every other trainable detector (the default detector does)."""
+    model = Checkpointed(arch, f"pipeline.detectors.{arch}", MODELS_DIR / f"{weights}.pt",
+                         f"training/configs/{weights}.toml")
+    build = functools.partial(build_trainable, model, any_arch)
+    return DetectorEntry(name, build, description, model=model, **capabilities)
+
+
+def checkpointed(arch: str) -> Checkpointed:
+    """The Checkpointed of the registered detector that loads ``arch`` weights files; FenestraError
+    naming the trainable architectures otherwise."""
+    for e in DETECTORS.values():
+        if e.model is not None and e.model.arch == arch:
+            return e.model
+    raise FenestraError(f"no registered detector loads {arch!r} weights; trainable architectures: {trainable_archs()}")
+
+
+def trainable_archs() -> list[str]:
+    """The weights-file architectures of the registered trainable detectors."""
+    return [DETECTORS[n].model.arch for n in DETECTORS.where(trainable=True)]
+
+
+def read_weights(path: str | Path, archs: tuple[str, ...] | None = None) -> dict:
+    """A weights file's dict, of one of ``archs`` (default: any trainable detector's); FenestraError
+    naming the file when it is not a checkpoint or holds another architecture."""
+    return read_checkpoint(Path(path), tuple(trainable_archs()) if archs is None else archs)
+
+
+def load_model(model: Checkpointed, weights: str | Path | None = None, any_arch: bool = False,
+               device: str = "cpu"):
+    """(inference module, model in eval mode on ``device``, checkpoint dict) of a weights file
+    (default ``model.weights``) of ``model.arch``, or (any_arch) of any trainable detector's;
+    FenestraError saying how to train the weights when the file is missing."""
+    path = Path(weights) if weights is not None else model.weights
+    if not path.is_file():
+        raise FenestraError(f"no detector weights at {path}: train them with `fenestra train --config "
+                            f"{model.config}`, then `fenestra ship-weights out/train/{model.weights.name}` "
+                            "(see pipeline/models/README.md)")
+    ckpt = read_weights(path, None if any_arch else (model.arch,))
+    mod, net = checkpointed(ckpt["arch"]).load(ckpt, device)
+    return mod, net, ckpt
+
+
+def build_trainable(model: Checkpointed, any_arch: bool, weights: str | Path | None = None,
+                    threads: int | None = None, device: str = "cpu") -> Detector:
+    """A trainable detector's build (see :func:`trainable`)."""
+    mod, net, ckpt = load_model(model, weights, any_arch, device)
+    set_cpu_threads(threads)
+    return mod.detector_from_model(net, ckpt)
+
+
+def load_map_predictor(weights: str | Path | None = None):
+    """(predict, PostConfig) of a weights file with void/core maps (default: the shipped default):
+    predict(image (H, W, 3) uint8 RGB) -> (void, core) probability maps (H, W) float32, the inputs
+    of winnet.instances_from_maps (post-processing tuning: training/tune.py)."""
+    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
+
+    mod, net, ckpt = load_model(DETECTORS["default"].model, weights, any_arch=True)
+    if not hasattr(mod, "void_core_maps"):
+        raise FenestraError(f"{weights}: a {ckpt['arch']!r} model has no void/core maps to tune")
+    return mod.void_core_maps(net), PostConfig(**ckpt.get("post", {}))
+
+
+DETECTORS: Registry[DetectorEntry] = Registry("detector", [
+    DetectorEntry("oracle", _oracle, "exact masks from the ground-truth instance map", needs_instances=True),
+    DetectorEntry("oracle-degraded", _oracle_degraded, "the true masks spoiled as Mask R-CNN's would be: jittered "
+                  "box, 28 x 28 grid, blurred, wobbly edges (DegradeConfig)", needs_instances=True),
+    trainable("default", "effwin", "default", "learned, the shipped default: EffWin (pretrained "
+              "EfficientNet-Lite encoder, corner head); loads any trainable detector's weights", any_arch=True),
+    trainable("winnet", "winnet", "winnet", "learned from scratch: WinNet, a small U-Net (void and core maps)"),
+    trainable("maskrcnn", "maskrcnn", "maskrcnn", "Mask R-CNN ResNet-50 FPN, the paper's, trained from scratch "
+              "(weights not shipped: train on a GPU machine)", in_all=False),
+])
 
 
 def detector_entry(name: str) -> DetectorEntry:
-    """The registry entry of detector ``name``; ValueError naming it and the choices if unknown."""
-    if name not in DETECTORS:
-        raise ValueError(f"unknown detector {name!r}; choose from {sorted(DETECTORS)}")
+    """The registry entry of detector ``name``; ValueError (fenestra.registry.UnknownName) naming it
+    and the choices if unknown."""
     return DETECTORS[name]
 
 
@@ -260,5 +285,5 @@ def box_to_full(box: np.ndarray, scale: float) -> np.ndarray:
     return points_to_full(box, scale)
 
 
-__all__ = ["DETECTORS", "DetectorEntry", "DegradeConfig", "Detection", "detect", "detector_entry", "get_detector",
-           "check_image"]
+__all__ = ["DETECTORS", "Checkpointed", "DetectorEntry", "trainable", "DegradeConfig", "Detection", "detect",
+           "detector_entry", "get_detector"]

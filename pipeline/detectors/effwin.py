@@ -27,7 +27,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from pipeline.detectors.winnet import PostConfig, _block, instances_from_maps, pad_to_stride
+from pipeline.detectors.winnet import PostConfig, _block, instances_from_maps, load_state, pad_to_stride
 from pipeline.types import Detection
 
 MEAN, STD = 127.0, 128.0  # TF EfficientNet-Lite preprocessing (see the module docstring)
@@ -204,3 +204,23 @@ def detections_from_maps(maps: np.ndarray, post: PostConfig = PostConfig()) -> l
     """WinNet's instances from maps[0:2], each with its corners from maps[2:6] (None if unseen)."""
     dets = instances_from_maps(maps[0], maps[1], post)
     return [Detection(d.mask, d.box, d.score, d.label, corners=instance_corners(maps[2:], d.mask)) for d in dets]
+
+
+# ---------------------------------------------------------------- from a weights file (the registry's Checkpointed)
+
+def model_from_checkpoint(ckpt: dict) -> EffWin:
+    """The EffWin of a weights file's dict (``config``, ``state_dict``), in eval mode on the CPU;
+    only the model code is needed: the ImageNet weights are in the checkpoint."""
+    c = ckpt["config"]
+    return load_state(EffWin(EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"]))), ckpt)
+
+
+def detector_from_model(model: EffWin, ckpt: dict):
+    """image (H, W, 3) uint8 RGB -> Detections with corners, with the checkpoint's PostConfig."""
+    post = PostConfig(**ckpt.get("post", {}))
+    return lambda image, **_: detections_from_maps(predict_maps(model, image), post)
+
+
+def void_core_maps(model: EffWin):
+    """image -> (void, core) probability maps (H, W) float32 (post-processing tuning: training/tune.py)."""
+    return lambda image: tuple(predict_maps(model, image)[:2])

@@ -5,19 +5,12 @@ window void. ``build_maskrcnn`` is shared by training (training/train.py) and in
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import torch
 
-from fenestra.errors import FenestraError
 from pipeline.detectors.oracle import mask_box
 from pipeline.types import Detection
 
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
-DEFAULT_MASKRCNN_WEIGHTS = MODELS_DIR / "maskrcnn.pt"
-TRAIN_HINT = ("train it with `fenestra train --config training/configs/maskrcnn.toml --data DIR`, then "
-              "`fenestra ship-weights out/train/maskrcnn.pt` (a GPU machine is advised; see docs/experiments.md)")
 
 
 def build_maskrcnn(min_size: int = 480, max_size: int = 640) -> torch.nn.Module:
@@ -28,17 +21,16 @@ def build_maskrcnn(min_size: int = 480, max_size: int = 640) -> torch.nn.Module:
                                  min_size=min_size, max_size=max_size)
 
 
-def load_maskrcnn(weights: str | Path | None = None, device: str = "cpu") -> torch.nn.Module:
-    """Mask R-CNN with trained weights (default pipeline/models/maskrcnn.pt), in eval mode on device."""
-    path = Path(weights) if weights is not None else DEFAULT_MASKRCNN_WEIGHTS
-    if not path.is_file():
-        raise FenestraError(f"no Mask R-CNN weights at {path}: {TRAIN_HINT}")
-    from pipeline.detectors.checkpoint import check_device, read_checkpoint  # noqa: PLC0415
-
-    ckpt = read_checkpoint(path, "maskrcnn")
+def model_from_checkpoint(ckpt: dict) -> torch.nn.Module:
+    """The Mask R-CNN of a weights file's dict (``model_kw``, fp32 ``state_dict``), in eval mode on the CPU."""
     model = build_maskrcnn(**ckpt.get("model_kw", {}))
     model.load_state_dict(ckpt["state_dict"])
-    return model.eval().to(check_device(device))
+    return model.eval()
+
+
+def detector_from_model(model: torch.nn.Module, ckpt: dict):
+    """image (H, W, 3) uint8 RGB -> Detections (all scores), best first."""
+    return lambda image, **_: maskrcnn_detect(model, image)
 
 
 def maskrcnn_targets(instances: np.ndarray) -> dict[str, torch.Tensor]:

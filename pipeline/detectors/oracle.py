@@ -15,26 +15,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from fenestra.checks import check_instances
 from fenestra.conventions import LIMITS
 from fenestra.data import mask_box
 from fenestra.errors import PipelineError
 from pipeline.types import Detection
-
-
-def check_instances(instances: np.ndarray | None, image_shape: tuple[int, ...] | None = None) -> np.ndarray:
-    """Validate an instance map (H, W) of non-negative ints; return it as int64."""
-    if instances is None:
-        raise ValueError("oracle detectors need instances= an (H, W) instance map (0 = none)")
-    inst = np.asarray(instances)
-    if inst.ndim != 2:
-        raise ValueError(f"instances must be (H, W), got shape {inst.shape}")
-    if not np.issubdtype(inst.dtype, np.integer):
-        raise ValueError(f"instances must be an integer array, got dtype {inst.dtype}")
-    if image_shape is not None and tuple(inst.shape) != tuple(image_shape[:2]):
-        raise ValueError(f"instances shape {inst.shape} does not match image shape {tuple(image_shape[:2])}")
-    if inst.size and inst.min() < 0:
-        raise ValueError(f"instances must be >= 0, got min {inst.min()}")
-    return inst.astype(np.int64)
 
 
 def detections_from_instance_map(instances: np.ndarray, max_windows: int = LIMITS.max_windows_per_photo,

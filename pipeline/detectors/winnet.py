@@ -163,3 +163,29 @@ def predict_maps(model: WinNet, image: np.ndarray) -> tuple[np.ndarray, np.ndarr
     x = x.to(next(model.parameters()).device).contiguous(memory_format=torch.channels_last)
     p = torch.sigmoid(model(x).float())[0, :, :H, :W].cpu().numpy()
     return p[0], p[1]
+
+
+# ---------------------------------------------------------------- from a weights file (the registry's Checkpointed)
+
+def model_from_checkpoint(ckpt: dict) -> WinNet:
+    """The WinNet of a weights file's dict (``widths``, ``state_dict``), in eval mode on the CPU."""
+    return load_state(WinNet(WinNetConfig(tuple(ckpt["widths"]))), ckpt)
+
+
+def load_state(model: nn.Module, ckpt: dict) -> nn.Module:
+    """``model`` with the checkpoint's weights (fp16 stored, fp32 used), channels-last (faster
+    convolutions on the CPU, oneDNN), in eval mode."""
+    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in ckpt["state_dict"].items()})
+    model.to(memory_format=torch.channels_last)
+    return model.eval()
+
+
+def detector_from_model(model: WinNet, ckpt: dict):
+    """image (H, W, 3) uint8 RGB -> Detections, with the checkpoint's post-processing (PostConfig)."""
+    post = PostConfig(**ckpt.get("post", {}))
+    return lambda image, **_: instances_from_maps(*predict_maps(model, image), post)
+
+
+def void_core_maps(model: WinNet):
+    """image -> (void, core) probability maps (H, W) float32 (post-processing tuning: training/tune.py)."""
+    return lambda image: predict_maps(model, image)

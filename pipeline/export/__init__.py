@@ -13,18 +13,18 @@ import shutil
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from fenestra.conventions import check_K
+from fenestra.checks import check_image, check_K
 from fenestra.errors import PipelineError
+from fenestra.files import write_image
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import CAMERA_TO_EXPORT, PlacedWindow, place, texture_layout
 from pipeline.export.ifc import write_ifc
 from pipeline.export.inpaint import inpaint_voids
 from pipeline.export.mesh import model_parts, write_glb, write_obj
 from pipeline.export.overlay import draw_overlay
-from pipeline.types import WindowResult, check_image
+from pipeline.types import WindowResult
 
 DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
 
@@ -48,13 +48,6 @@ def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAUL
         else:
             placed.append(pw)
     return placed, skipped
-
-
-def _write_png(path: Path, image: np.ndarray) -> Path:
-    """Write an (H, W, 3) uint8 RGB image as PNG (cv2 writes BGR: the one conversion)."""
-    if not cv2.imwrite(str(path), np.ascontiguousarray(image[:, :, ::-1])):
-        raise PipelineError(f"could not write {path}")
-    return path
 
 
 def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
@@ -87,22 +80,22 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     inpainted, _ = _timed("inpaint_ms", inpaint_voids, image, list(results))
     layout = texture_layout(K, image.shape, placed)
     texture = layout.pad(inpainted)
-    paths = {"inpainted": _write_png(out / "inpainted.png", inpainted)}
+    paths = {"inpainted": write_image(out / "inpainted.png", inpainted)}
     if texture.shape == inpainted.shape:  # no padding: the same image, the same file (no second encode)
         paths["texture"] = Path(shutil.copyfile(paths["inpainted"], out / "texture.png"))
     else:
-        paths["texture"] = _write_png(out / "texture.png", texture)
+        paths["texture"] = write_image(out / "texture.png", texture)
     ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K, placed, layout, "texture.png", style)
     paths["ifc"] = out / "model.ifc"
     parts = model_parts(K, placed, layout, style)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
     if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
         paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)
-    paths["overlay"] = _write_png(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results)))
+    paths["overlay"] = write_image(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results)))
     if substitute is not None:
-        from pipeline.substitute import composite  # noqa: PLC0415
+        from pipeline.export.substitute import composite  # noqa: PLC0415
 
-        paths["substituted"] = _write_png(out / "substituted.png",
+        paths["substituted"] = write_image(out / "substituted.png",
                                           _timed("substitute_ms", composite, inpainted, K, placed, style))
     timings["total_ms"] = 1000.0 * (time.perf_counter() - t_start)
     manifest = {

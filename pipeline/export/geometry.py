@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from fenestra.conventions import check_K, project
+from fenestra.checks import check_K, check_rotation
+from fenestra.conventions import project
 from pipeline.types import WindowResult
 
 # Camera frame (OpenCV) -> export world (z up, camera looking along +y); a proper rotation.
@@ -80,12 +81,13 @@ def place(result: WindowResult) -> PlacedWindow | str:
         return f"upstream failure: {result.failure}"
     if result.R is None or result.t is None or result.aspect_ratio is None:
         return "missing pose or aspect ratio"
-    R = np.asarray(result.R, dtype=np.float64)
     t = np.asarray(result.t, dtype=np.float64).reshape(-1)
-    if R.shape != (3, 3) or t.shape != (3,) or not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
-        return f"bad pose shapes/values: R {R.shape}, t {t.shape}"
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        return f"R is not a proper rotation (det={np.linalg.det(R):.4f})"
+    if t.shape != (3,) or not np.all(np.isfinite(t)):
+        return f"bad translation t: shape {t.shape}, values {t.tolist()}"
+    try:
+        R = check_rotation(result.R, "R")
+    except ValueError as e:
+        return str(e)
     h = float(result.height_m)
     w = float(result.aspect_ratio) * h
     if not (np.isfinite(w) and np.isfinite(h) and w > 0 and h > 0):

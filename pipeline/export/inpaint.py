@@ -4,7 +4,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from pipeline.types import WindowResult, check_image
+from fenestra.checks import check_image
+from pipeline.types import WindowResult
 
 
 def result_quad(result: WindowResult) -> np.ndarray | None:

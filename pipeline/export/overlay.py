@@ -10,9 +10,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from fenestra.conventions import CORNER_NAMES, check_K, project
+from fenestra.checks import check_image, check_K
+from fenestra.conventions import CORNER_NAMES, project
 from pipeline.export.geometry import place
-from pipeline.types import WindowResult, check_image
+from pipeline.types import WindowResult
 
 COLOURS = {"mask": (255, 220, 0), "snapped": (255, 0, 255), "reprojected": (0, 230, 0),
            "x": (255, 0, 0), "y": (0, 200, 0), "z": (0, 80, 255), "failed": (255, 0, 0)}

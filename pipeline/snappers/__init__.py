@@ -11,12 +11,15 @@ Use :func:`snap` to look a strategy up by name with default parameters.
 
 Each entry (:class:`~pipeline.snappers.base.Snapper`) also carries its one-line ``description``
 (CLI help) and ``test_median_px`` (its bound in the generic snapper test): a new strategy is one
-module and one line here, nothing else (docs/EXTENDING.md).
+module and one line here, nothing else (docs/EXTENDING.md). ``SNAPPERS`` is a
+:class:`fenestra.registry.Registry`: a snapper of another installed package registers itself through
+the ``fenestra.plugins`` entry points (``SNAPPERS.register(MY_SNAPPER)``).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from fenestra.registry import Registry
 from pipeline.snappers.base import Snapper
 from pipeline.snappers.harris import HARRIS
 from pipeline.snappers.hough import HOUGH
@@ -25,21 +28,19 @@ from pipeline.snappers.lsd import LSD
 from pipeline.snappers.none import NONE
 from pipeline.snappers.subpix import SUBPIX
 
-SNAPPERS: dict[str, Snapper] = {
-    "none": NONE,
-    "harris": HARRIS,
-    "hough": HOUGH,
-    "linefit": LINEFIT,
-    "subpix": SUBPIX,
-    "lsd": LSD,
-}
+SNAPPERS: Registry[Snapper] = Registry("snapper", [
+    NONE,
+    HARRIS,
+    HOUGH,
+    LINEFIT,
+    SUBPIX,
+    LSD,
+])
 
 
 def snap(name: str, gray: np.ndarray, quad: np.ndarray, params=None) -> tuple[np.ndarray, dict]:
     """Snap ``quad`` with strategy ``name`` (default parameters unless ``params`` is given)."""
-    if name not in SNAPPERS:
-        raise ValueError(f"unknown snapper {name!r}; choose from {sorted(SNAPPERS)}")
-    s = SNAPPERS[name]
+    s = SNAPPERS[name]  # fenestra.registry.UnknownName (a ValueError) naming the choices
     return s.snap(gray, quad, s.params() if params is None else params)
 
 

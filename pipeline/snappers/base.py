@@ -6,7 +6,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from fenestra.conventions import check_quad
+from fenestra.checks import check_quad
 
 
 @dataclass(frozen=True)

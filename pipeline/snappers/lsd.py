@@ -1,6 +1,7 @@
 """``lsd``: OpenCV's line segment detector near each side, a line fitted per side, intersections.
 
-LSD (von Gioi et al. 2012, ``cv2.createLineSegmentDetector``) runs once on a crop around the quad.
+LSD (von Gioi et al. 2012; pipeline.segments.detect_segments, the pipeline's one segment detector)
+runs once on a crop around the quad.
 A segment supports a side when it is nearly parallel to it (``max_angle_deg``), both its ends lie
 within ``band_px`` of the side's line, and it overlaps the side between its ends (trimmed by
 ``end_trim_px``, so the neighbouring sides' segments stay out). Each side's line is the total
@@ -14,9 +15,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
+from pipeline.segments import detect_segments
 from pipeline.snappers.base import Snapper, check_inputs, keep_if_far, quad_from_lines, side_lines
 
 
@@ -37,27 +38,23 @@ class LsdParams:
     max_move_px: float = 6.0
 
 
-def detect_segments(g: np.ndarray, quad: np.ndarray, p: LsdParams) -> np.ndarray:
-    """LSD segments (M, 4) x0, y0, x1, y1 px (image coordinates, pixel centres at integers) in a crop
-    of the float32 gray image g (H, W) around ``quad`` (4, 2); (0, 4) when the crop is empty."""
+def segments_near(g: np.ndarray, quad: np.ndarray, p: LsdParams) -> np.ndarray:
+    """LSD segments (M, 2, 2) px (pipeline.segments.detect_segments at ``p.scale``) in a crop of the
+    float32 gray image g (H, W) around ``quad`` (4, 2), ``p.margin_px`` wide; (0, 2, 2) when the crop
+    is empty."""
     H, W = g.shape
     lo = np.floor(quad.min(axis=0) - p.margin_px).astype(int)
     hi = np.ceil(quad.max(axis=0) + p.margin_px).astype(int) + 1
     x0, y0 = max(lo[0], 0), max(lo[1], 0)
     x1, y1 = min(hi[0], W), min(hi[1], H)
     if x1 - x0 < 3 or y1 - y0 < 3:
-        return np.zeros((0, 4))
-    crop = np.ascontiguousarray(np.clip(np.round(g[y0:y1, x0:x1]), 0, 255).astype(np.uint8))
-    # LSD's coordinates put pixel centres at integers, as ours (a step between rows 29 and 30: y = 29.5)
-    segs = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD, p.scale).detect(crop)[0]
-    if segs is None:
-        return np.zeros((0, 4))
-    return segs.reshape(-1, 4).astype(np.float64) + [x0, y0, x0, y0]
+        return np.zeros((0, 2, 2))
+    return detect_segments(g, p.scale, (x0, y0, x1, y1))
 
 
 def supporting(segs: np.ndarray, a: np.ndarray, b: np.ndarray, line: np.ndarray, p: LsdParams) -> np.ndarray:
-    """Bool mask (M,) of the segments (M, 4) that support side a -> b with line (n_x, n_y, c)."""
-    P, Q = segs[:, :2], segs[:, 2:]
+    """Bool mask (M,) of the segments (M, 2, 2) px that support side a -> b with line (n_x, n_y, c)."""
+    P, Q = segs[:, 0], segs[:, 1]
     d = Q - P
     length = np.linalg.norm(d, axis=1)
     u = (b - a) / np.linalg.norm(b - a)
@@ -70,9 +67,9 @@ def supporting(segs: np.ndarray, a: np.ndarray, b: np.ndarray, line: np.ndarray,
 
 
 def fit_line(segs: np.ndarray) -> np.ndarray:
-    """Total least squares line (n_x, n_y, c), |n| = 1, of segments (M, 4), each a uniform density of
-    points along it (length-weighted centroid and scatter)."""
-    P, Q = segs[:, :2], segs[:, 2:]
+    """Total least squares line (n_x, n_y, c), |n| = 1, of segments (M, 2, 2) px, each a uniform
+    density of points along it (length-weighted centroid and scatter)."""
+    P, Q = segs[:, 0], segs[:, 1]
     d = Q - P
     length = np.linalg.norm(d, axis=1)
     mid = (P + Q) / 2
@@ -86,7 +83,7 @@ def fit_line(segs: np.ndarray) -> np.ndarray:
 def snap_lsd(gray: np.ndarray, quad: np.ndarray, params: LsdParams = LsdParams()) -> tuple[np.ndarray, dict]:
     """Fit each side to the LSD segments along it (total least squares), intersect neighbours."""
     g, q = check_inputs(gray, quad)
-    segs = detect_segments(g, q, params)
+    segs = segments_near(g, q, params)
     lines, found = side_lines(q), []
     for k in range(4):
         keep = supporting(segs, q[k], q[(k + 1) % 4], lines[k], params) if len(segs) else np.zeros(0, bool)

@@ -9,14 +9,14 @@ cd "$(dirname "$0")/../.."
 DATA=$1 OUTD=$2 BUDGET=${3:-330}
 PY=${PY:-python3}
 mkdir -p "$OUTD"
-$PY -m fenestra train --config training/configs/maskrcnn.toml --data "$DATA/train" --iterations 30 \
+$PY -m app train --config training/configs/maskrcnn.toml --data "$DATA/train" --iterations 30 \
     --out "$OUTD/probe.pt" > "$OUTD/probe.log"
 rate=$($PY -c "import csv,sys; r=list(csv.DictReader(open(sys.argv[1]))); print((float(r[-1]['elapsed_s'])-float(r[1]['elapsed_s']))/(int(r[-1]['iteration'])-int(r[1]['iteration'])))" "$OUTD/probe.loss.csv")
 ITER=$($PY -c "print(int($BUDGET / $rate) // 100 * 100)")
 echo "probe: $rate s/iteration -> $ITER iterations in ~${BUDGET}s"
-$PY -m fenestra train --config training/configs/maskrcnn.toml --data "$DATA/train" --iterations "$ITER" \
+$PY -m app train --config training/configs/maskrcnn.toml --data "$DATA/train" --iterations "$ITER" \
     --out "$OUTD/maskrcnn.pt" | awk 'NR % 10 == 1'
 for split in val heldout-pyrender heldout-mitsuba; do
-  $PY -m fenestra evaluate-detector --detector maskrcnn --weights "$OUTD/maskrcnn.pt" --device cuda \
+  $PY -m app evaluate-detector --detector maskrcnn --weights "$OUTD/maskrcnn.pt" --device cuda \
       --data "$DATA/$split" --json "$OUTD/eval-$split.json"
 done

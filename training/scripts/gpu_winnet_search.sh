@@ -47,9 +47,9 @@ for d in out/detector-data/train/*/; do
 done
 for v in $VARIANTS; do
   cfg="$OUTD/$v.toml"
-  ( $PY -m fenestra train --config "$cfg" "${TRAIN[@]}" --workers "$WORKERS" > "$OUTD/$v.train.log" 2>&1
+  ( $PY -m app train --config "$cfg" "${TRAIN[@]}" --workers "$WORKERS" > "$OUTD/$v.train.log" 2>&1
     for split in out/detector-data/val "$OUTD/loho"; do
-      $PY -m fenestra evaluate-detector --weights "$OUTD/$v.pt" --device cuda --data "$split" \
+      $PY -m app evaluate-detector --weights "$OUTD/$v.pt" --device cuda --data "$split" \
           --json "$OUTD/$v-$(basename "$split").json" > /dev/null
     done
     echo "done: $v" ) &

@@ -22,7 +22,7 @@ export PYOPENGL_PLATFORM=egl
 
 render() {  # scene views seed renderer root [extra options]
   local scene=$1 views=$2 seed=$3 renderer=$4 root=$5; shift 5
-  $PY -m fenestra render --scene "$scene" --views "$views" --seed "$seed" --renderer "$renderer" \
+  $PY -m app render --scene "$scene" --views "$views" --seed "$seed" --renderer "$renderer" \
       --out "$root" "$@" | tail -1
 }
 
@@ -46,7 +46,7 @@ mkdir -p "$ROOT/procedural"
 for i in 1 2 3 4 5 6 7 8; do
   s=$((100 + i))
   ifc="$ROOT/procedural/house-$s.ifc"
-  [ -f "$ifc" ] || $PY -m fenestra scenes make "$ifc" --seed $s --storeys $((1 + i % 3)) \
+  [ -f "$ifc" ] || $PY -m app scenes make "$ifc" --seed $s --storeys $((1 + i % 3)) \
       --windows-per-wall $((1 + (i / 2) % 3)) --rotation-deg $((i * 17))
   render "$ifc" 20 $((3000 + s)) pyrender "$ROOT/train"
   render "$ifc" 20 $((4000 + s)) pyrender "$ROOT/train" --sensor

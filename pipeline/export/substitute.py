@@ -11,12 +11,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from fenestra.conventions import check_K, project
+from fenestra.checks import check_K, check_image
+from fenestra.conventions import project
 from fenestra.errors import PipelineError
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import PlacedWindow, place
 from pipeline.export.inpaint import inpaint_voids
-from pipeline.types import WindowResult, check_image
+from pipeline.types import WindowResult
 
 # Direction towards the light in the camera frame (up-left of the camera), and the ambient share.
 LIGHT_DIR_CAM = np.array([-0.35, -0.6, -1.0]) / np.linalg.norm([-0.35, -0.6, -1.0])

@@ -1,4 +1,6 @@
-"""The `fenestra` command line: each stage registers its own subcommands.
+"""The `fenestra` command line (``fenestra ...`` or ``python -m app ...``): each stage registers its
+own subcommands. This is the composition root, on the top floor: it imports every stage, and
+nothing imports it.
 
     fenestra scenes list | show | make      (scenes/cli.py)
     fenestra render                         (renders/cli.py)
@@ -14,7 +16,7 @@ import sys
 
 import typer
 
-from fenestra.errors import FenestraError
+from fenestra.errors import FenestraError, one_line
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Fenestra: single-photo facade window reconstruction, measured against exact IFC ground truth.")
@@ -44,7 +46,7 @@ def main() -> None:
     read-only or missing paths, names too long) become one line on stderr and exit code 2."""
     signal.signal(signal.SIGTERM, _terminate)  # unwinds: temporary outputs are removed
     try:
-        app()
+        app(prog_name="fenestra")
     except (FenestraError, OSError, ValueError) as e:
         typer.echo(f"error: {one_line(e)}", err=True)
         sys.exit(2)
@@ -53,8 +55,3 @@ def main() -> None:
 def _terminate(signum: int, _frame) -> None:
     typer.echo(f"error: terminated (signal {signum}); partial outputs removed", err=True)
     raise SystemExit(128 + signum)
-
-
-def one_line(e: BaseException) -> str:
-    """The error's message on one line (without a message: its class name)."""
-    return " ".join(str(e).split()) or type(e).__name__

@@ -1,0 +1,31 @@
+"""Numerical tolerances of Fenestra's checks and tests (units in the names), apart from the
+algorithms' settings.
+
+Tests in ``tests/`` compare against these; the benchmark uses the matching threshold and the
+recall thresholds. An algorithm's own parameters live beside the algorithm (the per-wall fit's:
+``pipeline.walls.settings.WALL_FIT``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Numerical tolerances used by checks and tests (units in the names)."""
+
+    gt_size_vs_ifc_m: float = 0.005  # loader width/height vs IfcWindow OverallWidth/Height
+    gt_right_angle_deg: float = 0.01  # ground-truth rectangle corners
+    gt_coplanar_m: float = 1e-6  # corners vs wall face plane
+    generator_roundtrip_m: float = 1e-6  # procedural house: loader vs generator parameters
+    projection_vs_mask_px: float = 0.1  # projected GT corners vs instance-map edges
+    distortion_roundtrip_px: float = 1e-3
+    backend_instance_iou: float = 0.99  # pyrender vs mitsuba instance maps
+    exact_aspect_rel: float = 1e-6  # aspect ratio from an exact synthetic quad
+    exact_rotation_deg: float = 1e-4  # pose from an exact synthetic quad
+    parallel_sides_deg: float = 0.05  # opposite image sides closer than this count as parallel
+    match_iou: float = 0.5  # detection <-> ground truth matching
+    recall_thresholds_px: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0)
+
+
+TOL = Tolerances()

@@ -1,0 +1,69 @@
+"""Reading a user's files safely: only regular files, only inside the folder they belong to,
+JSON only up to a stated size (fenestra.conventions.LIMITS.max_json_bytes).
+
+    p = inside(folder, "images/../x.png", "annotations.json images[3] file_name")  # DatasetError: outside
+    regular_file(p)                        # DatasetError for a FIFO, a device, a folder, a missing file
+    doc = read_json(folder / "annotations.json", "COCO annotations")
+
+Errors are fenestra.data.DatasetError (a ValueError) naming the file and what is wrong.
+"""
+from __future__ import annotations
+
+import json
+import os
+import stat
+from pathlib import Path
+
+from fenestra.conventions import LIMITS
+from fenestra.data import DatasetError
+
+
+def inside(root: str | Path, name: str, where: str) -> Path:
+    """``root / name`` if it stays inside ``root`` once resolved (symlinks and ``..`` followed);
+    DatasetError naming ``where`` for an absolute name or one that leads outside."""
+    if not isinstance(name, str) or not name:
+        raise DatasetError(f"{where}: must be a non-empty relative path string, got {name!r}")
+    if os.path.isabs(name) or Path(name).anchor:
+        raise DatasetError(f"{where}: {name!r} is an absolute path; give it relative to the dataset folder {root}")
+    base = Path(root).resolve()
+    p = (base / name).resolve()
+    if p != base and base not in p.parents:
+        raise DatasetError(f"{where}: {name!r} leads outside the dataset folder {root}")
+    return Path(root) / name
+
+
+def is_regular(path: str | Path) -> bool:
+    """True if ``path`` (symlinks followed) is a regular file: never a FIFO, socket or device."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
+def regular_file(path: str | Path, what: str = "file") -> Path:
+    """``path`` if it is a regular file; DatasetError (missing, or a FIFO/device/folder) otherwise."""
+    p = Path(path)
+    try:
+        mode = os.stat(p).st_mode
+    except FileNotFoundError as e:
+        raise DatasetError(f"{what} not found: {p}") from e
+    except OSError as e:
+        raise DatasetError(f"cannot read {what} {p}: {e.strerror}") from e
+    if not stat.S_ISREG(mode):
+        raise DatasetError(f"{what} {p} is not a regular file (a folder, FIFO or device); refused")
+    return p
+
+
+def read_json(path: str | Path, what: str = "JSON file", limit: int | None = None):
+    """The parsed JSON of a regular file of at most ``limit`` bytes (default
+    LIMITS.max_json_bytes), checked before reading; DatasetError naming the file otherwise."""
+    p = regular_file(path, what)
+    limit = LIMITS.max_json_bytes if limit is None else limit
+    size = p.stat().st_size
+    if size > limit:
+        raise DatasetError(f"{what} {p} is {size / 2**20:.1f} MB, more than the {limit / 2**20:.0f} MB "
+                           "limit (fenestra.conventions.LIMITS.max_json_bytes)")
+    try:
+        return json.loads(p.read_bytes())
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+        raise DatasetError(f"{what} {p} is not valid JSON: {e}") from e
