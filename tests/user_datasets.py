@@ -57,7 +57,7 @@ def curtain_panes(n: int = 2) -> list[tuple[str, np.ndarray, list[Pane]]]:
         rgb = cv2.resize(v.image, (w, h), interpolation=cv2.INTER_AREA)
         panes = []
         for win in v.windows:
-            m = cv2.resize(win.mask.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
+            m = cv2.resize(win.mask.dense().astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
             if m.sum() >= 50:
                 panes.append(_pane(m))
         out.append((v.name, rgb, panes))
