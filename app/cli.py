@@ -11,8 +11,13 @@ nothing imports it.
 """
 from __future__ import annotations
 
+import datetime
+import os
 import signal
 import sys
+import tempfile
+import traceback
+from pathlib import Path
 
 import typer
 
@@ -41,15 +46,42 @@ def _register() -> None:
 _register()
 
 
+USER_ERRORS = (FenestraError, OSError, ValueError)  # bad input, every OS error: exit 2
+INTERNAL_EXIT = 3  # an unexpected exception: a bug of Fenestra's
+
+
 def main() -> None:
-    """Entry point: run the app; user-facing errors (bad input, and every OS error: disk full,
-    read-only or missing paths, names too long) become one line on stderr and exit code 2."""
+    """Entry point: run the app. Every error ends with one line on stderr, never a traceback:
+    user-facing errors (bad input, and every OS error: disk full, read-only or missing paths,
+    names too long) exit 2; an unexpected exception exits 3 with "please report" and the path of
+    a log file holding its traceback (:func:`crash_log`); Ctrl-C exits 130."""
     signal.signal(signal.SIGTERM, _terminate)  # unwinds: temporary outputs are removed
     try:
         app(prog_name="fenestra")
-    except (FenestraError, OSError, ValueError) as e:
+    except USER_ERRORS as e:
         typer.echo(f"error: {one_line(e)}", err=True)
         sys.exit(2)
+    except KeyboardInterrupt:
+        typer.echo("error: interrupted; partial outputs removed", err=True)
+        sys.exit(130)
+    except Exception as e:  # noqa: BLE001  (the one place that turns a bug into one line)
+        try:
+            where = f"with the traceback in {crash_log(e, sys.argv)}"
+        except OSError:
+            where = "(its traceback could not be written to a log file)"
+        typer.echo(f"error: internal error ({type(e).__name__}: {one_line(e)}); please report it {where}", err=True)
+        sys.exit(INTERNAL_EXIT)
+
+
+def crash_log(e: BaseException, argv: list[str], folder: str | Path | None = None) -> Path:
+    """Write the command line and the traceback of ``e`` to a new file under ``folder`` (default:
+    the system's temporary folder) and return its path."""
+    folder = Path(tempfile.gettempdir() if folder is None else folder)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    path = folder / f"fenestra-error-{stamp}-{os.getpid()}.log"
+    text = f"command: {' '.join(map(repr, argv))}\n\n" + "".join(traceback.format_exception(e))
+    path.write_text(text, encoding="utf-8", errors="backslashreplace")
+    return path
 
 
 def _terminate(signum: int, _frame) -> None:

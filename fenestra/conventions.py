@@ -147,6 +147,11 @@ class InputLimits:
         (from K and the photo size) is reported as a warning: the focal length is probably wrong.
     max_json_bytes: a JSON input (annotations.json, K.json) larger than this is refused before it
         is read (json.loads of a 400 MB file takes several GB).
+    max_image_pixels / max_image_bytes: an image file whose header states more pixels, or whose
+        file is larger, is refused before it is decoded (fenestra.images; a 12000 x 9000 photo,
+        108 Mpx, passes; ``fenestra reconstruct --max-pixels`` raises the pixel bound).
+    max_render_side_px: the longest side a render may have (OpenGL renderbuffers of the software
+        rasteriser stop at 8192 or 16384 px).
     """
 
     max_windows_per_photo: int = 1000
@@ -154,6 +159,9 @@ class InputLimits:
     fov_min_deg: float = 1.0
     fov_max_deg: float = 170.0
     max_json_bytes: int = 64 * 2**20
+    max_image_pixels: int = 150_000_000
+    max_image_bytes: int = 512 * 2**20
+    max_render_side_px: int = 8192
 
 
 LIMITS = InputLimits()

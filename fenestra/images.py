@@ -13,8 +13,12 @@ displayed, and a truncated JPEG decodes with its missing part grey.
   has in memory (differences and a -1 sentinel are safe, every 16-bit id stays exact). The file
   stores uint16 (:func:`fenestra.data.write_view`).
 
-A missing or undecodable file raises :class:`fenestra.errors.DatasetError` (a FenestraError and a
-ValueError) naming the file.
+Bounded before decoding: a file larger than ``LIMITS.max_image_bytes``, or whose header states
+more than ``max_pixels`` pixels (default ``LIMITS.max_image_pixels``), is refused before a byte of
+pixels is decoded (:func:`header_size` reads the header only).
+
+A missing, oversized or undecodable file raises :class:`fenestra.errors.DatasetError` (a
+FenestraError and a ValueError) naming the file.
 """
 from __future__ import annotations
 
@@ -24,17 +28,62 @@ import cv2
 import numpy as np
 
 from fenestra.checks import INSTANCE_DTYPE
+from fenestra.conventions import LIMITS
 from fenestra.errors import DatasetError
 
 JPEG_SOI, JPEG_EOI = b"\xff\xd8", b"\xff\xd9"  # a JPEG's start- and end-of-image markers
 
 
-def decode_file(path: str | Path, flags: int, what: str = "image") -> np.ndarray:
+def header_size(path: str | Path) -> tuple[int, int] | None:
+    """(W, H) px an image file's header states, read without decoding its pixels (PIL's format
+    plugins, opened directly so that a huge size is reported, not refused as PIL's open does);
+    None when no PIL plugin parses the header (cv2 may still decode the file)."""
+    import struct  # noqa: PLC0415
+
+    from PIL import Image  # noqa: PLC0415
+
+    Image.init()
+    with open(path, "rb") as fp:
+        prefix = fp.read(16)
+        for fmt in Image.ID:
+            factory, accept = Image.OPEN[fmt]
+            if accept is not None and not accept(prefix):
+                continue
+            fp.seek(0)
+            try:
+                im = factory(fp, str(path))
+            except (SyntaxError, IndexError, TypeError, ValueError, OSError, EOFError, struct.error):
+                continue
+            return int(im.size[0]), int(im.size[1])
+    return None
+
+
+def check_size(path: str | Path, what: str = "image", max_pixels: int | None = None) -> None:
+    """DatasetError naming the file when it is larger than LIMITS.max_image_bytes, or its header
+    states more than ``max_pixels`` (default LIMITS.max_image_pixels) pixels; checked before decoding."""
+    p = Path(path)
+    max_pixels = LIMITS.max_image_pixels if max_pixels is None else int(max_pixels)
+    if max_pixels <= 0:
+        raise ValueError(f"max_pixels must be positive, got {max_pixels}")
+    n_bytes = p.stat().st_size
+    if n_bytes > LIMITS.max_image_bytes:
+        raise DatasetError(f"{what} {p} is {n_bytes / 2**20:.0f} MiB, over the {LIMITS.max_image_bytes / 2**20:.0f} MiB "
+                           "an image file may have (fenestra.conventions.LIMITS.max_image_bytes)")
+    size = header_size(p)
+    if size is not None and size[0] * size[1] > max_pixels:
+        raise DatasetError(f"{what} {p} is {size[0]}x{size[1]} = {size[0] * size[1] / 1e6:.0f} Mpx, over the limit of "
+                           f"{max_pixels / 1e6:.0f} Mpx (--max-pixels raises it; decoding needs about "
+                           f"{3 * size[0] * size[1] / 2**30:.1f} GiB)")
+
+
+def decode_file(path: str | Path, flags: int, what: str = "image", max_pixels: int | None = None) -> np.ndarray:
     """``cv2.imdecode(bytes of path, flags)``; DatasetError naming ``what`` and the file when it is
-    missing, unreadable, empty or not decodable."""
+    missing, not a regular file, over the size bounds (:func:`check_size`), unreadable, empty or
+    not decodable."""
     p = Path(path)
     if not p.is_file():
-        raise DatasetError(f"{what} not found: {p}")
+        raise DatasetError(f"{what} not found (or not a regular file): {p}")
+    check_size(p, what, max_pixels)
     try:
         buf = np.fromfile(p, dtype=np.uint8)
     except OSError as e:
@@ -49,10 +98,11 @@ def decode_file(path: str | Path, flags: int, what: str = "image") -> np.ndarray
     return img
 
 
-def read_image(path: str | Path, what: str = "image") -> np.ndarray:
+def read_image(path: str | Path, what: str = "image", max_pixels: int | None = None) -> np.ndarray:
     """(H, W, 3) uint8 **RGB** from any image file cv2 decodes, EXIF orientation applied;
-    DatasetError naming ``what`` and the file when it is missing or undecodable."""
-    bgr = decode_file(path, cv2.IMREAD_COLOR, what)
+    DatasetError naming ``what`` and the file when it is missing, too large (``max_pixels``,
+    default LIMITS.max_image_pixels) or undecodable."""
+    bgr = decode_file(path, cv2.IMREAD_COLOR, what, max_pixels)
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 

@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from fenestra.conventions import look_at
+from fenestra.conventions import LIMITS, look_at
 from renders.camera import Camera
 from renders.gt import WindowView
 from renders.materials import ground_z
@@ -58,6 +58,9 @@ class SamplerConfig:
     def __post_init__(self) -> None:
         if self.width < 16 or self.height < 16:
             raise ValueError(f"image size must be at least 16x16, got {self.width}x{self.height}")
+        if max(self.width, self.height) > LIMITS.max_render_side_px:
+            raise ValueError(f"image size {self.width}x{self.height}: a side may be at most "
+                             f"{LIMITS.max_render_side_px} px (fenestra.conventions.LIMITS.max_render_side_px)")
         for name in ("hfov_deg", "azimuth_deg", "elevation_deg", "distance_m", "roll_deg", "street_height_m",
                      "street_distance_m", "k1_range"):
             object.__setattr__(self, name, _range(name, getattr(self, name)))

@@ -566,6 +566,33 @@ def _fifo(p: Path) -> None:
     os.mkfifo(p)
 
 
+def png_header(path: Path, w: int, h: int) -> None:
+    """A PNG whose header states w x h px, with a few bytes of pixel data: a decompression bomb."""
+    import struct
+    import zlib
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    ihdr = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
+    idat = zlib.compress(bytes(4096))  # the first rows only
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b""))
+
+
+def huge_photo(w: int, h: int):
+    def build(d: Path) -> list:
+        png_header(d / "big.png", w, h)
+        return ["reconstruct", "big.png", "--K", EXAMPLE / "K.json", "--out", "o"]
+    return build
+
+
+def huge_image_in_dataset(d: Path) -> list:
+    yolo_case("0 0.5 0.5 0.2 0.2\n")(d)
+    png_header(d / "ds" / "images" / "b.png", 24000, 24000)
+    return ["check-data", "ds", "--format", "yolo"]
+
+
 OUTSIDE = "../../outside/secret.png"
 # (case, builder of the input in a fresh folder -> command line, the one error line's needles)
 FAULTS = [
@@ -622,6 +649,11 @@ FAULTS = [
     ("gate min = -inf", gate_case("min = -inf"), ["has min = -inf; a bound must be finite"]),
     ("gate min = nan", gate_case("min = nan"), ["has min = nan; a bound must be finite"]),
     ("K.json of 65 MB", big_K, ["K.json is 65.0 MB, more than the 64 MB limit"]),
+    ("photo of 24000 x 24000 px", huge_photo(24000, 24000),
+     ["big.png is 24000x24000 = 576 Mpx, over the limit of 150 Mpx (--max-pixels raises it"]),
+    ("dataset photo of 24000 x 24000 px", huge_image_in_dataset, ["b.png is 24000x24000 = 576 Mpx, over the limit"]),
+    ("render 20000 px wide", lambda d: ["render", "--views", "1", "--width", "20000", "--height", "120"],
+     ["image size 20000x120: a side may be at most 8192 px"]),
 ]
 
 
@@ -648,6 +680,52 @@ def test_bad_label_is_refused_with_its_reason(case, build, needles, tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     for n in needles:
         assert n in r.stdout, r.stdout
+
+
+def test_file_names_that_are_not_utf8(tmp_path):
+    """A photo whose name is not valid UTF-8 (a lone surrogate once decoded) reconstructs, and a
+    dataset holding one is read: bytes are decoded from a buffer, never by cv2.imread(name)."""
+    name = os.fsdecode(b"fa\xe7ade-\xff.png")
+    photo = tmp_path / name
+    shutil.copy(EXAMPLE / "img017.jpg", tmp_path / "x.jpg")
+    cv2.imwrite(str(tmp_path / "x.png"), cv2.imread(str(tmp_path / "x.jpg")))
+    os.rename(tmp_path / "x.png", photo)
+    r = fenestra("reconstruct", photo, "--K", EXAMPLE / "K.json", "--masks", EXAMPLE / "panes017.png",
+                 "--out", "o", cwd=tmp_path)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert json.loads((tmp_path / "o" / "windows.json").read_text())["windows"], "no window reconstructed"
+    yolo_case("0 0.5 0.5 0.2 0.2\n")(tmp_path / "y")
+    os.rename(tmp_path / "y" / "ds" / "images" / "a.png", tmp_path / "y" / "ds" / "images" / name)
+    os.rename(tmp_path / "y" / "ds" / "labels" / "a.txt", tmp_path / "y" / "ds" / "labels" / (Path(name).stem + ".txt"))
+    r = subprocess.run([sys.executable, "-m", "app", "check-data", "ds", "--format", "yolo"], cwd=tmp_path / "y",
+                       env=env(), capture_output=True, timeout=120)  # bytes: the name is printed as it is
+    out = r.stdout.decode(errors="surrogateescape")
+    assert r.returncode == 0 and "1 window(s)" in out and Path(name).stem in out, (out[-2000:], r.stderr[-2000:])
+
+
+def test_an_internal_error_is_one_line_and_a_log(tmp_path, monkeypatch, capsys):
+    """A bug (an exception no user input explains) ends with one line, exit 3, 'please report',
+    and its traceback in a log file, not on the terminal."""
+    import app.cli as cli
+
+    def boom() -> None:
+        {}["no such key"]  # noqa: B018  (the bug)
+
+    cli.app.command("boom-for-test")(boom)
+    monkeypatch.setattr(sys, "argv", ["fenestra", "boom-for-test"])
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr("tempfile.tempdir", None)
+    try:
+        with pytest.raises(SystemExit) as e:
+            cli.main()
+    finally:
+        cli.app.registered_commands[:] = [c for c in cli.app.registered_commands if c.name != "boom-for-test"]
+    err = capsys.readouterr().err
+    assert e.value.code == 3 and "Traceback" not in err, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "internal error (KeyError" in lines[0] and "please report" in lines[0], err
+    logs = list(tmp_path.glob("fenestra-error-*.log"))
+    assert len(logs) == 1 and "Traceback" in logs[0].read_text() and "no such key" in logs[0].read_text()
 
 
 def test_label_map_checkerboard_in_bounded_memory(tmp_path):
