@@ -104,6 +104,18 @@ def write_image(path: str | Path, image: np.ndarray) -> Path:
     return write_bytes(path, buf.tobytes())
 
 
+def staging_dir(out: str | Path) -> Path:
+    """A fresh hidden folder beside ``out`` (``.<name>.<random>``) with a normal folder's mode,
+    where an output is built before it takes ``out``'s place."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    umask = os.umask(0o022)
+    os.umask(umask)
+    tmp.chmod(0o777 & ~umask)  # mkdtemp makes it 0o700; the result gets a normal folder's mode
+    return tmp
+
+
 @contextmanager
 def replace_dir(out: str | Path) -> Iterator[Path]:
     """Yield a fresh hidden folder beside ``out`` (``.<name>.<random>``, a normal folder's mode);
@@ -111,11 +123,7 @@ def replace_dir(out: str | Path) -> Iterator[Path]:
     error (or SIGTERM unwinding) it is deleted and ``out`` is left as it was: never old files
     beside new ones. OSError (read-only, name too long) propagates."""
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    umask = os.umask(0o022)
-    os.umask(umask)
-    tmp.chmod(0o777 & ~umask)  # mkdtemp makes it 0o700; the result gets a normal folder's mode
+    tmp = staging_dir(out)
     try:
         yield tmp
         old = out.with_name(f".{out.name}.old{os.getpid()}") if out.exists() else None

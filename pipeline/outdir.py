@@ -16,12 +16,12 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from fenestra.errors import PipelineError
+from fenestra.files import staging_dir
 
 MARKER = "windows.json"  # what makes a folder a reconstruct output
 MANIFEST = ".fenestra-output.json"  # {"files": [relative paths Fenestra wrote]}
@@ -81,11 +81,7 @@ def staged_dir(out: str | Path, force: bool = False, inputs: Iterable[str | Path
     out = Path(out)
     inputs = tuple(inputs)
     check_out(out, force, inputs)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    umask = os.umask(0o022)
-    os.umask(umask)
-    tmp.chmod(0o777 & ~umask)  # mkdtemp makes it 0o700; the result gets a normal folder's mode
+    tmp = staging_dir(out)
     try:
         yield tmp
         (tmp / MANIFEST).write_text(json.dumps({"files": [*_list_files(tmp), MANIFEST]}, indent=1))
