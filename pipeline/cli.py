@@ -5,8 +5,9 @@
         [--substitute STYLE] --out DIR
     fenestra calibrate PHOTOS... --pattern COLSxROWS [--square M] --out K.json
 
-Without --K/--fx the intrinsics come from the photo (pipeline.intrinsics.resolve_K: the walls'
-vanishing points, else EXIF, else an error); windows.json records ``K`` and ``K_source``.
+Without --K/--fx the intrinsics come from the photo (pipeline.intrinsics.resolve_K: EXIF, else the
+façade's vanishing points, else a stated prior); windows.json records ``K`` and ``K_source`` (with
+the focal interval and every source's value). The photo path itself is pipeline.photo.
 
 writes DIR/windows.json and, through pipeline.export, model.ifc, model.obj, overlay.png, ...
 When K.json carries lens distortion (``"distortion": [k1, k2, p1, p2, k3]``, OpenCV), the photo is
@@ -25,12 +26,9 @@ import typer
 from fenestra.config import choices
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
-from pipeline.outdir import check_out, staged_dir
-from pipeline.detectors.oracle import detections_from_instance_map
-from pipeline.quad import QUAD_SOURCES, QuadParams
-from pipeline.reconstruct import (ReconstructConfig, fit_quads, pose_strategies,
-                                  reconstruct, reconstruct_from_quads, to_gray, windows_to_json)
-from pipeline.segments import SegmentCache, to_uint8
+from pipeline.photo import PhotoOptions, reconstruct_photo
+from pipeline.quad import QUAD_SOURCES
+from pipeline.reconstruct import ReconstructConfig, pose_strategies
 from pipeline.snappers import SNAPPERS
 
 
@@ -40,82 +38,12 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                     pose: str = DEFAULTS.pose, height: float = ReconstructConfig.height_m, width: Optional[float] = None,
                     substitute: Optional[str] = None, export: bool = True, force: bool = False,
                     quad_source: str = DEFAULTS.quad_source) -> dict:
-    """The `reconstruct` command as a function: returns the windows.json dict it wrote.
-
-    Everything is written to a temporary folder that replaces ``out`` when complete
-    (pipeline.outdir.staged_dir; ``force``: replace a non-empty folder that is not an output).
-    """
-    from pipeline.io import (Camera, K_from_values, fit_camera_to_photo, intrinsics_warnings,  # noqa: PLC0415
-                             photo_orientation, photo_warnings, read_camera, read_instance_map, read_photo,
-                             undistort_photo)
-
-    check_out(out, force)  # before the (slow) pipeline runs
-    image = read_photo(photo)
-    size = (image.shape[1], image.shape[0])
-    if K_json is not None and fx is not None:
-        raise PipelineError("give either --K or --fx, not both")
-    warnings = photo_warnings(photo)
-    if K_json is not None:
-        camera, more = fit_camera_to_photo(read_camera(K_json, size), size, photo_orientation(photo))
-        warnings += more
-    elif fx is not None:
-        camera = Camera(K=K_from_values(fx, fy, cx, cy, size))
-    else:
-        camera = None  # resolved below from the photo (vanishing points, EXIF)
-    if camera is not None:
-        image = undistort_photo(image, camera)  # masks (--masks) are taken to be in this frame
-    cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width,
-                            quad=QuadParams(source=quad_source))
-    if masks is not None:
-        detections = detections_from_instance_map(read_instance_map(masks, size))
-    else:
-        from pipeline.detectors import detect  # noqa: PLC0415
-
-        detections = detect(detector, image)
-    segment_cache = SegmentCache(to_uint8(to_gray(image)))  # the photo's line segments, found once for all steps
-    if camera is None:
-        resolved = _resolve_K(photo, image, detections, cfg, size, segment_cache)
-        camera, K_source = Camera(K=resolved.K), {"source": resolved.source, "detail": resolved.detail}
-    else:
-        K_source = {"source": "--K" if K_json is not None else "--fx", "detail": str(K_json or "")}
-    K = camera.K
-    warnings += intrinsics_warnings(K, size)
-    for w in warnings:
-        typer.echo(f"warning: {w}", err=True)
-    results = reconstruct(image, K, detections, cfg, segment_cache)
-    doc = windows_to_json(results, K=K, image_size=size, config=cfg)
-    doc["K_source"] = K_source
-    doc["undistorted"] = camera.has_distortion
-    doc["distortion"] = None if camera.distortion is None else camera.distortion.tolist()
-    doc["warnings"] = warnings
-    with staged_dir(out, force) as tmp:
-        (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
-        if export:
-            try:
-                from pipeline.export import write_outputs  # noqa: PLC0415
-            except ImportError as e:  # the export module is optional for the geometry core
-                typer.echo(f"note: export skipped ({e})", err=True)
-            else:
-                write_outputs(tmp, image, K, results, substitute=substitute)
-    return doc
-
-
-def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tuple[int, int],
-               segment_cache: SegmentCache):
-    """Intrinsics of a photo without --K: snap the detections' quads (no K needed), then
-    pipeline.intrinsics.resolve_K (vanishing points, else EXIF, else PipelineError); segment_cache:
-    the photo's line segments."""
-    from dataclasses import replace  # noqa: PLC0415
-
-    from pipeline.intrinsics import resolve_K  # noqa: PLC0415
-    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
-
-    gray = to_gray(image)
-    per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
-                                 replace(cfg, pose="ippe", fallback_focal_px=float(max(size))))
-    quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
-    # the chosen per-wall strategy's parameters (its façade lines too), the plain wall fit otherwise
-    return resolve_K(photo, quads, size, WALL_STRATEGIES.get(cfg.pose), segment_cache)
+    """The `reconstruct` command on one photo as a function: pipeline.photo.reconstruct_photo
+    writing into ``out``; returns the windows.json dict it wrote."""
+    options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source, height_m=height,
+                           width_m=width, substitute=substitute, export=export)
+    return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
+                             force=force)
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
@@ -187,7 +115,13 @@ def register(app: typer.Typer) -> None:
         typer.echo(format_table(doc))
         if doc.get("undistorted"):
             typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")
-        typer.echo(f"intrinsics: {doc['K_source']['source']} {doc['K_source']['detail']}".rstrip())
+        ks = doc["K_source"]
+        typer.echo(f"intrinsics: {ks['source']} f = {ks['focal_px']:.0f} px [{ks['interval_px'][0]:.0f}, "
+                   f"{ks['interval_px'][1]:.0f}] ({ks['detail']})")
+        for w in doc["warnings"]:
+            typer.echo(f"warning: {w}", err=True)
+        if doc.get("geometry_failure"):
+            typer.echo(f"geometry failed (recorded in windows.json): {doc['geometry_failure']}", err=True)
         typer.echo(f"wrote {out / 'windows.json'}")
 
     @app.command("calibrate")

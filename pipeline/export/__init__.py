@@ -57,6 +57,13 @@ def _write_png(path: Path, image: np.ndarray) -> Path:
     return path
 
 
+def write_overlay(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult]) -> Path:
+    """overlay.png in ``out_dir`` (pipeline.export.overlay.draw_overlay); written whatever the results hold."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return _write_png(out / "overlay.png", draw_overlay(check_image(image), check_K(K), list(results)))
+
+
 def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
                   substitute: str | WindowStyle | None = None) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
@@ -122,4 +129,4 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     return paths
 
 
-__all__ = ["write_outputs", "split_results", "DEFAULT_STYLE"]
+__all__ = ["write_outputs", "write_overlay", "split_results", "DEFAULT_STYLE"]

@@ -1,0 +1,173 @@
+"""One photo in, a façade out: the path behind ``fenestra reconstruct`` and its Python API.
+
+    from pipeline import reconstruct_photo
+    doc = reconstruct_photo("street.jpg")                 # the windows.json data, nothing written
+    doc = reconstruct_photo("street.jpg", out="out/st")   # ... and windows.json, model.ifc, overlay.png, ...
+
+Always an answer: the intrinsics come from a ranked chain (the user's K, EXIF, the façade's
+vanishing points, a stated prior: pipeline.intrinsics), so the geometry always runs; a failure of
+the geometry or of one window is recorded (``failure``), never raised, and the detections and the
+overlay are written whatever happens. Only bad input raises (PipelineError: an unreadable photo,
+both --K and --fx, a K file that does not fit the photo).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from fenestra.conventions import DEFAULTS
+from fenestra.errors import PipelineError
+from pipeline.quad import QuadParams
+from pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct, reconstruct_from_quads,
+                                  to_gray, windows_to_json)
+from pipeline.segments import SegmentCache, to_uint8
+from pipeline.types import Detection
+
+
+@dataclass(frozen=True)
+class PhotoOptions:
+    """How :func:`reconstruct_photo` runs: detector (without masks), snapper, pose, quad_source
+    (registry names, defaults fenestra.conventions.DEFAULTS), height_m / width_m (a window's known
+    size, m; None: see pipeline.facade scale), substitute (catalogue style or None), export (write
+    model.ifc/obj/glb besides windows.json and the overlay)."""
+
+    detector: str = DEFAULTS.detector
+    snapper: str = DEFAULTS.snapper
+    pose: str = DEFAULTS.pose
+    quad_source: str = DEFAULTS.quad_source
+    height_m: float = ReconstructConfig.height_m
+    width_m: float | None = None
+    substitute: str | None = None
+    export: bool = True
+
+    def config(self) -> ReconstructConfig:
+        return ReconstructConfig(snapper=self.snapper, pose=self.pose, height_m=self.height_m,
+                                 width_m=self.width_m, quad=QuadParams(source=self.quad_source))
+
+
+def user_camera(photo: Path, size: tuple[int, int], K_json: Path | None, fx: float | None, fy: float | None,
+                cx: float | None, cy: float | None):
+    """(Camera or None, how it was given, warnings) from --K / --fx; PipelineError for both."""
+    from pipeline.io import Camera, K_from_values, fit_camera_to_photo, photo_orientation, read_camera  # noqa: PLC0415
+
+    if K_json is not None and fx is not None:
+        raise PipelineError("give either --K or --fx, not both")
+    if K_json is not None:
+        camera, warnings = fit_camera_to_photo(read_camera(K_json, size), size, photo_orientation(photo))
+        return camera, f"--K {K_json}", warnings
+    if fx is not None:
+        return Camera(K=K_from_values(fx, fy, cx, cy, size)), "--fx", []
+    return None, "", []
+
+
+def window_quads(gray: np.ndarray, detections: list[Detection], cfg: ReconstructConfig) -> np.ndarray:
+    """Snapped quads (N, 4, 2) px of the detections, found without K (per-window pass with IPPE and
+    a provisional focal length of the long side; only the snapped corners are used)."""
+    H, W = gray.shape
+    per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
+                                 replace(cfg, pose="ippe", fallback_focal_px=float(max(H, W))))
+    return np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
+
+
+def resolve_intrinsics(photo: Path, gray: np.ndarray, detections: list[Detection], cfg: ReconstructConfig,
+                       segment_cache: SegmentCache, user=None, user_how: str = ""):
+    """pipeline.intrinsics.ResolvedK for the photo: the user's K first when given (compared with
+    EXIF), else EXIF, vanishing points (the chosen per-wall strategy's, with its façade lines), prior."""
+    from pipeline.intrinsics import choose_focal, exif_focal, resolve_K, user_focal  # noqa: PLC0415
+    from pipeline.walls import WALL_STRATEGIES  # noqa: PLC0415
+
+    H, W = gray.shape
+    if user is not None:
+        exif = exif_focal(photo, (W, H))
+        return choose_focal([user_focal(user.K, user_how), exif if exif is not None else "no EXIF focal length"],
+                            ["K", "exif"], (W, H), principal_point=(float(user.K[0, 2]), float(user.K[1, 2])))
+    quads = window_quads(gray, detections, cfg)
+    return resolve_K(photo, quads, (W, H), WALL_STRATEGIES.get(cfg.pose), segment_cache)
+
+
+def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_json: str | Path | None = None,
+                      fx: float | None = None, fy: float | None = None, cx: float | None = None,
+                      cy: float | None = None, masks: str | Path | None = None,
+                      options: PhotoOptions = PhotoOptions(), force: bool = False) -> dict:
+    """Reconstruct the windows of one photo; return the windows.json data (a dict).
+
+    photo: any image file OpenCV reads (EXIF orientation applied). out: a folder to write
+    windows.json, overlay.png and (options.export) model.ifc, model.obj/.mtl, model.glb, texture.png,
+    export.json into (written whole or not at all: pipeline.outdir; ``force`` replaces a non-empty
+    folder that is not an output), or None to write nothing. K_json / fx, fy, cx, cy: the user's
+    intrinsics (at most one of K_json and fx); without them the focal chain of
+    pipeline.intrinsics.resolve_K decides. masks: an instance-map PNG (16-bit ids, 0 = none)
+    instead of the detector.
+
+    The dict: ``K``, ``K_source`` (source, focal_px, interval_px, candidates, unavailable, detail),
+    ``image_size`` [W, H], ``config``, ``windows`` (one per detection, failures included),
+    ``warnings``, ``geometry_failure`` (None, or why the geometry failed as a whole),
+    ``undistorted``, ``distortion``, ``export`` (what was exported or skipped, when written).
+    Raises PipelineError only for bad input.
+    """
+    from pipeline.io import intrinsics_warnings, photo_warnings, read_instance_map, read_photo  # noqa: PLC0415
+    from pipeline.io import undistort_photo  # noqa: PLC0415
+    from pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
+
+    photo = Path(photo)
+    if out is not None:
+        check_out(Path(out), force)  # before the (slow) pipeline runs
+    image = read_photo(photo)
+    size = (image.shape[1], image.shape[0])
+    camera, how, warnings = user_camera(photo, size, None if K_json is None else Path(K_json), fx, fy, cx, cy)
+    warnings = photo_warnings(photo) + warnings
+    if camera is not None:
+        image = undistort_photo(image, camera)  # masks are taken to be in this frame
+    cfg = options.config()
+    detections = detect_windows(image, size, masks, options.detector)
+    gray = to_gray(image)
+    segment_cache = SegmentCache(to_uint8(gray))  # the photo's line segments, found once for all steps
+    resolved = resolve_intrinsics(photo, gray, detections, cfg, segment_cache, camera, how)
+    K = resolved.K
+    warnings += list(resolved.warnings) + intrinsics_warnings(K, size)
+    geometry_failure = None
+    try:
+        results = reconstruct(image, K, detections, cfg, segment_cache)
+    except PipelineError as e:  # recorded: the detections are still written, each with this failure
+        geometry_failure = str(e)
+        results = failed_results(detections, cfg, f"geometry: {e}")
+    doc = windows_to_json(results, K=K, image_size=size, config=cfg)
+    doc.update(photo=str(photo), K_source=resolved.to_json(), geometry_failure=geometry_failure,
+               undistorted=bool(camera is not None and camera.has_distortion),
+               distortion=None if camera is None or camera.distortion is None else camera.distortion.tolist(),
+               warnings=warnings)
+    if out is not None:
+        with staged_dir(Path(out), force) as tmp:
+            doc["export"] = write_all(tmp, image, K, results, options)
+            (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
+    return doc
+
+
+def detect_windows(image: np.ndarray, size: tuple[int, int], masks: str | Path | None, detector: str) -> list[Detection]:
+    """Detections from an instance-map PNG (``masks``) or the detector ``detector`` on ``image``."""
+    if masks is not None:
+        from pipeline.detectors.oracle import detections_from_instance_map  # noqa: PLC0415
+        from pipeline.io import read_instance_map  # noqa: PLC0415
+
+        return detections_from_instance_map(read_instance_map(Path(masks), size))
+    from pipeline.detectors import detect  # noqa: PLC0415
+
+    return detect(detector, image)
+
+
+def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, options: PhotoOptions) -> dict:
+    """The overlay always, then (options.export) the models; returns {"files", "failure"}: an export
+    that fails is recorded, not raised (windows.json is still written by the caller)."""
+    from pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
+
+    files = {"overlay": str(write_overlay(out, image, K, results).name)}
+    if not options.export:
+        return {"files": files, "failure": None}
+    try:
+        paths = write_outputs(out, image, K, results, substitute=options.substitute)
+    except (PipelineError, ValueError, OSError) as e:
+        return {"files": files, "failure": f"{type(e).__name__}: {e}"}
+    return {"files": {k: p.name for k, p in paths.items()}, "failure": None}
