@@ -26,24 +26,37 @@ import typer
 from fenestra.config import choices
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
+from pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, Known
 from pipeline.photo import PhotoOptions, reconstruct_photo
 from pipeline.quad import QUAD_SOURCES
-from pipeline.reconstruct import ReconstructConfig, pose_strategies
+from pipeline.reconstruct import pose_strategies
 from pipeline.snappers import SNAPPERS
 
 
 def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
                     fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
                     masks: Optional[Path] = None, detector: str = DEFAULTS.detector, snapper: str = DEFAULTS.snapper,
-                    pose: str = DEFAULTS.pose, height: float = ReconstructConfig.height_m, width: Optional[float] = None,
+                    pose: str = DEFAULTS.pose, height: Optional[float] = None, width: Optional[float] = None,
                     substitute: Optional[str] = None, export: bool = True, force: bool = False,
-                    quad_source: str = DEFAULTS.quad_source) -> dict:
+                    quad_source: str = DEFAULTS.quad_source, storey: Optional[float] = None,
+                    export_all: bool = False) -> dict:
     """The `reconstruct` command on one photo as a function: pipeline.photo.reconstruct_photo
-    writing into ``out``; returns the windows.json dict it wrote."""
-    options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source, height_m=height,
-                           width_m=width, substitute=substitute, export=export)
+    writing into ``out``; returns the windows.json dict it wrote. height / width / storey: the
+    known window height / window width / storey height, m (at most one; none: assumed)."""
+    options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source,
+                           known=known_sizes(width, height, storey), substitute=substitute, export=export,
+                           export_all=export_all)
     return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
                              force=force)
+
+
+def known_sizes(width: Optional[float], height: Optional[float], storey: Optional[float]) -> Known:
+    """pipeline.facade_model.Known from the CLI's --known-width/--known-height/--known-storey;
+    PipelineError naming them when more than one is given or one is not a positive length."""
+    try:
+        return Known(window_width_m=width, window_height_m=height, storey_m=storey)
+    except ValueError as e:
+        raise PipelineError(f"--known-width/--known-height/--known-storey: {e}") from e
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
@@ -99,8 +112,16 @@ def register(app: typer.Typer) -> None:
         detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {detector_names}"),
         snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {choices(SNAPPERS)}"),
         pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {choices(pose_strategies())}"),
-        height: float = typer.Option(ReconstructConfig.height_m, "--height", help="window height, m (the scale parameter)"),
-        width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
+        height: Optional[float] = typer.Option(None, "--known-height", "--height",
+                                               help="a typical window's height, m: each wall's median window gets it "
+                                                    f"(none of the --known-* given: {DEFAULT_WINDOW_HEIGHT_M:g} m, "
+                                                    "flagged assumed)"),
+        width: Optional[float] = typer.Option(None, "--known-width", "--width",
+                                              help="a typical window's width, m (each wall's median window)"),
+        storey: Optional[float] = typer.Option(None, "--known-storey",
+                                               help="the storey (floor-to-floor) height, m: each wall's median "
+                                                    "pitch between window rows"),
+        export_all: bool = typer.Option(False, "--export-all", help="export the windows flagged implausible too"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
         force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),
         quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
@@ -111,7 +132,8 @@ def register(app: typer.Typer) -> None:
         if quad_source not in QUAD_SOURCES:
             raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
         doc = run_reconstruct(photo, out, K_json, fx, fy, cx, cy, masks, detector, snapper, pose,
-                              height, width, substitute, force=force, quad_source=quad_source)
+                              height, width, substitute, force=force, quad_source=quad_source, storey=storey,
+                              export_all=export_all)
         typer.echo(format_table(doc))
         if doc.get("undistorted"):
             typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")

@@ -12,7 +12,9 @@ overlap give a warning naming both values:
 3. ``vanishing points``: the focal length from the walls' two orthogonal vanishing directions,
    refined over all their windows' corners and, with a ``+lines`` strategy, the façade's own line
    segments (pipeline.walls.focal_from_walls); principal point at the image centre, square pixels.
-   Interval: f +- 1.645 sd (90 %). Rejected when its field of view is outside PLAUSIBLE_FOV_DEG.
+   Interval: f +- 1.645 sd (90 %) x VP_INTERVAL_INFLATION (the fit's sd understates the spread measured
+   on real street photos re-encoded, mirrored or cropped). Not used when its field of view is outside
+   PLAUSIBLE_FOV_DEG or its interval is wider than +- VP_MAX_REL_HALF_WIDTH.
 4. ``prior``: a typical phone camera, PRIOR_FOV_DEG horizontal field of view along the photo's long
    side, with the wide interval PRIOR_FOV_RANGE_DEG. Always available: the chain never fails.
 
@@ -121,6 +123,8 @@ Z90 = 1.6449  # two-sided 90 % normal quantile (vanishing-point interval)
 PRIOR_FOV_DEG = 65.0  # a typical phone's horizontal field of view (along the long side)
 PRIOR_FOV_RANGE_DEG = (40.0, 90.0)  # the prior's wide interval (tele-ish to ultra-wide-ish)
 PLAUSIBLE_FOV_DEG = (10.0, 120.0)  # a vanishing-point focal length outside is rejected
+VP_INTERVAL_INFLATION = 3.0  # the fit's 90 % interval x 3: measured spread under re-encoding/mirroring/cropping
+VP_MAX_REL_HALF_WIDTH = 0.15  # a vanishing-point estimate vaguer than +- 15 % (inflated) is not used
 
 
 def focal_from_fov(fov_deg: float, image_size: tuple[int, int]) -> float:
@@ -188,16 +192,20 @@ def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallPa
         f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), segment_cache)
     except PipelineError as e:
         return str(e)
-    if not (np.isfinite(f) and f > 0):
-        return f"focal length {f} px"
+    if not (np.isfinite(f) and f > 0 and np.isfinite(sd)):
+        return f"focal length {f} +- {sd} px"
     fov = fov_from_focal(f, image_size)
     if not PLAUSIBLE_FOV_DEG[0] <= fov <= PLAUSIBLE_FOV_DEG[1]:
         return (f"f = {f:.0f} px is a {fov:.0f} deg field of view, outside the plausible "
                 f"{PLAUSIBLE_FOV_DEG[0]:g}-{PLAUSIBLE_FOV_DEG[1]:g} deg")
+    half = VP_INTERVAL_INFLATION * Z90 * sd
+    if half > VP_MAX_REL_HALF_WIDTH * f:
+        return (f"f = {f:.0f} +- {half:.0f} px (90 %, x{VP_INTERVAL_INFLATION:g} measured inflation) is vaguer than "
+                f"+- {100 * VP_MAX_REL_HALF_WIDTH:.0f} %")
     lines = " and the facade line segments" if wall is not None and wall.lines else ""
-    return FocalEstimate("vanishing points", f, (max(f - Z90 * sd, 1e-6), f + Z90 * sd),
-                         f"f = {f:.1f} +- {sd:.1f} px from {len(quads)} window(s){lines}, principal point at the "
-                         "image centre")
+    return FocalEstimate("vanishing points", f, (max(f - half, 1e-6), f + half),
+                         f"f = {f:.1f} +- {sd:.1f} px (sd) from {len(quads)} window(s){lines}, principal point at the "
+                         f"image centre; interval: 90 % x{VP_INTERVAL_INFLATION:g}")
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ import numpy as np
 
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
+from pipeline.facade_model import FacadeModel, Known, facade_model
 from pipeline.quad import QuadParams
 from pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct, reconstruct_from_quads,
                                   to_gray, windows_to_json)
@@ -30,22 +31,22 @@ from pipeline.types import Detection
 @dataclass(frozen=True)
 class PhotoOptions:
     """How :func:`reconstruct_photo` runs: detector (without masks), snapper, pose, quad_source
-    (registry names, defaults fenestra.conventions.DEFAULTS), height_m / width_m (a window's known
-    size, m; None: see pipeline.facade scale), substitute (catalogue style or None), export (write
+    (registry names, defaults fenestra.conventions.DEFAULTS), known (what sets each wall's scale:
+    pipeline.facade_model.Known; nothing known: an assumed window height, flagged), export_all
+    (export the implausible windows too), substitute (catalogue style or None), export (write
     model.ifc/obj/glb besides windows.json and the overlay)."""
 
     detector: str = DEFAULTS.detector
     snapper: str = DEFAULTS.snapper
     pose: str = DEFAULTS.pose
     quad_source: str = DEFAULTS.quad_source
-    height_m: float = ReconstructConfig.height_m
-    width_m: float | None = None
+    known: Known = Known()
+    export_all: bool = False
     substitute: str | None = None
     export: bool = True
 
     def config(self) -> ReconstructConfig:
-        return ReconstructConfig(snapper=self.snapper, pose=self.pose, height_m=self.height_m,
-                                 width_m=self.width_m, quad=QuadParams(source=self.quad_source))
+        return ReconstructConfig(snapper=self.snapper, pose=self.pose, quad=QuadParams(source=self.quad_source))
 
 
 def user_camera(photo: Path, size: tuple[int, int], K_json: Path | None, fx: float | None, fy: float | None,
@@ -134,14 +135,16 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     except PipelineError as e:  # recorded: the detections are still written, each with this failure
         geometry_failure = str(e)
         results = failed_results(detections, cfg, f"geometry: {e}")
+    results, model = facade_model(results, options.known)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
+    annotate(doc, model, resolved.source)
     doc.update(photo=str(photo), K_source=resolved.to_json(), geometry_failure=geometry_failure,
                undistorted=bool(camera is not None and camera.has_distortion),
                distortion=None if camera is None or camera.distortion is None else camera.distortion.tolist(),
                warnings=warnings)
     if out is not None:
         with staged_dir(Path(out), force) as tmp:
-            doc["export"] = write_all(tmp, image, K, results, options)
+            doc["export"] = write_all(tmp, image, K, results, options, model, doc, detections)
             (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
     return doc
 
@@ -158,16 +161,87 @@ def detect_windows(image: np.ndarray, size: tuple[int, int], masks: str | Path |
     return detect(detector, image)
 
 
-def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, options: PhotoOptions) -> dict:
-    """The overlay always, then (options.export) the models; returns {"files", "failure"}: an export
-    that fails is recorded, not raised (windows.json is still written by the caller)."""
+def annotate(doc: dict, model: FacadeModel, K_source: str) -> None:
+    """Add the façade model to windows.json: ``walls``, ``scale`` and per window ``plausible``,
+    ``flags`` (reasons), ``scale_source``, ``scale_assumed``, ``K_source`` and ``confidence``
+    (detector score, halved when ill-conditioned, quartered when flagged; 0 for a failed window)."""
+    doc["walls"] = [w.to_json() for w in model.walls]
+    assumed = [w.id for w in model.walls if w.assumed]
+    doc["scale"] = {"assumed": bool(assumed), "assumed_walls": assumed,
+                    "sources": sorted({w.scale_source for w in model.walls})}
+    for w in doc["windows"]:
+        i = w["index"]
+        wall = model.wall_of(i)
+        flags = model.flags.get(i, [])
+        ill = bool(w["uncertainty"] and w["uncertainty"].get("ill_conditioned"))
+        conf = 0.0 if w["failure"] else w["score"] * (0.5 if ill else 1.0) * (0.25 if flags else 1.0)
+        w.update(plausible=w["failure"] is None and not flags, flags=flags, confidence=conf, K_source=K_source,
+                 scale_source=None if wall is None else wall.scale_source,
+                 scale_assumed=None if wall is None else wall.assumed)
+
+
+def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, options: PhotoOptions,
+              model: FacadeModel, doc: dict, detections: list[Detection]) -> dict:
+    """The overlay always, then (options.export) the models; returns {"files", "exported", "skipped",
+    "failure"}: an export that fails is recorded, not raised (windows.json is still written by the
+    caller). Flagged windows are skipped unless options.export_all; each window of ``doc`` gets
+    ``exported`` (bool)."""
     from pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
 
-    files = {"overlay": str(write_overlay(out, image, K, results).name)}
-    if not options.export:
-        return {"files": files, "failure": None}
-    try:
-        paths = write_outputs(out, image, K, results, substitute=options.substitute)
-    except (PipelineError, ValueError, OSError) as e:
-        return {"files": files, "failure": f"{type(e).__name__}: {e}"}
-    return {"files": {k: p.name for k, p in paths.items()}, "failure": None}
+    exclude = {} if options.export_all else {k: "implausible: " + "; ".join(v) for k, v in model.flags.items()}
+    report = {"files": {}, "exported": [], "skipped": [], "failure": None}
+    if options.export:
+        info = {w["index"]: w for w in doc["windows"]}
+        try:
+            paths = write_outputs(out, image, K, results, substitute=options.substitute, exclude=exclude,
+                                  walls={k: w.id for w in model.walls for k in w.members},
+                                  properties={k: window_properties(info[k]) for k in info},
+                                  wall_properties={w.id: wall_properties(w) for w in model.walls})
+        except (PipelineError, ValueError, OSError) as e:
+            report["failure"] = f"{type(e).__name__}: {e}"
+        else:
+            manifest = json.loads(paths["manifest"].read_text())
+            report.update(files={k: p.name for k, p in paths.items()},
+                          exported=[e["index"] for e in manifest["exported"]], skipped=manifest["skipped"])
+    reasons = {**exclude, **{e["index"]: e["reason"] for e in report["skipped"]}}
+    report["files"]["overlay"] = write_overlay(out, image, K, results, reasons, boxes=detection_boxes(detections),
+                                               header=overlay_header(doc)).name
+    for w in doc["windows"]:
+        w["exported"] = w["index"] in report["exported"]
+    return report
+
+
+def detection_boxes(detections: list[Detection]) -> dict[int, tuple[int, int, int, int]]:
+    """{index: (x0, y0, x1, y1) px} of each detection's mask (full image coordinates)."""
+    boxes = {}
+    for i, d in enumerate(detections):
+        ys, xs = np.nonzero(np.asarray(d.mask))
+        if len(xs):
+            x0, y0 = d.origin
+            boxes[i] = (int(xs.min() + x0), int(ys.min() + y0), int(xs.max() + x0), int(ys.max() + y0))
+    return boxes
+
+
+def overlay_header(doc: dict) -> list[str]:
+    """The overlay panel's header: intrinsics and scale, one line each."""
+    ks = doc["K_source"]
+    lines = [f"K: {ks['source']}, f = {ks['focal_px']:.0f} px [{ks['interval_px'][0]:.0f}, {ks['interval_px'][1]:.0f}]",
+             "scale: " + ("; ".join(doc["scale"]["sources"]) or "none")]
+    if doc.get("geometry_failure"):
+        lines.append(f"geometry failed: {doc['geometry_failure']}")
+    return lines
+
+
+def wall_properties(w) -> dict:
+    """The Fenestra property set of one fitted wall (IFC)."""
+    return {"ScaleSource": w.scale_source, "ScaleAssumed": bool(w.assumed), "DistanceM": float(w.distance_m),
+            "WindowCount": len(w.members)}
+
+
+def window_properties(w: dict) -> dict:
+    """The Fenestra property set of one window (IFC): confidence, aspect interval, K and scale sources."""
+    unc = w.get("uncertainty") or {}
+    return {"Confidence": float(w["confidence"]), "DetectionScore": float(w["score"]),
+            "AspectRatio": w["aspect_ratio"], "AspectLow": unc.get("aspect_lo"), "AspectHigh": unc.get("aspect_hi"),
+            "KSource": w["K_source"], "ScaleSource": w["scale_source"], "ScaleAssumed": w["scale_assumed"],
+            "Plausible": bool(w["plausible"]), "Flags": "; ".join(w["flags"]) or None}

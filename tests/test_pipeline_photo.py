@@ -44,3 +44,27 @@ def test_street_photo_without_K_always_gives_an_output(tmp_path):
     assert saved["K_source"]["source"] in ("exif", "vanishing points", "prior")
     assert saved["K_source"]["interval_px"][0] <= doc["K"][0][0] <= saved["K_source"]["interval_px"][1]
     assert len(saved["windows"]) >= 5 and (tmp_path / "out" / "overlay.png").is_file()
+
+
+def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
+    """The README's quick-start (1:25 curtain wall, 9.3 cm panes, smaller than any catalogue style)
+    exported 0 windows; now every pane, voiding one IfcWall, with Pset_WindowCommon and Fenestra psets."""
+    import ifcopenshell  # noqa: PLC0415
+    import ifcopenshell.util.element  # noqa: PLC0415
+
+    ex = ROOT / "examples" / "curtainwall"
+    doc = run_reconstruct(ex / "img017.jpg", tmp_path / "out", K_json=ex / "K.json", masks=ex / "panes017.png",
+                          snapper="linefit", width=0.0932)
+    assert len(doc["windows"]) == 3 and all(w["exported"] for w in doc["windows"])
+    f = ifcopenshell.open(str(tmp_path / "out" / "model.ifc"))
+    walls, windows = f.by_type("IfcWall"), f.by_type("IfcWindow")
+    assert len(walls) == 1 and len(windows) == 3
+    voids = f.by_type("IfcRelVoidsElement")
+    assert len(voids) == 3 and all(v.RelatingBuildingElement == walls[0] for v in voids)
+    assert len(f.by_type("IfcRelFillsElement")) == 3
+    psets = ifcopenshell.util.element.get_psets(windows[0])
+    assert psets["Pset_WindowCommon"]["IsExternal"] is True
+    fen = psets["Fenestra_Window"]
+    assert fen["KSource"] == "K" and fen["ScaleSource"] == "known window width 0.0932 m" and not fen["ScaleAssumed"]
+    assert fen["AspectLow"] < fen["AspectRatio"] < fen["AspectHigh"] and 0 < fen["Confidence"] <= 1
+    assert ifcopenshell.util.element.get_psets(walls[0])["Fenestra_Wall"]["WindowCount"] == 3
