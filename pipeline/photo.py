@@ -176,6 +176,7 @@ def annotate(doc: dict, model: FacadeModel, K_source: str) -> None:
         ill = bool(w["uncertainty"] and w["uncertainty"].get("ill_conditioned"))
         conf = 0.0 if w["failure"] else w["score"] * (0.5 if ill else 1.0) * (0.25 if flags else 1.0)
         w.update(plausible=w["failure"] is None and not flags, flags=flags, confidence=conf, K_source=K_source,
+                 exported=None,
                  scale_source=None if wall is None else wall.scale_source,
                  scale_assumed=None if wall is None else wall.assumed)
 
@@ -184,8 +185,8 @@ def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, option
               model: FacadeModel, doc: dict, detections: list[Detection]) -> dict:
     """The overlay always, then (options.export) the models; returns {"files", "exported", "skipped",
     "failure"}: an export that fails is recorded, not raised (windows.json is still written by the
-    caller). Flagged windows are skipped unless options.export_all; each window of ``doc`` gets
-    ``exported`` (bool)."""
+    caller). Flagged windows are skipped unless options.export_all; with options.export each
+    window of ``doc`` gets ``exported`` (bool; None when no model is written)."""
     from pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
 
     exclude = {} if options.export_all else {k: "implausible: " + "; ".join(v) for k, v in model.flags.items()}
@@ -206,8 +207,9 @@ def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, option
     reasons = {**exclude, **{e["index"]: e["reason"] for e in report["skipped"]}}
     report["files"]["overlay"] = write_overlay(out, image, K, results, reasons, boxes=detection_boxes(detections),
                                                header=overlay_header(doc)).name
-    for w in doc["windows"]:
-        w["exported"] = w["index"] in report["exported"]
+    if options.export:
+        for w in doc["windows"]:
+            w["exported"] = w["index"] in report["exported"]
     return report
 
 

@@ -68,3 +68,73 @@ def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
     assert fen["KSource"] == "K" and fen["ScaleSource"] == "known window width 0.0932 m" and not fen["ScaleAssumed"]
     assert fen["AspectLow"] < fen["AspectRatio"] < fen["AspectHigh"] and 0 < fen["Confidence"] <= 1
     assert ifcopenshell.util.element.get_psets(walls[0])["Fenestra_Wall"]["WindowCount"] == 3
+
+
+def test_python_api_returns_what_windows_json_holds(tmp_path):
+    """pipeline.reconstruct_photo (the documented API) gives the dict the CLI writes as windows.json."""
+    import pipeline  # noqa: PLC0415
+
+    assert "reconstruct_photo" in pipeline.__all__ and "windows.json" in pipeline.__doc__
+    ex = ROOT / "examples" / "curtainwall"
+    kw = dict(K_json=ex / "K.json", masks=ex / "panes017.png",
+              options=pipeline.PhotoOptions(snapper="none", known=pipeline.Known(window_width_m=0.0932), export=False))
+    doc = pipeline.reconstruct_photo(ex / "img017.jpg", **kw)
+    written = pipeline.reconstruct_photo(ex / "img017.jpg", tmp_path / "o", **kw)
+    saved = json.loads((tmp_path / "o" / "windows.json").read_text())
+    assert not (tmp_path / "o" / "model.ifc").exists()  # export=False: windows.json and the overlay only
+    assert (tmp_path / "o" / "overlay.png").is_file()
+    written.pop("export")
+    saved.pop("export")
+    for d in (doc, written, saved):  # the one thing that differs between runs: measured times
+        for w in d["windows"]:
+            w.pop("timings_ms")
+    assert json.loads(json.dumps(doc)) == json.loads(json.dumps(written)) == saved
+    assert all(w["exported"] is None for w in saved["windows"])
+
+
+def test_expand_photos_files_folders_globs(tmp_path):
+    from fenestra.errors import PipelineError  # noqa: PLC0415
+    from pipeline.cli import expand_photos, output_names  # noqa: PLC0415
+
+    (tmp_path / "a").mkdir()
+    for name in ("a/x.jpg", "a/y.PNG", "a/notes.txt", "z.jpg"):
+        (tmp_path / name).write_bytes(b"")
+    got = expand_photos([str(tmp_path / "a"), str(tmp_path / "*.jpg"), str(tmp_path / "a" / "x.jpg")])
+    assert [p.relative_to(tmp_path).as_posix() for p in got] == ["a/x.jpg", "a/y.PNG", "z.jpg"]
+    with pytest.raises(PipelineError, match="no photo found"):
+        expand_photos([str(tmp_path / "missing*.jpg")])
+    assert output_names([Path("a/x.jpg"), Path("b/x.jpg"), Path("c/y.jpg")]) == ["a_x", "b_x", "y"]
+
+
+def test_reconstruct_command_on_a_folder_writes_one_folder_per_photo_and_a_summary(tmp_path):
+    """The command on a folder of two photos and one unreadable file: a progress bar, one output
+    folder per readable photo, the bad one in the summary with its error, exit code 1."""
+    import typer  # noqa: PLC0415
+    from typer.testing import CliRunner  # noqa: PLC0415
+
+    import pipeline.cli  # noqa: PLC0415
+
+    app = typer.Typer()
+    pipeline.cli.register(app)
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    for name in ("one.png", "two.png"):
+        cv2.imwrite(str(folder / name), rng.integers(0, 255, (160, 200, 3), dtype=np.uint8))
+    (folder / "broken.jpg").write_bytes(b"not a photo")
+    res = CliRunner().invoke(app, ["reconstruct", str(folder), "--out", str(tmp_path / "out")])
+    assert res.exit_code == 1, res.output
+    rows = {Path(r["photo"]).name: r for r in json.loads((tmp_path / "out" / "summary.json").read_text())}
+    assert set(rows) == {"one.png", "two.png", "broken.jpg"} and rows["broken.jpg"]["error"]
+    for stem in ("one", "two"):
+        assert rows[f"{stem}.png"]["error"] is None and rows[f"{stem}.png"]["K_source"] == "prior"
+        assert (tmp_path / "out" / stem / "windows.json").is_file() and (tmp_path / "out" / stem / "overlay.png").is_file()
+    assert "2 of 3 photos reconstructed" in res.output
+
+
+def test_version_comes_from_the_package_metadata():
+    from importlib.metadata import version  # noqa: PLC0415
+
+    import fenestra  # noqa: PLC0415
+
+    assert fenestra.__version__ == version("fenestra")
