@@ -12,13 +12,13 @@ different depths. Here every window of a wall is moved along its ray onto the wa
 camera centre: the reprojection does not change), and the plane's distance is set once per wall
 from what the user knows (:class:`Known`), else from DEFAULT_WINDOW_HEIGHT_M, flagged "assumed".
 
-Walls. Walls whose rotations agree within MERGE_DEG (the same vanishing points) are merged into
-one wall: one façade plane.
+Walls. Walls whose rotations agree within MERGE_DEG (the same vanishing points; LONE_TOL_DEG for a
+one-window wall) are merged into one wall: one façade plane.
 
 Plausibility. A window is flagged (with a reason) when its aspect ratio is outside ASPECT_RANGE,
 when its shape or size disagrees with its wall's windows (ratio to the wall's median beyond
-WALL_RATIO), when it is behind the wall's plane, or when it stands alone in a plane that is not
-the façade's (nor at a right angle to it). Flagged windows keep their geometry; their intervals
+WALL_RATIO), when it is behind the wall's plane, or when it stands alone in a plane of its own
+while the façade has a wall of several windows (a right-angled side wall shows several). Flagged windows keep their geometry; their intervals
 widen by FLAG_WIDEN.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "a
 MERGE_DEG = 5.0  # walls whose rotations differ by less are one façade plane
 ASPECT_RANGE = (0.15, 6.0)  # w/h of any window
 WALL_RATIO = 2.5  # a window's w/h or height more than this factor off its wall's median
-LONE_TOL_DEG = 10.0  # a one-window wall within this of the façade (or at 90 deg to it) is not flagged
+LONE_TOL_DEG = 10.0  # a one-window wall within this of a larger wall joins it (one quad's rotation is noisier)
 FLAG_WIDEN = 3.0  # a flagged window's 90 % intervals are this many times wider
 
 
@@ -98,11 +98,13 @@ def _centre(r: WindowResult) -> np.ndarray:
     return np.asarray(r.t, dtype=np.float64).reshape(3) + np.asarray(r.R) @ np.array([r.aspect_ratio * h / 2, h / 2, 0.0])
 
 
-def merge_groups(results: list[WindowResult], tol_deg: float = MERGE_DEG) -> list[tuple[tuple[int, ...], tuple]]:
+def merge_groups(results: list[WindowResult], tol_deg: float = MERGE_DEG,
+                 lone_tol_deg: float = LONE_TOL_DEG) -> list[tuple[tuple[int, ...], tuple]]:
     """Posed windows grouped into façade planes: [(members, merged wall-fit ids)], largest first.
 
     Windows of one wall fit start together; a window without a wall (a per-window strategy) is its
-    own start. Groups whose rotations (their largest member's) agree within tol_deg merge.
+    own start. Groups whose rotations (their largest member's) agree within tol_deg merge; a
+    one-window group (its rotation from one quad: noisier) within lone_tol_deg.
     """
     starts: dict = {}
     for k, r in enumerate(results):
@@ -111,8 +113,9 @@ def merge_groups(results: list[WindowResult], tol_deg: float = MERGE_DEG) -> lis
     groups: list[tuple[list[int], list, np.ndarray]] = []
     for key, members in sorted(starts.items(), key=lambda kv: -len(kv[1])):
         R = np.asarray(results[members[0]].R)
+        tol = lone_tol_deg if len(members) == 1 else tol_deg
         for g in groups:
-            if rotation_error_deg(g[2], R) <= tol_deg:
+            if rotation_error_deg(g[2], R) <= tol:
                 g[0].extend(members)
                 g[1].append(key[1] if key[0] == "wall" else None)
                 break
@@ -187,8 +190,7 @@ def plausibility(results: list[WindowResult], walls: list[WallModel]) -> dict[in
                     why.append(f"size: height {hk:.3g} m vs its wall's median {mh:.3g} m")
             if len(wall.members) == 1 and main is not None and wall is not main and len(main.members) >= 2:
                 ang = float(np.degrees(np.arccos(np.clip(abs(wall.normal @ main.normal), 0.0, 1.0))))
-                if min(ang, abs(90.0 - ang)) > LONE_TOL_DEG:
-                    why.append(f"plane: a lone window at {ang:.0f} deg to the facade")
+                why.append(f"plane: a lone window at {ang:.0f} deg to the facade (no other window in its plane)")
             if why:
                 flags[k] = why
     return flags

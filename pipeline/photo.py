@@ -109,7 +109,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     ``undistorted``, ``distortion``, ``export`` (what was exported or skipped, when written).
     Raises PipelineError only for bad input.
     """
-    from pipeline.io import intrinsics_warnings, photo_warnings, read_instance_map, read_photo  # noqa: PLC0415
+    from pipeline.io import intrinsics_warnings, photo_warnings, read_photo  # noqa: PLC0415
     from pipeline.io import undistort_photo  # noqa: PLC0415
     from pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
 

@@ -91,3 +91,13 @@ def test_known_takes_one_positive_size():
         Known(window_width_m=1.0, window_height_m=1.5)
     with pytest.raises(ValueError, match="positive"):
         Known(storey_m=-3.0)
+
+
+def test_a_lone_window_near_the_facade_joins_it_and_a_lone_one_off_plane_is_flagged():
+    tilt = np.array([[np.cos(0.14), 0, np.sin(0.14)], [0, 1, 0], [-np.sin(0.14), 0, np.cos(0.14)]])  # 8 deg
+    side = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # 90 deg, facing the camera
+    ws = [_window(i, *p, s=1.0, wall=0) for i, p in enumerate(TRUE)]
+    ws += [_window(6, -2.0, 7.0, 1.2, 1.6, 1.0, wall=1, R_F=tilt), _window(7, 1.0, 1.0, 1.2, 1.6, 1.0, wall=2, R_F=side)]
+    results, model = facade_model(ws, Known(window_height_m=1.6))
+    assert [w.members for w in model.walls] == [(0, 1, 2, 3, 4, 5, 6), (7,)]
+    assert list(model.flags) == [7] and "lone window at 90 deg" in model.flags[7][0]

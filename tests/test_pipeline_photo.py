@@ -138,3 +138,20 @@ def test_version_comes_from_the_package_metadata():
     import fenestra  # noqa: PLC0415
 
     assert fenestra.__version__ == version("fenestra")
+
+
+def test_overlay_draws_a_failed_detection_where_it_is_and_lists_it_in_the_panel():
+    from pipeline.export.overlay import COLOURS, draw_overlay  # noqa: PLC0415
+    from pipeline.types import WindowResult  # noqa: PLC0415
+
+    photo = np.full((240, 320, 3), 128, np.uint8)
+    failed = WindowResult(0, 0.7, None, None, None, None, None, None, None, 1.0, None, "quad: too_small")
+    K = np.array([[300.0, 0, 159.5], [0, 300.0, 119.5], [0, 0, 1]])
+    img = draw_overlay(photo, K, [failed], boxes={0: (50, 120, 150, 200)}, header=["K: prior"])
+    assert img.shape[0] >= 240 and img.shape[1] > 320  # the photo, then the side panel
+    box_edge = img[160, 48:53]  # the left edge of the detection box, mid-height
+    assert any(np.abs(p.astype(int) - COLOURS["failed"]).sum() < 60 for p in box_edge)
+    assert np.array_equal(img[10:100, 200:300], photo[10:100, 200:300])  # nothing drawn away from it
+    panel = img[:, 320:]
+    red = np.abs(panel.astype(int) - COLOURS["failed"]).sum(axis=2) < 60
+    assert red.sum() > 50  # the panel lists the failure (and the legend's red key)

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.facade_model import Known
 from pipeline.photo import PhotoOptions, reconstruct_photo
 
 CLASSES = {0: "window", 1: "cantilever", 2: "arch", 3: "signboard", 4: "win_ad", 5: "door"}

@@ -92,37 +92,48 @@ def _wrap(s: str, width: int) -> list[str]:
     return lines + ([line] if line else [])
 
 
-def _panel(height: int, width: int, results: list[WindowResult], exclude: dict[int, str], header: list[str],
-           scale: float) -> np.ndarray:
-    """The side panel (height, width, 3) uint8 RGB: legend, header lines, one entry per window."""
-    panel = np.full((height, width, 3), 30, np.uint8)
-    step = int(26 * scale) + 4
-    chars = max(20, int(width / (11 * scale)))
-    y = step
-    for name, label in (("mask", "mask-fit quad"), ("snapped", "snapped quad"), ("reprojected", "exported window (3D)"),
-                        ("flagged", "flagged: not exported"), ("failed", "failed")):
-        cv2.rectangle(panel, (8, y - step // 2), (8 + step // 2, y), COLOURS[name], cv2.FILLED)
-        _text(panel, label, (16 + step // 2, y), (235, 235, 235), scale)
-        y += step
-    for line in header:
-        for part in _wrap(line, chars):
-            y += step
-            _text(panel, part, (8, y), (235, 235, 235), scale)
-    y += step // 2
+def _panel_lines(results: list[WindowResult], exclude: dict[int, str], header: list[str], chars: int
+                 ) -> list[tuple[str, tuple]]:
+    """The panel's text lines with their colours: header lines, then per window its status and reason
+    (wrapped at ``chars``; continuation lines indented)."""
+    grey, white = (200, 200, 200), (235, 235, 235)
+    lines = [(part, white) for line in header for part in _wrap(line, chars)] + [("", white)]
     for r in results:
         kind, why = _status(r, exclude)
-        for j, part in enumerate(_wrap(f"#{r.index} {kind}: {why}", chars)[:3]):
-            y += step
-            if y > height - 4:
-                _text(panel, "...", (8, height - 6), (235, 235, 235), scale)
-                return panel
-            _text(panel, part if j == 0 else "   " + part, (8, y), COLOURS[kind] if j == 0 else (200, 200, 200), scale)
+        for j, part in enumerate(_wrap(f"#{r.index} {kind}: {why}", chars - 3)):
+            lines.append((part if j == 0 else "   " + part, COLOURS[kind] if j == 0 else grey))
+    return lines
+
+
+def _panel(height: int, width: int, results: list[WindowResult], exclude: dict[int, str], header: list[str],
+           scale: float) -> np.ndarray:
+    """The side panel (at least ``height``, ``width``, 3) uint8 RGB: legend, header lines, one entry
+    per window (taller than ``height`` when the entries need it)."""
+    thick = max(1, int(round(scale * 1.5)))
+    sample = "window failed: quad 0.61 x 1.52 m, w/h"  # typical text: its mean glyph width
+    (sw, ch), base = cv2.getTextSize(sample, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+    step = ch + base + 8
+    chars = max(20, int((width - 16) * len(sample) / sw))
+    legend = (("mask", "mask-fit quad"), ("snapped", "snapped quad"), ("reprojected", "exported window (3D)"),
+              ("flagged", "flagged: not exported"), ("failed", "failed"))
+    lines = _panel_lines(results, exclude, header, chars)
+    panel = np.full((max(height, step * (len(legend) + len(lines) + 2)), width, 3), 30, np.uint8)
+    y = step
+    for name, label in legend:
+        cv2.rectangle(panel, (8, y - ch), (8 + ch, y), COLOURS[name], cv2.FILLED)
+        _text(panel, label, (16 + ch, y), (235, 235, 235), scale)
+        y += step
+    for text, colour in lines:
+        y += step
+        if text:
+            _text(panel, text, (8, y), colour, scale)
     return panel
 
 
 def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], exclude: dict[int, str] | None = None,
                  boxes: dict[int, tuple] | None = None, header: list[str] | None = None) -> np.ndarray:
-    """(H, W + panel, 3) uint8 RGB: a copy of the RGB ``image`` with every result drawn where it is
+    """(H', W + panel, 3) uint8 RGB (H' >= H: taller when the panel needs it; the photo stays at the
+    top left, pixel for pixel): a copy of the RGB ``image`` with every result drawn where it is
     (its quads, its reprojected 3D window, its number), and a side panel on the right with the
     legend, ``header`` lines (e.g. the intrinsics' source) and each window's status and reason.
 
@@ -151,4 +162,6 @@ def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], 
                        if q is not None), np.asarray(boxes.get(r.index, (10.0, 30.0 + 20 * r.index))[:2], dtype=np.float64))
         _text(img, f"#{r.index}", anchor + [2, -4], COLOURS[kind], scale)
     panel = _panel(H, max(360, int(0.4 * W)), results, exclude, header or [], scale)
+    if panel.shape[0] > H:  # a long list: the photo gets a dark band below it
+        img = np.concatenate([img, np.full((panel.shape[0] - H, W, 3), 30, np.uint8)])
     return np.concatenate([img, panel], axis=1)
