@@ -122,7 +122,7 @@ EXIF_REL_INTERVAL = 0.05  # EXIF focal lengths are nominal: +- 5 %
 Z90 = 1.6449  # two-sided 90 % normal quantile (vanishing-point interval)
 PRIOR_FOV_DEG = 65.0  # a typical phone's horizontal field of view (along the long side)
 PRIOR_FOV_RANGE_DEG = (40.0, 90.0)  # the prior's wide interval (tele-ish to ultra-wide-ish)
-PLAUSIBLE_FOV_DEG = (10.0, 120.0)  # a vanishing-point focal length outside is rejected
+PLAUSIBLE_FOV_DEG = (30.0, 100.0)  # a vanishing-point focal length outside is not used (phone: 2-3x tele .. wide)
 VP_INTERVAL_INFLATION = 3.0  # the fit's 90 % interval x 3: measured spread under re-encoding/mirroring/cropping
 VP_MAX_REL_HALF_WIDTH = 0.15  # a vanishing-point estimate vaguer than +- 15 % (inflated) is not used
 
