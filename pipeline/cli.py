@@ -225,10 +225,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Reconstruct the windows of photos: windows.json, overlay.png, IFC, OBJ, GLB per photo.
 
-        Without --K/--fx the focal length comes from EXIF, the façade's vanishing points or a stated
-        prior (windows.json: K_source); failures are recorded, not fatal. Several photos: a progress
-        bar, one subfolder of --out per photo, a summary table (also --out/summary.json).
-        """
+        Without --K/--fx the focal length comes from EXIF, the façade's vanishing points or a stated prior (windows.json: K_source); failures are recorded, not fatal. Several photos: a progress bar, one subfolder of --out per photo, a summary table (also --out/summary.json).
+        """  # noqa: E501 -- one paragraph: the help reflows it
         if quad_source not in QUAD_SOURCES:
             raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
         paths = expand_photos(photos)

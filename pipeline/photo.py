@@ -22,8 +22,8 @@ from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from pipeline.facade_model import FacadeModel, Known, facade_model
 from pipeline.quad import QuadParams
-from pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct, reconstruct_from_quads,
-                                  to_gray, windows_to_json)
+from pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct_from_quads, to_gray,
+                                  windows_to_json)
 from pipeline.segments import SegmentCache, to_uint8
 from pipeline.types import Detection
 
@@ -129,15 +129,17 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     resolved = resolve_intrinsics(photo, gray, detections, cfg, segment_cache, camera, how)
     K = resolved.K
     warnings += list(resolved.warnings) + intrinsics_warnings(K, size)
-    geometry_failure = None
+    geometry_failure, envelope = None, {}
+    quads = fit_quads(detections, cfg.quad, gray.shape)
     try:
-        results = reconstruct(image, K, detections, cfg, segment_cache)
+        results = reconstruct_from_quads(gray, K, detections, quads, cfg, segment_cache=segment_cache)
+        envelope = focal_envelope(gray, K, detections, quads, cfg, segment_cache, resolved.chosen.interval_px)
     except PipelineError as e:  # recorded: the detections are still written, each with this failure
         geometry_failure = str(e)
         results = failed_results(detections, cfg, f"geometry: {e}")
     results, model = facade_model(results, options.known)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
-    annotate(doc, model, resolved.source)
+    annotate(doc, model, resolved.source, envelope)
     doc.update(photo=str(photo), K_source=resolved.to_json(), geometry_failure=geometry_failure,
                undistorted=bool(camera is not None and camera.has_distortion),
                distortion=None if camera is None or camera.distortion is None else camera.distortion.tolist(),
@@ -161,10 +163,40 @@ def detect_windows(image: np.ndarray, size: tuple[int, int], masks: str | Path |
     return detect(detector, image)
 
 
-def annotate(doc: dict, model: FacadeModel, K_source: str) -> None:
+def focal_envelope(gray: np.ndarray, K: np.ndarray, detections: list[Detection], quads: list, cfg: ReconstructConfig,
+                   segment_cache: SegmentCache, interval_px: tuple[float, float]) -> dict[int, tuple[float, float]]:
+    """{window index: (min, max) aspect ratio} over the focal interval's ends and K's own focal
+    length (the geometry rerun with each; the quads are reused): how much of a window's shape
+    rests on the focal length. {} when the interval is a single value (the user's K)."""
+    lo, hi = interval_px
+    if not hi > lo:
+        return {}
+    seen: dict[int, list[float]] = {}
+    for f in (lo, hi):
+        Kf = K.copy()
+        Kf[0, 0], Kf[1, 1] = f, f * K[1, 1] / K[0, 0]
+        for r in reconstruct_from_quads(gray, Kf, detections, quads, cfg, segment_cache=segment_cache):
+            if r.failure is None and r.aspect_ratio is not None:
+                seen.setdefault(r.index, []).append(float(r.aspect_ratio))
+    return {k: (min(v), max(v)) for k, v in seen.items()}
+
+
+def aspect_interval(w: dict, envelope: dict[int, tuple[float, float]]) -> list[float] | None:
+    """A window's aspect interval: its fit's 90 % interval (widened when flagged) joined with the
+    aspect ratios at the ends of the focal interval; None for a failed window."""
+    if w["failure"] is not None or w["aspect_ratio"] is None:
+        return None
+    unc = w["uncertainty"] or {}
+    vals = [w["aspect_ratio"], *(unc[k] for k in ("aspect_lo", "aspect_hi") if k in unc),
+            *envelope.get(w["index"], ())]
+    return [float(min(vals)), float(max(vals))]
+
+
+def annotate(doc: dict, model: FacadeModel, K_source: str, envelope: dict[int, tuple[float, float]]) -> None:
     """Add the façade model to windows.json: ``walls``, ``scale`` and per window ``plausible``,
-    ``flags`` (reasons), ``scale_source``, ``scale_assumed``, ``K_source`` and ``confidence``
-    (detector score, halved when ill-conditioned, quartered when flagged; 0 for a failed window)."""
+    ``flags`` (reasons), ``scale_source``, ``scale_assumed``, ``K_source``, ``aspect_interval``
+    (:func:`aspect_interval`) and ``confidence`` (detector score, halved when ill-conditioned,
+    quartered when flagged; 0 for a failed window)."""
     doc["walls"] = [w.to_json() for w in model.walls]
     assumed = [w.id for w in model.walls if w.assumed]
     doc["scale"] = {"assumed": bool(assumed), "assumed_walls": assumed,
@@ -176,7 +208,7 @@ def annotate(doc: dict, model: FacadeModel, K_source: str) -> None:
         ill = bool(w["uncertainty"] and w["uncertainty"].get("ill_conditioned"))
         conf = 0.0 if w["failure"] else w["score"] * (0.5 if ill else 1.0) * (0.25 if flags else 1.0)
         w.update(plausible=w["failure"] is None and not flags, flags=flags, confidence=conf, K_source=K_source,
-                 exported=None,
+                 exported=None, aspect_interval=aspect_interval(w, envelope),
                  scale_source=None if wall is None else wall.scale_source,
                  scale_assumed=None if wall is None else wall.assumed)
 
@@ -242,8 +274,8 @@ def wall_properties(w) -> dict:
 
 def window_properties(w: dict) -> dict:
     """The Fenestra property set of one window (IFC): confidence, aspect interval, K and scale sources."""
-    unc = w.get("uncertainty") or {}
+    lo, hi = w["aspect_interval"] or (None, None)
     return {"Confidence": float(w["confidence"]), "DetectionScore": float(w["score"]),
-            "AspectRatio": w["aspect_ratio"], "AspectLow": unc.get("aspect_lo"), "AspectHigh": unc.get("aspect_hi"),
+            "AspectRatio": w["aspect_ratio"], "AspectLow": lo, "AspectHigh": hi,
             "KSource": w["K_source"], "ScaleSource": w["scale_source"], "ScaleAssumed": w["scale_assumed"],
             "Plausible": bool(w["plausible"]), "Flags": "; ".join(w["flags"]) or None}

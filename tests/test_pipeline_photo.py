@@ -44,6 +44,20 @@ def test_street_photo_without_K_always_gives_an_output(tmp_path):
     assert saved["K_source"]["source"] in ("exif", "vanishing points", "prior")
     assert saved["K_source"]["interval_px"][0] <= doc["K"][0][0] <= saved["K_source"]["interval_px"][1]
     assert len(saved["windows"]) >= 5 and (tmp_path / "out" / "overlay.png").is_file()
+    # each posed window's aspect interval holds its fit's 90 % interval (and the aspect ratios at the
+    # ends of the focal interval: on this near-frontal façade they fall inside it)
+    posed = [w for w in saved["windows"] if w["failure"] is None and w["uncertainty"]]
+    assert posed and all(w["aspect_interval"][0] <= w["uncertainty"]["aspect_lo"] <= w["aspect_ratio"]
+                         <= w["uncertainty"]["aspect_hi"] <= w["aspect_interval"][1] for w in posed)
+
+
+def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
+    from pipeline.photo import aspect_interval  # noqa: PLC0415
+
+    w = {"index": 3, "failure": None, "aspect_ratio": 0.70, "uncertainty": {"aspect_lo": 0.68, "aspect_hi": 0.72}}
+    assert aspect_interval(w, {}) == pytest.approx([0.68, 0.72])
+    assert aspect_interval(w, {3: (0.61, 0.71)}) == pytest.approx([0.61, 0.72])  # f at the interval's ends
+    assert aspect_interval({**w, "failure": "quad: x", "aspect_ratio": None}, {}) is None
 
 
 def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
@@ -67,6 +81,8 @@ def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
     fen = psets["Fenestra_Window"]
     assert fen["KSource"] == "K" and fen["ScaleSource"] == "known window width 0.0932 m" and not fen["ScaleAssumed"]
     assert fen["AspectLow"] < fen["AspectRatio"] < fen["AspectHigh"] and 0 < fen["Confidence"] <= 1
+    w0 = doc["windows"][0]  # the user's K is exact: the interval is the fit's own
+    assert w0["aspect_interval"] == pytest.approx([w0["uncertainty"]["aspect_lo"], w0["uncertainty"]["aspect_hi"]])
     assert ifcopenshell.util.element.get_psets(walls[0])["Fenestra_Wall"]["WindowCount"] == 3
 
 
