@@ -171,3 +171,25 @@ def test_overlay_draws_a_failed_detection_where_it_is_and_lists_it_in_the_panel(
     panel = img[:, 320:]
     red = np.abs(panel.astype(int) - COLOURS["failed"]).sum(axis=2) < 60
     assert red.sum() > 50  # the panel lists the failure (and the legend's red key)
+
+
+def test_an_implausible_sign_is_flagged_and_left_out_unless_export_all(tmp_path):
+    """Six 60 x 90 px windows and a 460 x 50 px sign (w/h 9.2) on one flat façade: the sign is flagged
+    with its reasons and left out of model.ifc; --export-all keeps it (still flagged)."""
+    import ifcopenshell  # noqa: PLC0415
+
+    img, inst = np.full((480, 640, 3), 200, np.uint8), np.zeros((480, 640), np.uint16)
+    boxes = [(x, y, x + 60, y + 90) for y in (100, 260) for x in (100, 250, 400)] + [(100, 380, 560, 430)]
+    for i, (x0, y0, x1, y1) in enumerate(boxes, 1):
+        img[y0:y1, x0:x1], inst[y0:y1, x0:x1] = 40, i
+    cv2.imwrite(str(tmp_path / "p.png"), img)
+    cv2.imwrite(str(tmp_path / "m.png"), inst)
+    for export_all in (False, True):
+        out = tmp_path / f"out{export_all}"
+        doc = run_reconstruct(tmp_path / "p.png", out, masks=tmp_path / "m.png", snapper="none", export_all=export_all)
+        sign = doc["windows"][6]
+        assert sign["aspect_ratio"] == pytest.approx(460 / 50, rel=0.02)
+        assert not sign["plausible"] and any("outside 0.15-6" in f for f in sign["flags"])
+        assert sign["exported"] is export_all and all(w["exported"] for w in doc["windows"][:6])
+        assert len(ifcopenshell.open(str(out / "model.ifc")).by_type("IfcWindow")) == 6 + export_all
+        assert doc["scale"]["assumed"] and len(doc["walls"]) == 1
