@@ -130,10 +130,10 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     K = resolved.K
     warnings += list(resolved.warnings) + intrinsics_warnings(K, size)
     geometry_failure, envelope = None, {}
-    quads = fit_quads(detections, cfg.quad, gray.shape)
     try:
-        results = reconstruct_from_quads(gray, K, detections, quads, cfg, segment_cache=segment_cache)
-        envelope = focal_envelope(gray, K, detections, quads, cfg, segment_cache, resolved.chosen.interval_px)
+        results = reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg,
+                                         segment_cache=segment_cache)
+        envelope = focal_envelope(results, K, resolved.chosen.interval_px)
     except PipelineError as e:  # recorded: the detections are still written, each with this failure
         geometry_failure = str(e)
         results = failed_results(detections, cfg, f"geometry: {e}")
@@ -163,27 +163,38 @@ def detect_windows(image: np.ndarray, size: tuple[int, int], masks: str | Path |
     return detect(detector, image)
 
 
-def focal_envelope(gray: np.ndarray, K: np.ndarray, detections: list[Detection], quads: list, cfg: ReconstructConfig,
-                   segment_cache: SegmentCache, interval_px: tuple[float, float]) -> dict[int, tuple[float, float]]:
-    """{window index: (min, max) aspect ratio} over the focal interval's ends and K's own focal
-    length (the geometry rerun with each; the quads are reused): how much of a window's shape
-    rests on the focal length. {} when the interval is a single value (the user's K)."""
+def focal_envelope(results: list, K: np.ndarray, interval_px: tuple[float, float]) -> dict[int, tuple[float, float]]:
+    """{window index: (min, max) aspect ratio} when the focal length moves to the ends of its
+    interval: each posed window's aspect ratio plus the change of its quad's closed-form aspect
+    ratio (pipeline.aspect.aspect_ratio, Zhang & He with K) from K's focal length to each end (ms
+    per window, no refit). {} when the interval is a single value (the user's K)."""
+    from pipeline.aspect import AspectError, aspect_ratio  # noqa: PLC0415
+
     lo, hi = interval_px
     if not hi > lo:
         return {}
-    seen: dict[int, list[float]] = {}
-    for f in (lo, hi):
-        Kf = K.copy()
+
+    def with_f(f: float) -> np.ndarray:
+        Kf = np.array(K, dtype=np.float64)
         Kf[0, 0], Kf[1, 1] = f, f * K[1, 1] / K[0, 0]
-        for r in reconstruct_from_quads(gray, Kf, detections, quads, cfg, segment_cache=segment_cache):
-            if r.failure is None and r.aspect_ratio is not None:
-                seen.setdefault(r.index, []).append(float(r.aspect_ratio))
-    return {k: (min(v), max(v)) for k, v in seen.items()}
+        return Kf
+
+    out = {}
+    for r in results:
+        if r.failure is not None or r.aspect_ratio is None or r.quad_snapped is None:
+            continue
+        try:
+            a0 = aspect_ratio(r.quad_snapped, K).ratio
+            d = [aspect_ratio(r.quad_snapped, with_f(f)).ratio - a0 for f in (lo, hi)]
+        except (AspectError, ValueError):
+            continue
+        out[r.index] = (float(r.aspect_ratio + min(0.0, *d)), float(r.aspect_ratio + max(0.0, *d)))
+    return out
 
 
 def aspect_interval(w: dict, envelope: dict[int, tuple[float, float]]) -> list[float] | None:
-    """A window's aspect interval: its fit's 90 % interval (widened when flagged) joined with the
-    aspect ratios at the ends of the focal interval; None for a failed window."""
+    """A window's aspect interval: its fit's 90 % interval (widened when flagged) joined with its
+    aspect ratios at the ends of the focal interval (:func:`focal_envelope`); None for a failed window."""
     if w["failure"] is not None or w["aspect_ratio"] is None:
         return None
     unc = w["uncertainty"] or {}

@@ -60,6 +60,28 @@ def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
     assert aspect_interval({**w, "failure": "quad: x", "aspect_ratio": None}, {}) is None
 
 
+def test_focal_envelope_follows_the_closed_form_aspect_at_the_focal_interval_ends():
+    """A 1.2 x 1.6 m window seen 40 deg off-axis with f = 800 px: under f = 600 and 1000 px its
+    quad's aspect ratio (Zhang & He, independent of the wall fit) moves; the envelope is those
+    values shifted onto the window's own aspect ratio, and empty for an exact K."""
+    from fenestra.conventions import look_at, project  # noqa: PLC0415
+    from pipeline.aspect import aspect_ratio  # noqa: PLC0415
+    from pipeline.photo import focal_envelope  # noqa: PLC0415
+    from pipeline.types import WindowResult  # noqa: PLC0415
+
+    K = np.array([[800.0, 0, 319.5], [0, 800.0, 239.5], [0, 0, 1]])
+    R, t = look_at(np.array([5.0, 0.8, 6.0]), np.array([0.6, 0.8, 0.0]), up=(0.0, 1.0, 0.0))
+    q = project(K, R, t, np.array([[0, 1.6, 0], [1.2, 1.6, 0], [1.2, 0, 0], [0, 0, 0.0]]))
+    r = WindowResult(0, 0.9, q, q, 0.75, "general", None, np.eye(3), np.ones(3), 1.0, q, None)
+    Kf = [np.diag([f, f, 1.0]) + np.array([[0, 0, 319.5], [0, 0, 239.5], [0, 0, 0]]) for f in (600.0, 1000.0)]
+    truth = sorted(aspect_ratio(q, k).ratio for k in Kf)
+    lo, hi = focal_envelope([r], K, (600.0, 1000.0))[0]
+    assert aspect_ratio(q, K).ratio == pytest.approx(0.75, rel=1e-6)
+    assert lo == pytest.approx(min(truth[0], 0.75)) and hi == pytest.approx(max(truth[1], 0.75))
+    assert hi - lo > 0.02  # oblique: the focal length matters
+    assert focal_envelope([r], K, (800.0, 800.0)) == {}
+
+
 def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
     """The README's quick-start (1:25 curtain wall, 9.3 cm panes, smaller than any catalogue style)
     exported 0 windows; now every pane, voiding one IfcWall, with Pset_WindowCommon and Fenestra psets."""
