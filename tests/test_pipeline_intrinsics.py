@@ -181,3 +181,21 @@ def test_calibrate_command_writes_the_K_json_reconstruct_reads(tmp_path):
         run_calibrate([photo for photo in paths[:1]], "7x4", 0.025, tmp_path / "bad.json")
     with pytest.raises(PipelineError, match="COLSxROWS"):
         run_calibrate(paths, "nine", 0.025, tmp_path / "bad.json")
+
+
+def test_exif_outranks_vanishing_points_and_a_disagreement_is_reported(tmp_path):
+    """The synthetic façade (true f = 700 px) saved with a wrong EXIF focal length (28 mm
+    equivalent: 28 / 36 * 640 = 498 px): EXIF is used (it ranks first), the vanishing points still
+    find ~700 px, and windows.json warns with both values."""
+    K = make_K(700.0, 700.0, 319.5, 239.5)
+    png, masks = _facade_photo(tmp_path, K)
+    photo = tmp_path / "facade.jpg"
+    ex = Image.Exif()
+    ex[0x8769] = {TAG_FOCAL_35: (28, 1)}  # a rational stored as a (num, den) tuple
+    Image.open(png).convert("RGB").save(photo, quality=98, exif=ex)
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", export=False)
+    ks = doc["K_source"]
+    assert ks["source"] == "exif" and doc["K"][0][0] == pytest.approx(28 / 36 * 640)
+    vp = next(c for c in ks["candidates"] if c["source"] == "vanishing points")
+    assert vp["focal_px"] == pytest.approx(700.0, rel=0.03)
+    assert any("disagree" in w and "498" in w and f"{vp['focal_px']:.0f}" in w for w in doc["warnings"])
