@@ -6,9 +6,10 @@ Photos: ../shared/real/spb_facades/images/img_N.jpg (not shipped). One JSON line
 transform: focal source, f, interval, detections, posed and plausible windows, planes, and why the
 vanishing points were not used. The transforms are those of tests/test_real_photo_invariance.py.
 """
-import sys, json, time
+import json
+import sys
+import time
 from pathlib import Path
-import cv2, numpy as np
 from PIL import Image
 
 from pipeline.photo import reconstruct_photo, PhotoOptions
