@@ -21,10 +21,23 @@ from pathlib import Path
 
 import typer
 
+import fenestra
 from fenestra.errors import FenestraError, one_line
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Fenestra: single-photo facade window reconstruction, measured against exact IFC ground truth.")
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"fenestra {fenestra.__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", is_eager=True, callback=_version,
+                                       help="print the version and exit")) -> None:
+    """Fenestra: single-photo facade window reconstruction, measured against exact IFC ground truth."""
 
 
 def _register() -> None:

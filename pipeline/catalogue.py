@@ -10,7 +10,7 @@ face flush with the facade (z = 0) and extends ``frame_depth_m`` into the wall (
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -102,16 +102,35 @@ def get_style(style: str | WindowStyle) -> WindowStyle:
     return CATALOGUE[style]
 
 
-def window_mesh(style: str | WindowStyle, w: float, h: float) -> WindowMesh:
+FIT_MAX_FRACTION = 0.5  # a style scaled to fit a small void: frame and bars take at most half its width/height
+
+
+def fitted_style(style: str | WindowStyle, w: float, h: float) -> WindowStyle:
+    """The style as it is when its frame and bars take at most FIT_MAX_FRACTION of a ``w`` x ``h`` m
+    void, else the style scaled down uniformly (frame, bars, depths, glass setback) until they do:
+    a window smaller than the style's smallest (a 1:25 model's 9 cm panes) still gets its frame."""
+    s = get_style(style)
+    need_w = 2 * s.frame_width_m + s.mullions * s.bar_width_m
+    need_h = 2 * s.frame_width_m + s.transoms * s.bar_width_m
+    k = min(1.0, FIT_MAX_FRACTION * float(w) / need_w, FIT_MAX_FRACTION * float(h) / need_h)
+    if k >= 1.0 or not k > 0:
+        return s
+    return replace(s, frame_width_m=s.frame_width_m * k, frame_depth_m=s.frame_depth_m * k,
+                   bar_width_m=s.bar_width_m * k, bar_depth_m=s.bar_depth_m * k,
+                   glass_setback_m=s.glass_setback_m * k)
+
+
+def window_mesh(style: str | WindowStyle, w: float, h: float, fit: bool = True) -> WindowMesh:
     """Frame boxes, mullion/transom boxes and one glass pane for a ``w`` x ``h`` m void.
 
     The frame's outer outline is exactly the void rectangle [0, w] x [0, h] at z = 0 .. -depth.
-    Raises ValueError when the size is not positive or too small for the style's frame and bars.
+    fit: a void too small for the style gets the style scaled down (:func:`fitted_style`); with
+    fit False that is a ValueError. Raises ValueError when the size is not positive.
     """
-    s = get_style(style)
     w, h = float(w), float(h)
     if not (np.isfinite(w) and np.isfinite(h) and w > 0 and h > 0):
         raise ValueError(f"window size must be positive and finite, got w={w}, h={h}")
+    s = fitted_style(style, w, h) if fit else get_style(style)
     fw, d = s.frame_width_m, s.frame_depth_m
     inner_w = w - 2 * fw - s.mullions * s.bar_width_m
     inner_h = h - 2 * fw - s.transoms * s.bar_width_m

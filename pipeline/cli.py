@@ -1,12 +1,13 @@
 """CLI commands of pipeline/ (registered on the `fenestra` app by app/cli.py).
 
-    fenestra reconstruct PHOTO [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
-        [--detector NAME] [--snapper NAME] [--pose NAME] [--height M] [--width M]
-        [--substitute STYLE] --out DIR
+    fenestra reconstruct PHOTO|FOLDER|'GLOB'... [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
+        [--detector NAME] [--snapper NAME] [--pose NAME] [--known-height M | --known-width M |
+        --known-storey M] [--export-all] [--substitute STYLE] --out DIR
     fenestra calibrate PHOTOS... --pattern COLSxROWS [--square M] --out K.json
 
-Without --K/--fx the intrinsics come from the photo (pipeline.intrinsics.resolve_K: the walls'
-vanishing points, else EXIF, else an error); windows.json records ``K`` and ``K_source``.
+Without --K/--fx the intrinsics come from the photo (pipeline.intrinsics.resolve_K: EXIF, else the
+façade's vanishing points, else a stated prior); windows.json records ``K`` and ``K_source`` (with
+the focal interval and every source's value). The photo path itself is pipeline.photo.
 
 writes DIR/windows.json and, through pipeline.export, model.ifc, model.obj, overlay.png, ...
 When K.json carries lens distortion (``"distortion": [k1, k2, p1, p2, k3]``, OpenCV), the photo is
@@ -22,101 +23,40 @@ from typing import Optional
 import numpy as np
 import typer
 
-from fenestra.conventions import DEFAULTS
+from fenestra.conventions import DEFAULTS, LIMITS
 from fenestra.errors import PipelineError
-from pipeline.outdir import check_out, staged_dir
-from pipeline.detectors.oracle import detections_from_instance_map
-from pipeline.quad import QUAD_SOURCES, QuadParams
-from pipeline.reconstruct import (POSES, ReconstructConfig, fit_quads, reconstruct, reconstruct_from_quads, to_gray,
-                                  windows_to_json)
-from pipeline.segments import SegmentCache, to_uint8
+from pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, Known
+from pipeline.photo import PhotoOptions, reconstruct_photo
+from pipeline.quad import QUAD_SOURCES
+from pipeline.reconstruct import POSES
 from pipeline.snappers import SNAPPERS
 
 
 def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
                     fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
                     masks: Optional[Path] = None, detector: str = DEFAULTS.detector, snapper: str = DEFAULTS.snapper,
-                    pose: str = DEFAULTS.pose, height: float = ReconstructConfig.height_m, width: Optional[float] = None,
+                    pose: str = DEFAULTS.pose, height: Optional[float] = None, width: Optional[float] = None,
                     substitute: Optional[str] = None, export: bool = True, force: bool = False,
-                    quad_source: str = DEFAULTS.quad_source) -> dict:
-    """The `reconstruct` command as a function: returns the windows.json dict it wrote.
-
-    Everything is written to a temporary folder that replaces ``out`` when complete
-    (pipeline.outdir.staged_dir; ``force``: replace a non-empty folder that is not an output).
-    """
-    from fenestra.images import read_image, read_instances  # noqa: PLC0415
-    from pipeline.io import (Camera, K_from_values, fit_camera_to_photo, intrinsics_warnings,  # noqa: PLC0415
-                             photo_orientation, photo_warnings, read_camera, undistort_photo)
-
-    inputs = (photo, K_json, masks)  # never inside --out: replacing it would delete them
-    check_out(out, force, inputs)  # before the (slow) pipeline runs
-    image = read_image(photo, "photo")
-    size = (image.shape[1], image.shape[0])
-    if K_json is not None and fx is not None:
-        raise PipelineError("give either --K or --fx, not both")
-    warnings = photo_warnings(photo)
-    if K_json is not None:
-        camera, more = fit_camera_to_photo(read_camera(K_json, size), size, photo_orientation(photo))
-        warnings += more
-    elif fx is not None:
-        camera = Camera(K=K_from_values(fx, fy, cx, cy, size))
-    else:
-        camera = None  # resolved below from the photo (vanishing points, EXIF)
-    if camera is not None:
-        image = undistort_photo(image, camera)  # masks (--masks) are taken to be in this frame
-    cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=height, width_m=width,
-                            quad=QuadParams(source=quad_source))
-    if masks is not None:
-        detections = detections_from_instance_map(read_instances(masks, size))
-    else:
-        from pipeline.detectors import detect  # noqa: PLC0415
-
-        detections = detect(detector, image)
-    segment_cache = SegmentCache(to_uint8(to_gray(image)))  # the photo's line segments, found once for all steps
-    if camera is None:
-        resolved = _resolve_K(photo, image, detections, cfg, size, segment_cache)
-        camera, K_source = Camera(K=resolved.K), {"source": resolved.source, "detail": resolved.detail}
-    else:
-        K_source = {"source": "--K" if K_json is not None else "--fx", "detail": str(K_json or "")}
-    K = camera.K
-    warnings += intrinsics_warnings(K, size)
-    for w in warnings:
-        typer.echo(f"warning: {w}", err=True)
-    results = reconstruct(image, K, detections, cfg, segment_cache)
-    doc = windows_to_json(results, K=K, image_size=size, config=cfg)
-    doc["K_source"] = K_source
-    doc["undistorted"] = camera.has_distortion
-    doc["distortion"] = None if camera.distortion is None else camera.distortion.tolist()
-    doc["warnings"] = warnings
-    with staged_dir(out, force, inputs) as tmp:
-        (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
-        if export:
-            try:
-                from pipeline.export import write_outputs  # noqa: PLC0415
-            except ImportError as e:  # the export module is optional for the geometry core
-                typer.echo(f"note: export skipped ({e})", err=True)
-            else:
-                write_outputs(tmp, image, K, results, substitute=substitute)
-    return doc
+                    quad_source: str = DEFAULTS.quad_source, storey: Optional[float] = None,
+                    export_all: bool = False, max_pixels: Optional[int] = None) -> dict:
+    """The `reconstruct` command on one photo as a function: pipeline.photo.reconstruct_photo
+    writing into ``out``; returns the windows.json dict it wrote. height / width / storey: the
+    known window height / window width / storey height, m (at most one; none: assumed);
+    max_pixels: the largest photo read (None: fenestra.conventions.LIMITS.max_image_pixels)."""
+    options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source,
+                           known=known_sizes(width, height, storey), substitute=substitute, export=export,
+                           export_all=export_all, max_pixels=max_pixels)
+    return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
+                             force=force)
 
 
-def _resolve_K(photo: Path, image: np.ndarray, detections: list, cfg, size: tuple[int, int],
-               segment_cache: SegmentCache):
-    """Intrinsics of a photo without --K: snap the detections' quads (no K needed), then
-    pipeline.intrinsics.resolve_K (vanishing points, else EXIF, else PipelineError); segment_cache:
-    the photo's line segments."""
-    from dataclasses import replace  # noqa: PLC0415
-
-    from pipeline.intrinsics import resolve_K  # noqa: PLC0415
-
-    gray = to_gray(image)
-    strategy = POSES[cfg.pose]
-    # the snapped quads do not depend on the pose: the strategy's own per-window solver serves
-    per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
-                                 replace(cfg, pose=strategy.per_window_pose, fallback_focal_px=float(max(size))))
-    quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
-    # the chosen per-wall strategy's parameters (its façade lines too), the plain wall fit otherwise
-    return resolve_K(photo, quads, size, strategy.wall, segment_cache)
+def known_sizes(width: Optional[float], height: Optional[float], storey: Optional[float]) -> Known:
+    """pipeline.facade_model.Known from the CLI's --known-width/--known-height/--known-storey;
+    PipelineError naming them when more than one is given or one is not a positive length."""
+    try:
+        return Known(window_width_m=width, window_height_m=height, storey_m=storey)
+    except ValueError as e:
+        raise PipelineError(f"--known-width/--known-height/--known-storey: {e}") from e
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
@@ -135,14 +75,108 @@ def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) ->
     return doc
 
 
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
+
+
+def expand_photos(args: list[str]) -> list[Path]:
+    """The photos named by command-line arguments, in order, each once: a file as it is, a folder's
+    image files (IMAGE_SUFFIXES, sorted), a glob pattern's matches (sorted). PipelineError naming an
+    argument that names nothing."""
+    import glob  # noqa: PLC0415
+
+    found: list[Path] = []
+    for a in args:
+        p = Path(a)
+        if p.is_dir():
+            hits = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES)
+        elif p.is_file():
+            hits = [p]
+        else:
+            hits = sorted(Path(q) for q in glob.glob(a) if Path(q).is_file())
+        if not hits:
+            raise PipelineError(f"no photo found for {a!r} (not a file, a folder with photos, or a matching glob)")
+        found += [h for h in hits if h not in found]
+    return found
+
+
+def output_names(photos: list[Path]) -> list[str]:
+    """One subfolder name per photo: its stem, with its parent folder's name prefixed where stems repeat."""
+    stems = [p.stem for p in photos]
+    names = [s if stems.count(s) == 1 else f"{p.parent.name}_{s}" for p, s in zip(photos, stems)]
+    return [n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names)]
+
+
+def summary_row(photo: Path, doc: dict | None, error: str | None) -> dict:
+    """One summary line of a batch: photo, K source and f, walls, windows detected/exported/flagged/failed."""
+    if doc is None:
+        return {"photo": str(photo), "error": error}
+    ws = doc["windows"]
+    return {"photo": str(photo), "error": None, "K_source": doc["K_source"]["source"],
+            "focal_px": round(doc["K_source"]["focal_px"], 1), "walls": len(doc.get("walls", [])),
+            "detected": len(ws), "exported": sum(bool(w.get("exported")) for w in ws),
+            "flagged": sum(bool(w.get("flags")) for w in ws), "failed": sum(w["failure"] is not None for w in ws),
+            "scale_assumed": doc.get("scale", {}).get("assumed")}
+
+
+def run_batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
+    """Reconstruct each photo into out/<name> (run_reconstruct with ``kw``), with a progress bar on
+    stderr; a photo that is bad input is recorded (its error) and the batch goes on. Writes
+    out/summary.json and returns its rows."""
+    import sys  # noqa: PLC0415
+
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    with typer.progressbar(list(zip(photos, output_names(photos))), label="reconstruct", file=sys.stderr,
+                           item_show_func=lambda item: item[0].name if item else "") as bar:
+        for photo, name in bar:
+            try:
+                rows.append(summary_row(photo, run_reconstruct(photo, out / name, **kw), None))
+            except (PipelineError, ValueError, OSError) as e:
+                rows.append(summary_row(photo, None, " ".join(str(e).split())))
+    (out / "summary.json").write_text(json.dumps(rows, indent=2))
+    return rows
+
+
+def format_summary(rows: list[dict]) -> str:
+    """The batch's summary table: one line per photo, then the totals."""
+    lines = [f"{'photo':<28} {'K':<17} {'f_px':>7} {'walls':>5} {'det':>4} {'exp':>4} {'flag':>4} {'fail':>4}"]
+    for r in rows:
+        name = Path(r["photo"]).name[:28]
+        if r["error"]:
+            lines.append(f"{name:<28} error: {r['error'][:80]}")
+            continue
+        lines.append(f"{name:<28} {r['K_source']:<17} {r['focal_px']:>7.0f} {r['walls']:>5} {r['detected']:>4} "
+                     f"{r['exported']:>4} {r['flagged']:>4} {r['failed']:>4}")
+    ok = [r for r in rows if not r["error"]]
+    lines.append(f"{len(ok)} of {len(rows)} photos reconstructed; {sum(r['exported'] for r in ok)} windows exported, "
+                 f"{sum(r['flagged'] for r in ok)} flagged, {sum(r['failed'] for r in ok)} failed")
+    return "\n".join(lines)
+
+
+def _echo_notes(doc: dict) -> None:
+    """The single-photo command's notes: undistortion, intrinsics and their source, scale, warnings."""
+    if doc.get("undistorted"):
+        typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")
+    ks = doc["K_source"]
+    typer.echo(f"intrinsics: {ks['source']} f = {ks['focal_px']:.0f} px [{ks['interval_px'][0]:.0f}, "
+               f"{ks['interval_px'][1]:.0f}] ({ks['detail']})")
+    typer.echo("scale: " + "; ".join(doc["scale"]["sources"] or ["no wall"]))
+    for w in doc["warnings"]:
+        typer.echo(f"warning: {w}", err=True)
+    if doc.get("geometry_failure"):
+        typer.echo(f"geometry failed (recorded in windows.json): {doc['geometry_failure']}", err=True)
+
+
 def format_table(doc: dict) -> str:
     """A short plain-text table: one line per window, then the median per-stage timing."""
-    lines = [f"{'#':>3} {'score':>5} {'aspect':>7} {'case':<17} {'dist_m':>7} failure"]
+    lines = [f"{'#':>3} {'score':>5} {'aspect':>7} {'case':<17} {'dist_m':>7} {'wall':>4} {'exp':>3} failure / flags"]
     for w in doc["windows"]:
         ar = f"{w['aspect_ratio']:.4f}" if w["aspect_ratio"] is not None else "-"
         dist = f"{np.linalg.norm(w['t']):.2f}" if w["t"] is not None else "-"
-        lines.append(f"{w['index']:>3} {w['score']:>5.2f} {ar:>7} {w['aspect_case'] or '-':<17} {dist:>7} "
-                     f"{w['failure'] or ''}")
+        wall = "-" if w.get("wall") is None else str(w["wall"])
+        exp = {True: "yes", False: "no", None: "-"}[w.get("exported")]
+        lines.append(f"{w['index']:>3} {w['score']:>5.2f} {ar:>7} {w['aspect_case'] or '-':<17} {dist:>7} {wall:>4} "
+                     f"{exp:>3} {w['failure'] or '; '.join(w.get('flags') or [])}")
     stages = ("quad", "snap", "aspect", "pose")
     med = {s: np.median([w["timings_ms"][s] for w in doc["windows"] if s in w["timings_ms"]] or [np.nan])
            for s in stages}
@@ -156,8 +190,9 @@ def register(app: typer.Typer) -> None:
 
     @app.command("reconstruct")
     def reconstruct_cmd(
-        photo: Path = typer.Argument(..., help="the photo (any format OpenCV reads)"),
-        out: Path = typer.Option(..., "--out", help="output folder"),
+        photos: list[str] = typer.Argument(..., help="photo(s), folder(s) of photos, or glob patterns (quoted, e.g. "
+                                                     "'street/*.jpg'); any format OpenCV reads"),
+        out: Path = typer.Option(..., "--out", help="output folder (several photos: one subfolder per photo)"),
         K_json: Optional[Path] = typer.Option(None, "--K", help='intrinsics JSON: {"K": 3x3} or fx/fy/cx/cy, optionally with '
                                               '"distortion": OpenCV coefficients k1, k2, p1, p2, k3 (a list): the '
                                               'photo is then undistorted with the same K before anything else'),
@@ -170,24 +205,48 @@ def register(app: typer.Typer) -> None:
         detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {DETECTORS.describe()}"),
         snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {SNAPPERS.describe()}"),
         pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {POSES.describe()}"),
-        height: float = typer.Option(ReconstructConfig.height_m, "--height", help="window height, m (the scale parameter)"),
-        width: Optional[float] = typer.Option(None, "--width", help="window width, m (overrides --height)"),
+        height: Optional[float] = typer.Option(None, "--known-height", "--height",
+                                               help="a typical window's height, m: each wall's median window gets it "
+                                                    f"(none of the --known-* given: {DEFAULT_WINDOW_HEIGHT_M:g} m, "
+                                                    "flagged assumed)"),
+        width: Optional[float] = typer.Option(None, "--known-width", "--width",
+                                              help="a typical window's width, m (each wall's median window)"),
+        storey: Optional[float] = typer.Option(None, "--known-storey",
+                                               help="the storey (floor-to-floor) height, m: each wall's median "
+                                                    "pitch between window rows"),
+        export_all: bool = typer.Option(False, "--export-all", help="export the windows flagged implausible too"),
+        max_pixels: Optional[int] = typer.Option(None, "--max-pixels", min=1,
+                                                 help="the largest photo read, pixels, checked before decoding "
+                                                      f"(default {LIMITS.max_image_pixels:_})"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
         force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),
         quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
                                         help=f"quad from: {', '.join(QUAD_SOURCES)} (corners: the detector's corner head, "
                                              "the mask fit where it has none)"),
     ) -> None:
-        """Reconstruct the windows of one photo: windows.json, IFC, OBJ, overlay."""
+        """Reconstruct the windows of photos: windows.json, overlay.png, IFC, OBJ, GLB per photo.
+
+        Without --K/--fx the focal length comes from EXIF, the façade's vanishing points or a stated prior (windows.json: K_source); failures are recorded, not fatal. Several photos: a progress bar, one subfolder of --out per photo, a summary table (also --out/summary.json).
+        """  # noqa: E501 -- one paragraph: the help reflows it
         if quad_source not in QUAD_SOURCES:
             raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
-        doc = run_reconstruct(photo, out, K_json, fx, fy, cx, cy, masks, detector, snapper, pose,
-                              height, width, substitute, force=force, quad_source=quad_source)
-        typer.echo(format_table(doc))
-        if doc.get("undistorted"):
-            typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")
-        typer.echo(f"intrinsics: {doc['K_source']['source']} {doc['K_source']['detail']}".rstrip())
-        typer.echo(f"wrote {out / 'windows.json'}")
+        paths = expand_photos(photos)
+        if masks is not None and len(paths) > 1:
+            raise PipelineError(f"--masks describes one photo; {len(paths)} photos given")
+        kw = dict(K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, detector=detector, snapper=snapper,
+                  pose=pose, height=height, width=width, substitute=substitute, force=force,
+                  quad_source=quad_source, storey=storey, export_all=export_all, max_pixels=max_pixels)
+        if len(paths) == 1:
+            doc = run_reconstruct(paths[0], out, **kw)
+            typer.echo(format_table(doc))
+            _echo_notes(doc)
+            typer.echo(f"wrote {out / 'windows.json'}")
+            return
+        rows = run_batch(paths, out, kw)
+        typer.echo(format_summary(rows))
+        typer.echo(f"wrote {out / 'summary.json'} and one folder per photo in {out}")
+        if any(r["error"] for r in rows):
+            raise SystemExit(1)
 
     @app.command("calibrate")
     def calibrate_cmd(

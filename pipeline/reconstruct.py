@@ -145,6 +145,12 @@ def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failu
                         instance_id=det.instance_id, **fields)
 
 
+def failed_results(detections: list[Detection], cfg: ReconstructConfig, reason: str) -> list[WindowResult]:
+    """One WindowResult per detection, in order, each failed with ``reason`` (no stage reached):
+    what a photo's output holds when its geometry failed as a whole."""
+    return [_result(i, d, cfg, {}, reason) for i, d in enumerate(detections)]
+
+
 @dataclass(frozen=True)
 class QuadFit:
     """The mask -> quad stage of one detection, fitted once and reusable across configs.

@@ -348,8 +348,9 @@ def _far_from_windows(margin_px: float) -> np.ndarray:
 
 
 def test_overlay_draws_on_the_windows_only(outputs, photo):
-    overlay = read_rgb(outputs[0]["overlay"])
-    assert overlay.shape == photo.shape
+    overlay = read_rgb(outputs[0]["overlay"])  # the photo, then the side panel on its right
+    assert overlay.shape[0] >= photo.shape[0] and overlay.shape[1] > photo.shape[1]
+    overlay = overlay[:photo.shape[0], :photo.shape[1]]
     for i in range(3):
         edge = quad_mask(gt_quad(i)) & ~cv2.erode(quad_mask(gt_quad(i)).astype(np.uint8),
                                                  np.ones((5, 5), np.uint8)).astype(bool)
@@ -412,7 +413,7 @@ def test_catalogue_geometry_fills_the_void(name):
 
 def test_bad_inputs_raise_clear_errors(tmp_path, photo):
     with pytest.raises(ValueError, match="too small"):
-        window_mesh("sash-cross", 0.1, 1.0)
+        window_mesh("sash-cross", 0.1, 1.0, fit=False)
     with pytest.raises(ValueError, match="positive"):
         window_mesh("sash-cross", -1.0, 1.0)
     with pytest.raises(PipelineError, match="shape"):
@@ -421,14 +422,28 @@ def test_bad_inputs_raise_clear_errors(tmp_path, photo):
         write_outputs(tmp_path, photo, np.eye(2), [])
     with pytest.raises(ValueError, match="no-such-style"):
         write_outputs(tmp_path, photo, K, [], substitute="no-such-style")
-    # A void too small for the style's frame is skipped, not a crash.
-    tiny = WindowResult(5, 0.5, None, None, 0.05, "general", None, R_F, T_F, 1.0, None, None)
     # No usable window at all: still a valid (empty) model, every window reported.
-    paths = write_outputs(tmp_path / "none", photo, K, all_results()[2:] + [tiny], substitute="sash-cross")
+    paths = write_outputs(tmp_path / "none", photo, K, all_results()[2:], substitute="sash-cross")
     skipped = {e["index"]: e["reason"] for e in json.loads(paths["manifest"].read_text())["skipped"]}
-    assert set(skipped) == {2, 3, 4, 5} and "too small" in skipped[5]
+    assert set(skipped) == {2, 3, 4}
     assert "glb" not in paths and paths["substituted"].is_file()
     assert len(ifcopenshell.open(str(paths["ifc"])).by_type("IfcWindow")) == 0
+
+
+def test_a_void_smaller_than_the_style_exports_with_the_style_scaled(tmp_path, photo):
+    """A 5 x 100 cm void is too small for sash-cross's 8 cm frame: the style is scaled down so its
+    frame and bars take half the width; the window exports, its frame inside the void."""
+    from pipeline.catalogue import fitted_style  # noqa: PLC0415
+
+    s = fitted_style("sash-cross", 0.05, 1.0)
+    assert 2 * s.frame_width_m + s.mullions * s.bar_width_m == pytest.approx(0.025)
+    mesh = window_mesh("sash-cross", 0.05, 1.0)
+    assert np.allclose(mesh.vertices[:, :2].min(axis=0), 0) and np.allclose(mesh.vertices[:, :2].max(axis=0), [0.05, 1.0])
+    tiny = WindowResult(5, 0.5, None, None, 0.05, "general", None, R_F, T_F, 1.0, None, None)
+    paths = write_outputs(tmp_path, photo, K, [tiny], substitute="sash-cross")
+    manifest = json.loads(paths["manifest"].read_text())
+    assert [e["index"] for e in manifest["exported"]] == [5] and manifest["exported"][0]["style_scaled"]
+    assert len(ifcopenshell.open(str(paths["ifc"])).by_type("IfcWindow")) == 1
 
 
 def test_texture_is_padded_when_the_wall_leaves_the_photo(tmp_path, photo):

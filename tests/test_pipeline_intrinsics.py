@@ -38,12 +38,45 @@ def test_focal_from_exif_35mm_and_sensor(tmp_path):
     assert focal_from_exif(_jpeg(tmp_path / "b.jpg"), SIZE) is None
 
 
-def test_resolve_K_falls_back_to_exif_then_fails(tmp_path):
+def test_exif_rationals_and_tuples_are_numbers():
+    from PIL.TiffImagePlugin import IFDRational  # noqa: PLC0415
+
+    from pipeline.intrinsics import exif_number  # noqa: PLC0415
+
+    assert exif_number((28, 1)) == 28.0 and exif_number(IFDRational(42, 10)) == pytest.approx(4.2)
+    assert exif_number((0, 0)) is None and exif_number("x") is None and exif_number(-3) is None
+    # FocalLength as a (num, den) tuple with the focal-plane resolution: 4.2 mm x 200 px/mm = 840 px
+    tags = {TAG_FOCAL: (42, 10), TAG_PLANE_XRES: (2000, 10), TAG_PLANE_UNIT: 4}
+    assert focal_from_exif_tags(tags, SIZE)[0] == pytest.approx(840.0)
+    # ... and rescaled when the photo is half the size the resolution refers to
+    tags.update({0xA002: 1280, 0xA003: 960})
+    assert focal_from_exif_tags(tags, SIZE)[0] == pytest.approx(420.0)
+
+
+def test_resolve_K_chain_exif_then_prior_never_fails(tmp_path):
+    from pipeline.intrinsics import PRIOR_FOV_DEG  # noqa: PLC0415
+
     r = resolve_K(_jpeg(tmp_path / "a.jpg", {TAG_FOCAL_35: 28}), np.zeros((0, 4, 2)), SIZE)
     assert r.source == "exif" and r.K[0, 0] == pytest.approx(28 / 36 * 640)
     assert r.K[0, 2] == pytest.approx(319.5) and r.K[1, 2] == pytest.approx(239.5)
-    with pytest.raises(PipelineError, match="--K"):
-        resolve_K(_jpeg(tmp_path / "b.jpg"), np.zeros((0, 4, 2)), SIZE)
+    lo, hi = r.chosen.interval_px
+    assert lo < r.K[0, 0] < hi and r.to_json()["unavailable"]["vanishing points"] == "no window quads"
+    p = resolve_K(_jpeg(tmp_path / "b.jpg"), np.zeros((0, 4, 2)), SIZE)  # no EXIF, no quads: the prior
+    f = 320.0 / np.tan(np.radians(PRIOR_FOV_DEG / 2))  # half the long side over tan(half the FOV)
+    assert p.source == "prior" and p.K[0, 0] == pytest.approx(f) and "assumed" in p.detail
+    assert p.chosen.interval_px[0] < 0.8 * f and p.chosen.interval_px[1] > 1.2 * f  # wide
+    assert set(p.unavailable) == {"exif", "vanishing points"}
+
+
+def test_disagreeing_sources_are_reported():
+    from pipeline.intrinsics import FocalEstimate, choose_focal  # noqa: PLC0415
+
+    a = FocalEstimate("exif", 1000.0, (950.0, 1050.0), "")
+    b = FocalEstimate("vanishing points", 1500.0, (1400.0, 1600.0), "")
+    r = choose_focal([a, b], ["exif", "vanishing points"], SIZE)
+    assert r.source == "exif" and len(r.warnings) == 1 and "1000" in r.warnings[0] and "1500" in r.warnings[0]
+    c = FocalEstimate("vanishing points", 1040.0, (1000.0, 1080.0), "")
+    assert choose_focal([a, c], ["exif", "vanishing points"], SIZE).warnings == ()
 
 
 def _facade_photo(tmp_path, K):
@@ -148,3 +181,21 @@ def test_calibrate_command_writes_the_K_json_reconstruct_reads(tmp_path):
         run_calibrate([photo for photo in paths[:1]], "7x4", 0.025, tmp_path / "bad.json")
     with pytest.raises(PipelineError, match="COLSxROWS"):
         run_calibrate(paths, "nine", 0.025, tmp_path / "bad.json")
+
+
+def test_exif_outranks_vanishing_points_and_a_disagreement_is_reported(tmp_path):
+    """The synthetic façade (true f = 700 px) saved with a wrong EXIF focal length (28 mm
+    equivalent: 28 / 36 * 640 = 498 px): EXIF is used (it ranks first), the vanishing points still
+    find ~700 px, and windows.json warns with both values."""
+    K = make_K(700.0, 700.0, 319.5, 239.5)
+    png, masks = _facade_photo(tmp_path, K)
+    photo = tmp_path / "facade.jpg"
+    ex = Image.Exif()
+    ex[0x8769] = {TAG_FOCAL_35: (28, 1)}  # a rational stored as a (num, den) tuple
+    Image.open(png).convert("RGB").save(photo, quality=98, exif=ex)
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", export=False)
+    ks = doc["K_source"]
+    assert ks["source"] == "exif" and doc["K"][0][0] == pytest.approx(28 / 36 * 640)
+    vp = next(c for c in ks["candidates"] if c["source"] == "vanishing points")
+    assert vp["focal_px"] == pytest.approx(700.0, rel=0.03)
+    assert any("disagree" in w and "498" in w and f"{vp['focal_px']:.0f}" in w for w in doc["warnings"])

@@ -95,11 +95,17 @@ def test_aspect_ratio_matches_known_pane_size(docs, snapper):
 
 @pytest.mark.parametrize("snapper", ["none", "linefit"])
 def test_pane_height_from_known_width(docs, snapper):
+    """One scale per wall (issue 24): each photo's panes are one wall whose median pane gets the known
+    width; the others are measured (measured: widths within 2.6 %, heights within 3.5 % of the truth)."""
+    for n in PHOTOS:
+        doc = docs[(n, snapper)]
+        assert len(doc["walls"]) == 1 and not doc["scale"]["assumed"]
+        assert np.median([w["width_m"] for w in doc["windows"]]) == pytest.approx(PANE_W_M)
     h = np.array([w["height_m"] for n in PHOTOS for w in docs[(n, snapper)]["windows"]])
     wm = np.array([w["width_m"] for n in PHOTOS for w in docs[(n, snapper)]["windows"]])
-    assert np.allclose(wm, PANE_W_M)
+    assert np.all(np.abs(wm / PANE_W_M - 1.0) < ASPECT_MAX_REL), wm
     assert abs(np.median(h) / PANE_H_M - 1.0) < ASPECT_MEDIAN_REL, h
-    assert np.all(np.abs(h / PANE_H_M - 1.0) < ASPECT_MAX_REL), h
+    assert np.all(np.abs(h / PANE_H_M - 1.0) < 1.5 * ASPECT_MAX_REL), h
 
 
 @pytest.mark.parametrize("snapper", ["none", "linefit"])

@@ -243,3 +243,36 @@ def texture_layout(K: np.ndarray, image_shape: tuple[int, ...], placed: list[Pla
     cap = np.array([W, H, W, H]) * MAX_PAD_FRACTION
     pads = np.ceil(np.clip(pads, 0.0, cap)).astype(int)
     return TextureLayout(W, H, *map(int, pads))
+
+
+def wall_placement(wall_id: int, members: list[PlacedWindow]) -> PlacedWindow:
+    """A fitted wall as a PlacedWindow (``index`` = wall id): the rectangle in the plane of its first
+    member's frame that spans every member's void (their corners' x, y in that frame; members are
+    on that plane up to the merge tolerance). wall_mesh / facade_pixels / texture_layout take it."""
+    ref = members[0]
+    pts = np.concatenate([(m.to_camera(m.void_corners()) - ref.t) @ ref.R for m in members])  # (4n, 3) ref frame
+    (x0, y0), (x1, y1) = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
+    return PlacedWindow(int(wall_id), float(x1 - x0), float(y1 - y0), ref.R, ref.t + ref.R @ np.array([x0, y0, 0.0]))
+
+
+def wall_groups(placed: list[PlacedWindow], walls: dict[int, int] | None) -> list[tuple[PlacedWindow, list[PlacedWindow]]]:
+    """[(the wall's placement, its windows)] by ``walls`` ({window index: wall id}); a window without
+    a wall id (or walls None) is a wall of its own (a PlacedWindow equal to the window)."""
+    groups: dict = {}
+    for pw in placed:
+        wid = None if walls is None else walls.get(pw.index)
+        groups.setdefault(("wall", wid) if wid is not None else ("own", pw.index), []).append(pw)
+    return [(wall_placement(key[1], members) if key[0] == "wall" else members[0], members)
+            for key, members in groups.items()]
+
+
+def wall_margin_m(members: list[PlacedWindow], margin_m: float = WALL_MARGIN_M) -> float:
+    """A fitted wall's margin beyond its windows: margin_m, at most its tallest window's height (a
+    1:25 model's wall does not get a 1 m border)."""
+    return float(min(margin_m, max(m.height_m for m in members)))
+
+
+def union_layout(a: TextureLayout, b: TextureLayout) -> TextureLayout:
+    """The padding that holds both layouts' (same photo)."""
+    return TextureLayout(a.photo_width, a.photo_height, max(a.pad_left, b.pad_left), max(a.pad_top, b.pad_top),
+                         max(a.pad_right, b.pad_right), max(a.pad_bottom, b.pad_bottom))
