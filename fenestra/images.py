@@ -82,7 +82,8 @@ def decode_file(path: str | Path, flags: int, what: str = "image", max_pixels: i
     not decodable."""
     p = Path(path)
     if not p.is_file():
-        raise DatasetError(f"{what} not found (or not a regular file): {p}")
+        raise DatasetError(f"{what} {p} is not a regular file (a folder, FIFO or device)" if p.exists()
+                           else f"{what} not found: {p}")
     check_size(p, what, max_pixels)
     try:
         buf = np.fromfile(p, dtype=np.uint8)
