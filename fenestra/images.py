@@ -47,10 +47,10 @@ def header_size(path: str | Path) -> tuple[int, int] | None:
         prefix = fp.read(16)
         for fmt in Image.ID:
             factory, accept = Image.OPEN[fmt]
-            if accept is not None and not accept(prefix):
-                continue
             fp.seek(0)
             try:
+                if accept is not None and not accept(prefix):
+                    continue
                 im = factory(fp, str(path))
             except (SyntaxError, IndexError, TypeError, ValueError, OSError, EOFError, struct.error):
                 continue
