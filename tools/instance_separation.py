@@ -36,6 +36,7 @@ from bench.matching import iou_matrix, match  # noqa: E402
 from fenestra.data import read_view  # noqa: E402
 from pipeline.detectors import DETECTORS, load_model  # noqa: E402
 from pipeline.detectors.winnet import PostConfig, instances_from_maps  # noqa: E402
+from pipeline.detectors.oracle import oracle_detections  # noqa: E402
 from pipeline.quad import mask_to_quad  # noqa: E402
 
 SCORE = 0.5  # the shipped threshold (pipeline.detectors.detect's default)
@@ -44,12 +45,14 @@ REASONS = ("no_void", "merged", "ignore", "poor_mask", "low_score", "other")
 BEFORE = {"void_threshold": 0.5, "core_threshold": 0.5, "min_area_px": 30, "min_core_px": 4,
           "separation": "nearest", "split_levels": ()}  # the post-processing before issue #23
 # name -> overrides of the checkpoint's PostConfig (the candidates of issue #23, item 1)
-CANDIDATES: dict[str, dict] = {
+CANDIDATES: dict[str, dict | None] = {
+    "oracle": None,                                           # the exact masks (pipeline oracle), for scale
     "nearest": {},                                            # before issue #23: nearest core seed
     "core0.7": {"core_threshold": 0.7},
     "core0.8": {"core_threshold": 0.8},
     "void0.6": {"void_threshold": 0.6},
     "watershed": {"separation": "watershed"},                 # core-seeded watershed on the void map
+    "nearest-blob": {"separation": "nearest-blob"},           # nearest seed within the pixel's void blob
     "split": {"split_levels": (0.7, 0.8, 0.9, 0.95)},         # core blobs split by the core map's tree
     "split-watershed": {"split_levels": (0.7, 0.8, 0.9, 0.95), "separation": "watershed"},
     "split6-watershed": {"split_levels": (0.6, 0.7, 0.8, 0.9, 0.95, 0.98), "separation": "watershed"},
@@ -121,10 +124,11 @@ def _gap_px(inst: np.ndarray, iid: int) -> float:
     return float(d[inst == iid].min())
 
 
-def view_outcomes(vm: ViewMaps, post: PostConfig, dets_fn) -> list[dict]:
+def view_outcomes(vm: ViewMaps, post: PostConfig | None, dets_fn) -> list[dict]:
     """Per evaluable window: {"house", "missed", "reason", "corner_err" (4,) or None, "gap_px"}, and
-    one {"fp": n} row with the view's false positives."""
-    all_dets = dets_fn(vm.maps, post)
+    one {"fp": n} row with the view's false positives. post None: the exact masks (``oracle``)."""
+    all_dets = oracle_detections(vm.instances) if post is None else dets_fn(vm.maps, post)
+    post = post or PostConfig()
     dets = [d for d in all_dets if d.score >= SCORE]
     ids = [w["instance_id"] for w in vm.windows]
     gts = [vm.instances == i for i in ids]
@@ -232,19 +236,25 @@ def looks_like_door(box, H: int, rule: tuple[float, float]) -> bool:
     return y1 >= rule[0] * H and (y1 - y0) >= rule[1] * max(x1 - x0, 1e-9)
 
 
-def real_scores(photos, post: PostConfig, rule: tuple[float, float] | None = None) -> dict:
-    """bbox COCO scores (detections at score >= 0.05, as evaluate-detector) and the hard-negative
-    share at the shipped threshold (training.evaluate.hard_negative_share)."""
-    from fenestra import data  # noqa: PLC0415
+def real_detections(photos, post: PostConfig) -> list[list[tuple[float, np.ndarray]]]:
+    """Per photo, (score, full-resolution box) of every instance at score >= 0.05 (as evaluate-detector)."""
     from pipeline.detectors import box_to_full  # noqa: PLC0415
+
+    return [[(d.score, box_to_full(d.box, scale)) for d in instances_from_maps(
+        maps[0].astype(np.float32), maps[1].astype(np.float32), post) if d.score >= 0.05]
+        for _, _, scale, maps, _, _ in photos]
+
+
+def real_scores(photos, dets_per_photo, rule: tuple[float, float] | None = None) -> dict:
+    """bbox COCO scores and the hard-negative share at the shipped threshold
+    (training.evaluate.hard_negative_share) of the detections, after the door rule if given."""
+    from fenestra import data  # noqa: PLC0415
     from training.evaluate import hard_negative_share  # noqa: PLC0415
 
     images, anns, results, shipped = [], [], [], []
-    for k, (name, (H, W), scale, maps, wins, negs) in enumerate(photos, 1):
+    for k, ((name, (H, W), _, _, wins, negs), dets) in enumerate(zip(photos, dets_per_photo), 1):
         images.append((name, H, W))
         anns += [data.gt_annotation(name, box=b) for b in wins]
-        dets = [(d.score, box_to_full(d.box, scale)) for d in instances_from_maps(
-            maps[0].astype(np.float32), maps[1].astype(np.float32), post) if d.score >= 0.05]
         if rule is not None:
             dets = [(sc, b) for sc, b in dets if not looks_like_door(b, H, rule)]
         results += [data.coco_result(k, sc, b) for sc, b in dets]
@@ -266,33 +276,46 @@ def table(results: dict[tuple[str, str], dict]) -> str:
     return "\n".join(lines)
 
 
-def real_report(yolo: Path, part: str, cands: list[str], base: PostConfig, predict, cache: Path | None) -> list[str]:
+def candidate_post(cand: str, base: PostConfig, shipped: PostConfig) -> PostConfig | None:
+    """The PostConfig of a candidate: ``shipped`` (the weights file's, with its architecture's
+    defaults), the oracle's None, or the candidate's overrides of ``base``."""
+    if cand == "shipped":
+        return shipped
+    return None if CANDIDATES[cand] is None else replace(base, **CANDIDATES[cand])
+
+
+def real_report(yolo: Path, part: str, cands: list[str], base: PostConfig, shipped: PostConfig, predict,
+                cache: Path | None) -> list[str]:
     photos = real_photos(yolo, part, predict, cache)
     lines = [f"{len(photos)} {part} photos of {yolo.name if yolo.name != 'train' else yolo.parent.name + '/train'}; "
              f"bbox AP at score >= 0.05 (as evaluate-detector); door/signboard share at score >= {SCORE}",
              "", "| candidate | bbox AP | AP50 | detections at 0.5 | on a door/signboard | of which match no window |",
              "|---|---|---|---|---|---|"]
+    first = None
     for cand in cands:
-        r = real_scores(photos, replace(base, **CANDIDATES[cand]))
-        lines.append(f"| {cand} | {100 * r['bbox_AP']:.1f} | {100 * r['bbox_AP50']:.1f} | {r['n_det_at_threshold']} | "
-                     f"{r['n_hard_negative']} ({100 * r['hard_negative_share']:.1f} %) | {r['n_hard_negative_no_window']} |")
+        dets = real_detections(photos, candidate_post(cand, base, shipped))
+        first = dets if first is None else first
+        lines.append(_real_row(cand, real_scores(photos, dets)))
         print(lines[-1], flush=True)
     for name, rule in DOOR_RULES.items():
-        r = real_scores(photos, replace(base, **CANDIDATES[cands[0]]), rule)
-        lines.append(f"| {cands[0]} + {name} | {100 * r['bbox_AP']:.1f} | {100 * r['bbox_AP50']:.1f} | "
-                     f"{r['n_det_at_threshold']} | {r['n_hard_negative']} ({100 * r['hard_negative_share']:.1f} %) | "
-                     f"{r['n_hard_negative_no_window']} |")
+        lines.append(_real_row(f"{cands[0]} + {name}", real_scores(photos, first, rule)))
         print(lines[-1], flush=True)
     return lines
 
 
-def render_report(dirs: list[Path], cands: list[str], base: PostConfig, predict, dets_fn,
+def _real_row(name: str, r: dict) -> str:
+    return (f"| {name} | {100 * r['bbox_AP']:.1f} | {100 * r['bbox_AP50']:.1f} | {r['n_det_at_threshold']} | "
+            f"{r['n_hard_negative']} ({100 * r['hard_negative_share']:.1f} %) | {r['n_hard_negative_no_window']} |")
+
+
+def render_report(dirs: list[Path], cands: list[str], base: PostConfig, shipped: PostConfig, predict, dets_fn,
                   cache: Path | None) -> list[str]:
     views = load_views(dirs, predict, cache)
     houses = sorted({v.house for v in views})
     results = {}
     for cand in cands:
-        rows = [r for v in views for r in view_outcomes(v, replace(base, **CANDIDATES[cand]), dets_fn)]
+        post = candidate_post(cand, base, shipped)
+        rows = [r for v in views for r in view_outcomes(v, post, dets_fn)]
         for h in houses + (["all"] if len(houses) > 1 else []):
             results[(cand, h)] = summarise([r for r in rows if h == "all" or r["house"] == h])
         print(f"{cand} done", flush=True)
@@ -310,7 +333,8 @@ def main() -> None:
     ap.add_argument("--part", default="val", choices=("val",), help="which photos of --yolo (val only: "
                     "the 10 test photos are never tuned on)")
     ap.add_argument("--weights", default=None, help="weights file (default: the shipped default.pt)")
-    ap.add_argument("--post", default="nearest", help=f"comma-separated candidates of {sorted(CANDIDATES)}")
+    ap.add_argument("--post", default="shipped", help="comma-separated candidates: shipped (the weights "
+                    f"file's post-processing) or of {sorted(CANDIDATES)}")
     ap.add_argument("--base", default="before", choices=("shipped", "before"),
                     help="PostConfig the candidates override: the weights file's, or the one before issue #23")
     ap.add_argument("--threads", type=int, default=1)
@@ -323,22 +347,26 @@ def main() -> None:
 
     torch.set_num_threads(a.threads)
     mod, net, ckpt = load_model(DETECTORS["default"].model, a.weights, any_arch=True)
-    base = PostConfig(**ckpt.get("post", {})) if a.base == "shipped" else PostConfig(**BEFORE)
+    shipped = mod.post_config(ckpt)
+    base = shipped if a.base == "shipped" else PostConfig(**BEFORE)
     predict = (lambda im: mod.predict_maps(net, im)) if ckpt["arch"] == "effwin" \
         else (lambda im: np.stack(mod.predict_maps(net, im)))
     dets_fn = mod.detections_from_maps if ckpt["arch"] == "effwin" \
         else (lambda maps, post: mod.instances_from_maps(maps[0], maps[1], post))
     cands = a.post.split(",")
-    unknown = [c for c in cands if c not in CANDIDATES]
+    unknown = [c for c in cands if c not in CANDIDATES and c != "shipped"]
     if unknown:
         raise SystemExit(f"unknown candidate(s) {unknown}; choose from {sorted(CANDIDATES)}")
     lines = [f"`python tools/instance_separation.py {' '.join(sys.argv[1:])}` (weights "
-             f"{a.weights or 'pipeline/models/default.pt'}, {ckpt['arch']}; base {base})", ""]
+             f"{a.weights or 'pipeline/models/default.pt'}, {ckpt['arch']}; candidates override {base}; "
+             f"`shipped` = {shipped})", ""]
     if a.yolo is not None:
-        lines += real_report(a.yolo, a.part, cands, base, predict, a.cache) + [""]
+        if "oracle" in cands:
+            raise SystemExit("the oracle needs instance maps: real photos have boxes only")
+        lines += real_report(a.yolo, a.part, cands, base, shipped, predict, a.cache) + [""]
     dirs = [Path(p) for pat in a.data for p in sorted(glob.glob(pat))]
     if dirs:
-        lines += render_report(dirs, cands, base, predict, dets_fn, a.cache)
+        lines += render_report(dirs, cands, base, shipped, predict, dets_fn, a.cache)
     text = "\n".join(lines).rstrip() + "\n"
     print(text)
     if a.doc is not None:

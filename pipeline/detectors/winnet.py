@@ -87,16 +87,19 @@ def pad_to_stride(t: torch.Tensor, stride: int = STRIDE) -> tuple[torch.Tensor, 
     return t, H, W
 
 
-SEPARATIONS = ("nearest", "watershed")
+SEPARATIONS = ("nearest", "nearest-blob", "watershed")
 
 
 @dataclass(frozen=True)
 class PostConfig:
     """Turning probability maps into instances (probabilities in [0, 1], areas in px).
 
-    separation: how void pixels join the seeds: ``nearest`` seed (Euclidean), or ``watershed``:
-    flooded from the seeds over 1 - void probability, so two touching voids part where the void
-    map dips (the frame or mullion between them), each within its own void blob.
+    separation: how void pixels join the seeds: ``nearest`` seed (Euclidean; a void blob without
+    a seed of its own joins a neighbouring blob's seed: one instance of disconnected pieces, the
+    behaviour before issue #23), ``nearest-blob`` (the nearest seed inside the pixel's own void
+    blob; seedless blobs become their own instances), or ``watershed``: flooded from the seeds over
+    1 - void probability, so two touching voids part where the void map dips (the frame or mullion
+    between them), each within its own void blob.
     split_levels: increasing core thresholds above ``core_threshold``; a core blob that holds two
     or more blobs (each >= ``min_core_px``) at the next level is split into them, recursively
     (a component tree of the core map: neighbours whose cores merged at the base threshold);
@@ -184,16 +187,20 @@ def _join_nearest(void: np.ndarray, seeds: np.ndarray) -> np.ndarray:
     return np.where(void, seeds[iy, ix], 0)
 
 
+def _own_blob(void: np.ndarray, seeds: np.ndarray, flooded: np.ndarray) -> np.ndarray:
+    """``flooded`` (a seed label per pixel) kept where the pixel is void and in its seed's void blob."""
+    _, blobs = cv2.connectedComponents(void.astype(np.uint8), connectivity=4)
+    seed_blob = np.zeros(seeds.max() + 1, dtype=np.int32)
+    seed_blob[seeds[seeds > 0]] = blobs[seeds > 0]  # a seed lies inside one void blob
+    return np.where(void & (blobs == seed_blob[flooded]) & (flooded > 0), flooded, 0).astype(np.int32)
+
+
 def _join_watershed(void: np.ndarray, void_p: np.ndarray, seeds: np.ndarray) -> np.ndarray:
     """Seeds flooded over 1 - void probability, kept inside the void blob that holds the seed."""
     if seeds.max() == 0:
         return np.zeros(void.shape, dtype=np.int32)
     height = np.round(255.0 * (1.0 - np.clip(void_p, 0.0, 1.0))).astype(np.uint8)
-    flooded = ndimage.watershed_ift(height, seeds)
-    _, blobs = cv2.connectedComponents(void.astype(np.uint8), connectivity=4)
-    seed_blob = np.zeros(seeds.max() + 1, dtype=np.int32)
-    seed_blob[seeds[seeds > 0]] = blobs[seeds > 0]  # a seed lies inside one void blob
-    return np.where(void & (blobs == seed_blob[flooded]) & (flooded > 0), flooded, 0).astype(np.int32)
+    return _own_blob(void, seeds, ndimage.watershed_ift(height, seeds))
 
 
 def instances_from_maps(void_p: np.ndarray, core_p: np.ndarray, post: PostConfig = PostConfig()) -> list[Detection]:
@@ -210,6 +217,8 @@ def instances_from_maps(void_p: np.ndarray, core_p: np.ndarray, post: PostConfig
                         post.min_core_px, post.split_min_px)
     if post.separation == "watershed":
         labels = _join_watershed(void, void_p, seeds)
+    elif post.separation == "nearest-blob":
+        labels = _own_blob(void, seeds, _join_nearest(np.ones_like(void), seeds))
     else:
         labels = _join_nearest(void, seeds)
     # Void blobs that no seed reached get their own label.
@@ -255,9 +264,20 @@ def load_state(model: nn.Module, ckpt: dict) -> nn.Module:
     return model.eval()
 
 
+def post_from_checkpoint(ckpt: dict, defaults: dict | None = None) -> PostConfig:
+    """The PostConfig of a weights file: its ``post`` dict over the architecture's ``defaults``
+    over PostConfig's own (a file written before a field existed gets the architecture's choice)."""
+    return PostConfig(**{**(defaults or {}), **ckpt.get("post", {})})
+
+
+def post_config(ckpt: dict) -> PostConfig:
+    """A WinNet weights file's post-processing (PostConfig's defaults under the file's own)."""
+    return post_from_checkpoint(ckpt)
+
+
 def detector_from_model(model: WinNet, ckpt: dict):
     """image (H, W, 3) uint8 RGB -> Detections, with the checkpoint's post-processing (PostConfig)."""
-    post = PostConfig(**ckpt.get("post", {}))
+    post = post_config(ckpt)
     return lambda image, **_: instances_from_maps(*predict_maps(model, image), post)
 
 
