@@ -166,7 +166,8 @@ def evaluate_boxes(detector_name: str, yolo_dir: str | Path, part: str = "val", 
     scores = scores_by_type(data.coco_scores(gt, results, ("bbox",)))
     return {"detector": detector_name, "dataset": f"{yolo_dir} ({part}, every {holdout_every}th photo held out)",
             "n_images": len(images), "n_gt": len(anns), "n_ignore": 0, "n_det": len(results),
-            "ms_per_image_median": float(np.median(times)), **scores, "paper_table2": PAPER_TABLE2}
+            "ms_per_image_median": float(np.median(times)), **scores, "paper_table2": PAPER_TABLE2,
+            "hard_negatives": {**hard_negative_share(hard), "threshold": shipped_threshold}}
 
 
 HARD_NEGATIVE_CLASSES = (3, 5)  # spb_facades labels: 3 signboard, 5 door (0 is the window)
