@@ -160,7 +160,7 @@ def test_evaluate_boxes_scores_real_style_photos_through_detect(tmp_path):
     The shipped default finds the six drawn dark windows in their white frames."""
     import cv2
 
-    from training.evaluate import evaluate_boxes
+    from training.evaluate import evaluate_boxes, format_table
 
     (tmp_path / "images").mkdir()
     (tmp_path / "labels").mkdir()
@@ -174,12 +174,16 @@ def test_evaluate_boxes_scores_real_style_photos_through_detect(tmp_path):
             cv2.rectangle(img, (x, y), (x + 300, y + 400), (40, 50, 70), -1)
             lines.append(f"0 {(x + 150.5) / W} {(y + 200.5) / H} {301 / W} {401 / H}")
     lines.append("5 0.5 0.95 0.1 0.1")  # a door: not a window
+    lines.append("3" + lines[0][1:])  # a signboard label on the first window's box: a hard negative
     for name in ("a", "b"):  # "a" is the validation photo (index 0), "b" training
         cv2.imwrite(str(tmp_path / "images" / f"{name}.jpg"), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
         (tmp_path / "labels" / f"{name}.txt").write_text("\n".join(lines) + "\n")
     r = evaluate_boxes("default", tmp_path, part="val", holdout_every=2)
     assert (r["n_images"], r["n_gt"]) == (1, 6) and "segm" not in r
     assert r["bbox"]["AP50"] > 0.8, r["bbox"]
+    h = r["hard_negatives"]  # detections at 0.5 on a door or signboard label: the first window's
+    assert h["n_det_at_threshold"] >= 6 and h["n_hard_negative"] == 1 and h["n_hard_negative_no_window"] == 0
+    assert "1 of" in format_table(r) and "door or signboard" in format_table(r)
     with pytest.raises(ValueError, match="instance maps"):
         evaluate_boxes("oracle", tmp_path)
 

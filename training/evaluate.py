@@ -132,13 +132,16 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
 
 
 def evaluate_boxes(detector_name: str, yolo_dir: str | Path, part: str = "val", holdout_every: int = 5,
-                   max_images: int | None = None, min_score: float = 0.05, **options: object) -> dict:
+                   max_images: int | None = None, min_score: float = 0.05, shipped_threshold: float = 0.5,
+                   **options: object) -> dict:
     """COCO bbox scores of a learned detector on real photos with YOLO window boxes (class 0).
 
     part / holdout_every: which photos (training.dataset.real_box_photos: "val" is the part
     training never sees). The photos go through :func:`pipeline.detectors.detect`, as a user's
     would (resized to the network's input, boxes mapped back). Returns the keys of
-    :func:`evaluate` but "segm" (boxes only) and the perfect-ranking figures.
+    :func:`evaluate` but "segm" (boxes only) and the perfect-ranking figures, plus
+    "hard_negatives" (:func:`hard_negative_share` of the detections at ``shipped_threshold``, the
+    score pipeline.detectors.detect keeps by default, on the labels' doors and signboards).
     """
     from pipeline.detectors import detect  # noqa: PLC0415
     from training.dataset import read_box_photo, real_box_photos  # noqa: PLC0415
@@ -146,20 +149,61 @@ def evaluate_boxes(detector_name: str, yolo_dir: str | Path, part: str = "val", 
     if DETECTORS[detector_name].needs_instances:
         raise ValueError(f"detector {detector_name!r} needs instance maps; real photos have boxes only")
     photos = real_box_photos(yolo_dir, part, holdout_every)[:max_images]
-    images, anns, results, times = [], [], [], []
+    images, anns, results, times, hard = [], [], [], [], []
     for k, p in enumerate(photos, 1):
         image, inst, _ = read_box_photo(p)
         images.append((p.name, *image.shape[:2]))
-        anns += [data.gt_annotation(p.name, box=data.mask_box(inst == i)) for i in np.unique(inst) if i]
+        wins = [data.mask_box(inst == i) for i in np.unique(inst) if i]
+        anns += [data.gt_annotation(p.name, box=b) for b in wins]
         t0 = time.perf_counter()
         dets = detect(detector_name, image, score_threshold=min_score, **options)
         times.append((time.perf_counter() - t0) * 1000.0)
         results += [data.coco_result(k, d.score, d.box) for d in dets]
+        negs = data.yolo_boxes((p.parent.parent / "labels" / f"{p.stem}.txt").read_text(), image.shape[1],
+                               image.shape[0], HARD_NEGATIVE_CLASSES, p.name)
+        hard.append(([d.box for d in dets if d.score >= shipped_threshold], negs, wins))
     gt = data.coco_ground_truth(images, anns)
     scores = scores_by_type(data.coco_scores(gt, results, ("bbox",)))
     return {"detector": detector_name, "dataset": f"{yolo_dir} ({part}, every {holdout_every}th photo held out)",
             "n_images": len(images), "n_gt": len(anns), "n_ignore": 0, "n_det": len(results),
-            "ms_per_image_median": float(np.median(times)), **scores, "paper_table2": PAPER_TABLE2}
+            "ms_per_image_median": float(np.median(times)), **scores, "paper_table2": PAPER_TABLE2,
+            "hard_negatives": {**hard_negative_share(hard), "threshold": shipped_threshold}}
+
+
+HARD_NEGATIVE_CLASSES = (3, 5)  # spb_facades labels: 3 signboard, 5 door (0 is the window)
+HARD_NEGATIVE_OVERLAP = 0.5  # IoU, or intersection over the detection's box, above this: "on" the label
+
+
+def box_overlaps(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(IoU, intersection over a's area), each (len(a), len(b)), of boxes (N, 4) x0 y0 x1 y1 px."""
+    a, b = np.asarray(a, dtype=np.float64).reshape(-1, 4), np.asarray(b, dtype=np.float64).reshape(-1, 4)
+    w = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)
+    h = np.clip(np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]), 0, None)
+    inter = w * h
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
+    union = area_a[:, None] + area_b[None, :] - inter
+    return inter / np.maximum(union, 1e-9), inter / np.maximum(area_a[:, None], 1e-9)
+
+
+def hard_negative_share(photos: list[tuple[list, list, list]]) -> dict:
+    """How many detections lie on a labelled door or signboard: per photo (detection boxes at the
+    shipped threshold, door/signboard boxes, window boxes). A detection is on one when its box IoU
+    or its intersection over the detection's area exceeds HARD_NEGATIVE_OVERLAP. Returns
+    {"n_det_at_threshold", "n_hard_negative", "hard_negative_share" (fraction, NaN without
+    detections), "n_hard_negative_no_window" (of those, how many match no window box at IoU 0.5)}."""
+    n_det = n_hard = n_alone = 0
+    for dets, negs, wins in photos:
+        n_det += len(dets)
+        if not len(dets) or not len(negs):
+            continue
+        iou, iod = box_overlaps(np.asarray(dets), np.asarray(negs))
+        on = ((iou > HARD_NEGATIVE_OVERLAP) | (iod > HARD_NEGATIVE_OVERLAP)).any(axis=1)
+        win_iou = box_overlaps(np.asarray(dets), np.asarray(wins))[0].max(axis=1) if len(wins) else np.zeros(len(dets))
+        n_hard += int(on.sum())
+        n_alone += int((on & (win_iou < 0.5)).sum())
+    return {"n_det_at_threshold": n_det, "n_hard_negative": n_hard,
+            "hard_negative_share": n_hard / n_det if n_det else float("nan"), "n_hard_negative_no_window": n_alone}
 
 
 def format_table(result: dict) -> str:
@@ -181,4 +225,10 @@ def format_table(result: dict) -> str:
                      f"{result['n_det']} detections match no window (IoU < 0.5); with the same detections "
                      f"ranked by their overlap with the truth: AP {100 * o['AP']:.1f}, AP50 {100 * o['AP50']:.1f} "
                      f"(what the scores cost: {100 * (o['AP'] - s['AP']):.1f} AP)")
+    if "hard_negatives" in result:
+        h = result["hard_negatives"]
+        lines.append(f"doors and signboards: {h['n_hard_negative']} of {h['n_det_at_threshold']} detections at score >= "
+                     f"{h['threshold']} ({100 * h['hard_negative_share']:.1f} %) lie on a labelled door or signboard "
+                     f"(box IoU or intersection over the detection > {HARD_NEGATIVE_OVERLAP}); "
+                     f"{h['n_hard_negative_no_window']} of them match no window box")
     return "\n".join(lines)

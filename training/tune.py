@@ -34,7 +34,7 @@ def instance_maps_to_coco(instances: list[np.ndarray]) -> dict:
 def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[dict, PostConfig]]:
     """(fenestra.data.coco_scores segm scores, PostConfig) for every grid point, best segm AP first
     (views_per_dataset 0: all)."""
-    predict, _ = load_map_predictor(weights)
+    predict, shipped = load_map_predictor(weights)
     maps, insts = [], []
     for d in find_datasets([data]):
         vs = list_views(d)
@@ -46,7 +46,7 @@ def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[di
     gt = instance_maps_to_coco([inst for _, inst in insts])  # ids 1, 2, ... as in insts
     out = []
     for vt, ct in itertools.product((0.4, 0.5, 0.6), (0.3, 0.5, 0.7)):
-        post = PostConfig(void_threshold=vt, core_threshold=ct)
+        post = dataclasses.replace(shipped, void_threshold=vt, core_threshold=ct)  # the file's other choices kept
         res = [detection_to_coco(det, i) for (i, _), (v, c) in zip(insts, maps)
                for det in instances_from_maps(v, c, post) if det.score >= 0.05]
         out.append((coco_scores(gt, res, ("segm",)), post))

@@ -174,13 +174,12 @@ def build_trainable(model: Checkpointed, any_arch: bool, weights: str | Path | N
 def load_map_predictor(weights: str | Path | None = None):
     """(predict, PostConfig) of a weights file with void/core maps (default: the shipped default):
     predict(image (H, W, 3) uint8 RGB) -> (void, core) probability maps (H, W) float32, the inputs
-    of winnet.instances_from_maps (post-processing tuning: training/tune.py)."""
-    from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
-
+    of winnet.instances_from_maps (post-processing tuning: training/tune.py); the PostConfig is the
+    file's (its architecture module's ``post_config``)."""
     mod, net, ckpt = load_model(DETECTORS["default"].model, weights, any_arch=True)
     if not hasattr(mod, "void_core_maps"):
         raise FenestraError(f"{weights}: a {ckpt['arch']!r} model has no void/core maps to tune")
-    return mod.void_core_maps(net), PostConfig(**ckpt.get("post", {}))
+    return mod.void_core_maps(net), mod.post_config(ckpt)
 
 
 DETECTORS: Registry[DetectorEntry] = Registry("detector", [

@@ -87,14 +87,46 @@ def pad_to_stride(t: torch.Tensor, stride: int = STRIDE) -> tuple[torch.Tensor, 
     return t, H, W
 
 
+SEPARATIONS = ("nearest", "nearest-blob", "watershed")
+
+
 @dataclass(frozen=True)
 class PostConfig:
-    """Turning probability maps into instances (probabilities in [0, 1], areas in px)."""
+    """Turning probability maps into instances (probabilities in [0, 1], areas in px).
+
+    separation: how void pixels join the seeds: ``nearest`` seed (Euclidean; a void blob without
+    a seed of its own joins a neighbouring blob's seed: one instance of disconnected pieces, the
+    behaviour before issue #23), ``nearest-blob`` (the nearest seed inside the pixel's own void
+    blob; seedless blobs become their own instances), or ``watershed``: flooded from the seeds over
+    1 - void probability, so two touching voids part where the void map dips (the frame or mullion
+    between them), each within its own void blob.
+    split_levels: increasing core thresholds above ``core_threshold``; a core blob that holds two
+    or more blobs (each >= ``min_core_px``) at the next level is split into them, recursively
+    (a component tree of the core map: neighbours whose cores merged at the base threshold);
+    split_map: the map whose levels split (``core`` or ``void``); split_min_px: the least size of
+    a sub-blob that counts.
+    Empty: no splitting (the detector before issue #23).
+    """
 
     void_threshold: float = 0.5
     core_threshold: float = 0.5
     min_area_px: int = 30
     min_core_px: int = 4
+    separation: str = "nearest"
+    split_levels: tuple[float, ...] = ()
+    split_map: str = "core"
+    split_min_px: int = 4
+
+    def __post_init__(self) -> None:
+        if self.split_map not in ("core", "void"):
+            raise ValueError(f"split_map must be 'core' or 'void', got {self.split_map!r}")
+        if self.separation not in SEPARATIONS:
+            raise ValueError(f"separation must be one of {SEPARATIONS}, got {self.separation!r}")
+        levels = (self.core_threshold, *self.split_levels)
+        if any(not b > a for a, b in zip(levels, levels[1:])) or not all(0.0 <= v <= 1.0 for v in levels):
+            raise ValueError(f"split_levels must increase above core_threshold {self.core_threshold} "
+                             f"within [0, 1], got {self.split_levels}")
+        object.__setattr__(self, "split_levels", tuple(float(v) for v in self.split_levels))
 
 
 def core_targets(instances: np.ndarray, shrink_px: float = 3.0, shrink_frac: float = 0.15) -> np.ndarray:
@@ -118,25 +150,77 @@ def core_targets(instances: np.ndarray, shrink_px: float = 3.0, shrink_frac: flo
     return core
 
 
+def split_seeds(prob: np.ndarray, base: np.ndarray, levels: tuple[float, ...], min_px: int,
+                split_min_px: int) -> np.ndarray:
+    """(H, W) int32 seed labels (0 = none): the connected components (4-connected) of ``base``
+    (bool), each replaced by its sub-blobs at ``prob >= levels[0]`` when it holds two or more
+    of at least ``split_min_px`` px, recursively over ``levels``; components under ``min_px`` dropped."""
+    seeds = np.zeros(base.shape, dtype=np.int32)
+    n_seeds = 0
+    stack = [(base, 0)]
+    while stack:
+        region, depth = stack.pop()
+        n, lab = cv2.connectedComponents(region.astype(np.uint8), connectivity=4)
+        sizes = np.bincount(lab.ravel(), minlength=n)
+        for k in range(1, n):
+            if sizes[k] < min_px:
+                continue
+            blob = lab == k
+            if depth < len(levels):
+                sub = blob & (prob >= levels[depth])
+                m, sl = cv2.connectedComponents(sub.astype(np.uint8), connectivity=4)
+                if m > 2 and np.count_nonzero(np.bincount(sl.ravel(), minlength=m)[1:] >= split_min_px) >= 2:
+                    stack.append((sub, depth + 1))
+                    continue
+                if m > 1:  # one blob at this level: look deeper inside it
+                    stack.append((blob, depth + 1))
+                    continue
+            n_seeds += 1
+            seeds[blob] = n_seeds
+    return seeds
+
+
+def _join_nearest(void: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    if seeds.max() == 0:
+        return np.zeros(void.shape, dtype=np.int32)
+    _, (iy, ix) = ndimage.distance_transform_edt(seeds == 0, return_indices=True)
+    return np.where(void, seeds[iy, ix], 0)
+
+
+def _own_blob(void: np.ndarray, seeds: np.ndarray, flooded: np.ndarray) -> np.ndarray:
+    """``flooded`` (a seed label per pixel) kept where the pixel is void and in its seed's void blob."""
+    _, blobs = cv2.connectedComponents(void.astype(np.uint8), connectivity=4)
+    seed_blob = np.zeros(seeds.max() + 1, dtype=np.int32)
+    seed_blob[seeds[seeds > 0]] = blobs[seeds > 0]  # a seed lies inside one void blob
+    return np.where(void & (blobs == seed_blob[flooded]) & (flooded > 0), flooded, 0).astype(np.int32)
+
+
+def _join_watershed(void: np.ndarray, void_p: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """Seeds flooded over 1 - void probability, kept inside the void blob that holds the seed."""
+    if seeds.max() == 0:
+        return np.zeros(void.shape, dtype=np.int32)
+    height = np.round(255.0 * (1.0 - np.clip(void_p, 0.0, 1.0))).astype(np.uint8)
+    return _own_blob(void, seeds, ndimage.watershed_ift(height, seeds))
+
+
 def instances_from_maps(void_p: np.ndarray, core_p: np.ndarray, post: PostConfig = PostConfig()) -> list[Detection]:
     """Instances from void/core probability maps (H, W) in [0, 1]; sorted by score, best first.
 
-    Seeds = connected components of (core & void); every void pixel joins its nearest seed; void
-    blobs without any seed become their own instance. Score = mean void probability over the mask
-    times the peak core probability.
+    Seeds = connected components of (core & void), split where a blob holds several blobs at the
+    higher ``post.split_levels``; every void pixel joins a seed (``post.separation``: the nearest,
+    or by watershed on the void map); void blobs without any seed become their own instance.
+    Score = mean void probability over the mask times the peak core probability.
     """
     void = void_p >= post.void_threshold
-    seeds_mask = (core_p >= post.core_threshold) & void
-    n_seeds, seeds = cv2.connectedComponents(seeds_mask.astype(np.uint8), connectivity=4)
-    # Drop tiny seeds (noise).
-    if n_seeds > 1:
-        sizes = np.bincount(seeds.ravel(), minlength=n_seeds)
-        seeds[sizes[seeds] < post.min_core_px] = 0
-    labels = np.zeros(void.shape, dtype=np.int32)
-    if seeds.max() > 0:
-        _, (iy, ix) = ndimage.distance_transform_edt(seeds == 0, return_indices=True)
-        labels = np.where(void, seeds[iy, ix], 0)
-        # Void pixels must be connected to their seed's blob: drop stray pieces.
+    base = (core_p >= post.core_threshold) & void
+    seeds = split_seeds(void_p if post.split_map == "void" else core_p, base, post.split_levels,
+                        post.min_core_px, post.split_min_px)
+    if post.separation == "watershed":
+        labels = _join_watershed(void, void_p, seeds)
+    elif post.separation == "nearest-blob":
+        labels = _own_blob(void, seeds, _join_nearest(np.ones_like(void), seeds))
+    else:
+        labels = _join_nearest(void, seeds)
     # Void blobs that no seed reached get their own label.
     n_blobs, blobs = cv2.connectedComponents((void & (labels == 0)).astype(np.uint8), connectivity=4)
     nxt = labels.max() + 1
@@ -180,9 +264,20 @@ def load_state(model: nn.Module, ckpt: dict) -> nn.Module:
     return model.eval()
 
 
+def post_from_checkpoint(ckpt: dict, defaults: dict | None = None) -> PostConfig:
+    """The PostConfig of a weights file: its ``post`` dict over the architecture's ``defaults``
+    over PostConfig's own (a file written before a field existed gets the architecture's choice)."""
+    return PostConfig(**{**(defaults or {}), **ckpt.get("post", {})})
+
+
+def post_config(ckpt: dict) -> PostConfig:
+    """A WinNet weights file's post-processing (PostConfig's defaults under the file's own)."""
+    return post_from_checkpoint(ckpt)
+
+
 def detector_from_model(model: WinNet, ckpt: dict):
     """image (H, W, 3) uint8 RGB -> Detections, with the checkpoint's post-processing (PostConfig)."""
-    post = PostConfig(**ckpt.get("post", {}))
+    post = post_config(ckpt)
     return lambda image, **_: instances_from_maps(*predict_maps(model, image), post)
 
 

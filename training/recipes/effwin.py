@@ -88,12 +88,14 @@ def effwin_config(cfg: TrainConfig):
 
 
 def effwin_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
-    """arch, EffWinConfig, fp16 weights and the post-processing defaults (PostConfig)."""
+    """arch, EffWinConfig, fp16 weights and EffWin's post-processing defaults (PostConfig over
+    effwin.POST_DEFAULTS)."""
+    from pipeline.detectors.effwin import POST_DEFAULTS  # noqa: PLC0415
     from pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
 
     sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
     return {"arch": "effwin", "config": dataclasses.asdict(effwin_config(cfg)), "state_dict": sd,
-            "post": dataclasses.asdict(PostConfig())}
+            "post": dataclasses.asdict(PostConfig(**POST_DEFAULTS))}
 
 
 def effwin_check(cfg: TrainConfig) -> None:
