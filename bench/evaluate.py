@@ -98,6 +98,9 @@ class ViewTask:
 class ViewOutcome:
     """Rows (list of dicts), seconds per stage, and COCO material for detection AP of one view.
 
+    frame: the same rows as a pandas DataFrame once :meth:`to_frame` moved them there (``rows``
+    is then empty): a run keeps each view's rows in columns, not 60 Python objects per row.
+
     dataset/view/size: the view's dataset (house), name and (H, W); window_ids: its labelled
     windows (a run manifest's expected rows); coco_dt holds the detectors that ran on the view
     (an oracle needs masks).
@@ -112,6 +115,21 @@ class ViewOutcome:
     view: str = ""
     size: tuple[int, int] = (0, 0)
     window_ids: tuple[str, ...] = ()
+    frame: object = None  # pandas.DataFrame of the rows after to_frame(), else None
+
+    def to_frame(self) -> "ViewOutcome":
+        """This outcome with its rows moved into ``frame`` (a DataFrame, columns in row order)."""
+        import pandas as pd  # noqa: PLC0415
+
+        if self.frame is not None:
+            return self
+        return replace(self, rows=[], frame=pd.DataFrame(self.rows))
+
+    def table(self):
+        """The view's rows as a DataFrame (``frame``, else built from ``rows``)."""
+        import pandas as pd  # noqa: PLC0415
+
+        return self.frame if self.frame is not None else pd.DataFrame(self.rows)
 
     @property
     def key(self) -> str:
@@ -348,12 +366,13 @@ PER_WINDOW_STAGES = ("snap", "aspect", "pose")
 
 
 def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list, cfg, withhold_K: bool,
-                 per_window: dict) -> tuple[list, tuple[str, ...]]:
+                 per_window: dict, segment_cache) -> tuple[list, tuple[str, ...]]:
     """reconstruct_from_quads of one method, and the timing keys it spent time on.
 
     A per-wall strategy starts from the per-window results of its base pose; those are computed
     once per snapper (or taken from that per-window method's own run) and kept in ``per_window``,
-    so every method's results are exactly those of a run of its own.
+    so every method's results are exactly those of a run of its own. segment_cache: the view's
+    pipeline.segments.SegmentCache (its façade line segments, found once for every method).
     """
     from pipeline.reconstruct import POSES, reconstruct_from_quads  # noqa: PLC0415
 
@@ -369,7 +388,7 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
     if key not in per_window:
         per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose))
         counted = (*PER_WINDOW_STAGES, "wall")
-    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key]), counted
+    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key], segment_cache=segment_cache), counted
 
 
 def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list) -> np.ndarray:
@@ -416,6 +435,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     from pipeline.detectors import detector_entry  # noqa: PLC0415
     from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
     from pipeline.quad import QuadParams  # noqa: PLC0415
+    from pipeline.segments import SegmentCache  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
 
@@ -432,6 +452,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     gt_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     t0 = tick("load", t0)
     gray = to_gray(view.image)  # RGB, as detect() and reconstruct() take it; once per view, shared by every method
+    segment_cache = SegmentCache(gray)  # the view's line segments (+lines strategies): found once, shared too
     t0 = tick("reconstruct", t0)
     can_oracle = view.instance_map() is not None
 
@@ -469,7 +490,8 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
                 stage_s["reconstruct.quad"] = (stage_s.get("reconstruct.quad", 0.0)
                                                + sum(q.ms for q in quads[cfg.quad]) / 1000.0)
             K_in = None if withhold_K else view.K
-            results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window)
+            results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window,
+                                             segment_cache)
             t0 = tick("reconstruct", t0)
             by_gt = {matched[r.index][0]: r for r in results}
             for r in results:

@@ -1,7 +1,8 @@
 """Results tables and summary.json of a benchmark run.
 
-A run folder holds ``results.parquet`` and ``results.csv`` (one row per view x GT window x method
-combination, errors with their unit in the column name) and ``summary.json``::
+A run folder holds ``results.parquet`` (one row per view x GT window x method combination, errors
+with their unit in the column name; ``results.csv``, the same table, only when asked for:
+``fenestra bench --csv``) and ``summary.json``::
 
     {"metadata": {commit, versions, seed, profile, config, config_hash, wall_time_s, stage_time_s, ...},
      "results": {method: {n_gt, n_evaluable, detection_rate, failure_rate,
@@ -57,15 +58,19 @@ def check_table(df: pd.DataFrame, where: str = "results") -> pd.DataFrame:
     return df
 
 
-def write_results(df: pd.DataFrame, run_dir: str | Path) -> tuple[Path, Path]:
-    """Write results.parquet and results.csv into run_dir; return their paths."""
+def write_results(df: pd.DataFrame, run_dir: str | Path, csv: bool = False) -> list[Path]:
+    """Write results.parquet (the results table) into run_dir, and results.csv when ``csv``
+    (a stale one is removed otherwise); return the paths written."""
     check_table(df)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    pq, csv = run_dir / RESULTS_PARQUET, run_dir / RESULTS_CSV
+    pq, csv_path = run_dir / RESULTS_PARQUET, run_dir / RESULTS_CSV
     df.to_parquet(pq, index=False)
-    df.to_csv(csv, index=False)
-    return pq, csv
+    if not csv:
+        csv_path.unlink(missing_ok=True)
+        return [pq]
+    df.to_csv(csv_path, index=False)
+    return [pq, csv_path]
 
 
 def load_results(run_dir: str | Path) -> pd.DataFrame:

@@ -12,7 +12,7 @@ bench.real.adapters (optional datasets whose folder is absent are skipped and li
 metadata) and evaluates them in this process. Either way every view is a bench.views.LabelledView
 evaluated by the one bench.evaluate.evaluate_view, and every labelled window gets one row per
 method combination. The run folder (default ``out/bench/<profile>-<config hash>``) receives
-results.parquet/.csv, manifest.json, summary.json (metadata, per-method results, per-detector
+results.parquet (results.csv with ``csv``), manifest.json, summary.json (metadata, per-method results, per-detector
 detection AP), ``simreal.json`` for a real profile given a synthetic run folder
 (bench.real.simreal) and, when a report writer is passed, the report; renders go to
 ``out/renders`` (renders.dataset names and reuses them by config hash). bench/ never imports
@@ -24,7 +24,7 @@ import itertools
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
@@ -169,6 +169,18 @@ def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress:
                       "datasets": {d.name: str(d.folder()) for d in datasets}, "n_windows": n_windows})
 
 
+def results_table(outcomes: list[ViewOutcome]) -> pd.DataFrame:
+    """Every view's rows in one table, in the outcomes' order; each outcome's rows are released
+    as its view is added (ViewOutcome.table; empty table when no view has rows)."""
+    frames = []
+    for i, o in enumerate(outcomes):
+        t = o.table()
+        if len(t):
+            frames.append(t)
+        outcomes[i] = replace(o, rows=[], frame=None)
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
 def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
     total: dict[str, float] = {}
     for o in outcomes:
@@ -193,7 +205,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
                   methods: tuple[Method, ...] | None = None,
                   renders_dir: str | Path | None = None, executor: str = "local",
                   executor_options: dict | None = None, force: bool = False,
-                  sim_dir: str | Path | None = None) -> RunInfo:
+                  sim_dir: str | Path | None = None, csv: bool = False) -> RunInfo:
     """Run a profile, synthetic or real, end to end; see the module docstring. Returns a RunInfo.
 
     methods: override the profile's method combinations (e.g. a test's extra snapper);
@@ -203,7 +215,8 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     profile's run or foreign files (bench.manifest.claim_run_dir); sim_dir: a real profile's
     synthetic run folder for simreal.json (FileNotFoundError if it is not a run folder); report:
     called with the run folder once the tables (and simreal.json) are written, its time recorded
-    as stage "report" (None or False: no report).
+    as stage "report" (None or False: no report); csv: also write results.csv (the Parquet
+    table is the results table).
     """
     t_start = time.perf_counter()
     photos = isinstance(profile, RealProfile)
@@ -223,12 +236,11 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
 
     t0 = time.perf_counter()
-    rows = [r for o in outcomes for r in o.rows]
-    if not rows:
+    df = results_table(outcomes)
+    if df.empty:
         raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
-    df = pd.DataFrame(rows)
     df.insert(0, "profile", profile.name)
-    res.write_results(df, run_dir)
+    res.write_results(df, run_dir, csv=csv)
     manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
     det = detection_ap(outcomes, per_dataset=photos)
     stage_s["summarize"] = time.perf_counter() - t0
