@@ -147,22 +147,31 @@ def summarize(df: pd.DataFrame) -> dict[str, dict]:
     return {m: summarize_method(g) for m, g in sorted(df.groupby("method"), key=lambda kv: kv[0])}
 
 
+def _git_dirs(root: Path) -> tuple[Path, Path]:
+    """(the checkout's git folder, its common folder): .git itself, or, in a worktree whose .git
+    is a file ("gitdir: PATH"), that PATH and the folder its ``commondir`` names."""
+    if root.is_file():
+        root = Path(root.read_text().split(":", 1)[1].strip())
+    common = root / "commondir"
+    return root, ((root / common.read_text().strip()).resolve() if common.is_file() else root)
+
+
 def _commit() -> str | None:
-    """The current commit hash, read from .git files (no git process), or None."""
-    root = Path(__file__).resolve().parent.parent / ".git"
+    """The current commit hash, read from .git files (no git process; worktrees too), or None."""
     try:
-        head = (root / "HEAD").read_text().strip()
+        git, common = _git_dirs(Path(__file__).resolve().parent.parent / ".git")
+        head = (git / "HEAD").read_text().strip()
         if not head.startswith("ref:"):
             return head
         ref = head.split(" ", 1)[1]
-        p = root / ref
-        if p.is_file():
-            return p.read_text().strip()
-        packed = root / "packed-refs"
+        for d in (git, common):
+            if (d / ref).is_file():
+                return (d / ref).read_text().strip()
+        packed = common / "packed-refs"
         for line in packed.read_text().splitlines() if packed.is_file() else []:
             if line.endswith(" " + ref):
                 return line.split(" ", 1)[0]
-    except OSError:
+    except (OSError, IndexError):
         return None
     return None
 

@@ -189,6 +189,15 @@ def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
     return dict(sorted(total.items()))
 
 
+def peak_rss_mb() -> dict[str, float]:
+    """Peak resident memory (MB) so far of this process and of its largest finished child (a
+    worker of the evaluation's process pool): what bounds a run's memory."""
+    import resource  # noqa: PLC0415
+
+    return {who: resource.getrusage(r).ru_maxrss / 1024.0
+            for who, r in (("main", resource.RUSAGE_SELF), ("largest_worker", resource.RUSAGE_CHILDREN))}
+
+
 def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) -> dict[str, dict]:
     """Per-view and per-window milliseconds of every CPU stage (``cpu.*``): regressions show there.
 
@@ -219,6 +228,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     table is the results table).
     """
     t_start = time.perf_counter()
+    load_before = os.getloadavg()
     photos = isinstance(profile, RealProfile)
     if sim_dir is not None and not photos:
         raise ValueError(f"sim_dir needs a real profile, got profile {profile.name!r}")
@@ -248,7 +258,9 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
                              n_views=len(outcomes), n_rows=len(df),
                              **per_unit_timings(stage_s, len(outcomes), len(df) // max(1, len(methods))),
-                             methods=[m.name for m in methods], skipped_detectors=skipped, **ev.meta)
+                             methods=[m.name for m in methods], skipped_detectors=skipped,
+                             load_average={"before": load_before, "after": os.getloadavg()},
+                             peak_rss_mb=peak_rss_mb(), **ev.meta)
     summary = res.summarize(df)
     res.write_summary(run_dir, meta, summary, det)
     if sim_dir is not None:
