@@ -64,14 +64,16 @@ def default_run_dir(profile: Profile | RealProfile) -> Path:
 # ---------------------------------------------------------------- methods
 
 def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
-    """Detectors that can be built here (learned ones need weights); {skipped: reason}."""
-    from pipeline.detectors import DETECTORS, get_detector  # noqa: PLC0415
+    """Detectors that can be built here (learned ones need weights); {skipped: reason}. Each
+    learned one is built once and dropped (not kept in the detectors' cache): the workers build
+    their own, and the parent process stays small while it gathers the results table."""
+    from pipeline.detectors import DETECTORS  # noqa: PLC0415
 
     ok, skipped = [], {}
     for n in names:
         try:
             if not DETECTORS[n].needs_instances:  # the oracles load no weights
-                get_detector(n, **LEARNED_DETECTOR_OPTIONS)
+                DETECTORS[n].build(**LEARNED_DETECTOR_OPTIONS)
             ok.append(n)
         except Exception as e:  # noqa: BLE001 - missing weights etc.: skip, recorded in metadata
             skipped[n] = f"{type(e).__name__}: {e}"
