@@ -52,8 +52,8 @@ gate: smoke real  ## smoke and real profiles, then the accuracy gates
 	$(PY) -m app gate out/bench/smoke
 	$(PY) -m app gate out/bench/real
 
-timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s)
-	$(PY) -m bench.timing --json out/timing.json
+timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s), written into docs/performance.md
+	$(PY) -m bench.timing --json out/timing.json --markdown docs/performance.md
 
 report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present), then `make docs`
 	$(PY) -m app report $(LATEST_DEFAULT) $(REAL_RUN)

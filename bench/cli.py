@@ -64,7 +64,8 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
               sim: Path = typer.Option(None, "--sim", help="real profiles: a synthetic run folder for the sim-to-real table"),
               real: Path = typer.Option(None, "--real", help="synthetic profiles: a real-photo run folder (fenestra bench "
                                                              "--profile real) for the report's photo column"),
-              force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files")) -> None:
+              force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files"),
+              csv: bool = typer.Option(False, "--csv", help="also write results.csv (results.parquet is the results table)")) -> None:
         """Render (cached), reconstruct with every strategy, measure, summarise, report."""
         from bench.executors import get_executor  # noqa: PLC0415
         from bench.profiles import load_profile  # noqa: PLC0415
@@ -87,7 +88,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
             p = load_real_profile(profile)
             if data is not None:
                 p = with_user_data(p, data, fmt)
-            info = run_benchmark(p, out_dir=out, report=None if no_report else write_report, force=force, sim_dir=sim)
+            info = run_benchmark(p, out_dir=out, report=None if no_report else write_report, force=force, sim_dir=sim, csv=csv)
         elif data is not None or sim is not None:
             raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
         else:
@@ -97,7 +98,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                 raise ValueError(f"--real {real}: not a real-photo run (fenestra bench --profile real makes one)")
             report = None if no_report else functools.partial(write_report, real_dir=real)
             info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                                 report=report, executor=executor, executor_options=opts, force=force)
+                                 report=report, executor=executor, executor_options=opts, force=force, csv=csv)
         summary = load_summary(info.run_dir)
         typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
         typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))

@@ -98,6 +98,9 @@ class ViewTask:
 class ViewOutcome:
     """Rows (list of dicts), seconds per stage, and COCO material for detection AP of one view.
 
+    frame: the same rows as a pandas DataFrame once :meth:`to_frame` moved them there (``rows``
+    is then empty): a run keeps each view's rows in columns, not 60 Python objects per row.
+
     dataset/view/size: the view's dataset (house), name and (H, W); window_ids: its labelled
     windows (a run manifest's expected rows); coco_dt holds the detectors that ran on the view
     (an oracle needs masks).
@@ -112,6 +115,21 @@ class ViewOutcome:
     view: str = ""
     size: tuple[int, int] = (0, 0)
     window_ids: tuple[str, ...] = ()
+    frame: object = None  # pandas.DataFrame of the rows after to_frame(), else None
+
+    def to_frame(self) -> "ViewOutcome":
+        """This outcome with its rows moved into ``frame`` (a DataFrame, columns in row order)."""
+        import pandas as pd  # noqa: PLC0415
+
+        if self.frame is not None:
+            return self
+        return replace(self, rows=[], frame=pd.DataFrame(self.rows))
+
+    def table(self):
+        """The view's rows as a DataFrame (``frame``, else built from ``rows``)."""
+        import pandas as pd  # noqa: PLC0415
+
+        return self.frame if self.frame is not None else pd.DataFrame(self.rows)
 
     @property
     def key(self) -> str:
@@ -257,13 +275,30 @@ def _finite(q) -> bool:
     return q is not None and bool(np.all(np.isfinite(q)))
 
 
+class QuadIoUMemo:
+    """bench.metrics.quad_iou of quad pairs, each pair computed once: a view's mask-fit quads are
+    the same for every snapper and pose, its snapped quads for every pose (a callable like
+    metrics.quad_iou; make one per view)."""
+
+    def __init__(self) -> None:
+        self._seen: dict[tuple, float] = {}
+
+    def __call__(self, q: np.ndarray, gt: np.ndarray) -> float:
+        a, b = np.asarray(q), np.asarray(gt)
+        key = (a.dtype.str, a.shape, a.tobytes(), b.dtype.str, b.shape, b.tobytes())
+        if key not in self._seen:
+            self._seen[key] = metrics.quad_iou(q, gt)
+        return self._seen[key]
+
+
 def window_errors(res, w: LabelledWindow, gt_pose: tuple[np.ndarray, np.ndarray] | None,
-                  K: np.ndarray | None) -> dict:
+                  K: np.ndarray | None, quad_iou=metrics.quad_iou) -> dict:
     """Every error of one WindowResult against what the window's truth knows (NaN elsewhere).
 
     gt_pose: the window's true (R, t) (metrics.gt_window_pose; renders), or None; K: the view's
-    true K, or None (unknown). Keys: ERROR_COLUMNS (match_iou and det_score NaN: the caller's),
-    PHOTO_ERRORS, and, with gt_pose and K, bench.uncertainty.COLUMNS.
+    true K, or None (unknown); quad_iou: metrics.quad_iou or a :class:`QuadIoUMemo` of the view.
+    Keys: ERROR_COLUMNS (match_iou and det_score NaN: the caller's), PHOTO_ERRORS, and, with
+    gt_pose and K, bench.uncertainty.COLUMNS.
     """
     out = {k: NAN for k in (*ERROR_COLUMNS, *PHOTO_ERRORS)}
     stages = {"mask": res.quad_mask, "snap": res.quad_snapped, "reproj": res.quad_reprojected}
@@ -275,7 +310,7 @@ def window_errors(res, w: LabelledWindow, gt_pose: tuple[np.ndarray, np.ndarray]
         out["snap_gain_px"] = out["corner_err_px_mask"] - out["corner_err_px_snap"]
         for col, s in (("iou_2d", "snap"), ("iou_2d_mask", "mask"), ("iou_2d_reproj", "reproj")):
             if _finite(stages[s]):
-                out[col] = metrics.quad_iou(stages[s], w.quad)
+                out[col] = quad_iou(stages[s], w.quad)
     if res.aspect_ratio is not None and math.isfinite(res.aspect_ratio):
         out["aspect_est"] = float(res.aspect_ratio)
         if w.aspect is not None:
@@ -348,12 +383,13 @@ PER_WINDOW_STAGES = ("snap", "aspect", "pose")
 
 
 def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list, cfg, withhold_K: bool,
-                 per_window: dict) -> tuple[list, tuple[str, ...]]:
+                 per_window: dict, segment_cache) -> tuple[list, tuple[str, ...]]:
     """reconstruct_from_quads of one method, and the timing keys it spent time on.
 
     A per-wall strategy starts from the per-window results of its base pose; those are computed
     once per snapper (or taken from that per-window method's own run) and kept in ``per_window``,
-    so every method's results are exactly those of a run of its own.
+    so every method's results are exactly those of a run of its own. segment_cache: the view's
+    pipeline.segments.SegmentCache (its façade line segments, found once for every method).
     """
     from pipeline.reconstruct import POSES, reconstruct_from_quads  # noqa: PLC0415
 
@@ -369,7 +405,7 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
     if key not in per_window:
         per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose))
         counted = (*PER_WINDOW_STAGES, "wall")
-    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key]), counted
+    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key], segment_cache=segment_cache), counted
 
 
 def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list) -> np.ndarray:
@@ -388,12 +424,12 @@ def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> 
 
 
 def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tuple[str, ...], by_gt: dict,
-                 det_for_gt: dict, dets: list, gt_poses: dict) -> list[dict]:
+                 det_for_gt: dict, dets: list, gt_poses: dict, quad_iou=metrics.quad_iou) -> list[dict]:
     """One method's rows, one per labelled window in order: missed, or its result's errors.
 
     by_gt: {window index: WindowResult}; det_for_gt: {window index: (detection index, IoU)};
     dets: the detections matched against; gt_poses: {window index: true (R, t)}, filled here once
-    per window of a render (the same for every method)."""
+    per window of a render (the same for every method); quad_iou: as for window_errors."""
     rows = []
     for g, (w, b) in enumerate(zip(view.windows, base)):
         if g not in by_gt:
@@ -402,7 +438,7 @@ def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tup
         res, (d, iou) = by_gt[g], det_for_gt[g]
         if view.pose is not None and g not in gt_poses:
             gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
-        errs = window_errors(res, w, gt_poses.get(g), view.K)
+        errs = window_errors(res, w, gt_poses.get(g), view.K, quad_iou)
         errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_error(dets[d], w))
         rows.append(_method_row(b, method, tail, **errs, aspect_case=res.aspect_case,
                                 status="ok" if res.failure is None else "failed",
@@ -416,6 +452,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     from pipeline.detectors import detector_entry  # noqa: PLC0415
     from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
     from pipeline.quad import QuadParams  # noqa: PLC0415
+    from pipeline.segments import SegmentCache  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
 
@@ -430,8 +467,10 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     out = ViewOutcome(rows=[], stage_s=stage_s, coco_gt=gt_coco(view), dataset=view.dataset, view=view.name,
                       size=view.size, window_ids=tuple(str(w.id) for w in view.windows))
     gt_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    iou_memo = QuadIoUMemo()  # quad IoUs of this view, each pair computed once for every method
     t0 = tick("load", t0)
     gray = to_gray(view.image)  # RGB, as detect() and reconstruct() take it; once per view, shared by every method
+    segment_cache = SegmentCache(gray)  # the view's line segments (+lines strategies): found once, shared too
     t0 = tick("reconstruct", t0)
     can_oracle = view.instance_map() is not None
 
@@ -469,14 +508,15 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
                 stage_s["reconstruct.quad"] = (stage_s.get("reconstruct.quad", 0.0)
                                                + sum(q.ms for q in quads[cfg.quad]) / 1000.0)
             K_in = None if withhold_K else view.K
-            results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window)
+            results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window,
+                                             segment_cache)
             t0 = tick("reconstruct", t0)
             by_gt = {matched[r.index][0]: r for r in results}
             for r in results:
                 for k, ms in r.timings_ms.items():
                     if k in counted:  # the shared quad fit and reused per-window stages: counted once
                         stage_s[f"reconstruct.{k}"] = stage_s.get(f"reconstruct.{k}", 0.0) + ms / 1000.0
-            out.rows += _method_rows(view, base, method, cols, by_gt, det_for_gt, dets, gt_poses)
+            out.rows += _method_rows(view, base, method, cols, by_gt, det_for_gt, dets, gt_poses, iou_memo)
             t0 = tick("metrics", t0)
     return out
 

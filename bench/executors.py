@@ -121,10 +121,12 @@ def _progress(enabled: bool):
 # ---------------------------------------------------------------- local
 
 def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = True,
-                   total: int | None = None) -> list[ViewOutcome]:
+                   total: int | None = None, frames: bool = False) -> list[ViewOutcome]:
     """evaluate_task over all tasks, in order; a spawned process pool when workers > 1. tasks may
     be a generator (with workers <= 1 each view is loaded only when its turn comes); total: their
-    number for the progress bar, when known."""
+    number for the progress bar, when known; frames: each outcome's rows moved into a DataFrame
+    as it arrives (ViewOutcome.to_frame: a run's memory stays bounded)."""
+    keep = (lambda o: o.to_frame()) if frames else (lambda o: o)
     outcomes: list[ViewOutcome] = []
     with _progress(progress) as bar:
         job = bar.add_task("evaluating views", total=len(tasks) if total is None and hasattr(tasks, "__len__")
@@ -132,13 +134,13 @@ def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = Tru
         if workers <= 1:
             init_worker()
             for t in tasks:
-                outcomes.append(evaluate_task(t))
+                outcomes.append(keep(evaluate_task(t)))
                 bar.advance(job)
             return outcomes
         ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
         with _environ(thread_env()), ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker) as pool:
             for o in pool.map(evaluate_task, tasks, chunksize=1):
-                outcomes.append(o)
+                outcomes.append(keep(o))
                 bar.advance(job)
     return outcomes
 
@@ -178,7 +180,7 @@ def run_local(plan: Plan, workers: int, progress: bool = True, **_: object
     if not tasks:
         raise FenestraError(f"profile {plan.profile.name!r} rendered no views")
     t0 = time.perf_counter()
-    outcomes = evaluate_local(tasks, workers, progress)
+    outcomes = evaluate_local(tasks, workers, progress, frames=True)
     stage_s["evaluate_wall"] = time.perf_counter() - t0
     return outcomes, stage_s, datasets
 

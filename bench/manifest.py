@@ -2,14 +2,19 @@
 
 ``fenestra bench`` writes ``manifest.json`` beside ``results.parquet``::
 
-    {"format": 1, "profile": "smoke", "profile_hash": "1a2b3c4d", "n_rows": 2880,
+    {"format": 2, "profile": "smoke", "profile_hash": "1a2b3c4d", "n_rows": 2880,
      "keys": ["house", "view", "window_id", "method"],
-     "rows": [["fzk-haus", "000000", "w-17", "oracle/none/lm"], ...],
-     "sha256": {"results.parquet": "...", "results.csv": "..."}}
+     "methods": ["oracle/none/lm", ...],
+     "views": [["fzk-haus", "000000", ["w-17", "w-18", ...]], ...],
+     "sha256": {"results.parquet": "..."}}
 
 The expected rows come from the rendered views (every ground-truth window of every ``view.json``)
 times the planned methods, not from the evaluation's output: a view or method the evaluation
-dropped is missing from the table but not from the manifest. :func:`load_verified_results` is
+dropped is missing from the table but not from the manifest. They are stored compactly, as each
+view's window ids and the methods (every row is a window x method); a set of rows that is not
+such a product (a table sealed as it is) is stored row by row, ``"rows": [[house, view,
+window_id, method], ...]`` (format 1's only form, still read). ``sha256`` holds the digest of
+each results file the run wrote (results.parquet; results.csv only when asked for). :func:`load_verified_results` is
 what ``fenestra gate`` and ``fenestra report`` read: it refuses a table that lacks or adds rows
 (naming them, grouped by method), or whose bytes changed after the run (edited values).
 
@@ -34,7 +39,7 @@ from fenestra.files import file_sha256, write_json
 MANIFEST_JSON = "manifest.json"
 RUN_JSON = "run.json"
 KEY_COLUMNS = ("house", "view", "window_id", "method")
-FORMAT = 1
+FORMAT = 2
 MAX_NAMED = 5  # how many missing/extra rows an error message names
 
 
@@ -59,14 +64,38 @@ def table_rows(df: pd.DataFrame) -> list[tuple[str, str, str, str]]:
     return [tuple(map(str, r)) for r in df[list(KEY_COLUMNS)].itertuples(index=False)]
 
 
+def compact_rows(rows: list[tuple]) -> dict:
+    """The manifest's form of expected rows (house, view, window_id, method): {"methods": [...],
+    "views": [[house, view, [window ids]], ...]} when they are every window of those views x
+    every method, once each, in that order; else {"rows": [[house, view, window_id, method], ...]}."""
+    if not rows:
+        return {"methods": [], "views": []}
+    methods = list(dict.fromkeys(r[3] for r in rows))
+    views: dict[tuple[str, str], list[str]] = {}
+    for h, v, w, m in rows:
+        if m == methods[0]:
+            views.setdefault((h, v), []).append(w)
+    compact = {"methods": methods, "views": [[h, v, ws] for (h, v), ws in views.items()]}
+    if expand_rows(compact) == [tuple(r) for r in rows]:
+        return compact
+    return {"rows": [list(r) for r in rows]}
+
+
+def expand_rows(doc: dict) -> list[tuple[str, str, str, str]]:
+    """The expected rows of a manifest (either form of :func:`compact_rows`), in order."""
+    if "rows" in doc:
+        return [tuple(r) for r in doc["rows"]]
+    return [(h, v, w, m) for h, v, ws in doc["views"] for w in ws for m in doc["methods"]]
+
+
 def write_manifest(run_dir: str | Path, rows: list[tuple], profile: str, profile_hash: str) -> Path:
     """manifest.json of a run whose results tables are already written (their checksums go in)."""
     run_dir = Path(run_dir)
     sums = {name: file_sha256(run_dir / name) for name in (RESULTS_PARQUET, RESULTS_CSV)
             if (run_dir / name).is_file()}
     doc = {"format": FORMAT, "profile": profile, "profile_hash": profile_hash, "n_rows": len(rows),
-           "keys": list(KEY_COLUMNS), "rows": [list(r) for r in rows], "sha256": sums}
-    return write_json(run_dir / MANIFEST_JSON, doc)
+           "keys": list(KEY_COLUMNS), **compact_rows(rows), "sha256": sums}
+    return write_json(run_dir / MANIFEST_JSON, doc, indent=None)
 
 
 def seal(run_dir: str | Path, df: pd.DataFrame, profile: str, profile_hash: str = "") -> Path:
@@ -82,7 +111,7 @@ def load_manifest(run_dir: str | Path) -> dict:
                                 "(re-run `fenestra bench`)")
     try:
         doc = json.loads(p.read_text())
-        return doc | {"rows": [tuple(r) for r in doc["rows"]]}
+        return doc | {"rows": expand_rows(doc)}
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise RunIntegrityError(f"{p}: unreadable manifest ({e})") from e
 

@@ -15,24 +15,43 @@ from scipy.stats import wilcoxon
 PAIR_KEY = ("house", "view", "window_id")
 
 
-def paired_comparison(df: pd.DataFrame, a: str, b: str, column: str = "corner_err_px_snap"
+class PairedTable:
+    """A results table's evaluable rows, split by method once and indexed by window
+    (``PAIR_KEY``), so that many paired comparisons of its methods each cost only their own rows
+    (a report compares hundreds of pairs of a table with a million rows)."""
+
+    def __init__(self, df: pd.DataFrame) -> None:
+        ev = df[df["evaluable"].astype(bool)]
+        self.key = [k for k in PAIR_KEY if k in ev.columns]
+        self._empty = ev.iloc[:0].set_index(self.key)
+        self._by = {m: g.set_index(self.key) for m, g in ev.groupby("method", sort=False)}
+
+    def rows(self, method: str) -> pd.DataFrame:
+        """The method's evaluable rows, indexed by window (none if the table lacks the method)."""
+        return self._by.get(method, self._empty)
+
+    def compare(self, a: str, b: str, column: str = "corner_err_px_snap") -> dict:
+        """:func:`paired_comparison` of methods a and b of this table."""
+        A, B = self.rows(a)[column], self.rows(b)[column]
+        j = pd.concat([A.rename("a"), B.rename("b")], axis=1, join="inner").dropna()
+        d = (j["a"] - j["b"]).to_numpy(float)
+        p = float("nan")
+        if d.size >= 5 and np.any(d != 0):
+            p = float(wilcoxon(j["a"], j["b"], zero_method="wilcox").pvalue)
+        return {"n": int(d.size), "median_a": float(j["a"].median()) if d.size else float("nan"),
+                "median_b": float(j["b"].median()) if d.size else float("nan"),
+                "median_diff": float(np.median(d)) if d.size else float("nan"),
+                "a_better": float(np.mean(d < 0)) if d.size else float("nan"), "p_value": p}
+
+
+def paired_comparison(df: pd.DataFrame | PairedTable, a: str, b: str, column: str = "corner_err_px_snap"
                       ) -> dict:
     """Paired statistics of methods a and b on the same evaluable windows with both estimates.
 
+    df: a results table, or its :class:`PairedTable` (made once for many comparisons).
     Returns {"n", "median_a", "median_b", "median_diff" (a - b, per window), "a_better" (fraction
     of windows where a < b), "p_value" (two-sided Wilcoxon signed-rank; NaN if n < 5 or all
     differences are zero)}.
     """
-    ev = df[df["evaluable"].astype(bool)]
-    key = [k for k in PAIR_KEY if k in ev.columns]
-    A = ev[ev["method"] == a].set_index(key)[column]
-    B = ev[ev["method"] == b].set_index(key)[column]
-    j = pd.concat([A.rename("a"), B.rename("b")], axis=1, join="inner").dropna()
-    d = (j["a"] - j["b"]).to_numpy(float)
-    p = float("nan")
-    if d.size >= 5 and np.any(d != 0):
-        p = float(wilcoxon(j["a"], j["b"], zero_method="wilcox").pvalue)
-    return {"n": int(d.size), "median_a": float(j["a"].median()) if d.size else float("nan"),
-            "median_b": float(j["b"].median()) if d.size else float("nan"),
-            "median_diff": float(np.median(d)) if d.size else float("nan"),
-            "a_better": float(np.mean(d < 0)) if d.size else float("nan"), "p_value": p}
+    table = df if isinstance(df, PairedTable) else PairedTable(df)
+    return table.compare(a, b, column)

@@ -1,7 +1,8 @@
 """Results tables and summary.json of a benchmark run.
 
-A run folder holds ``results.parquet`` and ``results.csv`` (one row per view x GT window x method
-combination, errors with their unit in the column name) and ``summary.json``::
+A run folder holds ``results.parquet`` (one row per view x GT window x method combination, errors
+with their unit in the column name; ``results.csv``, the same table, only when asked for:
+``fenestra bench --csv``) and ``summary.json``::
 
     {"metadata": {commit, versions, seed, profile, config, config_hash, wall_time_s, stage_time_s, ...},
      "results": {method: {n_gt, n_evaluable, detection_rate, failure_rate,
@@ -57,15 +58,19 @@ def check_table(df: pd.DataFrame, where: str = "results") -> pd.DataFrame:
     return df
 
 
-def write_results(df: pd.DataFrame, run_dir: str | Path) -> tuple[Path, Path]:
-    """Write results.parquet and results.csv into run_dir; return their paths."""
+def write_results(df: pd.DataFrame, run_dir: str | Path, csv: bool = False) -> list[Path]:
+    """Write results.parquet (the results table) into run_dir, and results.csv when ``csv``
+    (a stale one is removed otherwise); return the paths written."""
     check_table(df)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    pq, csv = run_dir / RESULTS_PARQUET, run_dir / RESULTS_CSV
+    pq, csv_path = run_dir / RESULTS_PARQUET, run_dir / RESULTS_CSV
     df.to_parquet(pq, index=False)
-    df.to_csv(csv, index=False)
-    return pq, csv
+    if not csv:
+        csv_path.unlink(missing_ok=True)
+        return [pq]
+    df.to_csv(csv_path, index=False)
+    return [pq, csv_path]
 
 
 def load_results(run_dir: str | Path) -> pd.DataFrame:
@@ -142,22 +147,31 @@ def summarize(df: pd.DataFrame) -> dict[str, dict]:
     return {m: summarize_method(g) for m, g in sorted(df.groupby("method"), key=lambda kv: kv[0])}
 
 
+def _git_dirs(root: Path) -> tuple[Path, Path]:
+    """(the checkout's git folder, its common folder): .git itself, or, in a worktree whose .git
+    is a file ("gitdir: PATH"), that PATH and the folder its ``commondir`` names."""
+    if root.is_file():
+        root = Path(root.read_text().split(":", 1)[1].strip())
+    common = root / "commondir"
+    return root, ((root / common.read_text().strip()).resolve() if common.is_file() else root)
+
+
 def _commit() -> str | None:
-    """The current commit hash, read from .git files (no git process), or None."""
-    root = Path(__file__).resolve().parent.parent / ".git"
+    """The current commit hash, read from .git files (no git process; worktrees too), or None."""
     try:
-        head = (root / "HEAD").read_text().strip()
+        git, common = _git_dirs(Path(__file__).resolve().parent.parent / ".git")
+        head = (git / "HEAD").read_text().strip()
         if not head.startswith("ref:"):
             return head
         ref = head.split(" ", 1)[1]
-        p = root / ref
-        if p.is_file():
-            return p.read_text().strip()
-        packed = root / "packed-refs"
+        for d in (git, common):
+            if (d / ref).is_file():
+                return (d / ref).read_text().strip()
+        packed = common / "packed-refs"
         for line in packed.read_text().splitlines() if packed.is_file() else []:
             if line.endswith(" " + ref):
                 return line.split(" ", 1)[0]
-    except OSError:
+    except (OSError, IndexError):
         return None
     return None
 

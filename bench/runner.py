@@ -12,7 +12,7 @@ bench.real.adapters (optional datasets whose folder is absent are skipped and li
 metadata) and evaluates them in this process. Either way every view is a bench.views.LabelledView
 evaluated by the one bench.evaluate.evaluate_view, and every labelled window gets one row per
 method combination. The run folder (default ``out/bench/<profile>-<config hash>``) receives
-results.parquet/.csv, manifest.json, summary.json (metadata, per-method results, per-detector
+results.parquet (results.csv with ``csv``), manifest.json, summary.json (metadata, per-method results, per-detector
 detection AP), ``simreal.json`` for a real profile given a synthetic run folder
 (bench.real.simreal) and, when a report writer is passed, the report; renders go to
 ``out/renders`` (renders.dataset names and reuses them by config hash). bench/ never imports
@@ -24,7 +24,7 @@ import itertools
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
@@ -64,14 +64,16 @@ def default_run_dir(profile: Profile | RealProfile) -> Path:
 # ---------------------------------------------------------------- methods
 
 def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
-    """Detectors that can be built here (learned ones need weights); {skipped: reason}."""
-    from pipeline.detectors import DETECTORS, get_detector  # noqa: PLC0415
+    """Detectors that can be built here (learned ones need weights); {skipped: reason}. Each
+    learned one is built once and dropped (not kept in the detectors' cache): the workers build
+    their own, and the parent process stays small while it gathers the results table."""
+    from pipeline.detectors import DETECTORS  # noqa: PLC0415
 
     ok, skipped = [], {}
     for n in names:
         try:
             if not DETECTORS[n].needs_instances:  # the oracles load no weights
-                get_detector(n, **LEARNED_DETECTOR_OPTIONS)
+                DETECTORS[n].build(**LEARNED_DETECTOR_OPTIONS)
             ok.append(n)
         except Exception as e:  # noqa: BLE001 - missing weights etc.: skip, recorded in metadata
             skipped[n] = f"{type(e).__name__}: {e}"
@@ -169,12 +171,33 @@ def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress:
                       "datasets": {d.name: str(d.folder()) for d in datasets}, "n_windows": n_windows})
 
 
+def results_table(outcomes: list[ViewOutcome]) -> pd.DataFrame:
+    """Every view's rows in one table, in the outcomes' order; each outcome's rows are released
+    as its view is added (ViewOutcome.table; empty table when no view has rows)."""
+    frames = []
+    for i, o in enumerate(outcomes):
+        t = o.table()
+        if len(t):
+            frames.append(t)
+        outcomes[i] = replace(o, rows=[], frame=None)
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
 def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
     total: dict[str, float] = {}
     for o in outcomes:
         for k, v in o.stage_s.items():
             total[k] = total.get(k, 0.0) + v
     return dict(sorted(total.items()))
+
+
+def peak_rss_mb() -> dict[str, float]:
+    """Peak resident memory (MB) so far of this process and of its largest finished child (a
+    worker of the evaluation's process pool): what bounds a run's memory."""
+    import resource  # noqa: PLC0415
+
+    return {who: resource.getrusage(r).ru_maxrss / 1024.0
+            for who, r in (("main", resource.RUSAGE_SELF), ("largest_worker", resource.RUSAGE_CHILDREN))}
 
 
 def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) -> dict[str, dict]:
@@ -193,7 +216,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
                   methods: tuple[Method, ...] | None = None,
                   renders_dir: str | Path | None = None, executor: str = "local",
                   executor_options: dict | None = None, force: bool = False,
-                  sim_dir: str | Path | None = None) -> RunInfo:
+                  sim_dir: str | Path | None = None, csv: bool = False) -> RunInfo:
     """Run a profile, synthetic or real, end to end; see the module docstring. Returns a RunInfo.
 
     methods: override the profile's method combinations (e.g. a test's extra snapper);
@@ -203,9 +226,11 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     profile's run or foreign files (bench.manifest.claim_run_dir); sim_dir: a real profile's
     synthetic run folder for simreal.json (FileNotFoundError if it is not a run folder); report:
     called with the run folder once the tables (and simreal.json) are written, its time recorded
-    as stage "report" (None or False: no report).
+    as stage "report" (None or False: no report); csv: also write results.csv (the Parquet
+    table is the results table).
     """
     t_start = time.perf_counter()
+    load_before = os.getloadavg()
     photos = isinstance(profile, RealProfile)
     if sim_dir is not None and not photos:
         raise ValueError(f"sim_dir needs a real profile, got profile {profile.name!r}")
@@ -223,12 +248,11 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
 
     t0 = time.perf_counter()
-    rows = [r for o in outcomes for r in o.rows]
-    if not rows:
+    df = results_table(outcomes)
+    if df.empty:
         raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
-    df = pd.DataFrame(rows)
     df.insert(0, "profile", profile.name)
-    res.write_results(df, run_dir)
+    res.write_results(df, run_dir, csv=csv)
     manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
     det = detection_ap(outcomes, per_dataset=photos)
     stage_s["summarize"] = time.perf_counter() - t0
@@ -236,7 +260,9 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
                              n_views=len(outcomes), n_rows=len(df),
                              **per_unit_timings(stage_s, len(outcomes), len(df) // max(1, len(methods))),
-                             methods=[m.name for m in methods], skipped_detectors=skipped, **ev.meta)
+                             methods=[m.name for m in methods], skipped_detectors=skipped,
+                             load_average={"before": load_before, "after": os.getloadavg()},
+                             peak_rss_mb=peak_rss_mb(), **ev.meta)
     summary = res.summarize(df)
     res.write_summary(run_dir, meta, summary, det)
     if sim_dir is not None:

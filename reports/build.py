@@ -24,13 +24,14 @@ import html as html_lib
 import json
 import math
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from bench.manifest import load_verified_results
-from bench.paired import paired_comparison
+from bench.paired import PairedTable, paired_comparison
 from bench.real.simreal import SIMREAL_JSON
 from bench.results import CORNER_STAGES, STAGE_LABELS, summarize
 from fenestra.methods import read_methods
@@ -40,6 +41,7 @@ from reports.real import real_sections
 from reports.walls import wall_sections
 
 LEAD_TITLE = "Which method is best"
+LEAD_FIGURE = "lead_ranked.png"
 
 
 # ---------------------------------------------------------------- numbers
@@ -57,11 +59,11 @@ def comparison_rows(df: pd.DataFrame, results: dict, column: str = "corner_err_p
     best = best_method(results, column)
     if best is None:
         return []
-    rows = []
+    rows, table = [], PairedTable(df)
     for m in results:
         if m == best:
             continue
-        c = paired_comparison(df, m, best, column)
+        c = table.compare(m, best, column)
         rows.append({"method": m, "vs": best, **c})
     return sorted(rows, key=lambda r: (np.nan_to_num(r["median_a"], nan=np.inf), r["method"]))
 
@@ -129,6 +131,7 @@ def narrative(df: pd.DataFrame, results: dict) -> list[str]:
                + (f", the rest are not ({', '.join(f'{k}: {v}' for k, v in reasons.items())})."
                   if reasons else "."))
     methods = read_methods(results)
+    table = PairedTable(df)
     for det in sorted(df["detector"].unique()):
         ms = [m for m in results if methods[m].detector == det]
         best = best_method(results, methods=ms)
@@ -148,7 +151,7 @@ def narrative(df: pd.DataFrame, results: dict) -> list[str]:
         worst = max(others, key=lambda m: np.nan_to_num(results[m]["corner_err_px_snap"]["median"],
                                                          nan=np.inf), default=None)
         if worst is not None:
-            c = paired_comparison(df, best, worst)
+            c = table.compare(best, worst)
             text += (f" The worst snapper, {methods[worst].snapper}, has median "
                      f"{_fmt(c['median_b'])} px on the same {c['n']} windows (paired median "
                      f"difference {_fmt(c['median_diff'])} px, {methods[best].snapper} better on "
@@ -171,21 +174,56 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
-def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
-    """Every figure of the report as PNGs in fig_dir (emptied first: no stale figure of an
-    earlier report stays beside them); {section: [paths]}."""
-    import shutil  # noqa: PLC0415
+FIGURE_INDEX = "index.json"  # figures/index.json: each figure's file -> the digest of its inputs
 
-    shutil.rmtree(fig_dir, ignore_errors=True)
+
+def _digest(*parts) -> str:
+    """sha256 of the plotting code (reports/plots.py) and the figure's inputs (tables hashed by
+    their values, index and column names; anything else by repr)."""
+    import hashlib  # noqa: PLC0415
+
+    h = hashlib.sha256(Path(plots.__file__).read_bytes())
+    for x in parts:
+        if isinstance(x, pd.DataFrame):
+            h.update(repr((list(x.columns), [str(t) for t in x.dtypes])).encode())
+            h.update(pd.util.hash_pandas_object(x, index=True).to_numpy().tobytes())
+        else:
+            h.update(repr(x).encode())
+    return h.hexdigest()
+
+
+def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
+    """Every figure of the report as PNGs in fig_dir; {section: [paths]}. A figure whose inputs
+    (its rows of the table, its name, the plotting code) have the digest recorded for its file in
+    ``figures/index.json`` by an earlier report of this folder is reused, not drawn again; any
+    other file in fig_dir is removed (no stale figure stays beside them)."""
     fig_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        old = json.loads((fig_dir / FIGURE_INDEX).read_text())
+    except (OSError, ValueError):
+        old = {}
+    index: dict[str, str] = {}
+
+    def draw(fn, data: pd.DataFrame, name: str, *args) -> Path:
+        path = fig_dir / name
+        key = _digest(fn.__name__, name, *args, data)
+        if not (old.get(name) == key and path.is_file()):
+            fn(data, *args, path) if args else fn(data, path)
+        index[name] = key
+        return path
+
     # one figure 8 per detector x snapper: the mask-fit and snapped panels do not depend on the
     # pose, so the figure of the main pose stands for every pose of its pair
     d = df[df["pose"] == plots.main_pose(df)]
-    figs = {"fig8": [plots.figure8(d, m, fig_dir / f"fig8_{_safe(m)}.png")
+    figs = {"fig8": [draw(plots.figure8, d[d["method"] == m], f"fig8_{_safe(m)}.png", m)
                      for m in sorted(d["method"].unique())]}
-    figs["recall"] = [plots.recall_curves(df, fig_dir / "recall_curves.png")]
-    figs["conditions"] = [plots.error_vs_conditions(df, fig_dir / "error_vs_conditions.png")]
-    figs["aspect_rotation"] = [plots.aspect_rotation(df, fig_dir / "aspect_rotation.png")]
+    figs["recall"] = [draw(plots.recall_curves, df, "recall_curves.png")]
+    figs["conditions"] = [draw(plots.error_vs_conditions, df, "error_vs_conditions.png")]
+    figs["aspect_rotation"] = [draw(plots.aspect_rotation, df, "aspect_rotation.png")]
+    for p in fig_dir.iterdir():
+        if p.name not in index and p.name not in (FIGURE_INDEX, LEAD_FIGURE):
+            p.unlink() if p.is_file() else shutil.rmtree(p)
+    (fig_dir / FIGURE_INDEX).write_text(json.dumps(index, indent=1))
     return figs
 
 
@@ -371,7 +409,9 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
     figs = make_figures(df, run_dir / "figures")
     lead = lead_mod.make_lead(sim_df, real_df)
     columns = lead_mod.lead_columns(lead)  # empty: photos with boxes only and no renders run
-    fig = plots.ranked_methods(columns, run_dir / "figures" / "lead_ranked.png") if columns else None
+    fig = plots.ranked_methods(columns, run_dir / "figures" / LEAD_FIGURE) if columns else None
+    if fig is None:
+        (run_dir / "figures" / LEAD_FIGURE).unlink(missing_ok=True)
     runs = " ".join(x for x in (f"Renders: {'this run' if sim_df is df else other}." if sim_df is not None else "",
                                 f"Real photos: {'this run' if real_df is df else other}." if real_df is not None else "",
                                 missing or "") if x)

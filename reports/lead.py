@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from bench.paired import paired_comparison
+from bench.paired import PairedTable, paired_comparison
 from bench.real.simreal import method_medians, ranking
 from bench.results import summarize
 from fenestra.methods import read_methods
@@ -139,7 +139,7 @@ def _verdict(c: dict) -> str:
     return "is clearly worse" if c["a_better"] < 0.5 else "is better on most of the same windows despite its higher median"
 
 
-def _sim_sentence(det: str, rk: list[Rank], sim_df: pd.DataFrame) -> str:
+def _sim_sentence(det: str, rk: list[Rank], sim_df: pd.DataFrame, table: PairedTable | None = None) -> str:
     best = rk[0]
     text = (f"Renders, detector **{det}**: **{best.snapper}** is best, median {_v(best.median, SIM_METRIC)} "
             f"(p90 {_v(best.p90, SIM_METRIC)}, {best.n} windows"
@@ -147,7 +147,7 @@ def _sim_sentence(det: str, rk: list[Rank], sim_df: pd.DataFrame) -> str:
     measured = [r for r in rk if math.isfinite(r.median)]
     if len(measured) > 1:
         nxt = measured[1]
-        c = paired_comparison(sim_df, nxt.method, best.method, SIM_METRIC)
+        c = paired_comparison(sim_df if table is None else table, nxt.method, best.method, SIM_METRIC)
         p = "-" if not math.isfinite(c["p_value"]) else f"{c['p_value']:.2g}"
         text += (f". The runner-up, {nxt.snapper} ({_v(nxt.median, SIM_METRIC)}), {_verdict(c)}: on the same "
                  f"{c['n']} windows the median of {nxt.snapper} - {best.snapper} is {_v(c['median_diff'], SIM_METRIC)} and "
@@ -186,9 +186,10 @@ def answer(lead: Lead, sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None
     much, on renders and on photos, each with its numbers (medians, paired differences on the
     same windows, ranks)."""
     out = []
+    table = PairedTable(sim_df) if lead.sim else None
     for det, rk in (lead.sim or {}).items():
         if any(math.isfinite(r.median) for r in rk):
-            out.append(_sim_sentence(det, rk, sim_df))
+            out.append(_sim_sentence(det, rk, sim_df, table))
         else:
             out.append(f"Renders, detector **{det}**: no snapped corner error was measured.")
     if real_df is None:

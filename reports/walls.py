@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from bench.paired import paired_comparison
+from bench.paired import PairedTable
 from fenestra.conventions import PAPER
 from fenestra.methods import Method, read_methods
 
@@ -41,25 +41,24 @@ def k_withheld(df: pd.DataFrame) -> pd.Series:
     return df["method"].map(lambda m: methods[m].withhold_K).astype(bool)
 
 
-def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW) -> list[list]:
+def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW, table: PairedTable | None = None) -> list[list]:
     """Per detector x snapper: rotation (median, p90) and aspect p90 of the pose ``ref`` (default
     per-window LM) and the per-wall strategy ``pose``, paired on the windows where both have an
-    estimate, and the Wilcoxon p of the rotation."""
+    estimate, and the Wilcoxon p of the rotation. table: df's PairedTable, if already made."""
+    table = table if table is not None else PairedTable(df)
+    cols = ["rot_err_deg", "aspect_err_rel"]
     rows = []
     for (det, snap), _ in df.groupby(["detector", "snapper"]):
         a, b = Method(det, snap, ref).label, Method(det, snap, pose).label
         if not {a, b} <= set(df["method"]):
             continue
-        rot = paired_comparison(df, b, a, "rot_err_deg")
-        ev = df[df["evaluable"].astype(bool)]
-        key = ["house", "view", "window_id"]
-        both = ev[ev["method"].isin([a, b])].pivot_table(index=key, columns="method",
-                                                          values=["rot_err_deg", "aspect_err_rel"]).dropna()
+        rot = table.compare(b, a, "rot_err_deg")
+        both = pd.concat({a: table.rows(a)[cols], b: table.rows(b)[cols]}, axis=1, join="inner").dropna()
         if both.empty:
             continue
-        q = {c: both[c].quantile(0.9) for c in ("rot_err_deg", "aspect_err_rel")}
-        rows.append([f"{det}/{snap}", rot["n"], rot["median_b"], rot["median_a"], q["rot_err_deg"][a],
-                     q["rot_err_deg"][b], q["aspect_err_rel"][a], q["aspect_err_rel"][b], rot["a_better"],
+        q = both.quantile(0.9)
+        rows.append([f"{det}/{snap}", rot["n"], rot["median_b"], rot["median_a"], q[(a, "rot_err_deg")],
+                     q[(b, "rot_err_deg")], q[(a, "aspect_err_rel")], q[(b, "aspect_err_rel")], rot["a_better"],
                      rot["p_value"]])
     return rows
 
@@ -103,6 +102,7 @@ def wall_sections(df: pd.DataFrame) -> list[tuple]:
                    f"adds the photo's line segments along the walls' two directions; '{PER_WINDOW}' is the paper's "
                    "per-window solver."))
     poses = wall_poses(df)
+    table = PairedTable(df)
     pairs = [(p, PER_WINDOW) for p in poses] + [(p, without_lines(p, poses)) for p in poses
                                                  if without_lines(p, poses) is not None]
     for pose, ref in pairs:
@@ -110,7 +110,7 @@ def wall_sections(df: pd.DataFrame) -> list[tuple]:
             s.append(("p", f"With and without the façade's line segments: '{pose}' against '{ref}'."))
         s.append(("table", ["detector/snapper", "n paired", f"rot median {ref}", f"rot median {pose}", f"rot p90 {ref}",
                             f"rot p90 {pose}", f"aspect p90 {ref}", f"aspect p90 {pose}", f"{pose} better on",
-                            "Wilcoxon p"], paired_rows(df, pose, ref)))
+                            "Wilcoxon p"], paired_rows(df, pose, ref, table)))
     if k_withheld(df).any():
         s.append(("h3", "Focal length with K withheld ('+noK')"))
         s.append(("p", "The pipeline gets the image only (principal point assumed at the image centre); relative "

@@ -245,3 +245,13 @@ def test_reconstruct_base_only_for_per_wall_strategies():
 
     with pytest.raises(ValueError, match="base: 0 per-window results given for pose 'lm'"):
         reconstruct_from_quads(np.zeros((20, 20), np.float32), None, [], [], ReconstructConfig(pose="lm"), base=[])
+
+
+def test_quad_iou_memo_gives_quad_iou_once_per_pair():
+    from bench import metrics
+    from bench.evaluate import QuadIoUMemo
+
+    memo, gt = QuadIoUMemo(), np.array([[0, 0], [10, 0], [10, 10], [0, 10.0]])
+    for q in (gt + 1.0, gt + 2.5, gt + 1.0, gt * 0.5):
+        assert memo(q, gt) == metrics.quad_iou(q, gt)
+    assert len(memo._seen) == 3

@@ -202,3 +202,17 @@ def test_paper_snapper_is_marked():
     syn = {"snap": {"oracle": [{"snapper": PAPER.snapper, "median": 1.0, "p90": 2.0, "n": 3}]},
            "detection": {"oracle": {"learned": False, "detection_rate": 1.0}}}
     assert f"`{PAPER.snapper}` (paper" in md.lead_table(syn)[0]
+
+
+@pytest.mark.parametrize("p_value, default_p90, says", [
+    (0.001, 2.0, "its worst cases are smaller"),        # recommendation lower on the same windows, default's tails smaller
+    (0.001, 3.0, "`fenestra.conventions.DEFAULTS` should follow it"),  # better there too: change DEFAULTS
+    (0.4, 3.0, "the default is not worse than"),         # no clear paired difference
+])
+def test_why_the_cli_keeps_its_default_follows_the_numbers(p_value, default_p90, says):
+    d = {"rot_median": 0.26, "rot_p90": default_p90, "aspect_median": 0.032, "aspect_p90": 0.19 * default_p90 / 2}
+    rec = {"rot_median": 0.25, "rot_p90": 2.5, "aspect_median": 0.034, "aspect_p90": 0.21}
+    c = {"recommended": "default/lsd/building+lines", "n": 866, "median_diff": 0.007, "a_better": 0.46, "p_value": p_value}
+    text = md._why_default(c, rec, d)
+    assert says in text and "866 windows" in text and "default/lsd/building+lines" in text
+    assert md._why_default(None, rec, d) == ""

@@ -23,6 +23,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bench import manifest
+
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "curtainwall"
 TINY_PROFILE = """name = "tiny"
@@ -97,18 +99,17 @@ def bench_run(tmp_path_factory):
 
 
 def tampered(bench_run: Path, name: str, edit) -> Path:
-    """A copy of the run whose results.parquet went through ``edit(df) -> df`` (csv removed)."""
+    """A copy of the run whose results.parquet went through ``edit(df) -> df``."""
     dst = bench_run / name
     shutil.copytree(bench_run / "run", dst)
     df = edit(pd.read_parquet(dst / "results.parquet"))
     df.to_parquet(dst / "results.parquet", index=False)
-    (dst / "results.csv").unlink()
     return dst
 
 
 def test_gate_refuses_a_table_missing_a_method(bench_run):
     run = tampered(bench_run, "no-linefit", lambda df: df[df.method != "oracle/linefit/lm"])
-    n = len(json.loads((bench_run / "run" / "manifest.json").read_text())["rows"]) // 2
+    n = json.loads((bench_run / "run" / "manifest.json").read_text())["n_rows"] // 2
     line = one_line_error(fenestra("gate", run.name, "--gates", "gates.toml", cwd=bench_run),
                           f"lacks {n} of {2 * n} expected rows", f"oracle/linefit/lm: {n}")
     assert "oracle/none/lm" not in line
@@ -143,11 +144,26 @@ def test_gate_refuses_a_run_without_manifest(bench_run):
 
 def test_manifest_lists_every_gt_window_of_every_view(bench_run):
     """Expected rows = each view.json's windows x methods, computed here from the renders."""
-    m = json.loads((bench_run / "run" / "manifest.json").read_text())
-    want = sorted([["fzk-haus", v.name, str(w["id"]), meth] for v in view_dirs(bench_run)
+    m = manifest.load_manifest(bench_run / "run")
+    want = sorted([("fzk-haus", v.name, str(w["id"]), meth) for v in view_dirs(bench_run)
                    for w in json.loads((v / "view.json").read_text())["windows"]
                    for meth in ("oracle/none/lm", "oracle/linefit/lm")])
     assert sorted(m["rows"]) == want and m["n_rows"] == len(want) > 0
+    # stored compactly (each view's windows, the methods), and only the Parquet table is written
+    assert "rows" not in json.loads((bench_run / "run" / "manifest.json").read_text())
+    assert set(m["sha256"]) == {"results.parquet"} and not (bench_run / "run" / "results.csv").exists()
+
+
+def test_manifest_rows_compact_form_round_trips_and_falls_back_to_rows():
+    views = [("h", "000", ["w1", "w2"]), ("h", "001", ["w3"]), ("g", "000", ["w1"])]
+    product = [(h, v, w, m) for h, v, ws in views for w in ws for m in ("a/x/lm", "b/y/wall")]
+    doc = manifest.compact_rows(product)
+    assert doc == {"methods": ["a/x/lm", "b/y/wall"], "views": [list(v) for v in views]}
+    assert manifest.expand_rows(doc) == product
+    for odd in (product[:-1], product + [product[0]], [product[1], product[0], *product[2:]]):
+        doc = manifest.compact_rows(odd)  # not every window x method once, in order: row by row
+        assert "views" not in doc and manifest.expand_rows(doc) == odd
+    assert manifest.expand_rows(manifest.compact_rows([])) == []
 
 
 def test_bench_refuses_a_foreign_folder_and_force_leaves_nothing_stale(bench_run):

@@ -264,7 +264,7 @@ def test_a_plugin_package_is_benchmarked(tmp_path):
                         "--workers", "1", "--no-report"], cwd=tmp_path, env=env, capture_output=True, text=True,
                        timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
-    df = pd.read_csv(tmp_path / "run" / "results.csv")
+    df = pd.read_parquet(tmp_path / "run" / "results.parquet")
     mine = df[df.snapper == "identity-shift"]
     assert len(mine) == (df.snapper == "none").sum() > 0 and set(mine.method) == {"oracle/identity-shift/lm"}
     # its corners are the mask-fit ones moved 1 px: the snapped error differs from 'none' by <= 1 px

@@ -118,6 +118,14 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis (3) of broadcastable arrays: np.cross's products in np.cross's
+    order (bit-identical), without its axis moves (the wall fit's Jacobian calls it per LM step)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
 def left_jacobian(omega: np.ndarray) -> np.ndarray:
     """SO(3) left Jacobian (3, 3) of a rotation vector omega (3,) rad: d(exp(omega) v) / d omega
     = -[exp(omega) v]_x J_l(omega)."""
@@ -147,7 +155,7 @@ def wall_jacobian(x: np.ndarray, n_walls: int, wall_of: np.ndarray, R0: np.ndarr
     dpi[..., 1, 1], dpi[..., 1, 2] = Kx[1, 1] / Z, -Kx[1, 1] * X[..., 1] / Z ** 2
     Jl = np.array([left_jacobian(x[3 * g:3 * g + 3]) for g in range(n_walls)])
     # d/d omega: dpi @ (-[v]_x J_l) = (v x dpi_row) @ J_l
-    rot = np.einsum("njkc,ncd->njkd", np.cross(v[:, :, None, :], dpi), Jl[wall_of])
+    rot = np.einsum("njkc,ncd->njkd", cross3(v[:, :, None, :], dpi), Jl[wall_of])
     J_rot = np.zeros((n, 4, 2, n_walls, 3))
     J_rot[np.arange(n), :, :, wall_of, :] = rot
     block = np.concatenate([dpi, (dpi @ Rn[:, None, :, 0][..., None]) * cx_[None, :, None, None]], axis=3)

@@ -1,0 +1,39 @@
+"""bench.timing's generated Markdown block: the figures of a run folder, put between the markers."""
+from __future__ import annotations
+
+import json
+
+from bench import timing
+
+
+def _run(tmp_path):
+    run = tmp_path / "run"
+    (run / "figures").mkdir(parents=True)
+    (run / "results.parquet").write_bytes(b"x" * 3_000_000)
+    (run / "figures" / "a.png").write_bytes(b"y" * 500_000)
+    meta = {"profile": "default", "commit": "abcdef0123", "wall_time_s": 123.4, "n_views": 480, "n_rows": 9000,
+            "methods": ["a/b/lm", "a/b/wall"], "stage_time_s": {"render": 40.0, "evaluate_wall": 70.0, "summarize": 3.0,
+                                                                "cpu.detect": 30.0, "cpu.reconstruct": 90.0},
+            "peak_rss_mb": {"main": 900.0, "largest_worker": 1500.0}, "load_average": {"before": [0.5, 0, 0],
+                                                                                       "after": [1.0, 0, 0]}}
+    (run / "summary.json").write_text(json.dumps({"metadata": meta}))
+    return run
+
+
+def test_block_holds_the_run_figures_and_replaces_only_its_markers(tmp_path):
+    run = _run(tmp_path)
+    doc = timing.from_run(run)
+    r = doc["run"]
+    assert r["artefact_mb"]["figures"] == 0.5 and r["artefact_mb"]["total"] > 3.5
+    assert r["cpu_s"] == {"detect": 30.0, "reconstruct": 90.0} and r["share"]["reconstruct"] == 0.75
+    block = timing.markdown(doc, "python -m bench.timing --from-run run")
+    assert "| one run | abcdef0 | 480 | 2 | 9000 | **123 s** | 40 s | 70 s | 3.0 s | - | 1.46 GB |" in block
+    assert "reconstruct 90 s (75 %), detect 30 s (25 %)" in block and "`python -m bench.timing --from-run run`" in block
+    md = tmp_path / "perf.md"
+    md.write_text(f"# Title\n\nbefore\n\n{timing.BEGIN}\nold figures\n{timing.END}\n\nafter\n")
+    timing.write_markdown(md, block)
+    text = md.read_text()
+    assert text == f"# Title\n\nbefore\n\n{block}\n\nafter\n" and "old figures" not in text
+    log = tmp_path / "time.log"
+    log.write_text("\tMaximum resident set size (kbytes): 2097152\n")
+    assert timing.from_run(run, log)["run"]["peak_rss_mb"] == {"any_process (time -v)": 2048.0}
