@@ -398,9 +398,9 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
     wall = POSES[cfg.pose].wall
     if wall is None:
         results = reconstruct_from_quads(gray, K, dets, quads, cfg)
-        per_window[(cfg.snapper, cfg.pose, withhold_K)] = results
+        per_window[(cfg.quad, cfg.snapper, cfg.pose, withhold_K)] = results
         return results, PER_WINDOW_STAGES
-    key = (cfg.snapper, wall.base_pose, withhold_K)
+    key = (cfg.quad, cfg.snapper, wall.base_pose, withhold_K)
     counted: tuple[str, ...] = ("wall",)
     if key not in per_window:
         per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose))
@@ -498,7 +498,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         t0 = tick("match", t0)
         rec_dets = [dets[d] for _, (d, _) in matched]
         quads: dict = {}  # QuadParams -> fit_quads(rec_dets): the quads are fitted once per detector
-        per_window: dict = {}  # (snapper, pose, K withheld) -> per-window results, reused by per-wall strategies
+        per_window: dict = {}  # (quad params, snapper, pose, K withheld) -> per-window results, reused by per-wall strategies
         for method in det_methods:
             withhold_K = method.withhold_K
             cfg = ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=options.height_m,

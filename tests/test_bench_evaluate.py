@@ -255,3 +255,45 @@ def test_quad_iou_memo_gives_quad_iou_once_per_pair():
     for q in (gt + 1.0, gt + 2.5, gt + 1.0, gt * 0.5):
         assert memo(q, gt) == metrics.quad_iou(q, gt)
     assert len(memo._seen) == 3
+
+
+def _shifted_corner_detector(**_):
+    """The oracle's masks with a corner head that reads each mask-fit quad 1.5 px to the right."""
+    import dataclasses
+
+    from pipeline.detectors.oracle import check_instances, oracle_detections
+    from pipeline.quad import mask_to_quad
+
+    def run(image, instances=None):
+        dets = oracle_detections(check_instances(instances, image.shape))
+        out = []
+        for d in dets:
+            q = mask_to_quad(d.mask)  # crop coordinates: d.origin (x, y) is the crop's corner
+            shift = np.asarray(d.origin, float) + [1.5, 0.0]
+            out.append(dataclasses.replace(d, corners=None if q.quad is None else q.quad + shift))
+        return out
+    return run
+
+
+def test_per_wall_reuse_keeps_quad_sources_apart(view_dir):
+    """A per-wall method with corner-head quads must not reuse the per-window results of the mask
+    fit's quads (the reuse key holds the quad parameters): its rows equal those of a run alone."""
+    from pipeline.detectors import DETECTORS, DetectorEntry
+
+    DETECTORS.register(DetectorEntry("shifted-corners", _shifted_corner_detector, "test: oracle + shifted corners",
+                                     needs_instances=True))
+    try:
+        corners = Method("shifted-corners", "none", "wall", quad_source="corners")
+        alone = _run(view_dir, [corners]).rows
+        shared = [r for r in _run(view_dir, [Method("shifted-corners", "none", "wall"), corners]).rows
+                  if r["method"] == corners.label]
+        mask_rows = [r for r in _run(view_dir, [Method("shifted-corners", "none", "wall")]).rows]
+    finally:
+        DETECTORS.unregister("shifted-corners")
+    assert len(alone) == len(shared) == 4 and any(r["status"] == "ok" for r in alone)
+    ok = [i for i, r in enumerate(alone) if r["status"] == "ok"]
+    assert any(abs(alone[i]["corner_err_px_mask"] - mask_rows[i]["corner_err_px_mask"]) > 0.5 for i in ok)
+    for a, b in zip(alone, shared):
+        for k in a:
+            same = (a[k] == b[k]) or (isinstance(a[k], float) and np.isnan(a[k]) and np.isnan(b[k]))
+            assert same, (k, a[k], b[k])
