@@ -25,7 +25,7 @@ from scipy.stats import chi2, norm
 
 from fenestra.checks import check_K, check_quad
 from pipeline.walls.settings import WALL_FIT
-from pipeline.walls.vanishing import FacadeError, homog
+from pipeline.walls.vanishing import FacadeError, cross3, homog
 
 if TYPE_CHECKING:  # annotations only: lines imports this module
     from pipeline.walls.lines import LineObs
@@ -116,14 +116,6 @@ def project_wall(R: np.ndarray, t: np.ndarray, width: np.ndarray, height: float,
 
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis (3) of broadcastable arrays: np.cross's products in np.cross's
-    order (bit-identical), without its axis moves (the wall fit's Jacobian calls it per LM step)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
 
 
 def left_jacobian(omega: np.ndarray) -> np.ndarray:

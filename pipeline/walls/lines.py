@@ -25,7 +25,7 @@ from fenestra.checks import check_K
 from pipeline.segments import SegmentCache
 from pipeline.walls.fit import WallFit, left_jacobian
 from pipeline.walls.settings import WALL_FIT, WallParams
-from pipeline.walls.vanishing import WallVP, edge_normals, fit_vps, homog, side_angles_to_vp, side_thresholds_deg
+from pipeline.walls.vanishing import WallVP, cross3, edge_normals, fit_vps, homog, side_angles_to_vp, side_thresholds_deg
 
 
 def photo_segments(segment_cache: SegmentCache | None, params: WallParams,
@@ -109,8 +109,8 @@ def line_residuals(segments: np.ndarray, vp: np.ndarray) -> tuple[np.ndarray, np
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
     v = np.asarray(vp, dtype=np.float64).reshape(-1, 3)
     m = homog(0.5 * (s[:, 0] + s[:, 1]))
-    c = np.cross(homog(s[:, 1]), m)  # r ~ c . v: the end's offset from the line m x v
-    line = np.cross(m, v)
+    c = cross3(homog(s[:, 1]), m)  # r ~ c . v: the end's offset from the line m x v
+    line = cross3(m, v)
     D = np.linalg.norm(line[:, :2], axis=1)
     cv = np.sum(c * v, axis=1)
     # d line / d v = [m]_x, so d D / d v = (l0 [m]_x[0] + l1 [m]_x[1]) / D
@@ -170,7 +170,7 @@ class LineObs:
         J = np.zeros((len(d), n_params))
         Jl = np.array([left_jacobian(x[3 * k:3 * k + 3]) for k in range(len(R))])
         # d vp / d omega = K (-[d]_x J_l); (-[d]_x)^T (K^T g) = d x (K^T g)
-        rot = np.einsum("mc,mcd->md", np.cross(d, g @ K), Jl[self.group])
+        rot = np.einsum("mc,mcd->md", cross3(d, g @ K), Jl[self.group])
         for k in range(len(R)):
             sel = self.group == k
             J[sel, 3 * k:3 * k + 3] = rot[sel]

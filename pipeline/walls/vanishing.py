@@ -42,6 +42,14 @@ H_SIDES = ((3, 2), (0, 1))
 V_SIDES = ((3, 0), (2, 1))
 
 
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis (3) of broadcastable arrays: np.cross's products in np.cross's
+    order (bit-identical), without its axis moves (the RANSAC hypotheses and the wall fit's Jacobian call it in their loops)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
 def homog(p: np.ndarray) -> np.ndarray:
     """(N, 2) px -> (N, 3) homogeneous."""
     return np.hstack([p, np.ones((len(p), 1))])
@@ -109,7 +117,7 @@ def side_angles_to_vp(segments: np.ndarray, vp: np.ndarray) -> np.ndarray:
     homogeneous vanishing point vp (3,) px (finite or at infinity); vp (H, 3): (H, N), per point."""
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
     m = homog(0.5 * (s[:, 0] + s[:, 1]))
-    lines = np.cross(m, np.asarray(vp, dtype=np.float64)[..., None, :])
+    lines = cross3(m, np.asarray(vp, dtype=np.float64)[..., None, :])
     to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
     e = s[:, 1] - s[:, 0]
     c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * np.linalg.norm(e, axis=1) + 1e-300)
@@ -184,7 +192,7 @@ class _Sides:
     def inliers(self, K: np.ndarray, D: np.ndarray) -> np.ndarray:
         """(H, N) bool: windows whose four sides all point at the vanishing points K D[h, f]."""
         vp = D @ K.T  # (H, 2, 3)
-        lines = np.cross(self.mid[None], vp[:, None, :, None, :])  # (H, N, 2, 2, 3)
+        lines = cross3(self.mid[None], vp[:, None, :, None, :])  # (H, N, 2, 2, 3)
         to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
         e = self.dirs[None]
         c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * np.linalg.norm(e, axis=-1) + 1e-300)
