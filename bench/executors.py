@@ -328,6 +328,48 @@ class _ShardWorker:
         return run_shard(plan, shard)
 
 
+RAY_RETRIES = 1  # a shard whose worker died is run again this many times on a fresh worker, then named
+
+
+def _ray_map(ray, plan: Plan, shards: list[Shard], n_actors: int) -> Iterator[str]:
+    """Run ``shards`` on ``n_actors`` Ray actors, yielding each shard's output path as it finishes.
+
+    A shard whose actor dies (killed, out of memory, its node lost) is retried RAY_RETRIES times on
+    a fresh actor, with a warning; then FenestraError names the shard. An exception raised by the
+    shard's own code propagates as it is."""
+    from ray.exceptions import RayActorError, WorkerCrashedError  # noqa: PLC0415
+
+    make = ray.remote(num_cpus=1)(_ShardWorker).remote
+    actors = [make() for _ in range(n_actors)]
+    queue = [(s, 0) for s in shards]
+    pending: dict = {}  # object ref -> (actor index, shard, attempt)
+
+    def submit(i: int) -> None:
+        if queue:
+            s, attempt = queue.pop(0)
+            pending[actors[i].run.remote(plan, s)] = (i, s, attempt)
+
+    for i in range(n_actors):
+        submit(i)
+    while pending:
+        (ref,), _ = ray.wait(list(pending), num_returns=1)
+        i, s, attempt = pending.pop(ref)
+        try:
+            path = ray.get(ref)
+        except (RayActorError, WorkerCrashedError) as e:
+            what = f"shard {Path(s.out).name} ({s.house.house}, views {s.views.start}-{s.views.stop - 1})"
+            if attempt >= RAY_RETRIES:
+                raise FenestraError(f"{what}: its Ray worker died {attempt + 1} times "
+                                    f"({type(e).__name__}); see the Ray logs of that node") from e
+            print(f"warning: {what}: its Ray worker died ({type(e).__name__}); running it again on a new worker",
+                  file=sys.stderr)
+            actors[i] = make()
+            queue.insert(0, (s, attempt + 1))
+        else:
+            yield path
+        submit(i)
+
+
 def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None = None,
             shard_views: int = 20, **_: object) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
     """Render and evaluate shards on Ray actors, merge in canonical order (see the module docstring)."""
@@ -335,7 +377,6 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
         import ray  # noqa: PLC0415
     except ImportError as e:  # pragma: no cover - ray is a pinned dependency
         raise FenestraError("the ray executor needs the `ray` package (make setup installs it)") from e
-    from ray.util import ActorPool  # noqa: PLC0415
 
     shards = plan_shards(plan, shard_views)
     done = {s.out: _load_shard(s.out) for s in shards}
@@ -351,11 +392,9 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
             ray.init(**kw, runtime_env={"env_vars": env}, log_to_driver=False, logging_level="ERROR")
         try:
             n_actors = max(1, min(len(todo), workers if not address else int(ray.cluster_resources().get("CPU", 1))))
-            actor = ray.remote(num_cpus=1)(_ShardWorker)
-            pool = ActorPool([actor.remote() for _ in range(n_actors)])
             with _progress(progress) as bar:
                 job = bar.add_task(f"shards on {n_actors} Ray workers", total=len(todo))
-                for path in pool.map_unordered(lambda a, s: a.run.remote(plan, s), todo):
+                for path in _ray_map(ray, plan, todo, n_actors):
                     done[path] = _load_shard(path)
                     bar.advance(job)
         finally:

@@ -97,3 +97,52 @@ def test_unknown_executor_is_named(tmp_path):
     with pytest.raises(FenestraError, match="unknown executor 'spark'.*local.*ray"):
         run_benchmark(_profile(), out_dir=tmp_path / "x", methods=METHODS, executor="spark",
                       renders_dir=tmp_path / "r", progress=False, report=False)
+
+
+def _shard_worker_pids() -> list[int]:
+    """PIDs of the processes running a Ray _ShardWorker actor (Ray names them in their cmdline)."""
+    pids = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                cmd = (d / "cmdline").read_bytes()
+            except OSError:
+                continue
+            if b"_ShardWorker" in cmd:
+                pids.append(int(d.name))
+    return pids
+
+
+def test_a_killed_ray_worker_is_retried_once(ray_cluster, tmp_path, monkeypatch, capsys):
+    """A worker killed mid-run (SIGKILL, as the OOM killer would): its shard runs again on a new
+    worker, with a warning naming it, and the table equals the local executor's."""
+    import signal
+    import threading
+    import time
+
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
+    killed: list[int] = []
+    stale = set(_shard_worker_pids())  # an earlier test's actors, on their way out
+
+    def kill_one() -> None:
+        deadline = time.monotonic() + 120
+        while not killed and time.monotonic() < deadline:
+            pids = [p for p in _shard_worker_pids() if p not in stale]
+            if pids:
+                time.sleep(1.0)  # let it start on a shard
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+            time.sleep(0.05)
+
+    killer = threading.Thread(target=kill_one, daemon=True)
+    killer.start()
+    remote = run_benchmark(_profile(), out_dir=tmp_path / "ray", workers=2, progress=False, report=False,
+                           methods=METHODS[:2], renders_dir=tmp_path / "renders-ray", executor="ray",
+                           executor_options={"address": ray_cluster, "shard_views": 2})
+    killer.join()
+    assert killed, "no Ray worker was found to kill"
+    err = capsys.readouterr().err
+    assert "its Ray worker died" in err and "running it again on a new worker" in err, err[-2000:]
+    local = run_benchmark(_profile(), out_dir=tmp_path / "local", workers=2, progress=False, report=False,
+                          methods=METHODS[:2], renders_dir=tmp_path / "renders-local")
+    assert load_results(remote.run_dir).equals(load_results(local.run_dir))
