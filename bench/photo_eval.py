@@ -340,7 +340,7 @@ def format_kfree(block: dict) -> list[str]:
     lines = [f"K-free path (no intrinsics; {block['n_runs']} runs in {block['wall_time_s']:.0f} s; "
              f"export match: box IoU >= {block['spec']['match_iou']:g})"]
     for name, d in block["datasets"].items():
-        lines.append(f"  {name} ({', '.join(d['detections'])}): {d['n_photos']} photos, K sources {d['K_sources']}, "
+        lines.append(f"  {name} ({', '.join(d.get('detections') or [])}): {d['n_photos']} photos, K sources {d['K_sources']}, "
                      f"windows per labelled window {_fmt(d['windows_per_label'])}, "
                      f"{d['n_exported']} exported / {d['n_labelled']} labelled")
         for t in d["targets"]:

@@ -53,7 +53,7 @@ def kfree_sections(run_dir: Path, block: dict | None) -> list[tuple]:
               f"for {', '.join(spec['transform_datasets']) or 'no dataset'}, under {', '.join(spec['transforms'])}. "
               f"An exported window matches a label when its snapped quad's box has IoU >= {spec['match_iou']:g} with "
               "a labelled window box; focal spread per photo: the largest |f_t / f_as_is - 1| over the transforms; "
-              "focal error: |f / f_calibrated - 1| where the focal length was observed (not the stated prior)."),
+              "focal error: |f / f_calibrated - 1| where the focal length was observed (not the stated prior). The stated prior is a field of view of the frame, so a 10 % crop moves a prior focal length by 10 % by construction (without EXIF a crop cannot be told from a wider lens)."),
         ("table", ["dataset", "figure", "value", "target", "met"], target_rows(block)),
         ("table", *dataset_rows(block)),
     ]

@@ -531,7 +531,7 @@ def _kfree_section(kf: dict | None) -> list[str]:
            f"({kf['n_runs']} runs, {kf['wall_time_s']:.0f} s); {', '.join(f'`{d}`' for d in spec['transform_datasets'])} "
            f"also under {', '.join(spec['transforms'])}. An exported window matches a label at box IoU >= "
            f"{spec['match_iou']:g}; focal spread: per photo the largest relative change of f under the transforms; "
-           "focal error: against the calibration, where f was observed (not the stated prior).", ""]
+           "focal error: against the calibration, where f was observed (not the stated prior). The stated prior is a field of view of the frame, so a 10 % crop moves a prior focal length by 10 % by construction (without EXIF a crop cannot be told from a wider lens).", ""]
     rows = [[f"`{n}`", t["words"], f"{t['value']:.3g}", t["target"], "yes" if t["met"] else "**no**"]
             for n, d in kf["datasets"].items() for t in d["targets"]]
     out += _table(["dataset", "figure", "value", "target", "met"], rows) + [""]

@@ -190,3 +190,18 @@ def test_bench_real_reaches_the_kfree_block(tmp_path):
     md = "\n".join(_kfree_section(collect_kfree(block)))
     assert "focal spread under the transforms" in md and "`boxes`" in md
     assert math.isclose(collect_kfree(block)["datasets"]["boxes"]["focal_spread_median"], 0.1, rel_tol=1e-3)
+
+
+def test_labelled_masks_written_as_the_instance_map_reconstruct_reads(tmp_path):
+    from fenestra.data import SparseMask
+    from fenestra.images import read_instances
+
+    m = np.zeros((40, 50), bool)
+    m[5:15, 10:20] = True
+    view = LabelledView(dataset="d", name="p", image=_image(40, 50),
+                        windows=(LabelledWindow(id="p:0", mask=SparseMask.from_dense(m)),))
+    path = pe.write_masks(view, tmp_path / "m.png")
+    assert np.array_equal(read_instances(path, (50, 40)), m.astype(np.int32))
+    assert pe.write_masks(_view([[0, 0, 10, 10]]), tmp_path / "n.png") is None  # boxes only: no masks
+    with pytest.raises(ValueError, match="mask_datasets"):
+        pe.KfreeSpec(datasets=("a",), transform_datasets=("a",), mask_datasets=("a",))
