@@ -105,6 +105,10 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         if info.skipped_detectors:
             typer.echo("skipped detectors: " + "; ".join(f"{k}: {v}" for k, v in info.skipped_detectors.items()))
         print_headline(summary["results"])
+        if summary.get("kfree"):
+            from bench.photo_eval import format_kfree  # noqa: PLC0415
+
+            typer.echo("\n".join(format_kfree(summary["kfree"])))
         typer.echo(f"results: {info.run_dir / 'results.parquet'}")
         if not no_report:
             typer.echo(f"report: {info.run_dir / 'report.html'} (and report.md)")

@@ -210,10 +210,11 @@ def _jsonable(x):
 
 
 def write_summary(run_dir: str | Path, metadata: dict, results: dict,
-                  detection: dict | None = None) -> Path:
-    """Write summary.json (NaN written as null); return its path."""
+                  detection: dict | None = None, **blocks: dict) -> Path:
+    """Write summary.json (NaN written as null); return its path. blocks: further top-level
+    blocks (e.g. ``kfree``: bench.photo_eval)."""
     p = Path(run_dir) / SUMMARY_JSON
-    doc = {"metadata": metadata, "results": results, "detection": detection or {}}
+    doc = {"metadata": metadata, "results": results, "detection": detection or {}, **blocks}
     p.write_text(json.dumps(_jsonable(doc), indent=2))
     return p
 

@@ -246,6 +246,12 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
           evaluate_renders(profile, methods, run_dir, workers, progress, renders_dir, executor, executor_options))
     outcomes, stage_s = ev.outcomes, dict(ev.stage_s)
     stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
+    blocks = {}
+    if photos and profile.kfree is not None:  # the K-free single-photo path (bench.photo_eval)
+        from bench.photo_eval import run_kfree  # noqa: PLC0415
+
+        blocks["kfree"] = run_kfree(profile.kfree, profile.kfree_views(), run_dir, progress)
+        stage_s["kfree"] = blocks["kfree"]["wall_time_s"]
 
     t0 = time.perf_counter()
     df = results_table(outcomes)
@@ -264,7 +270,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
                              load_average={"before": load_before, "after": os.getloadavg()},
                              peak_rss_mb=peak_rss_mb(), **ev.meta)
     summary = res.summarize(df)
-    res.write_summary(run_dir, meta, summary, det)
+    res.write_summary(run_dir, meta, summary, det, **blocks)
     if sim_dir is not None:
         from bench.real.simreal import write_simreal  # noqa: PLC0415
 
@@ -275,5 +281,5 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         stage_s["report"] = time.perf_counter() - t0
         meta["stage_time_s"] = stage_s
         meta["wall_time_s"] = time.perf_counter() - t_start
-        res.write_summary(run_dir, meta, summary, det)
+        res.write_summary(run_dir, meta, summary, det, **blocks)
     return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))

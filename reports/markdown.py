@@ -251,7 +251,29 @@ def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
     det_ap = {d: {k: _r(v.get(k)) for k in ("bbox_AP", "bbox_AP50", "segm_AP", "segm_AP50")} | {"n_gt": v.get("n_gt")}
               for d, v in sorted((summary.get("detection") or {}).items())}
     return {"provenance": provenance(real_dir, summary), "metric": metric, "snap": snap if metric else {},
-            "agreement": agreement, "detection": det_ap, "n_windows": meta.get("n_windows")}
+            "agreement": agreement, "detection": det_ap, "n_windows": meta.get("n_windows"),
+            "kfree": collect_kfree(summary.get("kfree"))}
+
+
+KFREE_FIGURES = ("n_photos", "output_share", "export_precision", "n_exported", "n_labelled", "windows_per_label",
+                 "walls_median", "focal_spread_median", "focal_err_median", "focal_err_n_observed",
+                 "focal_err_median_all", "K_sources", "detections", "focal_spread_by_transform", "targets")
+
+
+def collect_kfree(block: dict | None) -> dict | None:
+    """The K-free block of a real run's summary (bench.photo_eval), rounded; None when absent."""
+    if not block:
+        return None
+
+    def rnd(v):
+        if isinstance(v, dict):
+            return {k: rnd(x) for k, x in v.items()}
+        if isinstance(v, list):
+            return [rnd(x) for x in v]
+        return _r(v) if isinstance(v, float) else v
+
+    return {"spec": block["spec"], "wall_time_s": _r(block["wall_time_s"]), "n_runs": block["n_runs"],
+            "datasets": {n: {k: rnd(d.get(k)) for k in KFREE_FIGURES} for n, d in block["datasets"].items()}}
 
 
 def _is_real_run(run_dir: Path) -> bool:
@@ -544,6 +566,29 @@ def _real_section(real: dict | None) -> list[str]:
     return out
 
 
+def _kfree_section(kf: dict | None) -> list[str]:
+    """The K-free path's figures beside the issue's targets (bench.photo_eval); [] without them."""
+    if not kf:
+        return []
+    spec = kf["spec"]
+    out = ["## One photo, no intrinsics (`fenestra reconstruct`)", "",
+           f"Every photo of {', '.join(f'`{d}`' for d in spec['datasets'])} through `fenestra reconstruct` without K "
+           f"({kf['n_runs']} runs, {kf['wall_time_s']:.0f} s); {', '.join(f'`{d}`' for d in spec['transform_datasets'])} "
+           f"also under {', '.join(spec['transforms'])}. An exported window matches a label at box IoU >= "
+           f"{spec['match_iou']:g}; focal spread: per photo the largest relative change of f under the transforms; "
+           "focal error: against the calibration, where f was observed (not the stated prior). The stated prior is a field of view of the frame, so a 10 % crop moves a prior focal length by 10 % by construction (without EXIF a crop cannot be told from a wider lens).", ""]
+    rows = [[f"`{n}`", t["words"], f"{t['value']:.3g}", t["target"], "yes" if t["met"] else "**no**"]
+            for n, d in kf["datasets"].items() for t in d["targets"]]
+    out += _table(["dataset", "figure", "value", "target", "met"], rows) + [""]
+    rows = [[f"`{n}`", ", ".join(d["detections"] or []), str(d["n_photos"]), ", ".join(f"{k} {v}" for k, v in d["K_sources"].items()),
+             f"{d['n_exported']} / {d['n_labelled']}",
+             ", ".join(f"{k} {v:.3f}" for k, v in d["focal_spread_by_transform"].items()) or "-",
+             "-" if d["focal_err_median_all"] is None else f"{d['focal_err_median_all']:.3f}"]
+            for n, d in kf["datasets"].items()]
+    return out + _table(["dataset", "detections", "photos", "K sources", "exported / labelled windows",
+                         "focal spread per transform (median)", "focal error, all photos (median)"], rows) + [""]
+
+
 def results_md(doc: dict) -> str:
     """docs/results.md."""
     syn, real = doc["synthetic"], doc.get("real")
@@ -560,7 +605,8 @@ def results_md(doc: dict) -> str:
             "on the pose), over each method's evaluable windows with a value; best per detector in bold; † learned "
             "detector (trained on some of these houses: per house below).", "",
             _recommend_sentence(syn) + " " + _default_sentence(syn), "",
-            *_pose_section(syn), *_detection_section(syn), *_per_house_section(syn), *_real_section(real)]
+            *_pose_section(syn), *_detection_section(syn), *_per_house_section(syn), *_real_section(real),
+            *_kfree_section((real or {}).get("kfree"))]
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 from bench.real.simreal import SIMREAL_JSON
+from reports.kfree import kfree_sections
 
 
 def _med(r: dict, col: str):
@@ -71,6 +72,7 @@ def real_sections(run_dir: Path, results: dict, summary: dict | None) -> list[tu
               ("table", ["detector", "bbox AP", "bbox AP50", "bbox R50", "segm AP", "segm AP50", "segm R50", "GT"],
                [[d, v.get("bbox_AP"), v.get("bbox_AP50"), v.get("bbox_R50"), v.get("segm_AP"), v.get("segm_AP50"),
                  v.get("segm_R50"), v.get("n_gt")] for d, v in det.items()])]
+    s += kfree_sections(run_dir, (summary or {}).get("kfree"))
     p = Path(run_dir) / SIMREAL_JSON
     if p.is_file():
         s += simreal_sections(json.loads(p.read_text()))

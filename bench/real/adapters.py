@@ -497,13 +497,16 @@ def _label_text(lab: Path, where: str) -> str:
 
 
 def read_yolo(path: Path, images: str = "images", labels: str = "labels", classes=(0,),
-              dataset: str = "yolo", refused: list[str] | None = None) -> Iterator[LabelledView]:
+              dataset: str = "yolo", refused: list[str] | None = None, every: int = 1) -> Iterator[LabelledView]:
     """YOLO txt boxes: ``path/images/NAME.jpg`` with ``path/labels/NAME.txt``; windows are the
     boxes of ``classes`` (ids). Boxes only: quad, mask, aspect and K are missing. A photo without
     a label file has no windows. A box partly outside the photo is clipped to it; one entirely
     outside is dropped and recorded in ``refused`` (never an evaluable window); label files
-    without a photo are recorded too."""
+    without a photo are recorded too. every > 1: only the photos with a label file whose index
+    in name order is a multiple of ``every`` (the held-out "val" part of training.dataset.real_box_photos)."""
     classes = _classes(classes)
+    if not (isinstance(every, int) and not isinstance(every, bool) and every >= 1):
+        raise DatasetError(f"YOLO option every must be an integer >= 1, got {every!r}")
     root = Path(path)
     photos = _images(inside(root, images, "YOLO images folder"), refused)
     lab_dir = inside(root, labels, "YOLO labels folder")
@@ -511,6 +514,8 @@ def read_yolo(path: Path, images: str = "images", labels: str = "labels", classe
     if lab_dir.is_dir():
         for orphan in sorted(q for q in lab_dir.glob("*.txt") if q.stem not in stems):
             _refuse(refused, f"{orphan}: no photo {orphan.stem}.* in {root / images}; skipped")
+    if every > 1:
+        photos = [p for p in photos if (lab_dir / (p.stem + ".txt")).is_file()][::every]
     for p in photos:
         photo = read_image(p)
         lab = lab_dir / (p.stem + ".txt")

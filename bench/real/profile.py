@@ -10,7 +10,12 @@
     [[datasets]]
     name = "curtainwall"; format = "curtainwall"; path = "data/real/curtainwall"
     optional = false                    # true: skipped (and recorded) when the folder is absent
+    kfree_only = false                  # true: measured only by [kfree], not by the method grid
     options = {...}                     # keyword options of the adapter (bench.real.adapters)
+    [kfree]                             # optional: the K-free single-photo path (bench.photo_eval.KfreeSpec)
+    datasets = ["spb_facades"]          # profile datasets run through pipeline.photo.reconstruct_photo without K
+    transform_datasets = ["spb_facades"]  # ... also under transforms (gray, jpeg, exif_rot, mirror, crop)
+    max_photos = 0                      # per dataset (0: all); match_iou = 0.3 (export precision)
 
 Relative dataset paths in a profile file are resolved against the repository root (so
 ``../shared/real`` is the shared folder beside the checkout); paths given on the command line
@@ -25,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.evaluate import EvalOptions
+from bench.photo_eval import KfreeSpec
 from bench.profiles import PROFILE_DIR, EvalSpec, MethodsSpec, ProfileError, check_methods, config_hash
 from bench.real.adapters import ADAPTERS
 from bench.views import LabelledView
@@ -43,6 +49,7 @@ class DatasetSpec:
     path: str
     optional: bool = False
     options: tuple[tuple[str, Any], ...] = ()
+    kfree_only: bool = False  # measured only by [kfree] (bench.photo_eval), not by the method grid
 
     def folder(self) -> Path:
         """The dataset folder: absolute, or relative to the repository root."""
@@ -66,6 +73,7 @@ class RealProfile:
     detector_long_side: int = 640
     min_window_px: float = 12.0
     detector_options: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
+    kfree: KfreeSpec | None = None  # [kfree]: the K-free single-photo path measured (bench.photo_eval)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -84,11 +92,16 @@ class RealProfile:
         return EvalOptions(evaluation=EvalSpec(min_window_px=self.min_window_px), height_m=self.methods.height_m,
                            detector_long_side=self.detector_long_side, detector_options=self.detector_options)
 
-    def available_datasets(self) -> tuple[list[DatasetSpec], dict[str, str]]:
+    def kfree_views(self) -> Iterator[LabelledView]:
+        """The views of the available datasets [kfree] names (none without [kfree])."""
+        names = set(self.kfree.datasets) if self.kfree is not None else set()
+        return (v for ds in self.available_datasets(kfree=True)[0] if ds.name in names for v in ds.views())
+
+    def available_datasets(self, kfree: bool = False) -> tuple[list[DatasetSpec], dict[str, str]]:
         """(datasets whose folder exists, {skipped optional dataset: reason}); FileNotFoundError
-        naming a required dataset's missing folder."""
+        naming a required dataset's missing folder. kfree: include the kfree_only datasets."""
         ok, skipped = [], {}
-        for ds in self.datasets:
+        for ds in (d for d in self.datasets if kfree or not d.kfree_only):
             if ds.folder().is_dir():
                 ok.append(ds)
             elif ds.optional:
@@ -112,7 +125,7 @@ def _dataset(t: dict, where: str) -> DatasetSpec:
 def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
     """RealProfile from a parsed TOML dict; ProfileError naming the file, key and value."""
     top = {"name", "kind", "description", "seed", "methods", "datasets", "data", "format",
-           "options", "detector_long_side", "min_window_px", "detector_options"}
+           "options", "detector_long_side", "min_window_px", "detector_options", "kfree"}
     unknown = sorted(set(data) - top)
     if unknown:
         raise ProfileError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(top)}")
@@ -132,10 +145,24 @@ def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
         raise ProfileError(f"{where}: detector_options must be tables per detector, got {dopts!r}")
     methods = from_table(MethodsSpec, data.get("methods", {}), f"{where} [methods]", ProfileError)
     check_methods(methods, where)
-    return RealProfile(name=str(data.get("name") or "real"), datasets=datasets,
+    kfree = _kfree(data.get("kfree"), datasets, where)
+    return RealProfile(kfree=kfree, name=str(data.get("name") or "real"), datasets=datasets,
                        detector_options=tuple(sorted((k, tuple(sorted(v.items()))) for k, v in dopts.items())),
                        description=str(data.get("description", "")), seed=int(data.get("seed", 0)),
                        methods=methods, detector_long_side=long_side, min_window_px=float(min_px))
+
+
+def _kfree(t, datasets: tuple[DatasetSpec, ...], where: str) -> KfreeSpec | None:
+    """KfreeSpec from the [kfree] table (None when absent); ProfileError naming a bad key, value or
+    a dataset name the profile lacks."""
+    if t is None:
+        return None
+    spec = from_table(KfreeSpec, t, f"{where} [kfree]", ProfileError)
+    unknown = sorted(set(spec.datasets) - {d.name for d in datasets})
+    if unknown:
+        raise ProfileError(f"{where} [kfree]: datasets {unknown} are not datasets of the profile "
+                           f"({[d.name for d in datasets]})")
+    return spec
 
 
 def _profile_path(name_or_path: str | Path) -> Path:
@@ -157,9 +184,10 @@ def load_real_profile(name_or_path: str | Path) -> RealProfile:
 
 def with_user_data(profile: RealProfile, data: str | Path, fmt: str, options: dict | None = None) -> RealProfile:
     """The profile's methods on one user dataset instead of its own (``--data DIR --format F``);
-    the path is made absolute against the current directory."""
+    the path is made absolute against the current directory. Its [kfree] block, which names the
+    profile's own datasets, is dropped."""
     if fmt not in ADAPTERS:
         raise ProfileError(f"--format {fmt!r} unknown; choose from {sorted(ADAPTERS)}")
     p = Path(data).expanduser().resolve()
     ds = DatasetSpec(name=p.name, format=fmt, path=str(p), options=tuple(sorted((options or {}).items())))
-    return replace(profile, name=f"{profile.name}-{p.name}", datasets=(ds,))
+    return replace(profile, name=f"{profile.name}-{p.name}", datasets=(ds,), kfree=None)  # [kfree] names its own datasets

@@ -1,0 +1,207 @@
+"""The K-free single-photo path in the real bench (bench.photo_eval, issue 24 item 7): the
+transforms are exact, export precision and focal spread against hand-built truth, the profile's
+[kfree] table, and `bench --profile real` on a one-photo dataset reaching summary.json's "kfree"
+block, the report and the generated docs."""
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+from PIL import Image
+
+from bench import photo_eval as pe
+from bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
+from bench.views import LabelledView, LabelledWindow
+from fenestra.images import read_image
+
+
+def _image(h: int = 60, w: int = 100, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 256, (h, w, 3), dtype=np.uint8)
+
+
+def _decode(enc: pe.Encoded, tmp_path: Path, name: str = "x") -> np.ndarray:
+    p = tmp_path / f"{name}{enc.suffix}"
+    p.write_bytes(enc.data)
+    return read_image(p)
+
+
+# ---------------------------------------------------------------- transforms
+
+def test_mirror_twice_is_identity_and_mirrors_columns():
+    im = _image()
+    m = pe.mirror_image(im)
+    assert np.array_equal(m[:, 0], im[:, -1]) and np.array_equal(m[7, 30], im[7, 100 - 1 - 30])
+    assert np.array_equal(pe.mirror_image(m), im)
+
+
+def test_crop_removes_ten_percent_centred():
+    im = _image(60, 100)
+    c = pe.crop_image(im)
+    assert c.shape == (54, 90, 3)  # 5 % of 100 = 5 columns and 5 % of 60 = 3 rows off each side
+    assert np.array_equal(c, im[3:57, 5:95])
+    with pytest.raises(ValueError, match="0.5"):
+        pe.crop_image(im, 0.5)
+
+
+def test_exif_rotated_file_reads_back_as_the_original(tmp_path):
+    im = _image(60, 100)
+    enc = pe.exif_rotated(im)
+    with Image.open(io.BytesIO(enc.data)) as f:
+        assert f.getexif().get(0x0112) == 6
+        assert f.size == (60, 100)  # stored turned: W and H swapped
+    assert np.array_equal(_decode(enc, tmp_path), im)  # the one reader applies the tag: exact (lossless)
+
+
+def test_png_as_is_is_lossless_and_gray_is_luma(tmp_path):
+    im = _image()
+    assert np.array_equal(_decode(pe.png(im), tmp_path), im)
+    g = pe.gray_image(im)
+    luma = im.astype(float) @ np.array([0.299, 0.587, 0.114])
+    assert g.shape == im.shape and np.all(g[..., 0] == g[..., 2])
+    assert np.abs(g[..., 0] - luma).max() <= 1.0
+
+
+def test_jpeg_re_encodes_with_loss_but_keeps_the_size(tmp_path):
+    im = cv2.GaussianBlur(_image(64, 96), (9, 9), 3)
+    back = _decode(pe.jpeg(im), tmp_path)
+    assert back.shape == im.shape and not np.array_equal(back, im)
+    assert np.abs(back.astype(int) - im).mean() < 4
+
+
+def test_every_transform_is_registered_and_pure():
+    im = _image()
+    before = im.copy()
+    for name, fn in pe.TRANSFORMS.items():
+        a, b = fn(im), fn(im)
+        assert a == b, name  # deterministic bytes
+    assert np.array_equal(im, before)
+
+
+# ---------------------------------------------------------------- figures against hand-built truth
+
+def _view(boxes, K=None) -> LabelledView:
+    return LabelledView(dataset="d", name="p", image=_image(40, 50),
+                        windows=tuple(LabelledWindow(id=f"p:{i}", box=np.array(b, float)) for i, b in enumerate(boxes)),
+                        K=K)
+
+
+def _win(box, exported=True) -> dict:
+    x0, y0, x1, y1 = box
+    return {"quad_snapped": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], "exported": exported, "plausible": exported}
+
+
+def test_export_precision_against_hand_built_boxes():
+    view = _view([[0, 0, 10, 10], [20, 0, 30, 10]])
+    doc = {"K_source": {"source": "prior", "focal_px": 100.0, "interval_px": [80.0, 120.0]}, "walls": [{}],
+           "windows": [_win([0, 0, 10, 10]),          # IoU 1 with label 0
+                       _win([25, 0, 35, 10]),         # IoU 50 / 150 = 1/3 with label 1: >= 0.3
+                       _win([26, 0, 36, 10]),         # IoU 40 / 160 = 1/4: no match
+                       _win([40, 20, 45, 30]),        # nothing there
+                       _win([0, 0, 10, 10], False)]}  # matches but not exported
+    assert pe.exported_matches(doc, [w.bbox() for w in view.windows], 0.3) == (4, 2)
+    assert pe.exported_matches(doc, [w.bbox() for w in view.windows], 0.5) == (4, 1)
+    row = pe.photo_row(view, pe.AS_IS, doc, None, 1.0, 0.3, True)
+    assert (row["n_exported"], row["n_exported_match"], row["n_labelled"], row["n_walls"]) == (4, 2, 2, 1)
+    fig = pe.dataset_summary(pd.DataFrame([row]))
+    assert fig["export_precision"] == 0.5 and fig["windows_per_label"] == 2.0 and fig["output_share"] == 1.0
+    assert fig["focal_err_median"] is None  # no calibration
+
+
+def test_focal_spread_and_focal_error_hand_computed():
+    K = np.array([[1000.0, 0, 25], [0, 1000.0, 20], [0, 0, 1]])
+    view = _view([[0, 0, 10, 10]], K=K)
+
+    def doc(f, source="vanishing points"):
+        return {"K_source": {"source": source, "focal_px": f, "interval_px": [f, f]}, "walls": [], "windows": []}
+
+    rows = [pe.photo_row(view, t, doc(f), None, 1.0, 0.3, True)
+            for t, f in ((pe.AS_IS, 1020.0), ("gray", 1020.0 * 1.01), ("crop", 1020.0 * 0.95))]
+    fig = pe.dataset_summary(pd.DataFrame(rows))
+    assert fig["focal_spread_median"] == pytest.approx(0.05)
+    assert fig["focal_spread_by_transform"] == pytest.approx({"crop": 0.05, "gray": 0.01})
+    assert fig["focal_err_median"] == pytest.approx(0.02) and fig["focal_err_n_observed"] == 1
+    prior = pd.DataFrame([pe.photo_row(view, pe.AS_IS, doc(1500.0, "prior"), None, 1.0, 0.3, True)])
+    assert pe.dataset_summary(prior)["focal_err_median"] is None  # the prior observes nothing
+    assert pe.dataset_summary(prior)["focal_err_median_all"] == pytest.approx(0.5)
+    met = {t["key"]: t["met"] for t in pe.check_targets(fig)}
+    assert met == {"output_share": True, "focal_spread_median": False, "walls_median": True, "focal_err_median": True}
+
+
+def test_failed_run_counts_as_no_output():
+    row = pe.photo_row(_view([[0, 0, 10, 10]]), pe.AS_IS, None, "PipelineError: x", 1.0, 0.3, False)
+    fig = pe.dataset_summary(pd.DataFrame([row]))
+    assert fig["output_share"] == 0.0 and fig["errors"] == {"p": "PipelineError: x"}
+
+
+# ---------------------------------------------------------------- profile
+
+def test_kfree_table_of_the_real_profile():
+    p = load_real_profile("real")
+    assert p.kfree is not None and "spb_facades" in p.kfree.transform_datasets
+    assert set(p.kfree.transforms) == {"gray", "jpeg", "exif_rot", "mirror", "crop"}
+    names = [d.name for d in p.available_datasets()[0]]
+    assert "spb_val" not in names  # kfree_only: never in the method grid
+    base = {"name": "u", "kind": "real", "data": "/x/y", "format": "yolo"}
+    with pytest.raises(ProfileError, match="not datasets of the profile"):
+        real_profile_from_dict({**base, "kfree": {"datasets": ["z"]}})
+    with pytest.raises(ProfileError, match="transforms"):
+        real_profile_from_dict({**base, "kfree": {"datasets": ["y"], "transforms": ["blur"]}})
+    with pytest.raises(ProfileError, match="unknown key"):
+        real_profile_from_dict({**base, "kfree": {"datasets": ["y"], "photos": 3}})
+
+
+# ---------------------------------------------------------------- end to end
+
+def test_bench_real_reaches_the_kfree_block(tmp_path):
+    from bench.runner import run_benchmark
+    from reports.markdown import _kfree_section, collect_kfree
+    from reports.real import real_sections
+
+    ds = tmp_path / "boxes"
+    (ds / "images").mkdir(parents=True)
+    (ds / "labels").mkdir()
+    cv2.imwrite(str(ds / "images" / "a.png"), _image(120, 160))
+    (ds / "labels" / "a.txt").write_text("0 0.25 0.25 0.2 0.2\n")
+    prof = real_profile_from_dict({
+        "name": "t", "kind": "real", "methods": {"detectors": ["oracle"], "snappers": ["none"], "pose_solvers": ["lm"]},
+        "datasets": [{"name": "boxes", "format": "yolo", "path": str(ds)}],
+        "kfree": {"datasets": ["boxes"], "transform_datasets": ["boxes"], "transforms": ["mirror", "crop"]}})
+    info = run_benchmark(prof, out_dir=tmp_path / "run", progress=False, report=False)
+    summary = json.loads((info.run_dir / "summary.json").read_text())
+    block = summary["kfree"]
+    df = pd.read_parquet(info.run_dir / pe.KFREE_PARQUET)
+    assert sorted(df["transform"]) == ["as_is", "crop", "mirror"] and "kfree" in info.stage_time_s
+    d = block["datasets"]["boxes"]
+    assert d["n_photos"] == 1 and d["output_share"] == 1.0 and d["n_labelled"] == 1
+    assert d["K_sources"] == {"prior": 1}  # noise: no vanishing point, no EXIF
+    # the prior is a field of view of the frame: mirrored the same focal length, cropped 144 / 160 of it
+    assert d["focal_spread_by_transform"]["mirror"] == 0.0
+    assert d["focal_spread_by_transform"]["crop"] == pytest.approx(1 - 144 / 160, abs=1e-9)
+    sections = real_sections(info.run_dir, summary["results"], summary)
+    assert ("h2", "K-free path: `fenestra reconstruct PHOTO` without intrinsics") in sections
+    table = next(sec for sec in sections if sec[0] == "table" and sec[1][:2] == ["dataset", "figure"])
+    assert ["boxes", "photos with an output", 1.0, ">= 1", "yes"] in table[2]
+    md = "\n".join(_kfree_section(collect_kfree(block)))
+    assert "focal spread under the transforms" in md and "`boxes`" in md
+    assert math.isclose(collect_kfree(block)["datasets"]["boxes"]["focal_spread_median"], 0.1, rel_tol=1e-3)
+
+
+def test_labelled_masks_written_as_the_instance_map_reconstruct_reads(tmp_path):
+    from fenestra.data import SparseMask
+    from fenestra.images import read_instances
+
+    m = np.zeros((40, 50), bool)
+    m[5:15, 10:20] = True
+    view = LabelledView(dataset="d", name="p", image=_image(40, 50),
+                        windows=(LabelledWindow(id="p:0", mask=SparseMask.from_dense(m)),))
+    path = pe.write_masks(view, tmp_path / "m.png")
+    assert np.array_equal(read_instances(path, (50, 40)), m.astype(np.int32))
+    assert pe.write_masks(_view([[0, 0, 10, 10]]), tmp_path / "n.png") is None  # boxes only: no masks
+    with pytest.raises(ValueError, match="mask_datasets"):
+        pe.KfreeSpec(datasets=("a",), transform_datasets=("a",), mask_datasets=("a",))
