@@ -102,12 +102,14 @@ def read_exif_tags(path: str | Path) -> dict:
     """{tag id: value} of a photo's EXIF (main IFD and the Exif sub-IFD); {} if it has none."""
     from PIL import Image  # noqa: PLC0415
 
+    from pipeline.io import pil_open  # noqa: PLC0415
+
     try:
-        with Image.open(path) as im:
+        with pil_open(path) as im:
             exif = im.getexif()
             tags = dict(exif)
             tags.update(exif.get_ifd(EXIF_IFD))
-    except (OSError, ValueError):
+    except (OSError, ValueError, Image.DecompressionBombError):
         return {}
     return tags
 

@@ -10,7 +10,9 @@ p2[, k3[, ...]]]``, 4, 5, 8, 12 or 14 numbers, or null): :func:`read_camera` ret
 """
 from __future__ import annotations
 
+import contextlib
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -114,14 +116,26 @@ def _stated_size(path: str | Path, data: dict) -> tuple[int, int] | None:
 SWAPS_AXES = (5, 6, 7, 8)  # EXIF orientations that rotate by 90 degrees (width and height swap)
 
 
+@contextlib.contextmanager
+def pil_open(path: str | Path):
+    """PIL's Image.open without its DecompressionBombWarning (the photo's size was checked before
+    decoding: fenestra.images.check_size)."""
+    from PIL import Image  # noqa: PLC0415
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        with Image.open(path) as im:
+            yield im
+
+
 def photo_orientation(path: str | Path) -> int:
     """EXIF orientation tag (1-8) of an image file; 1 when absent or unreadable."""
     from PIL import Image  # noqa: PLC0415
 
     try:
-        with Image.open(path) as im:
+        with pil_open(path) as im:
             v = im.getexif().get(0x0112, 1)
-    except (OSError, ValueError):
+    except (OSError, ValueError, Image.DecompressionBombError):
         return 1
     return v if isinstance(v, int) and 1 <= v <= 8 else 1
 
@@ -131,8 +145,10 @@ def photo_warnings(path: str | Path) -> list[str]:
     from PIL import Image  # noqa: PLC0415
 
     try:
-        with Image.open(path) as im:
+        with pil_open(path) as im:
             im.load()
+    except Image.DecompressionBombError:  # beyond PIL's own bound (--max-pixels raised): not checked
+        return []
     except OSError as e:
         return [f"photo {Path(path)} is damaged ({' '.join(str(e).split())}): part of it decodes as grey"]
     return []

@@ -247,7 +247,7 @@ def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, option
             paths = write_outputs(out, image, K, results, substitute=options.substitute, exclude=exclude,
                                   walls={k: w.id for w in model.walls for k in w.members},
                                   properties={k: window_properties(info[k]) for k in info},
-                                  wall_properties={w.id: wall_properties(w) for w in model.walls})
+                                  wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False)
         except (PipelineError, ValueError, OSError) as e:
             report["failure"] = f"{type(e).__name__}: {e}"
         else:

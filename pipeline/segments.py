@@ -55,6 +55,25 @@ def detect_segments(gray: np.ndarray, scale: float, box: tuple[int, int, int, in
     return seg if box is None else seg + [x0, y0]
 
 
+MAX_LSD_PIXELS = 16_000_000  # a larger photo's whole-image segments are found on a copy of this size
+
+
+def whole_image_segments(gray: np.ndarray, scale: float, max_pixels: int = MAX_LSD_PIXELS) -> np.ndarray:
+    """:func:`detect_segments` of a whole image (H, W) at ``scale``; an image of more than
+    ``max_pixels`` pixels is first resized (INTER_AREA) to that many and its segments mapped back
+    (``(p + 0.5) / f - 0.5``), so LSD's memory (its double-precision copy and gradients) and time
+    stay bounded on any photo. Images up to ``max_pixels`` (every render, a 16 Mpx photo) are
+    searched as they are."""
+    g = check_gray(gray)
+    H, W = g.shape
+    if H * W <= max_pixels:
+        return detect_segments(g, scale)
+    f = float(np.sqrt(max_pixels / (H * W)))
+    small = cv2.resize(to_uint8(g), (max(1, round(W * f)), max(1, round(H * f))), interpolation=cv2.INTER_AREA)
+    fx, fy = small.shape[1] / W, small.shape[0] / H
+    return (detect_segments(small, scale) + 0.5) / [fx, fy] - 0.5
+
+
 class SegmentCache:
     """The segments of one photo, found on the first request per LSD scale and kept.
 
@@ -77,6 +96,6 @@ class SegmentCache:
         ``min_length_px`` long; a new array each call (the kept one is not exposed)."""
         key = float(scale)
         if key not in self._found:
-            self._found[key] = detect_segments(self._gray, key)
+            self._found[key] = whole_image_segments(self._gray, key)
         s = self._found[key]
         return s[np.linalg.norm(s[:, 1] - s[:, 0], axis=1) >= min_length_px]

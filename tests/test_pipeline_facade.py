@@ -517,3 +517,20 @@ def test_per_window_sigma_covariance_matches_monte_carlo():
     np.testing.assert_allclose(sd_w, np.std(widths, axis=0), rtol=0.2)
     plain = wallfit.refine_walls(q0, K, R0, sigma_px=0.2, prior_dof=np.inf)
     np.testing.assert_allclose(plain.width, ref.width)  # the estimate itself is unweighted
+
+
+def test_whole_image_segments_of_a_large_photo_on_a_bounded_copy():
+    """Above max_pixels the segments come from a resized copy, mapped back to the photo's pixels:
+    a vertical step edge at x = 399.5 (between columns 399 and 400) is found there within 0.5 px."""
+    from pipeline.segments import whole_image_segments
+
+    img = np.full((600, 800), 60, np.uint8)
+    img[100:500, 400:] = 200
+    small = whole_image_segments(img, 0.8, max_pixels=120_000)  # a 400 x 300 copy
+    full = whole_image_segments(img, 0.8)
+    for seg in (small, full):
+        vertical = seg[np.abs(seg[:, 0, 0] - seg[:, 1, 0]) < 1.0]
+        assert len(vertical) >= 1
+        longest = vertical[np.argmax(np.abs(vertical[:, 0, 1] - vertical[:, 1, 1]))]
+        assert abs(longest[:, 0].mean() - 399.5) < 0.5, longest
+        assert abs(longest[0, 1] - longest[1, 1]) > 300  # most of the 400 px edge

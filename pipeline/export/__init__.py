@@ -68,7 +68,7 @@ def write_overlay(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
 def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
                   substitute: str | WindowStyle | None = None, exclude: dict[int, str] | None = None,
                   walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
-                  wall_properties: dict[int, dict] | None = None) -> dict[str, Path]:
+                  wall_properties: dict[int, dict] | None = None, overlay: bool = True) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
     image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
@@ -77,7 +77,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     export timings), and substituted.png when ``substitute`` names a catalogue style (which then
     also shapes the IFC/OBJ/GLB windows). exclude: {index: reason} of windows not to export;
     walls: {index: wall id} (one IfcWall per wall; None: one per window); properties: {index:
-    {name: value}}, the IFC Fenestra property set of each window; wall_properties: {wall id: {name:
+    {name: value}}, the IFC Fenestra property set of each window; overlay: write overlay.png too;
+    wall_properties: {wall id: {name:
     value}}, that of each fitted wall.
     """
     t_start = time.perf_counter()
@@ -114,8 +115,9 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
     if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
         paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)
-    paths["overlay"] = write_image(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results),
-                                                              {e["index"]: e["reason"] for e in skipped}))
+    if overlay:  # (pipeline.photo draws its own, with the detections and a header: overlay=False)
+        paths["overlay"] = write_image(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results),
+                                                                  {e["index"]: e["reason"] for e in skipped}))
     if substitute is not None:
         from pipeline.export.substitute import composite  # noqa: PLC0415
 
