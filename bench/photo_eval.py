@@ -37,10 +37,9 @@ import numpy as np
 import pandas as pd
 
 from bench.metrics import box_iou_matrix
+from bench.results import AS_IS, KFREE_PARQUET, focal_spreads
 from bench.views import LabelledView
 
-KFREE_PARQUET = "kfree.parquet"
-AS_IS = "as_is"
 CROP_PER_SIDE = 0.05  # 10 % of each dimension, centred (the principal point stays at the centre)
 JPEG_QUALITY = 80  # the "re-saved JPEG" transform
 EXIF_ORIENTATION_TAG = 0x0112
@@ -266,15 +265,6 @@ def evaluate_kfree(spec: KfreeSpec, views: Iterable[LabelledView], progress: boo
 def _med(x) -> float | None:
     x = pd.Series(x, dtype=float).dropna()
     return float(x.median()) if len(x) else None
-
-
-def focal_spreads(df: pd.DataFrame) -> pd.DataFrame:
-    """Per photo and transform: |f_t / f_as_is - 1| (rows of transforms with a focal length and an
-    as-is focal length); columns dataset, photo, transform, rel."""
-    base = df[df["transform"] == AS_IS].set_index(["dataset", "photo"]).focal_px
-    t = df[df["transform"] != AS_IS].copy()
-    t["rel"] = [abs(f / base.get((d, p), math.nan) - 1) for d, p, f in zip(t.dataset, t.photo, t.focal_px)]
-    return t[["dataset", "photo", "transform", "rel"]].dropna(subset=["rel"])
 
 
 def dataset_summary(df: pd.DataFrame) -> dict:

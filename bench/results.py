@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import json
+import math
 import platform
 from pathlib import Path
 
@@ -236,3 +237,18 @@ def headline_table(results: dict) -> list[dict]:
             "cover90_rot": r.get("calibration", {}).get("rot", float("nan")),
         })
     return rows
+
+
+# ---------------------------------------------------------------- the K-free photo table (bench.photo_eval)
+
+KFREE_PARQUET = "kfree.parquet"  # one row per photo per transform: dataset, photo, transform, focal_px, ...
+AS_IS = "as_is"  # the transform name of the photo as given
+
+
+def focal_spreads(df: pd.DataFrame) -> pd.DataFrame:
+    """Per photo and transform: |f_t / f_as_is - 1| (rows of transforms with a focal length and an
+    as-is focal length); columns dataset, photo, transform, rel."""
+    base = df[df["transform"] == AS_IS].set_index(["dataset", "photo"]).focal_px
+    t = df[df["transform"] != AS_IS].copy()
+    t["rel"] = [abs(f / base.get((d, p), math.nan) - 1) for d, p, f in zip(t.dataset, t.photo, t.focal_px)]
+    return t[["dataset", "photo", "transform", "rel"]].dropna(subset=["rel"])

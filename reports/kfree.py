@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.photo_eval import AS_IS, KFREE_PARQUET, focal_spreads
+from bench.results import AS_IS, KFREE_PARQUET, focal_spreads
 
 
 def target_rows(block: dict) -> list[list]:
