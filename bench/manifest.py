@@ -25,6 +25,7 @@ beside new results.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 from collections import Counter
@@ -33,7 +34,7 @@ from pathlib import Path
 import pandas as pd
 
 from bench.results import RESULTS_CSV, RESULTS_PARQUET, load_results
-from fenestra.errors import FenestraError
+from fenestra.errors import FenestraError, one_line
 from fenestra.files import file_sha256, write_json
 
 MANIFEST_JSON = "manifest.json"
@@ -178,8 +179,23 @@ def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: b
     for stale in (MANIFEST_JSON, "report.html", "report.md", "figures"):  # outputs of an earlier run
         p = run_dir / stale
         shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
-    write_json(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash})
+    write_json(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash, "status": "running"})
     return run_dir
+
+
+@contextlib.contextmanager
+def run_status(run_dir: str | Path):
+    """Mark the claimed run folder's run.json ``complete`` when the block ends, or ``failed`` with
+    the error's one line when it raises (a SIGTERM or Ctrl-C too): a run that did not finish is
+    never mistaken for one that did (its folder says so, and it has no manifest for gate/report)."""
+    path = Path(run_dir) / RUN_JSON
+    doc = json.loads(path.read_text())
+    try:
+        yield
+    except BaseException as e:
+        write_json(path, {**doc, "status": "failed", "error": f"{type(e).__name__}: {one_line(e)}"})
+        raise
+    write_json(path, {**doc, "status": "complete"})
 
 
 def _read_run_json(run_dir: Path) -> dict | None:

@@ -238,48 +238,49 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         raise FileNotFoundError(f"--sim {sim_dir}: not a benchmark run folder (no {res.SUMMARY_JSON})")
     run_dir = manifest.claim_run_dir(Path(out_dir) if out_dir else default_run_dir(profile),
                                      profile.name, profile.config_hash(), force)
-    workers = workers or max(1, min(os.cpu_count() or 1, 8))
-    skipped: dict[str, str] = {}
-    if methods is None:
-        methods, skipped = plan_methods(profile)
-    ev = (evaluate_photos(profile, methods, progress) if photos else
-          evaluate_renders(profile, methods, run_dir, workers, progress, renders_dir, executor, executor_options))
-    outcomes, stage_s = ev.outcomes, dict(ev.stage_s)
-    stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
-    blocks = {}
-    if photos and profile.kfree is not None:  # the K-free single-photo path (bench.photo_eval)
-        from bench.photo_eval import run_kfree  # noqa: PLC0415
+    with manifest.run_status(run_dir):
+        workers = workers or max(1, min(os.cpu_count() or 1, 8))
+        skipped: dict[str, str] = {}
+        if methods is None:
+            methods, skipped = plan_methods(profile)
+        ev = (evaluate_photos(profile, methods, progress) if photos else
+              evaluate_renders(profile, methods, run_dir, workers, progress, renders_dir, executor, executor_options))
+        outcomes, stage_s = ev.outcomes, dict(ev.stage_s)
+        stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
+        blocks = {}
+        if photos and profile.kfree is not None:  # the K-free single-photo path (bench.photo_eval)
+            from bench.photo_eval import run_kfree  # noqa: PLC0415
 
-        blocks["kfree"] = run_kfree(profile.kfree, profile.kfree_views(), run_dir, progress)
-        stage_s["kfree"] = blocks["kfree"]["wall_time_s"]
+            blocks["kfree"] = run_kfree(profile.kfree, profile.kfree_views(), run_dir, progress)
+            stage_s["kfree"] = blocks["kfree"]["wall_time_s"]
 
-    t0 = time.perf_counter()
-    df = results_table(outcomes)
-    if df.empty:
-        raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
-    df.insert(0, "profile", profile.name)
-    res.write_results(df, run_dir, csv=csv)
-    manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
-    det = detection_ap(outcomes, per_dataset=photos)
-    stage_s["summarize"] = time.perf_counter() - t0
-    wall = time.perf_counter() - t_start
-    meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
-                             n_views=len(outcomes), n_rows=len(df),
-                             **per_unit_timings(stage_s, len(outcomes), len(df) // max(1, len(methods))),
-                             methods=[m.name for m in methods], skipped_detectors=skipped,
-                             load_average={"before": load_before, "after": os.getloadavg()},
-                             peak_rss_mb=peak_rss_mb(), **ev.meta)
-    summary = res.summarize(df)
-    res.write_summary(run_dir, meta, summary, det, **blocks)
-    if sim_dir is not None:
-        from bench.real.simreal import write_simreal  # noqa: PLC0415
-
-        write_simreal(Path(sim_dir), run_dir)
-    if report:
         t0 = time.perf_counter()
-        report(run_dir)
-        stage_s["report"] = time.perf_counter() - t0
-        meta["stage_time_s"] = stage_s
-        meta["wall_time_s"] = time.perf_counter() - t_start
+        df = results_table(outcomes)
+        if df.empty:
+            raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
+        df.insert(0, "profile", profile.name)
+        res.write_results(df, run_dir, csv=csv)
+        manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
+        det = detection_ap(outcomes, per_dataset=photos)
+        stage_s["summarize"] = time.perf_counter() - t0
+        wall = time.perf_counter() - t_start
+        meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
+                                 n_views=len(outcomes), n_rows=len(df),
+                                 **per_unit_timings(stage_s, len(outcomes), len(df) // max(1, len(methods))),
+                                 methods=[m.name for m in methods], skipped_detectors=skipped,
+                                 load_average={"before": load_before, "after": os.getloadavg()},
+                                 peak_rss_mb=peak_rss_mb(), **ev.meta)
+        summary = res.summarize(df)
         res.write_summary(run_dir, meta, summary, det, **blocks)
-    return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))
+        if sim_dir is not None:
+            from bench.real.simreal import write_simreal  # noqa: PLC0415
+
+            write_simreal(Path(sim_dir), run_dir)
+        if report:
+            t0 = time.perf_counter()
+            report(run_dir)
+            stage_s["report"] = time.perf_counter() - t0
+            meta["stage_time_s"] = stage_s
+            meta["wall_time_s"] = time.perf_counter() - t_start
+            res.write_summary(run_dir, meta, summary, det, **blocks)
+        return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))

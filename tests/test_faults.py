@@ -748,3 +748,21 @@ def test_label_map_checkerboard_in_bounded_memory(tmp_path):
     rc, err, gb = run_measured(checkerboard_case(tmp_path), tmp_path)
     assert rc == 2 and "153600 window components, more than the 1000 per photo" in err, err[-2000:]
     assert gb < 0.5, gb
+
+
+def test_a_failed_bench_run_is_marked_failed(tmp_path):
+    """A run that stops after its folder was claimed (here a disk-full error inside the run's block)
+    leaves run.json saying 'failed' with the error's one line, and no manifest for gate/report."""
+    from bench.manifest import RUN_JSON, claim_run_dir, run_status
+
+    run = claim_run_dir(tmp_path / "run", "tiny", "abc")
+    assert json.loads((run / RUN_JSON).read_text())["status"] == "running"
+    with pytest.raises(OSError):
+        with run_status(run):
+            raise OSError("No space left on device")
+    doc = json.loads((run / RUN_JSON).read_text())
+    assert doc["status"] == "failed" and doc["error"] == "OSError: No space left on device"
+    assert doc["profile"] == "tiny" and not (run / "manifest.json").exists()
+    with run_status(claim_run_dir(run, "tiny", "abc")):  # the same profile reclaims it and completes
+        pass
+    assert json.loads((run / RUN_JSON).read_text())["status"] == "complete"
