@@ -622,6 +622,13 @@ def fill_block(text: str, name: str, content: str) -> str:
     return pattern.sub(lambda m: m.group(1) + content.rstrip("\n") + "\n" + m.group(3), text)
 
 
+def write_block(path: Path, name: str, content: str) -> None:
+    """Replace block ``name`` of the Markdown file ``path`` by ``content`` (:func:`fill_block`) and say so."""
+    path = Path(path)
+    path.write_text(fill_block(path.read_text(), name, content))
+    print(f"wrote block {name!r} of {path}")
+
+
 def block(text: str, name: str) -> str:
     """The content of block ``name`` (without its markers)."""
     m = re.search(rf"<!-- {name}:begin -->\n(.*?)<!-- {name}:end -->", text, re.S)

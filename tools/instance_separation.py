@@ -370,10 +370,9 @@ def main() -> None:
     text = "\n".join(lines).rstrip() + "\n"
     print(text)
     if a.doc is not None:
-        from reports.markdown import fill_block  # noqa: PLC0415
+        from reports.markdown import write_block  # noqa: PLC0415
 
-        a.doc.write_text(fill_block(a.doc.read_text(), a.block, text))
-        print(f"wrote block {a.block!r} of {a.doc}")
+        write_block(a.doc, a.block, text)
 
 
 if __name__ == "__main__":

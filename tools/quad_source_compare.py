@@ -58,21 +58,18 @@ def main() -> None:
     methods = [Method(a.detector, s, p, quad_source=q) for s in a.snappers.split(",")
                for p in a.poses.split(",") for q in ("mask", "corners")]
     out = a.out or Path("out") / f"quadsrc-{profile.name}"
-    results = {}
-    for source in ("mask", "corners"):  # one run each: the bench's per-wall strategies reuse per-window
-        # results by (snapper, pose, K) within a run, whatever the quad source (bench/evaluate.py _reconstruct)
-        run_benchmark(profile, out_dir=out / source, workers=a.workers, progress=False, report=None,
-                      methods=tuple(m for m in methods if m.quad_source == source), force=True)
-        results.update(json.loads((out / source / "summary.json").read_text())["results"])
+    # one run: the bench keys its per-wall reuse of per-window results on the quad parameters too
+    run_benchmark(profile, out_dir=out, workers=a.workers, progress=False, report=None, methods=tuple(methods),
+                  force=True)
+    results = json.loads((out / "summary.json").read_text())["results"]
     lines = [f"`python tools/quad_source_compare.py {' '.join(sys.argv[1:])}` (profile {profile.name}, "
              f"detector {a.detector}; corner error after snapping, every corner of the evaluable windows)", ""]
     text = "\n".join(lines + table(results, methods)) + "\n"
     print(text)
     if a.doc is not None:
-        from reports.markdown import fill_block  # noqa: PLC0415
+        from reports.markdown import write_block  # noqa: PLC0415
 
-        a.doc.write_text(fill_block(a.doc.read_text(), a.block, text))
-        print(f"wrote block {a.block!r} of {a.doc}")
+        write_block(a.doc, a.block, text)
 
 
 if __name__ == "__main__":
