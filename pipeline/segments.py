@@ -9,9 +9,14 @@ centres at integers (LSD's convention, and ours: a step between rows 29 and 30 l
 
 :class:`SegmentCache` keeps one photo's segments, so that the steps that need them (the focal fit
 without K, then the wall fit) find them once: the caller makes one per photo and passes it down
-(LSD on a 6000x4000 photo takes ~3 s and ~0.5 GB).
+(LSD on a 6000x4000 photo takes ~3 s and ~0.5 GB). It also keeps what is derived from them
+(:meth:`SegmentCache.derived`: the walls' façade-line work, pipeline.walls.lines.FacadeSegments), so
+that the bench's methods of one view share it.
 """
 from __future__ import annotations
+
+from collections.abc import Callable, Hashable
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -74,6 +79,9 @@ def whole_image_segments(gray: np.ndarray, scale: float, max_pixels: int = MAX_L
     return (detect_segments(small, scale) + 0.5) / [fx, fy] - 0.5
 
 
+T = TypeVar("T")
+
+
 class SegmentCache:
     """The segments of one photo, found on the first request per LSD scale and kept.
 
@@ -85,6 +93,7 @@ class SegmentCache:
     def __init__(self, gray: np.ndarray) -> None:
         self._gray = check_gray(gray)
         self._found: dict[float, np.ndarray] = {}
+        self._derived: dict[Hashable, object] = {}
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -99,3 +108,11 @@ class SegmentCache:
             self._found[key] = whole_image_segments(self._gray, key)
         s = self._found[key]
         return s[np.linalg.norm(s[:, 1] - s[:, 0], axis=1) >= min_length_px]
+
+    def derived(self, key: Hashable, make: Callable[[], T]) -> T:
+        """What ``make()`` derives from this photo's segments, made on the first request for
+        ``key`` and kept with them (pipeline.walls.lines.photo_segments keeps the photo's
+        FacadeSegments here, so the walls' line work is done once per photo, not per method)."""
+        if key not in self._derived:
+            self._derived[key] = make()
+        return self._derived[key]  # type: ignore[return-value]

@@ -387,6 +387,58 @@ def test_wall_segments_keep_the_walls_own_lines():
     assert err(vp) < 0.25 * err(vanishing.fit_vps(noisy, front, K))  # measured 0.16 deg vs 2.4 deg
 
 
+def test_facade_segments_per_photo_values_are_the_per_subset_ones():
+    """FacadeSegments computes each segment's normal, weight, threshold and angle once per photo
+    and hands out rows of them: that is only exact because every one of these is row-wise, the
+    value of a row the same bit for bit whatever other rows are computed with it (subsets of 1 to
+    M rows here, as the walls take them)."""
+    rng = np.random.default_rng(7)
+    seg = rng.uniform(0.0, 640.0, (60, 2, 2))
+    fs = facade_lines.FacadeSegments(seg)
+    vp = K @ np.array([0.3, -0.1, 0.9])
+    for n in (1, 2, 3, 5, 8, 13, 30, 59, 60):
+        idx = np.sort(rng.choice(len(seg), n, replace=False))
+        s = seg[idx]
+        assert np.array_equal(fs.normals(K, idx), vanishing.edge_normals(s, K))
+        assert np.array_equal(fs.weights(0.5)[idx], vanishing.segment_weights(s, 0.5))
+        assert np.array_equal(fs.thresholds(0.5, 8.0)[idx], vanishing.side_thresholds_deg(s, 0.5, 8.0))
+        assert np.array_equal(vanishing.angles_to_vp(fs.mid_h[idx], fs.e[idx], fs.length[idx], vp),
+                              vanishing.side_angles_to_vp(s, vp))
+    with pytest.raises(ValueError):
+        fs.segments[0, 0, 0] = 1.0  # handed out read-only
+    flat = facade_lines.FacadeSegments(np.array([[[5.0, 5.0], [5.0, 5.0]], [[0.0, 0.0], [30.0, 0.0]]]))
+    assert np.all(np.isfinite(flat.normals(K, np.array([1]))))
+    with pytest.raises(vanishing.FacadeError, match="degenerate"):
+        flat.normals(K, np.array([0, 1]))
+
+
+def test_wall_segments_are_made_once_per_photo_and_wall():
+    """Through the photo's FacadeSegments (photo_segments keeps one per SegmentCache), a wall's
+    segments and vanishing points are those of the plain array, made once per distinct wall,
+    K and parameters."""
+    R, t, quads, labels, _ = scene()
+    front = np.flatnonzero(labels == 0).tolist()
+    seg = edge_segments(R, t, ["front", "corner", "side_right", "front_left"])
+    params = walls.WallParams(lines=True, line_margin=2.0)
+    fs = facade_lines.FacadeSegments(seg)
+    plain = facade_lines.wall_segments(seg, quads, front, K, params)
+    shared = facade_lines.wall_segments(fs, quads, front, K, params)
+    for a, b in zip((*plain[0], *plain[1]), (*shared[0], *shared[1])):
+        assert np.array_equal(a, b)
+    assert facade_lines.wall_segments(fs, quads.copy(), list(front), K.copy(), replace(params, manhattan=False)) is shared
+    other = facade_lines.wall_segments(fs, quads, front, K, replace(params, line_refit_deg=2.0))
+    assert other is not shared
+    K2 = make_K(700.0, 700.0, 319.5, 239.5)
+    assert facade_lines.wall_segments(fs, quads, front, K2, params) is not shared
+    for a, b in zip(facade_lines.wall_vps(quads, K2, [vanishing.WallVP(None, None, tuple(front))], params, fs)[0][0],
+                    facade_lines.wall_vps(quads, K2, [vanishing.WallVP(None, None, tuple(front))], params, seg)[0][0]):
+        assert np.array_equal(a, b)
+    cache = SegmentCache(np.zeros(SHAPE, np.uint8))
+    got = facade_lines.photo_segments(cache, params, SHAPE)
+    assert got is facade_lines.photo_segments(cache, replace(params, manhattan=False), SHAPE)
+    assert got is not facade_lines.photo_segments(cache, replace(params, line_min_px=40.0), SHAPE)
+
+
 def test_vanishing_points_from_lines_and_quads():
     """Exact façade lines pin the vanishing directions: exact with exact quads, and with 1 px
     corner noise on a single window far closer than the window alone."""
@@ -425,6 +477,14 @@ def test_line_jacobian_matches_finite_differences():
         Rx, _, _, Kx = wallfit._unpack(x, 2, 0, R0, K, focal_free)
         J = obs.jacobian(x, Rx, Kx, len(x), focal_free)
         np.testing.assert_allclose(J, approx_derivative(residuals, x, method="3-point"), atol=1e-6 * np.abs(J).max())
+        # the residuals kept from the last point asked for are those of that point only
+        fresh = facade_lines.LineObs(*(a.copy() for a in (obs.segments, obs.group, obs.Q, obs.axis, obs.weight)))
+        assert np.array_equal(obs.residuals(Rx, Kx), fresh.residuals(Rx, Kx))
+        assert np.array_equal(J, fresh.jacobian(x, Rx, Kx, len(x), focal_free))
+        R2 = Rx.copy()
+        R2[0] = R2[0] @ vanishing.rot_y(1.0)
+        assert not np.array_equal(obs.residuals(R2, Kx), fresh.residuals(Rx, Kx))
+        assert np.array_equal(obs.jacobian(x, Rx, Kx, len(x), focal_free), J)
 
 
 def test_refine_walls_with_lines_exact_and_better_under_noise():

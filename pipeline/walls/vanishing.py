@@ -52,7 +52,9 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def homog(p: np.ndarray) -> np.ndarray:
     """(N, 2) px -> (N, 3) homogeneous."""
-    return np.hstack([p, np.ones((len(p), 1))])
+    out = np.ones((len(p), 3))
+    out[:, :2] = p
+    return out
 
 
 def side_segments(quads: np.ndarray, sides: tuple) -> np.ndarray:
@@ -66,13 +68,28 @@ def edge_normals(segments: np.ndarray, K: np.ndarray) -> np.ndarray:
 
     A camera-frame direction d lies along the segment's 3D line iff n . d = 0.
     """
-    Ki = np.linalg.inv(check_K(K))
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
-    a, b = homog(s[:, 0]) @ Ki.T, homog(s[:, 1]) @ Ki.T
-    n = np.cross(a, b)
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return unit_normals(s, *plane_normals(*rays(s, np.linalg.inv(check_K(K)))))
+
+
+def rays(segments: np.ndarray, Ki: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Camera-frame rays K^-1 [u, v, 1] (N, 3) of the start and end points of segments (N, 2, 2)
+    px, Ki = K^-1 (3, 3)."""
+    return homog(segments[:, 0]) @ Ki.T, homog(segments[:, 1]) @ Ki.T
+
+
+def plane_normals(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Interpretation-plane normals a x b (N, 3), not normalised, of segments with end rays a, b
+    (N, 3) (:func:`rays`), and their lengths (N, 1) (see :func:`unit_normals`)."""
+    n = cross3(a, b)
+    return n, np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def unit_normals(segments: np.ndarray, n: np.ndarray, norm: np.ndarray) -> np.ndarray:
+    """n / norm (:func:`plane_normals` of segments (N, 2, 2) px); FacadeError naming a degenerate
+    segment (zero length) among them."""
     if np.any(norm < 1e-15):
-        raise FacadeError(f"degenerate side (zero length): {s[norm[:, 0] < 1e-15].tolist()}")
+        raise FacadeError(f"degenerate side (zero length): {segments[norm[:, 0] < 1e-15].tolist()}")
     return n / norm
 
 
@@ -100,27 +117,49 @@ def vanishing_direction(normals: np.ndarray, weights: np.ndarray | None = None) 
 def orient(d: np.ndarray, segments: np.ndarray, K: np.ndarray) -> np.ndarray:
     """Sign of direction d (3,) such that it points from each segment's start to its end in 3D
     (majority over segments (N, 2, 2) px); returns +-d."""
-    Ki = np.linalg.inv(check_K(K))
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
-    a, b = homog(s[:, 0]) @ Ki.T, homog(s[:, 1]) @ Ki.T
-    # d = c0 a + c1 b (least squares, 2x2 normal equations per segment); d points start -> end
-    # when the end's depth coefficient c1 exceeds the start's c0 (c1 > 0 > c0 exactly)
-    aa, ab, bb = np.sum(a * a, 1), np.sum(a * b, 1), np.sum(b * b, 1)
-    ad, bd = a @ d, b @ d
-    det = aa * bb - ab ** 2
-    c0, c1 = (bb * ad - ab * bd) / det, (aa * bd - ab * ad) / det
-    return d if np.sum(np.sign(c1 - c0)) >= 0 else -d
+    return _Orientation.of(*rays(s, np.linalg.inv(check_K(K)))).orient(d)
+
+
+@dataclass(frozen=True)
+class _Orientation:
+    """What :func:`orient` needs of segments besides d: their end rays a, b (N, 3) (:func:`rays`)
+    and the 2x2 normal equations' terms a.a, a.b, b.b and determinant (N,)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    aa: np.ndarray
+    ab: np.ndarray
+    bb: np.ndarray
+    det: np.ndarray
+
+    @classmethod
+    def of(cls, a: np.ndarray, b: np.ndarray) -> "_Orientation":
+        aa, ab, bb = np.sum(a * a, 1), np.sum(a * b, 1), np.sum(b * b, 1)
+        return cls(a, b, aa, ab, bb, aa * bb - ab ** 2)
+
+    def orient(self, d: np.ndarray) -> np.ndarray:
+        # d = c0 a + c1 b (least squares, 2x2 normal equations per segment); d points start -> end
+        # when the end's depth coefficient c1 exceeds the start's c0 (c1 > 0 > c0 exactly)
+        ad, bd = self.a @ d, self.b @ d
+        c0, c1 = (self.bb * ad - self.ab * bd) / self.det, (self.aa * bd - self.ab * ad) / self.det
+        return d if np.sum(np.sign(c1 - c0)) >= 0 else -d
 
 
 def side_angles_to_vp(segments: np.ndarray, vp: np.ndarray) -> np.ndarray:
     """Image angle (N,) deg between each segment (N, 2, 2) px and the line from its midpoint to the
     homogeneous vanishing point vp (3,) px (finite or at infinity); vp (H, 3): (H, N), per point."""
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
-    m = homog(0.5 * (s[:, 0] + s[:, 1]))
-    lines = cross3(m, np.asarray(vp, dtype=np.float64)[..., None, :])
-    to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
     e = s[:, 1] - s[:, 0]
-    c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * np.linalg.norm(e, axis=1) + 1e-300)
+    return angles_to_vp(homog(0.5 * (s[:, 0] + s[:, 1])), e, np.linalg.norm(e, axis=1), vp)
+
+
+def angles_to_vp(mid: np.ndarray, e: np.ndarray, e_len: np.ndarray, vp: np.ndarray) -> np.ndarray:
+    """:func:`side_angles_to_vp` of segments given as their homogeneous midpoints mid (N, 3),
+    directions e = end - start (N, 2) px and lengths e_len (N,) px."""
+    lines = cross3(mid, np.asarray(vp, dtype=np.float64)[..., None, :])
+    to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
+    c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * e_len + 1e-300)
     return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
 
 
@@ -150,16 +189,51 @@ def fit_vps(quads: np.ndarray, idx: list[int], K: np.ndarray, sigma_px: float = 
     ``oriented`` (sign arbitrary then). lines: façade segments (M_h, 2, 2), (M_v, 2, 2) px along
     the horizontal resp. vertical direction, weighted like the sides with end-point sigma
     ``line_sigma_px`` (the sign still comes from the sides)."""
-    out = []
-    for f, sides in enumerate((H_SIDES, V_SIDES)):
-        seg = side_segments(quads[idx], sides)
-        nrm, wts = edge_normals(seg, K), segment_weights(seg, sigma_px)
-        if lines is not None and len(lines[f]):
-            nrm = np.concatenate([nrm, edge_normals(lines[f], K)])
-            wts = np.concatenate([wts, segment_weights(lines[f], line_sigma_px)])
-        d = vanishing_direction(nrm, wts)
-        out.append(orient(d, seg, K) if oriented else d)
-    return out[0], out[1]
+    Ki = np.linalg.inv(check_K(K))
+    extra = None
+    if lines is not None:
+        segs = [np.asarray(seg, dtype=np.float64).reshape(-1, 2, 2) for seg in lines]
+        extra = tuple((unit_normals(seg, *plane_normals(*rays(seg, Ki))), segment_weights(seg, line_sigma_px))
+                      if len(seg) else None for seg in segs)
+    return WallSides.of(quads, idx, Ki, sigma_px).vps(extra, oriented)
+
+
+@dataclass(frozen=True)
+class WallSides:
+    """The horizontal and vertical sides of a wall's windows, as :func:`fit_vps` uses them: per
+    family (0: horizontal, 1: vertical) their unit normals (S, 3), weights (S,) and orientation
+    terms; made once per wall, used for every fit of its vanishing points."""
+
+    normals: tuple[np.ndarray, np.ndarray]
+    weights: tuple[np.ndarray, np.ndarray]
+    orientation: tuple[_Orientation, _Orientation]
+
+    @classmethod
+    def of(cls, quads: np.ndarray, idx: list[int], Ki: np.ndarray, sigma_px: float) -> "WallSides":
+        """The sides of windows ``idx`` of quads (N, 4, 2) px under Ki = K^-1 (3, 3) (K checked),
+        weighted with corner sigma ``sigma_px``."""
+        nrm, wts, ori = [], [], []
+        q = quads[idx]
+        for sides in (H_SIDES, V_SIDES):
+            seg = side_segments(q, sides)
+            a, b = rays(seg, Ki)
+            nrm.append(unit_normals(seg, *plane_normals(a, b)))
+            wts.append(segment_weights(seg, sigma_px))
+            ori.append(_Orientation.of(a, b))
+        return cls(tuple(nrm), tuple(wts), tuple(ori))
+
+    def vps(self, lines: tuple | None = None, oriented: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """(d_h, d_v) (3,) each: :func:`fit_vps` with these sides and, per family, the lines'
+        (unit normals (M, 3), weights (M,)) or None (none, also for lines None)."""
+        out = []
+        for f in range(2):
+            nrm, wts = self.normals[f], self.weights[f]
+            if lines is not None and lines[f] is not None:
+                nrm = np.concatenate([nrm, lines[f][0]])
+                wts = np.concatenate([wts, lines[f][1]])
+            d = vanishing_direction(nrm, wts)
+            out.append(self.orientation[f].orient(d) if oriented else d)
+        return out[0], out[1]
 
 
 @dataclass(frozen=True)
@@ -261,7 +335,7 @@ def focal_from_vanishing(d_h: np.ndarray, d_v: np.ndarray, K0: np.ndarray) -> fl
 
 def initial_rotation(d_h: np.ndarray, d_v: np.ndarray) -> np.ndarray:
     """Rotation (3, 3) window frame -> camera: the closest one to columns [d_h, d_v, d_h x d_v]."""
-    M = np.stack([d_h, d_v, np.cross(d_h, d_v)], axis=1)
+    M = np.stack([d_h, d_v, cross3(d_h, d_v)], axis=1)
     U, _, Vt = np.linalg.svd(M)
     R = U @ Vt
     if np.linalg.det(R) < 0:
