@@ -412,6 +412,19 @@ def test_facade_segments_per_photo_values_are_the_per_subset_ones():
         flat.normals(K, np.array([0, 1]))
 
 
+def test_group_walls_gives_each_wall_its_fit_vps():
+    """group_walls' vanishing directions per wall are fit_vps' of its windows, bit for bit (it
+    takes them from the sides it already has: per-side values are row-wise), noisy quads too."""
+    R, t, quads, labels, _ = scene()
+    for noise in (0.0, 1.5):
+        q = quads + np.random.default_rng(3).normal(0.0, noise, quads.shape)
+        found = vanishing.group_walls(q, K, 0.7)
+        assert len(found) >= 2
+        for w in found:
+            d_h, d_v = vanishing.fit_vps(q, list(w.members), K, 0.7)
+            assert np.array_equal(w.d_h, d_h) and np.array_equal(w.d_v, d_v)
+
+
 def test_wall_segments_are_made_once_per_photo_and_wall():
     """Through the photo's FacadeSegments (photo_segments keeps one per SegmentCache), a wall's
     segments and vanishing points are those of the plain array, made once per distinct wall,

@@ -47,7 +47,11 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     order (bit-identical), without its axis moves (the RANSAC hypotheses and the wall fit's Jacobian call it in their loops)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)), dtype=np.result_type(a0, b0))
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return out
 
 
 def homog(p: np.ndarray) -> np.ndarray:
@@ -239,24 +243,33 @@ class WallSides:
 @dataclass(frozen=True)
 class _Sides:
     """Per window and side family (0: horizontal, 1: vertical): segment midpoints (N, 2, 2, 3)
-    homogeneous px, directions (N, 2, 2, 2) px, weighted normal moments sum w n n^T (N, 2, 3, 3),
-    inlier thresholds (N, 2, 2) deg."""
+    homogeneous px, directions (N, 2, 2, 2) px and their lengths (1, N, 2, 2), weighted normal
+    moments sum w n n^T (N, 2, 3, 3), inlier thresholds (N, 2, 2) deg; the sides' unit normals
+    (N, 2, 2, 3), weights (N, 2, 2) and end rays a, b (N, 2, 2, 3) (:meth:`wall`)."""
 
     mid: np.ndarray
     dirs: np.ndarray
+    dir_len: np.ndarray
     moments: np.ndarray
     thresh: np.ndarray
+    nrm: np.ndarray
+    wts: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
 
     @classmethod
     def of(cls, q: np.ndarray, K: np.ndarray, sigma_px: float) -> "_Sides":
         n = len(q)
         seg = np.stack([side_segments(q, sides).reshape(n, 2, 2, 2) for sides in (H_SIDES, V_SIDES)], axis=1)
         flat = seg.reshape(-1, 2, 2)
-        nrm = edge_normals(flat, K).reshape(n, 2, 2, 3)
+        a, b = rays(flat, np.linalg.inv(K))
+        nrm = unit_normals(flat, *plane_normals(a, b)).reshape(n, 2, 2, 3)
         wts = segment_weights(flat, sigma_px).reshape(n, 2, 2)
         moments = np.einsum("nfs,nfsi,nfsj->nfij", wts, nrm, nrm)
         mid = np.concatenate([0.5 * (seg[..., 0, :] + seg[..., 1, :]), np.ones((n, 2, 2, 1))], axis=-1)
-        return cls(mid, seg[..., 1, :] - seg[..., 0, :], moments, side_thresholds_deg(flat).reshape(n, 2, 2))
+        dirs = seg[..., 1, :] - seg[..., 0, :]
+        return cls(mid, dirs, np.linalg.norm(dirs[None], axis=-1), moments,
+                   side_thresholds_deg(flat).reshape(n, 2, 2), nrm, wts, a.reshape(n, 2, 2, 3), b.reshape(n, 2, 2, 3))
 
     def directions(self, hyps: np.ndarray) -> np.ndarray:
         """Unoriented (d_h, d_v) (H, 2, 3) of each hypothesis, a (H, N) bool window membership."""
@@ -269,9 +282,17 @@ class _Sides:
         lines = cross3(self.mid[None], vp[:, None, :, None, :])  # (H, N, 2, 2, 3)
         to_vp = np.stack([lines[..., 1], -lines[..., 0]], axis=-1)
         e = self.dirs[None]
-        c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * np.linalg.norm(e, axis=-1) + 1e-300)
+        c = np.abs(np.sum(to_vp * e, axis=-1)) / (np.linalg.norm(to_vp, axis=-1) * self.dir_len + 1e-300)
         ang = np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
         return np.all(ang <= self.thresh[None], axis=(2, 3))
+
+    def wall(self, idx: list[int]) -> WallSides:
+        """The sides of windows ``idx`` as :func:`fit_vps` uses them (``WallSides.of(q, idx, ...)``,
+        bit for bit: every per-side value is row-wise)."""
+        return WallSides(tuple(self.nrm[idx, f].reshape(-1, 3) for f in range(2)),
+                         tuple(self.wts[idx, f].reshape(-1) for f in range(2)),
+                         tuple(_Orientation.of(self.a[idx, f].reshape(-1, 3), self.b[idx, f].reshape(-1, 3))
+                               for f in range(2)))
 
 
 def group_walls(quads: np.ndarray, K: np.ndarray, sigma_px: float = 1.0,
@@ -312,7 +333,7 @@ def group_walls(quads: np.ndarray, K: np.ndarray, sigma_px: float = 1.0,
                 break
             members = new
         mem = np.flatnonzero(members).tolist()
-        d_h, d_v = fit_vps(q, mem, K, sigma_px)
+        d_h, d_v = sd.wall(mem).vps()  # fit_vps(q, mem, K, sigma_px)
         walls.append(WallVP(d_h, d_v, tuple(mem)))
         left &= ~members
     return sorted(walls, key=lambda w: -len(w.members))
