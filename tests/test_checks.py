@@ -65,3 +65,16 @@ def test_check_image():
         with pytest.raises(checks.ImageError, match=f"photo .*{word}") as e:
             checks.check_image(bad, "photo")
         assert isinstance(e.value, PipelineError) and isinstance(e.value, ValueError)
+
+
+def test_allclose_is_numpys_on_finite_arrays():
+    """The checks' _allclose answers as np.allclose on finite values, at and around its tolerances."""
+    rng = np.random.default_rng(0)
+    b = np.array([0.0, 0.0, 1.0])
+    for step in (0.0, 1e-9, 1e-8, 1.0000001e-8, 1e-5, 1.001e-5, 1.0001e-5, 1e-3):
+        for a in (b + step, b - step, b + step * rng.normal(size=3)):
+            assert checks._allclose(a, b) == np.allclose(a, b)
+            assert checks._allclose(a, b, atol=1e-6) == np.allclose(a, b, atol=1e-6)
+    for _ in range(200):
+        R = np.linalg.qr(rng.normal(size=(3, 3)))[0] * (1.0 + rng.choice([0.0, 1e-7, 1e-6, 1e-5]))
+        assert checks._allclose(R @ R.T, np.eye(3), atol=1e-6) == np.allclose(R @ R.T, np.eye(3), atol=1e-6)
