@@ -83,7 +83,9 @@ class FacadeSegments:
         return len(self.segments)
 
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
-        return self.segments if dtype is None else self.segments.astype(dtype)
+        """The segments (M, 2, 2) px (read-only unless copied)."""
+        s = self.segments if dtype is None else self.segments.astype(dtype)
+        return s.copy() if copy and s is self.segments else s
 
     def normals(self, K: np.ndarray, idx: np.ndarray) -> np.ndarray:
         """Unit interpretation-plane normals (len(idx), 3) of segments ``idx`` under K (3, 3,

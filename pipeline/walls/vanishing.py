@@ -47,7 +47,8 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     order (bit-identical), without its axis moves (the RANSAC hypotheses and the wall fit's Jacobian call it in their loops)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)), dtype=np.result_type(a0, b0))
+    sa, sb = np.shape(a), np.shape(b)
+    out = np.empty(sa if sa == sb else np.broadcast_shapes(sa, sb), dtype=np.result_type(a0, b0))
     np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
