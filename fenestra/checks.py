@@ -45,7 +45,14 @@ def _allclose(a: np.ndarray, b: np.ndarray, rtol: float = 1e-05, atol: float = 1
     """np.allclose(a, b, rtol, atol) of a finite array a and finite b (|a - b| <= atol + rtol |b|
     everywhere), without np.isclose's generality: the checks run on every small array the
     pipeline passes, thousands of times per photo in the bench."""
-    return bool(np.all(np.abs(a - b) <= atol + rtol * np.abs(b)))
+    return bool((np.abs(a - b) <= atol + rtol * np.abs(b)).all())
+
+
+def _det3(M: np.ndarray) -> float:
+    """Determinant of a 3x3 matrix by its cofactor expansion (for a sign: the checks ask det < 0
+    of a matrix already orthonormal to ROTATION_ATOL, whose determinant is +-1 to ~1e-5)."""
+    (a, b, c), (d, e, f), (g, h, i) = M.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 def check_K(K: np.ndarray, name: str = "K") -> np.ndarray:
@@ -57,7 +64,7 @@ def check_K(K: np.ndarray, name: str = "K") -> np.ndarray:
     K = np.asarray(K, dtype=np.float64)
     if K.shape != (3, 3):
         raise ValueError(f"{name} must be 3x3, got shape {K.shape}")
-    if not np.all(np.isfinite(K)):
+    if not np.isfinite(K).all():
         raise ValueError(f"{name} has non-finite entries: {K.tolist()}")
     if K[0, 0] <= 0 or K[1, 1] <= 0:
         raise ValueError(f"{name} focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
@@ -74,7 +81,7 @@ def check_quad(quad: np.ndarray, name: str = "quad") -> np.ndarray:
     q = np.asarray(quad, dtype=np.float64)
     if q.shape != (4, 2):
         raise ValueError(f"{name} must have shape (4, 2) (TL, TR, BR, BL px), got {q.shape}")
-    if not np.all(np.isfinite(q)):
+    if not np.isfinite(q).all():
         raise ValueError(f"{name} has non-finite entries: {q.tolist()}")
     return q
 
@@ -85,9 +92,9 @@ def check_rotation(R: np.ndarray, name: str = "R", atol: float = ROTATION_ATOL) 
     R = np.asarray(R, dtype=np.float64)
     if R.shape != (3, 3):
         raise ValueError(f"{name} must have shape (3, 3), got {R.shape}")
-    if not np.all(np.isfinite(R)):
+    if not np.isfinite(R).all():
         raise ValueError(f"{name} has non-finite entries: {R.tolist()}")
-    if not _allclose(R @ R.T, _EYE3, atol=atol) or np.linalg.det(R) < 0:
+    if not _allclose(R @ R.T, _EYE3, atol=atol) or _det3(R) < 0:
         raise ValueError(f"{name} is not a rotation matrix (R R^T != I or det < 0; det = "
                          f"{np.linalg.det(R):.4f}): {R.tolist()}")
     return R

@@ -78,3 +78,12 @@ def test_allclose_is_numpys_on_finite_arrays():
     for _ in range(200):
         R = np.linalg.qr(rng.normal(size=(3, 3)))[0] * (1.0 + rng.choice([0.0, 1e-7, 1e-6, 1e-5]))
         assert checks._allclose(R @ R.T, np.eye(3), atol=1e-6) == np.allclose(R @ R.T, np.eye(3), atol=1e-6)
+
+
+def test_det3_has_the_sign_of_numpys_determinant():
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        M = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        for m in (M, M + rng.normal(0.0, 1e-7, (3, 3)), rng.normal(size=(3, 3))):
+            assert checks._det3(m) == pytest.approx(np.linalg.det(m), abs=1e-12)
+            assert (checks._det3(m) < 0) == (np.linalg.det(m) < 0)
