@@ -28,8 +28,8 @@ from fenestra.checks import check_K
 from pipeline.segments import SegmentCache
 from pipeline.walls.fit import WallFit, left_jacobian
 from pipeline.walls.settings import WALL_FIT, WallParams
-from pipeline.walls.vanishing import (WallSides, WallVP, angles_to_vp, cross3, edge_normals, fit_vps, homog,
-                                      plane_normals, rays, side_angles_to_vp, side_thresholds_deg, unit_normals)
+from pipeline.walls.vanishing import (WallSides, WallVP, angles_to_vp, cross3, fit_vps, homog, plane_normals, rays,
+                                      side_angles_to_vp, side_thresholds_deg, unit_normals)
 
 
 def photo_segments(segment_cache: SegmentCache | None, params: WallParams,
