@@ -383,13 +383,15 @@ PER_WINDOW_STAGES = ("snap", "aspect", "pose")
 
 
 def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list, cfg, withhold_K: bool,
-                 per_window: dict, segment_cache) -> tuple[list, tuple[str, ...]]:
+                 per_window: dict, segment_cache, wall_memo) -> tuple[list, tuple[str, ...]]:
     """reconstruct_from_quads of one method, and the timing keys it spent time on.
 
     A per-wall strategy starts from the per-window results of its base pose; those are computed
     once per snapper (or taken from that per-window method's own run) and kept in ``per_window``,
     so every method's results are exactly those of a run of its own. segment_cache: the view's
-    pipeline.segments.SegmentCache (its façade line segments, found once for every method).
+    pipeline.segments.SegmentCache (its façade line segments, found once for every method);
+    wall_memo: the view's pipeline.walls.memo.WallMemo (the per-wall steps with identical inputs,
+    e.g. ``wall`` and ``building`` where no walls are tied, computed once for every method).
     """
     from pipeline.reconstruct import POSES, reconstruct_from_quads  # noqa: PLC0415
 
@@ -405,7 +407,8 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
     if key not in per_window:
         per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose))
         counted = (*PER_WINDOW_STAGES, "wall")
-    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key], segment_cache=segment_cache), counted
+    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key], segment_cache=segment_cache,
+                                  wall_memo=wall_memo), counted
 
 
 def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list) -> np.ndarray:
@@ -453,6 +456,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
     from pipeline.quad import QuadParams  # noqa: PLC0415
     from pipeline.segments import SegmentCache  # noqa: PLC0415
+    from pipeline.walls.memo import WallMemo  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
 
@@ -471,6 +475,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     t0 = tick("load", t0)
     gray = to_gray(view.image)  # RGB, as detect() and reconstruct() take it; once per view, shared by every method
     segment_cache = SegmentCache(gray)  # the view's line segments (+lines strategies): found once, shared too
+    wall_memo = WallMemo()  # the per-wall steps of this view, each distinct input computed once for every method
     t0 = tick("reconstruct", t0)
     can_oracle = view.instance_map() is not None
 
@@ -509,7 +514,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
                                                + sum(q.ms for q in quads[cfg.quad]) / 1000.0)
             K_in = None if withhold_K else view.K
             results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window,
-                                             segment_cache)
+                                             segment_cache, wall_memo)
             t0 = tick("reconstruct", t0)
             by_gt = {matched[r.index][0]: r for r in results}
             for r in results:

@@ -32,6 +32,7 @@ from pipeline.segments import SegmentCache
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult
 from pipeline.walls import WALL_STRATEGIES, WallParams, apply_walls
+from pipeline.walls.memo import WallMemo
 
 STAGES = ("quad", "snap", "aspect", "pose")
 
@@ -273,7 +274,8 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
 def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                            quads: list[QuadFit], cfg: ReconstructConfig = ReconstructConfig(),
                            base: list[WindowResult] | None = None,
-                           segment_cache: SegmentCache | None = None) -> list[WindowResult]:
+                           segment_cache: SegmentCache | None = None,
+                           wall_memo: WallMemo | None = None) -> list[WindowResult]:
     """:func:`reconstruct` with the quads already fitted: ``quads = fit_quads(detections, cfg.quad,
     image_shape)``, one per detection, in order (so one fit serves every snapper x pose config).
 
@@ -284,6 +286,9 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
     (e.g. by a run of that per-window solver); they are used as they are, not recomputed.
     segment_cache: the photo's line segments (pipeline.segments.SegmentCache of this gray image),
     kept across the steps and configs that need them on this photo; None: a new one for this call.
+    wall_memo: the photo's pipeline.walls.memo.WallMemo, kept across the per-wall configs run on
+    it (their steps with identical inputs computed once; the results are unchanged); None: a new
+    one for this call.
     """
     if len(quads) != len(detections):
         raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
@@ -300,7 +305,7 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
         return results
     t0 = time.perf_counter()
     cache = SegmentCache(gray) if segment_cache is None else segment_cache
-    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, cache)
+    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, cache, wall_memo)
     ms = (time.perf_counter() - t0) * 1e3 / max(len(results), 1)
     return [replace(r, timings_ms={**r.timings_ms, "wall": ms}) for r in results]
 
