@@ -593,3 +593,17 @@ def test_memo_shared_by_strategies_gives_their_own_results():
     out = walls.apply_walls(res, K, SHAPE, 1.0, None, walls.WALL_STRATEGIES["wall"], memo=memo)
     with pytest.raises(ValueError, match="read-only"):
         out[0].quad_reprojected[0, 0] = 0.0
+
+
+def test_quantiles_are_scipy_stats_bit_for_bit():
+    """The intervals' quantiles (special functions called directly, skipping scipy.stats' argument
+    handling) equal scipy.stats' chi2.ppf and norm.ppf exactly over the degrees of freedom that
+    norm_quantile gives (1 to 3) and beyond."""
+    from scipy.stats import chi2, norm  # noqa: PLC0415
+
+    rng = np.random.default_rng(2)
+    for dof in np.concatenate([rng.uniform(0.5, 4.0, 2000), [1.0, 2.0, 3.0]]):
+        for level in (0.5, 0.9, 0.95):
+            assert wallfit.chi2_ppf(level, dof) == float(chi2.ppf(level, dof))
+    for level in (0.5, 0.9, 0.95, 0.975):
+        assert wallfit.norm_ppf(level) == float(norm.ppf(level))
