@@ -555,7 +555,7 @@ def _same_results(a: list[WindowResult], b: list[WindowResult]) -> bool:
 def test_memo_key_is_exact():
     """Two inputs share a memo entry only when identical: arrays by dtype, shape and bytes (0.0
     and -0.0 differ), containers element by element; an unhashable part raises at once."""
-    from pipeline.walls.memo import key  # noqa: PLC0415
+    from pipeline.memo import key  # noqa: PLC0415
 
     a = np.array([[0.0, 1.5], [2.0, 3.0]])
     assert key(a, 1.0, "x", (a, None)) == key(a.copy(), 1.0, "x", (a.copy(), None))
@@ -563,6 +563,7 @@ def test_memo_key_is_exact():
     assert key(a) != key(a.astype(np.float32)) and key(a) != key(a.reshape(4))
     assert key(a) != key(np.where(a == 3.0, np.nextafter(3.0, 4.0), a))  # one ulp apart
     assert key([a]) != key((a,))
+    assert key(1) != key(1.0) and key(1.0) != key(np.float64(1.0))
     with pytest.raises(TypeError):
         key({"unhashable": 1})
 
@@ -572,7 +573,7 @@ def test_memo_shared_by_strategies_gives_their_own_results():
     strategy's results are bit for bit those of a run on its own, with K and without (focal
     fit), with a window that does not fit its wall (the split-and-refit loop); the memo did
     share work, and what it keeps cannot be written to."""
-    from pipeline.walls.memo import WallMemo  # noqa: PLC0415
+    from pipeline.memo import StepMemo  # noqa: PLC0415
 
     R, t, quads, _, _ = scene()
     gray = draw_scene(R, t, quads).astype(np.float32)
@@ -581,7 +582,7 @@ def test_memo_shared_by_strategies_gives_their_own_results():
     snapped[2, 1] += [9.0, -6.0]  # an outlier corner: split off and refitted
     res = [replace(r, quad_mask=r.quad_mask + rng.normal(0.0, 0.5, (4, 2))) for r in _results(snapped)]
     for K_in in (K, None):
-        memo, cache = WallMemo(), SegmentCache(gray)
+        memo, cache = StepMemo(), SegmentCache(gray)
         for name in ("wall", "building", "wall+lines", "building+lines", "wall", "wall+sigma", "building+lines"):
             # wall+sigma: 'wall' with error bars from snapping (the fit kept, its covariance not)
             params = replace(walls.WALL_STRATEGIES["wall"], snap_sigma=True) if name == "wall+sigma" \

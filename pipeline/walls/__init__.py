@@ -10,8 +10,6 @@ Modules, in import order (each uses only those before it):
   each window's uncertainty intervals.
 - ``lines``: façade line segments near a wall's windows joining its vanishing points and its fit
   (the photo's segments from pipeline.segments, the pipeline's one segment detector).
-- ``memo``: WallMemo, a per-photo memo of those steps keyed by the exact bytes of their inputs,
-  so the strategies run on one photo share what is identical (the bench keeps one per view).
 - ``strategies``: the registry WALL_STRATEGIES, apply_walls, the fits with known or unknown focal
   length.
 

@@ -33,7 +33,7 @@ from pipeline.segments import SegmentCache
 from pipeline.types import WindowResult
 from pipeline.walls.fit import WallFit, refine_walls, window_uncertainty
 from pipeline.walls.lines import LineObs, WallLines, line_obs, photo_segments, refit_lines, wall_vps
-from pipeline.walls.memo import WallMemo, key
+from pipeline.memo import StepMemo, key
 from pipeline.walls.settings import WALL_FIT, WallParams
 from pipeline.walls.vanishing import (FacadeError, WallVP, fit_vps, focal_from_vanishing, group_walls,
                                       initial_rotation, tie_walls)
@@ -87,7 +87,7 @@ def _shared(params: WallParams) -> WallParams:
 
 
 def _wall_vps(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], params: WallParams,
-              segments: np.ndarray | None, memo: WallMemo) -> tuple[list, list[WallLines] | None]:
+              segments: np.ndarray | None, memo: StepMemo) -> tuple[list, list[WallLines] | None]:
     """:func:`pipeline.walls.lines.wall_vps`, wall by wall (each a function of its own windows), each
     wall's kept in ``memo``."""
     per = [memo("wall_vps", key(quads, K, w.members, _shared(params), segments),
@@ -97,11 +97,11 @@ def _wall_vps(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], params: Wal
 
 
 def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], params: WallParams,
-                     segments: np.ndarray | None = None, memo: WallMemo | None = None
+                     segments: np.ndarray | None = None, memo: StepMemo | None = None
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[WallLines] | None]:
     """Per wall: initial rotation R0 (G, 3, 3) under K, rotation group (G,), Q (G, 3, 3), and its
     façade segments (:func:`wall_vps`); memo: kept vanishing points (None: a new memo)."""
-    vps, lines = _wall_vps(quads, K, walls, params, segments, WallMemo() if memo is None else memo)
+    vps, lines = _wall_vps(quads, K, walls, params, segments, StepMemo() if memo is None else memo)
     R0 = np.array([initial_rotation(*vp) for vp in vps])
     if params.manhattan:
         group, Q = tie_walls(R0)
@@ -113,7 +113,7 @@ def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], para
 def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: list[int],
                 R0: np.ndarray, group: np.ndarray, Q: np.ndarray, height: float, params: WallParams,
                 focal_free: bool, lines: list[WallLines] | None = None, sigmas: np.ndarray | None = None,
-                memo: WallMemo | None = None) -> Fit:
+                memo: StepMemo | None = None) -> Fit:
     """One joint fit of the walls of rotation groups ``groups`` (their first wall is the reference),
     with their façade segments ``lines`` (per wall) when given, and each window's corner sigma
     ``sigmas`` (N,) px (None: params.sigma_px for all); the fit kept in ``memo`` under its inputs
@@ -178,22 +178,22 @@ def split_off(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], windows: li
     return sorted(out, key=lambda w: -len(w.members))
 
 
-def _group_walls(quads: np.ndarray, K: np.ndarray, params: WallParams, memo: WallMemo) -> list[WallVP]:
+def _group_walls(quads: np.ndarray, K: np.ndarray, params: WallParams, memo: StepMemo) -> list[WallVP]:
     """:func:`pipeline.walls.vanishing.group_walls` of quads under K, kept in ``memo``."""
     return memo("group_walls", key(quads, K, params.sigma_px), lambda: group_walls(quads, K, params.sigma_px))
 
 
 def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams,
               segments: np.ndarray | None = None, sigmas: np.ndarray | None = None,
-              memo: WallMemo | None = None) -> list[Fit]:
+              memo: StepMemo | None = None) -> list[Fit]:
     """Group quads (N, 4, 2) px into walls and fit each rotation group (K known, so groups are
     independent): [(window indices, their wall indices, fit or None where it failed)]. Windows that
     do not fit their wall (:func:`outlier_windows`) are split off and everything refitted (twice at
     most). segments: the photo's façade line segments (M, 2, 2) px (WallParams.lines), or None;
     sigmas (N,) px: each window's corner sigma (:func:`corner_sigmas`), or None. memo: the
-    photo's :class:`~pipeline.walls.memo.WallMemo` (None: a new one for this call; the refits
+    photo's :class:`~pipeline.memo.StepMemo` (None: a new one for this call; the refits
     after a split reuse the walls that kept their windows either way)."""
-    memo = WallMemo() if memo is None else memo
+    memo = StepMemo() if memo is None else memo
     walls = _group_walls(quads, K, params, memo)
     for attempt in range(3):
         R0, group, Q, lines = _rotation_groups(quads, K, walls, params, segments, memo)
@@ -208,7 +208,7 @@ def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParam
 
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
                     params: WallParams = WallParams(), segments: np.ndarray | None = None,
-                    sigmas: np.ndarray | None = None, memo: WallMemo | None = None) -> Fit:
+                    sigmas: np.ndarray | None = None, memo: StepMemo | None = None) -> Fit:
     """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
     median of the walls' vanishing-point estimates (:func:`focal_from_vanishing`), then fit
     all walls jointly with one shared f (principal point at the image centre). segments: the
@@ -218,7 +218,7 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
     Returns (windows, their walls, the joint fit). Raises FacadeError when no wall gives f, or the
     fitted f's relative sd exceeds WALL_FIT.focal_max_rel_sd (unobservable).
     """
-    memo = WallMemo() if memo is None else memo
+    memo = StepMemo() if memo is None else memo
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     K0 = pseudo_K(image_shape)
     walls = _group_walls(q, K0, params, memo)
@@ -254,14 +254,14 @@ def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
 
 def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: tuple[int, int],
                 height_m: float, width_m: float | None, params: WallParams,
-                segment_cache: SegmentCache | None = None, memo: WallMemo | None = None) -> list[WindowResult]:
+                segment_cache: SegmentCache | None = None, memo: StepMemo | None = None) -> list[WindowResult]:
     """Replace the per-window aspect/pose of ``results`` by the per-wall estimates. segment_cache:
     the photo's segments (``pipeline.segments.SegmentCache(gray)``, gray (H, W) uint8 or float in
     [0, 255], one per photo, shared with the other steps that need them), needed by a strategy with
     façade lines (WallParams.lines); ValueError without it, or when its photo is not image_shape.
-    memo: the photo's :class:`~pipeline.walls.memo.WallMemo`, shared by the strategies run on it
-    (steps with identical inputs computed once; the results are those of a run without it); None:
-    a new one for this call.
+    memo: the photo's :class:`~pipeline.memo.StepMemo`, shared by the strategies run on it (the
+    grouping, each wall's vanishing points and each fit computed once per distinct input; the
+    results are those of a run without it); None: a new one for this call.
 
     K None: f from :func:`focal_from_walls` (every window then records it as focal_estimate_px);
     if unobservable, every window fails with that reason. Windows without a snapped quad keep

@@ -1,18 +1,19 @@
-"""A per-photo memo of the wall geometry's pure steps (:class:`WallMemo`), so that the methods of a
-photo whose inputs are identical share one result.
+"""A per-photo memo of the pipeline's pure steps (:class:`StepMemo`), so that the methods run on one
+photo share the result of every step whose inputs are identical.
 
-The per-wall strategies of one photo repeat the same work: ``wall`` and ``building`` group the
-same quads into walls and find the same vanishing points (and fit the same walls when no two are
-tied at right angles); ``wall+lines`` and ``building+lines`` the same with the façade's segments;
-snappers that leave a quad where it was give every strategy the same quads; and the outlier loop
-of pipeline.walls.strategies.fit_walls refits every wall that kept its windows. Each step is a
-pure function of its inputs, so its result is kept under the exact bytes of those inputs
-(:func:`key`): a repeated step gives the very result (bit for bit) that computing it again would.
+The bench runs many methods on each view and they repeat work: the per-window solvers ``lm`` and
+``ippe`` snap the same quads and compute the same aspect ratios (pipeline.reconstruct); the
+per-wall strategies ``wall`` and ``building`` group the same quads into walls and find the same
+vanishing points (and fit the same walls when no two are tied at right angles), ``wall+lines``
+and ``building+lines`` the same with the façade's segments, and the outlier loop of
+pipeline.walls.strategies.fit_walls refits every wall that kept its windows. Each step is a pure
+function of its inputs, so its result is kept under the exact bytes of those inputs (:func:`key`):
+a repeated step gives the very result (bit for bit) that computing it again would.
 
-An explicit cache, like pipeline.segments.SegmentCache: make one per photo
-(``WallMemo()``) and pass it down (pipeline.walls.strategies.apply_walls, pipeline.reconstruct.
-reconstruct_from_quads); no global state. Results kept are shared by the callers: their arrays
-are made read-only (:func:`frozen`).
+An explicit cache, like pipeline.segments.SegmentCache: make one per photo (``StepMemo()``) and
+pass it down (pipeline.reconstruct.reconstruct_from_quads, pipeline.walls.strategies.apply_walls);
+no global state. Results kept are shared by the callers: their arrays are made read-only
+(:func:`frozen`).
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def key(*parts: object) -> tuple:
     """A hashable key of ``parts`` that equals another only when the parts are identical: arrays
     by dtype, shape and bytes (so 0.0 and -0.0, or two NaN payloads, differ: a miss, never a wrong
     hit), lists and tuples element by element, anything else (numbers, strings, None, frozen
-    dataclasses) as it is."""
+    dataclasses) by its type and value (1 and 1.0, or a float and a numpy float, differ)."""
     out = []
     for p in parts:
         if isinstance(p, np.ndarray):
@@ -39,7 +40,7 @@ def key(*parts: object) -> tuple:
             out.append((type(p).__name__, key(*p)))
         else:
             hash(p)  # TypeError naming an unhashable part now, not at lookup
-            out.append(p)
+            out.append((type(p).__qualname__, p))
     return tuple(out)
 
 
@@ -57,8 +58,8 @@ def frozen(value: T) -> T:
     return value
 
 
-class WallMemo:
-    """Results of the wall geometry's steps on one photo, each computed once per distinct input.
+class StepMemo:
+    """Results of the pipeline's steps on one photo, each computed once per distinct input.
 
     ``memo(step, k, compute)``: the result kept under (step, k), else ``compute()``'s, kept (read-
     only) and returned; an exception is not kept (the next call computes again and raises again).
