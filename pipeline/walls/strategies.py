@@ -24,7 +24,7 @@ intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), `
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -127,10 +127,20 @@ def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: l
     q = quads[list(members)]
     cs = None if sigmas is None else np.asarray(sigmas, dtype=np.float64)[list(members)]
 
-    def fit(obs: LineObs | None = None) -> WallFit:
-        return refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px, params.prior_dof,
-                            Q[list(wall_ids)], lines=obs if obs is not None and len(obs) else None,
-                            corner_sigma=cs)
+    Qw = Q[list(wall_ids)]
+
+    def fit(obs: LineObs | None = None) -> WallFit:  # kept too: refit_lines' second fit often repeats its first
+        lines_in = obs if obs is not None and len(obs) else None
+
+        def run() -> WallFit:
+            return refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px, params.prior_dof, Qw,
+                                lines=lines_in, corner_sigma=cs)
+
+        if memo is None:
+            return run()
+        obs_key = None if lines_in is None else tuple(getattr(lines_in, f.name) for f in fields(lines_in))
+        return memo("refine_walls", key(q, K, R0s, set_of, Qw, height, focal_free, params.sigma_px, params.prior_dof,
+                                        cs, obs_key), run)
 
     def solve() -> WallFit | None:
         try:
@@ -147,7 +157,7 @@ def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: l
     if memo is None:
         return members, wall_ids, solve()
     wall_lines = None if lines is None else ([lines[g] for g in sel], [groups.index(group[g]) for g in sel], Q[sel])
-    k = key(q, K, R0s, set_of, Q[list(wall_ids)], height, focal_free, _shared(params), cs, wall_lines)
+    k = key(q, K, R0s, set_of, Qw, height, focal_free, _shared(params), cs, wall_lines)
     return members, wall_ids, memo("fit", k, solve)
 
 
