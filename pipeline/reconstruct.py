@@ -26,13 +26,13 @@ from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from fenestra.registry import Registry
 from pipeline.aspect import aspect_ratio
+from pipeline.memo import StepMemo, key
 from pipeline.pose import POSE_SOLVERS, PoseSolver, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from pipeline.segments import SegmentCache
 from pipeline.snappers import SNAPPERS
 from pipeline.types import Detection, WindowResult
 from pipeline.walls import WALL_STRATEGIES, WallParams, apply_walls
-from pipeline.memo import StepMemo, key
 
 STAGES = ("quad", "snap", "aspect", "pose")
 

@@ -29,11 +29,11 @@ from dataclasses import fields, replace
 import numpy as np
 
 from fenestra.errors import PipelineError
+from pipeline.memo import StepMemo, key
 from pipeline.segments import SegmentCache
 from pipeline.types import WindowResult
 from pipeline.walls.fit import WallFit, refine_walls, window_uncertainty
 from pipeline.walls.lines import LineObs, WallLines, line_obs, photo_segments, refit_lines, wall_vps
-from pipeline.memo import StepMemo, key
 from pipeline.walls.settings import WALL_FIT, WallParams
 from pipeline.walls.vanishing import (FacadeError, WallVP, fit_vps, focal_from_vanishing, group_walls,
                                       initial_rotation, tie_walls)
