@@ -272,7 +272,7 @@ def gt_coco(view: LabelledView) -> list[dict]:
 # ---------------------------------------------------------------- per window and method
 
 def _finite(q) -> bool:
-    return q is not None and bool(np.all(np.isfinite(q)))
+    return q is not None and bool(np.isfinite(q).all())
 
 
 class QuadIoUMemo:
@@ -422,8 +422,12 @@ def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list
 def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> dict:
     """One results row in the table's column order: the window's columns, the method, then the
     ``tail`` columns (errors: NaN unless in ``values``; status, reason, aspect_case: required)."""
+    missing = [k for k in ("status", "reason", "aspect_case") if k in tail and k not in values]
+    if missing:
+        raise KeyError(f"row values lack {missing}")
     row = {**base, **method.row()}
-    row.update({k: values[k] if k in ("status", "reason", "aspect_case") else values.get(k, NAN) for k in tail})
+    get = values.get
+    row.update({k: get(k, NAN) for k in tail})
     return row
 
 
