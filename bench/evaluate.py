@@ -272,7 +272,7 @@ def gt_coco(view: LabelledView) -> list[dict]:
 # ---------------------------------------------------------------- per window and method
 
 def _finite(q) -> bool:
-    return q is not None and bool(np.all(np.isfinite(q)))
+    return q is not None and bool(np.isfinite(q).all())
 
 
 class QuadIoUMemo:
@@ -383,13 +383,16 @@ PER_WINDOW_STAGES = ("snap", "aspect", "pose")
 
 
 def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list, cfg, withhold_K: bool,
-                 per_window: dict, segment_cache) -> tuple[list, tuple[str, ...]]:
+                 per_window: dict, segment_cache, memo) -> tuple[list, tuple[str, ...]]:
     """reconstruct_from_quads of one method, and the timing keys it spent time on.
 
     A per-wall strategy starts from the per-window results of its base pose; those are computed
     once per snapper (or taken from that per-window method's own run) and kept in ``per_window``,
     so every method's results are exactly those of a run of its own. segment_cache: the view's
-    pipeline.segments.SegmentCache (its façade line segments, found once for every method).
+    pipeline.segments.SegmentCache (its façade line segments, found once for every method);
+    memo: the view's pipeline.memo.StepMemo (the steps with identical inputs computed once for
+    every method: the snapping and aspect ratio of ``lm`` and ``ippe``; the per-wall grouping,
+    vanishing points and fits of ``wall`` and ``building`` where no walls are tied).
     """
     from pipeline.reconstruct import POSES, reconstruct_from_quads  # noqa: PLC0415
 
@@ -397,15 +400,16 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
         return [], ()
     wall = POSES[cfg.pose].wall
     if wall is None:
-        results = reconstruct_from_quads(gray, K, dets, quads, cfg)
+        results = reconstruct_from_quads(gray, K, dets, quads, cfg, memo=memo)
         per_window[(cfg.quad, cfg.snapper, cfg.pose, withhold_K)] = results
         return results, PER_WINDOW_STAGES
     key = (cfg.quad, cfg.snapper, wall.base_pose, withhold_K)
     counted: tuple[str, ...] = ("wall",)
     if key not in per_window:
-        per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose))
+        per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose), memo=memo)
         counted = (*PER_WINDOW_STAGES, "wall")
-    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key], segment_cache=segment_cache), counted
+    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key], segment_cache=segment_cache,
+                                  memo=memo), counted
 
 
 def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list) -> np.ndarray:
@@ -418,18 +422,26 @@ def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list
 def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> dict:
     """One results row in the table's column order: the window's columns, the method, then the
     ``tail`` columns (errors: NaN unless in ``values``; status, reason, aspect_case: required)."""
+    missing = [k for k in ("status", "reason", "aspect_case") if k in tail and k not in values]
+    if missing:
+        raise KeyError(f"row values lack {missing}")
     row = {**base, **method.row()}
-    row.update({k: values[k] if k in ("status", "reason", "aspect_case") else values.get(k, NAN) for k in tail})
+    get = values.get
+    row.update({k: get(k, NAN) for k in tail})
     return row
 
 
 def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tuple[str, ...], by_gt: dict,
-                 det_for_gt: dict, dets: list, gt_poses: dict, quad_iou=metrics.quad_iou) -> list[dict]:
+                 det_for_gt: dict, dets: list, gt_poses: dict, quad_iou=metrics.quad_iou,
+                 head_errors: dict | None = None) -> list[dict]:
     """One method's rows, one per labelled window in order: missed, or its result's errors.
 
     by_gt: {window index: WindowResult}; det_for_gt: {window index: (detection index, IoU)};
     dets: the detections matched against; gt_poses: {window index: true (R, t)}, filled here once
-    per window of a render (the same for every method); quad_iou: as for window_errors."""
+    per window of a render (the same for every method); quad_iou: as for window_errors; head_errors:
+    {(detection index, window index): head_error}, kept across the methods of one detector (None:
+    computed here)."""
+    head_errors = {} if head_errors is None else head_errors
     rows = []
     for g, (w, b) in enumerate(zip(view.windows, base)):
         if g not in by_gt:
@@ -439,7 +451,9 @@ def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tup
         if view.pose is not None and g not in gt_poses:
             gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
         errs = window_errors(res, w, gt_poses.get(g), view.K, quad_iou)
-        errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_error(dets[d], w))
+        if (d, g) not in head_errors:
+            head_errors[(d, g)] = head_error(dets[d], w)
+        errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_errors[(d, g)])
         rows.append(_method_row(b, method, tail, **errs, aspect_case=res.aspect_case,
                                 status="ok" if res.failure is None else "failed",
                                 reason="" if res.failure is None else f"failed: {res.failure}"))
@@ -453,6 +467,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     from pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
     from pipeline.quad import QuadParams  # noqa: PLC0415
     from pipeline.segments import SegmentCache  # noqa: PLC0415
+    from pipeline.memo import StepMemo  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
 
@@ -471,6 +486,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     t0 = tick("load", t0)
     gray = to_gray(view.image)  # RGB, as detect() and reconstruct() take it; once per view, shared by every method
     segment_cache = SegmentCache(gray)  # the view's line segments (+lines strategies): found once, shared too
+    memo = StepMemo()  # the pipeline steps of this view, each distinct input computed once for every method
     t0 = tick("reconstruct", t0)
     can_oracle = view.instance_map() is not None
 
@@ -499,6 +515,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         rec_dets = [dets[d] for _, (d, _) in matched]
         quads: dict = {}  # QuadParams -> fit_quads(rec_dets): the quads are fitted once per detector
         per_window: dict = {}  # (quad params, snapper, pose, K withheld) -> per-window results, reused by per-wall strategies
+        head_errors: dict = {}  # (detection, window) -> the detection's predicted corners' error, for every method
         for method in det_methods:
             withhold_K = method.withhold_K
             cfg = ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=options.height_m,
@@ -509,14 +526,15 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
                                                + sum(q.ms for q in quads[cfg.quad]) / 1000.0)
             K_in = None if withhold_K else view.K
             results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window,
-                                             segment_cache)
+                                             segment_cache, memo)
             t0 = tick("reconstruct", t0)
             by_gt = {matched[r.index][0]: r for r in results}
             for r in results:
                 for k, ms in r.timings_ms.items():
                     if k in counted:  # the shared quad fit and reused per-window stages: counted once
                         stage_s[f"reconstruct.{k}"] = stage_s.get(f"reconstruct.{k}", 0.0) + ms / 1000.0
-            out.rows += _method_rows(view, base, method, cols, by_gt, det_for_gt, dets, gt_poses, iou_memo)
+            out.rows += _method_rows(view, base, method, cols, by_gt, det_for_gt, dets, gt_poses, iou_memo,
+                                     head_errors)
             t0 = tick("metrics", t0)
     return out
 

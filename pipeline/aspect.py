@@ -82,16 +82,23 @@ def classify(quad: np.ndarray, tol_deg: float = TOL.parallel_sides_deg) -> str:
     return CASES[n_par]
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b of two 3-vectors: np.cross's products and differences in its order (bit for bit),
+    without its general-axis overhead."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def zhang_vectors(quad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """n2, n3 (3,) of Zhang & He for a TL TR BR BL quad (4, 2) px; raises AspectError if degenerate."""
     q = _check_quad(quad)
     m1, m2, m3, m4 = (np.append(q[i], 1.0) for i in (3, 2, 0, 1))  # BL, BR, TL, TR
-    d2 = np.cross(m2, m4) @ m3
-    d3 = np.cross(m3, m4) @ m2
+    d2 = _cross(m2, m4) @ m3
+    d3 = _cross(m3, m4) @ m2
     if abs(d2) < 1e-12 or abs(d3) < 1e-12:
         raise AspectError(f"degenerate quad (three collinear corners): {q.tolist()}")
-    k2 = (np.cross(m1, m4) @ m3) / d2
-    k3 = (np.cross(m1, m4) @ m2) / d3
+    c14 = _cross(m1, m4)
+    k2 = (c14 @ m3) / d2
+    k3 = (c14 @ m2) / d3
     if k2 <= 0 or k3 <= 0:
         raise AspectError(f"quad is not the image of a rectangle in front of the camera "
                           f"(k2={k2:.3g}, k3={k3:.3g}): {q.tolist()}")

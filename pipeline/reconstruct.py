@@ -26,6 +26,7 @@ from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from fenestra.registry import Registry
 from pipeline.aspect import aspect_ratio
+from pipeline.memo import StepMemo, key
 from pipeline.pose import POSE_SOLVERS, PoseSolver, estimate_pose
 from pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from pipeline.segments import SegmentCache
@@ -220,11 +221,12 @@ def fit_sparse(det: Detection, params: QuadParams, image_shape: tuple[int, int])
 
 
 def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detection,
-                    cfg: ReconstructConfig, fit: QuadFit | None = None) -> WindowResult:
+                    cfg: ReconstructConfig, fit: QuadFit | None = None, memo: StepMemo | None = None) -> WindowResult:
     """Run quad -> snap -> aspect -> pose on one detection; failures go into the result.
 
     fit: the detection's already fitted quad (from :func:`fit_quads` with ``cfg.quad``), or None
-    to fit it here.
+    to fit it here. memo: the photo's pipeline.memo.StepMemo: the snapped quad and the aspect ratio
+    kept under their inputs (the pose solvers of one snapper share them), or None.
     """
     timings: dict[str, float] = {}
     H, W = gray.shape
@@ -239,13 +241,21 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
         return _result(i, det, cfg, timings, f"quad: {qr.failure}")
     t0 = time.perf_counter()
     s = SNAPPERS[cfg.snapper]
-    snapped, _ = s.snap(gray, qr.quad, cfg.snapper_params or s.params())
+    sp = cfg.snapper_params or s.params()
+    if memo is None:
+        snapped, _ = s.snap(gray, qr.quad, sp)
+    else:  # the photo is the memo's: its snapped quads keyed by snapper, parameters and quad
+        snapped = memo("snap", key(cfg.snapper, sp, qr.quad), lambda: s.snap(gray, qr.quad, sp)[0])
     timings["snap"] = (time.perf_counter() - t0) * 1e3
     done = dict(quad_mask=qr.quad, quad_snapped=snapped)
     t0 = time.perf_counter()
     try:
         pp = ((W - 1) / 2.0, (H - 1) / 2.0)
-        ar = aspect_ratio(snapped, K, principal_point=pp, fallback_focal_px=cfg.fallback_focal_px)
+
+        def aspect():
+            return aspect_ratio(snapped, K, principal_point=pp, fallback_focal_px=cfg.fallback_focal_px)
+
+        ar = aspect() if memo is None else memo("aspect", key(snapped, K, pp, cfg.fallback_focal_px), aspect)
     except (PipelineError, ValueError) as e:
         timings["aspect"] = (time.perf_counter() - t0) * 1e3
         return _result(i, det, cfg, timings, f"aspect: {e}", **done)
@@ -273,7 +283,8 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
 def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: list[Detection],
                            quads: list[QuadFit], cfg: ReconstructConfig = ReconstructConfig(),
                            base: list[WindowResult] | None = None,
-                           segment_cache: SegmentCache | None = None) -> list[WindowResult]:
+                           segment_cache: SegmentCache | None = None,
+                           memo: StepMemo | None = None) -> list[WindowResult]:
     """:func:`reconstruct` with the quads already fitted: ``quads = fit_quads(detections, cfg.quad,
     image_shape)``, one per detection, in order (so one fit serves every snapper x pose config).
 
@@ -284,6 +295,10 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
     (e.g. by a run of that per-window solver); they are used as they are, not recomputed.
     segment_cache: the photo's line segments (pipeline.segments.SegmentCache of this gray image),
     kept across the steps and configs that need them on this photo; None: a new one for this call.
+    memo: the photo's pipeline.memo.StepMemo, kept across the configs run on it (their steps with
+    identical inputs, e.g. the snapping and aspect ratio of the per-window solvers, computed once;
+    the results are unchanged, the timings of a reused step are the lookup's); None: nothing kept
+    across calls.
     """
     if len(quads) != len(detections):
         raise ValueError(f"{len(quads)} quads for {len(detections)} detections")
@@ -295,12 +310,12 @@ def reconstruct_from_quads(image: np.ndarray, K: np.ndarray | None, detections: 
                          f"{len(detections)} detections; only a per-wall strategy takes them, one per detection")
     per_cfg = cfg if wall is None else replace(cfg, pose=wall.base_pose)
     results = list(base) if base is not None else [
-        reconstruct_one(i, gray, K, d, per_cfg, q) for i, (d, q) in enumerate(zip(detections, quads))]
+        reconstruct_one(i, gray, K, d, per_cfg, q, memo) for i, (d, q) in enumerate(zip(detections, quads))]
     if wall is None:
         return results
     t0 = time.perf_counter()
     cache = SegmentCache(gray) if segment_cache is None else segment_cache
-    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, cache)
+    results = apply_walls(results, K, gray.shape, cfg.height_m, cfg.width_m, wall, cache, memo)
     ms = (time.perf_counter() - t0) * 1e3 / max(len(results), 1)
     return [replace(r, timings_ms={**r.timings_ms, "wall": ms}) for r in results]
 

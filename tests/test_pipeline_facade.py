@@ -607,3 +607,77 @@ def test_whole_image_segments_of_a_large_photo_on_a_bounded_copy():
         longest = vertical[np.argmax(np.abs(vertical[:, 0, 1] - vertical[:, 1, 1]))]
         assert abs(longest[:, 0].mean() - 399.5) < 0.5, longest
         assert abs(longest[0, 1] - longest[1, 1]) > 300  # most of the 400 px edge
+
+
+# ------------------------------------------------------------------ the per-photo memo
+
+def _same_results(a: list[WindowResult], b: list[WindowResult]) -> bool:
+    """Every field of every result identical (arrays bit for bit)."""
+    from dataclasses import fields  # noqa: PLC0415
+
+    def same(x, y) -> bool:
+        if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+            return x is not None and y is not None and x.dtype == y.dtype and x.shape == y.shape \
+                and x.tobytes() == y.tobytes()
+        return x == y
+
+    return len(a) == len(b) and all(same(getattr(r, f.name), getattr(s, f.name))
+                                    for r, s in zip(a, b) for f in fields(WindowResult))
+
+
+def test_memo_key_is_exact():
+    """Two inputs share a memo entry only when identical: arrays by dtype, shape and bytes (0.0
+    and -0.0 differ), containers element by element; an unhashable part raises at once."""
+    from pipeline.memo import key  # noqa: PLC0415
+
+    a = np.array([[0.0, 1.5], [2.0, 3.0]])
+    assert key(a, 1.0, "x", (a, None)) == key(a.copy(), 1.0, "x", (a.copy(), None))
+    assert key(a) != key(np.where(a == 0.0, -0.0, a))
+    assert key(a) != key(a.astype(np.float32)) and key(a) != key(a.reshape(4))
+    assert key(a) != key(np.where(a == 3.0, np.nextafter(3.0, 4.0), a))  # one ulp apart
+    assert key([a]) != key((a,))
+    assert key(1) != key(1.0) and key(1.0) != key(np.float64(1.0))
+    with pytest.raises(TypeError):
+        key({"unhashable": 1})
+
+
+def test_memo_shared_by_strategies_gives_their_own_results():
+    """One memo for every per-wall strategy on a photo (as the bench keeps one per view): each
+    strategy's results are bit for bit those of a run on its own, with K and without (focal
+    fit), with a window that does not fit its wall (the split-and-refit loop); the memo did
+    share work, and what it keeps cannot be written to."""
+    from pipeline.memo import StepMemo  # noqa: PLC0415
+
+    R, t, quads, _, _ = scene()
+    gray = draw_scene(R, t, quads).astype(np.float32)
+    rng = np.random.default_rng(5)
+    snapped = quads + rng.normal(0.0, 0.7, quads.shape)
+    snapped[2, 1] += [9.0, -6.0]  # an outlier corner: split off and refitted
+    res = [replace(r, quad_mask=r.quad_mask + rng.normal(0.0, 0.5, (4, 2))) for r in _results(snapped)]
+    for K_in in (K, None):
+        memo, cache = StepMemo(), SegmentCache(gray)
+        for name in ("wall", "building", "wall+lines", "building+lines", "wall", "wall+sigma", "building+lines"):
+            # wall+sigma: 'wall' with error bars from snapping (the fit kept, its covariance not)
+            params = replace(walls.WALL_STRATEGIES["wall"], snap_sigma=True) if name == "wall+sigma" \
+                else walls.WALL_STRATEGIES[name]
+            shared = walls.apply_walls(res, K_in, SHAPE, 1.0, None, params, cache, memo)
+            alone = walls.apply_walls(res, K_in, SHAPE, 1.0, None, params, SegmentCache(gray))
+            assert _same_results(shared, alone), (name, K_in is None)
+        assert memo.hits > 0 and len(memo) > 0
+    out = walls.apply_walls(res, K, SHAPE, 1.0, None, walls.WALL_STRATEGIES["wall"], memo=memo)
+    with pytest.raises(ValueError, match="read-only"):
+        out[0].quad_reprojected[0, 0] = 0.0
+
+
+def test_quantiles_are_scipy_stats_bit_for_bit():
+    """The intervals' quantiles (special functions called directly, skipping scipy.stats' argument
+    handling) equal scipy.stats' chi2.ppf and norm.ppf exactly over the degrees of freedom that
+    norm_quantile gives (1 to 3) and beyond."""
+    from scipy.stats import chi2, norm  # noqa: PLC0415
+
+    rng = np.random.default_rng(2)
+    for dof in np.concatenate([rng.uniform(0.5, 4.0, 2000), [1.0, 2.0, 3.0]]):
+        for level in (0.5, 0.9, 0.95):
+            assert wallfit.chi2_ppf(level, dof) == float(chi2.ppf(level, dof))
+    for level in (0.5, 0.9, 0.95, 0.975):
+        assert wallfit.norm_ppf(level) == float(norm.ppf(level))

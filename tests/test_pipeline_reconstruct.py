@@ -182,3 +182,34 @@ def test_one_image_check_and_rgb_at_every_boundary(tmp_path):
         assert isinstance(e.value, PipelineError) and isinstance(e.value, ValueError)
     with pytest.raises(ImageError, match="uint8, got dtype float32"):
         reconstruct(red.astype(np.float32), K, [])
+
+
+def test_shared_memo_gives_each_configs_own_results():
+    """One pipeline.memo.StepMemo for every snapper x pose config on a photo (as the bench keeps
+    one per view), with K and without: each config's results are bit for bit those of a run
+    without it (timings aside), and the per-window solvers of one snapper shared its snapping."""
+    from dataclasses import fields  # noqa: PLC0415
+
+    from pipeline.memo import StepMemo  # noqa: PLC0415
+    from pipeline.reconstruct import fit_quads, reconstruct_from_quads, to_gray  # noqa: PLC0415
+    from pipeline.segments import SegmentCache  # noqa: PLC0415
+
+    rgb, inst, _ = scene()
+    dets = detections_from_instance_map(inst)
+    gray = to_gray(rgb)
+    quads = fit_quads(dets, ReconstructConfig().quad, gray.shape)
+
+    def same(a, b):
+        return all((x.tobytes() == y.tobytes() and x.shape == y.shape) if isinstance(x, np.ndarray) else x == y
+                   for r, s in zip(a, b) for f in fields(r) if f.name != "timings_ms"
+                   for x, y in [(getattr(r, f.name), getattr(s, f.name))])
+
+    for K_in in (K, None):
+        memo, cache = StepMemo(), SegmentCache(gray)
+        for snapper in ("none", "linefit"):
+            for pose in ("lm", "ippe", "wall", "building+lines"):
+                cfg = ReconstructConfig(snapper=snapper, pose=pose, height_m=1.4)
+                shared = reconstruct_from_quads(gray, K_in, dets, quads, cfg, segment_cache=cache, memo=memo)
+                alone = reconstruct_from_quads(gray, K_in, dets, quads, cfg)
+                assert len(shared) == len(alone) == 2 and same(shared, alone), (snapper, pose, K_in is None)
+        assert memo.hits >= 2 * 2 * 3  # at least: per snapper, ippe and the walls' base reuse lm's snapping

@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
+from scipy import special
 from scipy.optimize import least_squares
-from scipy.stats import chi2, norm
 
 from fenestra.checks import check_K, check_quad
 from pipeline.walls.settings import WALL_FIT
@@ -31,10 +31,12 @@ if TYPE_CHECKING:  # annotations only: lines imports this module
     from pipeline.walls.lines import LineObs
 
 
-def window_init(quad: np.ndarray, K: np.ndarray, R: np.ndarray, height: float) -> tuple[np.ndarray, float]:
+def window_init(quad: np.ndarray, K: np.ndarray, R: np.ndarray, height: float,
+                Ki: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Translation t (3,) and width w (m) of a window of height ``height`` with rotation R, from its
-    quad (4, 2) px by linear least squares on the ray depths (BL = t, TL = t + h r2, BR = t + w r1)."""
-    a = homog(check_quad(quad)) @ np.linalg.inv(K).T  # rays TL TR BR BL
+    quad (4, 2) px by linear least squares on the ray depths (BL = t, TL = t + h r2, BR = t + w r1).
+    Ki: np.linalg.inv(K) when the caller has it (None: computed here)."""
+    a = homog(check_quad(quad)) @ (np.linalg.inv(K) if Ki is None else Ki).T  # rays TL TR BR BL
     r1, r2 = R[:, 0], R[:, 1]
     # lam_TL a_TL - lam_BL a_BL = h r2
     lam = np.linalg.lstsq(np.stack([a[0], -a[3]], axis=1), height * r2, rcond=None)[0]
@@ -101,15 +103,29 @@ def _unpack(x: np.ndarray, n_walls: int, n: int, R0: np.ndarray, K: np.ndarray, 
     return R, per[:, :3], per[:, 3], Kx
 
 
+# the corners TL TR BR BL in the window frame: x = width * CORNER_X, y = height * CORNER_Y
+CORNER_X = np.array([0.0, 1.0, 1.0, 0.0])
+CORNER_Y = np.array([1.0, 1.0, 0.0, 0.0])
+
+
+def _corners_cam(Rn: np.ndarray, t: np.ndarray, w: np.ndarray, height: float) -> tuple[np.ndarray, np.ndarray]:
+    """The rotated corner offsets v (N, 4, 3) and camera-frame corners X = v + t (N, 4, 3) of N
+    windows: rotations Rn (N, 3, 3), translations t (N, 3), widths w (N,)."""
+    v = (w[:, None, None] * CORNER_X[None, :, None] * Rn[:, None, :, 0]
+         + (height * CORNER_Y)[None, :, None] * Rn[:, None, :, 1])
+    return v, v + t[:, None, :]
+
+
 def project_wall(R: np.ndarray, t: np.ndarray, width: np.ndarray, height: float, K: np.ndarray) -> np.ndarray:
     """Corners (N, 4, 2) px of N windows (widths (N,), common height) with rotation R (3, 3) shared
     or (N, 3, 3) per window, translations t (N, 3), intrinsics K (3, 3)."""
-    w = np.asarray(width, dtype=np.float64).reshape(-1, 1)
+    w = np.asarray(width, dtype=np.float64).reshape(-1)
     Rn = np.broadcast_to(np.asarray(R, dtype=np.float64), (len(w), 3, 3))
-    obj_x = w * np.array([0.0, 1.0, 1.0, 0.0])  # (N, 4) window-frame x; y = height * (1, 1, 0, 0)
-    obj_y = np.broadcast_to(height * np.array([1.0, 1.0, 0.0, 0.0]), obj_x.shape)
-    X = (obj_x[..., None] * Rn[:, None, :, 0] + obj_y[..., None] * Rn[:, None, :, 1]
-         + np.asarray(t).reshape(-1, 1, 3))
+    return _project(_corners_cam(Rn, np.asarray(t, dtype=np.float64).reshape(-1, 3), w, height)[1], K)
+
+
+def _project(X: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Pixels (..., 2) of camera-frame points X (..., 3) under K (3, 3)."""
     x = X @ K.T
     return x[..., :2] / x[..., 2:3]
 
@@ -133,30 +149,55 @@ def wall_jacobian(x: np.ndarray, n_walls: int, wall_of: np.ndarray, R0: np.ndarr
     """Analytic Jacobian (8N, P) of :func:`refine_walls`' residuals (corners TL TR BR BL, u then v)
     with respect to its parameters x (P,) [omega per group, (t, w) per window, f if free]; Q (N, 3, 3)
     the windows' fixed rotations within their groups (None: identity)."""
-    n = len(wall_of)
-    R, t, w, Kx = _unpack(x, n_walls, n, R0, K, focal_free)
+    wall_of = np.asarray(wall_of)
+    R, t, w, Kx = _unpack(x, n_walls, len(wall_of), R0, K, focal_free)
     Rn = R[wall_of] if Q is None else R[wall_of] @ Q  # (n, 3, 3)
-    cx_ = np.array([0.0, 1.0, 1.0, 0.0])
-    cy_ = height * np.array([1.0, 1.0, 0.0, 0.0])
-    v = (w[:, None, None] * cx_[None, :, None] * Rn[:, None, :, 0]
-         + cy_[None, :, None] * Rn[:, None, :, 1])  # (n, 4, 3) rotated object points
-    X = v + t[:, None, :]
+    return _jacobian(x, n_walls, wall_of, Rn, t, w, Kx, height, focal_free)
+
+
+def _jacobian(x: np.ndarray, n_walls: int, wall_of: np.ndarray, Rn: np.ndarray, t: np.ndarray, w: np.ndarray,
+              Kx: np.ndarray, height: float, focal_free: bool) -> np.ndarray:
+    """:func:`wall_jacobian` at x (P,) unpacked: the windows' rotations Rn (n, 3, 3), translations t
+    (n, 3), widths w (n,), intrinsics Kx (3, 3). Written into one (8n, P) array: the rows of window
+    i are zero outside its group's rotation, its own (t, w) and f."""
+    n = len(wall_of)
+    v, X = _corners_cam(Rn, t, w, height)  # (n, 4, 3) rotated object points, camera-frame corners
     Z = X[..., 2]
     dpi = np.zeros((n, 4, 2, 3))  # d(u, v) / dX
     dpi[..., 0, 0], dpi[..., 0, 2] = Kx[0, 0] / Z, -Kx[0, 0] * X[..., 0] / Z ** 2
     dpi[..., 1, 1], dpi[..., 1, 2] = Kx[1, 1] / Z, -Kx[1, 1] * X[..., 1] / Z ** 2
     Jl = np.array([left_jacobian(x[3 * g:3 * g + 3]) for g in range(n_walls)])
-    # d/d omega: dpi @ (-[v]_x J_l) = (v x dpi_row) @ J_l
+    J = np.zeros((n, 4, 2, len(x)))
+    rows = np.arange(n)[:, None]
+    # d/d omega: dpi @ (-[v]_x J_l) = (v x dpi_row) @ J_l; (n, 4, 2, 3) into columns 3 g .. 3 g + 2
     rot = np.einsum("njkc,ncd->njkd", cross3(v[:, :, None, :], dpi), Jl[wall_of])
-    J_rot = np.zeros((n, 4, 2, n_walls, 3))
-    J_rot[np.arange(n), :, :, wall_of, :] = rot
-    block = np.concatenate([dpi, (dpi @ Rn[:, None, :, 0][..., None]) * cx_[None, :, None, None]], axis=3)
-    J_win = np.zeros((n, 4, 2, n, 4))
-    J_win[np.arange(n), :, :, np.arange(n), :] = block
-    parts = [J_rot.reshape(8 * n, 3 * n_walls), J_win.reshape(8 * n, 4 * n)]
+    J[rows, :, :, 3 * wall_of[:, None] + np.arange(3)] = rot.transpose(0, 3, 1, 2)
+    # d/d (t, w): dpi, and dpi @ r1 x the corner's x; (n, 4, 2, 4) into columns 3 G + 4 i .. + 3
+    dw = (dpi @ Rn[:, None, :, 0][..., None]) * CORNER_X[None, :, None, None]
+    J[rows, :, :, 3 * n_walls + 4 * rows + np.arange(3)] = dpi.transpose(0, 3, 1, 2)
+    J[np.arange(n), :, :, 3 * n_walls + 4 * np.arange(n) + 3] = dw[..., 0]
     if focal_free:
-        parts.append((X[..., :2] / Z[..., None]).reshape(8 * n, 1))
-    return np.hstack(parts)
+        J[..., -1] = X[..., :2] / Z[..., None]
+    return J.reshape(8 * n, len(x))
+
+
+class _Unpacked:
+    """The parameters x of :func:`refine_walls` unpacked (:func:`_unpack`) with the windows'
+    rotations Rn = R[wall_of] @ Q, for the residuals and the Jacobian: the last x's kept, since the
+    solver asks for the Jacobian where it last evaluated the residuals (one fit's state, not shared)."""
+
+    def __init__(self, n_walls: int, wall_of: np.ndarray, R0: np.ndarray, K: np.ndarray, Q: np.ndarray,
+                 focal_free: bool) -> None:
+        self.args = (n_walls, len(wall_of), R0, K, focal_free)
+        self.wall_of, self.Q = wall_of, Q
+        self.last: tuple[bytes, tuple] | None = None
+
+    def __call__(self, x: np.ndarray) -> tuple:
+        k = x.tobytes()
+        if self.last is None or self.last[0] != k:
+            R, t, w, Kx = _unpack(x, *self.args)
+            self.last = (k, (R, t, w, Kx, R[self.wall_of] @ self.Q))
+        return self.last[1]
 
 
 def _inverse(A: np.ndarray) -> np.ndarray:
@@ -196,23 +237,25 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
     if wall_of.shape != (n,) or wall_of.min() < 0 or wall_of.max() >= G:
         raise ValueError(f"wall_of must be (N,) = ({n},) indices into {G} wall(s), got {wall_of.tolist()}")
     x0 = [np.zeros(3 * G)]
+    Ki = np.linalg.inv(K)
     for quad, g, Qi in zip(q, wall_of, Q):
-        t, w = window_init(quad, K, R0[g] @ Qi, height)
+        t, w = window_init(quad, K, R0[g] @ Qi, height, Ki)
         x0.append(np.append(t, w))
     if focal_free:
         x0.append([np.sqrt(K[0, 0] * K[1, 1])])
     x0 = np.concatenate(x0)
+    at = _Unpacked(G, wall_of, R0, K, Q, focal_free)
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        R, t, w, Kx = _unpack(x, G, n, R0, K, focal_free)
-        r = (project_wall(R[wall_of] @ Q, t, w, height, Kx) - q).ravel()
+        R, t, w, Kx, Rn = at(x)
+        r = (_project(_corners_cam(Rn, t, w, height)[1], Kx) - q).ravel()
         return r if lines is None else np.concatenate([r, lines.residuals(R, Kx)])
 
     def jacobian(x: np.ndarray) -> np.ndarray:
-        J = wall_jacobian(x, G, wall_of, R0, K, height, focal_free, Q)
+        R, t, w, Kx, Rn = at(x)
+        J = _jacobian(x, G, wall_of, Rn, t, w, Kx, height, focal_free)
         if lines is None:
             return J
-        R, _, _, Kx = _unpack(x, G, n, R0, K, focal_free)
         return np.vstack([J, lines.jacobian(x, R, Kx, len(x), focal_free)])
 
     sol = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac")
@@ -249,12 +292,23 @@ def norm_quantile(cov: np.ndarray, level: float = WALL_FIT.interval_level) -> fl
     tr, tr2 = float(np.trace(S)), float(np.sum(S * S))
     if not tr > 0:
         return 0.0
-    return float(np.sqrt(tr2 / tr * chi2.ppf(level, tr * tr / tr2)))
+    return float(np.sqrt(tr2 / tr * chi2_ppf(level, tr * tr / tr2)))
+
+
+def chi2_ppf(level: float, dof: float) -> float:
+    """scipy.stats.chi2.ppf(level, dof) for 0 < level < 1 and dof > 0, without its argument
+    handling (the same special function: 2 gammaincinv(dof / 2, level), bit for bit)."""
+    return float(2 * special.gammaincinv(dof / 2, level))
+
+
+def norm_ppf(level: float) -> float:
+    """scipy.stats.norm.ppf(level) for 0 < level < 1 (special.ndtri, bit for bit)."""
+    return float(special.ndtri(level))
 
 
 def window_uncertainty(fit: WallFit, i: int, level: float = WALL_FIT.interval_level) -> dict:
     """90 % intervals of window i of a wall fit: aspect (lo, hi), rotation (deg), |dt| / |t|."""
-    z = float(norm.ppf(0.5 + level / 2.0))
+    z = norm_ppf(0.5 + level / 2.0)
     wb, rb = fit.window_block(i), fit.rot_block(i)
     cw = fit.cov[wb, wb]
     a = fit.width[i] / fit.height

@@ -24,11 +24,12 @@ intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), `
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
 from fenestra.errors import PipelineError
+from pipeline.memo import StepMemo, key
 from pipeline.segments import SegmentCache
 from pipeline.types import WindowResult
 from pipeline.walls.fit import WallFit, refine_walls, window_uncertainty
@@ -78,12 +79,29 @@ def usable_quad(quad: np.ndarray, min_side_px: float = 1.0) -> bool:
     return bool(np.all(np.isfinite(q)) and sides.min() >= min_side_px)
 
 
+def _shared(params: WallParams) -> WallParams:
+    """params without what only the tie of walls at right angles (manhattan) and the windows'
+    corner sigmas (snap_sigma, given to the steps as ``sigmas``) read: the memo key of the steps
+    (grouping, vanishing points, fits) that ``wall`` and ``building`` (and their ``+lines``) share."""
+    return replace(params, manhattan=False, snap_sigma=False)
+
+
+def _wall_vps(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], params: WallParams,
+              segments: np.ndarray | None, memo: StepMemo) -> tuple[list, list[WallLines] | None]:
+    """:func:`pipeline.walls.lines.wall_vps`, wall by wall (each a function of its own windows), each
+    wall's kept in ``memo``."""
+    per = [memo("wall_vps", key(quads, K, w.members, _shared(params), segments),
+                lambda w=w: wall_vps(quads, K, [w], params, segments)) for w in walls]
+    vps = [vp for vp_list, _ in per for vp in vp_list]
+    return vps, None if segments is None else [wl for _, lines in per for wl in lines]
+
+
 def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], params: WallParams,
-                     segments: np.ndarray | None = None
+                     segments: np.ndarray | None = None, memo: StepMemo | None = None
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[WallLines] | None]:
     """Per wall: initial rotation R0 (G, 3, 3) under K, rotation group (G,), Q (G, 3, 3), and its
-    façade segments (:func:`wall_vps`)."""
-    vps, lines = wall_vps(quads, K, walls, params, segments)
+    façade segments (:func:`wall_vps`); memo: kept vanishing points (None: a new memo)."""
+    vps, lines = _wall_vps(quads, K, walls, params, segments, StepMemo() if memo is None else memo)
     R0 = np.array([initial_rotation(*vp) for vp in vps])
     if params.manhattan:
         group, Q = tie_walls(R0)
@@ -94,10 +112,12 @@ def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], para
 
 def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: list[int],
                 R0: np.ndarray, group: np.ndarray, Q: np.ndarray, height: float, params: WallParams,
-                focal_free: bool, lines: list[WallLines] | None = None, sigmas: np.ndarray | None = None) -> Fit:
+                focal_free: bool, lines: list[WallLines] | None = None, sigmas: np.ndarray | None = None,
+                memo: StepMemo | None = None) -> Fit:
     """One joint fit of the walls of rotation groups ``groups`` (their first wall is the reference),
     with their façade segments ``lines`` (per wall) when given, and each window's corner sigma
-    ``sigmas`` (N,) px (None: params.sigma_px for all)."""
+    ``sigmas`` (N,) px (None: params.sigma_px for all); the fit kept in ``memo`` under its inputs
+    (None: not kept)."""
     sel = [g for g in range(len(walls)) if group[g] in groups]
     members = tuple(i for g in sel for i in walls[g].members)
     wall_ids = tuple(g for g in sel for _ in walls[g].members)
@@ -107,23 +127,38 @@ def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: l
     q = quads[list(members)]
     cs = None if sigmas is None else np.asarray(sigmas, dtype=np.float64)[list(members)]
 
-    def fit(obs: LineObs | None = None) -> WallFit:
-        return refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px, params.prior_dof,
-                            Q[list(wall_ids)], lines=obs if obs is not None and len(obs) else None,
-                            corner_sigma=cs)
+    Qw = Q[list(wall_ids)]
 
-    try:
-        if lines is None:
-            wall_fit = fit()
-        else:
+    def fit(obs: LineObs | None = None) -> WallFit:  # kept too: refit_lines' second fit often repeats its first
+        lines_in = obs if obs is not None and len(obs) else None
+
+        def run() -> WallFit:
+            return refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px, params.prior_dof, Qw,
+                                lines=lines_in, corner_sigma=cs)
+
+        if memo is None:
+            return run()
+        obs_key = None if lines_in is None else tuple(getattr(lines_in, f.name) for f in fields(lines_in))
+        return memo("refine_walls", key(q, K, R0s, set_of, Qw, height, focal_free, params.sigma_px, params.prior_dof,
+                                        cs, obs_key), run)
+
+    def solve() -> WallFit | None:
+        try:
+            if lines is None:
+                return fit()
             obs, keep = line_obs(lines, sel, {g: groups.index(group[g]) for g in sel}, Q,
                                  params.sigma_px / params.line_sigma_px)
-            wall_fit = refit_lines(fit, q, K, params, obs, keep)
-    except (PipelineError, np.linalg.LinAlgError, ValueError):
-        if focal_free:
-            raise
-        wall_fit = None
-    return members, wall_ids, wall_fit
+            return refit_lines(fit, q, K, params, obs, keep)
+        except (PipelineError, np.linalg.LinAlgError, ValueError):
+            if focal_free:
+                raise
+            return None
+
+    if memo is None:
+        return members, wall_ids, solve()
+    wall_lines = None if lines is None else ([lines[g] for g in sel], [groups.index(group[g]) for g in sel], Q[sel])
+    k = key(q, K, R0s, set_of, Qw, height, focal_free, _shared(params), cs, wall_lines)
+    return members, wall_ids, memo("fit", k, solve)
 
 
 def outlier_windows(quads: np.ndarray, fits: list[Fit], factor: float = WALL_FIT.outlier_factor,
@@ -153,17 +188,26 @@ def split_off(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], windows: li
     return sorted(out, key=lambda w: -len(w.members))
 
 
+def _group_walls(quads: np.ndarray, K: np.ndarray, params: WallParams, memo: StepMemo) -> list[WallVP]:
+    """:func:`pipeline.walls.vanishing.group_walls` of quads under K, kept in ``memo``."""
+    return memo("group_walls", key(quads, K, params.sigma_px), lambda: group_walls(quads, K, params.sigma_px))
+
+
 def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParams,
-              segments: np.ndarray | None = None, sigmas: np.ndarray | None = None) -> list[Fit]:
+              segments: np.ndarray | None = None, sigmas: np.ndarray | None = None,
+              memo: StepMemo | None = None) -> list[Fit]:
     """Group quads (N, 4, 2) px into walls and fit each rotation group (K known, so groups are
     independent): [(window indices, their wall indices, fit or None where it failed)]. Windows that
     do not fit their wall (:func:`outlier_windows`) are split off and everything refitted (twice at
     most). segments: the photo's façade line segments (M, 2, 2) px (WallParams.lines), or None;
-    sigmas (N,) px: each window's corner sigma (:func:`corner_sigmas`), or None."""
-    walls = group_walls(quads, K, params.sigma_px)
+    sigmas (N,) px: each window's corner sigma (:func:`corner_sigmas`), or None. memo: the
+    photo's :class:`~pipeline.memo.StepMemo` (None: a new one for this call; the refits
+    after a split reuse the walls that kept their windows either way)."""
+    memo = StepMemo() if memo is None else memo
+    walls = _group_walls(quads, K, params, memo)
     for attempt in range(3):
-        R0, group, Q, lines = _rotation_groups(quads, K, walls, params, segments)
-        fits = [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False, lines, sigmas)
+        R0, group, Q, lines = _rotation_groups(quads, K, walls, params, segments, memo)
+        fits = [_fit_groups(quads, K, walls, [k], R0, group, Q, height, params, False, lines, sigmas, memo)
                 for k in sorted(set(group))]
         bad = outlier_windows(quads, fits) if attempt < 2 else []
         if not bad:
@@ -174,29 +218,30 @@ def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParam
 
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
                     params: WallParams = WallParams(), segments: np.ndarray | None = None,
-                    sigmas: np.ndarray | None = None) -> Fit:
+                    sigmas: np.ndarray | None = None, memo: StepMemo | None = None) -> Fit:
     """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
     median of the walls' vanishing-point estimates (:func:`focal_from_vanishing`), then fit
     all walls jointly with one shared f (principal point at the image centre). segments: the
     photo's façade line segments (M, 2, 2) px, which join the vanishing points and the fit, or None;
-    sigmas (N,) px: each window's corner sigma, or None.
+    sigmas (N,) px: each window's corner sigma, or None; memo: as for :func:`fit_walls`.
 
     Returns (windows, their walls, the joint fit). Raises FacadeError when no wall gives f, or the
     fitted f's relative sd exceeds WALL_FIT.focal_max_rel_sd (unobservable).
     """
+    memo = StepMemo() if memo is None else memo
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     K0 = pseudo_K(image_shape)
-    walls = group_walls(q, K0, params.sigma_px)
-    vps = [(w.d_h, w.d_v) for w in walls] if segments is None else wall_vps(q, K0, walls, params, segments)[0]
+    walls = _group_walls(q, K0, params, memo)
+    vps = [(w.d_h, w.d_v) for w in walls] if segments is None else _wall_vps(q, K0, walls, params, segments, memo)[0]
     f0 = [f for d_h, d_v in vps if (f := focal_from_vanishing(d_h, d_v, K0)) is not None]
     if not f0:
         raise FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
                           f"two converging side pairs")
     K1 = pseudo_K(image_shape, float(np.median(f0)))
-    R0, group, Q, lines = _rotation_groups(q, K1, walls, params, segments)
+    R0, group, Q, lines = _rotation_groups(q, K1, walls, params, segments, memo)
     try:
         members, wall_ids, fit = _fit_groups(q, K1, walls, sorted(set(group)), R0, group, Q, height, params,
-                                             True, lines, sigmas)
+                                             True, lines, sigmas, memo)
     except (np.linalg.LinAlgError, ValueError) as e:
         raise FacadeError(f"joint fit with free focal length failed: {e}") from e
     sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
@@ -219,11 +264,14 @@ def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
 
 def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: tuple[int, int],
                 height_m: float, width_m: float | None, params: WallParams,
-                segment_cache: SegmentCache | None = None) -> list[WindowResult]:
+                segment_cache: SegmentCache | None = None, memo: StepMemo | None = None) -> list[WindowResult]:
     """Replace the per-window aspect/pose of ``results`` by the per-wall estimates. segment_cache:
     the photo's segments (``pipeline.segments.SegmentCache(gray)``, gray (H, W) uint8 or float in
     [0, 255], one per photo, shared with the other steps that need them), needed by a strategy with
     façade lines (WallParams.lines); ValueError without it, or when its photo is not image_shape.
+    memo: the photo's :class:`~pipeline.memo.StepMemo`, shared by the strategies run on it (the
+    grouping, each wall's vanishing points and each fit computed once per distinct input; the
+    results are those of a run without it); None: a new one for this call.
 
     K None: f from :func:`focal_from_walls` (every window then records it as focal_estimate_px);
     if unobservable, every window fails with that reason. Windows without a snapped quad keep
@@ -244,7 +292,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     f_est = None
     if K is None:
         try:
-            fits = [fit_walls_focal(quads, image_shape, height_m, params, segments, sigmas)]
+            fits = [fit_walls_focal(quads, image_shape, height_m, params, segments, sigmas, memo)]
         except FacadeError as e:
             for k in idx:
                 out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None,
@@ -252,7 +300,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             return out
         f_est = fits[0][2].focal_px
     else:
-        fits = fit_walls(quads, K, height_m, params, segments, sigmas)
+        fits = fit_walls(quads, K, height_m, params, segments, sigmas, memo)
     for members, wall_ids, fit in fits:
         for j, (m, wid) in enumerate(zip(members, wall_ids)):
             k = idx[m]
