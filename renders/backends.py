@@ -57,10 +57,10 @@ def _mitsuba(scene: Scene, settings: RenderSettings) -> Renderer:
 
 def occluder_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView, ...]:
     """Per-window ground truth from a backend's exact occluder pass (``renderer.occluders``, a
-    renders.raster.OccluderPass: depth + element ids, no antialiasing), the one both backends share."""
-    from renders.raster import ground_truth  # noqa: PLC0415 - GL: imported with the backend
-
-    return ground_truth(renderer.occluders, camera)[2]
+    renders.raster.OccluderPass: depth + element ids, no antialiasing), the one both backends share.
+    The pass's ground truth is kept for ``renderer.render(camera)`` of the view if it is accepted
+    (OccluderPass.truth): one occluder pass per view."""
+    return renderer.occluders.truth(camera, keep=True)[2]
 
 
 RENDERERS: Registry[RendererEntry] = Registry("renderer", [

@@ -77,16 +77,16 @@ def uniform(prog: int, name: str):
 
 
 class Geometry:
-    """Triangles uploaded once: positions (N, 3), uvs (N, 2), colours (N, 4), optional codes
-    (N, 4) float32 (attribute locations 0-3) and uint32 indices, drawn as ranges
-    ``(first index, count, texture id or 0, base rgb)`` in list order."""
+    """Triangles uploaded once: positions (N, 3), uvs (N, 2), colours (N, 4) float32 (attribute
+    locations 0-2) and uint32 indices, drawn as ranges ``(first index, count, texture id or 0,
+    base rgb)`` in list order."""
 
-    def __init__(self, positions, uvs, colours, indices, ranges, codes=None):
+    def __init__(self, positions, uvs, colours, indices, ranges):
         from OpenGL import GL
 
         self.vao = GL.glGenVertexArrays(1)
         GL.glBindVertexArray(self.vao)
-        attrs = (positions, uvs, colours) if codes is None else (positions, uvs, colours, codes)
+        attrs = (positions, uvs, colours)
         self.buffers = [int(b) for b in GL.glGenBuffers(len(attrs) + 1)]
         for loc, (buf, arr) in enumerate(zip(self.buffers[:-1], attrs)):
             arr = np.ascontiguousarray(arr, np.float32)
@@ -167,16 +167,15 @@ class Framebuffers:
         self._fbs: dict[tuple, tuple[int, list[int], int]] = {}
 
     def bind(self, width: int, height: int, samples: int = 0, target=None, texture: bool = False,
-             tag: str = "", codes: bool = False) -> int:
-        """Bind (creating it if needed) the framebuffer of this size, kind and user tag; return it.
-        codes: add a second RGBA8 colour attachment (COLOR_ATTACHMENT1) for element codes."""
+             tag: str = "") -> int:
+        """Bind (creating it if needed) the framebuffer of this size, kind and user tag; return it."""
         from OpenGL import GL
 
-        key = (width, height, samples, texture, tag, codes)
+        key = (width, height, samples, texture, tag)
         if key not in self._fbs:
             if len(self._fbs) >= 8:  # canvases of distorted cameras vary in size: keep this size only
                 self.delete(keep=(width, height))
-            fmts = (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24) + ((GL.GL_RGBA8,) if codes else ())
+            fmts = (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24)
             rbs = [int(x) for x in GL.glGenRenderbuffers(len(fmts))]
             for rb, fmt in zip(rbs, fmts):
                 GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
@@ -197,8 +196,6 @@ class Framebuffers:
             else:
                 GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, rbs[0])
             GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
-            if codes:
-                GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT1, GL.GL_RENDERBUFFER, rbs[2])
             if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"incomplete framebuffer {key}")
             self._fbs[key] = (fb, rbs, tex)
@@ -206,9 +203,9 @@ class Framebuffers:
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER if target is None else target, fb)
         return fb
 
-    def texture(self, width: int, height: int, codes: bool = False) -> int:
+    def texture(self, width: int, height: int) -> int:
         """The colour texture of the (width, height) texture framebuffer (after bind)."""
-        return self._fbs[(width, height, 0, True, "", codes)][2]
+        return self._fbs[(width, height, 0, True, "")][2]
 
     def delete(self, keep: tuple[int, int] | None = None) -> None:
         """Delete the framebuffers (but those of size ``keep``)."""

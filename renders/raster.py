@@ -9,8 +9,9 @@ per material group) and every view only sets a camera matrix:
   post filter (default) or 4x MSAA (~2.5x slower on llvmpipe) or none;
 - the occluder pass, single-sampled, draws every element in a flat colour that encodes its
   element code; its depth and codes feed :func:`renders.gt.void_instances`, which rasterises
-  the void rectangles exactly at pixel centres. Without MSAA the RGB pass writes it as a second
-  render target (same triangles, same depth); :class:`OccluderPass` draws it on its own.
+  the void rectangles exactly at pixel centres. It is drawn once per view: the sampler's
+  visibility test draws it for a candidate camera and the render of the accepted view takes
+  that ground truth (:meth:`OccluderPass.truth`); the RGB pass draws colour only.
 Draw order is fixed (sorted groups, never pyrender's set order), so coincident faces resolve the
 same way in every GL context and the same seed gives byte-identical images. pyrender is only used
 for its headless EGL context (llvmpipe here).
@@ -88,17 +89,33 @@ class OccluderPass:
     The colour of a pixel encodes the element code (window i's element = i + 1, ignore region r's
     glazing = n_windows + 1 + r (:func:`ignore_face_codes`), other geometry 0) in R + 256 G;
     B is 1 + 254 * the face's shadow ratio when ``shade`` is given (else 255).
-    All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order.
+    All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order: sorted by
+    code and shade bin, or ``triangles`` (positions (3M, 3), :func:`encode` d colours (3M, 4)) in
+    their order when given.
+    Where coplanar faces tie in depth the first drawn wins, so the raster backend passes its RGB
+    pass's triangles in that pass's order: its ground truth then matches its image.
     """
 
-    def __init__(self, scene: Scene, shade=None):
+    def __init__(self, scene: Scene, shade=None, triangles: tuple[np.ndarray, np.ndarray] | None = None):
         from OpenGL import GL
 
         self.scene = scene
+        self._kept = None  # (camera, ground truth) of the last view the visibility test kept (truth())
         self.codes, self.window_codes = element_codes(scene)
         self.ignore_regions = ignore_regions(scene)
         self.first_ignore_code = len(scene.windows) + 1
         self.face_codes = ignore_face_codes(scene, self.ignore_regions)
+        P, C = self._triangles(shade) if triangles is None else triangles
+        self._gl = GLContext.acquire()
+        self._gl.make_current()
+        self._geom = Geometry(P, np.zeros((len(P), 2), np.float32), C,
+                               np.arange(len(P), dtype=np.uint32), [(0, len(P), 0, (1.0, 1.0, 1.0))])
+        GL.glFinish()
+
+    def _triangles(self, shade) -> tuple[np.ndarray, np.ndarray]:
+        """The scene's triangles (3M, 3) float32 (and the ground quad) sorted by code and shade
+        bin, with their colours (3M, 4)."""
+        scene = self.scene
         parts: dict[tuple[int, int], list[np.ndarray]] = {}
         gv, gf = ground_quad(scene)
         items = []
@@ -122,12 +139,7 @@ class OccluderPass:
             p = np.concatenate(tris)
             P.append(p)
             C.append(np.broadcast_to(encode([code % 256, code // 256, b, 255]), (len(p), 4)))
-        P = np.concatenate(P).astype(np.float32)
-        self._gl = GLContext.acquire()
-        self._gl.make_current()
-        self._geom = Geometry(P, np.zeros((len(P), 2), np.float32), np.concatenate(C),
-                               np.arange(len(P), dtype=np.uint32), [(0, len(P), 0, (1.0, 1.0, 1.0))])
-        GL.glFinish()
+        return np.concatenate(P).astype(np.float32), np.concatenate(C)
 
     def _draw(self, PV: np.ndarray, width: int, height: int) -> int:
         """Issue the pass (GL renders it asynchronously); return its framebuffer."""
@@ -150,9 +162,22 @@ class OccluderPass:
         (-1 = nothing) and the B channel (H, W) uint8 (shadow-ratio bin, 0 = nothing)."""
         return self._read(cam, self._draw(gl_view_projection(cam), cam.width, cam.height))
 
-    def _read(self, cam: Camera, fb: int, attachment: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _read(self, cam: Camera, fb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self._gl.make_current()
-        return read_occluder_pass(fb, cam.width, cam.height, attachment)
+        return read_occluder_pass(fb, cam.width, cam.height)
+
+    def truth(self, camera: Camera, keep: bool = False):
+        """:func:`ground_truth` of ``camera``, drawn once per view: with ``keep`` (the sampler's
+        visibility test) the result is also kept, and the next call for the same Camera object
+        (the render of the view the sampler accepted) takes it instead of drawing the pass again."""
+        kept, self._kept = self._kept, None
+        if kept is not None and kept[0] is camera:
+            out = kept[1]
+        else:
+            out = ground_truth(self, camera)
+        if keep:
+            self._kept = (camera, out)
+        return out
 
     def render(self, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing) and element codes (H, W) int32."""
@@ -186,15 +211,13 @@ class OccluderPass:
             self._gl.release()
 
 
-def read_occluder_pass(fb: int, W: int, H: int, attachment: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Read a finished occluder pass (colour attachment ``attachment`` + depth of ``fb``):
-    depth (H, W) float32 m (0 = nothing), element codes (H, W) int32 (-1 = nothing), B channel uint8."""
+def read_occluder_pass(fb: int, W: int, H: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read a finished occluder pass (colour + depth of ``fb``): depth (H, W) float32 m
+    (0 = nothing), element codes (H, W) int32 (-1 = nothing), B channel uint8."""
     from OpenGL import GL
 
     GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
-    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0 + attachment)
     col = read_rgba(W, H)
-    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
     d = read_depth(W, H)
     rgba = np.ascontiguousarray(col).view(np.uint32)[..., 0]  # little endian: R + 256 G + 65536 B ...
     code = (rgba & 0xFFFF).astype(np.int32)
@@ -210,11 +233,8 @@ def read_occluder_pass(fb: int, W: int, H: int, attachment: int = 0) -> tuple[np
 def ground_truth(occ: OccluderPass, camera: Camera):
     """Instance map (H, W) uint16, depth (H, W) float32, per-window views and the ignore regions:
     (ignore map (H, W) uint16, region r = r + 1 (renders.gt.ignore_map), its view.json entries)."""
-    return _ground_truth(occ, camera, *occ.render_full(camera.canvas()))
-
-
-def _ground_truth(occ: OccluderPass, camera: Camera, depth_c, code_c, shade_c):
     canvas = camera.canvas()
+    depth_c, code_c, _ = occ.render_full(canvas)
     maps = None if camera.dist is None else camera.canvas_maps()
     inst, _ = void_instances(canvas, occ.scene.windows, depth_c, code_c, occ.window_codes, maps)
     depth = distort_image(camera, depth_c, nearest=True)
@@ -308,26 +328,24 @@ class RasterRenderer:
         rng = np.random.default_rng(settings.seed)
         self.look = look = sample_look(rng)
         self.groups = group_scene(scene, look, rng)
-        self.occluders = OccluderPass(scene, shade=lambda n: lighting(n, look)[1])
-        self.shadow = SunShadow(self.occluders, sun_direction(look)) if settings.shadows else None
         self._gl = GLContext.acquire()
         self._gl.make_current()
+        codes, _ = element_codes(scene)
+        glazing = ignore_face_codes(scene, ignore_regions(scene))
         P, UV, C, I, ranges, textures = [], [], [], [], [], []
+        occ_colours = []  # per face: the occluder pass's colour (element code, shade bin)
         off = first = 0
-        codes = []  # per vertex: the occluder pass's colour, for the single-sample passes (MRT)
         for g in sorted(self.groups, key=draw_priority):  # big occluders first: less overdraw
             m = g.material
             mult, ratio = lighting(face_normals(g.vertices, g.faces), look)
             r = shadow_ratio_levels(ratio)
-            fcode = np.array([self.occluders.codes.get(e, 0) for e in g.element_ids])[g.face_element]
+            fcode = np.array([codes.get(e, 0) for e in g.element_ids])[g.face_element]
             for k, e in enumerate(g.element_ids):  # ignore regions' glazing: per face
-                fc = self.occluders.face_codes.get(e)
+                fc = glazing.get(e)
                 if fc is not None:  # group_scene keeps a non-window mesh's faces whole, in order
                     fcode[g.face_element == k] = fc
-            enc = np.zeros((len(g.vertices), 4), np.float32)
-            enc[g.faces.ravel()] = np.repeat(encode(np.stack([fcode % 256, fcode // 256, 1 + np.rint(254 * r),
-                                                               np.full(len(r), 255)], axis=1)), 3, axis=0)
-            codes.append(enc)
+            occ_colours.append(encode(np.stack([fcode % 256, fcode // 256, 1 + np.rint(254 * r),
+                                                np.full(len(r), 255)], axis=1)))
             colour = np.ones((len(g.vertices), 4), np.float32)
             colour[g.faces.ravel(), :3] = np.repeat(mult, 3, axis=0)
             colour[g.faces.ravel(), 3] = np.repeat(np.where(r < 1, r, 2.0), 3)  # >= 1: never shaded
@@ -339,9 +357,12 @@ class RasterRenderer:
             ranges.append((first, g.faces.size, tex, tuple(float(x) for x in m.rgb)))
             off += len(g.vertices)
             first += g.faces.size
-        self._geom = Geometry(np.concatenate(P), np.concatenate(UV), np.concatenate(C), np.concatenate(I), ranges,
-                               codes=np.concatenate(codes))
+        P, I = np.concatenate(P).astype(np.float32), np.concatenate(I)
+        self._geom = Geometry(P, np.concatenate(UV), np.concatenate(C), I, ranges)
         self._geom.textures = textures
+        # the occluder pass draws these very triangles in this order: coplanar faces resolve alike
+        self.occluders = OccluderPass(scene, triangles=(P[I], np.repeat(np.concatenate(occ_colours), 3, axis=0)))
+        self.shadow = SunShadow(self.occluders, sun_direction(look)) if settings.shadows else None
         self._shadow_tex = texture_u16(self.shadow.map_u16()) if self.shadow is not None else 0
         self._empty_vao = GL.glGenVertexArrays(1)
         GL.glFinish()
@@ -369,11 +390,7 @@ class RasterRenderer:
         W, H = canvas.width, canvas.height
         gl.make_current()
         samples = MSAA_SAMPLES if aa == "msaa4" else 0
-        codes = samples == 0  # single-sampled: the occluder pass comes along as a second target
-        fb = gl.fbs.bind(W, H, samples, texture=aa == "fxaa", codes=codes)
-        self._codes_fb = fb if codes else None
-        if codes:
-            GL.glDrawBuffers(2, [GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1])
+        fb = gl.fbs.bind(W, H, samples, texture=aa == "fxaa")
         begin(W, H)
         (GL.glEnable if samples else GL.glDisable)(GL.GL_MULTISAMPLE)
         # the house and the ground
@@ -393,8 +410,6 @@ class RasterRenderer:
             GL.glUniform1f(uniform(prog, "bias"), sh.bias)
             GL.glUniform3f(uniform(prog, "tint"), *SHADOW_TINT)
         self._geom.draw(prog)
-        if codes:
-            GL.glDrawBuffers(1, [GL.GL_COLOR_ATTACHMENT0])
         # the sky where nothing was drawn (depth still at the far plane): shaded only there
         prog = gl.program("sky")
         GL.glUseProgram(prog)
@@ -420,7 +435,7 @@ class RasterRenderer:
             GL.glUseProgram(prog)
             GL.glUniform1i(uniform(prog, "img"), 0)
             GL.glActiveTexture(GL.GL_TEXTURE0)
-            GL.glBindTexture(GL.GL_TEXTURE_2D, gl.fbs.texture(W, H, codes))
+            GL.glBindTexture(GL.GL_TEXTURE_2D, gl.fbs.texture(W, H))
             GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
             GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
             GL.glEnable(GL.GL_DEPTH_TEST)
@@ -430,15 +445,10 @@ class RasterRenderer:
         return fb
 
     def render(self, camera: Camera) -> RenderOutput:
-        occ, canvas = self.occluders, camera.canvas()
-        if self.settings.antialias == "msaa4":  # the occluder pass separately, single-sampled
-            occ_pass = occ.render_full(canvas)
-            fb = self._draw_rgb(camera)
-        else:  # the RGB pass wrote the occluder pass's codes and depth too
-            fb = self._draw_rgb(camera)
-            self._gl.make_current()
-            occ_pass = read_occluder_pass(self._codes_fb, canvas.width, canvas.height, attachment=1)
-        inst, depth, wins, (ign, regions) = _ground_truth(occ, camera, *occ_pass)
+        """The view of ``camera``: the RGB pass, and the ground truth of the occluder pass (drawn by
+        the sampler's visibility test when it accepted this camera: OccluderPass.truth)."""
+        fb = self._draw_rgb(camera)  # GL draws it while the ground truth is computed
+        inst, depth, wins, (ign, regions) = self.occluders.truth(camera)
         return RenderOutput(camera, self._read_rgb(camera, fb), inst, depth, wins,
                             ign if regions else None, regions)
 
