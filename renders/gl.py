@@ -160,7 +160,7 @@ def texture_u16(img: np.ndarray) -> int:
 
 
 class Framebuffers:
-    """Offscreen framebuffers (RGBA8 colour + 24-bit depth) by (width, height, samples, texture):
+    """Offscreen framebuffers (RGBA8 colour + 24-bit depth, 8-bit stencil) by (width, height, samples, texture):
     colour in a renderbuffer, or in a texture (single-sampled, for post filters)."""
 
     def __init__(self):
@@ -175,7 +175,7 @@ class Framebuffers:
         if key not in self._fbs:
             if len(self._fbs) >= 8:  # canvases of distorted cameras vary in size: keep this size only
                 self.delete(keep=(width, height))
-            fmts = (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24)
+            fmts = (GL.GL_RGBA8, GL.GL_DEPTH24_STENCIL8)
             rbs = [int(x) for x in GL.glGenRenderbuffers(len(fmts))]
             for rb, fmt in zip(rbs, fmts):
                 GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
@@ -195,13 +195,22 @@ class Framebuffers:
                 GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_TEXTURE_2D, tex, 0)
             else:
                 GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, rbs[0])
-            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
+            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
             if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"incomplete framebuffer {key}")
             self._fbs[key] = (fb, rbs, tex)
         fb = self._fbs[key][0]
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER if target is None else target, fb)
         return fb
+
+    def copy_depth(self, src: int, dst: int, width: int, height: int) -> None:
+        """Copy the depth-stencil buffer of framebuffer ``src`` into ``dst`` (both single-sampled,
+        this size) bit for bit (glCopyImageSubData: a blit would convert the depth values)."""
+        from OpenGL import GL
+
+        rb = {fb: rbs[1] for fb, rbs, _ in self._fbs.values()}
+        GL.glCopyImageSubData(rb[src], GL.GL_RENDERBUFFER, 0, 0, 0, 0, rb[dst], GL.GL_RENDERBUFFER, 0, 0, 0, 0,
+                              width, height, 1)
 
     def texture(self, width: int, height: int) -> int:
         """The colour texture of the (width, height) texture framebuffer (after bind)."""
@@ -219,8 +228,15 @@ class Framebuffers:
                 GL.glDeleteTextures(1, [tex])
 
 
-def begin(width: int, height: int) -> None:
-    """Viewport, depth test, two-sided triangles, no blending; clear colour (to 0) and depth."""
+def begin(width: int, height: int, prepass: bool = False) -> None:
+    """Viewport, depth test, two-sided triangles, no blending; clear colour (to 0), depth and
+    stencil (to 0).
+
+    prepass: the bound framebuffer holds the depth of the same triangles drawn by another pass
+    (:meth:`Framebuffers.copy_depth`), an exact depth pre-pass: depth is kept, the depth test is
+    GL_EQUAL without depth writes, and the stencil lets only the first fragment that passes it
+    colour a pixel, as GL_LESS does where coplanar faces tie. Each pixel is then shaded once
+    (:func:`end_prepass` after the triangles)."""
     from OpenGL import GL
 
     GL.glViewport(0, 0, width, height)
@@ -229,9 +245,28 @@ def begin(width: int, height: int) -> None:
     GL.glDepthFunc(GL.GL_LESS)
     GL.glDisable(GL.GL_CULL_FACE)  # IFC winding varies: every triangle is two-sided
     GL.glDisable(GL.GL_BLEND)
+    GL.glDisable(GL.GL_STENCIL_TEST)
     GL.glClearColor(0.0, 0.0, 0.0, 0.0)
     GL.glClearDepth(1.0)
-    GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+    GL.glClearStencil(0)
+    if not prepass:
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT | GL.GL_STENCIL_BUFFER_BIT)
+        return
+    GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_STENCIL_BUFFER_BIT)
+    GL.glDepthFunc(GL.GL_EQUAL)
+    GL.glDepthMask(GL.GL_FALSE)
+    GL.glEnable(GL.GL_STENCIL_TEST)
+    GL.glStencilFunc(GL.GL_EQUAL, 0, 0xFF)
+    GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_INCR)
+
+
+def end_prepass() -> None:
+    """Back to begin()'s plain state after triangles drawn against a copied depth (depth_from)."""
+    from OpenGL import GL
+
+    GL.glDisable(GL.GL_STENCIL_TEST)
+    GL.glDepthFunc(GL.GL_LESS)
+    GL.glDepthMask(GL.GL_TRUE)
 
 
 def read_rgba(width: int, height: int, channels: int = 4) -> np.ndarray:

@@ -26,7 +26,7 @@ import numpy as np
 from fenestra.conventions import PYRENDER_PIXEL_OFFSET, cv_to_gl_pose
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
-from renders.gl import (GLContext, Geometry, begin, encode, read_depth, read_rgba, texture_rgb,
+from renders.gl import (GLContext, Geometry, begin, encode, end_prepass, read_depth, read_rgba, texture_rgb,
                         texture_u16, uniform)
 from renders.gt import IgnoreRegion, ignore_entries, ignore_map, ignore_regions, void_instances, window_views
 from renders.materials import face_normals, group_scene, ground_z, lighting, sample_look, sun_direction
@@ -101,6 +101,7 @@ class OccluderPass:
 
         self.scene = scene
         self._kept = None  # (camera, ground truth) of the last view the visibility test kept (truth())
+        self._drawn = None  # (width, height, PV bytes) of the pass the framebuffer holds
         self.codes, self.window_codes = element_codes(scene)
         self.ignore_regions = ignore_regions(scene)
         self.first_ignore_code = len(scene.windows) + 1
@@ -155,7 +156,15 @@ class OccluderPass:
         self._geom.draw()
         GL.glUseProgram(0)
         GL.glFlush()
+        self._drawn = (width, height, PV.tobytes())
         return fb
+
+    def depth_of(self, cam: Camera) -> int:
+        """The framebuffer holding this pinhole camera's pass (drawn now unless it was the last)."""
+        PV = gl_view_projection(cam)
+        if self._drawn == (cam.width, cam.height, PV.tobytes()):
+            return self._gl.fbs.bind(cam.width, cam.height, 0, tag="occluders")
+        return self._draw(PV, cam.width, cam.height)
 
     def render_full(self, cam: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing), element codes (H, W) int32
@@ -390,8 +399,12 @@ class RasterRenderer:
         W, H = canvas.width, canvas.height
         gl.make_current()
         samples = MSAA_SAMPLES if aa == "msaa4" else 0
+        # single-sampled: the occluder pass's depth (the same triangles) is the depth pre-pass
+        depth = None if samples else self.occluders.depth_of(canvas)
         fb = gl.fbs.bind(W, H, samples, texture=aa == "fxaa")
-        begin(W, H)
+        if depth is not None:
+            gl.fbs.copy_depth(depth, fb, W, H)
+        begin(W, H, prepass=depth is not None)
         (GL.glEnable if samples else GL.glDisable)(GL.GL_MULTISAMPLE)
         # the house and the ground
         prog = gl.program("mesh")
@@ -410,6 +423,8 @@ class RasterRenderer:
             GL.glUniform1f(uniform(prog, "bias"), sh.bias)
             GL.glUniform3f(uniform(prog, "tint"), *SHADOW_TINT)
         self._geom.draw(prog)
+        if depth is not None:
+            end_prepass()
         # the sky where nothing was drawn (depth still at the far plane): shaded only there
         prog = gl.program("sky")
         GL.glUseProgram(prog)
@@ -446,9 +461,10 @@ class RasterRenderer:
 
     def render(self, camera: Camera) -> RenderOutput:
         """The view of ``camera``: the RGB pass, and the ground truth of the occluder pass (drawn by
-        the sampler's visibility test when it accepted this camera: OccluderPass.truth)."""
-        fb = self._draw_rgb(camera)  # GL draws it while the ground truth is computed
+        the sampler's visibility test when it accepted this camera: OccluderPass.truth), whose depth
+        is the RGB pass's depth pre-pass."""
         inst, depth, wins, (ign, regions) = self.occluders.truth(camera)
+        fb = self._draw_rgb(camera)
         return RenderOutput(camera, self._read_rgb(camera, fb), inst, depth, wins,
                             ign if regions else None, regions)
 
