@@ -165,6 +165,16 @@ class Framebuffers:
 
     def __init__(self):
         self._fbs: dict[tuple, tuple[int, list[int], int]] = {}
+        self._marks: dict[int, object] = {}  # framebuffer -> what its last pass drew (mark / holds)
+
+    def mark(self, fb: int, what) -> None:
+        """Record what was just drawn into ``fb`` (any value compared with ==)."""
+        self._marks[fb] = what
+
+    def holds(self, fb: int, what) -> bool:
+        """True when the last pass :meth:`mark` ed into ``fb`` is ``what`` (a framebuffer deleted
+        and created again holds nothing)."""
+        return self._marks.get(fb, None) == what
 
     def bind(self, width: int, height: int, samples: int = 0, target=None, texture: bool = False,
              tag: str = "") -> int:
@@ -222,6 +232,7 @@ class Framebuffers:
 
         for key in [k for k in self._fbs if k[:2] != keep]:
             fb, rbs, tex = self._fbs.pop(key)
+            self._marks.pop(fb, None)
             GL.glDeleteFramebuffers(1, [fb])
             GL.glDeleteRenderbuffers(len(rbs), rbs)
             if tex:

@@ -101,7 +101,7 @@ class OccluderPass:
 
         self.scene = scene
         self._kept = None  # (camera, ground truth) of the last view the visibility test kept (truth())
-        self._drawn = None  # (width, height, PV bytes) of the pass the framebuffer holds
+        self._token = object()  # marks the framebuffers this pass drew (Framebuffers.mark)
         self.codes, self.window_codes = element_codes(scene)
         self.ignore_regions = ignore_regions(scene)
         self.first_ignore_code = len(scene.windows) + 1
@@ -156,15 +156,16 @@ class OccluderPass:
         self._geom.draw()
         GL.glUseProgram(0)
         GL.glFlush()
-        self._drawn = (width, height, PV.tobytes())
+        gl.fbs.mark(fb, (self._token, PV.tobytes()))
         return fb
 
     def depth_of(self, cam: Camera) -> int:
-        """The framebuffer holding this pinhole camera's pass (drawn now unless it was the last)."""
+        """The framebuffer holding this pass for a pinhole camera: drawn now unless the last pass
+        in that framebuffer (shared by every OccluderPass of the GL context) was this one's of it."""
         PV = gl_view_projection(cam)
-        if self._drawn == (cam.width, cam.height, PV.tobytes()):
-            return self._gl.fbs.bind(cam.width, cam.height, 0, tag="occluders")
-        return self._draw(PV, cam.width, cam.height)
+        self._gl.make_current()
+        fb = self._gl.fbs.bind(cam.width, cam.height, 0, tag="occluders")
+        return fb if self._gl.fbs.holds(fb, (self._token, PV.tobytes())) else self._draw(PV, cam.width, cam.height)
 
     def render_full(self, cam: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing), element codes (H, W) int32
@@ -376,9 +377,11 @@ class RasterRenderer:
         self._empty_vao = GL.glGenVertexArrays(1)
         GL.glFinish()
 
-    def render_rgb(self, camera: Camera) -> np.ndarray:
-        """(H, W, 3) uint8 antialiased daylight image for the camera (distortion applied)."""
-        return self._read_rgb(camera, self._draw_rgb(camera))
+    def render_rgb(self, camera: Camera, prepass: bool = True) -> np.ndarray:
+        """(H, W, 3) uint8 antialiased daylight image for the camera (distortion applied).
+        prepass=False: without the occluder pass's depth as a pre-pass (plain GL_LESS depth test:
+        the image the pre-pass must reproduce exactly)."""
+        return self._read_rgb(camera, self._draw_rgb(camera, prepass))
 
     def _read_rgb(self, camera: Camera, fb: int) -> np.ndarray:
         from OpenGL import GL
@@ -389,9 +392,10 @@ class RasterRenderer:
         rgb = np.ascontiguousarray(read_rgba(canvas.width, canvas.height, 3))
         return distort_image(camera, rgb, nearest=False)
 
-    def _draw_rgb(self, camera: Camera) -> int:
+    def _draw_rgb(self, camera: Camera, prepass: bool = True) -> int:
         """Issue the RGB pass of ``camera.canvas()`` (GL renders it asynchronously); return the
-        framebuffer to read it from."""
+        framebuffer to read it from. Single-sampled, the occluder pass's depth (the same triangles
+        in the same order) is its depth pre-pass unless ``prepass`` is False."""
         from OpenGL import GL
 
         gl, look, sh, aa = self._gl, self.look, self.shadow, self.settings.antialias
@@ -400,7 +404,7 @@ class RasterRenderer:
         gl.make_current()
         samples = MSAA_SAMPLES if aa == "msaa4" else 0
         # single-sampled: the occluder pass's depth (the same triangles) is the depth pre-pass
-        depth = None if samples else self.occluders.depth_of(canvas)
+        depth = None if samples or not prepass else self.occluders.depth_of(canvas)
         fb = gl.fbs.bind(W, H, samples, texture=aa == "fxaa")
         if depth is not None:
             gl.fbs.copy_depth(depth, fb, W, H)
