@@ -88,15 +88,15 @@ class OccluderPass:
 
     The colour of a pixel encodes the element code (window i's element = i + 1, ignore region r's
     glazing = n_windows + 1 + r (:func:`ignore_face_codes`), other geometry 0) in R + 256 G;
-    B is 1 + 254 * the face's shadow ratio when ``shade`` is given (else 255).
-    All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order: sorted by
-    code and shade bin, or ``triangles`` (positions (3M, 3), :func:`encode` d colours (3M, 4)) in
-    their order when given.
-    Where coplanar faces tie in depth the first drawn wins, so the raster backend passes its RGB
-    pass's triangles in that pass's order: its ground truth then matches its image.
+    B is never 0 where a face was drawn (255, or the raster backend's shadow-ratio level).
+    All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order: the scene's
+    sorted by code, or ``triangles`` (positions (3M, 3), :func:`encode`-d colours (3M, 4)) in their
+    order when given. Where coplanar faces tie in depth the first drawn wins, so the raster backend
+    passes its RGB pass's own triangles in that pass's order: its ground truth then matches its
+    image, and its RGB pass takes this pass's depth as an exact pre-pass (:meth:`depth_of`).
     """
 
-    def __init__(self, scene: Scene, shade=None, triangles: tuple[np.ndarray, np.ndarray] | None = None):
+    def __init__(self, scene: Scene, triangles: tuple[np.ndarray, np.ndarray] | None = None):
         from OpenGL import GL
 
         self.scene = scene
@@ -106,18 +106,18 @@ class OccluderPass:
         self.ignore_regions = ignore_regions(scene)
         self.first_ignore_code = len(scene.windows) + 1
         self.face_codes = ignore_face_codes(scene, self.ignore_regions)
-        P, C = self._triangles(shade) if triangles is None else triangles
+        P, C = self._triangles() if triangles is None else triangles
         self._gl = GLContext.acquire()
         self._gl.make_current()
         self._geom = Geometry(P, np.zeros((len(P), 2), np.float32), C,
                                np.arange(len(P), dtype=np.uint32), [(0, len(P), 0, (1.0, 1.0, 1.0))])
         GL.glFinish()
 
-    def _triangles(self, shade) -> tuple[np.ndarray, np.ndarray]:
-        """The scene's triangles (3M, 3) float32 (and the ground quad) sorted by code and shade
-        bin, with their colours (3M, 4)."""
+    def _triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """The scene's triangles (3M, 3) float32 (and the ground quad) sorted by code, with their
+        colours (3M, 4) (B = 255)."""
         scene = self.scene
-        parts: dict[tuple[int, int], list[np.ndarray]] = {}
+        parts: dict[int, list[np.ndarray]] = {}
         gv, gf = ground_quad(scene)
         items = []
         for m in scene.meshes:
@@ -128,18 +128,12 @@ class OccluderPass:
                 items += [(int(c), m.vertices, m.faces[fc == c]) for c in np.unique(fc)]
         items.append((0, gv, gf))
         for code, v, f in items:
-            if shade is None:
-                bins = np.full(len(f), 255)
-            else:
-                q = np.rint(SHADE_LEVELS * np.clip(shade(face_normals(v, f)), 0, 1)) / SHADE_LEVELS
-                bins = 1 + np.rint(254 * q).astype(int)
-            for b in np.unique(bins):
-                parts.setdefault((code, int(b)), []).append(np.asarray(v, np.float64)[f[bins == b]].reshape(-1, 3))
+            parts.setdefault(code, []).append(np.asarray(v, np.float64)[f].reshape(-1, 3))
         P, C = [], []
-        for (code, b), tris in sorted(parts.items()):
+        for code, tris in sorted(parts.items()):
             p = np.concatenate(tris)
             P.append(p)
-            C.append(np.broadcast_to(encode([code % 256, code // 256, b, 255]), (len(p), 4)))
+            C.append(np.broadcast_to(encode([code % 256, code // 256, 255, 255]), (len(p), 4)))
         return np.concatenate(P).astype(np.float32), np.concatenate(C)
 
     def _draw(self, PV: np.ndarray, width: int, height: int) -> int:
