@@ -63,8 +63,14 @@ def occluder_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView,
     return renderer.occluders.truth(camera, keep=True)[2]
 
 
+def raster_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView, ...]:
+    """occluder_visibility of the raster backend, which also issues the candidate's RGB pass while
+    the ground truth is computed (renders.raster.RasterRenderer.visibility)."""
+    return renderer.visibility(camera)
+
+
 RENDERERS: Registry[RendererEntry] = Registry("renderer", [
-    RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", occluder_visibility),
+    RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", raster_visibility),
     RendererEntry("mitsuba", _mitsuba, "mitsuba path tracing, photoreal (optional OIDN denoising)",
                   occluder_visibility),
 ])

@@ -21,14 +21,17 @@ The OpenGL plumbing (context, buffers, textures, framebuffers, read-back) lives 
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from fenestra.conventions import PYRENDER_PIXEL_OFFSET, cv_to_gl_pose
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
-from renders.gl import (GLContext, Geometry, begin, encode, end_prepass, read_depth, read_rgba, texture_rgb,
-                        texture_u16, uniform)
-from renders.gt import IgnoreRegion, ignore_entries, ignore_map, ignore_regions, void_instances, window_views
+from renders.gl import (GLContext, Geometry, begin, encode, end_prepass, read_depth, read_rgba,
+                        texture_rgb, texture_u16, uniform)
+from renders.gt import (IgnoreRegion, WindowView, ignore_entries, ignore_map, ignore_regions, void_instances,
+                        window_views)
 from renders.materials import face_normals, group_scene, ground_z, lighting, sample_look, sun_direction
 from scenes.model import Scene
 
@@ -170,15 +173,16 @@ class OccluderPass:
         self._gl.make_current()
         return read_occluder_pass(fb, cam.width, cam.height)
 
-    def truth(self, camera: Camera, keep: bool = False):
+    def truth(self, camera: Camera, keep: bool = False, meanwhile: Callable[[], None] | None = None):
         """:func:`ground_truth` of ``camera``, drawn once per view: with ``keep`` (the sampler's
         visibility test) the result is also kept, and the next call for the same Camera object
-        (the render of the view the sampler accepted) takes it instead of drawing the pass again."""
+        (the render of the view the sampler accepted) takes it instead of drawing the pass again.
+        meanwhile: as in :func:`ground_truth` (when the pass is drawn)."""
         kept, self._kept = self._kept, None
         if kept is not None and kept[0] is camera:
             out = kept[1]
         else:
-            out = ground_truth(self, camera)
+            out = ground_truth(self, camera, meanwhile)
         if keep:
             self._kept = (camera, out)
         return out
@@ -234,11 +238,15 @@ def read_occluder_pass(fb: int, W: int, H: int) -> tuple[np.ndarray, np.ndarray,
     return depth, code, shade
 
 
-def ground_truth(occ: OccluderPass, camera: Camera):
+def ground_truth(occ: OccluderPass, camera: Camera, meanwhile: Callable[[], None] | None = None):
     """Instance map (H, W) uint16, depth (H, W) float32, per-window views and the ignore regions:
-    (ignore map (H, W) uint16, region r = r + 1 (renders.gt.ignore_map), its view.json entries)."""
+    (ignore map (H, W) uint16, region r = r + 1 (renders.gt.ignore_map), its view.json entries).
+    meanwhile: called once the pass is read, before the ground truth is computed from it (GL
+    work issued there overlaps the computation)."""
     canvas = camera.canvas()
     depth_c, code_c, _ = occ.render_full(canvas)
+    if meanwhile is not None:
+        meanwhile()
     maps = None if camera.dist is None else camera.canvas_maps()
     inst, _ = void_instances(canvas, occ.scene.windows, depth_c, code_c, occ.window_codes, maps)
     depth = distort_image(camera, depth_c, nearest=True)
@@ -369,6 +377,7 @@ class RasterRenderer:
         self.shadow = SunShadow(self.occluders, sun_direction(look)) if settings.shadows else None
         self._shadow_tex = texture_u16(self.shadow.map_u16()) if self.shadow is not None else 0
         self._empty_vao = GL.glGenVertexArrays(1)
+        self._issued = None  # (camera, framebuffer) of the RGB pass visibility() issued
         GL.glFinish()
 
     def render_rgb(self, camera: Camera, prepass: bool = True) -> np.ndarray:
@@ -387,9 +396,18 @@ class RasterRenderer:
         return distort_image(camera, rgb, nearest=False)
 
     def _draw_rgb(self, camera: Camera, prepass: bool = True) -> int:
-        """Issue the RGB pass of ``camera.canvas()`` (GL renders it asynchronously); return the
-        framebuffer to read it from. Single-sampled, the occluder pass's depth (the same triangles
-        in the same order) is its depth pre-pass unless ``prepass`` is False."""
+        """Draw the RGB pass of ``camera.canvas()`` (the triangles and sky issued by
+        :meth:`visibility` for this camera, else issued now; then antialiasing); return the
+        framebuffer to read it from."""
+        issued, self._issued = self._issued, None
+        ready = prepass and issued is not None and issued[0] is camera
+        fb = issued[1] if ready else self._issue_rgb(camera, prepass)
+        return self._antialias(camera, fb)
+
+    def _issue_rgb(self, camera: Camera, prepass: bool = True) -> int:
+        """Issue the triangles and the sky of ``camera.canvas()``'s RGB pass (GL draws them
+        asynchronously); return their framebuffer. Single-sampled, the occluder pass's depth (the
+        same triangles in the same order) is its depth pre-pass unless ``prepass`` is False."""
         from OpenGL import GL
 
         gl, look, sh, aa = self._gl, self.look, self.shadow, self.settings.antialias
@@ -437,6 +455,20 @@ class RasterRenderer:
         GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
         GL.glDepthMask(GL.GL_TRUE)
         GL.glDepthFunc(GL.GL_LESS)
+        GL.glBindVertexArray(0)
+        GL.glUseProgram(0)
+        GL.glFlush()
+        return fb
+
+    def _antialias(self, camera: Camera, fb: int) -> int:
+        """Resolve (msaa4) or post-filter (fxaa) the issued RGB pass in ``fb``; return the
+        framebuffer to read the image from."""
+        from OpenGL import GL
+
+        gl, aa = self._gl, self.settings.antialias
+        canvas = camera.canvas()
+        W, H = canvas.width, canvas.height
+        gl.make_current()
         if aa == "msaa4":  # resolve the samples
             ms, fb = fb, gl.fbs.bind(W, H, 0, GL.GL_DRAW_FRAMEBUFFER)  # (binding may create it)
             GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, ms)
@@ -446,6 +478,7 @@ class RasterRenderer:
             GL.glDisable(GL.GL_DEPTH_TEST)
             prog = gl.program("fxaa")
             GL.glUseProgram(prog)
+            GL.glBindVertexArray(self._empty_vao)
             GL.glUniform1i(uniform(prog, "img"), 0)
             GL.glActiveTexture(GL.GL_TEXTURE0)
             GL.glBindTexture(GL.GL_TEXTURE_2D, gl.fbs.texture(W, H))
@@ -456,6 +489,16 @@ class RasterRenderer:
         GL.glUseProgram(0)
         GL.glFlush()
         return fb
+
+    def visibility(self, camera: Camera) -> tuple[WindowView, ...]:
+        """The sampler's visibility test (RENDERERS["pyrender"]): the occluder pass's per-window
+        ground truth, kept for :meth:`render` of this camera (OccluderPass.truth). As soon as the
+        pass is read, the candidate's RGB triangles are issued with its depth as their pre-pass,
+        so that GL draws them while Python computes the ground truth (wasted on a rejected one)."""
+        def issue() -> None:
+            self._issued = (camera, self._issue_rgb(camera))
+
+        return self.occluders.truth(camera, keep=True, meanwhile=issue)[2]
 
     def render(self, camera: Camera) -> RenderOutput:
         """The view of ``camera``: the RGB pass, and the ground truth of the occluder pass (drawn by

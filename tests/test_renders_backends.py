@@ -193,33 +193,39 @@ def test_fzk_haus_views_have_consistent_ground_truth():
 
 def test_one_occluder_pass_per_view_and_an_exact_depth_prepass():
     """The sampler's visibility test keeps its occluder pass's ground truth for the render of the
-    accepted camera (one pass per view); the RGB pass uses that pass's depth as its pre-pass and
-    must give exactly the image of a plain depth test, coplanar ties included (the ground's and
-    walls' faces, glazing in frames) - also when another renderer in the same GL context drew its
+    accepted camera (one pass per view) and issues the candidate's RGB pass with that pass's depth
+    as its pre-pass; the image must be exactly the one of a plain depth test, coplanar ties
+    included (walls and ground, glazing in frames): when the render follows the test (the dataset
+    path), after a rejected candidate, and when another renderer in the same GL context drew its
     own occluder pass in between (the framebuffer they share then holds the other's pass)."""
     from renders.backends import visibility_function
     from renders.raster import RasterRenderer, ground_truth
     from scenes import load_scene
 
     scene = load_scene("fzk-haus")
-    views = sample_views(scene, SamplerConfig(width=320, height=240, street_fraction=0.5), 4, seed=1).views
+    views = sample_views(scene, SamplerConfig(width=320, height=240, street_fraction=0.5), 5, seed=1).views
     other = wall_scene(sill_top=1.2)
     with RasterRenderer(scene) as r, RasterRenderer(other) as r2:
         vis = visibility_function("pyrender", r)
+        plain = [r.render_rgb(v.camera, prepass=False) for v in views]
         for k, v in enumerate(views):
             wins = vis(v.camera)
-            kept = r.occluders.truth(v.camera)  # the render's call: takes what the test kept
-            assert kept[2] is wins
-            assert r.occluders.truth(v.camera)[2] is not wins  # taken once, then drawn afresh
+            out = r.render(v.camera)  # the dataset path: the test's pass and RGB triangles taken
+            assert out.windows is wins
+            np.testing.assert_array_equal(out.rgb, plain[k])
             fresh = ground_truth(r.occluders, v.camera)
-            for a, b in zip(kept[:2], fresh[:2]):
-                np.testing.assert_array_equal(a, b)
+            np.testing.assert_array_equal(out.instances, fresh[0])
+            np.testing.assert_array_equal(out.depth, fresh[1])
+            assert r.occluders.truth(v.camera)[2] is not wins  # taken once, then drawn afresh
             if k % 2:  # the other renderer's occluder pass of a same-size view, in between
                 r2.occluders.truth(v.camera)
-            plain = r.render_rgb(v.camera, prepass=False)
-            np.testing.assert_array_equal(r.render_rgb(v.camera), plain)
-            r.occluders.truth(v.camera, keep=True)
-            np.testing.assert_array_equal(r.render(v.camera).rgb, plain)
+            np.testing.assert_array_equal(r.render_rgb(v.camera), plain[k])
+        vis(views[0].camera)  # a candidate rejected, the next one accepted
+        vis(views[1].camera)
+        np.testing.assert_array_equal(r.render(views[1].camera).rgb, plain[1])
+        np.testing.assert_array_equal(r.render(views[0].camera).rgb, plain[0])
+        vis(views[2].camera)  # tested, then another camera rendered
+        np.testing.assert_array_equal(r.render(views[3].camera).rgb, plain[3])
 
 
 def test_oidn_denoising_brings_low_spp_render_closer_to_high_spp_reference():
