@@ -57,14 +57,20 @@ def _mitsuba(scene: Scene, settings: RenderSettings) -> Renderer:
 
 def occluder_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView, ...]:
     """Per-window ground truth from a backend's exact occluder pass (``renderer.occluders``, a
-    renders.raster.OccluderPass: depth + element ids, no antialiasing), the one both backends share."""
-    from renders.raster import ground_truth  # noqa: PLC0415 - GL: imported with the backend
+    renders.raster.OccluderPass: depth + element ids, no antialiasing), the one both backends share.
+    The pass's ground truth is kept for ``renderer.render(camera)`` of the view if it is accepted
+    (OccluderPass.truth): one occluder pass per view."""
+    return renderer.occluders.truth(camera, keep=True)[2]
 
-    return ground_truth(renderer.occluders, camera)[2]
+
+def raster_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView, ...]:
+    """occluder_visibility of the raster backend, which also issues the candidate's RGB pass while
+    the ground truth is computed (renders.raster.RasterRenderer.visibility)."""
+    return renderer.visibility(camera)
 
 
 RENDERERS: Registry[RendererEntry] = Registry("renderer", [
-    RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", occluder_visibility),
+    RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", raster_visibility),
     RendererEntry("mitsuba", _mitsuba, "mitsuba path tracing, photoreal (optional OIDN denoising)",
                   occluder_visibility),
 ])

@@ -26,9 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from fenestra import data, files
+from fenestra.checks import INSTANCE_DTYPE
 from renders.backends import RENDERERS, make_renderer, visibility_function
 from renders.base import RenderSettings
-from renders.sampler import SamplerConfig, sample_views
+from renders.sampler import SamplerConfig, ViewSpec, iter_views
 from renders.sensor import SensorConfig, apply_sensor
 from scenes.model import Scene
 
@@ -78,16 +79,25 @@ def dataset_dir(config: DatasetConfig, scene: Scene) -> Path:
     return Path(config.out_root) / f"{safe}-{config.renderer}-{config_hash(config, scene)}"
 
 
-def coco_from_views(root: Path, n_views: int) -> dict:
+def coco_from_views(root: Path, n_views: int, known: dict[int, tuple[tuple, list[dict]]] | None = None) -> dict:
     """coco.json of the views under root/views (image ids from 0): fenestra.data.view_annotations
-    of each view (RLE masks, COCO boxes; ignore regions as ``iscrowd`` annotations)."""
+    of each view (RLE masks, COCO boxes; ignore regions as ``iscrowd`` annotations).
+
+    known: view index -> :func:`view_coco` of the views this run wrote (from the arrays it wrote,
+    which read back the same: PNG is lossless); the other views are read from their files."""
+    known = known or {}
     images, anns = [], []
     for i in range(n_views):
-        key = f"views/{i:06d}/image.png"
-        view = data.read_view(root / "views" / f"{i:06d}")
-        images.append((key, view.meta["height"], view.meta["width"]))
-        anns += data.view_annotations(view, key)
+        image, ann = known[i] if i in known else view_coco(i, data.read_view(root / "views" / f"{i:06d}"))
+        images.append(image)
+        anns += ann
     return data.coco_ground_truth(images, anns, first_image_id=0)
+
+
+def view_coco(i: int, view: data.View) -> tuple[tuple[str, int, int], list[dict]]:
+    """View ``i``'s coco.json image entry (key, height, width) and annotations."""
+    key = f"views/{i:06d}/image.png"
+    return (key, view.meta["height"], view.meta["width"]), data.view_annotations(view, key)
 
 
 def _load_scene(config: DatasetConfig) -> Scene:
@@ -104,6 +114,10 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     only: render just these view indices (a shard of a distributed run: the views are identical to
     those of a whole run); the dataset-wide files (coco.json, stats.json) are then left to a
     later call without ``only``.
+
+    Each view is rendered as soon as the sampler accepts it, so that the occluder pass its
+    visibility test drew gives the view's ground truth (renders.raster.OccluderPass.truth), and
+    written by a background thread (PNG encoding) while the next one renders.
     """
     scene = _load_scene(config) if scene is None else scene
     root = dataset_dir(config, scene)
@@ -120,34 +134,87 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     if stale:
         add_ignore_regions(scene, [root / "views" / f"{i:06d}" for i in stale])
         stats["ignore_added"] = len(stale)
+    known: dict[int, tuple[tuple, list[dict]]] = {}
     if missing:
+        t0 = time.perf_counter()
         settings = dataclasses.replace(config.settings, seed=config.seed)
         renderer = make_renderer(config.renderer, scene, settings)
         try:
             vis = visibility_function(config.renderer, renderer) if config.sampler.min_visible_fraction > 0 else None
-            sampling = sample_views(scene, config.sampler, config.n_views, config.seed, visibility=vis)
-            files.write_text(root / "sampling.json", json.dumps({"rejected": sampling.rejected, "tries": sampling.tries,
-                                                            "accepted": len(sampling.views)}, indent=1))
-            t0 = time.perf_counter()
-            for i in _progress(missing, progress, f"render {scene.name} ({config.renderer})"):
-                spec = sampling.views[i]
-                out = renderer.render(spec.camera)
-                if config.sensor.active:
-                    rgb = apply_sensor(out.rgb, config.sensor, np.random.default_rng([config.seed, i]))
-                    out = dataclasses.replace(out, rgb=rgb)
-                meta = {**spec.camera.to_dict(), "renderer": config.renderer, "seed": config.seed, "view_index": i,
-                        "mode": spec.mode, "targets": list(spec.targets), "scene": scene.name,
-                        "scene_sha256": scene.sha256, "windows": [w.to_dict() for w in out.windows],
-                        "ignore": list(out.ignore_regions)}
-                data.write_view(root / "views" / f"{i:06d}", out.rgb, out.instances, meta, ignore=out.ignore)
+            with ViewWriter() as writer:
+                last = None
+                for last in _progress(iter_views(scene, config.sampler, config.n_views, config.seed, visibility=vis),
+                                      progress, f"render {scene.name} ({config.renderer})", config.n_views):
+                    if last.index in todo:
+                        writer.submit(last.index, root / "views" / f"{last.index:06d}",
+                                      render_view(renderer, config, scene, last.index, last.view))
+                known = writer.results()
+            files.write_text(root / "sampling.json", json.dumps({"rejected": last.rejected, "tries": last.tries,
+                                                            "accepted": config.n_views}, indent=1))
             stats["seconds"] = time.perf_counter() - t0
             stats["rendered"] = len(missing)
         finally:
             renderer.close()
     if only is None:
-        files.write_text(root / "coco.json", json.dumps(coco_from_views(root, config.n_views)))
+        files.write_text(root / "coco.json", json.dumps(coco_from_views(root, config.n_views, known)))
         files.write_text(root / "stats.json", json.dumps(stats))
     return root
+
+
+def render_view(renderer, config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> data.View:
+    """View ``i`` (sampled as ``spec``) rendered: its files' contents as fenestra.data.read_view
+    reads them back (image RGB, instances int32, view.json dict without ``files``, ignore map or None)."""
+    out = renderer.render(spec.camera)
+    if config.sensor.active:
+        rgb = apply_sensor(out.rgb, config.sensor, np.random.default_rng([config.seed, i]))
+        out = dataclasses.replace(out, rgb=rgb)
+    meta = {**spec.camera.to_dict(), "renderer": config.renderer, "seed": config.seed, "view_index": i,
+            "mode": spec.mode, "targets": list(spec.targets), "scene": scene.name,
+            "scene_sha256": scene.sha256, "windows": [w.to_dict() for w in out.windows],
+            "ignore": list(out.ignore_regions)}
+    ignore = None if out.ignore is None else out.ignore.astype(INSTANCE_DTYPE)
+    return data.View(out.rgb, out.instances.astype(INSTANCE_DTYPE), meta, ignore)
+
+
+class ViewWriter:
+    """Writes views (fenestra.data.write_view) on one background thread, in submission order, at
+    most ``depth`` pending (bounded memory), and keeps each written view's :func:`view_coco`.
+    A failed write raises from the next submit() or from results(); use as a context manager
+    (leaving it waits for the pending writes)."""
+
+    def __init__(self, depth: int = 2):
+        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
+
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="view-writer")
+        self._pending: list = []
+        self._depth = depth
+        self._done: dict[int, tuple[tuple, list[dict]]] = {}
+
+    def submit(self, i: int, view_dir: Path, view: data.View) -> None:
+        while len(self._pending) >= self._depth:
+            self._finish_one()
+        self._pending.append((i, self._pool.submit(_write_view, i, view_dir, view)))
+
+    def _finish_one(self) -> None:
+        i, fut = self._pending.pop(0)
+        self._done[i] = fut.result()
+
+    def results(self) -> dict[int, tuple[tuple, list[dict]]]:
+        """Wait for every pending write; view index -> view_coco of each view written."""
+        while self._pending:
+            self._finish_one()
+        return dict(self._done)
+
+    def __enter__(self) -> "ViewWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._pool.shutdown(wait=True)
+
+
+def _write_view(i: int, view_dir: Path, view: data.View) -> tuple[tuple, list[dict]]:
+    data.write_view(view_dir, view.image, view.instances, view.meta, ignore=view.ignore)
+    return view_coco(i, view)
 
 
 def add_ignore_regions(scene: Scene, view_dirs: list[Path]) -> None:
@@ -175,10 +242,10 @@ def _reusable(view_dir: Path) -> bool:
     return reason is None
 
 
-def _progress(items, enabled: bool, label: str):
+def _progress(items, enabled: bool, label: str, total: int | None = None):
     if not enabled:
         yield from items
         return
     from rich.progress import track
 
-    yield from track(items, description=label)
+    yield from track(items, description=label, total=total)

@@ -77,16 +77,16 @@ def uniform(prog: int, name: str):
 
 
 class Geometry:
-    """Triangles uploaded once: positions (N, 3), uvs (N, 2), colours (N, 4), optional codes
-    (N, 4) float32 (attribute locations 0-3) and uint32 indices, drawn as ranges
-    ``(first index, count, texture id or 0, base rgb)`` in list order."""
+    """Triangles uploaded once: positions (N, 3), uvs (N, 2), colours (N, 4) float32 (attribute
+    locations 0-2) and uint32 indices, drawn as ranges ``(first index, count, texture id or 0,
+    base rgb)`` in list order."""
 
-    def __init__(self, positions, uvs, colours, indices, ranges, codes=None):
+    def __init__(self, positions, uvs, colours, indices, ranges):
         from OpenGL import GL
 
         self.vao = GL.glGenVertexArrays(1)
         GL.glBindVertexArray(self.vao)
-        attrs = (positions, uvs, colours) if codes is None else (positions, uvs, colours, codes)
+        attrs = (positions, uvs, colours)
         self.buffers = [int(b) for b in GL.glGenBuffers(len(attrs) + 1)]
         for loc, (buf, arr) in enumerate(zip(self.buffers[:-1], attrs)):
             arr = np.ascontiguousarray(arr, np.float32)
@@ -160,23 +160,32 @@ def texture_u16(img: np.ndarray) -> int:
 
 
 class Framebuffers:
-    """Offscreen framebuffers (RGBA8 colour + 24-bit depth) by (width, height, samples, texture):
+    """Offscreen framebuffers (RGBA8 colour + 24-bit depth, 8-bit stencil) by (width, height, samples, texture):
     colour in a renderbuffer, or in a texture (single-sampled, for post filters)."""
 
     def __init__(self):
         self._fbs: dict[tuple, tuple[int, list[int], int]] = {}
+        self._marks: dict[int, object] = {}  # framebuffer -> what its last pass drew (mark / holds)
+
+    def mark(self, fb: int, what) -> None:
+        """Record what was just drawn into ``fb`` (any value compared with ==)."""
+        self._marks[fb] = what
+
+    def holds(self, fb: int, what) -> bool:
+        """True when the last pass :meth:`mark` ed into ``fb`` is ``what`` (a framebuffer deleted
+        and created again holds nothing)."""
+        return self._marks.get(fb, None) == what
 
     def bind(self, width: int, height: int, samples: int = 0, target=None, texture: bool = False,
-             tag: str = "", codes: bool = False) -> int:
-        """Bind (creating it if needed) the framebuffer of this size, kind and user tag; return it.
-        codes: add a second RGBA8 colour attachment (COLOR_ATTACHMENT1) for element codes."""
+             tag: str = "") -> int:
+        """Bind (creating it if needed) the framebuffer of this size, kind and user tag; return it."""
         from OpenGL import GL
 
-        key = (width, height, samples, texture, tag, codes)
+        key = (width, height, samples, texture, tag)
         if key not in self._fbs:
             if len(self._fbs) >= 8:  # canvases of distorted cameras vary in size: keep this size only
                 self.delete(keep=(width, height))
-            fmts = (GL.GL_RGBA8, GL.GL_DEPTH_COMPONENT24) + ((GL.GL_RGBA8,) if codes else ())
+            fmts = (GL.GL_RGBA8, GL.GL_DEPTH24_STENCIL8)
             rbs = [int(x) for x in GL.glGenRenderbuffers(len(fmts))]
             for rb, fmt in zip(rbs, fmts):
                 GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
@@ -196,9 +205,7 @@ class Framebuffers:
                 GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_TEXTURE_2D, tex, 0)
             else:
                 GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, rbs[0])
-            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
-            if codes:
-                GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT1, GL.GL_RENDERBUFFER, rbs[2])
+            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_RENDERBUFFER, rbs[1])
             if GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER) != GL.GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"incomplete framebuffer {key}")
             self._fbs[key] = (fb, rbs, tex)
@@ -206,9 +213,18 @@ class Framebuffers:
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER if target is None else target, fb)
         return fb
 
-    def texture(self, width: int, height: int, codes: bool = False) -> int:
+    def copy_depth(self, src: int, dst: int, width: int, height: int) -> None:
+        """Copy the depth-stencil buffer of framebuffer ``src`` into ``dst`` (both single-sampled,
+        this size) bit for bit (glCopyImageSubData: a blit would convert the depth values)."""
+        from OpenGL import GL
+
+        rb = {fb: rbs[1] for fb, rbs, _ in self._fbs.values()}
+        GL.glCopyImageSubData(rb[src], GL.GL_RENDERBUFFER, 0, 0, 0, 0, rb[dst], GL.GL_RENDERBUFFER, 0, 0, 0, 0,
+                              width, height, 1)
+
+    def texture(self, width: int, height: int) -> int:
         """The colour texture of the (width, height) texture framebuffer (after bind)."""
-        return self._fbs[(width, height, 0, True, "", codes)][2]
+        return self._fbs[(width, height, 0, True, "")][2]
 
     def delete(self, keep: tuple[int, int] | None = None) -> None:
         """Delete the framebuffers (but those of size ``keep``)."""
@@ -216,14 +232,22 @@ class Framebuffers:
 
         for key in [k for k in self._fbs if k[:2] != keep]:
             fb, rbs, tex = self._fbs.pop(key)
+            self._marks.pop(fb, None)
             GL.glDeleteFramebuffers(1, [fb])
             GL.glDeleteRenderbuffers(len(rbs), rbs)
             if tex:
                 GL.glDeleteTextures(1, [tex])
 
 
-def begin(width: int, height: int) -> None:
-    """Viewport, depth test, two-sided triangles, no blending; clear colour (to 0) and depth."""
+def begin(width: int, height: int, prepass: bool = False) -> None:
+    """Viewport, depth test, two-sided triangles, no blending; clear colour (to 0), depth and
+    stencil (to 0).
+
+    prepass: the bound framebuffer holds the depth of the same triangles drawn by another pass
+    (:meth:`Framebuffers.copy_depth`), an exact depth pre-pass: depth is kept, the depth test is
+    GL_EQUAL without depth writes, and the stencil lets only the first fragment that passes it
+    colour a pixel, as GL_LESS does where coplanar faces tie. Each pixel is then shaded once
+    (:func:`end_prepass` after the triangles)."""
     from OpenGL import GL
 
     GL.glViewport(0, 0, width, height)
@@ -232,9 +256,28 @@ def begin(width: int, height: int) -> None:
     GL.glDepthFunc(GL.GL_LESS)
     GL.glDisable(GL.GL_CULL_FACE)  # IFC winding varies: every triangle is two-sided
     GL.glDisable(GL.GL_BLEND)
+    GL.glDisable(GL.GL_STENCIL_TEST)
     GL.glClearColor(0.0, 0.0, 0.0, 0.0)
     GL.glClearDepth(1.0)
-    GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+    GL.glClearStencil(0)
+    if not prepass:
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT | GL.GL_STENCIL_BUFFER_BIT)
+        return
+    GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_STENCIL_BUFFER_BIT)
+    GL.glDepthFunc(GL.GL_EQUAL)
+    GL.glDepthMask(GL.GL_FALSE)
+    GL.glEnable(GL.GL_STENCIL_TEST)
+    GL.glStencilFunc(GL.GL_EQUAL, 0, 0xFF)
+    GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_INCR)
+
+
+def end_prepass() -> None:
+    """Back to begin()'s plain state after triangles drawn against a copied depth (depth_from)."""
+    from OpenGL import GL
+
+    GL.glDisable(GL.GL_STENCIL_TEST)
+    GL.glDepthFunc(GL.GL_LESS)
+    GL.glDepthMask(GL.GL_TRUE)
 
 
 def read_rgba(width: int, height: int, channels: int = 4) -> np.ndarray:

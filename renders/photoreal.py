@@ -20,7 +20,7 @@ import numpy as np
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
 from renders.materials import group_scene, sample_look, sky_colour, sun_direction
-from renders.raster import OccluderPass, ground_truth
+from renders.raster import OccluderPass
 from scenes.model import Scene
 
 AOVS = "albedo:albedo,nn:sh_normal"  # channels 3:6 and 6:9 of the aov integrator's output
@@ -178,7 +178,7 @@ class PhotorealRenderer:
         return distort_image(camera, rgb)
 
     def render(self, camera: Camera) -> RenderOutput:
-        inst, depth, wins, (ign, regions) = ground_truth(self.occluders, camera)
+        inst, depth, wins, (ign, regions) = self.occluders.truth(camera)
         return RenderOutput(camera, self.render_rgb(camera), inst, depth, wins, ign if regions else None, regions)
 
     def close(self) -> None:

@@ -9,8 +9,9 @@ per material group) and every view only sets a camera matrix:
   post filter (default) or 4x MSAA (~2.5x slower on llvmpipe) or none;
 - the occluder pass, single-sampled, draws every element in a flat colour that encodes its
   element code; its depth and codes feed :func:`renders.gt.void_instances`, which rasterises
-  the void rectangles exactly at pixel centres. Without MSAA the RGB pass writes it as a second
-  render target (same triangles, same depth); :class:`OccluderPass` draws it on its own.
+  the void rectangles exactly at pixel centres. It is drawn once per view: the sampler's
+  visibility test draws it for a candidate camera and the render of the accepted view takes
+  that ground truth (:meth:`OccluderPass.truth`); the RGB pass draws colour only.
 Draw order is fixed (sorted groups, never pyrender's set order), so coincident faces resolve the
 same way in every GL context and the same seed gives byte-identical images. pyrender is only used
 for its headless EGL context (llvmpipe here).
@@ -20,14 +21,17 @@ The OpenGL plumbing (context, buffers, textures, framebuffers, read-back) lives 
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from fenestra.conventions import PYRENDER_PIXEL_OFFSET, cv_to_gl_pose
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
-from renders.gl import (GLContext, Geometry, begin, encode, read_depth, read_rgba, texture_rgb,
-                        texture_u16, uniform)
-from renders.gt import IgnoreRegion, ignore_entries, ignore_map, ignore_regions, void_instances, window_views
+from renders.gl import (GLContext, Geometry, begin, encode, end_prepass, read_depth, read_rgba,
+                        texture_rgb, texture_u16, uniform)
+from renders.gt import (IgnoreRegion, WindowView, ignore_entries, ignore_map, ignore_regions, void_instances,
+                        window_views)
 from renders.materials import face_normals, group_scene, ground_z, lighting, sample_look, sun_direction
 from scenes.model import Scene
 
@@ -87,19 +91,36 @@ class OccluderPass:
 
     The colour of a pixel encodes the element code (window i's element = i + 1, ignore region r's
     glazing = n_windows + 1 + r (:func:`ignore_face_codes`), other geometry 0) in R + 256 G;
-    B is 1 + 254 * the face's shadow ratio when ``shade`` is given (else 255).
-    All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order.
+    B is never 0 where a face was drawn (255, or the raster backend's shadow-ratio level).
+    All triangles are one vertex buffer drawn in one call, two-sided, in a fixed order: the scene's
+    sorted by code, or ``triangles`` (positions (3M, 3), :func:`encode`-d colours (3M, 4)) in their
+    order when given. Where coplanar faces tie in depth the first drawn wins, so the raster backend
+    passes its RGB pass's own triangles in that pass's order: its ground truth then matches its
+    image, and its RGB pass takes this pass's depth as an exact pre-pass (:meth:`depth_of`).
     """
 
-    def __init__(self, scene: Scene, shade=None):
+    def __init__(self, scene: Scene, triangles: tuple[np.ndarray, np.ndarray] | None = None):
         from OpenGL import GL
 
         self.scene = scene
+        self._kept = None  # (camera, ground truth) of the last view the visibility test kept (truth())
+        self._token = object()  # marks the framebuffers this pass drew (Framebuffers.mark)
         self.codes, self.window_codes = element_codes(scene)
         self.ignore_regions = ignore_regions(scene)
         self.first_ignore_code = len(scene.windows) + 1
         self.face_codes = ignore_face_codes(scene, self.ignore_regions)
-        parts: dict[tuple[int, int], list[np.ndarray]] = {}
+        P, C = self._triangles() if triangles is None else triangles
+        self._gl = GLContext.acquire()
+        self._gl.make_current()
+        self._geom = Geometry(P, np.zeros((len(P), 2), np.float32), C,
+                               np.arange(len(P), dtype=np.uint32), [(0, len(P), 0, (1.0, 1.0, 1.0))])
+        GL.glFinish()
+
+    def _triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """The scene's triangles (3M, 3) float32 (and the ground quad) sorted by code, with their
+        colours (3M, 4) (B = 255)."""
+        scene = self.scene
+        parts: dict[int, list[np.ndarray]] = {}
         gv, gf = ground_quad(scene)
         items = []
         for m in scene.meshes:
@@ -110,24 +131,13 @@ class OccluderPass:
                 items += [(int(c), m.vertices, m.faces[fc == c]) for c in np.unique(fc)]
         items.append((0, gv, gf))
         for code, v, f in items:
-            if shade is None:
-                bins = np.full(len(f), 255)
-            else:
-                q = np.rint(SHADE_LEVELS * np.clip(shade(face_normals(v, f)), 0, 1)) / SHADE_LEVELS
-                bins = 1 + np.rint(254 * q).astype(int)
-            for b in np.unique(bins):
-                parts.setdefault((code, int(b)), []).append(np.asarray(v, np.float64)[f[bins == b]].reshape(-1, 3))
+            parts.setdefault(code, []).append(np.asarray(v, np.float64)[f].reshape(-1, 3))
         P, C = [], []
-        for (code, b), tris in sorted(parts.items()):
+        for code, tris in sorted(parts.items()):
             p = np.concatenate(tris)
             P.append(p)
-            C.append(np.broadcast_to(encode([code % 256, code // 256, b, 255]), (len(p), 4)))
-        P = np.concatenate(P).astype(np.float32)
-        self._gl = GLContext.acquire()
-        self._gl.make_current()
-        self._geom = Geometry(P, np.zeros((len(P), 2), np.float32), np.concatenate(C),
-                               np.arange(len(P), dtype=np.uint32), [(0, len(P), 0, (1.0, 1.0, 1.0))])
-        GL.glFinish()
+            C.append(np.broadcast_to(encode([code % 256, code // 256, 255, 255]), (len(p), 4)))
+        return np.concatenate(P).astype(np.float32), np.concatenate(C)
 
     def _draw(self, PV: np.ndarray, width: int, height: int) -> int:
         """Issue the pass (GL renders it asynchronously); return its framebuffer."""
@@ -143,16 +153,39 @@ class OccluderPass:
         self._geom.draw()
         GL.glUseProgram(0)
         GL.glFlush()
+        gl.fbs.mark(fb, (self._token, PV.tobytes()))
         return fb
+
+    def depth_of(self, cam: Camera) -> int:
+        """The framebuffer holding this pass for a pinhole camera: drawn now unless the last pass
+        in that framebuffer (shared by every OccluderPass of the GL context) was this one's of it."""
+        PV = gl_view_projection(cam)
+        self._gl.make_current()
+        fb = self._gl.fbs.bind(cam.width, cam.height, 0, tag="occluders")
+        return fb if self._gl.fbs.holds(fb, (self._token, PV.tobytes())) else self._draw(PV, cam.width, cam.height)
 
     def render_full(self, cam: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing), element codes (H, W) int32
         (-1 = nothing) and the B channel (H, W) uint8 (shadow-ratio bin, 0 = nothing)."""
         return self._read(cam, self._draw(gl_view_projection(cam), cam.width, cam.height))
 
-    def _read(self, cam: Camera, fb: int, attachment: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _read(self, cam: Camera, fb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self._gl.make_current()
-        return read_occluder_pass(fb, cam.width, cam.height, attachment)
+        return read_occluder_pass(fb, cam.width, cam.height)
+
+    def truth(self, camera: Camera, keep: bool = False, meanwhile: Callable[[], None] | None = None):
+        """:func:`ground_truth` of ``camera``, drawn once per view: with ``keep`` (the sampler's
+        visibility test) the result is also kept, and the next call for the same Camera object
+        (the render of the view the sampler accepted) takes it instead of drawing the pass again.
+        meanwhile: as in :func:`ground_truth` (when the pass is drawn)."""
+        kept, self._kept = self._kept, None
+        if kept is not None and kept[0] is camera:
+            out = kept[1]
+        else:
+            out = ground_truth(self, camera, meanwhile)
+        if keep:
+            self._kept = (camera, out)
+        return out
 
     def render(self, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
         """Pinhole camera -> depth (H, W) float32 m (0 = nothing) and element codes (H, W) int32."""
@@ -186,15 +219,13 @@ class OccluderPass:
             self._gl.release()
 
 
-def read_occluder_pass(fb: int, W: int, H: int, attachment: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Read a finished occluder pass (colour attachment ``attachment`` + depth of ``fb``):
-    depth (H, W) float32 m (0 = nothing), element codes (H, W) int32 (-1 = nothing), B channel uint8."""
+def read_occluder_pass(fb: int, W: int, H: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read a finished occluder pass (colour + depth of ``fb``): depth (H, W) float32 m
+    (0 = nothing), element codes (H, W) int32 (-1 = nothing), B channel uint8."""
     from OpenGL import GL
 
     GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
-    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0 + attachment)
     col = read_rgba(W, H)
-    GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
     d = read_depth(W, H)
     rgba = np.ascontiguousarray(col).view(np.uint32)[..., 0]  # little endian: R + 256 G + 65536 B ...
     code = (rgba & 0xFFFF).astype(np.int32)
@@ -207,14 +238,15 @@ def read_occluder_pass(fb: int, W: int, H: int, attachment: int = 0) -> tuple[np
     return depth, code, shade
 
 
-def ground_truth(occ: OccluderPass, camera: Camera):
+def ground_truth(occ: OccluderPass, camera: Camera, meanwhile: Callable[[], None] | None = None):
     """Instance map (H, W) uint16, depth (H, W) float32, per-window views and the ignore regions:
-    (ignore map (H, W) uint16, region r = r + 1 (renders.gt.ignore_map), its view.json entries)."""
-    return _ground_truth(occ, camera, *occ.render_full(camera.canvas()))
-
-
-def _ground_truth(occ: OccluderPass, camera: Camera, depth_c, code_c, shade_c):
+    (ignore map (H, W) uint16, region r = r + 1 (renders.gt.ignore_map), its view.json entries).
+    meanwhile: called once the pass is read, before the ground truth is computed from it (GL
+    work issued there overlaps the computation)."""
     canvas = camera.canvas()
+    depth_c, code_c, _ = occ.render_full(canvas)
+    if meanwhile is not None:
+        meanwhile()
     maps = None if camera.dist is None else camera.canvas_maps()
     inst, _ = void_instances(canvas, occ.scene.windows, depth_c, code_c, occ.window_codes, maps)
     depth = distort_image(camera, depth_c, nearest=True)
@@ -308,26 +340,24 @@ class RasterRenderer:
         rng = np.random.default_rng(settings.seed)
         self.look = look = sample_look(rng)
         self.groups = group_scene(scene, look, rng)
-        self.occluders = OccluderPass(scene, shade=lambda n: lighting(n, look)[1])
-        self.shadow = SunShadow(self.occluders, sun_direction(look)) if settings.shadows else None
         self._gl = GLContext.acquire()
         self._gl.make_current()
+        codes, _ = element_codes(scene)
+        glazing = ignore_face_codes(scene, ignore_regions(scene))
         P, UV, C, I, ranges, textures = [], [], [], [], [], []
+        occ_colours = []  # per face: the occluder pass's colour (element code, shade bin)
         off = first = 0
-        codes = []  # per vertex: the occluder pass's colour, for the single-sample passes (MRT)
         for g in sorted(self.groups, key=draw_priority):  # big occluders first: less overdraw
             m = g.material
             mult, ratio = lighting(face_normals(g.vertices, g.faces), look)
             r = shadow_ratio_levels(ratio)
-            fcode = np.array([self.occluders.codes.get(e, 0) for e in g.element_ids])[g.face_element]
+            fcode = np.array([codes.get(e, 0) for e in g.element_ids])[g.face_element]
             for k, e in enumerate(g.element_ids):  # ignore regions' glazing: per face
-                fc = self.occluders.face_codes.get(e)
+                fc = glazing.get(e)
                 if fc is not None:  # group_scene keeps a non-window mesh's faces whole, in order
                     fcode[g.face_element == k] = fc
-            enc = np.zeros((len(g.vertices), 4), np.float32)
-            enc[g.faces.ravel()] = np.repeat(encode(np.stack([fcode % 256, fcode // 256, 1 + np.rint(254 * r),
-                                                               np.full(len(r), 255)], axis=1)), 3, axis=0)
-            codes.append(enc)
+            occ_colours.append(encode(np.stack([fcode % 256, fcode // 256, 1 + np.rint(254 * r),
+                                                np.full(len(r), 255)], axis=1)))
             colour = np.ones((len(g.vertices), 4), np.float32)
             colour[g.faces.ravel(), :3] = np.repeat(mult, 3, axis=0)
             colour[g.faces.ravel(), 3] = np.repeat(np.where(r < 1, r, 2.0), 3)  # >= 1: never shaded
@@ -339,16 +369,22 @@ class RasterRenderer:
             ranges.append((first, g.faces.size, tex, tuple(float(x) for x in m.rgb)))
             off += len(g.vertices)
             first += g.faces.size
-        self._geom = Geometry(np.concatenate(P), np.concatenate(UV), np.concatenate(C), np.concatenate(I), ranges,
-                               codes=np.concatenate(codes))
+        P, I = np.concatenate(P).astype(np.float32), np.concatenate(I)
+        self._geom = Geometry(P, np.concatenate(UV), np.concatenate(C), I, ranges)
         self._geom.textures = textures
+        # the occluder pass draws these very triangles in this order: coplanar faces resolve alike
+        self.occluders = OccluderPass(scene, triangles=(P[I], np.repeat(np.concatenate(occ_colours), 3, axis=0)))
+        self.shadow = SunShadow(self.occluders, sun_direction(look)) if settings.shadows else None
         self._shadow_tex = texture_u16(self.shadow.map_u16()) if self.shadow is not None else 0
         self._empty_vao = GL.glGenVertexArrays(1)
+        self._issued = None  # (camera, framebuffer) of the RGB pass visibility() issued
         GL.glFinish()
 
-    def render_rgb(self, camera: Camera) -> np.ndarray:
-        """(H, W, 3) uint8 antialiased daylight image for the camera (distortion applied)."""
-        return self._read_rgb(camera, self._draw_rgb(camera))
+    def render_rgb(self, camera: Camera, prepass: bool = True) -> np.ndarray:
+        """(H, W, 3) uint8 antialiased daylight image for the camera (distortion applied).
+        prepass=False: without the occluder pass's depth as a pre-pass (plain GL_LESS depth test:
+        the image the pre-pass must reproduce exactly)."""
+        return self._read_rgb(camera, self._draw_rgb(camera, prepass))
 
     def _read_rgb(self, camera: Camera, fb: int) -> np.ndarray:
         from OpenGL import GL
@@ -359,9 +395,19 @@ class RasterRenderer:
         rgb = np.ascontiguousarray(read_rgba(canvas.width, canvas.height, 3))
         return distort_image(camera, rgb, nearest=False)
 
-    def _draw_rgb(self, camera: Camera) -> int:
-        """Issue the RGB pass of ``camera.canvas()`` (GL renders it asynchronously); return the
+    def _draw_rgb(self, camera: Camera, prepass: bool = True) -> int:
+        """Draw the RGB pass of ``camera.canvas()`` (the triangles and sky issued by
+        :meth:`visibility` for this camera, else issued now; then antialiasing); return the
         framebuffer to read it from."""
+        issued, self._issued = self._issued, None
+        ready = prepass and issued is not None and issued[0] is camera
+        fb = issued[1] if ready else self._issue_rgb(camera, prepass)
+        return self._antialias(camera, fb)
+
+    def _issue_rgb(self, camera: Camera, prepass: bool = True) -> int:
+        """Issue the triangles and the sky of ``camera.canvas()``'s RGB pass (GL draws them
+        asynchronously); return their framebuffer. Single-sampled, the occluder pass's depth (the
+        same triangles in the same order) is its depth pre-pass unless ``prepass`` is False."""
         from OpenGL import GL
 
         gl, look, sh, aa = self._gl, self.look, self.shadow, self.settings.antialias
@@ -369,12 +415,12 @@ class RasterRenderer:
         W, H = canvas.width, canvas.height
         gl.make_current()
         samples = MSAA_SAMPLES if aa == "msaa4" else 0
-        codes = samples == 0  # single-sampled: the occluder pass comes along as a second target
-        fb = gl.fbs.bind(W, H, samples, texture=aa == "fxaa", codes=codes)
-        self._codes_fb = fb if codes else None
-        if codes:
-            GL.glDrawBuffers(2, [GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1])
-        begin(W, H)
+        # single-sampled: the occluder pass's depth (the same triangles) is the depth pre-pass
+        depth = None if samples or not prepass else self.occluders.depth_of(canvas)
+        fb = gl.fbs.bind(W, H, samples, texture=aa == "fxaa")
+        if depth is not None:
+            gl.fbs.copy_depth(depth, fb, W, H)
+        begin(W, H, prepass=depth is not None)
         (GL.glEnable if samples else GL.glDisable)(GL.GL_MULTISAMPLE)
         # the house and the ground
         prog = gl.program("mesh")
@@ -393,8 +439,8 @@ class RasterRenderer:
             GL.glUniform1f(uniform(prog, "bias"), sh.bias)
             GL.glUniform3f(uniform(prog, "tint"), *SHADOW_TINT)
         self._geom.draw(prog)
-        if codes:
-            GL.glDrawBuffers(1, [GL.GL_COLOR_ATTACHMENT0])
+        if depth is not None:
+            end_prepass()
         # the sky where nothing was drawn (depth still at the far plane): shaded only there
         prog = gl.program("sky")
         GL.glUseProgram(prog)
@@ -409,6 +455,20 @@ class RasterRenderer:
         GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
         GL.glDepthMask(GL.GL_TRUE)
         GL.glDepthFunc(GL.GL_LESS)
+        GL.glBindVertexArray(0)
+        GL.glUseProgram(0)
+        GL.glFlush()
+        return fb
+
+    def _antialias(self, camera: Camera, fb: int) -> int:
+        """Resolve (msaa4) or post-filter (fxaa) the issued RGB pass in ``fb``; return the
+        framebuffer to read the image from."""
+        from OpenGL import GL
+
+        gl, aa = self._gl, self.settings.antialias
+        canvas = camera.canvas()
+        W, H = canvas.width, canvas.height
+        gl.make_current()
         if aa == "msaa4":  # resolve the samples
             ms, fb = fb, gl.fbs.bind(W, H, 0, GL.GL_DRAW_FRAMEBUFFER)  # (binding may create it)
             GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, ms)
@@ -418,9 +478,10 @@ class RasterRenderer:
             GL.glDisable(GL.GL_DEPTH_TEST)
             prog = gl.program("fxaa")
             GL.glUseProgram(prog)
+            GL.glBindVertexArray(self._empty_vao)
             GL.glUniform1i(uniform(prog, "img"), 0)
             GL.glActiveTexture(GL.GL_TEXTURE0)
-            GL.glBindTexture(GL.GL_TEXTURE_2D, gl.fbs.texture(W, H, codes))
+            GL.glBindTexture(GL.GL_TEXTURE_2D, gl.fbs.texture(W, H))
             GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
             GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
             GL.glEnable(GL.GL_DEPTH_TEST)
@@ -429,16 +490,22 @@ class RasterRenderer:
         GL.glFlush()
         return fb
 
+    def visibility(self, camera: Camera) -> tuple[WindowView, ...]:
+        """The sampler's visibility test (RENDERERS["pyrender"]): the occluder pass's per-window
+        ground truth, kept for :meth:`render` of this camera (OccluderPass.truth). As soon as the
+        pass is read, the candidate's RGB triangles are issued with its depth as their pre-pass,
+        so that GL draws them while Python computes the ground truth (wasted on a rejected one)."""
+        def issue() -> None:
+            self._issued = (camera, self._issue_rgb(camera))
+
+        return self.occluders.truth(camera, keep=True, meanwhile=issue)[2]
+
     def render(self, camera: Camera) -> RenderOutput:
-        occ, canvas = self.occluders, camera.canvas()
-        if self.settings.antialias == "msaa4":  # the occluder pass separately, single-sampled
-            occ_pass = occ.render_full(canvas)
-            fb = self._draw_rgb(camera)
-        else:  # the RGB pass wrote the occluder pass's codes and depth too
-            fb = self._draw_rgb(camera)
-            self._gl.make_current()
-            occ_pass = read_occluder_pass(self._codes_fb, canvas.width, canvas.height, attachment=1)
-        inst, depth, wins, (ign, regions) = _ground_truth(occ, camera, *occ_pass)
+        """The view of ``camera``: the RGB pass, and the ground truth of the occluder pass (drawn by
+        the sampler's visibility test when it accepted this camera: OccluderPass.truth), whose depth
+        is the RGB pass's depth pre-pass."""
+        inst, depth, wins, (ign, regions) = self.occluders.truth(camera)
+        fb = self._draw_rgb(camera)
         return RenderOutput(camera, self._read_rgb(camera, fb), inst, depth, wins,
                             ign if regions else None, regions)
 

@@ -8,7 +8,7 @@ exact occluder pass: see :func:`renders.dataset.render_dataset`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -174,9 +174,22 @@ def check(view: ViewSpec, scene: Scene, cfg: SamplerConfig, gz: float,
     return ViewSpec(cam, view.mode, tuple(cands)), None
 
 
-def sample_views(scene: Scene, cfg: SamplerConfig, n: int, seed: int,
-                 visibility: Callable[[Camera], tuple[WindowView, ...]] | None = None) -> SamplingResult:
-    """``n`` accepted views of ``scene``; deterministic for a given seed (numpy Generator).
+@dataclass(frozen=True, eq=False)
+class Accepted:
+    """A view as :func:`iter_views` yields it: the ``index``-th accepted view, and the sampler's
+    counts so far (candidates tried, rejected by reason)."""
+
+    index: int
+    view: ViewSpec
+    tries: int
+    rejected: dict[str, int]
+
+
+def iter_views(scene: Scene, cfg: SamplerConfig, n: int, seed: int,
+               visibility: Callable[[Camera], tuple[WindowView, ...]] | None = None) -> Iterator[Accepted]:
+    """The ``n`` accepted views of ``scene``, one at a time (a caller can render a view as soon as
+    it is accepted, while its visibility pass is at hand); deterministic for a given seed (numpy
+    Generator): the candidates do not depend on when the caller consumes them.
 
     Raises ValueError when the scene has no windows or ``n * max_tries`` candidates do not
     give ``n`` views (the message lists the reject counts).
@@ -188,16 +201,27 @@ def sample_views(scene: Scene, cfg: SamplerConfig, n: int, seed: int,
     rng = np.random.default_rng(seed)
     gz = ground_z(scene)
     rejected = {r: 0 for r in REJECT_REASONS}
-    views: list[ViewSpec] = []
-    tries = 0
-    while len(views) < n:
+    accepted = tries = 0
+    while accepted < n:
         if tries >= max(1, n) * cfg.max_tries:
-            raise ValueError(f"sampler found only {len(views)}/{n} views of {scene.name!r} in {tries} tries; "
+            raise ValueError(f"sampler found only {accepted}/{n} views of {scene.name!r} in {tries} tries; "
                              f"rejected: {rejected}")
         tries += 1
         view, reason = check(propose(scene, cfg, rng, gz), scene, cfg, gz, visibility)
         if view is None:
             rejected[reason] += 1
         else:
-            views.append(view)
-    return SamplingResult(tuple(views), rejected, tries)
+            yield Accepted(accepted, view, tries, dict(rejected))
+            accepted += 1
+
+
+def sample_views(scene: Scene, cfg: SamplerConfig, n: int, seed: int,
+                 visibility: Callable[[Camera], tuple[WindowView, ...]] | None = None) -> SamplingResult:
+    """``n`` accepted views of ``scene`` at once (:func:`iter_views`, collected)."""
+    views: list[ViewSpec] = []
+    last = None
+    for last in iter_views(scene, cfg, n, seed, visibility):
+        views.append(last.view)
+    if last is None:
+        return SamplingResult((), {r: 0 for r in REJECT_REASONS}, 0)
+    return SamplingResult(tuple(views), last.rejected, last.tries)

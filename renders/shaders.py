@@ -1,6 +1,5 @@
 """GLSL 330 core sources of the raster backend's programs (:class:`renders.gl.GLContext` compiles
-them by name): ``mesh`` (textured, daylit material groups with the shadow-map test, and the element
-codes as a second render target), ``code`` (the occluder pass's flat element-code colours), ``sky``
+them by name): ``mesh`` (textured, daylit material groups with the shadow-map test), ``code`` (the occluder pass's flat element-code colours), ``sky``
 (per-pixel sky gradient on a full-screen triangle) and ``fxaa`` (the FXAA post filter, sharing the
 sky's full-screen vertex shader).
 """
@@ -8,16 +7,13 @@ MESH_VS = """#version 330 core
 layout(location = 0) in vec3 position;
 layout(location = 1) in vec2 texcoord;
 layout(location = 2) in vec4 colour;
-layout(location = 3) in vec4 code;
 uniform mat4 PV;
 uniform mat4 sun_from_world;
 out vec3 spos;
 out vec2 uv;
 out vec4 col;
-flat out vec4 vcode;
 void main() {
     gl_Position = PV * vec4(position, 1.0);
-    vcode = code;
     spos = (sun_from_world * vec4(position, 1.0)).xyz;  // affine: interpolates exactly
     uv = texcoord;
     col = colour;
@@ -28,7 +24,6 @@ MESH_FS = """#version 330 core
 in vec3 spos;
 in vec2 uv;
 in vec4 col;
-flat in vec4 vcode;
 uniform sampler2D tex;
 uniform int textured;
 uniform vec3 base;
@@ -40,9 +35,7 @@ uniform int size;
 uniform float bias;
 uniform vec3 tint;
 layout(location = 0) out vec4 frag;
-layout(location = 1) out vec4 code_out;  // the occluder pass's colour (element code, shade bin)
 void main() {
-    code_out = vcode;
     vec3 c = base * col.rgb;
     if (textured != 0) c *= texture(tex, uv).rgb;
     if (shadows != 0 && col.a < 1.0) {

@@ -93,12 +93,19 @@ def test_raster_antialias_modes_share_exact_ground_truth():
 
 
 def test_sampler_is_deterministic_and_counts_rejections():
+    from renders.sampler import iter_views
+
     scene = wall_scene()
     a = sample_views(scene, SMALL, 6, seed=3)
     b = sample_views(scene, SMALL, 6, seed=3)
     c = sample_views(scene, SMALL, 6, seed=4)
     for va, vb in zip(a.views, b.views):
         np.testing.assert_array_equal(va.camera.R, vb.camera.R)
+    one_by_one = list(iter_views(scene, SMALL, 6, seed=3))  # what render_dataset consumes
+    assert [x.index for x in one_by_one] == list(range(6))
+    assert (one_by_one[-1].tries, one_by_one[-1].rejected) == (a.tries, a.rejected)
+    for x, va in zip(one_by_one, a.views):
+        np.testing.assert_array_equal(x.view.camera.t, va.camera.t)
     assert not np.allclose(a.views[0].camera.t, c.views[0].camera.t)
     assert a.tries == 6 + sum(a.rejected.values())
     for v in a.views:  # every accepted target is in front and inside the frame
@@ -132,6 +139,10 @@ def test_dataset_same_seed_same_files_and_reuse(tmp_path):
                       "incidence_deg", "distance_m"}
     coco = json.loads((root_a / "coco.json").read_text())
     assert coco["categories"] == [{"id": 1, "name": "window"}] and len(coco["images"]) == 3
+    from renders.dataset import coco_from_views
+
+    # coco.json, built from the arrays the run wrote, = the one built by reading the files back
+    assert coco == json.loads(json.dumps(coco_from_views(root_a, 3)))
     from pycocotools import mask as mask_utils
 
     ann = coco["annotations"][0]
@@ -169,7 +180,7 @@ def test_fzk_haus_views_have_consistent_ground_truth():
     with RasterRenderer(scene) as r:
         for v in res.views:
             out = r.render(v.camera)
-            # the RGB pass's own occluder target = the standalone occluder pass (sampler visibility)
+            # the view's ground truth = a fresh occluder pass of its camera (what the sampler tested)
             np.testing.assert_array_equal(out.instances, ground_truth(r.occluders, v.camera)[0])
             ids = set(np.unique(out.instances)) - {0}
             assert ids <= set(range(1, len(scene.windows) + 1))
@@ -178,6 +189,43 @@ def test_fzk_haus_views_have_consistent_ground_truth():
                 assert w.visible_px == int((out.instances == w.instance_id).sum())
             t = next(w for w in out.windows if w.id == v.targets[0])
             assert t.visible_px > 0
+
+
+def test_one_occluder_pass_per_view_and_an_exact_depth_prepass():
+    """The sampler's visibility test keeps its occluder pass's ground truth for the render of the
+    accepted camera (one pass per view) and issues the candidate's RGB pass with that pass's depth
+    as its pre-pass; the image must be exactly the one of a plain depth test, coplanar ties
+    included (walls and ground, glazing in frames): when the render follows the test (the dataset
+    path), after a rejected candidate, and when another renderer in the same GL context drew its
+    own occluder pass in between (the framebuffer they share then holds the other's pass)."""
+    from renders.backends import visibility_function
+    from renders.raster import RasterRenderer, ground_truth
+    from scenes import load_scene
+
+    scene = load_scene("fzk-haus")
+    views = sample_views(scene, SamplerConfig(width=320, height=240, street_fraction=0.5), 5, seed=1).views
+    other = wall_scene(sill_top=1.2)
+    with RasterRenderer(scene) as r, RasterRenderer(other) as r2:
+        vis = visibility_function("pyrender", r)
+        plain = [r.render_rgb(v.camera, prepass=False) for v in views]
+        for k, v in enumerate(views):
+            wins = vis(v.camera)
+            out = r.render(v.camera)  # the dataset path: the test's pass and RGB triangles taken
+            assert out.windows is wins
+            np.testing.assert_array_equal(out.rgb, plain[k])
+            fresh = ground_truth(r.occluders, v.camera)
+            np.testing.assert_array_equal(out.instances, fresh[0])
+            np.testing.assert_array_equal(out.depth, fresh[1])
+            assert r.occluders.truth(v.camera)[2] is not wins  # taken once, then drawn afresh
+            if k % 2:  # the other renderer's occluder pass of a same-size view, in between
+                r2.occluders.truth(v.camera)
+            np.testing.assert_array_equal(r.render_rgb(v.camera), plain[k])
+        vis(views[0].camera)  # a candidate rejected, the next one accepted
+        vis(views[1].camera)
+        np.testing.assert_array_equal(r.render(views[1].camera).rgb, plain[1])
+        np.testing.assert_array_equal(r.render(views[0].camera).rgb, plain[0])
+        vis(views[2].camera)  # tested, then another camera rendered
+        np.testing.assert_array_equal(r.render(views[3].camera).rgb, plain[3])
 
 
 def test_oidn_denoising_brings_low_spp_render_closer_to_high_spp_reference():
