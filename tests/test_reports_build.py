@@ -219,3 +219,25 @@ def test_bench_refuses_a_real_dir_that_is_not_a_real_run_before_running(with_rea
     sim, _, _, _ = with_real
     r = CliRunner().invoke(app, ["bench", "--profile", "smoke", "--real", str(sim), "--no-report"])
     assert isinstance(r.exception, ValueError) and "not a real-photo run" in str(r.exception)
+
+
+def test_report_of_box_only_photos_with_the_oracle_only(tmp_path):
+    """A real run whose photos are labelled with boxes and whose only detector is the oracle has
+    no evaluable row (the oracle needs masks): its report is still written, and says so."""
+    from bench.real.profile import real_profile_from_dict
+    from bench.runner import run_benchmark
+    from reports.cli import write_report
+    from user_datasets import curtain_panes, write_yolo
+
+    n = write_yolo(tmp_path / "boxes", curtain_panes(1))
+    prof = real_profile_from_dict({
+        "name": "boxes", "kind": "real",
+        "methods": {"detectors": ["oracle"], "snappers": ["none", "hough"], "pose_solvers": ["lm"]},
+        "datasets": [{"name": "boxes", "format": "yolo", "path": str(tmp_path / "boxes")}]})
+    info = run_benchmark(prof, out_dir=tmp_path / "run", progress=False, report=write_report)
+    df = results.load_results(info.run_dir)
+    assert len(df) == 2 * n > 0 and not df["evaluable"].any()
+    md = (info.run_dir / "report.md").read_text()
+    assert f"{2 * n} rows (2 method combinations); 0 are evaluable" in md
+    assert "With detector oracle, no corner error was measured" in md
+    assert (info.run_dir / "report.html").is_file() and (info.run_dir / "figures" / "recall_curves.png").is_file()
