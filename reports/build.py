@@ -179,8 +179,14 @@ def _safe(name: str) -> str:
 
 
 FIGURE_INDEX = "index.json"  # figures/index.json: each figure's file -> the digest of its inputs
-FIGURE_COLUMNS = ("method", "detector", "snapper", "pose", "evaluable", *(f"corner_err_px_{s}" for s in CORNER_STAGES),
-                  *(c for c, _, _ in plots.CONDITIONS), "aspect_err_rel", "rot_err_deg")  # all the figures read
+_CORNERS = tuple(f"corner_err_px_{s}" for s in CORNER_STAGES)
+_STYLED = ("method", "detector", "snapper", "pose", "evaluable")  # plots.line_styles, main_pose, _evaluable
+FIGURE_COLUMNS = {  # what each figure reads: its digest hashes these columns only
+    "figure8": ("method", "evaluable", *_CORNERS),
+    "recall_curves": (*_STYLED, *_CORNERS),
+    "error_vs_conditions": (*_STYLED, *(c for c, _, _ in plots.CONDITIONS), "corner_err_px_snap"),
+    "aspect_rotation": ("method", "evaluable", "aspect_err_rel", "rot_err_deg"),
+}
 
 
 def _digest(*parts) -> str:
@@ -198,12 +204,13 @@ def _digest(*parts) -> str:
     return h.hexdigest()
 
 
-def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
-    """Every figure of the report as PNGs in fig_dir; {section: [paths]}; the figures get only the
-    FIGURE_COLUMNS of the table. A figure whose inputs
+def make_figures(df: pd.DataFrame, fig_dir: Path, lead: list | None = None) -> dict[str, list[Path]]:
+    """Every figure of the report as PNGs in fig_dir; {section: [paths]}; each figure gets only
+    its FIGURE_COLUMNS of the table. A figure whose inputs
     (its rows of the table, its name, the plotting code) have the digest recorded for its file in
     ``figures/index.json`` by an earlier report of this folder is reused, not drawn again; any
-    other file in fig_dir is removed (no stale figure stays beside them)."""
+    other file in fig_dir is removed (no stale figure stays beside them). lead: the columns of
+    the lead figure (reports.lead.lead_columns; LEAD_FIGURE, under "lead"; none if empty)."""
     fig_dir.mkdir(parents=True, exist_ok=True)
     try:
         old = json.loads((fig_dir / FIGURE_INDEX).read_text())
@@ -211,7 +218,9 @@ def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
         old = {}
     index: dict[str, str] = {}
 
-    def draw(fn, data: pd.DataFrame, name: str, *args) -> Path:
+    def draw(fn, data, name: str, *args) -> Path:
+        if fn.__name__ in FIGURE_COLUMNS:
+            data = data[[c for c in FIGURE_COLUMNS[fn.__name__] if c in data.columns]]
         path = fig_dir / name
         key = _digest(fn.__name__, name, *args, data)
         if not (old.get(name) == key and path.is_file()):
@@ -219,7 +228,6 @@ def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
         index[name] = key
         return path
 
-    df = df[[c for c in FIGURE_COLUMNS if c in df.columns]]  # what the figures read (and their digests hash)
     # one figure 8 per detector x snapper: the mask-fit and snapped panels do not depend on the
     # pose, so the figure of the main pose stands for every pose of its pair
     d = df[df["pose"] == plots.main_pose(df)]
@@ -227,8 +235,9 @@ def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
     figs["recall"] = [draw(plots.recall_curves, df, "recall_curves.png")]
     figs["conditions"] = [draw(plots.error_vs_conditions, df, "error_vs_conditions.png")]
     figs["aspect_rotation"] = [draw(plots.aspect_rotation, df, "aspect_rotation.png")]
+    figs["lead"] = [draw(plots.ranked_methods, lead, LEAD_FIGURE)] if lead else []
     for p in fig_dir.iterdir():
-        if p.name not in index and p.name not in (FIGURE_INDEX, LEAD_FIGURE):
+        if p.name not in index and p.name != FIGURE_INDEX:
             p.unlink() if p.is_file() else shutil.rmtree(p)
     write_text(fig_dir / FIGURE_INDEX, json.dumps(index, indent=1))
     return figs
@@ -417,12 +426,9 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
     sim_df, real_df = (other_df, df) if _is_real(summary) else (df, other_df)
     results = summarize(df)
     table = PairedTable(df)
-    figs = make_figures(df, run_dir / "figures")
     lead = lead_mod.make_lead(sim_df, real_df, *((results, None) if sim_df is df else (None, results)))
-    columns = lead_mod.lead_columns(lead)  # empty: photos with boxes only and no renders run
-    fig = plots.ranked_methods(columns, run_dir / "figures" / LEAD_FIGURE) if columns else None
-    if fig is None:
-        (run_dir / "figures" / LEAD_FIGURE).unlink(missing_ok=True)
+    figs = make_figures(df, run_dir / "figures", lead_mod.lead_columns(lead))  # no lead figure: photos with boxes only and no renders run
+    fig = figs["lead"][0] if figs["lead"] else None
     runs = " ".join(x for x in (f"Renders: {'this run' if sim_df is df else other}." if sim_df is not None else "",
                                 f"Real photos: {'this run' if real_df is df else other}." if real_df is not None else "",
                                 missing or "") if x)

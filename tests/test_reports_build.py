@@ -241,3 +241,26 @@ def test_report_of_box_only_photos_with_the_oracle_only(tmp_path):
     assert f"{2 * n} rows (2 method combinations); 0 are evaluable" in md
     assert "With detector oracle, no corner error was measured" in md
     assert (info.run_dir / "report.html").is_file() and (info.run_dir / "figures" / "recall_curves.png").is_file()
+
+
+def test_second_report_reuses_every_figure_and_redraws_changed_ones(tmp_path):
+    """A report of an unchanged run draws no figure again (the lead figure included) and writes
+    the same report.md; a run whose snapped errors changed gets those figures drawn anew."""
+    df = synthetic_results(n_windows=30, seed=5)
+    results.write_results(df, tmp_path)
+    manifest.seal(tmp_path, df, "synthetic")
+    _, md = build_report(tmp_path)
+    figs = tmp_path / "figures"
+    first = {p.name: p.stat().st_mtime_ns for p in figs.glob("*.png")}
+    text = md.read_text()
+    assert "lead_ranked.png" in first and len(first) > 3
+    _, md = build_report(tmp_path)
+    assert {p.name: p.stat().st_mtime_ns for p in figs.glob("*.png")} == first and md.read_text() == text
+    df["corner_err_px_snap"] = df["corner_err_px_snap"] * 2
+    results.write_results(df, tmp_path)
+    manifest.seal(tmp_path, df, "synthetic")
+    build_report(tmp_path)
+    again = {p.name: p.stat().st_mtime_ns for p in figs.glob("*.png")}
+    assert again.keys() == first.keys()
+    assert again["lead_ranked.png"] != first["lead_ranked.png"] and again["recall_curves.png"] != first["recall_curves.png"]
+    assert again["aspect_rotation.png"] == first["aspect_rotation.png"]  # aspect and rotation did not change
