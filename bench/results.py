@@ -25,8 +25,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from bench.metrics import error_stats, recall_at
 from fenestra.files import write_atomic, write_text
@@ -153,9 +151,11 @@ class RowSpool:
             df.insert(0, "profile", profile)
         return df.reindex(columns=template.columns).astype(template.dtypes.to_dict())
 
-    def _schema(self, template: pd.DataFrame, profile: str) -> pa.Schema:
+    def _schema(self, template: pd.DataFrame, profile: str):
         """The Arrow schema ``to_parquet`` gives the whole table: each column's type as inferred
         from its dtype, or (object columns) from every shard's values, unified."""
+        import pyarrow as pa  # noqa: PLC0415  (pyarrow: only where Parquet is written, not at import)
+
         objects = [c for c in template.columns if template[c].dtype == object]
         types = pa.Schema.from_pandas(template.drop(columns=objects), preserve_index=False)
         found = [pa.Schema.from_pandas(self._shard_table(p, template[objects], profile), preserve_index=False)
@@ -171,6 +171,9 @@ class RowSpool:
         self._flush()
         if not self._shards:
             raise ValueError("no view has a row: no results table to write")
+        import pyarrow as pa  # noqa: PLC0415
+        import pyarrow.parquet as pq  # noqa: PLC0415
+
         run_dir = Path(run_dir)
         template = self._template(profile)
         check_table(template)
@@ -197,6 +200,8 @@ class RowSpool:
 
 def parquet_columns(path: str | Path) -> list[str]:
     """The column names of a Parquet table (its schema; no rows read)."""
+    import pyarrow.parquet as pq  # noqa: PLC0415
+
     return list(pq.read_schema(path).names)
 
 

@@ -89,3 +89,38 @@ def test_summary_reads_only_its_columns():
     some = want[res.summary_columns(want.columns)]  # what a run reads back from its Parquet table
     assert _json(res.summarize(some)) == _json(res.summarize(want))
     assert set(res.summary_columns(want.columns)) < set(want.columns)
+
+
+# ---------------------------------------------------------------- the manifest's check of a million rows
+
+def _table_and_manifest(tmp_path):
+    from bench import manifest
+
+    views = [_view(i) for i in range(5)]
+    df = pd.concat(views, ignore_index=True)
+    df.insert(0, "profile", "p")
+    res.write_results(df, tmp_path)
+    methods = list(dict.fromkeys(df["method"]))
+    expected = {"methods": methods, "views": [["h", f"{i:06d}", [f"w{w}" for w in range(3 + i % 2)]] for i in range(5)]}
+    manifest.write_manifest(tmp_path, expected, "p", "0")
+    return df, manifest
+
+
+def test_expected_frame_is_the_expanded_rows(tmp_path):
+    _, manifest = _table_and_manifest(tmp_path)
+    doc = manifest.load_manifest(tmp_path, expand=False)
+    frame = manifest.expected_frame(doc)
+    assert [tuple(r) for r in frame.astype(str).itertuples(index=False)] == manifest.expand_rows(doc)
+    assert doc["n_rows"] == len(frame) == 34
+
+
+def test_verify_table_names_a_changed_row_and_passes_a_reordered_table(tmp_path):
+    df, manifest = _table_and_manifest(tmp_path)
+    doc = manifest.load_manifest(tmp_path, expand=False)
+    manifest.verify_table(tmp_path, df.iloc[::-1], doc)  # same rows, any order
+    bad = df.copy()
+    bad.loc[7, "window_id"] = "w9"  # as many rows, one of them not expected
+    with pytest.raises(manifest.RunIntegrityError, match=r"lacks 1 of 34 expected rows.*has unexpected 1 of 34.*h/000001/w9"):
+        manifest.verify_table(tmp_path, bad, doc)
+    with pytest.raises(manifest.RunIntegrityError, match="lacks 1 of 34"):
+        manifest.verify_table(tmp_path, df.drop(index=3), doc)
