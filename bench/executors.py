@@ -120,13 +120,27 @@ def _progress(enabled: bool):
 
 # ---------------------------------------------------------------- local
 
+Keep = Callable[[ViewOutcome], ViewOutcome]  # what is kept of each outcome, called in canonical order
+
+
+def _keep_all(o: ViewOutcome) -> ViewOutcome:
+    return o
+
+
+def _evaluate_to_frame(task: ViewTask) -> ViewOutcome:
+    """evaluate_task with the rows moved into a DataFrame in the worker (ViewOutcome.to_frame):
+    a compact pickle, and no per-row Python objects in the parent."""
+    return evaluate_task(task).to_frame()
+
+
 def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = True,
-                   total: int | None = None, frames: bool = False) -> list[ViewOutcome]:
+                   total: int | None = None, keep: Keep | None = None) -> list[ViewOutcome]:
     """evaluate_task over all tasks, in order; a spawned process pool when workers > 1. tasks may
     be a generator (with workers <= 1 each view is loaded only when its turn comes); total: their
-    number for the progress bar, when known; frames: each outcome's rows moved into a DataFrame
-    as it arrives (ViewOutcome.to_frame: a run's memory stays bounded)."""
-    keep = (lambda o: o.to_frame()) if frames else (lambda o: o)
+    number for the progress bar, when known; keep: called with each outcome (its rows in a
+    DataFrame) as it arrives, in order, and returns what is kept of it (e.g. the outcome without
+    its rows once they are spooled to disk: a run's memory stays bounded); default all."""
+    keep = keep or _keep_all
     outcomes: list[ViewOutcome] = []
     with _progress(progress) as bar:
         job = bar.add_task("evaluating views", total=len(tasks) if total is None and hasattr(tasks, "__len__")
@@ -134,12 +148,12 @@ def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = Tru
         if workers <= 1:
             init_worker()
             for t in tasks:
-                outcomes.append(keep(evaluate_task(t)))
+                outcomes.append(keep(_evaluate_to_frame(t)))
                 bar.advance(job)
             return outcomes
         ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
         with _environ(thread_env()), ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker) as pool:
-            for o in pool.map(evaluate_task, tasks, chunksize=1):
+            for o in pool.map(_evaluate_to_frame, tasks, chunksize=1):
                 outcomes.append(keep(o))
                 bar.advance(job)
     return outcomes
@@ -169,10 +183,10 @@ def render_local(houses: tuple[HousePlan, ...], workers: int, progress: bool = T
     return out
 
 
-def run_local(plan: Plan, workers: int, progress: bool = True, **_: object
+def run_local(plan: Plan, workers: int, progress: bool = True, keep: Keep | None = None, **_: object
               ) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
-    """Render the houses in a process pool, then evaluate the views in one; (outcomes, stage
-    seconds, datasets)."""
+    """Render the houses in a process pool, then evaluate the views in one; (outcomes, each
+    passed through ``keep`` in canonical order (evaluate_local), stage seconds, datasets)."""
     t0 = time.perf_counter()
     datasets = list(zip((h.house for h in plan.houses), render_local(plan.houses, workers, progress)))
     stage_s = {"render": time.perf_counter() - t0}
@@ -180,7 +194,7 @@ def run_local(plan: Plan, workers: int, progress: bool = True, **_: object
     if not tasks:
         raise FenestraError(f"profile {plan.profile.name!r} rendered no views")
     t0 = time.perf_counter()
-    outcomes = evaluate_local(tasks, workers, progress, frames=True)
+    outcomes = evaluate_local(tasks, workers, progress, keep=keep)
     stage_s["evaluate_wall"] = time.perf_counter() - t0
     return outcomes, stage_s, datasets
 
@@ -370,16 +384,26 @@ def _ray_map(ray, plan: Plan, shards: list[Shard], n_actors: int) -> Iterator[st
         submit(i)
 
 
+def _shard_render_s(path: str, warn: bool = True) -> float | None:
+    """A shard's render seconds if it is complete and sound (:func:`_load_shard`), else None;
+    its rows are read to check them, not kept."""
+    shard = _load_shard(path, warn)
+    return None if shard is None else shard["render_s"]
+
+
 def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None = None,
-            shard_views: int = 20, **_: object) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
-    """Render and evaluate shards on Ray actors, merge in canonical order (see the module docstring)."""
+            shard_views: int = 20, keep: Keep | None = None, **_: object
+            ) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
+    """Render and evaluate shards on Ray actors, merge in canonical order (see the module docstring),
+    one shard in memory at a time, each outcome passed through ``keep`` (evaluate_local)."""
     try:
         import ray  # noqa: PLC0415
     except ImportError as e:  # pragma: no cover - ray is a pinned dependency
         raise FenestraError("the ray executor needs the `ray` package (make setup installs it)") from e
 
+    keep = keep or _keep_all
     shards = plan_shards(plan, shard_views)
-    done = {s.out: _load_shard(s.out) for s in shards}
+    done = {s.out: _shard_render_s(s.out) for s in shards}
     todo = [s for s in shards if done[s.out] is None]
     t0 = time.perf_counter()
     if todo:
@@ -395,7 +419,7 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
             with _progress(progress) as bar:
                 job = bar.add_task(f"shards on {n_actors} Ray workers", total=len(todo))
                 for path in _ray_map(ray, plan, todo, n_actors):
-                    done[path] = _load_shard(path)
+                    done[path] = _shard_render_s(path)
                     bar.advance(job)
         finally:
             if started:
@@ -404,12 +428,17 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
     missing = [s.out for s in shards if done[s.out] is None]
     if missing:
         raise FenestraError(f"{len(missing)} shard(s) produced no readable result, e.g. {missing[0]}")
-    stage_s["cpu.render"] = sum(done[s.out]["render_s"] for s in todo)
+    stage_s["cpu.render"] = sum(done[s.out] for s in todo)
     # the dataset-wide files (coco.json) once every shard of a house is there: no view is re-rendered
     from renders.dataset import render_dataset  # noqa: PLC0415
 
     datasets = [(h.house, Path(render_dataset(h.dataset, progress=False))) for h in plan.houses]
-    outcomes = [o for s in shards for o in done[s.out]["outcomes"]]
+    outcomes = []
+    for s in shards:  # canonical order, one shard's rows at a time
+        shard = _load_shard(s.out)
+        if shard is None:
+            raise FenestraError(f"shard {s.out} changed while the run merged it")
+        outcomes += [keep(o.to_frame()) for o in shard["outcomes"]]
     if not outcomes:
         raise FenestraError(f"profile {plan.profile.name!r} rendered no views")
     return outcomes, stage_s, datasets

@@ -31,9 +31,10 @@ import shutil
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-from bench.results import RESULTS_CSV, RESULTS_PARQUET, load_results
+from bench.results import RESULTS_CSV, RESULTS_PARQUET, SPOOL_DIR, load_results
 from fenestra.errors import FenestraError, one_line
 from fenestra.files import file_sha256, write_json
 
@@ -48,13 +49,44 @@ class RunIntegrityError(FenestraError):
     """A run folder whose results table does not match its manifest, or a foreign run folder."""
 
 
-def expected_rows(views: list[tuple[str, Path]], methods: list[str]) -> list[tuple[str, str, str, str]]:
-    """(house, view, window_id, method) of every GT window in each (house, view folder) x method."""
-    rows = []
+def expected_rows(views: list[tuple[str, Path]], methods: list[str]) -> dict:
+    """The expected rows, every GT window of each (house, view folder) x method, in the manifest's
+    compact form (:func:`compact_rows`): {"methods": [...], "views": [[house, view, [window ids]], ...]}."""
+    out = []
     for house, vdir in views:
         meta = json.loads((Path(vdir) / "view.json").read_text())
-        rows += [(house, Path(vdir).name, str(w["id"]), m) for w in meta["windows"] for m in methods]
-    return rows
+        out.append([house, Path(vdir).name, [str(w["id"]) for w in meta["windows"]]])
+    return {"methods": list(methods), "views": out}
+
+
+def n_expected(doc: dict) -> int:
+    """How many rows a manifest's expected rows (either form of :func:`compact_rows`) are."""
+    if "rows" in doc:
+        return len(doc["rows"])
+    return len(doc["methods"]) * sum(len(ws) for _, _, ws in doc["views"])
+
+
+def expected_frame(doc: dict) -> pd.DataFrame:
+    """The expected rows of a manifest (either form of :func:`compact_rows`) as a table with the
+    KEY_COLUMNS (categoricals for the compact form), in :func:`expand_rows` order, built with
+    array operations."""
+    if "rows" in doc:
+        return pd.DataFrame([list(r) for r in doc["rows"]], columns=list(KEY_COLUMNS), dtype="str")
+    windows = [(h, v, w) for h, v, ws in doc["views"] for w in ws]
+    n_methods = len(doc["methods"])
+    cols = {c: np.repeat(pd.Categorical([str(w[i]) for w in windows]), n_methods)
+            for i, c in enumerate(KEY_COLUMNS[:3])}
+    method = pd.Categorical([str(m) for m in doc["methods"]])
+    cols["method"] = pd.Categorical.from_codes(np.tile(method.codes, len(windows)), method.categories)
+    return pd.DataFrame(cols)
+
+
+def _key_digests(keys: pd.DataFrame) -> np.ndarray:
+    """Sorted 64-bit hashes of the rows of a KEY_COLUMNS table, each value as a string: two tables
+    hold the same rows, as multisets, when these arrays are equal (up to a 2**-64 collision)."""
+    keys = pd.DataFrame({c: keys[c] if isinstance(keys[c].dtype, pd.CategoricalDtype) else keys[c].astype("str")
+                         for c in KEY_COLUMNS})
+    return np.sort(pd.util.hash_pandas_object(keys, index=False).to_numpy())
 
 
 def table_rows(df: pd.DataFrame) -> list[tuple[str, str, str, str]]:
@@ -89,13 +121,16 @@ def expand_rows(doc: dict) -> list[tuple[str, str, str, str]]:
     return [(h, v, w, m) for h, v, ws in doc["views"] for w in ws for m in doc["methods"]]
 
 
-def write_manifest(run_dir: str | Path, rows: list[tuple], profile: str, profile_hash: str) -> Path:
-    """manifest.json of a run whose results tables are already written (their checksums go in)."""
+def write_manifest(run_dir: str | Path, rows: list[tuple] | dict, profile: str, profile_hash: str) -> Path:
+    """manifest.json of a run whose results tables are already written (their checksums go in).
+    rows: the expected rows, (house, view, window_id, method) tuples or already in compact form
+    (:func:`expected_rows`, :func:`compact_rows`)."""
     run_dir = Path(run_dir)
     sums = {name: file_sha256(run_dir / name) for name in (RESULTS_PARQUET, RESULTS_CSV)
             if (run_dir / name).is_file()}
-    doc = {"format": FORMAT, "profile": profile, "profile_hash": profile_hash, "n_rows": len(rows),
-           "keys": list(KEY_COLUMNS), **compact_rows(rows), "sha256": sums}
+    expected = rows if isinstance(rows, dict) else compact_rows(rows)
+    doc = {"format": FORMAT, "profile": profile, "profile_hash": profile_hash, "n_rows": n_expected(expected),
+           "keys": list(KEY_COLUMNS), **expected, "sha256": sums}
     return write_json(run_dir / MANIFEST_JSON, doc, indent=None)
 
 
@@ -104,15 +139,16 @@ def seal(run_dir: str | Path, df: pd.DataFrame, profile: str, profile_hash: str 
     return write_manifest(run_dir, table_rows(df), profile, profile_hash)
 
 
-def load_manifest(run_dir: str | Path) -> dict:
-    """manifest.json of a run folder; RunIntegrityError if absent or unreadable."""
+def load_manifest(run_dir: str | Path, expand: bool = True) -> dict:
+    """manifest.json of a run folder, its expected rows as tuples under "rows" (``expand``; else
+    as stored: see :func:`compact_rows`); RunIntegrityError if absent or unreadable."""
     p = Path(run_dir) / MANIFEST_JSON
     if not p.is_file():
         raise RunIntegrityError(f"{run_dir} has no {MANIFEST_JSON}: not a complete benchmark run "
                                 "(re-run `fenestra bench`)")
     try:
         doc = json.loads(p.read_text())
-        return doc | {"rows": expand_rows(doc)}
+        return doc | {"rows": expand_rows(doc)} if expand else doc | {"n_rows": n_expected(doc)}
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise RunIntegrityError(f"{p}: unreadable manifest ({e})") from e
 
@@ -127,8 +163,21 @@ def describe_rows(rows: Counter, what: str, total: int) -> str:
 
 
 def verify_table(run_dir: str | Path, df: pd.DataFrame, manifest: dict) -> None:
-    """RunIntegrityError naming missing/extra rows, or a table whose bytes changed since the run."""
-    expected, got = Counter(manifest["rows"]), Counter(table_rows(df))
+    """RunIntegrityError naming missing/extra rows, or a table whose bytes changed since the run.
+    manifest: :func:`load_manifest`'s, either form. The rows are compared as sorted hashes first
+    (array operations); only a table that differs is compared row by row, to name the rows."""
+    missing_keys = [c for c in KEY_COLUMNS if c not in df.columns]
+    if missing_keys:
+        raise RunIntegrityError(f"results table lacks key column(s) {missing_keys}")
+    if not np.array_equal(_key_digests(expected_frame(manifest)), _key_digests(df)):
+        _name_row_differences(run_dir, df, manifest)
+    _verify_digests(run_dir, manifest)
+
+
+def _name_row_differences(run_dir: str | Path, df: pd.DataFrame, manifest: dict) -> None:
+    """RunIntegrityError naming the rows the table lacks or adds against the manifest (none: the
+    rows match after all, and nothing is raised)."""
+    expected, got = Counter(expand_rows(manifest)), Counter(table_rows(df))
     missing, extra = expected - got, got - expected
     problems = []
     if missing:
@@ -137,6 +186,10 @@ def verify_table(run_dir: str | Path, df: pd.DataFrame, manifest: dict) -> None:
         problems.append(describe_rows(extra, "has unexpected", manifest["n_rows"]))
     if problems:
         raise RunIntegrityError(f"{run_dir}: results table " + "; ".join(problems))
+
+
+def _verify_digests(run_dir: str | Path, manifest: dict) -> None:
+    """RunIntegrityError if a results file's bytes changed since the run (its sha256)."""
     run_dir = Path(run_dir)
     for name, digest in manifest.get("sha256", {}).items():
         p = run_dir / name
@@ -148,7 +201,7 @@ def verify_table(run_dir: str | Path, df: pd.DataFrame, manifest: dict) -> None:
 def load_verified_results(run_dir: str | Path) -> pd.DataFrame:
     """The results table of a run folder, checked against its manifest (see the module doc)."""
     df = load_results(run_dir)
-    manifest = load_manifest(run_dir)
+    manifest = load_manifest(run_dir, expand=False)
     verify_table(run_dir, df, manifest)
     return df
 
@@ -176,7 +229,7 @@ def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: b
     if force and entries:
         shutil.rmtree(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    for stale in (MANIFEST_JSON, "report.html", "report.md", "figures"):  # outputs of an earlier run
+    for stale in (MANIFEST_JSON, "report.html", "report.md", "figures", SPOOL_DIR):  # outputs of an earlier run
         p = run_dir / stale
         shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
     write_json(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash, "status": "running"})

@@ -33,7 +33,7 @@ from bench import manifest
 from bench import results as res
 from bench.detection_ap import detection_ap
 from bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTask
-from bench.executors import HousePlan, Plan, evaluate_local, get_executor
+from bench.executors import HousePlan, Keep, Plan, evaluate_local, get_executor
 from bench.profiles import ALL, Profile, selected
 from bench.real.profile import RealProfile
 from fenestra.errors import FenestraError
@@ -131,29 +131,40 @@ def make_plan(profile: Profile, methods: tuple[Method, ...], renders_dir: str | 
 
 @dataclass(frozen=True)
 class Evaluated:
-    """What a profile's views gave: outcomes (canonical order), wall seconds per stage, the run
-    manifest's expected rows (house, view, window_id, method) and the source's metadata."""
+    """What a profile's views gave: outcomes (canonical order; their rows spooled, see
+    :func:`spooling`), wall seconds per stage, the run manifest's expected rows (house, view,
+    window_id, method; bench.manifest.expected_rows's compact form) and the source's metadata."""
 
     outcomes: list[ViewOutcome]
     stage_s: dict[str, float]
-    expected: list[tuple[str, str, str, str]]
+    expected: dict
     meta: dict
+
+
+def spooling(spool: res.RowSpool) -> Keep:
+    """The executors' ``keep``: each view's rows go to the spool, the outcome is kept without them."""
+    def keep(o: ViewOutcome) -> ViewOutcome:
+        spool.add(o.table())
+        return replace(o, rows=[], frame=None)
+    return keep
 
 
 def evaluate_renders(profile: Profile, methods: tuple[Method, ...], run_dir: Path, workers: int,
                      progress: bool, renders_dir: str | Path | None, executor: str,
-                     executor_options: dict | None) -> Evaluated:
+                     executor_options: dict | None, keep: Keep | None = None) -> Evaluated:
     """Render (cached) and evaluate a synthetic profile's views with an executor; the expected rows
     come from the rendered view.json files, not from the outcomes (a dropped view shows)."""
     plan = make_plan(profile, methods, renders_dir, run_dir)
-    outcomes, stage_s, datasets = get_executor(executor)(plan, workers, progress, **(executor_options or {}))
+    outcomes, stage_s, datasets = get_executor(executor)(plan, workers, progress, keep=keep,
+                                                         **(executor_options or {}))
     views = [(house, v) for house, ds in datasets for v in sorted((Path(ds) / "views").iterdir())
              if (v / "view.json").is_file()]
     return Evaluated(outcomes, stage_s, manifest.expected_rows(views, [m.name for m in methods]),
                      {"workers": workers, "executor": executor, "datasets": {h: str(p) for h, p in datasets}})
 
 
-def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress: bool) -> Evaluated:
+def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress: bool,
+                    keep: Keep | None = None) -> Evaluated:
     """Evaluate every view of a real profile's datasets, in order, in this process (the real
     datasets are a few photos, read one at a time; the learned detectors use one thread); the
     expected rows are every labelled window x method."""
@@ -162,25 +173,13 @@ def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress:
     options = profile.eval_options()
     tasks = (ViewTask(LoadedView(v), methods, options) for ds in datasets for v in ds.views())
     t0 = time.perf_counter()
-    outcomes = evaluate_local(tasks, workers=1, progress=progress)
+    outcomes = evaluate_local(tasks, workers=1, progress=progress, keep=keep)
     stage_s = {"evaluate_wall": time.perf_counter() - t0}
-    expected = [(o.dataset, o.view, w, m.name) for o in outcomes for w in o.window_ids for m in methods]
+    expected = {"methods": [m.name for m in methods], "views": [[o.dataset, o.view, list(o.window_ids)] for o in outcomes]}
     n_windows = {d.name: sum(len(o.coco_gt) for o in outcomes if o.dataset == d.name) for d in datasets}
     return Evaluated(outcomes, stage_s, expected,
                      {"kind": "real", "workers": 1, "executor": "local", "skipped_datasets": skipped,
                       "datasets": {d.name: str(d.folder()) for d in datasets}, "n_windows": n_windows})
-
-
-def results_table(outcomes: list[ViewOutcome]) -> pd.DataFrame:
-    """Every view's rows in one table, in the outcomes' order; each outcome's rows are released
-    as its view is added (ViewOutcome.table; empty table when no view has rows)."""
-    frames = []
-    for i, o in enumerate(outcomes):
-        t = o.table()
-        if len(t):
-            frames.append(t)
-        outcomes[i] = replace(o, rows=[], frame=None)
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
 def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
@@ -243,8 +242,10 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         skipped: dict[str, str] = {}
         if methods is None:
             methods, skipped = plan_methods(profile)
-        ev = (evaluate_photos(profile, methods, progress) if photos else
-              evaluate_renders(profile, methods, run_dir, workers, progress, renders_dir, executor, executor_options))
+        spool = res.RowSpool(run_dir / res.SPOOL_DIR)
+        ev = (evaluate_photos(profile, methods, progress, spooling(spool)) if photos else
+              evaluate_renders(profile, methods, run_dir, workers, progress, renders_dir, executor, executor_options,
+                               spooling(spool)))
         outcomes, stage_s = ev.outcomes, dict(ev.stage_s)
         stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
         blocks = {}
@@ -255,22 +256,22 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
             stage_s["kfree"] = blocks["kfree"]["wall_time_s"]
 
         t0 = time.perf_counter()
-        df = results_table(outcomes)
-        if df.empty:
+        if spool.n_rows == 0:
             raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
-        df.insert(0, "profile", profile.name)
-        res.write_results(df, run_dir, csv=csv)
+        n_rows = spool.n_rows
+        spool.finish(run_dir, profile.name, csv=csv)
         manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
         det = detection_ap(outcomes, per_dataset=photos)
+        pq_path = run_dir / res.RESULTS_PARQUET
+        summary = res.summarize(pd.read_parquet(pq_path, columns=res.summary_columns(res.parquet_columns(pq_path))))
         stage_s["summarize"] = time.perf_counter() - t0
         wall = time.perf_counter() - t_start
         meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
-                                 n_views=len(outcomes), n_rows=len(df),
-                                 **per_unit_timings(stage_s, len(outcomes), len(df) // max(1, len(methods))),
+                                 n_views=len(outcomes), n_rows=n_rows,
+                                 **per_unit_timings(stage_s, len(outcomes), n_rows // max(1, len(methods))),
                                  methods=[m.name for m in methods], skipped_detectors=skipped,
                                  load_average={"before": load_before, "after": os.getloadavg()},
                                  peak_rss_mb=peak_rss_mb(), **ev.meta)
-        summary = res.summarize(df)
         res.write_summary(run_dir, meta, summary, det, **blocks)
         if sim_dir is not None:
             from bench.real.simreal import write_simreal  # noqa: PLC0415
@@ -283,4 +284,4 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
             meta["stage_time_s"] = stage_s
             meta["wall_time_s"] = time.perf_counter() - t_start
             res.write_summary(run_dir, meta, summary, det, **blocks)
-        return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), len(df))
+        return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), n_rows)

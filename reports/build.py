@@ -34,6 +34,7 @@ from bench.manifest import load_verified_results
 from bench.paired import PairedTable, paired_comparison
 from bench.real.simreal import SIMREAL_JSON
 from bench.results import CORNER_STAGES, STAGE_LABELS, summarize
+from fenestra.files import write_text
 from fenestra.methods import read_methods
 from reports import lead as lead_mod
 from reports import plots
@@ -54,12 +55,14 @@ def best_method(results: dict, column: str = "corner_err_px_snap", methods=None)
     return min(cands)[2] if cands else None
 
 
-def comparison_rows(df: pd.DataFrame, results: dict, column: str = "corner_err_px_snap") -> list[dict]:
-    """Each method against the best one (lowest median ``column``) on the same windows."""
+def comparison_rows(df: pd.DataFrame, results: dict, column: str = "corner_err_px_snap",
+                    table: PairedTable | None = None) -> list[dict]:
+    """Each method against the best one (lowest median ``column``) on the same windows; table:
+    df's PairedTable, if already made."""
     best = best_method(results, column)
     if best is None:
         return []
-    rows, table = [], PairedTable(df)
+    rows, table = [], table if table is not None else PairedTable(df)
     for m in results:
         if m == best:
             continue
@@ -120,8 +123,9 @@ def _where_gap(df: pd.DataFrame, a: str, b: str) -> str | None:
             f"{_fmt(ma)} px against {_fmt(mb)} px.")
 
 
-def narrative(df: pd.DataFrame, results: dict) -> list[str]:
-    """A few sentences saying what the numbers mean, generated from them."""
+def narrative(df: pd.DataFrame, results: dict, table: PairedTable | None = None) -> list[str]:
+    """A few sentences saying what the numbers mean, generated from them; table: df's
+    PairedTable, if already made."""
     out = []
     ev = df[df["evaluable"].astype(bool)]
     n_rows, n_ev = len(df), len(ev)
@@ -131,7 +135,7 @@ def narrative(df: pd.DataFrame, results: dict) -> list[str]:
                + (f", the rest are not ({', '.join(f'{k}: {v}' for k, v in reasons.items())})."
                   if reasons else "."))
     methods = read_methods(results)
-    table = PairedTable(df)
+    table = table if table is not None else PairedTable(df)
     for det in sorted(df["detector"].unique()):
         ms = [m for m in results if methods[m].detector == det]
         best = best_method(results, methods=ms)
@@ -175,6 +179,14 @@ def _safe(name: str) -> str:
 
 
 FIGURE_INDEX = "index.json"  # figures/index.json: each figure's file -> the digest of its inputs
+_CORNERS = tuple(f"corner_err_px_{s}" for s in CORNER_STAGES)
+_STYLED = ("method", "detector", "snapper", "pose", "evaluable")  # plots.line_styles, main_pose, _evaluable
+FIGURE_COLUMNS = {  # what each figure reads: its digest hashes these columns only
+    "figure8": ("method", "evaluable", *_CORNERS),
+    "recall_curves": (*_STYLED, *_CORNERS),
+    "error_vs_conditions": (*_STYLED, *(c for c, _, _ in plots.CONDITIONS), "corner_err_px_snap"),
+    "aspect_rotation": ("method", "evaluable", "aspect_err_rel", "rot_err_deg"),
+}
 
 
 def _digest(*parts) -> str:
@@ -192,11 +204,13 @@ def _digest(*parts) -> str:
     return h.hexdigest()
 
 
-def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
-    """Every figure of the report as PNGs in fig_dir; {section: [paths]}. A figure whose inputs
+def make_figures(df: pd.DataFrame, fig_dir: Path, lead: list | None = None) -> dict[str, list[Path]]:
+    """Every figure of the report as PNGs in fig_dir; {section: [paths]}; each figure gets only
+    its FIGURE_COLUMNS of the table. A figure whose inputs
     (its rows of the table, its name, the plotting code) have the digest recorded for its file in
     ``figures/index.json`` by an earlier report of this folder is reused, not drawn again; any
-    other file in fig_dir is removed (no stale figure stays beside them)."""
+    other file in fig_dir is removed (no stale figure stays beside them). lead: the columns of
+    the lead figure (reports.lead.lead_columns; LEAD_FIGURE, under "lead"; none if empty)."""
     fig_dir.mkdir(parents=True, exist_ok=True)
     try:
         old = json.loads((fig_dir / FIGURE_INDEX).read_text())
@@ -204,7 +218,9 @@ def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
         old = {}
     index: dict[str, str] = {}
 
-    def draw(fn, data: pd.DataFrame, name: str, *args) -> Path:
+    def draw(fn, data, name: str, *args) -> Path:
+        if fn.__name__ in FIGURE_COLUMNS:
+            data = data[[c for c in FIGURE_COLUMNS[fn.__name__] if c in data.columns]]
         path = fig_dir / name
         key = _digest(fn.__name__, name, *args, data)
         if not (old.get(name) == key and path.is_file()):
@@ -215,20 +231,23 @@ def make_figures(df: pd.DataFrame, fig_dir: Path) -> dict[str, list[Path]]:
     # one figure 8 per detector x snapper: the mask-fit and snapped panels do not depend on the
     # pose, so the figure of the main pose stands for every pose of its pair
     d = df[df["pose"] == plots.main_pose(df)]
-    figs = {"fig8": [draw(plots.figure8, d[d["method"] == m], f"fig8_{_safe(m)}.png", m)
-                     for m in sorted(d["method"].unique())]}
+    figs = {"fig8": [draw(plots.figure8, g, f"fig8_{_safe(m)}.png", m) for m, g in d.groupby("method", sort=True)]}
     figs["recall"] = [draw(plots.recall_curves, df, "recall_curves.png")]
     figs["conditions"] = [draw(plots.error_vs_conditions, df, "error_vs_conditions.png")]
     figs["aspect_rotation"] = [draw(plots.aspect_rotation, df, "aspect_rotation.png")]
+    figs["lead"] = [draw(plots.ranked_methods, lead, LEAD_FIGURE)] if lead else []
     for p in fig_dir.iterdir():
-        if p.name not in index and p.name not in (FIGURE_INDEX, LEAD_FIGURE):
+        if p.name not in index and p.name != FIGURE_INDEX:
             p.unlink() if p.is_file() else shutil.rmtree(p)
-    (fig_dir / FIGURE_INDEX).write_text(json.dumps(index, indent=1))
+    write_text(fig_dir / FIGURE_INDEX, json.dumps(index, indent=1))
     return figs
 
 
-def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict) -> list[tuple]:
-    """Report content as ("h", text) / ("p", text) / ("table", header, rows) / ("img", path)."""
+def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict,
+              table: PairedTable | None = None) -> list[tuple]:
+    """Report content as ("h", text) / ("p", text) / ("table", header, rows) / ("img", path);
+    table: df's PairedTable (made here if None)."""
+    table = table if table is not None else PairedTable(df)
     meta = (summary or {}).get("metadata", {})
     s: list[tuple] = [("h1", f"Fenestra benchmark report: {meta.get('profile', df['profile'].iloc[0] if 'profile' in df else '?')}")]
     if meta:
@@ -239,19 +258,19 @@ def _sections(df: pd.DataFrame, results: dict, summary: dict | None, figs: dict)
         if meta.get("skipped_detectors"):
             s.append(("p", "Skipped detectors: " + "; ".join(f"{k} ({v})" for k, v in meta["skipped_detectors"].items())))
     s.append(("h2", "What this means"))
-    s += [("p", t) for t in narrative(df, results)]
+    s += [("p", t) for t in narrative(df, results, table)]
     s.append(("h2", "Strategy comparison"))
     s.append(("p", "Statistics over evaluable windows. Medians over windows with an estimate; recall (R@x px, "
                    "snapped corners) counts missed and failed windows as not recalled."))
     s.append(("table", *headline_rows(results)))
-    comp = comparison_rows(df, results)
+    comp = comparison_rows(df, results, table=table)
     if comp:
         s.append(("h3", f"Paired against the best method ({comp[0]['vs']}), snapped corner error on the same windows"))
         s.append(("table", ["method", "n paired", "median px", "best median px", "median diff px",
                             "method better on", "Wilcoxon p"],
                   [[r["method"], r["n"], r["median_a"], r["median_b"], r["median_diff"], r["a_better"],
                     r["p_value"]] for r in comp]))
-    s += wall_sections(df)
+    s += wall_sections(df, table)
     det = (summary or {}).get("detection") or {}
     if det:
         s.append(("h2", "Detection (COCO)"))
@@ -384,11 +403,11 @@ def counterpart(run_dir: Path, summary: dict | None, real_dir: str | Path | None
 
 
 def _lead_sections(lead: lead_mod.Lead, sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None,
-                   fig: Path | None, runs: str) -> list[tuple]:
+                   fig: Path | None, runs: str, sim_table: PairedTable | None = None) -> list[tuple]:
     """The lead: one figure, what it shows, and the answer in words (never folded)."""
     img = [("img", fig)] if fig is not None else []  # no figure when neither bench ranks a method
     return [("h2", LEAD_TITLE), *img, ("p", lead_mod.caption(lead) + " " + runs),
-            *(("p", t) for t in lead_mod.answer(lead, sim_df, real_df)), ("fold",)]
+            *(("p", t) for t in lead_mod.answer(lead, sim_df, real_df, sim_table)), ("fold",)]
 
 
 def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tuple[Path, Path]:
@@ -406,23 +425,21 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
     other_df = load_verified_results(other) if other is not None else None
     sim_df, real_df = (other_df, df) if _is_real(summary) else (df, other_df)
     results = summarize(df)
-    figs = make_figures(df, run_dir / "figures")
-    lead = lead_mod.make_lead(sim_df, real_df)
-    columns = lead_mod.lead_columns(lead)  # empty: photos with boxes only and no renders run
-    fig = plots.ranked_methods(columns, run_dir / "figures" / LEAD_FIGURE) if columns else None
-    if fig is None:
-        (run_dir / "figures" / LEAD_FIGURE).unlink(missing_ok=True)
+    table = PairedTable(df)
+    lead = lead_mod.make_lead(sim_df, real_df, *((results, None) if sim_df is df else (None, results)))
+    figs = make_figures(df, run_dir / "figures", lead_mod.lead_columns(lead))  # no lead figure: photos with boxes only and no renders run
+    fig = figs["lead"][0] if figs["lead"] else None
     runs = " ".join(x for x in (f"Renders: {'this run' if sim_df is df else other}." if sim_df is not None else "",
                                 f"Real photos: {'this run' if real_df is df else other}." if real_df is not None else "",
                                 missing or "") if x)
-    sections = _sections(df, results, summary, figs)
+    sections = _sections(df, results, summary, figs, table)
     at = next(i for i, sec in enumerate(sections) if sec[0] == "h2")
-    sections[at:at] = _lead_sections(lead, sim_df, real_df, fig, runs)
+    sections[at:at] = _lead_sections(lead, sim_df, real_df, fig, runs, table if sim_df is df else None)
     at = next(i for i, sec in enumerate(sections) if sec[:2] == ("h2", "Strategy comparison"))
     sections[at:at] = real_sections(run_dir, results, summary)
     md, html = run_dir / "report.md", run_dir / "report.html"
-    md.write_text(_to_md(sections, run_dir))
-    html.write_text(_to_html(sections))
+    write_text(md, _to_md(sections, run_dir))
+    write_text(html, _to_html(sections))
     return html, md
 
 

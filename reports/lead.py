@@ -79,14 +79,18 @@ def _measured(rk: dict[str, list[Rank]]) -> bool:
     return any(math.isfinite(r.median) for rs in rk.values() for r in rs)
 
 
-def make_lead(sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None) -> Lead:
-    """The lead of a report: renders' ranks (sim_df) and photos' ranks (real_df), either None."""
+def make_lead(sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None,
+              sim_results: dict | None = None, real_results: dict | None = None) -> Lead:
+    """The lead of a report: renders' ranks (sim_df) and photos' ranks (real_df), either None;
+    sim_results / real_results: their summarize(), if already computed."""
     if sim_df is None and real_df is None:
         raise ValueError("make_lead: needs a synthetic or a real results table, got neither")
-    sim = ranks(sim_df, SIM_METRIC) if sim_df is not None else None
+    if sim_df is not None and sim_results is None:
+        sim_results = summarize(sim_df)
+    sim = ranks(sim_df, SIM_METRIC, sim_results) if sim_df is not None else None
     photo, metric = None, None
     if real_df is not None:
-        real_results = summarize(real_df)
+        real_results = real_results if real_results is not None else summarize(real_df)
         for m in PHOTO_METRICS:
             photo = ranks(real_df, m, real_results)
             if _measured(photo):
@@ -94,7 +98,7 @@ def make_lead(sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None) -> Lead
                 break
         if metric is None:
             photo = None
-    sim_at_photo = (ranks(sim_df, metric) if sim_df is not None and metric not in (None, SIM_METRIC)
+    sim_at_photo = (ranks(sim_df, metric, sim_results) if sim_df is not None and metric not in (None, SIM_METRIC)
                     else None)
     return Lead(sim, photo, metric, sim_at_photo)
 
@@ -181,12 +185,13 @@ def _photo_sentence(det: str, rk: list[Rank], lead: Lead, sim_df: pd.DataFrame |
     return text + "."
 
 
-def answer(lead: Lead, sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None) -> list[str]:
+def answer(lead: Lead, sim_df: pd.DataFrame | None, real_df: pd.DataFrame | None,
+           sim_table: PairedTable | None = None) -> list[str]:
     """The plain-words answer under the lead figure: per detector, the best snapper and by how
     much, on renders and on photos, each with its numbers (medians, paired differences on the
-    same windows, ranks)."""
+    same windows, ranks). sim_table: sim_df's PairedTable, if already made."""
     out = []
-    table = PairedTable(sim_df) if lead.sim else None
+    table = (sim_table if sim_table is not None else PairedTable(sim_df)) if lead.sim else None
     for det, rk in (lead.sim or {}).items():
         if any(math.isfinite(r.median) for r in rk):
             out.append(_sim_sentence(det, rk, sim_df, table))

@@ -36,10 +36,10 @@ LINESTYLES = ("-", "--", ":", "-.")
 
 
 def main_pose(df: pd.DataFrame) -> str:
-    """The pose column the curves show: the paper's solver (fenestra.conventions.PAPER) if present,
-    else the first."""
+    """The pose column the curves show: the paper's solver (fenestra.conventions.PAPER) if present
+    or if the table has no row (e.g. no evaluable window: nothing to show), else the first."""
     poses = sorted(df["pose"].unique())
-    return PAPER.pose if PAPER.pose in poses else poses[0]
+    return PAPER.pose if PAPER.pose in poses or not poses else poses[0]
 
 
 def line_styles(df: pd.DataFrame) -> dict[str, dict]:

@@ -36,9 +36,9 @@ def without_lines(pose: str, poses: list[str]) -> str | None:
 
 
 def k_withheld(df: pd.DataFrame) -> pd.Series:
-    """Per row: whether its method ran with K withheld."""
-    methods = read_methods(df["method"])
-    return df["method"].map(lambda m: methods[m].withhold_K).astype(bool)
+    """Per row: whether its method ran with K withheld (each method's label parsed once)."""
+    methods = read_methods(df["method"].unique())
+    return df["method"].isin([m for m, meth in methods.items() if meth.withhold_K])
 
 
 def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW, table: PairedTable | None = None) -> list[list]:
@@ -48,9 +48,10 @@ def paired_rows(df: pd.DataFrame, pose: str, ref: str = PER_WINDOW, table: Paire
     table = table if table is not None else PairedTable(df)
     cols = ["rot_err_deg", "aspect_err_rel"]
     rows = []
-    for (det, snap), _ in df.groupby(["detector", "snapper"]):
+    present = set(df["method"].unique())
+    for det, snap in sorted(df[["detector", "snapper"]].drop_duplicates().itertuples(index=False)):
         a, b = Method(det, snap, ref).label, Method(det, snap, pose).label
-        if not {a, b} <= set(df["method"]):
+        if not {a, b} <= present:
             continue
         rot = table.compare(b, a, "rot_err_deg")
         both = pd.concat({a: table.rows(a)[cols], b: table.rows(b)[cols]}, axis=1, join="inner").dropna()
@@ -91,8 +92,9 @@ def calibration_rows(df: pd.DataFrame) -> list[list]:
     return rows
 
 
-def wall_sections(df: pd.DataFrame) -> list[tuple]:
-    """Report sections (build.py's tuple format); empty for a run without per-wall methods."""
+def wall_sections(df: pd.DataFrame, table: PairedTable | None = None) -> list[tuple]:
+    """Report sections (build.py's tuple format); empty for a run without per-wall methods.
+    table: df's PairedTable, if already made."""
     if "pose" not in df or not wall_poses(df):
         return []
     s: list[tuple] = [("h2", "Per window or per wall (shared plane)")]
@@ -102,7 +104,7 @@ def wall_sections(df: pd.DataFrame) -> list[tuple]:
                    f"adds the photo's line segments along the walls' two directions; '{PER_WINDOW}' is the paper's "
                    "per-window solver."))
     poses = wall_poses(df)
-    table = PairedTable(df)
+    table = table if table is not None else PairedTable(df)
     pairs = [(p, PER_WINDOW) for p in poses] + [(p, without_lines(p, poses)) for p in poses
                                                  if without_lines(p, poses) is not None]
     for pose, ref in pairs:

@@ -219,3 +219,48 @@ def test_bench_refuses_a_real_dir_that_is_not_a_real_run_before_running(with_rea
     sim, _, _, _ = with_real
     r = CliRunner().invoke(app, ["bench", "--profile", "smoke", "--real", str(sim), "--no-report"])
     assert isinstance(r.exception, ValueError) and "not a real-photo run" in str(r.exception)
+
+
+def test_report_of_box_only_photos_with_the_oracle_only(tmp_path):
+    """A real run whose photos are labelled with boxes and whose only detector is the oracle has
+    no evaluable row (the oracle needs masks): its report is still written, and says so."""
+    from bench.real.profile import real_profile_from_dict
+    from bench.runner import run_benchmark
+    from reports.cli import write_report
+    from user_datasets import curtain_panes, write_yolo
+
+    n = write_yolo(tmp_path / "boxes", curtain_panes(1))
+    prof = real_profile_from_dict({
+        "name": "boxes", "kind": "real",
+        "methods": {"detectors": ["oracle"], "snappers": ["none", "hough"], "pose_solvers": ["lm"]},
+        "datasets": [{"name": "boxes", "format": "yolo", "path": str(tmp_path / "boxes")}]})
+    info = run_benchmark(prof, out_dir=tmp_path / "run", progress=False, report=write_report)
+    df = results.load_results(info.run_dir)
+    assert len(df) == 2 * n > 0 and not df["evaluable"].any()
+    md = (info.run_dir / "report.md").read_text()
+    assert f"{2 * n} rows (2 method combinations); 0 are evaluable" in md
+    assert "With detector oracle, no corner error was measured" in md
+    assert (info.run_dir / "report.html").is_file() and (info.run_dir / "figures" / "recall_curves.png").is_file()
+
+
+def test_second_report_reuses_every_figure_and_redraws_changed_ones(tmp_path):
+    """A report of an unchanged run draws no figure again (the lead figure included) and writes
+    the same report.md; a run whose snapped errors changed gets those figures drawn anew."""
+    df = synthetic_results(n_windows=30, seed=5)
+    results.write_results(df, tmp_path)
+    manifest.seal(tmp_path, df, "synthetic")
+    _, md = build_report(tmp_path)
+    figs = tmp_path / "figures"
+    first = {p.name: p.stat().st_mtime_ns for p in figs.glob("*.png")}
+    text = md.read_text()
+    assert "lead_ranked.png" in first and len(first) > 3
+    _, md = build_report(tmp_path)
+    assert {p.name: p.stat().st_mtime_ns for p in figs.glob("*.png")} == first and md.read_text() == text
+    df["corner_err_px_snap"] = df["corner_err_px_snap"] * 2
+    results.write_results(df, tmp_path)
+    manifest.seal(tmp_path, df, "synthetic")
+    build_report(tmp_path)
+    again = {p.name: p.stat().st_mtime_ns for p in figs.glob("*.png")}
+    assert again.keys() == first.keys()
+    assert again["lead_ranked.png"] != first["lead_ranked.png"] and again["recall_curves.png"] != first["recall_curves.png"]
+    assert again["aspect_rotation.png"] == first["aspect_rotation.png"]  # aspect and rotation did not change
