@@ -144,7 +144,7 @@ def head_from_dict(d: object, where: str = "", channels: dict[str, int] | None =
     when known) and the bad field otherwise."""
     def bad(what: str) -> FenestraError:
         return FenestraError(f"{where + ': ' if where else ''}its box verifier is unusable: {what}; retrain it "
-                             "with `fenestra train-verifier` (see pipeline/models/README.md)")
+                             "with `fenestra train-verifier` (a step of `make train`)")
 
     if not isinstance(d, dict):
         raise bad(f"a {type(d).__name__}, not a dict")
