@@ -101,6 +101,10 @@ def test_shipped_default_has_a_checked_verifier_and_a_broken_one_names_the_file(
     with pytest.raises(FenestraError, match=f"{broken}: its box verifier is unusable: std") as e:
         get_detector("default", weights=broken)
     assert "\n" not in str(e.value)
+    strided = tmp_path / "strided.pt"
+    torch.save({**ckpt, "verifier": {**ckpt["verifier"], "strides": [16, 16]}}, strided)
+    with pytest.raises(FenestraError, match=f"{strided}: its box verifier is unusable: strides"):
+        get_detector("default", weights=strided)
     # without the key: the detector runs unverified (a weights file from before the verifier)
     plain = tmp_path / "plain.pt"
     torch.save({k: v for k, v in ckpt.items() if k != "verifier"}, plain)

@@ -13,6 +13,10 @@ Decoder: a light U-Net back to stride 2, then bilinear upsampling to the input s
 Each instance's corners are the sub-pixel peaks of the four heatmaps near its mask
 (:func:`instance_corners`); ``Detection.corners`` carries them to pipeline/quad.py.
 
+A weights file may carry a **box verifier** (key ``"verifier"``; pipeline/detectors/verifier.py,
+fitted by ``fenestra train-verifier``): a logistic head on the backbone's features pooled in each
+detection's box that drops detections it takes for doors or signboards (issue #23, item 5).
+
 Input normalisation: (RGB - 127) / 128, the TensorFlow EfficientNet-Lite preprocessing the weights
 were trained with. Checked, not assumed: on 24 street photos the ImageNet classifier is most
 confident with it (mean top-1 0.37 vs 0.30 with ImageNet mean/std; tools/check_backbone.py).
@@ -27,6 +31,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from fenestra.errors import FenestraError
 from pipeline.detectors.winnet import (PostConfig, _block, instances_from_maps, load_state, pad_to_stride,
                                        post_from_checkpoint)
 from pipeline.detectors.verifier import VerifierHead, head_from_dict, verified
@@ -257,7 +262,12 @@ def verifier_from_checkpoint(model: EffWin, ckpt: dict) -> VerifierHead | None:
     maps; None when the file has none. FenestraError when it is unusable."""
     if "verifier" not in ckpt:
         return None
-    return head_from_dict(ckpt["verifier"], channels=model.feature_channels)
+    head = head_from_dict(ckpt["verifier"], channels=model.feature_channels)
+    strides = tuple(FEATURE_STRIDES[n] for n in head.spec.layers)
+    if head.spec.strides != strides:
+        raise FenestraError(f"its box verifier is unusable: strides {head.spec.strides} for layers "
+                            f"{head.spec.layers}, the network's are {strides}")
+    return head
 
 
 def detector_from_model(model: EffWin, ckpt: dict):
