@@ -5,7 +5,7 @@ nothing imports it.
     fenestra scenes list | show | make      (scenes/cli.py)
     fenestra render                         (renders/cli.py)
     fenestra reconstruct | calibrate        (pipeline/cli.py)
-    fenestra train | evaluate-detector | ship-weights    (training/cli.py)
+    fenestra train | evaluate-detector | ship-weights | train-verifier    (training/cli.py)
     fenestra bench | gate                   (bench/cli.py; bench ends with reports' writer)
     fenestra report                         (reports/cli.py)
 """

@@ -317,7 +317,8 @@ def test_tools_run_from_any_folder(tmp_path):
 
 
 def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
-    """`make -n train`: every repository file it names exists; it trains into out/ and ships explicitly."""
+    """`make -n train`: every repository file it names exists; it trains into out/, fits the box
+    verifier into that file, and ships explicitly."""
     import re
     import subprocess
 
@@ -326,3 +327,5 @@ def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
     assert {"training/scripts/make_data.sh", "training/configs/default.toml"} <= files
     assert all((ROOT / f).is_file() for f in files), files
     assert "ship-weights out/train/default.pt" in r.stdout
+    assert "training/scripts/verifier_data.sh" in files
+    assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("ship-weights out/train/default.pt")

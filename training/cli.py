@@ -3,6 +3,7 @@
     fenestra train [--config training/configs/default.toml] [--data DIR ...] [--out W.pt]   # -> out/train/
     fenestra evaluate-detector --data DIR [--detector NAME] [--weights W.pt] [--json OUT]
     fenestra ship-weights W.pt [--to PATH]    # check, then copy to where the detector loads them
+    fenestra train-verifier W.pt [--yolo DIR] [--out W2.pt]   # EffWin's door/signboard box verifier into W.pt
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from pipeline.detectors import DETECTORS
 
 
 def register(app: typer.Typer) -> None:
-    """Add `train`, `evaluate-detector` and `ship-weights` to the top-level app."""
+    """Add `train`, `evaluate-detector`, `ship-weights` and `train-verifier` to the top-level app."""
 
     @app.command("train")
     def train_cmd(
@@ -79,3 +80,23 @@ def register(app: typer.Typer) -> None:
         shipped = ship_weights(src, to)
         typer.echo(f"shipped {src} -> {shipped.path} (detector {shipped.detector!r}, sha256 {shipped.sha256[:16]}, "
                    f"{shipped.meta.get('iterations_done', '?')} iterations, {shipped.meta.get('train_seconds', '?')} s)")
+
+    @app.command("train-verifier")
+    def train_verifier_cmd(
+        weights: Path = typer.Argument(..., help="EffWin weights file (what `fenestra train` wrote)"),
+        yolo: Path = typer.Option(Path("../shared/real/spb_facades/train"), help="real photos with YOLO boxes "
+                                  "(windows 0, signboards 3, doors 5); only their train part is read"),
+        holdout_every: int = typer.Option(5, help="the validation photos' spacing (never read)"),
+        renders: Optional[list[Path]] = typer.Option(None, help="rendered dataset folder(s) of the detector's "
+                                                     "training houses: their windows join the positives"),
+        render_views: int = typer.Option(150, help="with --renders: views read, spread evenly over the datasets"),
+        out: Optional[Path] = typer.Option(None, help="write here instead of into WEIGHTS"),
+    ) -> None:
+        """Fit EffWin's box verifier (window vs door or signboard) on the train photos; store it in the weights file."""
+        from training.verifier import add_verifier  # noqa: PLC0415
+
+        f = add_verifier(weights, yolo, out, holdout_every, tuple(renders or ()), render_views, log=typer.echo)
+        typer.echo(f"verifier: {f.n_windows} windows, {f.n_negatives} doors/signboards/glazing from {f.n_photos} "
+                   f"train photos and views; threshold {f.head.threshold:.3f}; out of fold at score >= 0.5: keeps "
+                   f"{100 * f.oof_windows_kept:.1f} % of windows, drops {100 * f.oof_negatives_dropped:.1f} % of "
+                   f"doors/signboards -> {out or weights}")

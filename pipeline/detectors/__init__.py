@@ -168,7 +168,10 @@ def build_trainable(model: Checkpointed, any_arch: bool, weights: str | Path | N
     """A trainable detector's build (see :func:`trainable`)."""
     mod, net, ckpt = load_model(model, weights, any_arch, device)
     set_cpu_threads(threads)
-    return mod.detector_from_model(net, ckpt)
+    try:
+        return mod.detector_from_model(net, ckpt)
+    except FenestraError as e:  # name the file
+        raise FenestraError(f"{Path(weights) if weights is not None else model.weights}: {e}") from None
 
 
 def load_map_predictor(weights: str | Path | None = None):

@@ -30,12 +30,17 @@ def read_checkpoint(path: Path, arch: str | tuple[str, ...]) -> dict:
     """The checkpoint dict at ``path`` (torch.load on the CPU) holding an ``arch`` model (or one of
     several architectures).
 
-    FenestraError naming the file if it is not a torch checkpoint of that architecture.
+    Read with torch's restricted unpickler (``weights_only=True``: tensors, containers, numbers,
+    strings; plus torch's version string, which training's ``meta`` holds): a file that would run
+    code when unpickled is refused, not executed. FenestraError naming the file if it is not a
+    torch checkpoint of that architecture.
     """
     import torch  # noqa: PLC0415
+    from torch.torch_version import TorchVersion  # noqa: PLC0415
 
     try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+        with torch.serialization.safe_globals([TorchVersion]):
+            ckpt = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # noqa: BLE001 - pickle, zip and torch errors all mean "not a model"
         raise FenestraError(f"{path} is not a model checkpoint ({type(e).__name__}: "
                             f"{' '.join(str(e).split())[:120]})") from e

@@ -13,6 +13,10 @@ Decoder: a light U-Net back to stride 2, then bilinear upsampling to the input s
 Each instance's corners are the sub-pixel peaks of the four heatmaps near its mask
 (:func:`instance_corners`); ``Detection.corners`` carries them to pipeline/quad.py.
 
+A weights file may carry a **box verifier** (key ``"verifier"``; pipeline/detectors/verifier.py,
+fitted by ``fenestra train-verifier``): a logistic head on the backbone's features pooled in each
+detection's box that drops detections it takes for doors or signboards (issue #23, item 5).
+
 Input normalisation: (RGB - 127) / 128, the TensorFlow EfficientNet-Lite preprocessing the weights
 were trained with. Checked, not assumed: on 24 street photos the ImageNet classifier is most
 confident with it (mean top-1 0.37 vs 0.30 with ImageNet mean/std; tools/check_backbone.py).
@@ -27,8 +31,10 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from fenestra.errors import FenestraError
 from pipeline.detectors.winnet import (PostConfig, _block, instances_from_maps, load_state, pad_to_stride,
                                        post_from_checkpoint)
+from pipeline.detectors.verifier import VerifierHead, head_from_dict, verified
 from pipeline.types import Detection
 
 MEAN, STD = 127.0, 128.0  # TF EfficientNet-Lite preprocessing (see the module docstring)
@@ -107,10 +113,18 @@ class EffWin(nn.Module):
         self.dec = nn.ModuleList([nn.Sequential(_conv(ins[0], d[0]), _conv(d[0], d[0])),
                                   _conv(ins[1], d[1]), _conv(ins[2], d[2]), _conv(ins[3], d[3]), _conv(ins[4], d[4])])
         self.head = nn.Conv2d(d[4], N_MAPS, 1)
+        self.feature_channels = {"bb32": bb[3], "bb64": bb[4], "dec32": d[0], "dec16": d[1], "dec8": d[2]}
         with torch.no_grad():  # corners are rare: start their logits low (focal-loss prior 0.01)
             self.head.bias[2:].fill_(-4.6)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.forward_features(x)[0]
+
+    def forward_features(self, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+        """(logits as :meth:`forward`, feature maps by name): ``bb32`` (112 ch) and ``bb64`` (320 ch),
+        the backbone at strides 32 and 64 of the input; ``dec32``, ``dec16``, ``dec8`` (96, 64, 48
+        ch), the decoder at strides 32, 16, 8 (:data:`FEATURE_STRIDES`; what the box verifier pools,
+        pipeline/detectors/verifier.py)."""
         size = x.shape[-2:]
         fine = [self.fine[0](x)]
         fine.append(self.fine[1](fine[0]))
@@ -120,13 +134,19 @@ class EffWin(nn.Module):
             y = block(y)
             if i in self.taps:
                 skips.append(y)
+        feats = {"bb32": skips[3], "bb64": skips[4]}
         # Decoder inputs per level (coarse to fine): backbone taps, then fine taps at strides 4, 2.
         y = skips.pop()
         levels = [[skips[3]], [skips[2]], [skips[1]], [skips[0], fine[1]], [fine[0]]]
-        for layer, extra in zip(self.dec, levels):
+        for k, (layer, extra) in enumerate(zip(self.dec, levels)):
             y = F.interpolate(y, size=extra[0].shape[-2:], mode="bilinear", align_corners=False)
             y = layer(torch.cat([y, *extra], dim=1))
-        return F.interpolate(self.head(y), size=size, mode="bilinear", align_corners=False)
+            if k < 3:
+                feats[f"dec{(32, 16, 8)[k]}"] = y
+        return F.interpolate(self.head(y), size=size, mode="bilinear", align_corners=False), feats
+
+
+FEATURE_STRIDES = {"bb32": 32, "bb64": 64, "dec32": 32, "dec16": 16, "dec8": 8}  # EffWin.forward_features
 
 
 def to_tensor(images: np.ndarray) -> torch.Tensor:
@@ -205,6 +225,18 @@ def predict_maps(model: EffWin, image: np.ndarray) -> np.ndarray:
     return torch.sigmoid(model(x).float())[0, :, :H, :W].cpu().numpy()
 
 
+@torch.no_grad()
+def predict_maps_features(model: EffWin, image: np.ndarray) -> tuple[np.ndarray, dict[str, torch.Tensor]]:
+    """(predict_maps' maps, EffWin.forward_features' feature maps (1, C, h, w) float32 on the CPU)
+    of one RGB image, in one pass of the network."""
+    model.eval()
+    x, H, W = pad_to_stride(to_tensor(image), STRIDE)
+    x = x.to(next(model.parameters()).device).contiguous(memory_format=torch.channels_last)
+    logits, feats = model.forward_features(x)
+    maps = torch.sigmoid(logits.float())[0, :, :H, :W].cpu().numpy()
+    return maps, {k: v.float().cpu() for k, v in feats.items()}
+
+
 def detections_from_maps(maps: np.ndarray, post: PostConfig = PostConfig()) -> list[Detection]:
     """WinNet's instances from maps[0:2], each with its corners from maps[2:6] (None if unseen)."""
     dets = instances_from_maps(maps[0], maps[1], post)
@@ -225,10 +257,32 @@ def post_config(ckpt: dict) -> PostConfig:
     return post_from_checkpoint(ckpt, POST_DEFAULTS)
 
 
+def verifier_from_checkpoint(model: EffWin, ckpt: dict) -> VerifierHead | None:
+    """The weights file's box verifier (key ``"verifier"``), checked against the model's feature
+    maps; None when the file has none. FenestraError when it is unusable."""
+    if "verifier" not in ckpt:
+        return None
+    head = head_from_dict(ckpt["verifier"], channels=model.feature_channels)
+    strides = tuple(FEATURE_STRIDES[n] for n in head.spec.layers)
+    if head.spec.strides != strides:
+        raise FenestraError(f"its box verifier is unusable: strides {head.spec.strides} for layers "
+                            f"{head.spec.layers}, the network's are {strides}")
+    return head
+
+
 def detector_from_model(model: EffWin, ckpt: dict):
-    """image (H, W, 3) uint8 RGB -> Detections with corners, with the checkpoint's PostConfig."""
+    """image (H, W, 3) uint8 RGB -> Detections with corners, with the checkpoint's PostConfig; when
+    the file has a box verifier, the detections it calls doors or signboards are dropped
+    (pipeline/detectors/verifier.py)."""
     post = post_config(ckpt)
-    return lambda image, **_: detections_from_maps(predict_maps(model, image), post)
+    head = verifier_from_checkpoint(model, ckpt)
+    if head is None:
+        return lambda image, **_: detections_from_maps(predict_maps(model, image), post)
+
+    def run(image: np.ndarray, **_) -> list[Detection]:
+        maps, feats = predict_maps_features(model, image)
+        return verified(detections_from_maps(maps, post), maps[0], feats, head)
+    return run
 
 
 def void_core_maps(model: EffWin):

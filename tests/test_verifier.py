@@ -1,0 +1,154 @@
+"""EffWin's box verifier (pipeline/detectors/verifier.py, training/verifier.py; issue #23 item 5):
+the logistic fit, the head's checks on load, the safe weights loader, and a head trained on a few
+real train photos telling held-out doors and signboards from windows.
+
+The street photos are the spb_facades train split in ../shared/real (not shipped: skipped when absent)."""
+from __future__ import annotations
+
+import dataclasses
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from fenestra.errors import FenestraError
+from pipeline.detectors import DEFAULT_WEIGHTS, detect, get_detector, read_weights
+from pipeline.detectors.verifier import FeatureSpec, VerifierHead, head_from_dict, head_to_dict
+from training.verifier import Samples, choose_threshold, fit_head, fit_logistic, label_detections
+
+ROOT = Path(__file__).resolve().parents[1]
+SPB = Path(os.environ.get("FENESTRA_SPB", ROOT.parent / "shared" / "real" / "spb_facades"))
+needs_spb = pytest.mark.skipif(not (SPB / "train" / "labels").is_dir(),
+                               reason=f"the spb_facades photos are not in {SPB}: not shipped (their licence is "
+                                      "unverified); point FENESTRA_SPB at a copy")
+CHANNELS = {"bb32": 112, "bb64": 320, "dec32": 96, "dec16": 64, "dec8": 48}
+
+
+def test_logistic_fit_is_the_optimum_of_its_loss_and_deterministic():
+    """Newton's solution zeroes the gradient of the class-balanced, L2-penalised log loss, computed
+    here independently by torch autograd; two fits are bit-identical."""
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(300, 5))
+    y = (X @ np.array([2.0, -1.0, 0.0, 0.5, 0.0]) + rng.normal(size=300) > 1.0).astype(float)  # 1 : 3 classes
+    l2 = 3.0
+    w, b = fit_logistic(X, y, l2)
+    theta = torch.tensor(np.append(w, b), requires_grad=True)
+    Xt, yt = torch.tensor(X), torch.tensor(y)
+    z = Xt @ theta[:-1] + theta[-1]
+    ll = torch.nn.functional.binary_cross_entropy_with_logits(z, yt, reduction="none")
+    loss = ll[yt > 0].mean() * 150 + ll[yt == 0].mean() * 150 + 0.5 * l2 * (theta[:-1] ** 2).sum()
+    loss.backward()
+    assert theta.grad.abs().max() < 1e-6, theta.grad
+    w2, b2 = fit_logistic(X, y, l2)
+    assert np.array_equal(w, w2) and b == b2
+    with pytest.raises(ValueError, match="both classes"):
+        fit_logistic(X, np.ones(300))
+
+
+def test_labels_follow_the_evaluation_rule_for_doors_and_signboards():
+    win, door = np.array([0.0, 0, 10, 20]), np.array([50.0, 0, 70, 40])
+    boxes = np.array([[0.0, 1, 10, 21],   # the window
+                      [52.0, 2, 68, 38],  # inside the door: intersection over the detection 1
+                      [40.0, 0, 80, 80],  # over the door, IoU 0.25 and 0.25 of it on the door: neither
+                      [200.0, 0, 210, 10]])
+    assert label_detections(boxes, [win], [door]).tolist() == [1, 0, -1, -1]
+    assert label_detections(boxes, [], []).tolist() == [-1, -1, -1, -1]
+
+
+def test_threshold_keeps_the_asked_share_of_windows_at_the_shipped_score():
+    p = np.linspace(0.01, 1.0, 100)
+    y = np.ones(100, int)
+    score = np.where(np.arange(100) < 50, 0.2, 0.9)  # only the upper half is at the shipped score 0.5
+    t = choose_threshold(p, y, score, keep_windows=0.9)
+    kept = (p[score >= 0.5] >= t).mean()
+    assert kept == pytest.approx(0.9, abs=0.021) and kept >= 0.9
+
+
+def _head(dim_layers=("dec16",), context=1.0) -> VerifierHead:
+    spec = FeatureSpec(dim_layers, (16,) * len(dim_layers), context)
+    d = sum(CHANNELS[n] for n in dim_layers) * 2 + 10
+    return VerifierHead(spec, np.zeros(d), np.ones(d), np.full(d, 0.1), -0.5, 0.3)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"version": 0}, "version 0"),
+    ({"std": [0.0] * 138}, "std has values <= 0"),
+    ({"weight": [0.1] * 7}, r"weight has shape \(7,\), expected \(138,\)"),
+    ({"layers": ["nope"]}, "unknown feature layers"),
+    ({"threshold": 2.0}, "threshold"),
+    ({"mean": ["x"] * 138}, "could not convert"),
+    ({"bias": float("nan")}, "bias"),
+])
+def test_bad_head_entries_are_refused_in_one_line(change, message):
+    d = head_to_dict(_head())
+    assert head_from_dict(d, "w.pt", CHANNELS).threshold == 0.3
+    with pytest.raises(FenestraError, match=message) as e:
+        head_from_dict({**d, **change}, "w.pt", CHANNELS)
+    assert "\n" not in str(e.value) and str(e.value).startswith("w.pt: its box verifier is unusable")
+    with pytest.raises(FenestraError, match="no 'bias'"):
+        head_from_dict({k: v for k, v in d.items() if k != "bias"}, "w.pt", CHANNELS)
+
+
+def test_shipped_default_has_a_checked_verifier_and_a_broken_one_names_the_file(tmp_path):
+    ckpt = read_weights(DEFAULT_WEIGHTS)
+    head = head_from_dict(ckpt["verifier"], str(DEFAULT_WEIGHTS), CHANNELS)
+    assert 0.0 < head.threshold < 1.0 and ckpt["verifier"]["meta"]["n_doors_signboards"] > 0
+    broken = tmp_path / "broken.pt"
+    torch.save({**ckpt, "verifier": {**ckpt["verifier"], "std": [-1.0] * len(head.std)}}, broken)
+    with pytest.raises(FenestraError, match=f"{broken}: its box verifier is unusable: std") as e:
+        get_detector("default", weights=broken)
+    assert "\n" not in str(e.value)
+    strided = tmp_path / "strided.pt"
+    torch.save({**ckpt, "verifier": {**ckpt["verifier"], "strides": [16, 16]}}, strided)
+    with pytest.raises(FenestraError, match=f"{strided}: its box verifier is unusable: strides"):
+        get_detector("default", weights=strided)
+    # without the key: the detector runs unverified (a weights file from before the verifier)
+    plain = tmp_path / "plain.pt"
+    torch.save({k: v for k, v in ckpt.items() if k != "verifier"}, plain)
+    assert isinstance(detect("default", np.zeros((64, 96, 3), np.uint8), weights=plain), list)
+
+
+def test_weights_that_would_run_code_when_unpickled_are_refused(tmp_path):
+    """read_checkpoint uses torch's restricted unpickler: a pickle calling a function is refused
+    with one line naming the file, and the function never runs."""
+    ran = tmp_path / "ran"
+
+    class Payload:
+        def __reduce__(self):
+            return (Path.touch, (ran,))
+
+    bad = tmp_path / "evil.pt"
+    buf = io.BytesIO()
+    torch.save({"arch": "effwin", "x": Payload()}, buf)
+    bad.write_bytes(buf.getvalue())
+    with pytest.raises(FenestraError, match=f"{bad} is not a model checkpoint") as e:
+        read_weights(bad)
+    assert not ran.exists() and "\n" not in str(e.value)
+
+
+@needs_spb
+def test_head_trained_on_a_few_train_photos_tells_held_out_doors_from_windows():
+    """The shipped network's features on 16 train photos; a head fitted on 12 of them ranks the
+    detections on the other 4 photos: windows above doors and signboards (ROC AUC, an independent
+    count over all pairs), and the fitted threshold keeps most of those windows."""
+    from training.verifier import SPEC, collect, out_of_fold, train_head
+
+    s = collect(DEFAULT_WEIGHTS, SPB / "train", max_photos=16)
+    assert set(np.unique(s.y)) == {0, 1} and s.X.shape[1] == 2 * (112 + 320) + 10
+    held = s.photo >= np.unique(s.photo)[-4]
+    fit = Samples(s.X[~held], s.y[~held], s.score[~held], s.photo[~held], 12)
+    head = train_head(fit, SPEC, l2=100.0, keep_windows=0.95).head
+    p = head.window_probability(s.X[held])
+    pos, neg = p[s.y[held] == 1], p[s.y[held] == 0]
+    assert len(pos) >= 10 and len(neg) >= 3, (len(pos), len(neg))
+    auc = ((pos[:, None] > neg[None, :]).sum() + 0.5 * (pos[:, None] == neg[None, :]).sum()) / (len(pos) * len(neg))
+    assert auc > 0.8, auc
+    assert (pos >= head.threshold).mean() > 0.8
+    # shuffled labels carry no signal: out of fold, the same features rank no better than chance
+    y = np.random.default_rng(0).permutation(s.y)
+    q = out_of_fold(dataclasses.replace(s, y=y), SPEC, 100.0, folds=4)
+    auc0 = ((q[y == 1][:, None] > q[y == 0][None, :]).mean())
+    assert auc0 < auc - 0.1, (auc0, auc)
