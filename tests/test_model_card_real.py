@@ -1,0 +1,46 @@
+"""tools/model_card_real.py: the model card's real-photo table, its rows from evaluate_boxes results."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import model_card_real  # noqa: E402
+
+
+def _result(detector: str, n_images: int, n_gt: int, ap: float, ap50: float, n_det: int, n_hard: int) -> dict:
+    return {"detector": detector, "n_images": n_images, "n_gt": n_gt, "bbox": {"AP": ap, "AP50": ap50},
+            "hard_negatives": {"n_det_at_threshold": n_det, "n_hard_negative": n_hard,
+                               "hard_negative_share": n_hard / n_det if n_det else float("nan"), "threshold": 0.5}}
+
+
+def test_table_rows_by_hand():
+    lines = model_card_real.table([("val", _result("default", 112, 944, 0.51449, 0.82751, 700, 13)),
+                                   ("test", _result("winnet", 10, 101, 0.2, 0.4149, 0, 0))])
+    assert lines[0].endswith("| detections at score >= 0.5 | on a door/signboard (n, %) |")
+    assert lines[2] == "| val | `default` | 112 | 944 | 51.4 | 82.8 | 700 | 13 (1.9 %) |"  # 13 / 700 = 1.857 %
+    assert lines[3] == "| test | `winnet` | 10 | 101 | 20.0 | 41.5 | 0 | 0 (-) |"
+    assert len(lines) == 4
+
+
+def test_counts_on_a_small_yolo_folder(tmp_path):
+    """The real evaluation on two photos: photos and window boxes as the builder wrote them."""
+    from user_datasets import curtain_panes, write_yolo
+
+    n = write_yolo(tmp_path / "y", curtain_panes(2))
+    from training.evaluate import evaluate_boxes
+
+    r = evaluate_boxes("default", tmp_path / "y", "all")
+    cells = model_card_real.table([("d", r)])[2].strip("|").split("|")
+    assert [c.strip() for c in cells[:4]] == ["d", "`default`", "2", str(n)]
+    assert int(cells[7].split("(")[0]) <= int(cells[6]) == r["hard_negatives"]["n_det_at_threshold"]
+
+
+def test_without_the_photos_one_line_and_exit_2(tmp_path):
+    r = subprocess.run([sys.executable, str(ROOT / "tools" / "model_card_real.py"), "--spb", str(tmp_path / "none")],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert r.stdout == "" and len(r.stderr.strip().splitlines()) == 1 and "none" in r.stderr
