@@ -1,9 +1,9 @@
 """Test-session settings shared by every test module.
 
 Thread settings: the suite runs on small shared machines and in parallel (``make test`` runs
-pytest-xdist workers, one per core), so torch/OpenMP use one thread per process and an idle
+TEST_WORKERS = 2 pytest-xdist processes), so torch/OpenMP use one thread per process and an idle
 OpenMP thread sleeps instead of spinning. Without the latter a 2-thread torch step on a busy
-2-core machine runs 10-30x slower (measured: EffWin tiny step 0.4 s -> 6-23 s). ``setdefault``:
+2-core machine (or next to another worker) runs an order of magnitude slower. ``setdefault``:
 a caller's explicit setting wins. Set before any test module imports torch, and inherited by the
 CLI subprocesses the tests start.
 """
