@@ -27,8 +27,11 @@ setup: sysdeps  ## virtualenv in .venv with every dependency, pinned
 	$(PIP) install -q --no-deps pyrender==0.1.45
 	$(PY) -c "import fenestra.compat, pyrender, torchvision.ops; print('setup ok')"
 
-test:  ## fast tests (the CI test command)
-	$(PY) -m pytest -q -m "not slow"
+# pytest-xdist processes for `make test` (0: one process); each test file runs whole in one of them
+TEST_WORKERS ?= 2
+
+test:  ## fast tests (the CI test command), in TEST_WORKERS parallel processes
+	$(PY) -m pytest -q -m "not slow" -n $(TEST_WORKERS) --dist loadfile
 
 test-all:  ## every test, slow ones included
 	$(PY) -m pytest -q

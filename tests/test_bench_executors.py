@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -39,11 +41,13 @@ def _free_port() -> int:
 
 
 @pytest.fixture(scope="module")
-def ray_cluster(tmp_path_factory):
+def ray_cluster():
     ray_cli = str(Path(sys.executable).with_name("ray"))
     env = {**os.environ, "RAY_AUTH_MODE": "disabled", "RAY_USAGE_STATS_ENABLED": "0"}
     port = _free_port()
-    temp = tmp_path_factory.mktemp("ray")
+    # a short folder of its own: Ray's socket paths (<temp>/session_<date>_<pid>/sockets/plasma_store.1)
+    # must fit AF_UNIX's 107 bytes, which a pytest-xdist worker's tmp_path (.../popen-gw1/ray0) exceeds
+    temp = Path(tempfile.mkdtemp(prefix="ray-", dir="/tmp"))
     head = [ray_cli, "start", "--head", "--node-ip-address=127.0.0.1", f"--port={port}", "--num-cpus=1",
             "--include-dashboard=false", "--disable-usage-stats", f"--temp-dir={temp}"]
     worker = [ray_cli, "start", f"--address=127.0.0.1:{port}", "--num-cpus=1", "--disable-usage-stats"]
@@ -53,6 +57,7 @@ def ray_cluster(tmp_path_factory):
         yield f"127.0.0.1:{port}"
     finally:
         subprocess.run([ray_cli, "stop", "--force"], env=env, capture_output=True, timeout=120)
+        shutil.rmtree(temp, ignore_errors=True)
 
 
 def test_ray_cluster_matches_local_executor(ray_cluster, tmp_path, monkeypatch):

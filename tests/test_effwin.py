@@ -122,7 +122,7 @@ def test_effwin_tiny_training_loss_decreases_and_detects(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
     cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / "e.pt"),
                       state_dir=str(tmp_path), iterations=30, batch_size=3, crop_hw=(64, 128), log_every=1,
-                      warmup=5, lr=3e-3, real_fraction=0.0)
+                      warmup=5, lr=3e-3, real_fraction=0.0, threads=1)
     assert cfg.arch == "effwin" and cfg.pretrained
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))

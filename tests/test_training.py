@@ -51,7 +51,7 @@ def test_config_rejects_unknown_keys(tmp_path):
 def test_winnet_tiny_training_loss_decreases(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
     cfg = load_config("training/configs/winnet.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
-                      iterations=30, batch_size=3, crop_hw=(64, 96), log_every=1, warmup=5, lr=3e-3)
+                      iterations=30, batch_size=3, crop_hw=(64, 96), log_every=1, warmup=5, lr=3e-3, threads=1)
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
     assert len(rows) == 30
