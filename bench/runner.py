@@ -20,6 +20,7 @@ reports/ (reports read bench's tables): the CLI (app/cli.py) passes the report w
 """
 from __future__ import annotations
 
+import gc
 import itertools
 import os
 import time
@@ -273,6 +274,9 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
                                  load_average={"before": load_before, "after": os.getloadavg()},
                                  peak_rss_mb=peak_rss_mb(), **ev.meta)
         res.write_summary(run_dir, meta, summary, det, **blocks)
+        n_views = len(outcomes)
+        del ev, outcomes  # the views' COCO material: freed before the report reads the table (peak RSS)
+        gc.collect()
         if sim_dir is not None:
             from bench.real.simreal import write_simreal  # noqa: PLC0415
 
@@ -283,5 +287,6 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
             stage_s["report"] = time.perf_counter() - t0
             meta["stage_time_s"] = stage_s
             meta["wall_time_s"] = time.perf_counter() - t_start
+            meta["peak_rss_mb"] = peak_rss_mb()  # the report runs in this process: its peak counts too
             res.write_summary(run_dir, meta, summary, det, **blocks)
-        return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, len(outcomes), n_rows)
+        return RunInfo(run_dir, meta["wall_time_s"], stage_s, skipped, n_views, n_rows)
