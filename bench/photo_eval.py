@@ -27,9 +27,10 @@ from __future__ import annotations
 
 import io
 import math
+import os
 import tempfile
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -240,23 +241,95 @@ def run_photo(view: LabelledView, transform: str, tmp: Path, match_iou: float, d
     return {**row, "detections": "labelled masks" if masks is not None else (detector or "default")}
 
 
-def evaluate_kfree(spec: KfreeSpec, views: Iterable[LabelledView], progress: bool = False) -> pd.DataFrame:
-    """kfree.parquet's table: each view as is, and under spec.transforms for transform_datasets."""
-    rows = []
+@dataclass(frozen=True)
+class KfreeTask:
+    """One run of :func:`run_photo` (a process-pool task: the view travels in memory); ``tmp`` is
+    its own folder."""
+
+    view: LabelledView
+    transform: str
+    tmp: str
+    match_iou: float
+    detector: str
+    use_masks: bool
+
+
+def kfree_tasks(spec: KfreeSpec, views: Iterable[LabelledView], tmp: Path) -> list[KfreeTask]:
+    """The runs of spec over views, in table order: each view as is, then under spec.transforms
+    for transform_datasets; at most spec.max_photos views per dataset (0: all). Each task's
+    folder is a numbered subfolder of ``tmp`` (created)."""
+    tasks: list[KfreeTask] = []
     taken: dict[str, int] = {}
+    for v in views:
+        if spec.max_photos and taken.get(v.dataset, 0) >= spec.max_photos:
+            continue
+        taken[v.dataset] = taken.get(v.dataset, 0) + 1
+        kinds = (AS_IS, *spec.transforms) if v.dataset in spec.transform_datasets else (AS_IS,)
+        for t in kinds:
+            d = Path(tmp) / str(len(tasks))
+            d.mkdir()
+            tasks.append(KfreeTask(v, t, str(d), spec.match_iou, spec.detector, v.dataset in spec.mask_datasets))
+    return tasks
+
+
+def run_task(task: KfreeTask) -> dict:
+    """The task's kfree.parquet row (:func:`run_photo`)."""
+    return run_photo(task.view, task.transform, Path(task.tmp), task.match_iou, task.detector, task.use_masks)
+
+
+def failed_row(task: KfreeTask, error: BaseException) -> dict:
+    """The row of a task whose run raised outside reconstruct_photo (or whose worker died)."""
+    row = photo_row(task.view, task.transform, None, f"{type(error).__name__}: {error}", math.nan,
+                    task.match_iou, False)
+    return {**row, "detections": "labelled masks" if task.use_masks else (task.detector or "default")}
+
+
+def _rows(tasks: list[KfreeTask], workers: int) -> Iterator[dict]:
+    """Each task's row, in task order; ``workers`` > 1: in a spawned process pool (one BLAS/OpenMP
+    /OpenCV thread per worker, as the bench's evaluation). A task that raises gives its
+    :func:`failed_row`; the other rows are kept."""
+    if workers <= 1 or len(tasks) <= 1:
+        for t in tasks:
+            try:
+                yield run_task(t)
+            except Exception as e:  # noqa: BLE001 - a failed run is a row
+                yield failed_row(t, e)
+        return
+    import multiprocessing as mp  # noqa: PLC0415
+    from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415
+
+    from bench.executors import _environ, init_worker, thread_env  # noqa: PLC0415
+
+    ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
+    with _environ(thread_env()), ProcessPoolExecutor(min(workers, len(tasks)), mp_context=ctx,
+                                                     initializer=init_worker) as pool:
+        futures = [pool.submit(run_task, t) for t in tasks]
+        for t, f in zip(tasks, futures):
+            try:
+                yield f.result()
+            except Exception as e:  # noqa: BLE001 - a raising (or dead) worker is a row, not the table
+                yield failed_row(t, e)
+
+
+def _progress_line(task: KfreeTask, r: dict) -> str:
+    return (f"kfree {task.view.key} {task.transform}: f {r['focal_px']:.0f} px ({r['K_source']}), "
+            f"walls {r['n_walls']}, exported {r['n_exported']}, {r['seconds']:.1f} s"
+            + (f", {r['error']}" if r["error"] else ""))
+
+
+def evaluate_kfree(spec: KfreeSpec, views: Iterable[LabelledView], progress: bool = False,
+                   workers: int | None = None) -> pd.DataFrame:
+    """kfree.parquet's table: each view as is, and under spec.transforms for transform_datasets,
+    run in ``workers`` processes (None: all cores; capped by the number of runs); rows in view
+    order whatever ``workers``, progress lines printed in that order."""
+    workers = (os.cpu_count() or 1) if workers is None else workers
+    rows = []
     with tempfile.TemporaryDirectory(prefix="fenestra-kfree-") as d:
-        for v in views:
-            if spec.max_photos and taken.get(v.dataset, 0) >= spec.max_photos:
-                continue
-            taken[v.dataset] = taken.get(v.dataset, 0) + 1
-            kinds = (AS_IS, *spec.transforms) if v.dataset in spec.transform_datasets else (AS_IS,)
-            for t in kinds:
-                rows.append(run_photo(v, t, Path(d), spec.match_iou, spec.detector, v.dataset in spec.mask_datasets))
-                if progress:
-                    r = rows[-1]
-                    print(f"kfree {v.key} {t}: f {r['focal_px']:.0f} px ({r['K_source']}), walls {r['n_walls']}, "
-                          f"exported {r['n_exported']}, {r['seconds']:.1f} s" + (f", {r['error']}" if r["error"] else ""),
-                          flush=True)
+        tasks = kfree_tasks(spec, views, Path(d))
+        for t, r in zip(tasks, _rows(tasks, workers)):
+            rows.append(r)
+            if progress:
+                print(_progress_line(t, r), flush=True)
     return pd.DataFrame(rows)
 
 
@@ -317,10 +390,12 @@ def summarize_kfree(df: pd.DataFrame, spec: KfreeSpec, wall_s: float) -> dict:
             "wall_time_s": wall_s, "n_runs": int(len(df)), "datasets": per}
 
 
-def run_kfree(spec: KfreeSpec, views: Iterable[LabelledView], run_dir: Path, progress: bool = False) -> dict:
-    """Evaluate, write run_dir/kfree.parquet, return the summary block."""
+def run_kfree(spec: KfreeSpec, views: Iterable[LabelledView], run_dir: Path, progress: bool = False,
+              workers: int | None = None) -> dict:
+    """Evaluate (in ``workers`` processes, :func:`evaluate_kfree`), write run_dir/kfree.parquet,
+    return the summary block."""
     t0 = time.perf_counter()
-    df = evaluate_kfree(spec, views, progress)
+    df = evaluate_kfree(spec, views, progress, workers)
     df.to_parquet(Path(run_dir) / KFREE_PARQUET, index=False)
     return summarize_kfree(df, spec, time.perf_counter() - t0)
 

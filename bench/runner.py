@@ -253,7 +253,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         if photos and profile.kfree is not None:  # the K-free single-photo path (bench.photo_eval)
             from bench.photo_eval import run_kfree  # noqa: PLC0415
 
-            blocks["kfree"] = run_kfree(profile.kfree, profile.kfree_views(), run_dir, progress)
+            blocks["kfree"] = run_kfree(profile.kfree, profile.kfree_views(), run_dir, progress, workers)
             stage_s["kfree"] = blocks["kfree"]["wall_time_s"]
 
         t0 = time.perf_counter()

@@ -205,3 +205,36 @@ def test_labelled_masks_written_as_the_instance_map_reconstruct_reads(tmp_path):
     assert pe.write_masks(_view([[0, 0, 10, 10]]), tmp_path / "n.png") is None  # boxes only: no masks
     with pytest.raises(ValueError, match="mask_datasets"):
         pe.KfreeSpec(datasets=("a",), transform_datasets=("a",), mask_datasets=("a",))
+
+
+def _facade(seed: int) -> np.ndarray:
+    """A light wall with a grid of dark windows (something for the detector and the focal chain)."""
+    im = np.full((120, 160, 3), 200, np.uint8)
+    rng = np.random.default_rng(seed)
+    for y in (15, 65):
+        for x in (15, 60, 105):
+            im[y:y + 35, x:x + 30] = rng.integers(20, 60)
+    return im
+
+
+def test_kfree_in_two_processes_gives_the_rows_of_one(tmp_path):
+    from fenestra.data import SparseMask
+
+    m = np.zeros((120, 160), bool)
+    m[15:50, 15:45] = True
+    views = [LabelledView(dataset="t", name="a", image=_facade(0),
+                          windows=(LabelledWindow(id="a:0", box=np.array([15.0, 15, 45, 50])),)),
+             LabelledView(dataset="m", name="a", image=_facade(1),  # same name as t/a: own folders
+                          windows=(LabelledWindow(id="a:0", mask=SparseMask.from_dense(m)),)),
+             LabelledView(dataset="t", name="no/such", image=_facade(2),  # its file cannot be written: raises
+                          windows=())]
+    spec = pe.KfreeSpec(datasets=("t", "m"), transform_datasets=("t",), mask_datasets=("m",),
+                        transforms=("mirror",))
+    one, two = (pe.evaluate_kfree(spec, views, workers=w).drop(columns="seconds") for w in (1, 2))
+    assert list(one[["dataset", "photo", "transform"]].itertuples(index=False, name=None)) == [
+        ("t", "a", "as_is"), ("t", "a", "mirror"), ("m", "a", "as_is"), ("t", "no/such", "as_is"), ("t", "no/such", "mirror")]
+    assert one.loc[3:, "error"].str.startswith("FileNotFoundError").all() and not one.loc[3:, "output"].any()
+    assert one.loc[:2, "error"].isna().all() and one.loc[2, "detections"] == "labelled masks"
+    for df in (one, two):  # the error names the run's temporary folder
+        df["error"] = df["error"].str.replace(r"fenestra-kfree-[^/]+/", "TMP/", regex=True)
+    pd.testing.assert_frame_equal(one, two)
