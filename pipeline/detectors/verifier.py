@@ -2,10 +2,11 @@
 door or a signboard (issue #23, item 5), applied in EffWin's post-processing.
 
 For each detection, the network's feature maps are averaged inside its box and inside the box
-grown by ``context`` (:func:`roi_align`, torchvision's RoIAlign in pure torch), beside a few numbers about the box (aspect,
-position and size in the image, score, void/core evidence: :func:`geometry_features`). A logistic
-regression on these (``VerifierHead``; fitted by training/verifier.py on the real train photos'
-doors and signboards) gives p(window); a detection below the head's ``threshold`` is dropped.
+grown by ``context`` (:func:`roi_align`: torchvision's RoIAlign in pure torch), beside a few
+numbers about the box (aspect, position and size in the image, score, void/core evidence:
+:func:`geometry_features`). A logistic regression on these (``VerifierHead``; fitted by
+training/verifier.py on the real train photos' doors and signboards) gives p(window); a detection
+below the head's ``threshold`` is dropped.
 
 The head ships inside the weights file (key ``"verifier"``, :func:`head_to_dict`), checked on
 load (:func:`head_from_dict`: FenestraError naming what is wrong), so it always belongs to the
