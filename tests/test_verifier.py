@@ -1,6 +1,7 @@
 """EffWin's box verifier (pipeline/detectors/verifier.py, training/verifier.py; issue #23 item 5):
-the logistic fit, the head's checks on load, the safe weights loader, and a head trained on a few
-real train photos telling held-out doors and signboards from windows.
+the logistic fit, the head's checks on load, the safe weights loader, its pure-torch RoIAlign
+against torchvision's, and a head trained on a few real train photos telling held-out doors and
+signboards from windows.
 
 The street photos are the spb_facades train split in ../shared/real (not shipped: skipped when absent)."""
 from __future__ import annotations
@@ -8,6 +9,8 @@ from __future__ import annotations
 import dataclasses
 import io
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +19,8 @@ import torch
 
 from fenestra.errors import FenestraError
 from pipeline.detectors import DEFAULT_WEIGHTS, detect, get_detector, read_weights
-from pipeline.detectors.verifier import FeatureSpec, VerifierHead, head_from_dict, head_to_dict
+from pipeline.detectors import verifier
+from pipeline.detectors.verifier import FeatureSpec, VerifierHead, head_from_dict, head_to_dict, roi_align
 from training.verifier import Samples, choose_threshold, fit_head, fit_logistic, label_detections
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -152,3 +156,79 @@ def test_head_trained_on_a_few_train_photos_tells_held_out_doors_from_windows():
     q = out_of_fold(dataclasses.replace(s, y=y), SPEC, 100.0, folds=4)
     auc0 = ((q[y == 1][:, None] > q[y == 0][None, :]).mean())
     assert auc0 < auc - 0.1, (auc0, auc)
+
+
+def _torchvision_roi_align(f, boxes, scale):
+    """What the verifier pooled with before: torchvision.ops.roi_align (imported here only)."""
+    from torchvision.ops import roi_align as tv_roi_align
+
+    b = torch.from_numpy(np.asarray(boxes, np.float64).reshape(-1, 4))
+    rois = torch.cat([torch.zeros((len(b), 1), dtype=b.dtype), b], dim=1).to(f.dtype)
+    return tv_roi_align(f, rois, output_size=(2, 2), spatial_scale=scale, sampling_ratio=2, aligned=True)
+
+
+@pytest.mark.parametrize("stride, hw", [(8, (37, 53)), (16, (20, 12)), (32, (9, 14)), (64, (3, 5)), (16, (1, 1))])
+def test_roi_align_equals_torchvision_inside_outside_and_below_a_pixel(stride, hw):
+    """Random maps and boxes in input pixels: inside the map, partly and wholly outside it (every
+    side), smaller than a pixel of the map or of the input, empty, and on its last row/column."""
+    rng = np.random.default_rng(stride + hw[0])
+    H, W = hw
+    f = torch.from_numpy(rng.normal(size=(1, 7, H, W)).astype(np.float32))
+    iw, ih = W * stride, H * stride
+    x0 = rng.uniform(-0.5 * iw, 1.2 * iw, 300)
+    y0 = rng.uniform(-0.5 * ih, 1.2 * ih, 300)
+    size = np.exp(rng.uniform(np.log(0.05), np.log(2.0 * max(iw, ih)), (300, 2)))
+    boxes = np.stack([x0, y0, x0 + size[:, 0], y0 + size[:, 1]], axis=1)
+    special = np.array([[0.0, 0.0, iw, ih], [-3.0 * iw, -3.0 * ih, -2.0 * iw, -2.0 * ih],
+                        [2.0 * iw, 2.0 * ih, 3.0 * iw, 3.0 * ih], [iw - 0.3, ih - 0.3, iw, ih],
+                        [-stride, -stride, 0.1, 0.1], [5.0, 5.0, 5.0, 5.0], [iw - stride, 0.0, iw + 2 * stride, ih],
+                        [0.3, 0.3, 0.7, 0.9], [-1.5 * stride, 0.0, -0.9 * stride, ih]])
+    boxes = np.concatenate([boxes, special])
+    ours, theirs = roi_align(f, boxes, 1.0 / stride), _torchvision_roi_align(f, boxes, 1.0 / stride)
+    assert ours.shape == theirs.shape == (len(boxes), 7, 2, 2) and ours.dtype == theirs.dtype
+    err = (ours - theirs).abs().max().item()
+    assert err <= 1e-6, err
+    assert (theirs[-8] == 0).all() and (theirs[-7] == 0).all()  # the wholly outside boxes do reach the zero case
+    assert len(roi_align(f, np.zeros((0, 4)), 1.0 / stride)) == 0
+
+
+def _real_photos() -> list[Path]:
+    photos = [ROOT / "examples" / "curtainwall" / n for n in ("img017.jpg", "img086.jpg")]
+    if not (SPB / "train" / "labels").is_dir():
+        return photos
+    from training.dataset import real_box_photos
+
+    return photos + real_box_photos(SPB / "train", "val")[:3]
+
+
+def test_verifier_decisions_on_real_photos_are_torchvisions(monkeypatch):
+    """The shipped detector with its verifier pooling by :func:`roi_align` and by torchvision's keeps
+    the same detections (boxes and scores) on the bundled photos (and 3 spb validation-part photos
+    when present), with every score kept (threshold 0)."""
+    from fenestra.images import read_image
+
+    n_compared = 0
+    for path in _real_photos():
+        image = read_image(path)
+        ours = detect("default", image, score_threshold=0.0)
+        with monkeypatch.context() as m:
+            m.setattr(verifier, "roi_align", _torchvision_roi_align)
+            theirs = detect("default", image, score_threshold=0.0)
+        assert [(tuple(d.box), d.score) for d in ours] == [(tuple(d.box), d.score) for d in theirs], path
+        n_compared += len(ours)
+    assert n_compared > 0
+
+
+def test_detecting_imports_neither_torchvision_ops_nor_dynamo():
+    """torchvision.ops pulls in torch._dynamo (seconds per process): the default detector, verifier
+    included, runs without either (a fresh interpreter)."""
+    code = ("import sys, numpy as np\n"
+            "from pipeline.detectors import detect\n"
+            "from fenestra.images import read_image\n"
+            "img = read_image('examples/curtainwall/img017.jpg')[:320, :480].copy()\n"
+            "n = len(detect('default', img, score_threshold=0.0))\n"
+            "print(n, sorted(m for m in ('torch._dynamo', 'torchvision.ops') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True,
+                         env={**os.environ, "OMP_NUM_THREADS": "1"}).stdout.split("\n")[-2]
+    n, loaded = out.split(" ", 1)
+    assert int(n) > 0 and loaded == "[]", out

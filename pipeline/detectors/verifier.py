@@ -2,10 +2,11 @@
 door or a signboard (issue #23, item 5), applied in EffWin's post-processing.
 
 For each detection, the network's feature maps are averaged inside its box and inside the box
-grown by ``context`` (torchvision.ops.roi_align), beside a few numbers about the box (aspect,
-position and size in the image, score, void/core evidence: :func:`geometry_features`). A logistic
-regression on these (``VerifierHead``; fitted by training/verifier.py on the real train photos'
-doors and signboards) gives p(window); a detection below the head's ``threshold`` is dropped.
+grown by ``context`` (:func:`roi_align`: torchvision's RoIAlign in pure torch), beside a few
+numbers about the box (aspect, position and size in the image, score, void/core evidence:
+:func:`geometry_features`). A logistic regression on these (``VerifierHead``; fitted by
+training/verifier.py on the real train photos' doors and signboards) gives p(window); a detection
+below the head's ``threshold`` is dropped.
 
 The head ships inside the weights file (key ``"verifier"``, :func:`head_to_dict`), checked on
 load (:func:`head_from_dict`: FenestraError naming what is wrong), so it always belongs to the
@@ -80,14 +81,65 @@ def _context_boxes(b: np.ndarray, shape: tuple[int, int], grow: float) -> np.nda
     return np.clip(g, [-0.5, -0.5, -0.5, -0.5], [W - 0.5, H - 0.5, W - 0.5, H - 0.5])
 
 
+def _axis_taps(t, size: int):
+    """Bilinear taps along one axis of length ``size`` at sample coordinates ``t`` (any shape):
+    (low index, high index, low weight, high weight), both weights 0 where t < -1 or t > size
+    (RoIAlign's out-of-map samples); t is clamped to 0 below and to the last index above."""
+    import torch  # noqa: PLC0415
+
+    inside = (t >= -1.0) & (t <= size)
+    t = t.clamp(min=0.0)
+    low = t.floor().long()  # t >= 0: floor is the C++ int cast
+    last = low >= size - 1
+    low = torch.where(last, torch.full_like(low, size - 1), low)
+    t = torch.where(last, low.to(t.dtype), t)
+    high = torch.where(last, low, low + 1)
+    frac = t - low.to(t.dtype)
+    zero = torch.zeros_like(t)
+    return low, high, torch.where(inside, 1.0 - frac, zero), torch.where(inside, frac, zero)
+
+
+def roi_align(f, boxes: np.ndarray, scale: float, bins: int = 2, samples: int = 2):
+    """(N, C, bins, bins) RoIAlign of (1, C, h, w) feature map ``f`` over N boxes (x0 y0 x1 y1 in
+    input pixels, continuous, times ``scale`` to reach the map): torchvision.ops.roi_align(f, rois,
+    (bins, bins), scale, sampling_ratio=samples, aligned=True) on the CPU, without importing
+    torchvision.ops (its import pulls in torch._dynamo: seconds per process). Each bin is the mean
+    of samples x samples bilinear samples at its sub-cell centres; the box is shifted by half a map
+    pixel; samples more than one pixel off the map count as 0, the others are clamped to it.
+    One sparse-as-dense pooling matrix times the map: memory N * bins**2 * h * w (the verifier's
+    stride-32 and -64 maps are small); about as fast as torchvision's kernel there."""
+    import torch  # noqa: PLC0415
+
+    _, C, H, W = f.shape
+    dt, dev = f.dtype, f.device
+    b = torch.as_tensor(np.asarray(boxes, np.float64).reshape(-1, 4), device=dev).to(dt)
+    start = b * torch.tensor(scale, dtype=dt, device=dev) - 0.5  # in torchvision's order of float operations
+    size = (start[:, 2:] - start[:, :2]) / bins  # (N, 2) bin width, height
+    cell = torch.arange(bins, dtype=dt, device=dev).repeat_interleave(samples)  # bin of each sample, ...
+    sub = (torch.arange(samples, dtype=dt, device=dev) + 0.5).repeat(bins)  # ... and its offset in the bin
+    ys = (start[:, 1:2] + cell * size[:, 1:2]) + sub * size[:, 1:2] / samples  # (N, bins * samples)
+    xs = (start[:, 0:1] + cell * size[:, 0:1]) + sub * size[:, 0:1] / samples
+    y0, y1, wy0, wy1 = _axis_taps(ys, H)
+    x0, x1, wx0, wx1 = _axis_taps(xs, W)
+    # the pooling as one (N * bins * bins, h * w) matrix: row (box, bin y, bin x), column a map
+    # pixel, entry the bilinear weights of the bin's samples on that pixel, summed
+    n, k = ys.shape
+    binof = torch.arange(k, device=dev) // samples  # bin of each sample along an axis
+    rows = (torch.arange(n, device=dev)[:, None, None] * bins + binof[None, :, None]) * bins + binof[None, None, :]
+    pool = torch.zeros(n * bins * bins * H * W, dtype=dt, device=dev)
+    for yi, wy in ((y0, wy0), (y1, wy1)):
+        for xi, wx in ((x0, wx0), (x1, wx1)):
+            col = yi[:, :, None] * W + xi[:, None, :]
+            pool.index_add_(0, (rows * (H * W) + col).reshape(-1), (wy[:, :, None] * wx[:, None, :]).reshape(-1))
+    pooled = pool.reshape(n * bins * bins, H * W) @ f.reshape(C, H * W).t() / (samples * samples)
+    return pooled.reshape(n, bins, bins, C).permute(0, 3, 1, 2).contiguous()
+
+
 def box_features(feats: dict, boxes: np.ndarray, shape: tuple[int, int], extras: np.ndarray,
                  spec: FeatureSpec) -> np.ndarray:
     """(N, D) features of N boxes (x0 y0 x1 y1 px, pixel-edge outline) on an image of ``shape``:
     per layer of ``spec`` the mean feature inside the box (and inside its context box), then
     :func:`geometry_features`. feats: name -> (1, C, h, w) torch tensors (the padded input's)."""
-    import torch  # noqa: PLC0415
-    from torchvision.ops import roi_align  # noqa: PLC0415
-
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     if not len(b):
         return np.zeros((0, feature_dim(feats, spec)), np.float64)
@@ -95,10 +147,8 @@ def box_features(feats: dict, boxes: np.ndarray, shape: tuple[int, int], extras:
     sets = [edges] + ([_context_boxes(b, shape, spec.context) + 0.5] if spec.context > 0 else [])
     cols = []
     for name, stride in zip(spec.layers, spec.strides):
-        f = feats[name]
         for s in sets:
-            rois = torch.from_numpy(np.concatenate([np.zeros((len(s), 1)), s], axis=1)).to(f.dtype)
-            pooled = roi_align(f, rois, output_size=(2, 2), spatial_scale=1.0 / stride, sampling_ratio=2, aligned=True)
+            pooled = roi_align(feats[name], s, 1.0 / stride)
             cols.append(pooled.mean(dim=(2, 3)).double().numpy())
     cols.append(geometry_features(b, shape, extras))
     return np.concatenate(cols, axis=1)
