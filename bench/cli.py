@@ -71,7 +71,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         from bench.profiles import load_profile  # noqa: PLC0415
         from bench.real.profile import is_real_profile  # noqa: PLC0415
         from bench.results import load_summary  # noqa: PLC0415
-        from bench.runner import run_benchmark  # noqa: PLC0415
+        from bench.runner import report_apart, run_benchmark  # noqa: PLC0415
 
         if workers < 0:
             raise ValueError(f"--workers must be >= 0, got {workers}")
@@ -96,7 +96,8 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                 raise FileNotFoundError(f"--real {real}: not a benchmark run folder (no summary.json)")
             if real is not None and load_summary(real)["metadata"].get("kind") != "real":
                 raise ValueError(f"--real {real}: not a real-photo run (fenestra bench --profile real makes one)")
-            report = None if no_report else functools.partial(write_report, real_dir=real)
+            # the report in its own process: its memory and the evaluation's never add up (#26)
+            report = None if no_report else functools.partial(report_apart, functools.partial(write_report, real_dir=real))
             info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
                                  report=report, executor=executor, executor_options=opts, force=force, csv=csv)
         summary = load_summary(info.run_dir)

@@ -193,11 +193,47 @@ def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
 
 def peak_rss_mb() -> dict[str, float]:
     """Peak resident memory (MB) so far of this process and of its largest finished child (a
-    worker of the evaluation's process pool): what bounds a run's memory."""
+    worker of the evaluation's process pool, or the report's process): what bounds a run's memory."""
     import resource  # noqa: PLC0415
 
     return {who: resource.getrusage(r).ru_maxrss / 1024.0
             for who, r in (("main", resource.RUSAGE_SELF), ("largest_worker", resource.RUSAGE_CHILDREN))}
+
+
+def _report_child(report: ReportWriter, run_dir: Path, conn) -> None:
+    """Child side of :func:`report_apart`: run the report, send back None or its error's one line."""
+    from fenestra.errors import one_line  # noqa: PLC0415
+
+    try:
+        report(run_dir)
+        conn.send(None)
+    except BaseException as e:  # noqa: BLE001 - sent to the parent, which raises it as one line
+        conn.send(f"{type(e).__name__}: {one_line(e)}")
+    finally:
+        conn.close()
+
+
+def report_apart(report: ReportWriter, run_dir: Path) -> None:
+    """report(run_dir) in a spawned process (report must pickle: a module-level function or a
+    functools.partial of one). The evaluation's memory, which this process's allocator keeps, and
+    the report's reading of the results table then never add up in one process (peak RSS bounded
+    by the larger of the two). Its failure is raised here as a FenestraError of one line."""
+    import multiprocessing as mp  # noqa: PLC0415
+
+    ctx = mp.get_context("spawn")
+    recv, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=_report_child, args=(report, Path(run_dir), send), name="fenestra-report")
+    child.start()
+    send.close()
+    try:
+        error = recv.recv()
+    except EOFError:
+        error = "the report process ended without a result"
+    child.join()
+    if error is None and child.exitcode != 0:
+        error = f"the report process exited with code {child.exitcode}"
+    if error is not None:
+        raise FenestraError(f"report of {run_dir}: {error}")
 
 
 def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) -> dict[str, dict]:

@@ -208,12 +208,16 @@ def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default"
 
 
 def render_margin(cwd: Path, scene: str = "fzk-haus", few: int = 10, many: int = 60) -> dict:
-    """Views per second of ``fenestra render`` at the margin (many - few views, fresh folders)."""
+    """Views per second of ``fenestra render`` at the margin (many - few views, fresh folders),
+    after one uncounted warm-up render (the first render of a machine fills the driver's shader and
+    the scene caches, which would otherwise be charged to the few-view run). NaN if the margin is
+    not positive (a measurement drowned in noise, never an infinite rate)."""
+    _fenestra(["render", "--scene", scene, "--views", "2", "--out", str(cwd / "render-warmup")], cwd)
     t = {n: _fenestra(["render", "--scene", scene, "--views", str(n), "--out", str(cwd / f"render-{n}")], cwd)
          for n in (few, many)}
     per_view = (t[many] - t[few]) / (many - few)
     return {"scene": scene, "wall_s": {str(k): v for k, v in t.items()}, "s_per_view": per_view,
-            "views_per_s": 1.0 / per_view if per_view > 0 else float("inf")}
+            "views_per_s": 1.0 / per_view if per_view > 0 else float("nan")}
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -81,3 +81,22 @@ def test_smoke_gates_fail_broken_snapper_only(run):
     bad = {x.method for x in v}
     assert "oracle/shift5/lm" in bad, v
     assert not bad - {"oracle/shift5/lm"}, [str(x) for x in v]
+
+
+def test_report_apart_runs_in_a_child_and_raises_its_error_as_one_line(tmp_path):
+    """The bench CLI's report runs in a spawned process (its memory never adds to the evaluation's):
+    what it writes is there afterwards, and its failure comes back as one FenestraError line."""
+    import os
+
+    import pytest
+
+    from bench.runner import report_apart
+    from fenestra.errors import FenestraError
+    from reports.cli import write_report
+
+    report_apart(os.mkdir, tmp_path / "made-by-the-child")
+    assert (tmp_path / "made-by-the-child").is_dir()
+    with pytest.raises(FenestraError) as e:
+        report_apart(write_report, tmp_path / "not-a-run")
+    msg = str(e.value)
+    assert "\n" not in msg and str(tmp_path / "not-a-run") in msg, msg
