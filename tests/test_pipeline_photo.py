@@ -5,7 +5,6 @@ The street photos are the spb_facades test split in ../shared/real (not shipped:
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import cv2
@@ -14,11 +13,10 @@ import pytest
 
 from pipeline.cli import run_reconstruct
 
+from spb import SPB, needs_spb as spb_mark
+
 ROOT = Path(__file__).resolve().parents[1]
-SPB = Path(os.environ.get("FENESTRA_SPB", ROOT.parent / "shared" / "real" / "spb_facades"))
-NO_SPB = (f"the spb_facades photos are not in {SPB}: not shipped (their licence is unverified); "
-          "point FENESTRA_SPB at a copy")
-needs_spb = pytest.mark.skipif(not (SPB / "images" / "img_185.jpg").is_file(), reason=NO_SPB)
+needs_spb = spb_mark(Path("images") / "img_185.jpg")
 
 
 def test_blank_photo_without_K_is_written_with_its_failures(tmp_path):

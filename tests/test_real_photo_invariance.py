@@ -14,19 +14,17 @@ Measured on all 10 test photos (these transforms, default detector; /tmp script 
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
+from spb import SPB, needs_spb as spb_mark
+
 ROOT = Path(__file__).resolve().parents[1]
-SPB = Path(os.environ.get("FENESTRA_SPB", ROOT.parent / "shared" / "real" / "spb_facades"))
-NO_SPB = (f"the spb_facades photos are not in {SPB}: not shipped (their licence is unverified); "
-          "point FENESTRA_SPB at a copy")
 pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(not (SPB / "images" / "img_185.jpg").is_file(), reason=NO_SPB)]
+              spb_mark(Path("images") / "img_185.jpg")]
 
 CROP = 0.05  # per side: 10 % of each dimension, centred (the principal point stays at the centre)
 

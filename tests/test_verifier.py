@@ -23,11 +23,10 @@ from pipeline.detectors import verifier
 from pipeline.detectors.verifier import FeatureSpec, VerifierHead, head_from_dict, head_to_dict, roi_align
 from training.verifier import Samples, choose_threshold, fit_head, fit_logistic, label_detections
 
+from spb import SPB, needs_spb as spb_mark
+
 ROOT = Path(__file__).resolve().parents[1]
-SPB = Path(os.environ.get("FENESTRA_SPB", ROOT.parent / "shared" / "real" / "spb_facades"))
-needs_spb = pytest.mark.skipif(not (SPB / "train" / "labels").is_dir(),
-                               reason=f"the spb_facades photos are not in {SPB}: not shipped (their licence is "
-                                      "unverified); point FENESTRA_SPB at a copy")
+needs_spb = spb_mark(Path("train") / "labels")
 CHANNELS = {"bb32": 112, "bb64": 320, "dec32": 96, "dec16": 64, "dec8": 48}
 
 
