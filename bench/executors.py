@@ -91,6 +91,15 @@ def _environ(env: dict[str, str]) -> Iterator[None]:
                 os.environ[k] = v
 
 
+@contextlib.contextmanager
+def worker_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A pool of ``workers`` spawned processes (no fork after EGL/torch state in the parent), each
+    with capped BLAS/OpenMP/OpenCV threads (:func:`thread_env`, :func:`init_worker`)."""
+    ctx = mp.get_context("spawn")
+    with _environ(thread_env()), ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker) as pool:
+        yield pool
+
+
 def init_worker(threads: int = THREADS_PER_WORKER) -> None:
     """Cap this process's OpenCV threads (BLAS/OpenMP ones come from :func:`thread_env`)."""
     os.environ.update(thread_env(threads))
@@ -151,8 +160,7 @@ def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = Tru
                 outcomes.append(keep(_evaluate_to_frame(t)))
                 bar.advance(job)
             return outcomes
-        ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
-        with _environ(thread_env()), ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker) as pool:
+        with worker_pool(workers) as pool:
             for o in pool.map(_evaluate_to_frame, tasks, chunksize=1):
                 outcomes.append(keep(o))
                 bar.advance(job)

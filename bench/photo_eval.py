@@ -295,14 +295,9 @@ def _rows(tasks: list[KfreeTask], workers: int) -> Iterator[dict]:
             except Exception as e:  # noqa: BLE001 - a failed run is a row
                 yield failed_row(t, e)
         return
-    import multiprocessing as mp  # noqa: PLC0415
-    from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415
+    from bench.executors import worker_pool  # noqa: PLC0415
 
-    from bench.executors import _environ, init_worker, thread_env  # noqa: PLC0415
-
-    ctx = mp.get_context("spawn")  # no fork after EGL/torch state in the parent
-    with _environ(thread_env()), ProcessPoolExecutor(min(workers, len(tasks)), mp_context=ctx,
-                                                     initializer=init_worker) as pool:
+    with worker_pool(min(workers, len(tasks))) as pool:
         futures = [pool.submit(run_task, t) for t in tasks]
         for t, f in zip(tasks, futures):
             try:

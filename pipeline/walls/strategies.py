@@ -244,7 +244,11 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
                                              True, lines, sigmas, memo)
     except (np.linalg.LinAlgError, ValueError) as e:
         raise FacadeError(f"joint fit with free focal length failed: {e}") from e
-    sd = float(np.sqrt(max(fit.cov[-1, -1], 0.0)))
+    var = float(fit.cov[-1, -1])
+    if not var > 0.0:  # an indefinite covariance (rank-deficient fit): no sd to trust
+        raise FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} px, its variance {var:.3g} "
+                          f"is not positive")
+    sd = float(np.sqrt(var))
     if not sd / fit.focal_px <= WALL_FIT.focal_max_rel_sd:
         raise FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} +- {sd:.0f} px "
                           f"(relative sd above {WALL_FIT.focal_max_rel_sd})")
@@ -259,7 +263,7 @@ def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
     see :func:`apply_walls`); FacadeError when unobservable."""
     segments = photo_segments(segment_cache, params, image_shape)
     fit = fit_walls_focal(quads, image_shape, 1.0, params, segments)[2]
-    return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))
+    return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))  # > 0: fit_walls_focal checked it
 
 
 def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: tuple[int, int],
