@@ -7,6 +7,7 @@ The street photos are the spb_facades train split in ../shared/real (not shipped
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import io
 import os
 import subprocess
@@ -86,13 +87,30 @@ def _head(dim_layers=("dec16",), context=1.0) -> VerifierHead:
     ({"bias": float("nan")}, "bias"),
 ])
 def test_bad_head_entries_are_refused_in_one_line(change, message):
-    d = head_to_dict(_head())
+    d = head_to_dict(_head(), "f" * 64)
     assert head_from_dict(d, "w.pt", CHANNELS).threshold == 0.3
     with pytest.raises(FenestraError, match=message) as e:
         head_from_dict({**d, **change}, "w.pt", CHANNELS)
     assert "\n" not in str(e.value) and str(e.value).startswith("w.pt: its box verifier is unusable")
     with pytest.raises(FenestraError, match="no 'bias'"):
         head_from_dict({k: v for k, v in d.items() if k != "bias"}, "w.pt", CHANNELS)
+
+
+def test_a_verifier_beside_another_network_is_refused(tmp_path):
+    """The head reads one network's features: the shipped file's network fingerprint is recorded in
+    its verifier, and the same verifier beside a network with one weight changed is refused."""
+    ckpt = read_weights(DEFAULT_WEIGHTS)
+    assert ckpt["verifier"]["network_sha256"] == hashlib.sha256(b"".join(
+        f"{k}|{t.dtype}|{tuple(t.shape)}|".encode() + t.contiguous().reshape(-1).view(torch.uint8).numpy().tobytes()
+        for k, t in sorted(ckpt["state_dict"].items()))).hexdigest()
+    state = dict(ckpt["state_dict"])
+    name = next(k for k, t in state.items() if t.is_floating_point())
+    state[name] = state[name] + 1.0
+    other = tmp_path / "other.pt"
+    torch.save({**ckpt, "state_dict": state}, other)
+    with pytest.raises(FenestraError, match=f"{other}: its box verifier is unusable: it was fitted on network") as e:
+        get_detector("default", weights=other)
+    assert "\n" not in str(e.value)
 
 
 def test_shipped_default_has_a_checked_verifier_and_a_broken_one_names_the_file(tmp_path):

@@ -26,7 +26,8 @@ import numpy as np
 
 from fenestra import data
 from fenestra.errors import DatasetError, FenestraError
-from pipeline.detectors.verifier import FeatureSpec, VerifierHead, box_features, detection_extras, head_to_dict
+from pipeline.detectors.verifier import (FeatureSpec, VerifierHead, box_features, detection_extras, head_to_dict,
+                                         network_fingerprint)
 
 MIN_SCORE = 0.05  # detections scored like training.evaluate.evaluate_boxes' (COCO AP) ones
 SHIPPED_THRESHOLD = 0.5  # pipeline.detectors.detect's default score threshold
@@ -243,7 +244,7 @@ def add_verifier(weights: str | Path, yolo_dir: str | Path, out: str | Path | No
     ckpt = read_weights(weights, ("effwin",))
     samples = collect(weights, yolo_dir, holdout_every, renders=tuple(renders), render_views=render_views, log=log)
     fitted = train_head(samples, SPEC, l2, keep_windows)
-    ckpt["verifier"] = head_to_dict(fitted.head, {
+    ckpt["verifier"] = head_to_dict(fitted.head, network_fingerprint(ckpt["state_dict"]), {
         "photos": f"{yolo_dir} (train part, every {holdout_every}th photo held out)",
         "renders": [str(r) for r in renders], "render_views": render_views, "n_images": fitted.n_photos,
         "n_windows": fitted.n_windows, "n_doors_signboards": fitted.n_negatives, "l2": l2,

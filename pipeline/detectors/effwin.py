@@ -34,7 +34,7 @@ from torch import nn
 from fenestra.errors import FenestraError
 from pipeline.detectors.winnet import (PostConfig, _block, instances_from_maps, load_state, pad_to_stride,
                                        post_from_checkpoint)
-from pipeline.detectors.verifier import VerifierHead, head_from_dict, verified
+from pipeline.detectors.verifier import VerifierHead, head_from_dict, network_fingerprint, verified
 from pipeline.types import Detection
 
 MEAN, STD = 127.0, 128.0  # TF EfficientNet-Lite preprocessing (see the module docstring)
@@ -262,7 +262,8 @@ def verifier_from_checkpoint(model: EffWin, ckpt: dict) -> VerifierHead | None:
     maps; None when the file has none. FenestraError when it is unusable."""
     if "verifier" not in ckpt:
         return None
-    head = head_from_dict(ckpt["verifier"], channels=model.feature_channels)
+    head = head_from_dict(ckpt["verifier"], channels=model.feature_channels,
+                          network=network_fingerprint(ckpt["state_dict"]))
     strides = tuple(FEATURE_STRIDES[n] for n in head.spec.layers)
     if head.spec.strides != strides:
         raise FenestraError(f"its box verifier is unusable: strides {head.spec.strides} for layers "

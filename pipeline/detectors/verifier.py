@@ -9,14 +9,17 @@ training/verifier.py on the real train photos' doors and signboards) gives p(win
 below the head's ``threshold`` is dropped.
 
 The head ships inside the weights file (key ``"verifier"``, :func:`head_to_dict`), checked on
-load (:func:`head_from_dict`: FenestraError naming what is wrong), so it always belongs to the
-network whose features it reads. A weights file without the key runs without a verifier.
+load (:func:`head_from_dict`: FenestraError naming what is wrong). It records the fingerprint of
+the network it was fitted on (:func:`network_fingerprint`, the sha256 of the weights), and is refused
+beside any other network: the features it reads are that network's. A weights file without the key
+runs without a verifier.
 
     head = head_from_dict(ckpt["verifier"], where="pipeline/models/default.pt")
     keep = head.window_probability(box_features(feats, boxes, shape, extras, head.spec)) >= head.threshold
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -178,20 +181,40 @@ def verified(dets: list, void_p: np.ndarray, feats: dict, head: VerifierHead) ->
 
 # ---------------------------------------------------------------- in a weights file
 
-def head_to_dict(head: VerifierHead, meta: dict | None = None) -> dict:
+def network_fingerprint(state_dict: dict) -> str:
+    """sha256 (hex) of a network's weights (name -> torch tensor): every tensor's name, dtype, shape
+    and bytes, in name order. The verifier records the one of the network it was fitted on."""
+    h = hashlib.sha256()
+    for name in sorted(state_dict):
+        t = state_dict[name].detach().cpu().contiguous()
+        h.update(f"{name}|{t.dtype}|{tuple(t.shape)}|".encode())
+        h.update(_tensor_bytes(t))
+    return h.hexdigest()
+
+
+def _tensor_bytes(t) -> bytes:
+    """The raw bytes of a contiguous CPU tensor of any dtype (bfloat16 included)."""
+    import torch  # noqa: PLC0415
+
+    return t.reshape(-1).view(torch.uint8).numpy().tobytes()
+
+
+def head_to_dict(head: VerifierHead, network: str, meta: dict | None = None) -> dict:
     """The weights file's ``"verifier"`` entry (plain lists and numbers: torch.load's safe loader
-    reads it)."""
-    return {"version": VERSION, "layers": list(head.spec.layers), "strides": list(head.spec.strides),
+    reads it); network: the :func:`network_fingerprint` of the network it was fitted on."""
+    return {"version": VERSION, "network_sha256": str(network), "layers": list(head.spec.layers), "strides": list(head.spec.strides),
             "context": float(head.spec.context), "mean": [float(v) for v in head.mean],
             "std": [float(v) for v in head.std], "weight": [float(v) for v in head.weight],
             "bias": float(head.bias), "threshold": float(head.threshold), "meta": dict(meta or {})}
 
 
-def head_from_dict(d: object, where: str = "", channels: dict[str, int] | None = None) -> VerifierHead:
-    """The VerifierHead of a weights file's ``"verifier"`` entry, checked: version, layer names
-    (among ``channels``, name -> C, when given), vector lengths (D = the features those layers
-    give), finite numbers, std > 0, threshold in [0, 1]. FenestraError naming ``where`` (the file,
-    when known) and the bad field otherwise."""
+def head_from_dict(d: object, where: str = "", channels: dict[str, int] | None = None,
+                   network: str | None = None) -> VerifierHead:
+    """The VerifierHead of a weights file's ``"verifier"`` entry, checked: version, the fingerprint
+    of the network it was fitted on (equal to ``network``, when given), layer names (among
+    ``channels``, name -> C, when given), vector lengths (D = the features those layers give),
+    finite numbers, std > 0, threshold in [0, 1]. FenestraError naming ``where`` (the file, when
+    known) and the bad field otherwise."""
     def bad(what: str) -> FenestraError:
         return FenestraError(f"{where + ': ' if where else ''}its box verifier is unusable: {what}; retrain it "
                              "with `fenestra train-verifier` (a step of `make train`)")
@@ -200,6 +223,9 @@ def head_from_dict(d: object, where: str = "", channels: dict[str, int] | None =
         raise bad(f"a {type(d).__name__}, not a dict")
     if d.get("version") != VERSION:
         raise bad(f"version {d.get('version')!r}, expected {VERSION}")
+    if network is not None and d.get("network_sha256") != network:
+        raise bad(f"it was fitted on network {str(d.get('network_sha256'))[:12]!r}, this file's network is "
+                  f"{network[:12]!r}")
     try:
         spec = FeatureSpec(tuple(str(n) for n in d["layers"]), tuple(int(s) for s in d["strides"]), float(d["context"]))
         vecs = {k: np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "weight")}
