@@ -26,6 +26,7 @@ class Tolerances:
     parallel_sides_deg: float = 0.05  # opposite image sides closer than this count as parallel
     match_iou: float = 0.5  # detection <-> ground truth matching
     recall_thresholds_px: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0)
+    all_corners_px: float = 5.0  # a window's quad is usable when all four corners are this close (issue 23)
 
 
 TOL = Tolerances()

@@ -136,6 +136,11 @@ def run(tmp_path_factory):
     return _learned_run(tmp_path_factory.mktemp("run"))
 
 
+def r_pose(doc) -> str:
+    """The pose of the per-house table of the CLI default detector."""
+    return doc["synthetic"]["per_house"][DEFAULTS.detector]["pose"]
+
+
 def _median(df, **where) -> float:
     ev = df[df.evaluable.astype(bool)]
     for k, v in where.items():
@@ -152,8 +157,15 @@ def test_generated_figures_are_the_tables_medians(run, tmp_path):
         assert r["median"] == pytest.approx(_median(df, snapper=r["snapper"]), rel=1e-3)
     houses = {r["house"]: r for r in doc["synthetic"]["per_house"][DEFAULTS.detector]["rows"]}
     assert houses["fzk-haus"]["trained"] and not houses["samplehouse4"]["trained"]
-    for h, r in houses.items():
-        assert r["snap_median"] == pytest.approx(_median(df, snapper="good", house=h), rel=1e-3)
+    assert houses["unseen houses"]["together"] and not houses["samplehouse4"]["together"]
+    for h, real in (("fzk-haus", "fzk-haus"), ("samplehouse4", "samplehouse4"), ("unseen houses", "samplehouse4"),
+                    ("trained-on houses", "fzk-haus")):
+        r = houses[h]
+        assert r["snap_median"] == pytest.approx(_median(df, snapper="good", house=real), rel=1e-3)
+        ev = df[df.evaluable.astype(bool) & (df.snapper == "good") & (df.house == real) & (df.pose == r_pose(doc))]
+        close = sum(1 for v in ev["corner_err_px_snap_max"] if v == v and v <= 5.0)  # NaN (no quad) is not close
+        assert r["all_corners_close"] == pytest.approx(close / len(ev), abs=1e-3)
+        assert r["quad_rate"] == pytest.approx(ev["corner_err_px_snap"].notna().mean(), abs=1e-3)
     table = md.lead_table(doc["synthetic"])
     assert f"**{_median(df, snapper='good'):.2f} px" in table[2]  # the best is bold
     pv = doc["synthetic"]["provenance"]
