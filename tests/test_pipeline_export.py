@@ -521,10 +521,10 @@ def test_glb_rerendered_from_the_photo_camera_reproduces_the_photo(outputs):
 
 @pytest.mark.parametrize("hole", [False, True])
 def test_wall_mesh_is_a_closed_gridded_slab(hole):
-    from pipeline.export.geometry import place, wall_mesh
+    from pipeline.export.geometry import place, void_hole, wall_mesh
 
     pw = place(window_result(1, 1.3))
-    V, F = wall_mesh(pw, hole)
+    V, F = wall_mesh(pw, [void_hole(pw)], cut=hole)
     tm = trimesh.Trimesh(V, F, process=False)
     assert tm.is_watertight and tm.is_winding_consistent
     w, h = VOIDS[1][2], VOIDS[1][3]
@@ -534,3 +534,27 @@ def test_wall_mesh_is_a_closed_gridded_slab(hole):
     for x in (0.0, w):  # the void's edges are grid lines (clean booleans, exact reveals)
         assert np.isclose(front[:, 0], x).sum() >= 3
     assert 16 < len(V) < 2 * 65 * 65
+
+
+@pytest.mark.parametrize("holes, open_area", [
+    ([(0.0, 0.0, 1.0, 1.5), (2.0, 0.2, 3.2, 1.0)], 1.5 + 1.2 * 0.8),  # two windows of one wall
+    ([(0.0, 0.0, 1.0, 1.5), (0.5, 1.0, 2.0, 2.0)], 1.5 + 1.5 - 0.25),  # overlapping voids: their union
+    ([(0.0, 0.0, 1.0, 1.0), (1.0, 0.0, 2.0, 1.0)], 2.0),  # touching voids
+])
+def test_a_fitted_wall_is_one_closed_slab_with_every_void(holes, open_area):
+    """OBJ/GLB: a fitted wall is one solid with a hole per window (as model.ifc's IfcWall with its
+    openings): watertight, outward normals, volume (outline - union of voids) x thickness, every
+    void edge a grid line (areas computed by hand above, not by the mesher)."""
+    from pipeline.export.geometry import PlacedWindow, wall_mesh
+
+    wall = PlacedWindow(7, 3.2, 2.0, np.eye(3), np.array([0.0, 0.0, 8.0]))
+    V, F = wall_mesh(wall, holes, margin_m=0.5, thickness_m=0.3)
+    tm = trimesh.Trimesh(V, F, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent
+    assert tm.volume == pytest.approx(((3.2 + 1.0) * (2.0 + 1.0) - open_area) * 0.3, rel=1e-9)
+    front = V[np.abs(V[:, 2]) < 1e-12]
+    for x0, y0, x1, y1 in holes:
+        for x in (x0, x1):
+            assert np.isclose(front[:, 0], x).sum() >= 2
+        for y in (y0, y1):
+            assert np.isclose(front[:, 1], y).sum() >= 2

@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import trimesh
 
 from pipeline.cli import run_reconstruct
 
@@ -106,6 +107,15 @@ def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
     w0 = doc["windows"][0]  # the user's K is exact: the interval is the fit's own
     assert w0["aspect_interval"] == pytest.approx([w0["uncertainty"]["aspect_lo"], w0["uncertainty"]["aspect_hi"]])
     assert ifcopenshell.util.element.get_psets(walls[0])["Fenestra_Wall"]["WindowCount"] == 3
+    # OBJ and GLB hold the same one wall: one closed, photo-textured slab with the three panes' voids
+    scene = trimesh.load(str(tmp_path / "out" / "model.glb"), force="scene")
+    slabs = [n for n in scene.geometry if n.startswith("wall_")]
+    assert len(slabs) == 1 and slabs[0].startswith("wall_w"), slabs  # the fitted wall, not a pane's fragment
+    slab = scene.geometry[slabs[0]]
+    assert slab.is_watertight and slab.volume > 0
+    obj_walls = [ln for ln in (tmp_path / "out" / "model.obj").read_text().splitlines()
+                 if ln.startswith(("o wall_", "g wall_"))]
+    assert len(obj_walls) == 1, obj_walls
 
 
 def test_python_api_returns_what_windows_json_holds(tmp_path):

@@ -111,7 +111,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K, placed, layout, "texture.png", style,
                  walls=walls, properties=properties, wall_properties=wall_properties)
     paths["ifc"] = out / "model.ifc"
-    parts = model_parts(K, placed, layout, style)
+    parts = model_parts(K, placed, layout, style, walls=walls)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
     if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
         paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)

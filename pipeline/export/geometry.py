@@ -104,10 +104,27 @@ def wall_outline(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> np.ndarra
     return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
 
 
-def _spans(lo: float, a: float, b: float, hi: float, cell_m: float) -> np.ndarray:
-    """Sorted breakpoints covering [lo, a], [a, b], [b, hi], each split into cells <= cell_m."""
-    parts = [np.linspace(p, q, max(1, int(np.ceil((q - p) / cell_m))) + 1) for p, q in ((lo, a), (a, b), (b, hi))]
-    return np.concatenate([parts[0], parts[1][1:], parts[2][1:]])
+def _breaks(lo: float, hi: float, edges, cell_m: float) -> np.ndarray:
+    """Sorted breakpoints (m) from ``lo`` to ``hi`` through every edge inside (knots closer than
+    1 um are one), each interval split into cells <= cell_m."""
+    knots = np.sort(np.clip(np.asarray([lo, hi, *edges], dtype=np.float64), lo, hi))
+    knots = knots[np.concatenate([[True], np.diff(knots) > 1e-6])]
+    knots[-1] = hi
+    parts = [np.linspace(p, q, max(1, int(np.ceil((q - p) / cell_m))) + 1) for p, q in zip(knots[:-1], knots[1:])]
+    return np.concatenate([parts[0]] + [q[1:] for q in parts[1:]])
+
+
+def void_hole(pw: PlacedWindow) -> tuple[float, float, float, float]:
+    """The void of ``pw`` in its own window frame: (x0, y0, x1, y1) m."""
+    return (0.0, 0.0, pw.width_m, pw.height_m)
+
+
+def hole_in(frame: PlacedWindow, pw: PlacedWindow) -> tuple[float, float, float, float]:
+    """The void of window ``pw`` in the frame of ``frame`` (a fitted wall's placement): the (x0, y0,
+    x1, y1) m rectangle around its corners (its members lie on that plane up to the merge tolerance)."""
+    xy = ((pw.to_camera(pw.void_corners()) - frame.t) @ frame.R)[:, :2]
+    (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
+    return (float(x0), float(y0), float(x1), float(y1))
 
 
 def wall_cell_m(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> float:
@@ -124,49 +141,57 @@ def wall_cell_m(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> float:
     return float(max(WALL_CELL_FRACTION * near, span / WALL_MAX_CELLS))
 
 
-def wall_mesh(pw: PlacedWindow, hole: bool, margin_m: float = WALL_MARGIN_M,
+def wall_mesh(pw: PlacedWindow, voids=(), cut: bool = True, margin_m: float = WALL_MARGIN_M,
               thickness_m: float = WALL_THICKNESS_M, cell_m: float | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
-    """The wall fragment as a closed, gridded triangle mesh in the window frame: (N, 3) m, (M, 3).
+    """A wall as a closed, gridded triangle mesh in the frame of ``pw``: (N, 3) m, (M, 3).
 
-    Exterior face at z = 0, interior face at z = -thickness_m, outline = void + margin_m on every
-    side; the void's edges are grid lines. ``hole=True`` leaves the void out (OBJ/GLB, with reveal
-    faces); ``hole=False`` gives a solid slab (IFC, where an IfcOpeningElement cuts the void).
-    Faces wind counter-clockwise seen from outside the solid.
+    Exterior face at z = 0, interior face at z = -thickness_m, outline = [0, w] x [0, h] of ``pw``
+    + margin_m on every side. ``voids``: rectangles (x0, y0, x1, y1) m in that frame (:func:`void_hole`
+    of a window, :func:`hole_in` of a wall's windows); their edges and [0, w] x [0, h]'s are grid
+    lines. ``cut=True`` leaves the voids out, with reveal faces (OBJ/GLB); ``cut=False`` gives a
+    solid slab (IFC, where an IfcOpeningElement cuts each void: clean booleans on grid lines). Faces
+    wind counter-clockwise seen from outside the solid; a side face stands wherever a solid grid
+    cell meets a void or the outside.
     """
     cell = wall_cell_m(pw, margin_m) if cell_m is None else float(cell_m)
-    w, h, m = pw.width_m, pw.height_m, margin_m
-    xs, ys = _spans(-m, 0.0, w, w + m, cell), _spans(-m, 0.0, h, h + m, cell)
+    voids = np.asarray(list(voids), dtype=np.float64).reshape(-1, 4)
+    holes = voids if cut else voids[:0]
+    m = margin_m
+    xs = _breaks(-m, pw.width_m + m, [0.0, pw.width_m, *voids[:, [0, 2]].ravel()], cell)
+    ys = _breaks(-m, pw.height_m + m, [0.0, pw.height_m, *voids[:, [1, 3]].ravel()], cell)
     nx, ny = len(xs), len(ys)
     gx, gy = np.meshgrid(xs, ys, indexing="ij")  # (nx, ny)
     V = np.concatenate([np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)]) for z in (0.0, -thickness_m)])
+    cx, cy = (xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2
+    solid = np.ones((nx - 1, ny - 1), dtype=bool)
+    for x0, y0, x1, y1 in holes:
+        solid &= ~(((cx > x0) & (cx < x1))[:, None] & ((cy > y0) & (cy < y1))[None, :])
 
     def vid(layer: int, i: int, j: int) -> int:
         return layer * nx * ny + i * ny + j
 
-    ia, ib = int(np.argmin(np.abs(xs))), int(np.argmin(np.abs(xs - w)))
-    ja, jb = int(np.argmin(np.abs(ys))), int(np.argmin(np.abs(ys - h)))
+    def is_solid(i: int, j: int) -> bool:
+        return 0 <= i < nx - 1 and 0 <= j < ny - 1 and bool(solid[i, j])
+
     quads = []  # (4 vertex ids, outward normal)
-    for i in range(nx - 1):
+    for i, j in zip(*np.nonzero(solid)):
+        for layer, n in ((0, (0, 0, 1)), (1, (0, 0, -1))):
+            quads.append(([vid(layer, i, j), vid(layer, i + 1, j), vid(layer, i + 1, j + 1), vid(layer, i, j + 1)], n))
+
+    def side(a: tuple[int, int], b: tuple[int, int], n) -> None:  # the face along grid edge a-b
+        quads.append(([vid(0, *a), vid(0, *b), vid(1, *b), vid(1, *a)], n))
+
+    for i in range(nx):  # edges along y at x = xs[i], between cells (i - 1, j) and (i, j)
         for j in range(ny - 1):
-            if hole and ia <= i < ib and ja <= j < jb:
-                continue
-            for layer, n in ((0, (0, 0, 1)), (1, (0, 0, -1))):
-                quads.append(([vid(layer, i, j), vid(layer, i + 1, j), vid(layer, i + 1, j + 1), vid(layer, i, j + 1)], n))
-
-    def strip(edge: list[tuple[int, int]], n):  # side faces along a chain of grid points
-        for (i0, j0), (i1, j1) in zip(edge[:-1], edge[1:]):
-            quads.append(([vid(0, i0, j0), vid(0, i1, j1), vid(1, i1, j1), vid(1, i0, j0)], n))
-
-    strip([(i, 0) for i in range(nx)], (0, -1, 0))
-    strip([(i, ny - 1) for i in range(nx)], (0, 1, 0))
-    strip([(0, j) for j in range(ny)], (-1, 0, 0))
-    strip([(nx - 1, j) for j in range(ny)], (1, 0, 0))
-    if hole:  # reveals face into the void
-        strip([(i, ja) for i in range(ia, ib + 1)], (0, 1, 0))
-        strip([(i, jb) for i in range(ia, ib + 1)], (0, -1, 0))
-        strip([(ia, j) for j in range(ja, jb + 1)], (1, 0, 0))
-        strip([(ib, j) for j in range(ja, jb + 1)], (-1, 0, 0))
+            left, right = is_solid(i - 1, j), is_solid(i, j)
+            if left != right:
+                side((i, j), (i, j + 1), (1, 0, 0) if left else (-1, 0, 0))
+    for j in range(ny):  # edges along x at y = ys[j], between cells (i, j - 1) and (i, j)
+        for i in range(nx - 1):
+            below, above = is_solid(i, j - 1), is_solid(i, j)
+            if below != above:
+                side((i, j), (i + 1, j), (0, 1, 0) if below else (0, -1, 0))
     faces = []
     for (a, b, c, d), n in quads:
         for tri in ((a, b, c), (a, c, d)):

@@ -33,7 +33,8 @@ import numpy as np
 
 from pipeline.catalogue import WindowStyle, box_mesh, get_style, window_mesh
 from pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
-                                      facade_pixels, wall_groups, wall_margin_m, wall_mesh)
+                                      facade_pixels, hole_in, void_hole, wall_groups, wall_margin_m,
+                                      wall_mesh)
 
 OPENING_OVERSHOOT_M = 0.01  # the opening box pokes out of both wall faces (clean booleans)
 
@@ -85,10 +86,11 @@ def _add_pset(f: ifcopenshell.file, product, name: str, values: dict) -> None:
         ifcopenshell.api.pset.edit_pset(f, pset=pset, properties=values)
 
 
-def _textured_wall(f, body, storey, K, wall_pw: PlacedWindow, name: str, layout: TextureLayout, texture,
-                   wall_style, margin_m: float, thickness_m: float):
-    """One IfcWall: a closed gridded slab (wall_pw's rectangle + margin_m) textured from the photo."""
-    V, F = wall_mesh(wall_pw, False, margin_m, thickness_m)
+def _textured_wall(f, body, storey, K, wall_pw: PlacedWindow, voids: list, name: str, layout: TextureLayout,
+                   texture, wall_style, margin_m: float, thickness_m: float):
+    """One IfcWall: a closed gridded slab (wall_pw's rectangle + margin_m, its windows' ``voids``
+    on grid lines for the openings' booleans) textured from the photo."""
+    V, F = wall_mesh(wall_pw, voids, False, margin_m, thickness_m)
     wall_items = _faceset(f, V, F)
     uv = layout.uv(facade_pixels(K, wall_pw, V[:, :2]))
     tex_vertices = f.createIfcTextureVertexList([tuple(map(float, p)) for p in uv])
@@ -129,8 +131,9 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
     ids: dict[int, dict] = {}
     for wall_pw, members in wall_groups(placed, walls):
         own = len(members) == 1 and wall_pw is members[0]
-        wall = _textured_wall(f, body, storey, K, wall_pw, f"Wall {wall_pw.index}", layout, texture, wall_style, margin_m if own else wall_margin_m(members, margin_m),
-                              thickness_m)
+        voids = [void_hole(wall_pw)] if own else [hole_in(wall_pw, pw) for pw in members]
+        wall = _textured_wall(f, body, storey, K, wall_pw, voids, f"Wall {wall_pw.index}", layout, texture, wall_style,
+                              margin_m if own else wall_margin_m(members, margin_m), thickness_m)
         if not own and wall_properties and wall_pw.index in wall_properties:
             _add_pset(f, wall, "Fenestra_Wall", wall_properties[wall_pw.index])
         for pw in members:

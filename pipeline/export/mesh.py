@@ -1,7 +1,7 @@
 """OBJ + MTL and GLB export of the same model as model.ifc (few IFC viewers show textures).
 
-Per exported window: the wall fragment with the void cut out (photo-textured, UVs as in the IFC),
-and the catalogue window's frame and glass. Coordinates in the export world of
+Per fitted wall: one slab with every window's void cut out (photo-textured, UVs as in the IFC; a
+window without a wall: a fragment of its own), and per window the catalogue window's frame and glass. Coordinates in the export world of
 pipeline/export/geometry.py (metres, z up, camera at the origin).
 """
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
-                                      facade_pixels, wall_mesh)
+                                      facade_pixels, hole_in, void_hole, wall_groups, wall_margin_m, wall_mesh)
 
 
 @dataclass(frozen=True)
@@ -29,18 +29,24 @@ class MeshPart:
 
 def model_parts(K: np.ndarray, placed: list[PlacedWindow], layout: TextureLayout,
                 style: str | WindowStyle = "casement-white", margin_m: float = WALL_MARGIN_M,
-                thickness_m: float = WALL_THICKNESS_M) -> list[MeshPart]:
-    """Wall, frame and glass parts of every placed window, in the export world."""
+                thickness_m: float = WALL_THICKNESS_M, walls: dict[int, int] | None = None) -> list[MeshPart]:
+    """Wall, frame and glass parts, in the export world: one wall per fitted wall of ``walls``
+    ({window index: wall id}, as model.ifc's IfcWalls: ``wall_w<id>``) with a hole per window, and a
+    wall fragment of its own (``wall_<index>``) for a window without one; each window's frame and glass."""
     style = get_style(style)
     parts = []
-    for pw in placed:
-        V, F = wall_mesh(pw, True, margin_m, thickness_m)
-        uv = layout.uv(facade_pixels(K, pw, V[:, :2]))
-        parts.append(MeshPart(f"wall_{pw.index}", "photo", pw.to_export(V), F, uv))
-        mesh = window_mesh(style, pw.width_m, pw.height_m)
-        for part in ("frame", "glass"):
-            v, f = mesh.select(part)
-            parts.append(MeshPart(f"{part}_{pw.index}", part, pw.to_export(v), f, None))
+    for wall_pw, members in wall_groups(placed, walls):
+        own = len(members) == 1 and wall_pw is members[0]
+        holes = [void_hole(wall_pw)] if own else [hole_in(wall_pw, pw) for pw in members]
+        V, F = wall_mesh(wall_pw, holes, True, margin_m if own else wall_margin_m(members, margin_m), thickness_m)
+        uv = layout.uv(facade_pixels(K, wall_pw, V[:, :2]))
+        parts.append(MeshPart(f"wall_{wall_pw.index}" if own else f"wall_w{wall_pw.index}", "photo",
+                              wall_pw.to_export(V), F, uv))
+        for pw in members:
+            mesh = window_mesh(style, pw.width_m, pw.height_m)
+            for part in ("frame", "glass"):
+                v, f = mesh.select(part)
+                parts.append(MeshPart(f"{part}_{pw.index}", part, pw.to_export(v), f, None))
     return parts
 
 
