@@ -144,6 +144,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     except PipelineError as e:  # recorded: the detections are still written, each with this failure
         geometry_failure = str(e)
         results = failed_results(detections, cfg, f"geometry: {e}")
+    del gray, segment_cache  # export needs neither: a 100 Mpx photo's gray copies are 0.5 GB
     results, model = facade_model(results, options.known)
     doc = windows_to_json(results, K=K, image_size=size, config=cfg)
     annotate(doc, model, resolved.source, envelope)

@@ -558,3 +558,20 @@ def test_a_fitted_wall_is_one_closed_slab_with_every_void(holes, open_area):
             assert np.isclose(front[:, 0], x).sum() >= 2
         for y in (y0, y1):
             assert np.isclose(front[:, 1], y).sum() >= 2
+
+
+def test_glb_texture_is_at_most_8192_px_and_keeps_its_uvs(tmp_path):
+    """A GLB's texture is area-downscaled to GLB_MAX_TEXTURE_PX along its longer side (viewers refuse
+    larger ones); the texture coordinates are fractions, so they are unchanged."""
+    from pipeline.export.mesh import GLB_MAX_TEXTURE_PX, MeshPart, write_glb
+
+    tex = np.zeros((16, 2 * GLB_MAX_TEXTURE_PX, 3), np.uint8)
+    tex[:, GLB_MAX_TEXTURE_PX:] = 200  # right half bright: its mean survives an area resize
+    uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+    part = MeshPart("wall_0", "photo", np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0]]), np.array([[0, 1, 2]]), uv)
+    path = write_glb(tmp_path / "m.glb", [part], tex)
+    mesh = next(iter(trimesh.load(str(path), force="scene").geometry.values()))
+    image = np.asarray(mesh.visual.material.baseColorTexture)
+    assert image.shape[:2] == (8, GLB_MAX_TEXTURE_PX)
+    assert image[..., :3].mean() == pytest.approx(100.0, abs=0.5)
+    assert np.allclose(mesh.visual.uv, uv, atol=1e-6)

@@ -6,14 +6,21 @@ pipeline/export/geometry.py (metres, z up, camera at the origin).
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from pipeline.catalogue import WindowStyle, get_style, window_mesh
 from pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
                                       facade_pixels, hole_in, void_hole, wall_groups, wall_margin_m, wall_mesh)
+
+
+# A GLB's texture is at most this many px along its longer side: glTF viewers (WebGL) commonly
+# refuse larger textures, and a 100 Mpx photo's texture would hold gigabytes while written.
+GLB_MAX_TEXTURE_PX = 8192
 
 
 @dataclass(frozen=True)
@@ -85,21 +92,33 @@ def write_obj(obj_path: str | Path, parts: list[MeshPart], style: str | WindowSt
     return obj_path, mtl_path
 
 
+def glb_texture(texture_rgb: np.ndarray, max_px: int = GLB_MAX_TEXTURE_PX) -> np.ndarray:
+    """The texture (H, W, 3) uint8 as the GLB holds it: area-downscaled to at most ``max_px`` along
+    its longer side (texture coordinates are fractions of the image: unchanged), else as it is."""
+    h, w = texture_rgb.shape[:2]
+    if max(h, w) <= max_px:
+        return texture_rgb
+    k = max_px / max(h, w)
+    return cv2.resize(texture_rgb, (max(1, round(w * k)), max(1, round(h * k))), interpolation=cv2.INTER_AREA)
+
+
 def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarray,
               style: str | WindowStyle = "casement-white") -> Path:
-    """Write a textured binary glTF. ``texture_rgb``: (H, W, 3) uint8 RGB (the padded texture)."""
+    """Write a textured binary glTF. ``texture_rgb``: (H, W, 3) uint8 RGB (the padded texture; the
+    GLB holds :func:`glb_texture` of it)."""
     import trimesh  # noqa: PLC0415
     from PIL import Image  # noqa: PLC0415
 
     style = get_style(style)
-    image = Image.fromarray(np.ascontiguousarray(texture_rgb))
+    image = Image.fromarray(np.ascontiguousarray(glb_texture(texture_rgb)))
     colours = {"frame": (*style.frame_rgb, 1.0), "glass": (*style.glass_rgb, style.glass_alpha)}
-    # one photo material for every textured part, its hash computed once: the glTF exporter
-    # hashes each part's material, and trimesh's hash serialises the whole texture (minutes for
-    # 1000 windows on a 6000x4000 photo); equal hashes are what it deduplicates on, so the file
-    # is unchanged
-    photo = _once_hashed(trimesh.visual.material.PBRMaterial)(name="photo", baseColorTexture=image,
-                                                               metallicFactor=0.0, roughnessFactor=1.0)
+    # one photo material for every textured part, hashed by the texture's sha256 read in place: the
+    # glTF exporter hashes each part's material, and trimesh's own hash copies the whole texture
+    # into bytes each time (minutes for 1000 windows on a 6000x4000 photo, and a copy of the
+    # texture in memory); equal hashes are what it deduplicates on, so the file is unchanged
+    digest = hashlib.sha256(memoryview(np.ascontiguousarray(texture_rgb))).digest()
+    photo = _fixed_hash(trimesh.visual.material.PBRMaterial, int.from_bytes(digest[:8], "little"))(
+        name="photo", baseColorTexture=image, metallicFactor=0.0, roughnessFactor=1.0)
     scene = trimesh.Scene()
     for p in parts:
         if p.uv is not None:
@@ -117,11 +136,9 @@ def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarr
     return glb_path
 
 
-def _once_hashed(material_cls: type) -> type:
-    """A subclass of a trimesh material class whose instances compute their hash once."""
-    class OnceHashed(material_cls):
+def _fixed_hash(material_cls: type, value: int) -> type:
+    """A subclass of a trimesh material class whose instances hash to ``value``."""
+    class FixedHash(material_cls):
         def __hash__(self) -> int:
-            if "_hash_once" not in self.__dict__:
-                self.__dict__["_hash_once"] = super().__hash__()
-            return self.__dict__["_hash_once"]
-    return OnceHashed
+            return value
+    return FixedHash
