@@ -1,5 +1,7 @@
 """Instance separation of the void/core post-processing (pipeline/detectors/winnet.py, issue #23):
 windows a few pixels apart must come out as one detection each."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -164,3 +166,81 @@ def test_effwin_weights_default_to_its_post_processing_and_a_file_may_override_i
     assert effwin.post_config(ckpt).separation == effwin.POST_DEFAULTS["separation"]
     assert effwin.post_config({"post": {"separation": "nearest"}}).separation == "nearest"
     assert winnet.post_config({"post": {}}) == PostConfig()
+
+
+def test_corner_cuts_separate_adjacent_windows_of_a_rendered_duplex_view(tmp_path):
+    """The shipped ``default`` network (pipeline/models/default.pt) on a fresh raster render of
+    duplex (view 0, seed 0): its windows 3-6 px apart (ground truth: the render's instance map) are
+    merged by the post-processing before the corner cuts and come out one detection each, matched
+    one-to-one at mask IoU >= 0.5, with them (effwin.SEPARATING_POST)."""
+    from fenestra.data import read_view
+    from pipeline.detectors import DETECTORS, effwin, load_model
+    from renders.dataset import DatasetConfig, render_dataset
+
+    root = render_dataset(DatasetConfig(scene="duplex", n_views=1, seed=0, out_root=str(tmp_path)), progress=False)
+    view = read_view(next((root / "views").iterdir()))
+    truth = [view.instances == i for i in _adjacent_windows(view)]
+    assert len(truth) >= 4, "the view no longer shows adjacent windows"
+    mod, net, ckpt = load_model(DETECTORS["default"].model, None, any_arch=True)
+    maps = mod.predict_maps(net, view.image)
+
+    def found(post: PostConfig) -> int:
+        dets = [d for d in effwin.detections_from_maps(maps, post) if d.score >= 0.5]
+        pairs = match(iou_matrix([d.mask for d in dets], truth)).pairs
+        return sum(1 for _, _, iou in pairs if iou >= 0.5)
+
+    assert found(effwin.post_config(ckpt)) <= len(truth) - 2  # the shipped post-processing merges them
+    assert found(BEFORE) <= len(truth) - 2
+    assert found(PostConfig(**effwin.SEPARATING_POST)) == len(truth)
+
+
+def _adjacent_windows(view, max_gap_px: float = 6.0) -> list[int]:
+    """Instance ids of the view's evaluable windows (bench/evaluate.py's default rules: >= 90 %
+    visible, corners in frame, incidence <= 80 deg, >= 400 px) within ``max_gap_px`` of another window."""
+    inst = view.instances
+    H, W = inst.shape
+    ids = [w["instance_id"] for w in view.windows
+           if w["visible_fraction"] >= 0.9 and w["visible_px"] > 400 and w["incidence_deg"] <= 80
+           and all(-0.5 <= x <= W - 0.5 and -0.5 <= y <= H - 0.5 for x, y in w["corners_px"])]
+    out = []
+    for i in ids:
+        others = (inst > 0) & (inst != i)
+        if others.any() and ndimage.distance_transform_edt(~others)[inst == i].min() <= max_gap_px:
+            out.append(i)
+    return out
+
+
+def test_separator_cuts_part_two_touching_windows_drawn_by_their_corner_maps():
+    """Corner maps drawn from the two windows' true corners (effwin.corner_heatmaps, the training
+    targets): the cut runs down the 3 px gap (columns 40-42) and the two windows come out apart,
+    each matched at IoU > 0.9; without corner maps they stay one blob."""
+    from pipeline.detectors.effwin import corner_heatmaps
+    from pipeline.detectors.winnet import separator_cuts
+
+    void, core, a, b = two_touching_windows(gap_px=3)
+    quads = [[[10, 10], [39, 10], [39, 49], [10, 49]], [[43, 10], [72, 10], [72, 49], [43, 49]]]
+    corners = corner_heatmaps(np.array(quads, float), void.shape) * 0.7
+    post = PostConfig(separation="nearest-blob", corner_cuts=True, cut_min_void_frac=0.9)
+    cut = separator_cuts(corners, post, void, core)
+    cols = np.nonzero(cut[15:45].any(axis=0))[0]
+    assert cols.min() >= 40 and cols.max() <= 42, cols
+    assert len(instances_from_maps(void, core, post)) == 1  # no corner maps: no cuts
+    dets = instances_from_maps(void, core, post, corners)
+    m = match(iou_matrix([d.mask for d in dets], [a, b]))
+    assert len(dets) == 2 and len(m.pairs) == 2 and min(iou for _, _, iou in m.pairs) > 0.9
+
+
+def test_separator_cuts_skip_a_line_across_the_wall_between_windows():
+    """Two windows 30 px apart side by side, corners drawn as above but the facing pairs too far
+    apart (gap > cut_max_gap_px): no separator; and a wall-crossing line fails the void gate."""
+    from pipeline.detectors.effwin import corner_heatmaps
+    from pipeline.detectors.winnet import separator_cuts
+
+    void, core, a, b = two_touching_windows(gap_px=30)
+    void[:, 40:70] = 0.02
+    quads = [[[10, 10], [39, 10], [39, 49], [10, 49]], [[70, 10], [99, 10], [99, 49], [70, 49]]]
+    corners = corner_heatmaps(np.array(quads, float), void.shape)
+    assert not separator_cuts(corners, PostConfig(corner_cuts=True), void, core).any()
+    wide = PostConfig(corner_cuts=True, cut_max_gap_px=40.0, cut_min_void_frac=0.9)
+    assert separator_cuts(corners, replace(wide, cut_min_void_frac=0.0), void, core).any()
+    assert not separator_cuts(corners, wide, void, core).any()

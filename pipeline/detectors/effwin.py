@@ -45,6 +45,11 @@ N_MAPS = 6  # void, core, TL, TR, BR, BL
 # the nearest seed inside its own void blob, never a seed of another blob (docs/experiments.md,
 # "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse).
 POST_DEFAULTS = {"separation": "nearest-blob"}
+# The option that separates adjacent windows (issue #23): void blobs cut along the separators that
+# the corner heatmaps draw between neighbouring windows (winnet.separator_cuts). Not the default:
+# on the real validation photos the corner head also fires on transoms and mullions, and real bbox
+# AP drops (pipeline/models/README.md, "Per house"; tools/instance_separation.py corner-cuts-sv0.9).
+SEPARATING_POST = {**POST_DEFAULTS, "corner_cuts": True, "cut_min_void_frac": 0.9}
 
 
 def pretrained_backbone_path(backbone: str = "efficientnet-lite0") -> str:
@@ -238,8 +243,9 @@ def predict_maps_features(model: EffWin, image: np.ndarray) -> tuple[np.ndarray,
 
 
 def detections_from_maps(maps: np.ndarray, post: PostConfig = PostConfig()) -> list[Detection]:
-    """WinNet's instances from maps[0:2], each with its corners from maps[2:6] (None if unseen)."""
-    dets = instances_from_maps(maps[0], maps[1], post)
+    """WinNet's instances from maps[0:2] (cut along the corner maps' separators if
+    ``post.corner_cuts``), each with its corners from maps[2:6] (None if unseen)."""
+    dets = instances_from_maps(maps[0], maps[1], post, maps[2:])
     return [Detection(d.mask, d.box, d.score, d.label, corners=instance_corners(maps[2:], d.mask)) for d in dets]
 
 
