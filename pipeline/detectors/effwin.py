@@ -43,13 +43,15 @@ CORNER_SIGMA_PX = 1.5  # std of the target Gaussian at each corner, px of the ne
 N_MAPS = 6  # void, core, TL, TR, BR, BL
 # EffWin's post-processing where its weights file does not say (issue #23): every void pixel joins
 # the nearest seed inside its own void blob, never a seed of another blob (docs/experiments.md,
-# "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse).
-POST_DEFAULTS = {"separation": "nearest-blob"}
-# The option that separates adjacent windows (issue #23): void blobs cut along the separators that
-# the corner heatmaps draw between neighbouring windows (winnet.separator_cuts). Not the default:
-# on the real validation photos the corner head also fires on transoms and mullions, and real bbox
-# AP drops (pipeline/models/README.md, "Per house"; tools/instance_separation.py corner-cuts-sv0.9).
-SEPARATING_POST = {**POST_DEFAULTS, "corner_cuts": True, "cut_min_void_frac": 0.9}
+# "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse),
+# and void blobs are cut along the separators the corner heatmaps draw between neighbouring windows
+# (winnet.separator_cuts): kept only where void lies on both sides along 90 % of the separator
+# (not across a wall) and, for a horizontal one, the void above and below reaches 0.75 of its
+# length (a real window's transom, where the corner head fires too, is not cut). duplex missed
+# 62 % -> 5 % (pipeline/models/README.md, "Per house"; tools/instance_separation.py).
+SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                   "cut_min_height_frac": 0.75}
+POST_DEFAULTS = SEPARATING_POST
 
 
 def pretrained_backbone_path(backbone: str = "efficientnet-lite0") -> str:

@@ -115,7 +115,10 @@ class PostConfig:
     least share of a separator's pixels on the void mask (a separator runs inside one void blob, not
     across the wall between windows far apart); cut_min_dip: the least dip of the void or the core
     map along the separator below both its sides (:func:`separator_dip`: a frame between two
-    windows dims the maps a little, a real window's own mullion or transom hardly).
+    windows dims the maps a little, a real window's own mullion or transom hardly);
+    cut_min_height_frac: a horizontal separator is kept only when the void above and below it
+    (:func:`void_extent`, from its midpoint) reaches at least this fraction of its length (a
+    transom leaves a short top light above its sash: a real window's transom is not cut).
     """
 
     void_threshold: float = 0.5
@@ -133,6 +136,7 @@ class PostConfig:
     cut_slope: float = 0.25
     cut_min_void_frac: float = 0.0
     cut_min_dip: float = 0.0
+    cut_min_height_frac: float = 0.0
 
     def __post_init__(self) -> None:
         if self.split_map not in ("core", "void"):
@@ -146,11 +150,12 @@ class PostConfig:
         object.__setattr__(self, "split_levels", tuple(float(v) for v in self.split_levels))
         if not (0.0 < self.cut_min_peak <= 1.0 and self.cut_max_gap_px >= 1.0 and self.cut_align_px >= 0.0
                 and self.cut_slope >= 0.0 and 0.0 <= self.cut_min_void_frac <= 1.0
-                and -1.0 <= self.cut_min_dip <= 1.0):
+                and -1.0 <= self.cut_min_dip <= 1.0 and self.cut_min_height_frac >= 0.0):
             raise ValueError(f"cut_min_peak must lie in (0, 1], cut_max_gap_px >= 1, cut_align_px and "
-                             f"cut_slope >= 0, cut_min_void_frac in [0, 1], cut_min_dip in [-1, 1]; got "
-                             f"{self.cut_min_peak}, {self.cut_max_gap_px}, {self.cut_align_px}, {self.cut_slope}, "
-                             f"{self.cut_min_void_frac}, {self.cut_min_dip}")
+                             f"cut_slope >= 0, cut_min_void_frac in [0, 1], cut_min_dip in [-1, 1], "
+                             f"cut_min_height_frac >= 0; got {self.cut_min_peak}, {self.cut_max_gap_px}, "
+                             f"{self.cut_align_px}, {self.cut_slope}, {self.cut_min_void_frac}, {self.cut_min_dip}, "
+                             f"{self.cut_min_height_frac}")
 
 
 def core_targets(instances: np.ndarray, shrink_px: float = 3.0, shrink_frac: float = 0.15) -> np.ndarray:
@@ -305,11 +310,31 @@ def separator_cuts(corner_p: np.ndarray, post: PostConfig, void_p: np.ndarray | 
     return cut.astype(bool)
 
 
+def void_extent(void: np.ndarray, start: np.ndarray, direction: np.ndarray, skip_px: int = 6) -> int:
+    """Px from ``start`` (x, y) along the unit ``direction`` to the first pixel off the void mask
+    ``void`` (H, W) bool or off the image, the first ``skip_px`` px (the gap between two windows)
+    not looked at."""
+    H, W = void.shape
+    d = skip_px
+    while True:
+        x, y = np.round(start + (d + 1) * direction).astype(int)
+        if not (0 <= x < W and 0 <= y < H and void[y, x]):
+            return d
+        d += 1
+
+
 def _separator_holds(void_p: np.ndarray, core_p: np.ndarray, p: np.ndarray, q: np.ndarray, post: PostConfig) -> bool:
     """The separator p -> q runs inside a void blob (``post.cut_min_void_frac``) along a valley of
-    the void or the core map (``post.cut_min_dip``)."""
+    the void or the core map (``post.cut_min_dip``) and, if horizontal, leaves parts tall enough
+    (``post.cut_min_height_frac``)."""
     if (separator_profiles(void_p, p, q)[1] >= post.void_threshold).mean() < post.cut_min_void_frac:
         return False
+    length = float(np.linalg.norm(q - p))
+    if post.cut_min_height_frac > 0.0 and abs(q[0] - p[0]) > abs(q[1] - p[1]):
+        void, mid = void_p >= post.void_threshold, 0.5 * (p + q)
+        if min(void_extent(void, mid, np.array([0.0, -1.0])), void_extent(void, mid, np.array([0.0, 1.0]))) \
+                < post.cut_min_height_frac * length:
+            return False
     return post.cut_min_dip <= 0.0 or max(separator_dip(void_p, p, q), separator_dip(core_p, p, q)) >= post.cut_min_dip
 
 
