@@ -345,6 +345,20 @@ def _join_nearest(void: np.ndarray, seeds: np.ndarray) -> np.ndarray:
     return np.where(void, seeds[iy, ix], 0)
 
 
+def _fill_nearest(labels: np.ndarray, fill: np.ndarray, margin_px: int = 8) -> np.ndarray:
+    """``labels`` (H, W) int with the ``fill`` (H, W) bool pixels given their nearest label within
+    ``margin_px`` of the pixels' bounding box (0 where none is)."""
+    if not fill.any() or not labels.any():
+        return labels
+    ys, xs = np.nonzero(fill)
+    y0, x0 = max(0, ys.min() - margin_px), max(0, xs.min() - margin_px)
+    y1, x1 = ys.max() + margin_px + 1, xs.max() + margin_px + 1
+    out = labels.copy()
+    crop = out[y0:y1, x0:x1]
+    crop[fill[y0:y1, x0:x1]] = _join_nearest(np.ones(crop.shape, bool), crop)[fill[y0:y1, x0:x1]]
+    return out
+
+
 def _own_blob(void: np.ndarray, seeds: np.ndarray, flooded: np.ndarray) -> np.ndarray:
     """``flooded`` (a seed label per pixel) kept where the pixel is void and in its seed's void blob."""
     _, blobs = cv2.connectedComponents(void.astype(np.uint8), connectivity=4)
@@ -385,8 +399,8 @@ def instances_from_maps(void_p: np.ndarray, core_p: np.ndarray, post: PostConfig
         labels = _own_blob(void, seeds, _join_nearest(np.ones_like(void), seeds))
     else:
         labels = _join_nearest(void, seeds)
-    if cut is not None and labels.any():  # the cut's void pixels join their nearest instance
-        labels = np.where(whole & cut & (labels == 0), _join_nearest(np.ones_like(void), labels), labels)
+    if cut is not None:  # the cut's void pixels join their nearest instance
+        labels = _fill_nearest(labels, whole & cut & (labels == 0))
     # Void blobs that no seed reached get their own label.
     n_blobs, blobs = cv2.connectedComponents((void & (labels == 0)).astype(np.uint8), connectivity=4)
     nxt = labels.max() + 1
