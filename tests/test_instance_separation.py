@@ -12,7 +12,7 @@ from pipeline.detectors.winnet import PostConfig, instances_from_maps, split_see
 BEFORE = PostConfig(void_threshold=0.5, core_threshold=0.5, separation="nearest", split_levels=())
 # the separating option measured in docs/experiments.md "Detector v3" (tools/instance_separation.py
 # candidate split6-watershed): not the default, it splits real photos' multi-pane windows
-SEPARATING = PostConfig(split_levels=(0.6, 0.7, 0.8, 0.9, 0.95, 0.98), separation="watershed")
+SPLITTING = PostConfig(split_levels=(0.6, 0.7, 0.8, 0.9, 0.95, 0.98), separation="watershed")
 
 
 def two_touching_windows(gap_px: int = 3, dip: float = 0.6):
@@ -39,7 +39,7 @@ def test_touching_windows_merge_without_splitting_and_part_with_it():
     before = instances_from_maps(void, core, BEFORE)
     assert len(before) == 1  # the failure of issue #23: one blob for two windows
     assert len(instances_from_maps(void, core, PostConfig())) == 1  # the default does not split
-    after = instances_from_maps(void, core, SEPARATING)
+    after = instances_from_maps(void, core, SPLITTING)
     assert len(after) == 2
     m = match(iou_matrix([d.mask for d in after], [a, b]))
     assert len(m.pairs) == 2 and min(iou for _, _, iou in m.pairs) > 0.9
@@ -109,7 +109,7 @@ def test_split_post_processing_separates_adjacent_windows_in_a_render(tmp_path):
     assert len(adjacent) >= 2, "the view no longer shows adjacent windows"
     maps = _maps(view.image)
     truth = [inst == i for i in adjacent]
-    new = [d for d in instances_from_maps(maps[0], maps[1], SEPARATING) if d.score >= 0.5]
+    new = [d for d in instances_from_maps(maps[0], maps[1], SPLITTING) if d.score >= 0.5]
     found_new = len(match(iou_matrix([d.mask for d in new], truth)).pairs)
     old = [d for d in instances_from_maps(maps[0], maps[1], BEFORE) if d.score >= 0.5]
     found_old = len(match(iou_matrix([d.mask for d in old], truth)).pairs)

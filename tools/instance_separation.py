@@ -17,6 +17,10 @@ why (first rule that holds, in this order):
 - ``low_score``: a detection with IoU >= 0.5 exists below the score threshold;
 - ``other``.
 
+Candidates ``corner-cuts*`` cut void blobs along the separators EffWin's corner heatmaps draw
+between neighbouring windows (winnet.separator_cuts), with the gates named in their suffix
+(``sv``: cut_min_void_frac, ``h``: cut_min_height_frac, ``p``: cut_min_peak, ``dip``: cut_min_dip).
+
 Also: the matched windows' mask-fit corner error (pipeline.quad.mask_to_quad, every corner pooled,
 median px), false positives, and for merged windows the gap to the nearest other window (px).
 """

@@ -112,8 +112,8 @@ class PostConfig:
     the widest gap (px) between one window's corner and its neighbour's facing corner;
     cut_align_px: how far (px) the two corners of a pair, and the two ends of a separator, may be
     off the separator's line (plus ``cut_slope`` px per px of its length); cut_min_void_frac: the
-    least share of a separator's pixels on the void mask (a separator runs inside one void blob, not
-    across the wall between windows far apart); cut_min_dip: the least dip of the void or the core
+    least share of a separator's length with void on both its sides (a separator runs between two
+    windows, not across the wall between windows far apart); cut_min_dip: the least dip of the void or the core
     map along the separator below both its sides (:func:`separator_dip`: a frame between two
     windows dims the maps a little, a real window's own mullion or transom hardly);
     cut_min_height_frac: a horizontal separator is kept only when the void above and below it
@@ -292,8 +292,9 @@ def separator_cuts(corner_p: np.ndarray, post: PostConfig, void_p: np.ndarray | 
     Two windows side by side show a top pair (the left one's TR, the right one's TL, a few px apart)
     and a bottom pair (BR, BL) below it; two stacked windows a left pair (the upper one's BL, the
     lower one's TL) and a right pair (BR, TR). The line joins the two pairs' midpoints, extended by
-    ``extend_px`` at both ends so that it crosses the void blob's outline. A multi-pane window whose
-    corner head stays quiet on its panes (what the renders trained it to do) is not cut.
+    ``extend_px`` at both ends so that it crosses the void blob's outline. On real photos the corner
+    head also fires at a window's own transoms and mullions (it was trained on renders only); the
+    gates of :func:`_separator_holds` keep those whole (real validation AP, issue #23).
     """
     tl, tr, br, bl = corner_peaks(corner_p, post.cut_min_peak)
     g, a = post.cut_max_gap_px, post.cut_align_px
