@@ -1,5 +1,7 @@
 """Instance separation of the void/core post-processing (pipeline/detectors/winnet.py, issue #23):
 windows a few pixels apart must come out as one detection each."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -10,7 +12,7 @@ from pipeline.detectors.winnet import PostConfig, instances_from_maps, split_see
 BEFORE = PostConfig(void_threshold=0.5, core_threshold=0.5, separation="nearest", split_levels=())
 # the separating option measured in docs/experiments.md "Detector v3" (tools/instance_separation.py
 # candidate split6-watershed): not the default, it splits real photos' multi-pane windows
-SEPARATING = PostConfig(split_levels=(0.6, 0.7, 0.8, 0.9, 0.95, 0.98), separation="watershed")
+SPLITTING = PostConfig(split_levels=(0.6, 0.7, 0.8, 0.9, 0.95, 0.98), separation="watershed")
 
 
 def two_touching_windows(gap_px: int = 3, dip: float = 0.6):
@@ -37,7 +39,7 @@ def test_touching_windows_merge_without_splitting_and_part_with_it():
     before = instances_from_maps(void, core, BEFORE)
     assert len(before) == 1  # the failure of issue #23: one blob for two windows
     assert len(instances_from_maps(void, core, PostConfig())) == 1  # the default does not split
-    after = instances_from_maps(void, core, SEPARATING)
+    after = instances_from_maps(void, core, SPLITTING)
     assert len(after) == 2
     m = match(iou_matrix([d.mask for d in after], [a, b]))
     assert len(m.pairs) == 2 and min(iou for _, _, iou in m.pairs) > 0.9
@@ -107,7 +109,7 @@ def test_split_post_processing_separates_adjacent_windows_in_a_render(tmp_path):
     assert len(adjacent) >= 2, "the view no longer shows adjacent windows"
     maps = _maps(view.image)
     truth = [inst == i for i in adjacent]
-    new = [d for d in instances_from_maps(maps[0], maps[1], SEPARATING) if d.score >= 0.5]
+    new = [d for d in instances_from_maps(maps[0], maps[1], SPLITTING) if d.score >= 0.5]
     found_new = len(match(iou_matrix([d.mask for d in new], truth)).pairs)
     old = [d for d in instances_from_maps(maps[0], maps[1], BEFORE) if d.score >= 0.5]
     found_old = len(match(iou_matrix([d.mask for d in old], truth)).pairs)
@@ -161,6 +163,84 @@ def test_effwin_weights_default_to_its_post_processing_and_a_file_may_override_i
 
     ckpt = read_checkpoint(DEFAULT_WEIGHTS, ("effwin",))
     assert "separation" not in ckpt["post"]  # shipped before the field existed
-    assert effwin.post_config(ckpt).separation == effwin.POST_DEFAULTS["separation"]
+    assert effwin.post_config(ckpt) == PostConfig(**effwin.POST_DEFAULTS)
     assert effwin.post_config({"post": {"separation": "nearest"}}).separation == "nearest"
     assert winnet.post_config({"post": {}}) == PostConfig()
+
+
+def test_corner_cuts_separate_adjacent_windows_of_a_rendered_duplex_view(tmp_path):
+    """The shipped ``default`` detector (pipeline/models/default.pt, its box verifier, EffWin's
+    POST_DEFAULTS) on a fresh raster render of duplex (view 0, seed 0): its windows 3-6 px apart
+    (ground truth: the render's instance map) come out one detection each, matched one-to-one at
+    mask IoU >= 0.5. The post-processing shipped before the corner cuts (``nearest-blob``), and the
+    one before issue #23, merge at least two pairs of them on the same network maps."""
+    from fenestra.data import read_view
+    from pipeline.detectors import DETECTORS, detect, effwin, load_model
+    from renders.dataset import DatasetConfig, render_dataset
+
+    root = render_dataset(DatasetConfig(scene="duplex", n_views=1, seed=0, out_root=str(tmp_path)), progress=False)
+    view = read_view(next((root / "views").iterdir()))
+    truth = [view.instances == i for i in _adjacent_windows(view)]
+    assert len(truth) >= 4, "the view no longer shows adjacent windows"
+
+    def found(dets) -> int:
+        pairs = match(iou_matrix([d.mask for d in dets], truth)).pairs
+        return sum(1 for _, _, iou in pairs if iou >= 0.5)
+
+    assert found(detect("default", view.image)) == len(truth)
+    mod, net, _ = load_model(DETECTORS["default"].model, None, any_arch=True)
+    maps = mod.predict_maps(net, view.image)
+    for old in (PostConfig(separation="nearest-blob"), BEFORE):
+        assert found([d for d in effwin.detections_from_maps(maps, old) if d.score >= 0.5]) <= len(truth) - 2
+
+
+def _adjacent_windows(view, max_gap_px: float = 6.0) -> list[int]:
+    """Instance ids of the view's evaluable windows (bench/evaluate.py's default rules: >= 90 %
+    visible, corners in frame, incidence <= 80 deg, >= 400 px) within ``max_gap_px`` of another window."""
+    inst = view.instances
+    H, W = inst.shape
+    ids = [w["instance_id"] for w in view.windows
+           if w["visible_fraction"] >= 0.9 and w["visible_px"] > 400 and w["incidence_deg"] <= 80
+           and all(-0.5 <= x <= W - 0.5 and -0.5 <= y <= H - 0.5 for x, y in w["corners_px"])]
+    out = []
+    for i in ids:
+        others = (inst > 0) & (inst != i)
+        if others.any() and ndimage.distance_transform_edt(~others)[inst == i].min() <= max_gap_px:
+            out.append(i)
+    return out
+
+
+def test_separator_cuts_part_two_touching_windows_drawn_by_their_corner_maps():
+    """Corner maps drawn from the two windows' true corners (effwin.corner_heatmaps, the training
+    targets): the cut runs down the 3 px gap (columns 40-42) and the two windows come out apart,
+    each matched at IoU > 0.9; without corner maps they stay one blob."""
+    from pipeline.detectors.effwin import corner_heatmaps
+    from pipeline.detectors.winnet import separator_cuts
+
+    void, core, a, b = two_touching_windows(gap_px=3)
+    quads = [[[10, 10], [39, 10], [39, 49], [10, 49]], [[43, 10], [72, 10], [72, 49], [43, 49]]]
+    corners = corner_heatmaps(np.array(quads, float), void.shape) * 0.7
+    post = PostConfig(separation="nearest-blob", corner_cuts=True, cut_min_void_frac=0.9)
+    cut = separator_cuts(corners, post, void, core)
+    cols = np.nonzero(cut[15:45].any(axis=0))[0]
+    assert cols.min() >= 40 and cols.max() <= 42, cols
+    assert len(instances_from_maps(void, core, post)) == 1  # no corner maps: no cuts
+    dets = instances_from_maps(void, core, post, corners)
+    m = match(iou_matrix([d.mask for d in dets], [a, b]))
+    assert len(dets) == 2 and len(m.pairs) == 2 and min(iou for _, _, iou in m.pairs) > 0.9
+
+
+def test_separator_cuts_skip_a_line_across_the_wall_between_windows():
+    """Two windows 30 px apart side by side, corners drawn as above but the facing pairs too far
+    apart (gap > cut_max_gap_px): no separator; and a wall-crossing line fails the void gate."""
+    from pipeline.detectors.effwin import corner_heatmaps
+    from pipeline.detectors.winnet import separator_cuts
+
+    void, core, a, b = two_touching_windows(gap_px=30)
+    void[:, 40:70] = 0.02
+    quads = [[[10, 10], [39, 10], [39, 49], [10, 49]], [[70, 10], [99, 10], [99, 49], [70, 49]]]
+    corners = corner_heatmaps(np.array(quads, float), void.shape)
+    assert not separator_cuts(corners, PostConfig(corner_cuts=True), void, core).any()
+    wide = PostConfig(corner_cuts=True, cut_max_gap_px=40.0, cut_min_void_frac=0.9)
+    assert separator_cuts(corners, replace(wide, cut_min_void_frac=0.0), void, core).any()
+    assert not separator_cuts(corners, wide, void, core).any()

@@ -17,6 +17,10 @@ why (first rule that holds, in this order):
 - ``low_score``: a detection with IoU >= 0.5 exists below the score threshold;
 - ``other``.
 
+Candidates ``corner-cuts*`` cut void blobs along the separators EffWin's corner heatmaps draw
+between neighbouring windows (winnet.separator_cuts), with the gates named in their suffix
+(``sv``: cut_min_void_frac, ``h``: cut_min_height_frac, ``p``: cut_min_peak, ``dip``: cut_min_dip).
+
 Also: the matched windows' mask-fit corner error (pipeline.quad.mask_to_quad, every corner pooled,
 median px), false positives, and for merged windows the gap to the nearest other window (px).
 """
@@ -62,6 +66,44 @@ CANDIDATES: dict[str, dict | None] = {
                      "split_map": "void"},
     "voidsplit-min20-ws": {"split_levels": (0.6, 0.7, 0.8, 0.9, 0.95, 0.98), "separation": "watershed",
                            "split_map": "void", "split_min_px": 20},
+    # void blobs cut along the separators the corner heatmaps draw between neighbouring windows
+    "corner-cuts": {"separation": "nearest-blob", "corner_cuts": True},
+    "corner-cuts-ws": {"separation": "watershed", "corner_cuts": True},
+    "corner-cuts-p0.3": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.3},
+    "corner-cuts-p0.1": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.1},
+    "corner-cuts-gap6": {"separation": "nearest-blob", "corner_cuts": True, "cut_max_gap_px": 6.0},
+    "corner-cuts-gap14": {"separation": "nearest-blob", "corner_cuts": True, "cut_max_gap_px": 14.0},
+    "corner-cuts-v0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7},
+    "corner-cuts-p0.3-v0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.3,
+                              "cut_min_void_frac": 0.7},
+    "corner-cuts-p0.4-v0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.4,
+                              "cut_min_void_frac": 0.7},
+    "corner-cuts-p0.4": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.4},
+    "corner-cuts-sv0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7},
+    "corner-cuts-sv0.9": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9},
+    "corner-cuts-sv0.7-dip0.01": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7,
+                                  "cut_min_dip": 0.01},
+    "corner-cuts-sv0.7-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7,
+                                  "cut_min_dip": 0.02},
+    "corner-cuts-sv0.9-p0.3": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                               "cut_min_peak": 0.3},
+    "corner-cuts-sv0.9-p0.25": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                                "cut_min_peak": 0.25},
+    "corner-cuts-sv0.9-h0.5": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                               "cut_min_height_frac": 0.5},
+    "corner-cuts-sv0.9-h0.6": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                               "cut_min_height_frac": 0.6},
+    "corner-cuts-sv0.9-h0.75": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                                "cut_min_height_frac": 0.75},
+    "corner-cuts-sv0.9-h1": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                             "cut_min_height_frac": 1.0},
+    "corner-cuts-dip0.01": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.01},
+    "corner-cuts-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.02},
+    "corner-cuts-dip0.05": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.05},
+    "corner-cuts-v0.3-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.02,
+                                 "cut_min_void_frac": 0.3},
+    "corner-cuts-p0.3-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.02,
+                                 "cut_min_peak": 0.3},
 }
 
 
@@ -199,8 +241,9 @@ def summarise(rows: list[dict]) -> dict:
 
 def real_photos(yolo: Path, part: str, predict, cache: Path | None = None) -> list[tuple]:
     """(name, (H, W), scale, maps, window boxes, door/signboard boxes) per photo of ``part``: the
-    void and core maps (2, h, w) float16 of the photo as pipeline.detectors.detect feeds the network
-    (long side <= 1024 px); cached in ``cache`` (an .npz per photo) when given."""
+    network's maps (C, h, w) float16 of the photo as pipeline.detectors.detect feeds the network
+    (long side <= 1024 px; void, core and, for EffWin, its four corner maps); cached in ``cache``
+    (an .npz per photo) when given."""
     from fenestra.data import yolo_boxes  # noqa: PLC0415
     from fenestra.images import read_image  # noqa: PLC0415
     from pipeline.detectors import downscale, input_scale  # noqa: PLC0415
@@ -218,7 +261,7 @@ def real_photos(yolo: Path, part: str, predict, cache: Path | None = None) -> li
         if f is not None and f.is_file():
             maps = np.load(f)["maps"]
         else:
-            maps = predict(image if scale == 1.0 else downscale(image, scale))[:2].astype(np.float16)
+            maps = predict(image if scale == 1.0 else downscale(image, scale)).astype(np.float16)
             if f is not None:
                 f.parent.mkdir(parents=True, exist_ok=True)
                 np.savez(f, maps=maps)
@@ -237,11 +280,13 @@ def looks_like_door(box, H: int, rule: tuple[float, float]) -> bool:
 
 
 def real_detections(photos, post: PostConfig) -> list[list[tuple[float, np.ndarray]]]:
-    """Per photo, (score, full-resolution box) of every instance at score >= 0.05 (as evaluate-detector)."""
+    """Per photo, (score, full-resolution box) of every instance at score >= 0.05 (as evaluate-detector,
+    without its box verifier); the corner maps, where the photo's maps hold them, go to the cuts."""
     from pipeline.detectors import box_to_full  # noqa: PLC0415
 
     return [[(d.score, box_to_full(d.box, scale)) for d in instances_from_maps(
-        maps[0].astype(np.float32), maps[1].astype(np.float32), post) if d.score >= 0.05]
+        maps[0].astype(np.float32), maps[1].astype(np.float32), post,
+        maps[2:].astype(np.float32) if len(maps) > 2 else None) if d.score >= 0.05]
         for _, _, scale, maps, _, _ in photos]
 
 

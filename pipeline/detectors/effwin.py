@@ -43,8 +43,15 @@ CORNER_SIGMA_PX = 1.5  # std of the target Gaussian at each corner, px of the ne
 N_MAPS = 6  # void, core, TL, TR, BR, BL
 # EffWin's post-processing where its weights file does not say (issue #23): every void pixel joins
 # the nearest seed inside its own void blob, never a seed of another blob (docs/experiments.md,
-# "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse).
-POST_DEFAULTS = {"separation": "nearest-blob"}
+# "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse),
+# and void blobs are cut along the separators the corner heatmaps draw between neighbouring windows
+# (winnet.separator_cuts): kept only where void lies on both sides along 90 % of the separator
+# (not across a wall) and, for a horizontal one, the void above and below reaches 0.75 of its
+# length (a real window's transom, where the corner head fires too, is not cut). duplex missed
+# 62 % -> 5 % (pipeline/models/README.md, "Per house"; tools/instance_separation.py).
+SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                   "cut_min_height_frac": 0.75}
+POST_DEFAULTS = SEPARATING_POST
 
 
 def pretrained_backbone_path(backbone: str = "efficientnet-lite0") -> str:
@@ -238,8 +245,9 @@ def predict_maps_features(model: EffWin, image: np.ndarray) -> tuple[np.ndarray,
 
 
 def detections_from_maps(maps: np.ndarray, post: PostConfig = PostConfig()) -> list[Detection]:
-    """WinNet's instances from maps[0:2], each with its corners from maps[2:6] (None if unseen)."""
-    dets = instances_from_maps(maps[0], maps[1], post)
+    """WinNet's instances from maps[0:2] (cut along the corner maps' separators if
+    ``post.corner_cuts``), each with its corners from maps[2:6] (None if unseen)."""
+    dets = instances_from_maps(maps[0], maps[1], post, maps[2:])
     return [Detection(d.mask, d.box, d.score, d.label, corners=instance_corners(maps[2:], d.mask)) for d in dets]
 
 
