@@ -7,7 +7,9 @@ quad of a detection) a PATCH x PATCH gray patch is sampled around it (bilinear, 
 a heatmap at half the patch resolution, soft-argmax (its expectation) = the corner, its spread
 (square root of the heatmap's variance, px) = the uncertainty. ``iterations`` > 1 samples the
 patches again around the last estimate (measured on the default detector's mask-fit quads of new
-views of the training houses: no gain, p90 worse, so 1). A corner keeps its input (``moved`` False) when the spread
+views of the training houses: no gain, p90 worse, so 1). A second input channel, the same corner
+sampled twice as wide (80 px of context), measured worse on the validation views (corner error
+median 1.08 px against 0.99 px, same training), so one scale. A corner keeps its input (``moved`` False) when the spread
 exceeds ``max_spread_px`` or the move exceeds ``max_move_px``: a corner the net is unsure of stays
 where the mask put it.
 
