@@ -68,12 +68,14 @@ docs:  ## docs/results.md, docs/results/summary.json and the README's answer fro
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
 	$(PY) -m reports.markdown --check
 
-train:  ## render the detector data, train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), evaluate it
+train:  ## render the detector data, train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it
 	PY=$(PY) bash training/scripts/make_data.sh out/detector-data
 	$(PY) -m app train --config training/configs/default.toml
 	PY=$(PY) bash training/scripts/verifier_data.sh out/verifier-renders
 	$(PY) -m app train-verifier out/train/default.pt --yolo ../shared/real/spb_facades/train --renders out/verifier-renders --render-views 150
 	$(PY) -m app ship-weights out/train/default.pt
+	PY=$(PY) bash training/scripts/refine_data.sh out/refine-data
+	$(PY) -m app train-refine --data out/refine-data/train --ship
 	$(PY) -m app evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
 	$(PY) -m app evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
 	$(PY) -m app evaluate-detector --yolo ../shared/real/spb_facades/train --part val --json out/eval/default-spb-val.json

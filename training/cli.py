@@ -4,6 +4,7 @@
     fenestra evaluate-detector --data DIR [--detector NAME] [--weights W.pt] [--json OUT]
     fenestra ship-weights W.pt [--to PATH]    # check, then copy to where the detector loads them
     fenestra train-verifier W.pt [--yolo DIR] [--out W2.pt]   # EffWin's door/signboard box verifier into W.pt
+    fenestra train-refine [--data out/refine-data/train] [--out out/train/refine.pt] [--ship]  # corner refinement
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from pipeline.detectors import DETECTORS
 
 
 def register(app: typer.Typer) -> None:
-    """Add `train`, `evaluate-detector`, `ship-weights` and `train-verifier` to the top-level app."""
+    """Add `train`, `evaluate-detector`, `ship-weights`, `train-verifier` and `train-refine` to the top-level app."""
 
     @app.command("train")
     def train_cmd(
@@ -100,3 +101,29 @@ def register(app: typer.Typer) -> None:
                    f"train photos and views; threshold {f.head.threshold:.3f}; out of fold at score >= 0.5: keeps "
                    f"{100 * f.oof_windows_kept:.1f} % of windows, drops {100 * f.oof_negatives_dropped:.1f} % of "
                    f"doors/signboards -> {out or weights}")
+
+    @app.command("train-refine")
+    def train_refine_cmd(
+        data: Optional[list[Path]] = typer.Option(None, help="rendered dataset folder(s) of the detector's training "
+                                                  "houses (default: out/refine-data/train, from training/scripts/refine_data.sh)"),
+        out: Path = typer.Option(Path("out/train/refine.pt"), help="weights file to write"),
+        epochs: Optional[int] = typer.Option(None, help="override the number of epochs"),
+        ship: bool = typer.Option(False, help="then check that the `refine` snapper loads it and copy it to "
+                                  "pipeline/models/refine.pt"),
+    ) -> None:
+        """Train the learned corner refinement (snapper `refine`): a small CNN on corner patches of rendered views."""
+        import dataclasses  # noqa: PLC0415
+        import shutil  # noqa: PLC0415
+
+        from pipeline.snappers.refine import SHIPPED, load_refiner  # noqa: PLC0415
+        from training.refine import RefineTrainConfig, train_refine  # noqa: PLC0415
+
+        cfg = RefineTrainConfig() if epochs is None else dataclasses.replace(RefineTrainConfig(), epochs=epochs)
+        meta = train_refine(tuple(data or (Path("out/refine-data/train"),)), out, cfg, log=typer.echo)
+        v = meta["validation"]
+        typer.echo(f"weights: {out} ({meta['train_seconds']} s); validation corners: error median "
+                   f"{v['before_median_px']:.2f} -> {v['gated_median_px']:.3f} px after refinement")
+        if ship:
+            load_refiner(str(out))  # refuses a file the snapper cannot use
+            shutil.copyfile(out, SHIPPED)
+            typer.echo(f"shipped {out} -> {SHIPPED}")

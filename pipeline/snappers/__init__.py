@@ -26,6 +26,7 @@ from pipeline.snappers.hough import HOUGH
 from pipeline.snappers.linefit import LINEFIT
 from pipeline.snappers.lsd import LSD
 from pipeline.snappers.none import NONE
+from pipeline.snappers.refine import REFINE
 from pipeline.snappers.subpix import SUBPIX
 
 SNAPPERS: Registry[Snapper] = Registry("snapper", [
@@ -35,6 +36,7 @@ SNAPPERS: Registry[Snapper] = Registry("snapper", [
     LINEFIT,
     SUBPIX,
     LSD,
+    REFINE,
 ])
 
 
