@@ -54,8 +54,9 @@ PYRENDER_PIXEL_OFFSET = 0.5
 
 
 # What `fenestra reconstruct` and ReconstructConfig() use: the README's measured best for a learned
-# detector's masks (line-based snapping, the per-wall shared plane with the façade's line segments).
-DEFAULTS = Method(detector="default", snapper="linefit", pose="wall+lines")
+# detector's masks (the learned corner refinement, the per-wall shared plane with the façade's line
+# segments; docs/DESIGN.md, Decisions).
+DEFAULTS = Method(detector="default", snapper="refine", pose="wall+lines")
 # The paper's method (Mask R-CNN, Harris snapping, per-window iterative PnP): the reference in comparisons.
 PAPER = Method(detector="maskrcnn", snapper="harris", pose="lm")
 

@@ -23,7 +23,7 @@ from reports import markdown as md
 
 ROOT = Path(__file__).resolve().parents[1]
 PATHS = md.DocPaths.for_markdown(ROOT / "docs" / "results.md")
-GENERATED = ("results", "defaults")
+GENERATED = ("results", "defaults", "detector")
 # A figure: a number with a unit of a measurement, or any decimal number (outside code). Licence and
 # standard versions ("CC BY 4.0") are names, not figures.
 UNIT_FIGURE = re.compile(r"(?<![\w./:-])\d+(?:[.,]\d+)?\s*(?:px|%|°|deg\b|ms\b|s\b|min\b|h\b|GB\b|MB\b|×|x\b|AP\b)")
@@ -228,3 +228,15 @@ def test_why_the_cli_keeps_its_default_follows_the_numbers(p_value, default_p90,
     text = md._why_default(c, rec, d)
     assert says in text and "866 windows" in text and "default/lsd/building+lines" in text
     assert md._why_default(None, rec, d) == ""
+
+
+def test_readme_detector_line_is_the_summary_s_unseen_houses():
+    """The README's detector block (tools/model_card_real.py --readme) quotes the committed
+    summary's unseen-house row of the CLI default detector, and names the real-photo sets."""
+    text = md.block((ROOT / "README.md").read_text(), "detector")
+    doc = json.loads(PATHS.summary.read_text())
+    rows = {r["house"]: r for r in doc["synthetic"]["per_house"][DEFAULTS.detector]["rows"]}
+    unseen = rows["unseen houses"]
+    assert f"corner error median {unseen['snap_median']:.2f} px" in text
+    assert f"within 5 px for {100 * unseen['all_corners_close']:.0f} %" in text
+    assert "validation photos" in text and "test photos" in text and "tools/model_card_real.py" in text

@@ -44,3 +44,24 @@ def test_without_the_photos_one_line_and_exit_2(tmp_path):
                        capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 2, r.stderr
     assert r.stdout == "" and len(r.stderr.strip().splitlines()) == 1 and "none" in r.stderr
+
+
+def test_readme_detector_line_quotes_its_sources():
+    """The README's detector sentence: the unseen-house row of the summary and the real-photo rows,
+    each figure where it belongs (values chosen so that no two round alike)."""
+    rows = [{"house": "duplex", "trained": True, "together": False, "detection_rate": 0.947},
+            {"house": "samplehouse4", "trained": False, "together": False, "detection_rate": 1.0},
+            {"house": "procedural:0", "trained": False, "together": False, "detection_rate": 0.98},
+            {"house": "unseen houses", "trained": False, "together": True, "detection_rate": 0.991,
+             "all_corners_close": 0.834, "snap_median": 0.7961, "exact_snap_median": 0.1251, "aspect_p90": 0.1144}]
+    summary = {"synthetic": {"per_house": {"default": {"snapper": "refine", "pose": "wall+lines", "rows": rows}}}}
+    results = [("spb train, validation part (never trained on)", _result("default", 112, 944, 0.512, 0.827, 1393, 28)),
+               ("spb test set (never trained on)", _result("default", 10, 101, 0.536, 0.877, 133, 4)),
+               ("spb test set (never trained on)", _result("winnet", 10, 101, 0.22, 0.447, 459, 91))]
+    text = model_card_real.detector_line(results, summary, "default")
+    assert "(`samplehouse4`, `procedural:0`; `make bench`)" in text
+    assert "finds 99 % of the evaluable windows, with all four corners within 5 px for 83 %" in text
+    assert "after `refine` snapping (corner error median 0.80 px; exact masks 0.13 px)" in text
+    assert "aspect-ratio error p90 of 11.4 % under `wall+lines`" in text and "it finds 95 % of them" in text
+    assert "bbox AP50 82.7, AP 51.2 on the 112 validation photos" in text
+    assert "bbox AP50 87.7, AP 53.6 on the 10 test photos, where 3.0 % of its detections" in text  # 4 / 133

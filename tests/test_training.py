@@ -318,7 +318,7 @@ def test_tools_run_from_any_folder(tmp_path):
 
 def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
     """`make -n train`: every repository file it names exists; it trains into out/, fits the box
-    verifier into that file, and ships explicitly."""
+    verifier into that file, and ships explicitly; then the corner refinement's data and training."""
     import re
     import subprocess
 
@@ -329,3 +329,5 @@ def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
     assert "ship-weights out/train/default.pt" in r.stdout
     assert "training/scripts/verifier_data.sh" in files
     assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("ship-weights out/train/default.pt")
+    assert "training/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
+    assert r.stdout.index("refine_data.sh") < r.stdout.index("train-refine") and "--ship" in r.stdout
