@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import glob
+import re
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -66,52 +67,40 @@ CANDIDATES: dict[str, dict | None] = {
                      "split_map": "void"},
     "voidsplit-min20-ws": {"split_levels": (0.6, 0.7, 0.8, 0.9, 0.95, 0.98), "separation": "watershed",
                            "split_map": "void", "split_min_px": 20},
-    # void blobs cut along the separators the corner heatmaps draw between neighbouring windows
-    "corner-cuts": {"separation": "nearest-blob", "corner_cuts": True},
-    "corner-cuts-ws": {"separation": "watershed", "corner_cuts": True},
-    "corner-cuts-p0.3": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.3},
-    "corner-cuts-p0.1": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.1},
-    "corner-cuts-gap6": {"separation": "nearest-blob", "corner_cuts": True, "cut_max_gap_px": 6.0},
-    "corner-cuts-gap14": {"separation": "nearest-blob", "corner_cuts": True, "cut_max_gap_px": 14.0},
-    "corner-cuts-v0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7},
-    "corner-cuts-p0.3-v0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.3,
-                              "cut_min_void_frac": 0.7},
-    "corner-cuts-p0.4-v0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.4,
-                              "cut_min_void_frac": 0.7},
-    "corner-cuts-p0.4": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_peak": 0.4},
-    "corner-cuts-sv0.7": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7},
-    "corner-cuts-sv0.9": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9},
-    "corner-cuts-sv0.7-dip0.01": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7,
-                                  "cut_min_dip": 0.01},
-    "corner-cuts-sv0.7-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7,
-                                  "cut_min_dip": 0.02},
-    "corner-cuts-sv0.9-p0.3": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
-                               "cut_min_peak": 0.3},
-    "corner-cuts-sv0.9-p0.25": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
-                                "cut_min_peak": 0.25},
-    "corner-cuts-sv0.9-h0.5": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
-                               "cut_min_height_frac": 0.5},
-    "corner-cuts-sv0.9-h0.6": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
-                               "cut_min_height_frac": 0.6},
-    "corner-cuts-sv0.9-h0.75": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
-                                "cut_min_height_frac": 0.75},
-    "corner-cuts-sv0.9-h1": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
-                             "cut_min_height_frac": 1.0},
-    "corner-cuts-dip0.01": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.01},
-    "corner-cuts-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.02},
-    "corner-cuts-dip0.05": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.05},
-    "corner-cuts-v0.3-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.02,
-                                 "cut_min_void_frac": 0.3},
-    "corner-cuts-p0.3-dip0.02": {"separation": "nearest-blob", "corner_cuts": True, "cut_min_dip": 0.02,
-                                 "cut_min_peak": 0.3},
 }
+# void blobs cut along the separators the corner heatmaps draw between neighbouring windows: each
+# candidate's settings are spelled in its name (corner_cut_settings)
+CUT_SUFFIXES = {"sv": "cut_min_void_frac", "v": "cut_min_void_frac", "p": "cut_min_peak", "h": "cut_min_height_frac",
+                "dip": "cut_min_dip", "gap": "cut_max_gap_px"}
+CUT_CANDIDATES = ("corner-cuts", "corner-cuts-ws", "corner-cuts-p0.3", "corner-cuts-p0.1", "corner-cuts-gap6",
+                  "corner-cuts-gap14", "corner-cuts-v0.7", "corner-cuts-p0.3-v0.7", "corner-cuts-p0.4-v0.7",
+                  "corner-cuts-p0.4", "corner-cuts-sv0.7", "corner-cuts-sv0.9", "corner-cuts-sv0.7-dip0.01",
+                  "corner-cuts-sv0.7-dip0.02", "corner-cuts-sv0.9-p0.3", "corner-cuts-sv0.9-p0.25",
+                  "corner-cuts-sv0.9-h0.5", "corner-cuts-sv0.9-h0.6", "corner-cuts-sv0.9-h0.75", "corner-cuts-sv0.9-h1",
+                  "corner-cuts-dip0.01", "corner-cuts-dip0.02", "corner-cuts-dip0.05", "corner-cuts-v0.3-dip0.02",
+                  "corner-cuts-p0.3-dip0.02")
+
+
+def corner_cut_settings(name: str) -> dict:
+    """PostConfig overrides of a ``corner-cuts[-ws][-<key><value>]...`` candidate (keys: CUT_SUFFIXES;
+    ``ws``: watershed join, else nearest-blob), e.g. ``corner-cuts-sv0.9-h0.75``."""
+    parts = name.removeprefix("corner-cuts").split("-")[1:]
+    out = {"separation": "watershed" if "ws" in parts else "nearest-blob", "corner_cuts": True}
+    for part in (p for p in parts if p != "ws"):
+        m = re.fullmatch(r"([a-z]+)([0-9.]+)", part)
+        if m is None or m.group(1) not in CUT_SUFFIXES:
+            raise ValueError(f"candidate {name!r}: unknown setting {part!r} (keys: {sorted(CUT_SUFFIXES)})")
+        out[CUT_SUFFIXES[m.group(1)]] = float(m.group(2))
+    return out
+
+
+CANDIDATES.update({n: corner_cut_settings(n) for n in CUT_CANDIDATES})
 
 
 def training_houses(script: Path = Path(__file__).resolve().parent.parent / "training" / "scripts" / "make_data.sh"
                     ) -> tuple[str, ...]:
     """The bundled houses the shipped detectors trained on, read from the data script's
     ``for house in ...; do`` loop (procedural houses are named by seed there, not here)."""
-    import re  # noqa: PLC0415
 
     m = re.search(r"^for house in ([\w\s-]+); do", script.read_text(), re.M)
     if m is None:
