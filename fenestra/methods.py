@@ -18,12 +18,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 NO_K_SUFFIX = "+noK"  # the pose column of a K-withheld method: "wall+noK"
-DEFAULT_QUAD_SOURCE = "mask"
+# The quad source of a method that names none (the CLI's, fenestra.conventions.DEFAULTS): the mask
+# fit, and the detector's predicted corners where the fit finds no quadrilateral (DESIGN.md, Decisions)
+DEFAULT_QUAD_SOURCE = "mask+corners"
 
 
 @dataclass(frozen=True)
 class Method:
-    """detector x corner snapper x pose strategy, K given or withheld, quad from mask or corners."""
+    """detector x corner snapper x pose strategy, K given or withheld, quad source (pipeline.quad.QUAD_SOURCES)."""
 
     detector: str
     snapper: str

@@ -222,7 +222,8 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),
         quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
                                         help=f"quad from: {', '.join(QUAD_SOURCES)} (corners: the detector's corner head, "
-                                             "the mask fit where it has none)"),
+                                             "the mask fit where it has none; mask+corners: the mask fit, the "
+                                             "corner head where the fit finds no quadrilateral)"),
     ) -> None:
         """Reconstruct the windows of photos: windows.json, overlay.png, IFC, OBJ, GLB per photo.
 

@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 
-QUAD_SOURCES = ("mask", "corners")
+QUAD_SOURCES = ("mask", "corners", "mask+corners")
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,9 @@ class QuadParams:
     source: where the quad comes from: ``"mask"`` (:func:`mask_to_quad`), or ``"corners"``: the
         corners a detector with a corner head predicts (``Detection.corners``,
         :func:`corners_to_quad`), falling back to the mask fit for a detection without usable
-        corners. QUAD_SOURCES lists the choices.
+        corners; or ``"mask+corners"``: the mask fit, and the predicted corners (where they
+        describe the mask) for a mask the fit finds no quadrilateral in. QUAD_SOURCES lists the
+        choices.
     """
 
     window_pts: int = 100

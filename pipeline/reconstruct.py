@@ -115,7 +115,7 @@ class ReconstructConfig:
     width_m: float | None = None
     fallback_focal_px: float | None = None
     snapper_params: object | None = None
-    quad: QuadParams = field(default_factory=QuadParams)
+    quad: QuadParams = field(default_factory=lambda: QuadParams(source=DEFAULTS.quad_source))
 
     def __post_init__(self) -> None:
         SNAPPERS.lookup(self.snapper)  # UnknownName (a ValueError) naming the choices
@@ -185,8 +185,23 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
             qr = None  # predicted corners that do not describe the mask: fall back to the mask fit
         if qr is None or qr.quad is None:  # the mask fit: the source, or the fallback
             qr = mask_to_quad(det.mask, params) if image_shape is None else fit_sparse(det, params, image_shape)
+        if params.source == "mask+corners" and qr.quad is None:
+            qr = corner_fallback(det, qr)
         fits.append(QuadFit(qr, (time.perf_counter() - t0) * 1e3))
     return fits
+
+
+def corner_fallback(det: Detection, failed: QuadResult) -> QuadResult:
+    """The detection's predicted corners as its quad where the mask fit ``failed`` to find a
+    quadrilateral (``not_quadrilateral``: a ragged or notched learned mask) and they describe the
+    mask (pipeline.quad.corners_agree_with_mask); else ``failed`` as it is. Never for a mask cut by
+    the image border or holding several blobs: there the window's own corners are not seen."""
+    if not (failed.failure or "").startswith("not_quadrilateral") or det.corners is None:
+        return failed
+    qr = corners_to_quad(det.corners)
+    if qr.quad is None or not corners_agree_with_mask(qr.quad, det.mask, det.origin):
+        return failed
+    return qr
 
 
 def mask_outside(det: Detection, image_shape: tuple[int, int]) -> str | None:

@@ -93,3 +93,31 @@ def test_speck_ignored():
     m[5, 5] = True  # a one-pixel speck far away
     r = mask_to_quad(m)
     assert r.failure is None and np.linalg.norm(r.quad - sw.corners_px, axis=1).max() < 0.75
+
+
+def test_mask_plus_corners_takes_the_corner_head_only_where_the_mask_fit_finds_no_quad():
+    """quad source ``mask+corners``: a round (not quadrilateral) mask fails the mask fit; the
+    detection's predicted corners that describe it stand in; corners on another window, a mask cut
+    by the image border, and the plain ``mask`` source keep the failure; a good mask keeps its fit."""
+    from pipeline.reconstruct import fit_quads
+    from pipeline.types import Detection
+
+    yy, xx = np.mgrid[:120, :160]
+    disk = (yy - 60) ** 2 + (xx - 80) ** 2 < 40 ** 2
+    inscribed = np.array([[52.0, 32.0], [108.0, 32.0], [108.0, 88.0], [52.0, 88.0]])  # TL TR BR BL
+    box = np.array([40, 20, 120, 100])
+
+    def quad_of(mask, corners, source):
+        det = Detection(mask=mask, box=box, score=0.9, corners=corners)
+        return fit_quads([det], QuadParams(source=source), mask.shape)[0].result
+
+    assert quad_of(disk, inscribed, "mask").failure.startswith("not_quadrilateral")
+    np.testing.assert_allclose(quad_of(disk, inscribed, "mask+corners").quad, inscribed)
+    elsewhere = inscribed + [150.0, 0.0]  # its centroid test fails: not this mask's window
+    assert quad_of(disk, elsewhere, "mask+corners").quad is None
+    assert quad_of(disk, None, "mask+corners").quad is None
+    cut = (yy - 10) ** 2 + (xx - 80) ** 2 < 40 ** 2  # reaches the top edge: corners unseen
+    assert quad_of(cut, inscribed - [0, 50], "mask+corners").failure.startswith("touches_border")
+    rect = (yy >= 30) & (yy < 90) & (xx >= 40) & (xx < 120)
+    fit = quad_of(rect, inscribed, "mask+corners").quad  # the mask fit where it succeeds, not the head
+    np.testing.assert_allclose(fit, [[39.5, 29.5], [119.5, 29.5], [119.5, 89.5], [39.5, 89.5]], atol=0.3)

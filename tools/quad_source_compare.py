@@ -4,8 +4,9 @@
         [--poses lm,wall+lines] [--out out/quadsrc-smoke] [--doc docs/experiments.md --block NAME]
 
 Runs ``bench.runner.run_benchmark`` with the learned detector ``default`` and every snapper x pose
-given, once with ``quad_source = "mask"`` (the fit to the mask, pipeline/quad.py) and once with
-``"corners"`` (the corner heatmaps' peaks, falling back to the mask where they do not describe it),
+given, once per quad source of ``--sources``: ``mask`` (the fit to the mask, pipeline/quad.py),
+``corners`` (the corner heatmaps' peaks, falling back to the mask where they do not describe it),
+``mask+corners`` (the mask fit, the corner heatmaps' peaks where it finds no quadrilateral),
 and prints per method: windows with a quad, corner error after snapping (median px, share of
 the bench's corner recall at 5 px), aspect-ratio error p90 and rotation error median. The bench
 lets a profile select quad sources only through this override (fenestra.methods.Method). Each
@@ -24,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench.profiles import load_profile  # noqa: E402
 from bench.runner import run_benchmark  # noqa: E402
 from fenestra.methods import Method  # noqa: E402
+from pipeline.quad import QUAD_SOURCES  # noqa: E402
 
 
 def table(results: dict, methods: list[Method]) -> list[str]:
@@ -49,6 +51,7 @@ def main() -> None:
     ap.add_argument("--detector", default="default")
     ap.add_argument("--snappers", default="none,linefit,lsd")
     ap.add_argument("--poses", default="lm,wall+lines")
+    ap.add_argument("--sources", default="mask,corners", help=f"quad sources, of {QUAD_SOURCES}")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--doc", type=Path, default=None)
@@ -56,7 +59,7 @@ def main() -> None:
     a = ap.parse_args()
     profile = load_profile(a.profile)
     methods = [Method(a.detector, s, p, quad_source=q) for s in a.snappers.split(",")
-               for p in a.poses.split(",") for q in ("mask", "corners")]
+               for p in a.poses.split(",") for q in a.sources.split(",")]
     out = a.out or Path("out") / f"quadsrc-{profile.name}"
     # one run: the bench keys its per-wall reuse of per-window results on the quad parameters too
     run_benchmark(profile, out_dir=out, workers=a.workers, progress=False, report=None, methods=tuple(methods),
