@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 NO_K_SUFFIX = "+noK"  # the pose column of a K-withheld method: "wall+noK"
 # The quad source of a method that names none (the CLI's, fenestra.conventions.DEFAULTS): the mask
-# fit, and the detector's predicted corners where the fit finds no quadrilateral (DESIGN.md, Decisions)
-DEFAULT_QUAD_SOURCE = "mask+corners"
+# fit (``mask+corners`` answers more windows but spoils the per-wall fits: DESIGN.md, Decisions)
+DEFAULT_QUAD_SOURCE = "mask"
 
 
 @dataclass(frozen=True)
