@@ -30,18 +30,18 @@ from pipeline.quad import QUAD_SOURCES  # noqa: E402
 
 def table(results: dict, methods: list[Method]) -> list[str]:
     lines = ["| snapper | pose | quad source | evaluable | quads | corner error median px (snapped) | "
-             "corner recall at 5 px | aspect error p90 | rotation error median deg |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "corner recall at 5 px | aspect error p90 | rotation error median deg | rotation error p90 deg |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for m in methods:
         r = results.get(m.label)
         if r is None:
-            lines.append(f"| {m.snapper} | {m.pose_label} | {m.quad_source} | (no row) |||||")
+            lines.append(f"| {m.snapper} | {m.pose_label} | {m.quad_source} | (no row) ||||||")
             continue
         c, a, rot = r["corner_err_px_snap"], r["aspect_err_rel"], r["rot_err_deg"]
         fmt = (lambda v, k=1.0, d=2: "-" if v is None else f"{k * v:.{d}f}")
         lines.append(f"| {m.snapper} | {m.pose_label} | {m.quad_source} | {r['n_evaluable']} | "
                      f"{100 * (1 - c['fail_rate']):.0f} % | {fmt(c['median'])} | {100 * c['recall']['5']:.0f} % | "
-                     f"{fmt(a['p90'], 100, 1)} % | {fmt(rot['median'])} |")
+                     f"{fmt(a['p90'], 100, 1)} % | {fmt(rot['median'])} | {fmt(rot['p90'])} |")
     return lines
 
 
@@ -54,6 +54,7 @@ def main() -> None:
     ap.add_argument("--sources", default="mask,corners", help=f"quad sources, of {QUAD_SOURCES}")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--reuse", action="store_true", help="table the run already in --out (same arguments)")
     ap.add_argument("--doc", type=Path, default=None)
     ap.add_argument("--block", default=None)
     a = ap.parse_args()
@@ -61,9 +62,10 @@ def main() -> None:
     methods = [Method(a.detector, s, p, quad_source=q) for s in a.snappers.split(",")
                for p in a.poses.split(",") for q in a.sources.split(",")]
     out = a.out or Path("out") / f"quadsrc-{profile.name}"
-    # one run: the bench keys its per-wall reuse of per-window results on the quad parameters too
-    run_benchmark(profile, out_dir=out, workers=a.workers, progress=False, report=None, methods=tuple(methods),
-                  force=True)
+    if not (a.reuse and (out / "summary.json").is_file()):
+        # one run: the bench keys its per-wall reuse of per-window results on the quad parameters too
+        run_benchmark(profile, out_dir=out, workers=a.workers, progress=False, report=None,
+                      methods=tuple(methods), force=True)
     results = json.loads((out / "summary.json").read_text())["results"]
     lines = [f"`python tools/quad_source_compare.py {' '.join(sys.argv[1:])}` (profile {profile.name}, "
              f"detector {a.detector}; corner error after snapping, every corner of the evaluable windows)", ""]
