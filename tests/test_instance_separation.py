@@ -230,7 +230,7 @@ def test_separator_cuts_part_two_touching_windows_drawn_by_their_corner_maps():
     assert len(dets) == 2 and len(m.pairs) == 2 and min(iou for _, _, iou in m.pairs) > 0.9
 
 
-def test_separator_cuts_skip_a_line_across_the_wall_between_windows():
+def test_separator_cuts_draw_no_line_across_the_wall_between_windows():
     """Two windows 30 px apart side by side, corners drawn as above but the facing pairs too far
     apart (gap > cut_max_gap_px): no separator; and a wall-crossing line fails the void gate."""
     from pipeline.detectors.effwin import corner_heatmaps

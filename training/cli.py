@@ -113,8 +113,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Train the learned corner refinement (snapper `refine`): a small CNN on corner patches of rendered views."""
         import dataclasses  # noqa: PLC0415
-        import shutil  # noqa: PLC0415
 
+        from fenestra.files import write_bytes  # noqa: PLC0415
         from pipeline.snappers.refine import SHIPPED, load_refiner  # noqa: PLC0415
         from training.refine import RefineTrainConfig, train_refine  # noqa: PLC0415
 
@@ -125,5 +125,5 @@ def register(app: typer.Typer) -> None:
                    f"{v['before_median_px']:.2f} -> {v['gated_median_px']:.3f} px after refinement")
         if ship:
             load_refiner(str(out))  # refuses a file the snapper cannot use
-            shutil.copyfile(out, SHIPPED)
+            write_bytes(SHIPPED, Path(out).read_bytes())  # atomically: a half-written file never ships
             typer.echo(f"shipped {out} -> {SHIPPED}")

@@ -33,7 +33,7 @@ from fenestra.errors import DatasetError
 from fenestra.files import write_atomic
 from fenestra.images import read_image
 from pipeline.reconstruct import to_gray
-from pipeline.snappers.refine import (ARCH, FLIPS, PATCH, WIDTHS, build_net, normalise, sample_patches,
+from pipeline.snappers.refine import (ARCH, FLIPS, PATCH, WIDTHS, build_net, heatmap, normalise, sample_patches,
                                       soft_argmax, to_patch)
 
 
@@ -187,10 +187,7 @@ def train_refine(roots: tuple[Path, ...], out: Path, cfg: RefineTrainConfig = Re
             logits = net(torch.from_numpy(x))
             uv, _ = soft_argmax(logits)
             tt = torch.from_numpy(t).float()
-            n, h, w = logits.shape
-            p = torch.softmax(logits.reshape(n, -1), 1).reshape(n, h, w)
-            gx = torch.arange(w, dtype=p.dtype) * 2 + 0.5
-            gy = torch.arange(h, dtype=p.dtype) * 2 + 0.5
+            p, gx, gy = heatmap(logits)  # the spread term: expected squared distance to the target
             d2 = (gx[None, None, :] - tt[:, 0, None, None]) ** 2 + (gy[None, :, None] - tt[:, 1, None, None]) ** 2
             loss = torch.nn.functional.smooth_l1_loss(uv, tt) + cfg.spread_weight * (p * d2).sum((1, 2)).mean()
             opt.zero_grad()

@@ -88,15 +88,22 @@ def build_net(widths: tuple[int, int, int] = WIDTHS):
     return RefineNet()
 
 
-def soft_argmax(logits):
-    """(N, h, w) heatmap logits -> (N, 2) expected (x, y) and (N,) spread (px), in patch pixels
-    (heatmap cell i covers patch pixels 2i, 2i+1: its centre is 2i + 0.5)."""
+def heatmap(logits):
+    """(N, h, w) heatmap logits -> (probabilities (N, h, w), cell centres x (w,), y (h,)) in patch
+    pixels (heatmap cell i covers patch pixels 2i, 2i+1: its centre is 2i + 0.5)."""
     import torch  # noqa: PLC0415
 
     n, h, w = logits.shape
     p = torch.softmax(logits.reshape(n, -1), 1).reshape(n, h, w)
-    xs = torch.arange(w, dtype=p.dtype) * 2 + 0.5
-    ys = torch.arange(h, dtype=p.dtype) * 2 + 0.5
+    return p, torch.arange(w, dtype=p.dtype) * 2 + 0.5, torch.arange(h, dtype=p.dtype) * 2 + 0.5
+
+
+def soft_argmax(logits):
+    """(N, h, w) heatmap logits -> (N, 2) expected (x, y) and (N,) spread (px), in patch pixels
+    (:func:`heatmap`)."""
+    import torch  # noqa: PLC0415
+
+    p, xs, ys = heatmap(logits)
     px, py = p.sum(1), p.sum(2)  # marginals over x and y
     mx, my = px @ xs, py @ ys
     var = px @ xs ** 2 - mx ** 2 + py @ ys ** 2 - my ** 2
