@@ -4,12 +4,13 @@ pretrained backbone learns at a tenth of the rate."""
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
-from training.augment import occluders, photometric, random_scale_crop, shadow_band
+from training.augment import neighbour_strip, occluders, photometric, random_scale_crop, shadow_band
 from training.recipes import Recipe
 from training.recipes.winnet import winnet_loss
 
@@ -17,11 +18,31 @@ if TYPE_CHECKING:
     from training.train import TrainConfig
 
 
+def effwin_sample(item, cfg: TrainConfig, rng: np.random.Generator, street: bool = True):
+    """One augmented crop of a (image, instances, corners or None) item: image (h, w, 3) uint8,
+    instances (h, w) int, corner heatmaps (4, h, w) float32 (zeros for a real photo: boxes, no
+    corners). street: also draw occluders and an eave shadow (cfg.augment)."""
+    from pipeline.detectors.effwin import corner_heatmaps  # noqa: PLC0415
+
+    image, inst, corners = item
+    img, ins, warp = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+    occ = np.zeros(ins.shape, bool)
+    if street:
+        img, ins, occ = occluders(img, ins, cfg.augment, rng)
+        img = shadow_band(img, ins, cfg.augment, rng)
+    img = photometric(img, cfg.augment, rng)
+    if corners is None:
+        return img, ins, np.zeros((4, *ins.shape), np.float32)
+    c = warp.points(corners)
+    return img, ins, corner_heatmaps(c[:, [1, 0, 3, 2]] if warp.flip else c, ins.shape) * ~occ
+
+
 def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     """One augmented batch: images (B, 3, h, w) normalised, targets (B, 6, h, w) [void, core, TL, TR,
     BR, BL heatmaps] and per-sample corner weights (B,) (0 for real photos: boxes, no corners).
-    A sample is a real photo with probability cfg.real_fraction."""
-    from pipeline.detectors.effwin import corner_heatmaps, to_tensor  # noqa: PLC0415
+    A sample is a real photo with probability cfg.real_fraction; with cfg.augment.neighbour_prob a
+    strip of another sample of the same pool (a neighbouring facade) is pasted beside it."""
+    from pipeline.detectors.effwin import to_tensor  # noqa: PLC0415
     from pipeline.detectors.winnet import core_targets  # noqa: PLC0415
 
     real = [i for i, d in enumerate(data) if d[2] is None]
@@ -29,17 +50,15 @@ def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     imgs, tgts, wts = [], [], []
     for _ in range(cfg.batch_size):
         pool = real if real and (not synth or rng.random() < cfg.real_fraction) else synth
-        image, inst, corners = data[pool[int(rng.integers(len(pool)))]]
-        img, ins, warp = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
-        img, ins, occ = occluders(img, ins, cfg.augment, rng)
-        imgs.append(photometric(shadow_band(img, ins, cfg.augment, rng), cfg.augment, rng))
-        if corners is None:
-            heat, w = np.zeros((4, *ins.shape), np.float32), 0.0
-        else:
-            c = warp.points(corners)
-            heat, w = corner_heatmaps(c[:, [1, 0, 3, 2]] if warp.flip else c, ins.shape) * ~occ, 1.0
+        item = data[pool[int(rng.integers(len(pool)))]]
+        img, ins, heat = effwin_sample(item, cfg, rng)
+        if cfg.augment.neighbour_prob > 0 and rng.random() < cfg.augment.neighbour_prob:
+            o_img, o_ins, o_heat = effwin_sample(data[pool[int(rng.integers(len(pool)))]], cfg, rng, street=False)
+            img, ins, strip = neighbour_strip(img, ins, o_img, o_ins, replace(cfg.augment, neighbour_prob=1.0), rng)
+            heat = np.where(strip, o_heat, heat)
         tgts.append(np.concatenate([np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]), heat]))
-        wts.append(w)
+        imgs.append(img)
+        wts.append(0.0 if item[2] is None else 1.0)
     return (to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32)),
             torch.tensor(wts, dtype=torch.float32))
 
