@@ -119,7 +119,7 @@ class PhotorealRenderer:
         self.mi = mi = import_mitsuba(settings.variant)
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
-        self.look = look = sample_look(rng)  # same draws as the raster backend: same palette
+        self.look = look = sample_look(rng, settings.look)  # same draws as the raster backend: same palette
         groups = group_scene(scene, look, rng)
         objs = {}
         for i, g in enumerate(groups):
@@ -148,7 +148,8 @@ class PhotorealRenderer:
                        "to_world": mi.ScalarTransform4f(env_to_world.tolist())}
         sun = sun_direction(look)
         objs["sun"] = {"type": "directional", "direction": (-sun).tolist(),
-                       "irradiance": {"type": "rgb", "value": (np.array([1.0, 0.95, 0.85]) * look.sun_intensity).tolist()}}
+                       "irradiance": {"type": "rgb", "value": (np.array([1.0, 0.95, 0.85]) * np.asarray(look.sun_tint)
+                                                         * look.sun_intensity).tolist()}}
         objs["type"] = "scene"
         objs["integrator"] = {"type": "path", "max_depth": settings.max_depth}
         self._scene = mi.load_dict(objs)
