@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from scenes.generate import HouseSpec, make_house
+from scenes.loader import load_scene
 
 SQUARE = ((0.0, 0.0), (6.0, 0.0), (6.0, 5.0), (0.0, 5.0))  # axis-aligned: walls known here
 ORNATE = dict(seed=4, footprint=SQUARE, storeys=2, windows_per_wall=3, glazed_doors=1,
@@ -84,6 +85,10 @@ def test_ornament_members_never_cover_a_void_and_keep_the_windows(tmp_path):
     assert n_voids == len(f.by_type("IfcOpeningElement"))
     assert kinds["sill"] >= len(house.windows) - 1 and kinds["surround"] >= 4 * 4
     assert kinds["shutter"] >= 2
+    # the loader's ground truth (IfcWindow fillings) is that of the house without ornament
+    gt = lambda p: sorted((w.id, np.round(w.corners_world, 9).tolist())  # noqa: E731
+                          for w in load_scene(p, cache_dir=tmp_path / "cache").windows)
+    assert gt(house.path) == gt(plain.path)
 
 
 def test_ornament_off_by_default_writes_nothing_extra(tmp_path):

@@ -27,6 +27,8 @@ def test_classic_look_draws_what_it_always_drew():
     assert look.sky_zenith == pytest.approx((0.33154374871981346, 0.5902608635681652, 0.9223780331182299))
     assert rng.random() == pytest.approx(0.002738500170148095, abs=1e-15)
     assert look.weather == "clear" and look.sun_tint == (1.0, 1.0, 1.0) and look.glass_tint == (1.0, 1.0, 1.0)
+    from renders.photoreal import glass_diffuse
+    assert glass_diffuse(look) == [0.01, 0.012, 0.015]  # mitsuba's classic glass BSDF
     seven = sample_look(np.random.default_rng(7))
     assert seven.roof_rgb == (0.25, 0.25, 0.27) and seven.sun_intensity == pytest.approx(2.5052653045655746)
     # the parameterised glass texture's defaults are the old formula
