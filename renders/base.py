@@ -9,6 +9,7 @@ from renders.camera import Camera
 from renders.gt import WindowView
 
 DENOISERS = ("none", "oidn", "oidn-aov")
+LOOKS = ("classic", "wide")  # renders.materials.sample_look styles
 
 
 @dataclass(frozen=True)
@@ -24,6 +25,7 @@ class RenderSettings:
     max_depth: int = 3
     variant: str = "auto"  # mitsuba: "auto" (llvm_ad_rgb if available, else scalar_rgb) or a name
     denoise: str = "none"  # mitsuba: "none" | "oidn" | "oidn-aov" (see the class docstring, renders/photoreal.py)
+    look: str = "classic"  # renders.materials.LOOKS: "classic" (the original palette), "wide" (broader)
     antialias: str = "fxaa"  # raster: "fxaa" (post filter, fast), "msaa4" (4x multisampling, ~2.5x slower), "none"
 
     def __post_init__(self) -> None:
@@ -33,6 +35,8 @@ class RenderSettings:
             raise ValueError(f"antialias must be 'fxaa', 'msaa4' or 'none', got {self.antialias!r}")
         if self.denoise not in DENOISERS:
             raise ValueError(f"denoise must be one of {DENOISERS}, got {self.denoise!r}")
+        if self.look not in LOOKS:
+            raise ValueError(f"look must be one of {LOOKS}, got {self.look!r}")
         if self.max_depth < 1:
             raise ValueError(f"max_depth must be >= 1, got {self.max_depth}")
 

@@ -17,7 +17,7 @@ def register(app: typer.Typer) -> None:
     from the registries)."""
     from fenestra.config import choices  # noqa: PLC0415
     from renders.backends import RENDERERS  # noqa: PLC0415
-    from renders.base import DENOISERS, RenderSettings  # noqa: PLC0415
+    from renders.base import DENOISERS, LOOKS, RenderSettings  # noqa: PLC0415
     from renders.dataset import DatasetConfig  # noqa: PLC0415
     from renders.sampler import SamplerConfig  # noqa: PLC0415
 
@@ -39,6 +39,8 @@ def register(app: typer.Typer) -> None:
                spp: int = typer.Option(R.spp, help="mitsuba samples per pixel"),
                denoise: str = typer.Option(R.denoise, help=f"mitsuba: {', '.join(DENOISERS)} (Open Image Denoise, "
                                            "oidn-aov guided by albedo/normal; the photoreal profile: 4 spp + oidn)"),
+               look: str = typer.Option(R.look, help=f"palette, textures and lighting drawn per seed: {', '.join(LOOKS)} "
+                                        "(wide: more wall colours/materials, glass variants, low sun, overcast)"),
                no_shadows: bool = typer.Option(not R.shadows, help="raster: no sun shadows"),
                sensor: bool = typer.Option(False, help="apply realistic sensor noise/blur/JPEG to images")) -> None:
         """Render a dataset of views (images, 16-bit instance maps, view.json, coco.json)."""
@@ -51,7 +53,8 @@ def register(app: typer.Typer) -> None:
                                   distance_m=(distance_min, distance_max), azimuth_deg=(-azimuth_max, azimuth_max),
                                   street_fraction=street_fraction, min_visible_fraction=min_visible,
                                   k1_range=(-abs(k1), abs(k1))),
-            settings=RenderSettings(seed=seed, spp=spp, shadows=not no_shadows, denoise=denoise),
+            settings=RenderSettings(seed=seed, spp=spp, shadows=not no_shadows, denoise=denoise,
+                                    look=look),
             sensor=REALISTIC if sensor else SensorConfig())
         root = render_dataset(cfg)
         stats = json.loads((root / "stats.json").read_text())

@@ -62,12 +62,15 @@ def config_hash(config: DatasetConfig, scene: Scene) -> str:
     """12 hex digits identifying the output of (config, scene); out_root excluded.
 
     ``settings.denoise`` counts only for mitsuba and only when not "none", so the folders of raster
-    datasets and of undenoised mitsuba ones keep the names they had before the option existed.
+    datasets and of undenoised mitsuba ones keep the names they had before the option existed;
+    likewise ``settings.look`` counts only when not "classic".
     """
     d = dataclasses.asdict(config)
     d.pop("out_root")
     if config.renderer != "mitsuba" or config.settings.denoise == "none":
         d["settings"].pop("denoise")
+    if config.settings.look == "classic":
+        d["settings"].pop("look")
     d["settings"]["seed"] = config.seed
     d["scene_sha256"] = scene.sha256
     d["format"] = FORMAT_VERSION

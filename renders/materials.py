@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from renders.base import LOOKS  # RenderSettings.look: which palette/lighting distribution is drawn
 from scenes.model import ElementMesh, Scene
 
 TEX = 256  # texture size, px
@@ -47,9 +48,10 @@ class MaterialGroup:
 
 @dataclass(frozen=True)
 class Look:
-    """The seeded appearance choices of one render set (palette, sun, sky)."""
+    """The seeded appearance choices of one render set (palette, sun, sky). The fields after
+    sky_horizon default to what the "classic" look always used (see :func:`sample_look`)."""
 
-    wall_style: str  # "plaster" | "brick"
+    wall_style: str  # "plaster" | "brick" | "stone" (stone: "wide" only)
     wall_rgb: tuple[float, float, float]
     frame_rgb: tuple[float, float, float]
     roof_rgb: tuple[float, float, float]
@@ -60,15 +62,36 @@ class Look:
     ambient: float
     sky_zenith: tuple[float, float, float]
     sky_horizon: tuple[float, float, float]
+    weather: str = "clear"  # "clear" | "low_sun" | "overcast"
+    sun_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)  # multiplies each backend's sun colour
+    glass_reflect: float = 1.0  # scale of the sky reflection in the glass texture
+    glass_interior: tuple[float, float, float] = (0.10, 0.12, 0.14)  # the room seen through it
+    glass_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
 
 PLASTER_RGB = [(0.93, 0.91, 0.86), (0.95, 0.90, 0.76), (0.86, 0.86, 0.84), (0.92, 0.84, 0.74), (0.80, 0.85, 0.86)]
 FRAME_RGB = [(0.95, 0.95, 0.95), (0.22, 0.23, 0.25), (0.40, 0.26, 0.16), (0.55, 0.57, 0.58)]
 ROOF_RGB = [(0.55, 0.20, 0.14), (0.25, 0.25, 0.27), (0.45, 0.28, 0.20)]
+# "wide": St Petersburg-like plaster (ochre, pink, mint, pale blue, terracotta, grey, white, yellow,
+# lilac), more frame and roof colours, glass tints, warm/neutral/cool skies
+WIDE_WALL_RGB = [(0.85, 0.66, 0.35), (0.88, 0.62, 0.60), (0.62, 0.80, 0.68), (0.62, 0.75, 0.86),
+                 (0.72, 0.38, 0.26), (0.62, 0.62, 0.62), (0.94, 0.93, 0.90), (0.93, 0.80, 0.45),
+                 (0.74, 0.66, 0.80)]
+WIDE_FRAME_RGB = FRAME_RGB + [(0.08, 0.08, 0.09), (0.30, 0.18, 0.10), (0.15, 0.27, 0.18),
+                              (0.78, 0.72, 0.60), (0.20, 0.26, 0.42), (0.55, 0.15, 0.12)]
+WIDE_ROOF_RGB = ROOF_RGB + [(0.35, 0.47, 0.40), (0.60, 0.61, 0.63), (0.20, 0.30, 0.22)]
+GLASS_TINTS = [(1.0, 1.0, 1.0), (0.85, 0.95, 1.0), (0.90, 1.0, 0.92), (1.0, 0.93, 0.82), (0.78, 0.78, 0.80)]
+SKY_HORIZONS = {"warm": (0.96, 0.86, 0.74), "neutral": (0.82, 0.88, 0.95), "cool": (0.74, 0.84, 0.98)}
+SUN_TINTS = {"warm": (1.0, 0.90, 0.75), "neutral": (1.0, 1.0, 1.0), "cool": (0.92, 0.96, 1.0)}
 
 
-def sample_look(rng: np.random.Generator) -> Look:
-    """Draw a palette, sun and sky from ``rng``."""
+def sample_look(rng: np.random.Generator, style: str = "classic") -> Look:
+    """Draw a palette, sun and sky from ``rng``: ``style`` one of LOOKS. "classic" makes exactly
+    the draws it always made (dataset folders and renders unchanged); "wide" see sample_wide_look."""
+    if style == "wide":
+        return sample_wide_look(rng)
+    if style != "classic":
+        raise ValueError(f"look must be one of {LOOKS}, got {style!r}")
     pick = lambda opts: opts[int(rng.integers(len(opts)))]  # noqa: E731
     return Look(wall_style="brick" if rng.random() < 0.35 else "plaster", wall_rgb=pick(PLASTER_RGB),
                 frame_rgb=pick(FRAME_RGB), roof_rgb=pick(ROOF_RGB),
@@ -77,6 +100,46 @@ def sample_look(rng: np.random.Generator) -> Look:
                 sun_intensity=float(rng.uniform(2.5, 3.5)), ambient=float(rng.uniform(0.35, 0.5)),
                 sky_zenith=(float(rng.uniform(0.25, 0.4)), float(rng.uniform(0.45, 0.6)), float(rng.uniform(0.8, 0.95))),
                 sky_horizon=(0.82, 0.88, 0.95))
+
+
+def _jitter(rng: np.random.Generator, rgb, lo: float, hi: float, spread: float = 0.04) -> tuple:
+    """rgb scaled by a uniform brightness in [lo, hi] plus per-channel noise, clipped to [0, 1]."""
+    c = np.asarray(rgb) * rng.uniform(lo, hi) + rng.uniform(-spread, spread, 3)
+    return tuple(float(x) for x in np.clip(c, 0.0, 1.0))
+
+
+def sample_wide_look(rng: np.random.Generator) -> Look:
+    """The "wide" look: walls plaster (55 %) / brick (25 %) / rusticated stone (20 %) in saturated
+    or pale colours, darker or lighter; more frame and roof colours; glass of varied reflection,
+    interior brightness and tint; weather clear (sun 20-60 deg), low sun (8-20 deg) or overcast
+    (weak sun, strong ambient, grey sky), each under a warm, neutral or cool sky."""
+    pick = lambda opts: opts[int(rng.integers(len(opts)))]  # noqa: E731
+    u = rng.random()
+    wall_style = "plaster" if u < 0.55 else "brick" if u < 0.8 else "stone"
+    wall_rgb = _jitter(rng, pick(WIDE_WALL_RGB), 0.7, 1.1)
+    frame_rgb = _jitter(rng, pick(WIDE_FRAME_RGB), 0.85, 1.1, 0.02)
+    roof_rgb = _jitter(rng, pick(WIDE_ROOF_RGB), 0.8, 1.15, 0.02)
+    ground_style = "grass" if rng.random() < 0.5 else "paving"
+    weather = pick(("clear", "clear", "low_sun", "overcast"))
+    tone = pick(tuple(SKY_HORIZONS))
+    azimuth = float(rng.uniform(0, 360))
+    if weather == "overcast":
+        elevation, intensity, ambient = float(rng.uniform(30, 70)), float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.8, 1.0))
+        g = float(rng.uniform(0.6, 0.85))
+        zenith = _jitter(rng, (g, g, g * 1.03), 1.0, 1.0, 0.02)
+        horizon = _jitter(rng, SKY_HORIZONS[tone], 0.85, 0.95, 0.01)
+    else:
+        elevation = float(rng.uniform(8, 20) if weather == "low_sun" else rng.uniform(20, 60))
+        intensity = float(rng.uniform(2.5, 3.8))
+        ambient = float(rng.uniform(0.35, 0.55) if weather == "low_sun" else rng.uniform(0.25, 0.5))
+        zenith = (float(rng.uniform(0.2, 0.4)), float(rng.uniform(0.4, 0.6)), float(rng.uniform(0.75, 0.95)))
+        horizon = SKY_HORIZONS[tone]
+    sun_tint = SUN_TINTS["warm"] if weather == "low_sun" else SUN_TINTS[tone]
+    return Look(wall_style=wall_style, wall_rgb=wall_rgb, frame_rgb=frame_rgb, roof_rgb=roof_rgb,
+                ground_style=ground_style, sun_azimuth_deg=azimuth, sun_elevation_deg=elevation,
+                sun_intensity=intensity, ambient=ambient, sky_zenith=zenith, sky_horizon=horizon,
+                weather=weather, sun_tint=sun_tint, glass_reflect=float(rng.uniform(0.5, 1.6)),
+                glass_interior=_jitter(rng, (0.10, 0.12, 0.14), 0.4, 2.5, 0.0), glass_tint=pick(GLASS_TINTS))
 
 
 # ---------------------------------------------------------------------------------- textures
@@ -147,12 +210,34 @@ def ground_texture(rng, style: str) -> np.ndarray:
     return _to_u8(img)
 
 
-def glass_texture(horizon, zenith) -> np.ndarray:
-    """Fake sky reflection: brighter at the top of each pane, dark below (the room behind)."""
+def ashlar_texture(rng, rgb, courses: int = 4, per_row: int = 2) -> np.ndarray:
+    """Rusticated ashlar: stone blocks in half bond with deep dark joints and bevelled edges (lit
+    top, shaded bottom); one tile = ``courses`` courses x ``per_row`` blocks, tileable."""
+    ch, bw = TEX // courses, TEX // per_row
+    y, x = np.mgrid[0:TEX, 0:TEX]
+    row = y // ch
+    xs = (x + (row % 2) * (bw // 2)) % TEX
+    col = xs // bw
+    fy, fx = (y % ch) / ch, (xs % bw) / bw  # position inside the block, 0..1
+    block = rng.uniform(0.86, 1.08, (courses, per_row)).astype(np.float32)[row, col]
+    joint = 0.035
+    edge = np.minimum(np.minimum(fx, 1 - fx) * bw / ch, np.minimum(fy, 1 - fy))  # in course heights
+    bevel = np.clip((edge - joint) / 0.08, 0.0, 1.0)
+    shade = np.where(fy < 0.5, 1.12, 0.78)  # top bevel lit, bottom bevel in shade
+    f = np.where(edge < joint, 0.45, bevel + (1 - bevel) * shade) * block
+    n = value_noise(rng, base=16, octaves=4)
+    return _to_u8(np.asarray(rgb, np.float32)[None, None, :] * (f * (1 + 0.07 * n))[..., None])
+
+
+def glass_texture(horizon, zenith, reflect: float = 1.0, interior=(0.10, 0.12, 0.14),
+                  tint=(1.0, 1.0, 1.0)) -> np.ndarray:
+    """Fake sky reflection: brighter at the top of each pane, dark below (the room behind).
+    reflect scales the reflection, interior is the room's colour, tint multiplies the pane; the
+    defaults give the classic glass exactly."""
     v = np.linspace(1.0, 0.0, TEX)[:, None]
-    sky = np.asarray(horizon, np.float32) * 0.45 + np.asarray(zenith, np.float32) * 0.15
-    dark = np.array([0.10, 0.12, 0.14], np.float32)
-    img = dark + (sky - dark) * (v ** 1.5)[..., None]
+    sky = (np.asarray(horizon, np.float32) * 0.45 + np.asarray(zenith, np.float32) * 0.15) * np.float32(reflect)
+    dark = np.asarray(interior, np.float32)
+    img = (dark + (sky - dark) * (v ** 1.5)[..., None]) * np.asarray(tint, np.float32)
     return _to_u8(np.broadcast_to(img, (TEX, TEX, 3)).copy())
 
 
@@ -182,13 +267,16 @@ def make_material(key: str, look: Look, rng: np.random.Generator) -> MaterialSpe
     if key == "wall":
         if look.wall_style == "brick":
             return MaterialSpec("brick", "diffuse", (1, 1, 1), brick_texture(rng), tile_m=1.0)
+        if look.wall_style == "stone":
+            return MaterialSpec("stone", "diffuse", (1, 1, 1), ashlar_texture(rng, look.wall_rgb), tile_m=2.0)
         return MaterialSpec("plaster", "diffuse", (1, 1, 1), plaster_texture(rng, look.wall_rgb), tile_m=2.0)
     if key == "roof":
         return MaterialSpec("roof", "diffuse", (1, 1, 1), roof_texture(rng, look.roof_rgb), tile_m=2.0)
     if key == "frame":
         return MaterialSpec("frame", "diffuse", look.frame_rgb, None, roughness=0.5)
     if key == "glass":
-        return MaterialSpec("glass", "glass", (1, 1, 1), glass_texture(look.sky_horizon, look.sky_zenith),
+        return MaterialSpec("glass", "glass", (1, 1, 1), glass_texture(look.sky_horizon, look.sky_zenith, look.glass_reflect,
+                                                                  look.glass_interior, look.glass_tint),
                             tile_m=1.5, roughness=0.1, metallic=0.3)
     if key == "door":
         return MaterialSpec("door", "diffuse", (0.45, 0.30, 0.18), None, roughness=0.6)
@@ -315,5 +403,5 @@ def lighting(normals: np.ndarray, look: Look) -> tuple[np.ndarray, np.ndarray]:
     total = amb + sun
     norm = look.ambient + look.sun_intensity / 3.5
     sky_tint = np.asarray(look.sky_horizon) / np.max(look.sky_horizon)
-    mult = (amb[:, None] * sky_tint + sun[:, None] * SUN_RGB) / norm
+    mult = (amb[:, None] * sky_tint + sun[:, None] * (SUN_RGB * np.asarray(look.sun_tint))) / norm
     return np.clip(mult, 0.0, 1.0), amb / np.maximum(total, 1e-9)

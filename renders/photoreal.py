@@ -19,7 +19,7 @@ import numpy as np
 
 from renders.base import RenderOutput, RenderSettings
 from renders.camera import Camera, distort_image
-from renders.materials import group_scene, sample_look, sky_colour, sun_direction
+from renders.materials import Look, group_scene, sample_look, sky_colour, sun_direction
 from renders.raster import OccluderPass
 from scenes.model import Scene
 
@@ -110,6 +110,13 @@ def oidn_denoise(color: np.ndarray, albedo: np.ndarray | None = None,
                           hdr=True, quality="high")
 
 
+def glass_diffuse(look: Look) -> list[float]:
+    """The glass BSDF's diffuse (the room behind): [0.01, 0.012, 0.015] for the classic look,
+    scaled by the look's interior relative to the classic interior and by its tint."""
+    scale = np.asarray(look.glass_interior) / np.asarray(Look.glass_interior)
+    return (np.array([0.01, 0.012, 0.015]) * scale * np.asarray(look.glass_tint)).tolist()
+
+
 class PhotorealRenderer:
     """mitsuba backend: ``render(camera) -> RenderOutput``; the scene is built once."""
 
@@ -119,7 +126,7 @@ class PhotorealRenderer:
         self.mi = mi = import_mitsuba(settings.variant)
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
-        self.look = look = sample_look(rng)  # same draws as the raster backend: same palette
+        self.look = look = sample_look(rng, settings.look)  # same draws as the raster backend: same palette
         groups = group_scene(scene, look, rng)
         objs = {}
         for i, g in enumerate(groups):
@@ -130,7 +137,7 @@ class PhotorealRenderer:
             else:
                 refl = {"type": "rgb", "value": srgb_to_linear(np.asarray(m.rgb)).tolist()}
             if m.kind == "glass":
-                bsdf = {"type": "plastic", "diffuse_reflectance": {"type": "rgb", "value": [0.01, 0.012, 0.015]},
+                bsdf = {"type": "plastic", "diffuse_reflectance": {"type": "rgb", "value": glass_diffuse(look)},
                         "int_ior": 1.5}
             else:
                 bsdf = {"type": "twosided", "material": {"type": "diffuse", "reflectance": refl}}
@@ -148,7 +155,8 @@ class PhotorealRenderer:
                        "to_world": mi.ScalarTransform4f(env_to_world.tolist())}
         sun = sun_direction(look)
         objs["sun"] = {"type": "directional", "direction": (-sun).tolist(),
-                       "irradiance": {"type": "rgb", "value": (np.array([1.0, 0.95, 0.85]) * look.sun_intensity).tolist()}}
+                       "irradiance": {"type": "rgb", "value": (np.array([1.0, 0.95, 0.85]) * np.asarray(look.sun_tint)
+                                                         * look.sun_intensity).tolist()}}
         objs["type"] = "scene"
         objs["integrator"] = {"type": "path", "max_depth": settings.max_depth}
         self._scene = mi.load_dict(objs)

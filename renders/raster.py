@@ -338,7 +338,7 @@ class RasterRenderer:
 
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
-        self.look = look = sample_look(rng)
+        self.look = look = sample_look(rng, settings.look)
         self.groups = group_scene(scene, look, rng)
         self._gl = GLContext.acquire()
         self._gl.make_current()

@@ -115,6 +115,9 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
              curtain_wall_width: float = typer.Option(
                  _H.curtain_wall_width, help="0: a curtain wall fills its wall; else a strip this wide (m), other windows kept"),
              curtain_wall_rows: int = typer.Option(_H.curtain_wall_rows, help="panel rows of a curtain wall (1-4)"),
+             sill_depth: float = typer.Option(_H.sill_depth, help="0: none; else a sill under each window protruding this far (m)"),
+             surround_width: float = typer.Option(_H.surround_width, help="0: none; else an architrave this wide around each window (m)"),
+             shutters: bool = typer.Option(_H.shutters, "--shutters/--no-shutters", help="shutter panels beside each window"),
              json_out: bool = typer.Option(False, "--json", help="print the expected GT as JSON"),
              ) -> None:
     """Write a procedural IFC4 house with known window voids; print its expected ground truth."""
@@ -126,7 +129,8 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
                      windows_per_wall=windows_per_wall, roof_overhang=roof_overhang,
                      fascia_height=fascia_height, glazed_doors=glazed_doors,
                      curtain_walls=curtain_walls, curtain_wall_width=curtain_wall_width,
-                     curtain_wall_rows=curtain_wall_rows, **kw)
+                     curtain_wall_rows=curtain_wall_rows, sill_depth=sill_depth,
+                     surround_width=surround_width, shutters=shutters, **kw)
     house = make_house(spec, out)
     if json_out:
         typer.echo(json.dumps(house.to_json(), indent=1))

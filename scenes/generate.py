@@ -29,6 +29,15 @@ Geometry (all boxes, written with ``ifcopenshell.api``):
   only the windows overlapping it (0.3 m clearance) are dropped. Doors and curtain walls are NOT
   windows: the loader's ground truth (IfcWindow fillings only) leaves them out, so they are negatives.
   The other random choices of these options use ``default_rng([seed, 7])``, never the window stream.
+  Ornament (:func:`plan_ornament`, stream ``[seed, 12]``): ``sill_depth`` > 0 m: an IfcMember box
+  under each window (0.05 m wider each side, 0.04-0.08 m high, top at the void's bottom)
+  protruding that far; ``surround_width`` > 0 m: an architrave of 4 IfcMember boxes just outside
+  the void's edges (0.03 m proud; the top one taller and deeper, a hood); ``shutters``: two
+  panels (each ~half the window wide, its height, 0.03 m) left and right of the window or its
+  architrave. No part overlaps any void in the facade plane (0.05 m clear of other openings) or
+  another window's ornament, or leaves the wall's free length (corner margins); a part that does
+  not fit is narrowed, else left out. Ornament is written after everything else, so windows,
+  GlobalIds and every other element are those of the same spec without it.
 Expected ground truth of a window: its opening's rectangle on the exterior face line:
 x from ``offset`` to ``offset + width`` along the wall edge, z from ``sill`` to ``sill + height``
 above the storey's floor. Doors and curtain-wall voids are recorded the same way
@@ -70,6 +79,9 @@ class HouseSpec:
     curtain_walls: int = 0  # walls glazed by an IfcPlate/IfcMember grid instead of windows
     curtain_wall_width: float = 0.0  # m; 0: the wall's whole free length, else a strip this wide
     curtain_wall_rows: int = 2  # panel rows of a curtain wall, 1-4
+    sill_depth: float = 0.0  # m; > 0: a stone sill under each window protruding this far, 0-0.5
+    surround_width: float = 0.0  # m; > 0: an architrave of this width around each window, 0-0.3
+    shutters: bool = False  # a pair of shutter panels beside each window
 
 
 @dataclass(frozen=True)
@@ -230,6 +242,10 @@ def check_options(spec: HouseSpec, n_walls: int) -> None:
                          f"{spec.curtain_wall_width}")
     if not 1 <= spec.curtain_wall_rows <= 4:
         raise ValueError(f"curtain_wall_rows must be in [1, 4], got {spec.curtain_wall_rows}")
+    if not 0.0 <= spec.sill_depth <= 0.5:
+        raise ValueError(f"sill_depth must be in [0, 0.5] m, got {spec.sill_depth}")
+    if not 0.0 <= spec.surround_width <= 0.3:
+        raise ValueError(f"surround_width must be in [0, 0.3] m, got {spec.surround_width}")
 
 
 def choose_curtain_walls(spec: HouseSpec, poly: np.ndarray, rng: np.random.Generator
@@ -341,6 +357,119 @@ def curtain_grid(width: float, height: float, panel_width: float, rows: int = 2
     zs = np.clip(np.arange(rows + 1) * rh - m / 2, 0.0, height - m)
     members = [(float(x), 0.0, m, height) for x in xs] + [(0.0, float(z), width, m) for z in zs]
     return panels, members
+
+
+# --------------------------------------------------------------------------- ornament
+SHUTTER_COLOURS = ((0.18, 0.33, 0.20), (0.36, 0.22, 0.12), (0.16, 0.24, 0.40), (0.50, 0.12, 0.10),
+                   (0.85, 0.84, 0.80), (0.30, 0.30, 0.30))  # green, brown, blue, red, white, grey
+
+
+@dataclass(frozen=True)
+class OrnamentPart:
+    """A box on a wall's exterior face: x from the wall's start along it, z above the storey
+    floor, w x h m in the facade plane, protruding m out of the face; style is its colour key."""
+
+    name: str
+    wall_index: int
+    storey: int
+    x: float
+    z: float
+    w: float
+    h: float
+    protrusion: float
+    style: str
+
+
+def _hits(r: Rect, o: Rect, clearance: float) -> bool:
+    """Do rectangles (x, z, w, h) overlap with positive area once o is grown by clearance m?"""
+    eps = 1e-9
+    return (r[0] < o[0] + o[2] + clearance - eps and o[0] - clearance < r[0] + r[2] - eps
+            and r[1] < o[1] + o[3] + clearance - eps and o[1] - clearance < r[1] + r[3] - eps)
+
+
+def _void_rect(o: ExpectedOpening, a: np.ndarray, u: np.ndarray) -> Rect:
+    """An opening's void on its wall as (x along the wall from a, z world, w, h) m."""
+    bl = o.corners_world[3]
+    return (float((bl[:2] - a) @ u[:2]), float(bl[2]), o.width, o.height)
+
+
+def plan_ornament(spec: HouseSpec, poly: np.ndarray, windows: list[ExpectedOpening],
+                  openings: list[ExpectedOpening]) -> tuple[list[OrnamentPart], dict]:
+    """Sills, architraves and shutters of ``windows`` (see the module doc) -> (parts, colours).
+
+    ``openings``: every void of the house (windows, doors, curtain walls), which no part may
+    overlap in the facade plane. Sizes and colours come from ``default_rng([seed, 12])``, drawn
+    in a fixed order whatever fits; with all ornament off: ([], {})."""
+    if spec.sill_depth == 0 and spec.surround_width == 0 and not spec.shutters:
+        return [], {}
+    rng = np.random.default_rng([spec.seed, 12])
+    light = rng.uniform(0.0, 1.0) < 0.6  # a light architrave on a darker wall, or dark
+    colours = {"sill": tuple(rng.uniform(0.55, 0.8) * np.array([1.0, 0.97, 0.92])),
+               "surround": tuple(rng.uniform(0.85, 0.98, 3) if light else rng.uniform(0.2, 0.45, 3)),
+               "shutter": tuple(np.clip(np.array(SHUTTER_COLOURS[int(rng.integers(
+                   len(SHUTTER_COLOURS)))]) * rng.uniform(0.85, 1.15), 0.0, 1.0))}
+    sill_h, hood_f, hood_p = rng.uniform(0.04, 0.08), rng.uniform(1.0, 2.0), rng.uniform(0.03, 0.08)
+    shutter_f = rng.uniform(0.42, 0.55)
+    margins = corner_margins(poly, spec.wall_thickness)
+    top = spec.storeys * spec.storey_height
+    geo = {}
+    for i in range(len(poly)):
+        a, b = poly[i], poly[(i + 1) % len(poly)]
+        length = float(np.linalg.norm(b - a))
+        geo[i] = (a, np.append((b - a) / length, 0.0), margins[i, 0], length - margins[i, 1])
+    voids = {i: [(o.name, _void_rect(o, geo[i][0], geo[i][1])) for o in openings if o.wall_index == i]
+             for i in geo}
+    placed: dict[int, list[tuple[str, Rect]]] = {i: [] for i in geo}
+
+    def fits(win: ExpectedOpening, rects: list[Rect]) -> bool:
+        i = win.wall_index
+        x_lo, x_hi = geo[i][2], geo[i][3]
+        for r in rects:
+            if r[0] < x_lo - 1e-9 or r[0] + r[2] > x_hi + 1e-9 or r[1] < 0 or r[1] + r[3] > top:
+                return False
+            if any(_hits(r, v, 0.0 if n == win.name else 0.05) for n, v in voids[i]):
+                return False
+            if any(_hits(r, p, 0.0) for n, p in placed[i] if n != win.name):
+                return False
+        return True
+
+    parts: list[OrnamentPart] = []
+    used_sw: dict[str, float] = {}
+
+    def accept(win, rects, protrusions, styles, label):
+        z0 = win.storey * spec.storey_height
+        for n, (r, p, st) in enumerate(zip(rects, protrusions, styles)):
+            placed[win.wall_index].append((win.name, r))
+            parts.append(OrnamentPart(f"{win.name} {label} {n}", win.wall_index, win.storey,
+                                      r[0], r[1] - z0, r[2], r[3], p, st))
+
+    for win in windows:  # sills and architraves first, shutters after, so they yield
+        x, z, w, h = _void_rect(win, geo[win.wall_index][0], geo[win.wall_index][1])
+        if spec.sill_depth > 0:
+            for extra in (0.05, 0.0):
+                rects = [(x - extra, z - sill_h, w + 2 * extra, sill_h)]
+                if fits(win, rects):
+                    accept(win, rects, [spec.sill_depth], ["sill"], "sill")
+                    break
+        if spec.surround_width > 0:
+            for sw in (spec.surround_width, spec.surround_width / 2):
+                rects = [(x - sw, z + h, w + 2 * sw, sw * hood_f), (x - sw, z - sw, w + 2 * sw, sw),
+                         (x - sw, z, sw, h), (x + w, z, sw, h)]
+                if fits(win, rects):
+                    accept(win, rects, [hood_p, 0.03, 0.03, 0.03], ["surround"] * 4, "surround")
+                    used_sw[win.name] = sw
+                    break
+    if spec.shutters:
+        for win in windows:
+            x, z, w, h = _void_rect(win, geo[win.wall_index][0], geo[win.wall_index][1])
+            sw = used_sw.get(win.name, 0.0)
+            for scale in (1.0, 0.7, 0.5):
+                sh = shutter_f * w * scale
+                rects = [(x - sw - sh, z, sh, h), (x + w + sw, z, sh, h)]
+                if sh >= 0.15 and fits(win, rects):
+                    accept(win, rects, [0.03, 0.03], ["shutter"] * 2, "shutter")
+                    break
+    return parts, colours
 
 
 # --------------------------------------------------------------------------- IFC writing
@@ -474,9 +603,11 @@ def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
     by_wall = {(w.wall_index, w.storey): [] for w in plan}
     for w in plan:
         by_wall[(w.wall_index, w.storey)].append(w)
+    storeys = []
     for k in range(spec.storeys):
         z0 = k * H
         storey = api("root.create_entity", f, ifc_class="IfcBuildingStorey", name=f"Storey {k}")
+        storeys.append(storey)
         storey.Elevation = z0
         api("aggregate.assign_object", f, products=[storey], relating_object=building)
         slab_rep = api("geometry.add_slab_representation", f, context=body,
@@ -540,6 +671,14 @@ def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
                 np.append(a, top + spec.slab_thickness - spec.fascia_height),
                 np.append((b - a) / length, 0.0), 0.0, 0.0, length, spec.fascia_height,
                 FASCIA_THICKNESS, 0.0, "fascia")
+    parts, colours = plan_ornament(spec, poly, windows_out, windows_out + doors_out + curtains_out)
+    for key, rgb in colours.items():  # written last: every other entity and GlobalId unchanged
+        styles[key] = style(key, [float(c) for c in rgb])
+    for p in parts:
+        a, b = poly[p.wall_index], poly[(p.wall_index + 1) % len(poly)]
+        box("IfcMember", p.name, storeys[p.storey], np.append(a, p.storey * H),
+            np.append((b - a) / np.linalg.norm(b - a), 0.0), p.x, p.z, p.w, p.h, p.protrusion,
+            -p.protrusion, p.style)
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     f.header.file_name.time_stamp = IFC_TIMESTAMP

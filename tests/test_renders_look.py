@@ -1,0 +1,94 @@
+"""RenderSettings.look: "classic" draws exactly what it always did; "wide" widens the palette,
+wall materials, glass and lighting without touching the ground truth or old dataset folders."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renders.base import RenderSettings
+from renders.dataset import DatasetConfig, config_hash
+from renders.materials import ashlar_texture, glass_texture, sample_look
+from renders.sampler import SamplerConfig, sample_views
+from renders.synthetic import wall_scene
+
+
+def test_classic_look_draws_what_it_always_drew():
+    """The numbers below were printed by sample_look(default_rng(0)) BEFORE the look option
+    existed (commit b859264), as was the generator's next draw: classic makes the same calls."""
+    rng = np.random.default_rng(0)
+    look = sample_look(rng)
+    assert look == sample_look(np.random.default_rng(0), "classic")
+    assert (look.wall_style, look.wall_rgb, look.frame_rgb, look.roof_rgb, look.ground_style) == (
+        "plaster", (0.86, 0.86, 0.84), (0.22, 0.23, 0.25), (0.55, 0.2, 0.14), "grass")
+    assert look.sun_azimuth_deg == pytest.approx(292.77728611209807, abs=1e-12)
+    assert look.sun_elevation_deg == pytest.approx(56.51022309110887, abs=1e-12)
+    assert look.sun_intensity == pytest.approx(3.10663577576718, abs=1e-12)
+    assert look.ambient == pytest.approx(0.45942448414759973, abs=1e-12)
+    assert look.sky_zenith == pytest.approx((0.33154374871981346, 0.5902608635681652, 0.9223780331182299))
+    assert rng.random() == pytest.approx(0.002738500170148095, abs=1e-15)
+    assert look.weather == "clear" and look.sun_tint == (1.0, 1.0, 1.0) and look.glass_tint == (1.0, 1.0, 1.0)
+    from renders.photoreal import glass_diffuse
+    assert glass_diffuse(look) == [0.01, 0.012, 0.015]  # mitsuba's classic glass BSDF
+    seven = sample_look(np.random.default_rng(7))
+    assert seven.roof_rgb == (0.25, 0.25, 0.27) and seven.sun_intensity == pytest.approx(2.5052653045655746)
+    # the parameterised glass texture's defaults are the old formula
+    v = np.linspace(1.0, 0.0, 256)[:, None]
+    sky = np.float32([0.82, 0.88, 0.95]) * 0.45 + np.float32([0.3, 0.5, 0.9]) * 0.15
+    dark = np.float32([0.10, 0.12, 0.14])
+    old = np.clip((dark + (sky - dark) * (v ** 1.5)[..., None]) * 255, 0, 255).astype(np.uint8)
+    np.testing.assert_array_equal(glass_texture((0.82, 0.88, 0.95), (0.3, 0.5, 0.9)),
+                                  np.broadcast_to(old, (256, 256, 3)))
+
+
+def test_wide_look_spreads_colours_materials_and_weather():
+    looks = [sample_look(np.random.default_rng(s), "wide") for s in range(50)]
+    assert len({lk.wall_rgb for lk in looks}) > 40
+    assert len({tuple(np.round(lk.wall_rgb, 1)) for lk in looks}) > 15  # not one colour jittered
+    assert {lk.wall_style for lk in looks} == {"plaster", "brick", "stone"}
+    assert {lk.weather for lk in looks} == {"clear", "low_sun", "overcast"}
+    for lk in looks:
+        if lk.weather == "overcast":
+            assert lk.ambient >= 0.8 and lk.sun_intensity <= 0.8
+        if lk.weather == "low_sun":
+            assert 8 <= lk.sun_elevation_deg <= 20
+    assert len({lk.glass_tint for lk in looks}) >= 4 and len({lk.sky_horizon for lk in looks}) >= 3
+    with pytest.raises(ValueError, match="look.*'baroque'"):
+        sample_look(np.random.default_rng(0), "baroque")
+    with pytest.raises(ValueError, match="look.*'baroque'"):
+        RenderSettings(look="baroque")
+
+
+def test_ashlar_texture_has_dark_joints_and_tiles():
+    t = ashlar_texture(np.random.default_rng(0), (0.8, 0.75, 0.65)).astype(float)
+    lum = t.mean(axis=2)
+    assert lum[0].mean() < 0.6 * lum[32].mean()  # the bed joint at each course's top edge
+    assert abs(lum[:, 0].mean() - lum[:, -1].mean()) < 0.25 * lum.mean()  # wraps without a seam
+
+
+def test_look_counts_in_the_dataset_hash_only_when_not_classic():
+    """4e2ec70ae75e and 71b36db4ef21 were printed BEFORE the look option existed (commit b859264):
+    existing dataset folders keep their names."""
+    scene = wall_scene()
+    assert config_hash(DatasetConfig("w"), scene) == "4e2ec70ae75e"
+    mitsuba = DatasetConfig("w", n_views=3, seed=5, renderer="mitsuba",
+                            settings=RenderSettings(seed=5, spp=4, denoise="oidn"))
+    assert config_hash(mitsuba, scene) == "71b36db4ef21"
+    wide = DatasetConfig("w", settings=RenderSettings(look="wide"))
+    assert config_hash(wide, scene) != "4e2ec70ae75e"
+
+
+def test_wide_look_changes_pixels_not_ground_truth():
+    from renders.raster import RasterRenderer
+
+    scene = wall_scene(sill_top=1.2)
+    views = sample_views(scene, SamplerConfig(width=96, height=72, street_fraction=0.0,
+                                              distance_m=(3.0, 6.0)), 2, seed=2).views
+    out = {}
+    for look in ("classic", "wide"):
+        with RasterRenderer(scene, RenderSettings(seed=3, look=look)) as r:
+            out[look] = [r.render(v.camera) for v in views]
+    for c, w in zip(out["classic"], out["wide"]):
+        np.testing.assert_array_equal(c.instances, w.instances)
+        np.testing.assert_array_equal(c.depth, w.depth)
+        assert (c.instances > 0).any()
+        assert np.abs(c.rgb.astype(int) - w.rgb.astype(int)).mean() > 5
