@@ -82,6 +82,8 @@ class HouseSpec:
     sill_depth: float = 0.0  # m; > 0: a stone sill under each window protruding this far, 0-0.5
     surround_width: float = 0.0  # m; > 0: an architrave of this width around each window, 0-0.3
     shutters: bool = False  # a pair of shutter panels beside each window
+    window_styles: tuple[str, ...] = ()  # () : every IfcWindow one solid box; else each window draws
+    # one of these WINDOW_STYLES (stream [seed, 13]): a frame ring, mullions and transoms round glass panes
 
 
 @dataclass(frozen=True)
@@ -225,6 +227,9 @@ def face_rect(a: np.ndarray, u: np.ndarray, z0: float, off: float, sill: float, 
 
 def check_options(spec: HouseSpec, n_walls: int) -> None:
     """ValueError naming the field and value for an out-of-range optional part."""
+    bad = [w for w in spec.window_styles if w not in WINDOW_STYLES]
+    if bad:
+        raise ValueError(f"window_styles {bad} unknown; choose from {WINDOW_STYLES}")
     if not 0.0 <= spec.roof_overhang <= 2.0:
         raise ValueError(f"roof_overhang must be in [0, 2] m, got {spec.roof_overhang}")
     if not 0.0 <= spec.fascia_height <= 1.0:
@@ -357,6 +362,80 @@ def curtain_grid(width: float, height: float, panel_width: float, rows: int = 2
     zs = np.clip(np.arange(rows + 1) * rh - m / 2, 0.0, height - m)
     members = [(float(x), 0.0, m, height) for x in xs] + [(0.0, float(z), width, m) for z in zs]
     return panels, members
+
+
+# --------------------------------------------------------------------------- window styles
+WINDOW_STYLES = ("box", "frame", "mullion", "transom", "grid")
+PANE_THICKNESS = 0.012  # m: a glass pane, thin enough for the renderers' glass_faces (< 0.04 m)
+Box3 = tuple[float, float, float, float, float, float]  # x0, y0, z0, x1, y1, z1 (m, window-local)
+
+
+def _bars(lo: float, hi: float, n: int, bar: float) -> tuple[list[float], list[tuple[float, float]]]:
+    """n bars of width ``bar`` evenly spaced inside [lo, hi]: (bar starts, free spans between)."""
+    step = (hi - lo - n * bar) / (n + 1)
+    starts = [lo + step * (k + 1) + bar * k for k in range(n)]
+    edges = [lo] + [e for x in starts for e in (x, x + bar)] + [hi]
+    return starts, [(edges[2 * k], edges[2 * k + 1]) for k in range(n + 1)]
+
+
+def window_parts(width: float, height: float, depth: float, style: str, rng: np.random.Generator
+                 ) -> tuple[list[Box3], list[Box3]]:
+    """The boxes of one IfcWindow of ``style`` in its local frame (x along the wall from the void's
+    left edge, y inward from the window's outer face, z up from the sill): (frame and bars, panes).
+
+    "box" is one solid box (no pane). The others: a frame ring of seeded bar width (0.04-0.09 m,
+    at most 15 % of the shorter side) and glass panes (PANE_THICKNESS, mid-depth) filling what the
+    bars leave; "mullion" adds a vertical bar, "transom" a horizontal bar at 65-78 % of the height
+    (a top light, with a mullion below on wide windows), "grid" 1-2 of each. Bars stay inside the
+    void, so the window's ground truth (its opening) is unchanged.
+    """
+    if style not in WINDOW_STYLES:
+        raise ValueError(f"window style must be one of {WINDOW_STYLES}, got {style!r}")
+    if style == "box":
+        return [(0.0, 0.0, 0.0, width, depth, height)], []
+    f = min(float(rng.uniform(0.04, 0.09)), 0.15 * min(width, height))
+    bar, bd = 0.8 * f, 0.8 * depth
+    frame = [(0.0, 0.0, 0.0, width, depth, f), (0.0, 0.0, height - f, width, depth, height),
+             (0.0, 0.0, f, f, depth, height - f), (width - f, 0.0, f, width, depth, height - f)]
+    y0 = (depth - bd) / 2
+    n_mull = {"frame": 0, "mullion": 1, "transom": 0, "grid": int(rng.integers(1, 3))}[style]
+    n_trans = {"frame": 0, "mullion": 0, "transom": 0, "grid": int(rng.integers(1, 3))}[style]
+    n_mull = n_mull if width >= 0.6 else 0
+    rows = [(f, height - f)]
+    bars: list[Box3] = []
+    if style == "transom" and height >= 0.9:
+        zt = height * float(rng.uniform(0.65, 0.78))
+        bars.append((f, y0, zt, width - f, y0 + bd, zt + bar))
+        rows = [(f, zt), (zt + bar, height - f)]
+        n_mull = 1 if width >= 0.9 else 0
+        mull_rows = rows[:1]
+    elif n_trans and height >= 0.9:
+        starts, rows = _bars(f, height - f, n_trans, bar)
+        bars += [(f, y0, z, width - f, y0 + bd, z + bar) for z in starts]
+        mull_rows = rows
+    else:
+        mull_rows = rows
+    xs, cols = _bars(f, width - f, n_mull, bar) if n_mull else ([], [(f, width - f)])
+    for z0, z1 in mull_rows:
+        bars += [(x, y0, z0, x + bar, y0 + bd, z1) for x in xs]
+    py = depth / 2 - PANE_THICKNESS / 2
+    panes = []
+    for z0, z1 in rows:
+        spans = cols if (z0, z1) in mull_rows else [(f, width - f)]
+        panes += [(x0, py, z0, x1, py + PANE_THICKNESS, z1) for x0, x1 in spans]
+    return frame + bars, panes
+
+
+def box_mesh(boxes: list[Box3]) -> tuple[list[list[tuple[float, float, float]]], list[list[tuple[int, ...]]]]:
+    """Closed axis-aligned boxes as mesh items (add_mesh_representation's vertices, faces): one
+    item per box, 8 vertices and 6 outward-wound quads each."""
+    verts, faces = [], []
+    quads = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (2, 3, 7, 6), (1, 2, 6, 5), (0, 4, 7, 3)]
+    for x0, y0, z0, x1, y1, z1 in boxes:
+        verts.append([(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+                      (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)])
+        faces.append(quads)
+    return verts, faces
 
 
 # --------------------------------------------------------------------------- ornament
@@ -528,6 +607,7 @@ def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
     check_options(spec, len(poly))
     plan = plan_windows(spec, poly)
     rng = np.random.default_rng([spec.seed, 7])  # optional parts only: plan's stream is untouched
+    style_rng = np.random.default_rng([spec.seed, 13])  # window styles only
     cw_walls = choose_curtain_walls(spec, poly, rng)
     panel_w = {i: float(rng.uniform(1.0, 1.8)) for i in cw_walls}
     grey = float(rng.uniform(0.08, 0.45)) if cw_walls else 0.0
@@ -626,8 +706,17 @@ def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
             for w in by_wall.get((i, k), []):
                 off = float((w.corners_world[3] - origin) @ u)
                 opening = void(wall, f"Opening {w.name}", origin, u, off, w.sill, w.width, w.height)
-                win = box("IfcWindow", w.name, storey, origin, u, off, w.sill, w.width, w.height,
-                          spec.frame_depth, spec.reveal_depth, "window")
+                if spec.window_styles:
+                    style_w = spec.window_styles[int(style_rng.integers(len(spec.window_styles)))]
+                    solid, panes = window_parts(w.width, w.height, spec.frame_depth, style_w, style_rng)
+                    inward = np.cross([0.0, 0.0, 1.0], u)
+                    win = element("IfcWindow", w.name, storey, _placement(
+                        origin + off * u + np.array([0, 0, w.sill]) + spec.reveal_depth * inward, u),
+                        api("geometry.add_mesh_representation", f, context=body,
+                            **dict(zip(("vertices", "faces"), box_mesh(solid + panes)))), "window")
+                else:
+                    win = box("IfcWindow", w.name, storey, origin, u, off, w.sill, w.width, w.height,
+                              spec.frame_depth, spec.reveal_depth, "window")
                 win.OverallWidth, win.OverallHeight = w.width, w.height
                 api("feature.add_filling", f, opening=opening, element=win)
                 windows_out.append(ExpectedWindow(**{**w.__dict__, "element_id": win.GlobalId}))
