@@ -68,8 +68,9 @@ docs:  ## docs/results.md, docs/results/summary.json and the README's answer fro
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
 	$(PY) -m reports.markdown --check
 
-train:  ## render the detector data, train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it
+train:  ## render the detector data (make_data.sh, make_data_street.sh), train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it
 	PY=$(PY) bash training/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash training/scripts/make_data_street.sh out/detector-data
 	$(PY) -m app train --config training/configs/default.toml
 	PY=$(PY) bash training/scripts/verifier_data.sh out/verifier-renders
 	$(PY) -m app train-verifier out/train/default.pt --yolo ../shared/real/spb_facades/train --renders out/verifier-renders --render-views 150
