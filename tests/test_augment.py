@@ -117,3 +117,29 @@ def test_neighbour_strip_pastes_an_edge_strip_with_its_windows():
         assert (ins[~pasted] == inst[~pasted]).all()
     with pytest.raises(ValueError, match="other crop"):
         neighbour_strip(img, inst, other[:10], o_inst[:10], cfg, np.random.default_rng(0))
+
+
+def test_real_augment_table_overrides_augment_for_the_photos_only(tmp_path):
+    """[real_augment] holds only the keys in which the photos' augmentation differs from [augment];
+    sample_augment gives it to real photos (no corners) and [augment] to renders."""
+    from training.recipes.effwin import sample_augment
+    from training.train import load_config
+
+    cfg_path = tmp_path / "c.toml"
+    cfg_path.write_text('[train]\narch = "effwin"\n[augment]\nwhite_balance = 0.2\nshadow_prob = 0.4\n'
+                        '[real_augment]\nperspective_prob = 0.5\nshadow_prob = 0.0\n')
+    cfg = load_config(cfg_path)
+    assert cfg.augment.perspective_prob == 0.0 and cfg.augment.shadow_prob == 0.4
+    real = cfg.real_augment
+    assert (real.perspective_prob, real.shadow_prob, real.white_balance) == (0.5, 0.0, 0.2)
+    photo, render = (None, None, None), (None, None, np.zeros((0, 4, 2)))
+    assert sample_augment(photo, cfg) is real and sample_augment(render, cfg) is cfg.augment
+    cfg_path.write_text('[train]\narch = "effwin"\n[augment]\nwhite_balance = 0.2\n')
+    plain = load_config(cfg_path)
+    assert plain.real_augment is None and sample_augment(photo, plain) is plain.augment
+    cfg_path.write_text('[train]\narch = "effwin"\n[real_augmentation]\npad = "constant"\n')
+    with pytest.raises(ValueError, match="real_augmentation"):
+        load_config(cfg_path)
+    cfg_path.write_text('[train]\narch = "effwin"\n[real_augment]\nyaw = 3.0\n')
+    with pytest.raises(ValueError, match="yaw"):
+        load_config(cfg_path)

@@ -89,6 +89,7 @@ class TrainConfig:
     workers: int = 0
     state_dir: str = "out/train"  # optimizer state for resume (generated: kept out of source folders)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
+    real_augment: AugmentConfig | None = None  # effwin: the real photos' augmentation (None: augment's)
 
     def __post_init__(self) -> None:
         arch = recipe(self.arch)  # ValueError naming the trainable archs
@@ -112,16 +113,19 @@ class TrainConfig:
 
 
 def load_config(path: str | Path | None = None, **overrides: object) -> TrainConfig:
-    """TrainConfig from a TOML file ([train] keys, optional [augment] table) plus overrides (None:
-    not given), through fenestra.config.from_table: unknown keys and ill-typed values are errors
-    naming them."""
+    """TrainConfig from a TOML file ([train] keys, optional [augment] table, optional
+    [real_augment] table: the keys in which the real photos' augmentation differs from [augment])
+    plus overrides (None: not given), through fenestra.config.from_table: unknown keys and
+    ill-typed values are errors naming them."""
     raw: dict = read_toml(path, ValueError, "training config") if path is not None else {}
-    unknown = sorted(set(raw) - {"train", "augment"})
+    unknown = sorted(set(raw) - {"train", "augment", "real_augment"})
     if unknown:
-        raise ValueError(f"{path}: unknown table(s) {unknown}; allowed: ['augment', 'train']")
+        raise ValueError(f"{path}: unknown table(s) {unknown}; allowed: ['augment', 'real_augment', 'train']")
     train = {**raw.get("train", {}), **{k: v for k, v in overrides.items() if v is not None}}
-    return from_table(TrainConfig, {**train, "augment": raw.get("augment", {})},
-                      where=f"{path or 'training config'} [train]")
+    tables = {"augment": raw.get("augment", {})}
+    if "real_augment" in raw:
+        tables["real_augment"] = {**raw.get("augment", {}), **raw["real_augment"]}
+    return from_table(TrainConfig, {**train, **tables}, where=f"{path or 'training config'} [train]")
 
 
 def select_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list:

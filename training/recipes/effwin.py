@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from training.augment import neighbour_strip, occluders, photometric, random_scale_crop, shadow_band
+from training.augment import AugmentConfig, neighbour_strip, occluders, photometric, random_scale_crop, shadow_band
 from training.recipes import Recipe
 from training.recipes.winnet import winnet_loss
 
@@ -18,19 +18,26 @@ if TYPE_CHECKING:
     from training.train import TrainConfig
 
 
+def sample_augment(item, cfg: TrainConfig) -> AugmentConfig:
+    """The augmentation of an item: cfg.real_augment for a real photo (corners None) when set,
+    else cfg.augment."""
+    return cfg.real_augment if item[2] is None and cfg.real_augment is not None else cfg.augment
+
+
 def effwin_sample(item, cfg: TrainConfig, rng: np.random.Generator, street: bool = True):
     """One augmented crop of a (image, instances, corners or None) item: image (h, w, 3) uint8,
     instances (h, w) int, corner heatmaps (4, h, w) float32 (zeros for a real photo: boxes, no
-    corners). street: also draw occluders and an eave shadow (cfg.augment)."""
+    corners). street: also draw occluders and an eave shadow. Augmented as sample_augment says."""
     from pipeline.detectors.effwin import corner_heatmaps  # noqa: PLC0415
 
     image, inst, corners = item
-    img, ins, warp = random_scale_crop(image, inst, cfg.crop_hw, cfg.augment, rng)
+    aug = sample_augment(item, cfg)
+    img, ins, warp = random_scale_crop(image, inst, cfg.crop_hw, aug, rng)
     occ = np.zeros(ins.shape, bool)
     if street:
-        img, ins, occ = occluders(img, ins, cfg.augment, rng)
-        img = shadow_band(img, ins, cfg.augment, rng)
-    img = photometric(img, cfg.augment, rng)
+        img, ins, occ = occluders(img, ins, aug, rng)
+        img = shadow_band(img, ins, aug, rng)
+    img = photometric(img, aug, rng)
     if corners is None:
         return img, ins, np.zeros((4, *ins.shape), np.float32)
     c = warp.points(corners)
@@ -52,9 +59,10 @@ def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
         pool = real if real and (not synth or rng.random() < cfg.real_fraction) else synth
         item = data[pool[int(rng.integers(len(pool)))]]
         img, ins, heat = effwin_sample(item, cfg, rng)
-        if cfg.augment.neighbour_prob > 0 and rng.random() < cfg.augment.neighbour_prob:
+        aug = sample_augment(item, cfg)
+        if aug.neighbour_prob > 0 and rng.random() < aug.neighbour_prob:
             o_img, o_ins, o_heat = effwin_sample(data[pool[int(rng.integers(len(pool)))]], cfg, rng, street=False)
-            img, ins, strip = neighbour_strip(img, ins, o_img, o_ins, replace(cfg.augment, neighbour_prob=1.0), rng)
+            img, ins, strip = neighbour_strip(img, ins, o_img, o_ins, replace(aug, neighbour_prob=1.0), rng)
             heat = np.where(strip, o_heat, heat)
         tgts.append(np.concatenate([np.stack([ins > 0, core_targets(ins, cfg.core_shrink_px, cfg.core_shrink_frac)]), heat]))
         imgs.append(img)

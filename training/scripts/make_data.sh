@@ -13,7 +13,8 @@
 #        overhangs with dark fascias, glazed doors and curtain walls (unlabelled glazing: negatives).
 # Usage:  bash training/scripts/make_data.sh [ROOT=out/detector-data]   (about 30 min on 2 cores;
 #         reruns reuse rendered views)
-# Then:   make train      (= this, then fenestra train --config training/configs/default.toml, ship-weights)
+# Then:   make train      (= this and make_data_street.sh (the v3 town houses, ROOT/train-street),
+#         then fenestra train --config training/configs/default.toml, ship-weights)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 ROOT=${1:-out/detector-data}
