@@ -162,8 +162,10 @@ def test_effwin_weights_default_to_its_post_processing_and_a_file_may_override_i
     from pipeline.detectors.checkpoint import read_checkpoint
 
     ckpt = read_checkpoint(DEFAULT_WEIGHTS, ("effwin",))
-    assert "separation" not in ckpt["post"]  # shipped before the field existed
-    assert effwin.post_config(ckpt) == PostConfig(**effwin.POST_DEFAULTS)
+    assert effwin.post_config(ckpt) == PostConfig(**effwin.POST_DEFAULTS)  # the shipped file says the defaults
+    old = {k: v for k, v in ckpt["post"].items() if k in ("void_threshold", "core_threshold", "min_area_px")}
+    assert effwin.post_config({"post": old}) == PostConfig(**effwin.POST_DEFAULTS)  # a file from before the
+    # newer fields (separation, corner cuts) gets today's defaults for them
     assert effwin.post_config({"post": {"separation": "nearest"}}).separation == "nearest"
     assert winnet.post_config({"post": {}}) == PostConfig()
 

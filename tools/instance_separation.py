@@ -372,8 +372,8 @@ def main() -> None:
     ap.add_argument("--base", default="before", choices=("shipped", "before"),
                     help="PostConfig the candidates override: the weights file's, or the one before issue #23")
     ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--cache", type=Path, default=None, help="folder for the maps (.npz per photo or view; "
-                    "delete it when the weights change)")
+    ap.add_argument("--cache", type=Path, default=None, help="folder for the maps (.npz per photo or view, "
+                    "under a subfolder named by the weights' network sha256, so other weights never reuse them)")
     ap.add_argument("--doc", type=Path, default=None, help="write the report into this Markdown file's block")
     ap.add_argument("--block", default=None, help="the block's name (<!-- NAME:begin --> ... <!-- NAME:end -->)")
     a = ap.parse_args()
@@ -382,6 +382,10 @@ def main() -> None:
     torch.set_num_threads(a.threads)
     mod, net, ckpt = load_model(DETECTORS["default"].model, a.weights, any_arch=True)
     shipped = mod.post_config(ckpt)
+    if a.cache is not None:
+        from pipeline.detectors.verifier import network_fingerprint  # noqa: PLC0415
+
+        a.cache = a.cache / network_fingerprint(net.state_dict())[:16]
     base = shipped if a.base == "shipped" else PostConfig(**BEFORE)
     predict = (lambda im: mod.predict_maps(net, im)) if ckpt["arch"] == "effwin" \
         else (lambda im: np.stack(mod.predict_maps(net, im)))
