@@ -246,3 +246,18 @@ def test_separator_cuts_draw_no_line_across_the_wall_between_windows():
     wide = PostConfig(corner_cuts=True, cut_max_gap_px=40.0, cut_min_void_frac=0.9)
     assert separator_cuts(corners, replace(wide, cut_min_void_frac=0.0), void, core).any()
     assert not separator_cuts(corners, wide, void, core).any()
+
+
+def test_min_side_drops_a_strip_and_keeps_the_windows():
+    """Two panes and a 3 px mullion strip between them, each its own seeded void blob: min_side_px
+    4 drops the strip (its box is 3 px wide), min_side_px 0 keeps it."""
+    void = np.full((60, 80), 0.02, np.float32)
+    core = np.zeros((60, 80), np.float32)
+    for x0, x1 in ((10, 34), (36, 39), (41, 65)):
+        void[10:50, x0:x1] = 0.95
+        core[12:48, x0 + 1:x1 - 1] = 0.95
+    base = PostConfig(separation="nearest-blob", min_core_px=1, min_area_px=30)
+    widths = sorted(round(d.box[2] - d.box[0]) for d in instances_from_maps(void, core, base))
+    assert widths == [3, 24, 24], widths
+    dropped = instances_from_maps(void, core, PostConfig(**{**base.__dict__, "min_side_px": 4}))
+    assert sorted(round(d.box[2] - d.box[0]) for d in dropped) == [24, 24]

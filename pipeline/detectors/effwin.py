@@ -50,7 +50,8 @@ N_MAPS = 6  # void, core, TL, TR, BR, BL
 # length (a real window's transom, where the corner head fires too, is not cut). duplex missed
 # 62 % -> 5 % (pipeline/models/README.md, "Per house"; tools/instance_separation.py).
 SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
-                   "cut_min_height_frac": 0.75}
+                   "cut_min_height_frac": 0.75, "min_side_px": 4}  # min_side_px: a strip left between two
+# cuts (a mullion) is no window; a window under 4 network px across is not measurable (detector v3)
 POST_DEFAULTS = SEPARATING_POST
 
 

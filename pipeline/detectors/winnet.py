@@ -106,6 +106,9 @@ class PostConfig:
     split_map: the map whose levels split (``core`` or ``void``); split_min_px: the least size of
     a sub-blob that counts.
     Empty: no splitting (the detector before issue #23).
+    min_area_px, min_side_px: an instance with fewer pixels, or whose box is narrower or lower
+    (network px), is dropped (0: no side limit; EffWin ships 4: a mullion strip left between two
+    corner cuts is no window).
     corner_cuts: cut void blobs along the separators that corner heatmaps (EffWin's TL, TR, BR, BL)
     draw between neighbouring windows (:func:`separator_cuts`); needs the corner maps, ignored
     without them (WinNet). cut_min_peak: the least corner probability of a peak; cut_max_gap_px:
@@ -124,6 +127,7 @@ class PostConfig:
     void_threshold: float = 0.5
     core_threshold: float = 0.5
     min_area_px: int = 30
+    min_side_px: int = 0  # an instance whose box is narrower or lower than this (network px) is dropped
     min_core_px: int = 4
     separation: str = "nearest"
     split_levels: tuple[float, ...] = ()
@@ -414,8 +418,11 @@ def instances_from_maps(void_p: np.ndarray, core_p: np.ndarray, post: PostConfig
         area = int(m.sum())
         if area < post.min_area_px:
             continue
+        box = mask_box(m)
+        if min(box[2] - box[0], box[3] - box[1]) < post.min_side_px:
+            continue
         score = float(void_p[m].mean() * core_p[m].max())
-        dets.append(Detection(mask=m, box=mask_box(m), score=score))
+        dets.append(Detection(mask=m, box=box, score=score))
     dets.sort(key=lambda d: -d.score)
     return dets
 
