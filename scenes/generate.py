@@ -660,11 +660,13 @@ def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
 
     t, H = spec.wall_thickness, spec.storey_height
 
-    def box(ifc_class, name, storey_ent, origin, u, off, z, w, h, depth, setback, style_key):
+    def box(ifc_class, name, storey_ent, origin, u, off, z, w, h, depth, setback, style_key, rep=None):
         """Box w x h x depth m (x along u, z up, y inward) at off (m) along u from origin (3,),
-        z m up, its outer face setback m inward; styled and contained in storey_ent."""
-        rep = api("geometry.add_wall_representation", f, context=body, length=w, height=h,
-                  thickness=depth)
+        z m up, its outer face setback m inward; styled and contained in storey_ent. rep: another
+        representation in the same local frame instead of the box (a styled window's parts)."""
+        if rep is None:
+            rep = api("geometry.add_wall_representation", f, context=body, length=w, height=h,
+                      thickness=depth)
         inward = np.cross([0.0, 0.0, 1.0], u)
         return element(ifc_class, name, storey_ent,
                        _placement(origin + off * u + np.array([0, 0, z]) + setback * inward, u),
@@ -706,17 +708,15 @@ def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
             for w in by_wall.get((i, k), []):
                 off = float((w.corners_world[3] - origin) @ u)
                 opening = void(wall, f"Opening {w.name}", origin, u, off, w.sill, w.width, w.height)
+                parts_rep = None
                 if spec.window_styles:
                     style_w = spec.window_styles[int(style_rng.integers(len(spec.window_styles)))]
                     solid, panes = window_parts(w.width, w.height, spec.frame_depth, style_w, style_rng)
-                    inward = np.cross([0.0, 0.0, 1.0], u)
-                    win = element("IfcWindow", w.name, storey, _placement(
-                        origin + off * u + np.array([0, 0, w.sill]) + spec.reveal_depth * inward, u),
-                        api("geometry.add_mesh_representation", f, context=body,
-                            **dict(zip(("vertices", "faces"), box_mesh(solid + panes)))), "window")
-                else:
-                    win = box("IfcWindow", w.name, storey, origin, u, off, w.sill, w.width, w.height,
-                              spec.frame_depth, spec.reveal_depth, "window")
+                    verts, faces = box_mesh(solid + panes)
+                    parts_rep = api("geometry.add_mesh_representation", f, context=body,
+                                    vertices=verts, faces=faces)
+                win = box("IfcWindow", w.name, storey, origin, u, off, w.sill, w.width, w.height,
+                          spec.frame_depth, spec.reveal_depth, "window", rep=parts_rep)
                 win.OverallWidth, win.OverallHeight = w.width, w.height
                 api("feature.add_filling", f, opening=opening, element=win)
                 windows_out.append(ExpectedWindow(**{**w.__dict__, "element_id": win.GlobalId}))
