@@ -41,50 +41,50 @@ REAL_RUN = $(if $(wildcard out/bench/real/summary.json),--real out/bench/real)
 LATEST_DEFAULT = $$(ls -td out/bench/default* | head -1)
 
 bench:  ## default profile: render, reconstruct with every strategy, report (photo column from out/bench/real when present), then `make docs`
-	$(PY) -m app bench --profile default $(REAL_RUN)
+	$(PY) -m fenestra bench --profile default $(REAL_RUN)
 	$(MAKE) --no-print-directory docs
 
 smoke:  ## smoke profile (what CI gates)
-	$(PY) -m app bench --profile smoke --out out/bench/smoke
+	$(PY) -m fenestra bench --profile smoke --out out/bench/smoke
 
 real:  ## real-photo profile (bundled curtain-wall photos, ../shared/real when present), sim-to-real table vs the smoke run if there is one
 	SIM=$$( [ -f out/bench/smoke/summary.json ] && echo "--sim out/bench/smoke" ); \
-	$(PY) -m app bench --profile real --out out/bench/real $$SIM
+	$(PY) -m fenestra bench --profile real --out out/bench/real $$SIM
 
 gate: smoke real  ## smoke and real profiles, then the accuracy gates
-	$(PY) -m app gate out/bench/smoke
-	$(PY) -m app gate out/bench/real
+	$(PY) -m fenestra gate out/bench/smoke
+	$(PY) -m fenestra gate out/bench/real
 
 timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s), written into docs/performance.md
-	$(PY) -m bench.timing --json out/timing.json --markdown docs/performance.md
+	$(PY) tools/timing.py --json out/timing.json --markdown docs/performance.md
 
 report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present), then `make docs`
-	$(PY) -m app report $(LATEST_DEFAULT) $(REAL_RUN)
+	$(PY) -m fenestra report $(LATEST_DEFAULT) $(REAL_RUN)
 	$(MAKE) --no-print-directory docs
 
 docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real)
-	$(PY) -m app report $(LATEST_DEFAULT) --markdown docs/results.md $(REAL_RUN)
+	$(PY) -m fenestra report $(LATEST_DEFAULT) --markdown docs/results.md $(REAL_RUN)
 
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
-	$(PY) -m reports.markdown --check
+	$(PY) -m fenestra.reports.markdown --check
 
 train:  ## render the detector data (make_data.sh, make_data_street.sh), train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it
-	PY=$(PY) bash training/scripts/make_data.sh out/detector-data
-	PY=$(PY) bash training/scripts/make_data_street.sh out/detector-data
-	$(PY) -m app train --config training/configs/default.toml
-	PY=$(PY) bash training/scripts/verifier_data.sh out/verifier-renders
-	$(PY) -m app train-verifier out/train/default.pt --yolo ../shared/real/spb_facades/train --renders out/verifier-renders --render-views 150
-	$(PY) -m app ship-weights out/train/default.pt
-	PY=$(PY) bash training/scripts/refine_data.sh out/refine-data
-	$(PY) -m app train-refine --data out/refine-data/train --ship
-	$(PY) -m app evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
-	$(PY) -m app evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
-	$(PY) -m app evaluate-detector --yolo ../shared/real/spb_facades/train --part val --json out/eval/default-spb-val.json
+	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
+	$(PY) -m fenestra train --config fenestra/training/configs/default.toml
+	PY=$(PY) bash fenestra/training/scripts/verifier_data.sh out/verifier-renders
+	$(PY) -m fenestra train-verifier out/train/default.pt --yolo ../shared/real/spb_facades/train --renders out/verifier-renders --render-views 150
+	$(PY) -m fenestra ship-weights out/train/default.pt
+	PY=$(PY) bash fenestra/training/scripts/refine_data.sh out/refine-data
+	$(PY) -m fenestra train-refine --data out/refine-data/train --ship
+	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
+	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
+	$(PY) -m fenestra evaluate-detector --yolo ../shared/real/spb_facades/train --part val --json out/eval/default-spb-val.json
 
 train-winnet:  ## the from-scratch WinNet (registered as `winnet`) on the same renders: out/train/winnet.pt, then ship-weights
-	PY=$(PY) bash training/scripts/make_data.sh out/detector-data
-	$(PY) -m app train --config training/configs/winnet.toml
-	$(PY) -m app ship-weights out/train/winnet.pt
+	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
+	$(PY) -m fenestra train --config fenestra/training/configs/winnet.toml
+	$(PY) -m fenestra ship-weights out/train/winnet.pt
 
 clean:
 	rm -rf out .pytest_cache

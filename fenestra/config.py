@@ -1,6 +1,6 @@
 """Reading the project's TOML files (bench profiles, gates, training configs) with clear errors.
 
-    data = read_toml("bench/profiles/smoke.toml", ProfileError, "profile file")
+    data = read_toml("fenestra/bench/profiles/smoke.toml", ProfileError, "profile file")
     spec = from_table(RenderSpec, data["render"], where="smoke.toml [render]", error=ProfileError)
 
 :func:`from_table` is the one TOML-table -> frozen-dataclass conversion: every config dataclass

@@ -22,6 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+PACKAGE_DIR = Path(__file__).resolve().parent  # the installed `fenestra` package
+REPO_ROOT = PACKAGE_DIR.parent  # the checkout holding it (a source checkout; site-packages when installed)
+
 
 def file_sha256(path: str | Path) -> str:
     """sha256 hex digest of a file's bytes (read in 1 MiB blocks)."""

@@ -33,7 +33,7 @@ PLUGIN_GROUP = "fenestra.plugins"
 CAPABILITIES: dict[str, Any] = {
     "in_all": True,  # part of a profile's "all" (False: e.g. a detector whose weights are not shipped)
     "needs_instances": False,  # a detector that reads the ground-truth instance map (the oracles)
-    "trainable": False,  # a detector with a training recipe (training/recipes/<arch>.py)
+    "trainable": False,  # a detector with a training recipe (fenestra/training/recipes/<arch>.py)
     "per_wall": False,  # a pose strategy that fits each wall once (False: each window on its own)
     "fits_focal": False,  # a pose strategy that fits the focal length itself: benchmarked with K withheld too
 }

@@ -1,4 +1,4 @@
-"""training/augment.py's street-level augmentations (issue #23 item 4): the oblique-view warp moves
+"""fenestra/training/augment.py's street-level augmentations (issue #23 item 4): the oblique-view warp moves
 corner labels with the pixels, each new step is off by default (same random stream), and a pasted
 neighbouring facade brings its own windows."""
 from dataclasses import replace
@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from training.augment import (AugmentConfig, motion_kernel, neighbour_strip, perspective_homography, photometric,
+from fenestra.training.augment import (AugmentConfig, motion_kernel, neighbour_strip, perspective_homography, photometric,
                               random_scale_crop)
 
 OBLIQUE = replace(AugmentConfig(), scale_range=(1.0, 1.0), hflip_prob=0.0, perspective_prob=1.0)
@@ -60,7 +60,7 @@ def test_oblique_crop_moves_points_with_the_pixels(seed):
 
 def test_new_steps_draw_nothing_when_off():
     """Defaults: a crop and its photometric step give the pixels and leave the random stream
-    exactly where the code before these steps did (figures pinned from training/augment.py at
+    exactly where the code before these steps did (figures pinned from fenestra/training/augment.py at
     5f253ee, run on the same input), so configs without the new steps train on the same batches."""
     img = np.random.default_rng(1).integers(0, 255, (80, 100, 3), dtype=np.uint8)
     inst = np.zeros((80, 100), np.int32)
@@ -122,8 +122,8 @@ def test_neighbour_strip_pastes_an_edge_strip_with_its_windows():
 def test_real_augment_table_overrides_augment_for_the_photos_only(tmp_path):
     """[real_augment] holds only the keys in which the photos' augmentation differs from [augment];
     sample_augment gives it to real photos (no corners) and [augment] to renders."""
-    from training.recipes.effwin import sample_augment
-    from training.train import load_config
+    from fenestra.training.recipes.effwin import sample_augment
+    from fenestra.training.train import load_config
 
     cfg_path = tmp_path / "c.toml"
     cfg_path.write_text('[train]\narch = "effwin"\n[augment]\nwhite_balance = 0.2\nshadow_prob = 0.4\n'

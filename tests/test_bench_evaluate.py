@@ -17,13 +17,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.evaluate import (PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask, evaluate_task,
+from fenestra.bench.evaluate import (PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask, evaluate_task,
                             evaluate_view, render_conditions)
 from fenestra.methods import Method
-from bench.profiles import EvalSpec
-from bench.render_adapter import RenderedViewRef, read_rendered_view
+from fenestra.bench.profiles import EvalSpec
+from fenestra.bench.render_adapter import RenderedViewRef, read_rendered_view
 from fenestra.conventions import K_from_fov, look_at, project
-from renders.quad_image import coverage, pixel_centre_mask
+from quad_image import coverage, pixel_centre_mask
 
 W, H = 640, 480
 
@@ -155,7 +155,7 @@ def test_render_and_photo_tables_share_columns_and_dtypes(view_dir, tmp_path):
     """A render's and a photo's rows (the same oracle method) make tables whose columns are the
     two kinds' pinned ones (as results tables of commit 991c33e had them) and whose common columns
     have the same dtypes."""
-    from bench.real.adapters import read_coco
+    from fenestra.bench.real.adapters import read_coco
     from test_bench_real import _rectangle_view
 
     m = (Method("oracle", "none", "lm"),)
@@ -199,7 +199,7 @@ def test_task_reads_the_view_in_the_worker(view_dir):
 
 def test_rows_identical_with_dense_reference_matching(view_dir, monkeypatch):
     """The sparse IoU (crops of overlapping boxes) gives the rows of full-image dense matching."""
-    from bench import matching
+    from fenestra.bench import matching
     from fenestra.data import SparseMask
 
     methods = [Method("oracle", "none", "lm"), Method("oracle-degraded", "linefit", "ippe")]
@@ -241,15 +241,15 @@ def test_per_wall_rows_same_with_and_without_reused_per_window_results(view_dir)
 
 
 def test_reconstruct_base_only_for_per_wall_strategies():
-    from pipeline.reconstruct import ReconstructConfig, reconstruct_from_quads
+    from fenestra.pipeline.reconstruct import ReconstructConfig, reconstruct_from_quads
 
     with pytest.raises(ValueError, match="base: 0 per-window results given for pose 'lm'"):
         reconstruct_from_quads(np.zeros((20, 20), np.float32), None, [], [], ReconstructConfig(pose="lm"), base=[])
 
 
 def test_quad_iou_memo_gives_quad_iou_once_per_pair():
-    from bench import metrics
-    from bench.evaluate import QuadIoUMemo
+    from fenestra.bench import metrics
+    from fenestra.bench.evaluate import QuadIoUMemo
 
     memo, gt = QuadIoUMemo(), np.array([[0, 0], [10, 0], [10, 10], [0, 10.0]])
     for q in (gt + 1.0, gt + 2.5, gt + 1.0, gt * 0.5):
@@ -261,8 +261,8 @@ def _shifted_corner_detector(**_):
     """The oracle's masks with a corner head that reads each mask-fit quad 1.5 px to the right."""
     import dataclasses
 
-    from pipeline.detectors.oracle import check_instances, oracle_detections
-    from pipeline.quad import mask_to_quad
+    from fenestra.pipeline.detectors.oracle import check_instances, oracle_detections
+    from fenestra.pipeline.quad import mask_to_quad
 
     def run(image, instances=None):
         dets = oracle_detections(check_instances(instances, image.shape))
@@ -278,7 +278,7 @@ def _shifted_corner_detector(**_):
 def test_per_wall_reuse_keeps_quad_sources_apart(view_dir):
     """A per-wall method with corner-head quads must not reuse the per-window results of the mask
     fit's quads (the reuse key holds the quad parameters): its rows equal those of a run alone."""
-    from pipeline.detectors import DETECTORS, DetectorEntry
+    from fenestra.pipeline.detectors import DETECTORS, DetectorEntry
 
     DETECTORS.register(DetectorEntry("shifted-corners", _shifted_corner_detector, "test: oracle + shifted corners",
                                      needs_instances=True))

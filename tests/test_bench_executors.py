@@ -19,10 +19,10 @@ from pathlib import Path
 import pytest
 
 from fenestra.methods import Method
-from bench.executors import EXECUTORS, plan_shards
-from bench.profiles import load_profile
-from bench.results import load_results
-from bench.runner import make_plan, run_benchmark
+from fenestra.bench.executors import EXECUTORS, plan_shards
+from fenestra.bench.profiles import load_profile
+from fenestra.bench.results import load_results
+from fenestra.bench.runner import make_plan, run_benchmark
 from fenestra.errors import FenestraError
 
 METHODS = (Method("oracle", "none", "lm"), Method("oracle-degraded", "hough", "ippe"),

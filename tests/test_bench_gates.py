@@ -13,9 +13,9 @@ import sys
 import numpy as np
 import pytest
 
-from bench import gates, manifest, results
-from bench.profiles import ProfileError, available_profiles, load_profile, profile_from_dict
-from bench.synthetic import synthetic_results
+from fenestra.bench import gates, manifest, results
+from fenestra.bench.profiles import ProfileError, available_profiles, load_profile, profile_from_dict
+from synthetic_results import synthetic_results
 
 
 @pytest.fixture(scope="module")
@@ -84,12 +84,12 @@ def test_gate_cli_exit_codes(run_dir, tmp_path):
     p = tmp_path / "g.toml"
     p.write_text('[[gate]]\nprofile = "synthetic"\nmethod = "oracle/*/*"\n'
                  'metric = "corner_err_px_snap.median"\nmax = 2.0\n')
-    r = subprocess.run([sys.executable, "-m", "app", "gate", str(run_dir), "--gates", str(p)],
+    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1
     assert "oracle/bad/lm: corner_err_px_snap.median =" in r.stderr and "<= 2" in r.stderr
     p.write_text(p.read_text().replace("max = 2.0", "max = 50.0"))
-    r = subprocess.run([sys.executable, "-m", "app", "gate", str(run_dir), "--gates", str(p)],
+    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(run_dir), "--gates", str(p)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
 
@@ -129,10 +129,10 @@ def test_profiles_load_and_validate():
 def test_profile_names_are_checked_against_the_registries(monkeypatch):
     import dataclasses
 
-    from bench.runner import plan_methods
-    from pipeline.reconstruct import POSES
-    from pipeline.snappers import SNAPPERS
-    from renders.backends import RENDERERS
+    from fenestra.bench.runner import plan_methods
+    from fenestra.pipeline.reconstruct import POSES
+    from fenestra.pipeline.snappers import SNAPPERS
+    from fenestra.renders.backends import RENDERERS
 
     snappers = list(SNAPPERS)
     with pytest.raises(ProfileError, match=rf"x: methods.snappers: unknown snapper 'sift'; choose from "
@@ -181,10 +181,10 @@ def test_suggested_gates_pass_their_own_run_and_catch_a_worse_one(run_dir, tmp_p
 @pytest.mark.slow
 def test_cli_bench_smoke_then_gate(tmp_path):
     out = tmp_path / "smoke"
-    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "smoke", "--out", str(out)],
+    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--out", str(out)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "wall time" in r.stdout and "report:" in r.stdout
-    r = subprocess.run([sys.executable, "-m", "app", "gate", str(out)],
+    r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(out)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr

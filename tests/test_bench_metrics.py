@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from bench import matching, metrics
+from fenestra.bench import matching, metrics
 from fenestra import data
 from fenestra.conventions import look_at, make_K, project
 
@@ -165,7 +165,7 @@ def test_matching_empty_and_bad_input():
 def test_detection_ap_hand_values():
     """COCO AP on hand-made masks: exact detections -> 1; half the windows found -> 51/101
     (COCO's 101-point interpolation: precision 1 up to recall 0.5, 0 beyond)."""
-    from bench.detection_ap import coco_ap
+    from fenestra.bench.detection_ap import coco_ap
 
     gts, dts = [], []
     for i in range(4):

@@ -1,4 +1,4 @@
-"""The real-photo bench: adapters (bench/real) on small hand-made files, metrics against
+"""The real-photo bench: adapters (fenestra/bench/real) on small hand-made files, metrics against
 hand-computed numbers, one row per labelled window per method through the one evaluation path
 (bench.evaluate, bench.runner), the profile and the CLI."""
 from __future__ import annotations
@@ -13,17 +13,17 @@ import cv2
 import numpy as np
 import pytest
 
-from bench import metrics as rm
-from bench.detection_ap import coco_ap_of
-from bench.evaluate import EvalOptions, ViewOutcome, evaluate_view, gt_coco, window_errors
+from fenestra.bench import metrics as rm
+from fenestra.bench.detection_ap import coco_ap_of
+from fenestra.bench.evaluate import EvalOptions, ViewOutcome, evaluate_view, gt_coco, window_errors
 from fenestra.methods import Method
-from bench.real.adapters import ADAPTERS, CURTAIN_K, read_coco
-from bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
-from bench.real.simreal import ranking
-from bench.runner import run_benchmark
-from bench.views import LabelledWindow
+from fenestra.bench.real.adapters import ADAPTERS, CURTAIN_K, read_coco
+from fenestra.bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
+from fenestra.bench.real.simreal import ranking
+from fenestra.bench.runner import run_benchmark
+from fenestra.bench.views import LabelledWindow
 from fenestra.data import coco_result
-from pipeline.types import WindowResult
+from fenestra.pipeline.types import WindowResult
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -296,7 +296,7 @@ def test_simreal_ranking_hand_computed():
 def test_cli_bench_on_a_user_coco_folder(tmp_path):
     folder, *_ = _rectangle_view(tmp_path / "mydata")
     env = {**os.environ, "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg"}
-    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "real", "--data", str(folder),
+    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "real", "--data", str(folder),
                         "--format", "coco", "--out", str(tmp_path / "run")], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
@@ -304,7 +304,7 @@ def test_cli_bench_on_a_user_coco_folder(tmp_path):
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["metadata"]["profile"] == "real-mydata"
     assert s["results"]["oracle/none/lm"]["aspect_err_rel"]["median"] < 0.01
-    r = subprocess.run([sys.executable, "-m", "app", "bench", "--profile", "smoke", "--data", str(folder)],
+    r = subprocess.run([sys.executable, "-m", "fenestra", "bench", "--profile", "smoke", "--data", str(folder)],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "need a real profile" in r.stderr
 
@@ -314,8 +314,8 @@ def test_simreal_section_in_the_report(tmp_path):
     the report carries the real metrics and the sim-to-real sections."""
     import shutil
 
-    from bench.real.simreal import write_simreal
-    from reports.build import build_report
+    from fenestra.bench.real.simreal import write_simreal
+    from fenestra.reports.build import build_report
 
     folder, *_ = _rectangle_view(tmp_path / "data")
     prof = real_profile_from_dict({"name": "t", "kind": "real", "data": str(folder),
@@ -356,11 +356,11 @@ def test_coco_rle_masks_uncompressed_and_compressed(tmp_path):
 
 
 def test_photo_rows_equal_those_of_the_former_real_evaluator(tmp_path, yolo_dir):
-    """The one evaluation path gives photos the rows bench/real's own evaluator of commit 991c33e
+    """The one evaluation path gives photos the rows fenestra/bench/real's own evaluator of commit 991c33e
     gave (tests/golden/photo_view_rows.json, written by that code): a labelled quad with aspect and
     K, box-only labels (oracles not run), and a coplanar curtain-wall photo (relative sizes, partial
     panes); every column in the photo table's order, every value, and the COCO material's sizes."""
-    from bench.evaluate import PHOTO_COLUMNS
+    from fenestra.bench.evaluate import PHOTO_COLUMNS
 
     golden = json.loads((ROOT / "tests" / "golden" / "photo_view_rows.json").read_text())
     methods = tuple(Method.from_label(m) for m in golden["methods"])

@@ -12,11 +12,11 @@ import json
 import numpy as np
 import pytest
 
-from bench import gates, results
+from fenestra.bench import gates, results
 from fenestra.methods import Method
-from bench.profiles import load_profile
-from bench.runner import run_benchmark
-from reports.build import build_report
+from fenestra.bench.profiles import load_profile
+from fenestra.bench.runner import run_benchmark
+from fenestra.reports.build import build_report
 
 
 def _shift5(gray, quad, params):
@@ -26,9 +26,9 @@ def _shift5(gray, quad, params):
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    from pipeline.snappers import SNAPPERS
-    from pipeline.snappers.base import Snapper
-    from pipeline.snappers.none import NoneParams
+    from fenestra.pipeline.snappers import SNAPPERS
+    from fenestra.pipeline.snappers.base import Snapper
+    from fenestra.pipeline.snappers.none import NoneParams
 
     SNAPPERS.register(Snapper("shift5", _shift5, NoneParams, description="broken: 5 px off", test_median_px=5.0))
     try:
@@ -90,9 +90,9 @@ def test_report_apart_runs_in_a_child_and_raises_its_error_as_one_line(tmp_path)
 
     import pytest
 
-    from bench.runner import report_apart
+    from fenestra.bench.runner import report_apart
     from fenestra.errors import FenestraError
-    from reports.cli import write_report
+    from fenestra.reports.cli import write_report
 
     report_apart(os.mkdir, tmp_path / "made-by-the-child")
     assert (tmp_path / "made-by-the-child").is_dir()

@@ -52,7 +52,7 @@ def test_window_frame_corner_order_matches_image_order():
     """DESIGN.md / conventions: image TL, TR, BR, BL are the window-frame corners (0, h), (w, h),
     (w, 0), (0, 0) (x along the wall, y up, z outward), seen from outside."""
     from fenestra.conventions import CORNER_NAMES, make_K, project
-    from pipeline.pose import object_points
+    from fenestra.pipeline.pose import object_points
 
     assert CORNER_NAMES == ("TL", "TR", "BR", "BL")
     w, h = 2.0, 1.0

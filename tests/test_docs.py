@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench import manifest, results
-from bench.synthetic import synthetic_results
+from fenestra.bench import manifest, results
+from synthetic_results import synthetic_results
 from fenestra.conventions import DEFAULTS, PAPER
-from reports import markdown as md
+from fenestra.reports import markdown as md
 
 ROOT = Path(__file__).resolve().parents[1]
 PATHS = md.DocPaths.for_markdown(ROOT / "docs" / "results.md")
@@ -35,7 +35,7 @@ NOT_FIGURES = ("CC BY 4.0",)
 
 def test_committed_docs_are_what_the_committed_summary_renders():
     assert PATHS.summary.is_file(), "docs/results/summary.json is missing: make docs"
-    assert md.stale(PATHS) == [], "regenerate with `python -m reports.markdown` (or `make docs` after a bench run)"
+    assert md.stale(PATHS) == [], "regenerate with `python -m fenestra.reports.markdown` (or `make docs` after a bench run)"
 
 
 def test_committed_summary_is_small_and_names_its_runs():
@@ -107,8 +107,8 @@ def test_design_states_no_other_default_pose():
 
 
 def test_training_houses_are_make_data_s():
-    """TRAINED_ON is the bundled-house loop of training/scripts/make_data.sh; samplehouse4 held out."""
-    script = (ROOT / "training" / "scripts" / "make_data.sh").read_text()
+    """TRAINED_ON is the bundled-house loop of fenestra/training/scripts/make_data.sh; samplehouse4 held out."""
+    script = (ROOT / "fenestra" / "training" / "scripts" / "make_data.sh").read_text()
     houses = tuple(re.search(r"^for house in ([^;]+); do", script, re.M).group(1).split())
     assert all(v == houses for v in md.TRAINED_ON.values())
     assert "samplehouse4" not in houses and "samplehouse4" in script
@@ -185,7 +185,7 @@ def test_a_run_without_the_cli_default_method_says_so(run):
 def test_cli_writes_the_docs_and_they_render_again_identically(run, tmp_path):
     from typer.testing import CliRunner
 
-    from app.cli import app
+    from fenestra.app.cli import app
 
     d, _ = run
     (tmp_path / "docs").mkdir()

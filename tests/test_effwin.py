@@ -1,4 +1,4 @@
-"""EffWin, the pretrained-backbone detector (pipeline/detectors/effwin.py) and its training pieces:
+"""EffWin, the pretrained-backbone detector (fenestra/pipeline/detectors/effwin.py) and its training pieces:
 offline ImageNet weights, corner targets and their sub-pixel read-out, corner quads, the crop
 geometry that moves corners with the pixels, real box photos, and a tiny training run."""
 import csv
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.detectors.effwin import (EffWin, EffWinConfig, corner_heatmaps, efficientnet_lite, instance_corners,
+from fenestra.pipeline.detectors.effwin import (EffWin, EffWinConfig, corner_heatmaps, efficientnet_lite, instance_corners,
                                        pretrained_backbone_path)
-from pipeline.quad import corners_to_quad
+from fenestra.pipeline.quad import corners_to_quad
 from toy_data import write_toy_dataset
-from training.augment import AugmentConfig, random_scale_crop
-from training.train import load_config, train
+from fenestra.training.augment import AugmentConfig, random_scale_crop
+from fenestra.training.train import load_config, train
 
 
 def test_pretrained_backbone_loads_from_the_installed_wheel_without_network(monkeypatch):
@@ -94,7 +94,7 @@ def test_crop_warp_moves_points_with_the_pixels():
 def test_real_box_photos_split_and_box_instances(tmp_path):
     import cv2
 
-    from training.dataset import box_instances, read_box_photo, real_box_photos
+    from fenestra.training.dataset import box_instances, read_box_photo, real_box_photos
 
     (tmp_path / "images").mkdir()
     (tmp_path / "labels").mkdir()
@@ -116,11 +116,11 @@ def test_real_box_photos_split_and_box_instances(tmp_path):
 
 
 def test_effwin_tiny_training_loss_decreases_and_detects(tmp_path):
-    from pipeline.detectors import detect
+    from fenestra.pipeline.detectors import detect
     from fenestra.images import read_image
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
-    cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / "e.pt"),
+    cfg = load_config("fenestra/training/configs/default.toml", data=(str(ds),), out=str(tmp_path / "e.pt"),
                       state_dir=str(tmp_path), iterations=30, batch_size=3, crop_hw=(64, 128), log_every=1,
                       warmup=5, lr=3e-3, real_fraction=0.0, threads=1)
     assert cfg.arch == "effwin" and cfg.pretrained
@@ -138,7 +138,7 @@ def test_effwin_tiny_training_loss_decreases_and_detects(tmp_path):
 def test_occluders_hide_the_void_they_cover_and_are_off_by_default():
     from dataclasses import replace
 
-    from training.augment import occluders
+    from fenestra.training.augment import occluders
 
     img = np.full((96, 128, 3), 200, np.uint8)
     inst = np.zeros((96, 128), np.int32)
@@ -160,7 +160,7 @@ def test_evaluate_boxes_scores_real_style_photos_through_detect(tmp_path):
     The shipped default finds the six drawn dark windows in their white frames."""
     import cv2
 
-    from training.evaluate import evaluate_boxes, format_table
+    from fenestra.training.evaluate import evaluate_boxes, format_table
 
     (tmp_path / "images").mkdir()
     (tmp_path / "labels").mkdir()
@@ -189,9 +189,9 @@ def test_evaluate_boxes_scores_real_style_photos_through_detect(tmp_path):
 
 
 def test_corner_quads_fall_back_to_the_mask_fit_when_they_disagree_with_the_mask():
-    from pipeline.quad import QuadParams, corners_agree_with_mask
-    from pipeline.reconstruct import fit_quads
-    from pipeline.types import Detection
+    from fenestra.pipeline.quad import QuadParams, corners_agree_with_mask
+    from fenestra.pipeline.reconstruct import fit_quads
+    from fenestra.pipeline.types import Detection
 
     mask = np.zeros((60, 80), bool)
     mask[10:40, 20:60] = True  # 40 x 30 px: pixel-edge outline x 19.5..59.5, y 9.5..39.5

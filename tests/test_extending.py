@@ -64,7 +64,7 @@ def test_named_path_exists(path):
 def test_named_tests_exist():
     import dataclasses
 
-    from pipeline.snappers.base import Snapper
+    from fenestra.pipeline.snappers.base import Snapper
 
     fields = {f.name for f in dataclasses.fields(Snapper)}  # e.g. test_median_px: a field, not a test
     defined = {m for f in (ROOT / "tests").glob("test_*.py") for m in re.findall(r"^def (test_\w+)", f.read_text(), re.M)}
@@ -89,10 +89,10 @@ def test_excerpt_is_verbatim(path, lines):
 def test_worked_example_is_offered_where_the_page_says():
     from typer.testing import CliRunner
 
-    from bench.profiles import load_profile
-    from bench.runner import plan_methods
-    from app.cli import app
-    from pipeline.snappers import SNAPPERS
+    from fenestra.bench.profiles import load_profile
+    from fenestra.bench.runner import plan_methods
+    from fenestra.app.cli import app
+    from fenestra.pipeline.snappers import SNAPPERS
 
     assert SNAPPERS["lsd"].name == "lsd"
     out = CliRunner().invoke(app, ["reconstruct", "--help"], env={"COLUMNS": "400"}).output

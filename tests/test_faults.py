@@ -1,4 +1,4 @@
-"""Fault injection, as a user meets faults: every case runs ``python -m app ...`` (the ``fenestra`` command) in a
+"""Fault injection, as a user meets faults: every case runs ``python -m fenestra ...`` (the ``fenestra`` command) in a
 subprocess (README: "What Fenestra guarantees").
 
 Disk full is a real failing write: the child runs under RLIMIT_FSIZE (a file-size limit the
@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench import manifest
+from fenestra.bench import manifest
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "curtainwall"
@@ -63,7 +63,7 @@ def fenestra(*args, cwd: Path, limit_bytes: int | None = None, timeout: float = 
     def limit():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-    return subprocess.run([sys.executable, "-m", "app", *map(str, args)], cwd=cwd, env=env(),
+    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env(),
                           capture_output=True, text=True, timeout=timeout,
                           preexec_fn=limit if limit_bytes is not None else None)
 
@@ -222,7 +222,7 @@ def test_poisoned_cache_is_rerendered_with_a_message(tmp_path):
 
 def test_sigterm_mid_render_then_resume(tmp_path):
     args = [*RENDER_ARGS[:2], "40", *RENDER_ARGS[3:]]
-    p = subprocess.Popen([sys.executable, "-m", "app", *args], cwd=tmp_path, env=env(),
+    p = subprocess.Popen([sys.executable, "-m", "fenestra", *args], cwd=tmp_path, env=env(),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
     while not list(tmp_path.glob("out/renders/*/views/000001/view.json")) and time.time() < deadline:
@@ -335,7 +335,7 @@ MEASURE = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); 
 
 def run_measured(args: list, cwd: Path) -> tuple[int, str, float]:
     """(exit code, stderr, peak RSS in GB) of one CLI run."""
-    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "app", *map(str, args)],
+    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
                        cwd=cwd, env=env(), capture_output=True, text=True, timeout=300)
     kb = int(r.stderr.rsplit("MAXRSS_KB ", 1)[1])
     return r.returncode, r.stderr, kb / 2**20
@@ -354,8 +354,8 @@ def test_many_windows_sparse_masks_large_photo():
     """1000 windows (the stated maximum) in a 4000x3000 instance map: one Detection per id with
     its bounding-box crop (not a full-size mask each: 12 GB), quads where the rectangles are.
     In process: the CLI run of this case (export included) is measured by tools/bench_memory.py."""
-    from pipeline.detectors.oracle import detections_from_instance_map
-    from pipeline.reconstruct import fit_quads
+    from fenestra.pipeline.detectors.oracle import detections_from_instance_map
+    from fenestra.pipeline.reconstruct import fit_quads
 
     inst = np.zeros((3000, 4000), np.uint16)
     rects = {}
@@ -713,7 +713,7 @@ def test_file_names_that_are_not_utf8(tmp_path):
     yolo_case("0 0.5 0.5 0.2 0.2\n")(tmp_path / "y")
     os.rename(tmp_path / "y" / "ds" / "images" / "a.png", tmp_path / "y" / "ds" / "images" / name)
     os.rename(tmp_path / "y" / "ds" / "labels" / "a.txt", tmp_path / "y" / "ds" / "labels" / (Path(name).stem + ".txt"))
-    r = subprocess.run([sys.executable, "-m", "app", "check-data", "ds", "--format", "yolo"], cwd=tmp_path / "y",
+    r = subprocess.run([sys.executable, "-m", "fenestra", "check-data", "ds", "--format", "yolo"], cwd=tmp_path / "y",
                        env=env(), capture_output=True, timeout=120)  # bytes: the name is printed as it is
     out = r.stdout.decode(errors="surrogateescape")
     assert r.returncode == 0 and "1 window(s)" in out and Path(name).stem in out, (out[-2000:], r.stderr[-2000:])
@@ -722,7 +722,7 @@ def test_file_names_that_are_not_utf8(tmp_path):
 def test_an_internal_error_is_one_line_and_a_log(tmp_path, monkeypatch, capsys):
     """A bug (an exception no user input explains) ends with one line, exit 3, 'please report',
     and its traceback in a log file, not on the terminal."""
-    import app.cli as cli
+    import fenestra.app.cli as cli
 
     def boom() -> None:
         {}["no such key"]  # noqa: B018  (the bug)
@@ -753,7 +753,7 @@ def test_label_map_checkerboard_in_bounded_memory(tmp_path):
 def test_a_failed_bench_run_is_marked_failed(tmp_path):
     """A run that stops after its folder was claimed (here a disk-full error inside the run's block)
     leaves run.json saying 'failed' with the error's one line, and no manifest for gate/report."""
-    from bench.manifest import RUN_JSON, claim_run_dir, run_status
+    from fenestra.bench.manifest import RUN_JSON, claim_run_dir, run_status
 
     run = claim_run_dir(tmp_path / "run", "tiny", "abc")
     assert json.loads((run / RUN_JSON).read_text())["status"] == "running"

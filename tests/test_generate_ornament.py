@@ -7,8 +7,8 @@ import ifcopenshell.geom
 import numpy as np
 import pytest
 
-from scenes.generate import HouseSpec, make_house
-from scenes.loader import load_scene
+from fenestra.scenes.generate import HouseSpec, make_house
+from fenestra.scenes.loader import load_scene
 
 SQUARE = ((0.0, 0.0), (6.0, 0.0), (6.0, 5.0), (0.0, 5.0))  # axis-aligned: walls known here
 ORNATE = dict(seed=4, footprint=SQUARE, storeys=2, windows_per_wall=3, glazed_doors=1,

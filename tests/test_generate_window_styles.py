@@ -4,7 +4,7 @@ renderers find the panes as glass."""
 import numpy as np
 import pytest
 
-from scenes.generate import WINDOW_STYLES, HouseSpec, make_house, window_parts
+from fenestra.scenes.generate import WINDOW_STYLES, HouseSpec, make_house, window_parts
 
 
 def _area(b):
@@ -45,8 +45,8 @@ def test_style_names_are_checked():
 def test_styled_house_keeps_the_ground_truth_and_renders_glass(tmp_path):
     """Read back through the loader (ifcopenshell geometry): the window voids equal the plain
     house's, and the renderers' glass_faces finds one pane component per generated pane."""
-    from renders.materials import glass_faces
-    from scenes.loader import load_scene
+    from fenestra.renders.materials import glass_faces
+    from fenestra.scenes.loader import load_scene
 
     base = dict(seed=7, storeys=2, windows_per_wall=2, width_range=(0.8, 1.8), height_range=(1.0, 1.6))
     styled = make_house(HouseSpec(**base, window_styles=WINDOW_STYLES[1:]), tmp_path / "styled.ifc")

@@ -1,19 +1,21 @@
-"""Import direction: each top-level package imports only the stages before it (the folders follow the data).
+"""Import direction: each floor of the one package ``fenestra`` imports only the floors before it
+(the folders follow the data).
 
-    fenestra  <-  scenes  <-  renders  <-  training
-        ^                        ^            |
-        +------ pipeline --------+------------+   (pipeline: what a user runs on a photo: fenestra only)
+    fenestra (ground floor)  <-  scenes  <-  renders  <-  training
+        ^                                      ^            |
+        +------------ pipeline ----------------+------------+   (pipeline: what a user runs on a photo)
     bench: scenes, renders, pipeline (it feeds the pipeline renders and real photos, measures it)
     reports: pipeline (registry names), bench (the results/manifest contract: it reads the bench's
              tables); bench never imports reports (the CLI hands bench the report writer)
-    app: the top floor, the composition root (app/cli.py: the `fenestra` command line registers
-         every stage's commands): it may import every package, and no package imports it
-    tools: lab scripts (tools/*.py, not installed): every package but app (they run the command
-           line as a user does, in a subprocess); nothing imports them
+    app: the top floor, the composition root (fenestra/app/cli.py: the `fenestra` command line
+         registers every stage's commands): it may import every floor, and no floor imports it
+    tools: lab scripts (tools/*.py, not installed): every floor but app; nothing imports them
 
-The ground floor ``fenestra`` imports nothing above it, with no exception. Nothing imports
-``training`` except app and tools/. Every import counts, also one inside a function (a lazy import
-is still a dependency).
+The ground floor is the modules directly in fenestra/ (conventions, tolerances, checks, the data
+contracts): they import nothing above it, with no exception but the package's ``__init__``, the
+public API facade (``from fenestra import reconstruct_photo``, resolved on first use), which may
+import ``fenestra.pipeline``. Nothing imports ``training`` except app and tools/. Every import
+counts, also one inside a function (a lazy import is still a dependency).
 """
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "fenestra"
 ALLOWED: dict[str, set[str]] = {
     "fenestra": set(),
     "scenes": {"fenestra"},
@@ -35,49 +38,76 @@ ALLOWED: dict[str, set[str]] = {
     "app": {"fenestra", "scenes", "renders", "pipeline", "training", "bench", "reports"},
     "tools": {"fenestra", "scenes", "renders", "pipeline", "training", "bench", "reports"},
 }
+FLOORS = set(ALLOWED) - {"fenestra", "tools"}  # the subpackages of fenestra
+# the package's two doors: the public API (imported lazily) and `python -m fenestra` (the command line)
+FACADE = {"fenestra/__init__.py": {"pipeline"}, "fenestra/__main__.py": {"app"}}
+
+
+def floor_of(module: str) -> str | None:
+    """The floor an absolute module name belongs to: "pipeline" for fenestra.pipeline.photo,
+    "fenestra" for a ground-floor module (fenestra.conventions) or the package itself; None
+    outside fenestra."""
+    parts = module.split(".")
+    if parts[0] != "fenestra":
+        return "tools" if parts[0] == "tools" else None
+    return parts[1] if len(parts) > 1 and parts[1] in FLOORS else "fenestra"
 
 
 def installed_packages() -> list[str]:
-    """Top-level packages pyproject.toml installs (``include = ["fenestra*", ...]``)."""
+    """Top-level packages pyproject.toml installs (``include = ["fenestra*"]``)."""
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     return [p.rstrip("*") for p in cfg["tool"]["setuptools"]["packages"]["find"]["include"]]
 
 
 def imports(path: Path) -> set[str]:
-    """Top-level names of every absolute import in a file (function-level ones included)."""
+    """Floors of every absolute import in a file (function-level ones included)."""
     out = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):
-            out |= {a.name.split(".")[0] for a in node.names}
+            names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            out.add(node.module.split(".")[0])
+            names = [node.module] + ([f"{node.module}.{a.name}" for a in node.names] if node.module == "fenestra" else [])
+        else:
+            continue
+        out |= {f for f in map(floor_of, names) if f is not None}
     return out
 
 
-def violations(package: str) -> list[tuple[str, str, str]]:
-    """(file, importer package, imported package) of every import the table does not allow."""
-    known = set(ALLOWED)
+def floor_files(floor: str) -> list[Path]:
+    """The Python files of one floor."""
+    if floor == "fenestra":
+        return sorted(PACKAGE.glob("*.py"))
+    if floor == "tools":
+        return sorted((ROOT / "tools").glob("*.py"))
+    return sorted((PACKAGE / floor).rglob("*.py"))
+
+
+def violations(floor: str) -> list[tuple[str, str, str]]:
+    """(file, importer floor, imported floor) of every import the table does not allow."""
     bad = []
-    for f in sorted((ROOT / package).rglob("*.py")):
+    for f in floor_files(floor):
         rel = f.relative_to(ROOT).as_posix()
-        for name in sorted(imports(f) & known - {package} - ALLOWED[package]):
-            bad.append((rel, package, name))
+        allowed = ALLOWED[floor] | FACADE.get(rel, set())
+        for name in sorted(imports(f) - {floor} - allowed):
+            bad.append((rel, floor, name))
     return bad
 
 
-def test_every_installed_package_has_a_row():
-    assert set(installed_packages()) <= set(ALLOWED), sorted(set(installed_packages()) - set(ALLOWED))
-    assert all(deps <= set(ALLOWED) for deps in ALLOWED.values())
+def test_one_installed_package():
+    """The wheel installs one top-level package, ``fenestra`` (tests/test_wheel.py checks the wheel)."""
+    assert installed_packages() == ["fenestra"]
 
 
 def test_app_is_the_top_floor():
-    """app may import every installed package, nothing may import app (tools/ included), and
-    every top-level folder of Python files has a row."""
-    assert ALLOWED["app"] == set(installed_packages()) - {"app"}
+    """app may import every floor, nothing may import app (tools/ included), and every folder of
+    Python files in the package has a row."""
+    assert ALLOWED["app"] == set(ALLOWED) - {"app", "tools"}
     assert not [p for p, deps in ALLOWED.items() if "app" in deps]
-    folders = {d.name for d in ROOT.iterdir() if d.is_dir() and not d.name.startswith(".")
-               and any(d.glob("*.py")) and d.name != "tests"}
-    assert folders <= set(ALLOWED), sorted(folders - set(ALLOWED))
+    assert [f for f, deps in FACADE.items() if "app" in deps] == ["fenestra/__main__.py"]
+    folders = {d.name for d in PACKAGE.iterdir() if d.is_dir() and any(d.glob("*.py"))}
+    assert folders <= FLOORS, sorted(folders - FLOORS)
+    top = {d.name for d in ROOT.iterdir() if d.is_dir() and not d.name.startswith(".") and any(d.glob("*.py"))}
+    assert top <= {"fenestra", "tools", "tests", "examples"}, sorted(top)
 
 
 def test_table_has_no_cycle():
@@ -96,16 +126,21 @@ def test_table_has_no_cycle():
         visit(p)
 
 
-@pytest.mark.parametrize("package", [p for p in ALLOWED if (ROOT / p).is_dir()])
+@pytest.mark.parametrize("package", sorted(ALLOWED))
 def test_imports_follow_the_data(package):
     bad = violations(package)
     assert not bad, "\n".join(f"{f}: {a} must not import {b}" for f, a, b in bad)
 
 
 def test_checker_sees_a_violation(tmp_path, monkeypatch):
-    """The checker itself: a lazy import of bench inside a pipeline module is reported."""
-    pkg = tmp_path / "pipeline"
-    pkg.mkdir()
-    (pkg / "x.py").write_text("def f():\n    from bench.runner import run_benchmark\n    import scenes\n")
+    """The checker itself: a lazy import of bench inside a pipeline module is reported, and so is a
+    ground-floor module importing the pipeline through the package (``from fenestra import pipeline``)."""
+    pkg = tmp_path / "fenestra" / "pipeline"
+    pkg.mkdir(parents=True)
+    (pkg / "x.py").write_text("def f():\n    from fenestra.bench.runner import run_benchmark\n    import fenestra.scenes\n")
+    (tmp_path / "fenestra" / "y.py").write_text("from fenestra import pipeline, conventions\n")
     monkeypatch.setattr(__import__(__name__), "ROOT", tmp_path)
-    assert violations("pipeline") == [("pipeline/x.py", "pipeline", "bench"), ("pipeline/x.py", "pipeline", "scenes")]
+    monkeypatch.setattr(__import__(__name__), "PACKAGE", tmp_path / "fenestra")
+    assert violations("pipeline") == [("fenestra/pipeline/x.py", "pipeline", "bench"),
+                                      ("fenestra/pipeline/x.py", "pipeline", "scenes")]
+    assert violations("fenestra") == [("fenestra/y.py", "fenestra", "pipeline")]

@@ -1,4 +1,4 @@
-"""Instance separation of the void/core post-processing (pipeline/detectors/winnet.py, issue #23):
+"""Instance separation of the void/core post-processing (fenestra/pipeline/detectors/winnet.py, issue #23):
 windows a few pixels apart must come out as one detection each."""
 from dataclasses import replace
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from bench.matching import iou_matrix, match
-from pipeline.detectors.winnet import PostConfig, instances_from_maps, split_seeds
+from fenestra.bench.matching import iou_matrix, match
+from fenestra.pipeline.detectors.winnet import PostConfig, instances_from_maps, split_seeds
 
 BEFORE = PostConfig(void_threshold=0.5, core_threshold=0.5, separation="nearest", split_levels=())
 # the separating option measured in docs/experiments.md "Detector v3" (tools/instance_separation.py
@@ -92,13 +92,13 @@ def test_split_post_processing_separates_adjacent_windows_in_a_render(tmp_path):
     (measured on the instance map here); on the shipped network's maps the separating
     post-processing returns one detection per window, the default merges some of them."""
     from fenestra.data import read_view
-    from renders.dataset import DatasetConfig, render_dataset
+    from fenestra.renders.dataset import DatasetConfig, render_dataset
 
     root = render_dataset(DatasetConfig(scene="duplex", n_views=1, seed=0, out_root=str(tmp_path)), progress=False)
     view = read_view(next((root / "views").iterdir()))
     inst = view.instances
     H, W = inst.shape
-    ids = [w["instance_id"] for w in view.windows  # the bench's evaluable windows (bench/evaluate.py)
+    ids = [w["instance_id"] for w in view.windows  # the bench's evaluable windows (fenestra/bench/evaluate.py)
            if w["visible_fraction"] >= 0.9 and w["visible_px"] > 400 and w["incidence_deg"] <= 80
            and all(-0.5 <= x <= W - 0.5 and -0.5 <= y <= H - 0.5 for x, y in w["corners_px"])]
     adjacent = []
@@ -118,7 +118,7 @@ def test_split_post_processing_separates_adjacent_windows_in_a_render(tmp_path):
 
 
 def _maps(image):
-    from pipeline.detectors import DETECTORS, load_model
+    from fenestra.pipeline.detectors import DETECTORS, load_model
 
     mod, net, _ = load_model(DETECTORS["default"].model, None, any_arch=True)
     return mod.predict_maps(net, image)
@@ -127,7 +127,7 @@ def _maps(image):
 def test_hard_negative_share_counts_detections_on_doors_and_signboards():
     """Boxes by hand: a detection inside a door (intersection over the detection 1.0), one half on a
     signboard (IoU 1/3, intersection over detection 0.5: not above), one on a window."""
-    from training.evaluate import box_overlaps, hard_negative_share
+    from fenestra.training.evaluate import box_overlaps, hard_negative_share
 
     iou, iod = box_overlaps(np.array([[0, 0, 10, 10]]), np.array([[5, 0, 15, 10], [0, 0, 10, 10]]))
     np.testing.assert_allclose(iou, [[1 / 3, 1.0]])
@@ -158,8 +158,8 @@ def test_a_void_blob_without_a_seed_stays_apart_from_its_neighbours_seed(separat
 
 
 def test_effwin_weights_default_to_its_post_processing_and_a_file_may_override_it():
-    from pipeline.detectors import DEFAULT_WEIGHTS, effwin, winnet
-    from pipeline.detectors.checkpoint import read_checkpoint
+    from fenestra.pipeline.detectors import DEFAULT_WEIGHTS, effwin, winnet
+    from fenestra.pipeline.detectors.checkpoint import read_checkpoint
 
     ckpt = read_checkpoint(DEFAULT_WEIGHTS, ("effwin",))
     assert effwin.post_config(ckpt) == PostConfig(**effwin.POST_DEFAULTS)  # the shipped file says the defaults
@@ -171,14 +171,14 @@ def test_effwin_weights_default_to_its_post_processing_and_a_file_may_override_i
 
 
 def test_corner_cuts_separate_adjacent_windows_of_a_rendered_duplex_view(tmp_path):
-    """The shipped ``default`` detector (pipeline/models/default.pt, its box verifier, EffWin's
+    """The shipped ``default`` detector (fenestra/pipeline/models/default.pt, its box verifier, EffWin's
     POST_DEFAULTS) on a fresh raster render of duplex (view 0, seed 0): its windows 3-6 px apart
     (ground truth: the render's instance map) come out one detection each, matched one-to-one at
     mask IoU >= 0.5. The post-processing shipped before the corner cuts (``nearest-blob``), and the
     one before issue #23, merge at least two pairs of them on the same network maps."""
     from fenestra.data import read_view
-    from pipeline.detectors import DETECTORS, detect, effwin, load_model
-    from renders.dataset import DatasetConfig, render_dataset
+    from fenestra.pipeline.detectors import DETECTORS, detect, effwin, load_model
+    from fenestra.renders.dataset import DatasetConfig, render_dataset
 
     root = render_dataset(DatasetConfig(scene="duplex", n_views=1, seed=0, out_root=str(tmp_path)), progress=False)
     view = read_view(next((root / "views").iterdir()))
@@ -197,7 +197,7 @@ def test_corner_cuts_separate_adjacent_windows_of_a_rendered_duplex_view(tmp_pat
 
 
 def _adjacent_windows(view, max_gap_px: float = 6.0) -> list[int]:
-    """Instance ids of the view's evaluable windows (bench/evaluate.py's default rules: >= 90 %
+    """Instance ids of the view's evaluable windows (fenestra/bench/evaluate.py's default rules: >= 90 %
     visible, corners in frame, incidence <= 80 deg, >= 400 px) within ``max_gap_px`` of another window."""
     inst = view.instances
     H, W = inst.shape
@@ -216,8 +216,8 @@ def test_separator_cuts_part_two_touching_windows_drawn_by_their_corner_maps():
     """Corner maps drawn from the two windows' true corners (effwin.corner_heatmaps, the training
     targets): the cut runs down the 3 px gap (columns 40-42) and the two windows come out apart,
     each matched at IoU > 0.9; without corner maps they stay one blob."""
-    from pipeline.detectors.effwin import corner_heatmaps
-    from pipeline.detectors.winnet import separator_cuts
+    from fenestra.pipeline.detectors.effwin import corner_heatmaps
+    from fenestra.pipeline.detectors.winnet import separator_cuts
 
     void, core, a, b = two_touching_windows(gap_px=3)
     quads = [[[10, 10], [39, 10], [39, 49], [10, 49]], [[43, 10], [72, 10], [72, 49], [43, 49]]]
@@ -235,8 +235,8 @@ def test_separator_cuts_part_two_touching_windows_drawn_by_their_corner_maps():
 def test_separator_cuts_draw_no_line_across_the_wall_between_windows():
     """Two windows 30 px apart side by side, corners drawn as above but the facing pairs too far
     apart (gap > cut_max_gap_px): no separator; and a wall-crossing line fails the void gate."""
-    from pipeline.detectors.effwin import corner_heatmaps
-    from pipeline.detectors.winnet import separator_cuts
+    from fenestra.pipeline.detectors.effwin import corner_heatmaps
+    from fenestra.pipeline.detectors.winnet import separator_cuts
 
     void, core, a, b = two_touching_windows(gap_px=30)
     void[:, 40:70] = 0.02

@@ -31,7 +31,7 @@ def test_counts_on_a_small_yolo_folder(tmp_path):
     from user_datasets import curtain_panes, write_yolo
 
     n = write_yolo(tmp_path / "y", curtain_panes(2))
-    from training.evaluate import evaluate_boxes
+    from fenestra.training.evaluate import evaluate_boxes
 
     r = evaluate_boxes("default", tmp_path / "y", "all")
     cells = model_card_real.table([("d", r)])[2].strip("|").split("|")

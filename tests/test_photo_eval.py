@@ -15,9 +15,9 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from bench import photo_eval as pe
-from bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
-from bench.views import LabelledView, LabelledWindow
+from fenestra.bench import photo_eval as pe
+from fenestra.bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict
+from fenestra.bench.views import LabelledView, LabelledWindow
 from fenestra.images import read_image
 
 
@@ -159,9 +159,9 @@ def test_kfree_table_of_the_real_profile():
 # ---------------------------------------------------------------- end to end
 
 def test_bench_real_reaches_the_kfree_block(tmp_path):
-    from bench.runner import run_benchmark
-    from reports.markdown import _kfree_section, collect_kfree
-    from reports.real import real_sections
+    from fenestra.bench.runner import run_benchmark
+    from fenestra.reports.markdown import _kfree_section, collect_kfree
+    from fenestra.reports.real import real_sections
 
     ds = tmp_path / "boxes"
     (ds / "images").mkdir(parents=True)

@@ -5,10 +5,10 @@ import pytest
 
 from fenestra.data import coco_scores
 from fenestra.errors import FenestraError
-from pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
-from pipeline.types import Detection
+from fenestra.pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
+from fenestra.pipeline.types import Detection
 from toy_data import write_toy_dataset
-from training.evaluate import best_overlaps, detection_to_coco, evaluate, rescored_by_overlap
+from fenestra.training.evaluate import best_overlaps, detection_to_coco, evaluate, rescored_by_overlap
 
 
 def _rect_instances(H=480, W=640):
@@ -34,7 +34,7 @@ def test_detectors_that_need_the_instance_map_declare_it_and_see_full_resolution
     """A detector declaring needs_instances refuses to run without the map and gets the image at
     full size even beyond LIMITS.detector_max_side_px: its masks cover the exact rectangles."""
     from fenestra.conventions import LIMITS
-    from pipeline.detectors import DetectorEntry
+    from fenestra.pipeline.detectors import DetectorEntry
 
     assert all(isinstance(e, DetectorEntry) for e in DETECTORS.values())
     needing = [n for n, e in DETECTORS.items() if e.needs_instances]
@@ -122,7 +122,7 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     """3 windows in 2 images; exact masks for two (scores 0.8, 0.6), one missed, and a false
     positive scored 0.9. Ranked FP, TP, TP: precision envelope 2/3 up to recall 2/3, so COCO's
     101-point AP = 67 * (2/3) / 101 at every IoU; ranked by overlap: 67 * 1 / 101; R50 = 2/3."""
-    from training.tune import instance_maps_to_coco
+    from fenestra.training.tune import instance_maps_to_coco
 
     def rect(r0, c0):
         m = np.zeros((60, 80), bool)
@@ -170,8 +170,8 @@ def test_maskrcnn_without_weights_says_how_to_train(tmp_path):
 
 def test_coco_eval_of_oracle_on_real_renders_is_100(tmp_path):
     """Real IFC house, real raster renders (renders.dataset), real COCOeval: the oracle scores 1 (100 %)."""
-    from renders.dataset import DatasetConfig, render_dataset
-    from renders.sampler import SamplerConfig
+    from fenestra.renders.dataset import DatasetConfig, render_dataset
+    from fenestra.renders.sampler import SamplerConfig
 
     ds = render_dataset(DatasetConfig(scene="fzk-haus", n_views=3, seed=11, out_root=str(tmp_path),
                                       sampler=SamplerConfig(width=320, height=240)), progress=False)
@@ -184,7 +184,7 @@ def test_coco_eval_of_oracle_on_real_renders_is_100(tmp_path):
 
 def test_default_detector_finds_windows_in_fresh_renders(tmp_path):
     """Shipped weights on new views (new cameras and look) of the held-out house, real COCOeval."""
-    from renders.dataset import DatasetConfig, render_dataset
+    from fenestra.renders.dataset import DatasetConfig, render_dataset
 
     ds = render_dataset(DatasetConfig(scene="samplehouse4", n_views=6, seed=777, out_root=str(tmp_path)),
                         progress=False)
@@ -196,8 +196,8 @@ def test_default_detector_finds_windows_in_fresh_renders(tmp_path):
 def test_large_photo_masks_come_back_at_full_resolution():
     """A detection on the 4x downscaled copy maps to a crop of the full-size image covering the
     same rectangle (within the half network pixel the resize can move an edge by)."""
-    from pipeline.detectors import full_resolution, input_scale
-    from pipeline.types import Detection
+    from fenestra.pipeline.detectors import full_resolution, input_scale
+    from fenestra.pipeline.types import Detection
 
     assert input_scale((4000, 6000)) == pytest.approx(1024 / 6000) and input_scale((480, 640)) == 1.0
     small = np.zeros((100, 150), bool)
@@ -220,7 +220,7 @@ def test_large_photo_resize_and_map_back_by_hand():
     given sparse (a crop at an origin) maps to the same result."""
     import dataclasses
 
-    from pipeline.detectors import downscale, full_resolution, input_scale
+    from fenestra.pipeline.detectors import downscale, full_resolution, input_scale
 
     H, W = 2000, 3000
     s = input_scale((H, W))

@@ -1,4 +1,4 @@
-"""pipeline/export (with export/substitute), pipeline/catalogue against an independent synthetic view.
+"""fenestra/pipeline/export (with export/substitute), fenestra/pipeline/catalogue against an independent synthetic view.
 
 Ground truth: a planar facade with window voids, photographed by a known camera. The photo is made
 here with cv2.warpPerspective of a metric facade canvas (the plane homography K [r1 r2 t]); quads
@@ -20,10 +20,10 @@ import trimesh
 
 from fenestra.conventions import K_from_fov, look_at
 from fenestra.errors import PipelineError
-from pipeline.catalogue import CATALOGUE, window_mesh
-from pipeline.export import write_outputs
-from pipeline.export.substitute import substitute
-from pipeline.types import WindowResult
+from fenestra.pipeline.catalogue import CATALOGUE, window_mesh
+from fenestra.pipeline.export import write_outputs
+from fenestra.pipeline.export.substitute import substitute
+from fenestra.pipeline.types import WindowResult
 
 IMG_W, IMG_H = 640, 480
 K = K_from_fov(IMG_W, IMG_H, 65.0)
@@ -433,7 +433,7 @@ def test_bad_inputs_raise_clear_errors(tmp_path, photo):
 def test_a_void_smaller_than_the_style_exports_with_the_style_scaled(tmp_path, photo):
     """A 5 x 100 cm void is too small for sash-cross's 8 cm frame: the style is scaled down so its
     frame and bars take half the width; the window exports, its frame inside the void."""
-    from pipeline.catalogue import fitted_style  # noqa: PLC0415
+    from fenestra.pipeline.catalogue import fitted_style  # noqa: PLC0415
 
     s = fitted_style("sash-cross", 0.05, 1.0)
     assert 2 * s.frame_width_m + s.mullions * s.bar_width_m == pytest.approx(0.025)
@@ -521,7 +521,7 @@ def test_glb_rerendered_from_the_photo_camera_reproduces_the_photo(outputs):
 
 @pytest.mark.parametrize("hole", [False, True])
 def test_wall_mesh_is_a_closed_gridded_slab(hole):
-    from pipeline.export.geometry import place, void_hole, wall_mesh
+    from fenestra.pipeline.export.geometry import place, void_hole, wall_mesh
 
     pw = place(window_result(1, 1.3))
     V, F = wall_mesh(pw, [void_hole(pw)], cut=hole)
@@ -545,7 +545,7 @@ def test_a_fitted_wall_is_one_closed_slab_with_every_void(holes, open_area):
     """OBJ/GLB: a fitted wall is one solid with a hole per window (as model.ifc's IfcWall with its
     openings): watertight, outward normals, volume (outline - union of voids) x thickness, every
     void edge a grid line (areas computed by hand above, not by the mesher)."""
-    from pipeline.export.geometry import PlacedWindow, wall_mesh
+    from fenestra.pipeline.export.geometry import PlacedWindow, wall_mesh
 
     wall = PlacedWindow(7, 3.2, 2.0, np.eye(3), np.array([0.0, 0.0, 8.0]))
     V, F = wall_mesh(wall, holes, margin_m=0.5, thickness_m=0.3)
@@ -563,7 +563,7 @@ def test_a_fitted_wall_is_one_closed_slab_with_every_void(holes, open_area):
 def test_glb_texture_is_at_most_8192_px_and_keeps_its_uvs(tmp_path):
     """A GLB's texture is area-downscaled to GLB_MAX_TEXTURE_PX along its longer side (viewers refuse
     larger ones); the texture coordinates are fractions, so they are unchanged."""
-    from pipeline.export.mesh import GLB_MAX_TEXTURE_PX, MeshPart, write_glb
+    from fenestra.pipeline.export.mesh import GLB_MAX_TEXTURE_PX, MeshPart, write_glb
 
     tex = np.zeros((16, 2 * GLB_MAX_TEXTURE_PX, 3), np.uint8)
     tex[:, GLB_MAX_TEXTURE_PX:] = 200  # right half bright: its mean survives an area resize

@@ -1,4 +1,4 @@
-"""Per-wall geometry (pipeline/walls/, pipeline/segments.py) on synthetic walls with known answers.
+"""Per-wall geometry (fenestra/pipeline/walls/, fenestra/pipeline/segments.py) on synthetic walls with known answers.
 
 Ground truth by construction: window rectangles on known world planes, a camera from
 fenestra.conventions.look_at, corners projected with conventions.project (plain pinhole algebra,
@@ -13,13 +13,13 @@ import pytest
 
 from fenestra.conventions import look_at, make_K, project, rotation_error_deg
 from fenestra.tolerances import TOL
-from pipeline.segments import SegmentCache, detect_segments
-from pipeline.walls import WALL_FIT
-from pipeline.walls import fit as wallfit
-from pipeline.walls import lines as facade_lines
-from pipeline.walls import strategies as walls
-from pipeline.walls import vanishing
-from pipeline.types import WindowResult
+from fenestra.pipeline.segments import SegmentCache, detect_segments
+from fenestra.pipeline.walls import WALL_FIT
+from fenestra.pipeline.walls import fit as wallfit
+from fenestra.pipeline.walls import lines as facade_lines
+from fenestra.pipeline.walls import strategies as walls
+from fenestra.pipeline.walls import vanishing
+from fenestra.pipeline.types import WindowResult
 
 K = make_K(820.0, 820.0, 319.5, 239.5)
 SHAPE = (480, 640)  # H, W
@@ -328,7 +328,7 @@ def test_segment_cache_runs_the_detector_once_per_scale(monkeypatch):
     """One photo's cache asked again (another minimum length too) runs the detector once per
     scale; what it returns is the caller's (changing it leaves the kept segments). The counter
     wraps the real detector."""
-    import pipeline.segments as segments_module  # noqa: PLC0415
+    import fenestra.pipeline.segments as segments_module  # noqa: PLC0415
 
     calls = []
     real = segments_module.detect_segments
@@ -595,7 +595,7 @@ def test_per_window_sigma_covariance_matches_monte_carlo():
 def test_whole_image_segments_of_a_large_photo_on_a_bounded_copy():
     """Above max_pixels the segments come from a resized copy, mapped back to the photo's pixels:
     a vertical step edge at x = 399.5 (between columns 399 and 400) is found there within 0.5 px."""
-    from pipeline.segments import whole_image_segments
+    from fenestra.pipeline.segments import whole_image_segments
 
     img = np.full((600, 800), 60, np.uint8)
     img[100:500, 400:] = 200
@@ -628,7 +628,7 @@ def _same_results(a: list[WindowResult], b: list[WindowResult]) -> bool:
 def test_memo_key_is_exact():
     """Two inputs share a memo entry only when identical: arrays by dtype, shape and bytes (0.0
     and -0.0 differ), containers element by element; an unhashable part raises at once."""
-    from pipeline.memo import key  # noqa: PLC0415
+    from fenestra.pipeline.memo import key  # noqa: PLC0415
 
     a = np.array([[0.0, 1.5], [2.0, 3.0]])
     assert key(a, 1.0, "x", (a, None)) == key(a.copy(), 1.0, "x", (a.copy(), None))
@@ -646,7 +646,7 @@ def test_memo_shared_by_strategies_gives_their_own_results():
     strategy's results are bit for bit those of a run on its own, with K and without (focal
     fit), with a window that does not fit its wall (the split-and-refit loop); the memo did
     share work, and what it keeps cannot be written to."""
-    from pipeline.memo import StepMemo  # noqa: PLC0415
+    from fenestra.pipeline.memo import StepMemo  # noqa: PLC0415
 
     R, t, quads, _, _ = scene()
     gray = draw_scene(R, t, quads).astype(np.float32)

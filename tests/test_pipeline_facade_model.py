@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from fenestra.conventions import look_at, project
-from pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, FLAG_WIDEN, Known, facade_model
-from pipeline.types import WindowResult
+from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, FLAG_WIDEN, Known, facade_model
+from fenestra.pipeline.types import WindowResult
 
 # a façade plane z = 0 (world), x along the wall, y up; seen obliquely from 12 m
 R_W, T_W = look_at(np.array([4.0, 1.5, 12.0]), np.array([0.0, 3.0, 0.0]), up=(0.0, 1.0, 0.0))

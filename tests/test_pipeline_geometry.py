@@ -8,9 +8,9 @@ import pytest
 
 from fenestra.conventions import make_K, rotation_error_deg
 from fenestra.tolerances import TOL
-from pipeline.aspect import AspectError, aspect_ratio, classify, focal_from_quad
-from pipeline.pose import POSE_SOLVERS, PoseError, estimate_pose
-from renders.quad_image import view_window
+from fenestra.pipeline.aspect import AspectError, aspect_ratio, classify, focal_from_quad
+from fenestra.pipeline.pose import POSE_SOLVERS, PoseError, estimate_pose
+from quad_image import view_window
 
 K = make_K(812.0, 805.0, 331.3, 238.9)
 
@@ -121,7 +121,7 @@ def test_pose_bad_input():
 
 
 def test_aspect_rejects_quad_with_coincident_corners():
-    from pipeline.aspect import AspectError, aspect_ratio
+    from fenestra.pipeline.aspect import AspectError, aspect_ratio
 
     quad = np.array([[10.0, 10.0], [10.0, 10.0], [50.0, 60.0], [10.0, 60.0]])
     with pytest.raises(AspectError, match="coincide"):
@@ -131,7 +131,7 @@ def test_aspect_rejects_quad_with_coincident_corners():
 def test_aspect_cross_is_numpy_cross_bit_for_bit():
     """Zhang & He's cross products (pipeline.aspect._cross, plain float arithmetic) are np.cross's
     exactly: the same products and differences in the same order, over magnitudes 1e-3..1e3."""
-    from pipeline.aspect import _cross  # noqa: PLC0415
+    from fenestra.pipeline.aspect import _cross  # noqa: PLC0415
 
     rng = np.random.default_rng(4)
     for _ in range(5000):

@@ -9,11 +9,11 @@ from PIL import Image
 
 from fenestra.conventions import look_at, make_K, project
 from fenestra.errors import PipelineError
-from pipeline.cli import run_calibrate, run_reconstruct
-from pipeline.intrinsics import (TAG_FOCAL, TAG_FOCAL_35, TAG_PLANE_UNIT, TAG_PLANE_XRES, calibrate_chessboard,
+from fenestra.pipeline.cli import run_calibrate, run_reconstruct
+from fenestra.pipeline.intrinsics import (TAG_FOCAL, TAG_FOCAL_35, TAG_PLANE_UNIT, TAG_PLANE_XRES, calibrate_chessboard,
                                  focal_from_exif, focal_from_exif_tags, resolve_K)
-from pipeline.io import read_camera
-from renders.quad_image import coverage
+from fenestra.pipeline.io import read_camera
+from quad_image import coverage
 
 SIZE = (640, 480)  # W, H
 
@@ -41,7 +41,7 @@ def test_focal_from_exif_35mm_and_sensor(tmp_path):
 def test_exif_rationals_and_tuples_are_numbers():
     from PIL.TiffImagePlugin import IFDRational  # noqa: PLC0415
 
-    from pipeline.intrinsics import exif_number  # noqa: PLC0415
+    from fenestra.pipeline.intrinsics import exif_number  # noqa: PLC0415
 
     assert exif_number((28, 1)) == 28.0 and exif_number(IFDRational(42, 10)) == pytest.approx(4.2)
     assert exif_number((0, 0)) is None and exif_number("x") is None and exif_number(-3) is None
@@ -54,7 +54,7 @@ def test_exif_rationals_and_tuples_are_numbers():
 
 
 def test_resolve_K_chain_exif_then_prior_never_fails(tmp_path):
-    from pipeline.intrinsics import PRIOR_FOV_DEG  # noqa: PLC0415
+    from fenestra.pipeline.intrinsics import PRIOR_FOV_DEG  # noqa: PLC0415
 
     r = resolve_K(_jpeg(tmp_path / "a.jpg", {TAG_FOCAL_35: 28}), np.zeros((0, 4, 2)), SIZE)
     assert r.source == "exif" and r.K[0, 0] == pytest.approx(28 / 36 * 640)
@@ -69,7 +69,7 @@ def test_resolve_K_chain_exif_then_prior_never_fails(tmp_path):
 
 
 def test_disagreeing_sources_are_reported():
-    from pipeline.intrinsics import FocalEstimate, choose_focal  # noqa: PLC0415
+    from fenestra.pipeline.intrinsics import FocalEstimate, choose_focal  # noqa: PLC0415
 
     a = FocalEstimate("exif", 1000.0, (950.0, 1050.0), "")
     b = FocalEstimate("vanishing points", 1500.0, (1400.0, 1600.0), "")
@@ -125,7 +125,7 @@ def test_reconstruct_without_K_finds_the_photos_segments_once(tmp_path, monkeypa
     """Without K and with façade lines, the focal fit and then the wall fit both use the photo's
     segments: one SegmentCache per photo runs LSD on the whole photo once. The counter wraps the
     real detector."""
-    import pipeline.segments as segments_module  # noqa: PLC0415
+    import fenestra.pipeline.segments as segments_module  # noqa: PLC0415
 
     calls, real = [], segments_module.detect_segments
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from pipeline.cli import run_reconstruct
+from fenestra.pipeline.cli import run_reconstruct
 
 from spb import SPB, needs_spb as spb_mark
 
@@ -53,7 +53,7 @@ def test_street_photo_without_K_always_gives_an_output(tmp_path):
 
 
 def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
-    from pipeline.photo import aspect_interval  # noqa: PLC0415
+    from fenestra.pipeline.photo import aspect_interval  # noqa: PLC0415
 
     w = {"index": 3, "failure": None, "aspect_ratio": 0.70, "uncertainty": {"aspect_lo": 0.68, "aspect_hi": 0.72}}
     assert aspect_interval(w, {}) == pytest.approx([0.68, 0.72])
@@ -66,9 +66,9 @@ def test_focal_envelope_follows_the_closed_form_aspect_at_the_focal_interval_end
     quad's aspect ratio (Zhang & He, independent of the wall fit) moves; the envelope is those
     values shifted onto the window's own aspect ratio, and empty for an exact K."""
     from fenestra.conventions import look_at, project  # noqa: PLC0415
-    from pipeline.aspect import aspect_ratio  # noqa: PLC0415
-    from pipeline.photo import focal_envelope  # noqa: PLC0415
-    from pipeline.types import WindowResult  # noqa: PLC0415
+    from fenestra.pipeline.aspect import aspect_ratio  # noqa: PLC0415
+    from fenestra.pipeline.photo import focal_envelope  # noqa: PLC0415
+    from fenestra.pipeline.types import WindowResult  # noqa: PLC0415
 
     K = np.array([[800.0, 0, 319.5], [0, 800.0, 239.5], [0, 0, 1]])
     R, t = look_at(np.array([5.0, 0.8, 6.0]), np.array([0.6, 0.8, 0.0]), up=(0.0, 1.0, 0.0))
@@ -120,7 +120,7 @@ def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
 
 def test_python_api_returns_what_windows_json_holds(tmp_path):
     """pipeline.reconstruct_photo (the documented API) gives the dict the CLI writes as windows.json."""
-    import pipeline  # noqa: PLC0415
+    import fenestra as pipeline  # noqa: PLC0415  (the public API)
 
     assert "reconstruct_photo" in pipeline.__all__ and "windows.json" in pipeline.__doc__
     ex = ROOT / "examples" / "curtainwall"
@@ -142,7 +142,7 @@ def test_python_api_returns_what_windows_json_holds(tmp_path):
 
 def test_expand_photos_files_folders_globs(tmp_path):
     from fenestra.errors import PipelineError  # noqa: PLC0415
-    from pipeline.cli import expand_photos, output_names  # noqa: PLC0415
+    from fenestra.pipeline.cli import expand_photos, output_names  # noqa: PLC0415
 
     (tmp_path / "a").mkdir()
     for name in ("a/x.jpg", "a/y.PNG", "a/notes.txt", "z.jpg"):
@@ -160,10 +160,10 @@ def test_reconstruct_command_on_a_folder_writes_one_folder_per_photo_and_a_summa
     import typer  # noqa: PLC0415
     from typer.testing import CliRunner  # noqa: PLC0415
 
-    import pipeline.cli  # noqa: PLC0415
+    from fenestra.pipeline import cli as pipeline_cli  # noqa: PLC0415
 
     app = typer.Typer()
-    pipeline.cli.register(app)
+    pipeline_cli.register(app)
     folder = tmp_path / "photos"
     folder.mkdir()
     rng = np.random.default_rng(0)
@@ -189,8 +189,8 @@ def test_version_comes_from_the_package_metadata():
 
 
 def test_overlay_draws_a_failed_detection_where_it_is_and_lists_it_in_the_panel():
-    from pipeline.export.overlay import COLOURS, draw_overlay  # noqa: PLC0415
-    from pipeline.types import WindowResult  # noqa: PLC0415
+    from fenestra.pipeline.export.overlay import COLOURS, draw_overlay  # noqa: PLC0415
+    from fenestra.pipeline.types import WindowResult  # noqa: PLC0415
 
     photo = np.full((240, 320, 3), 128, np.uint8)
     failed = WindowResult(0, 0.7, None, None, None, None, None, None, None, 1.0, None, "quad: too_small")

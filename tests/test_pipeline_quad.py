@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from fenestra.conventions import make_K
-from pipeline.quad import QuadParams, mask_to_quad, order_corners
-from renders.quad_image import pixel_centre_mask, view_window
+from fenestra.pipeline.quad import QuadParams, mask_to_quad, order_corners
+from quad_image import pixel_centre_mask, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)
 SHAPE = (480, 640)
@@ -99,8 +99,8 @@ def test_mask_plus_corners_takes_the_corner_head_only_where_the_mask_fit_finds_n
     """quad source ``mask+corners``: a round (not quadrilateral) mask fails the mask fit; the
     detection's predicted corners that describe it stand in; corners on another window, a mask cut
     by the image border, and the plain ``mask`` source keep the failure; a good mask keeps its fit."""
-    from pipeline.reconstruct import fit_quads
-    from pipeline.types import Detection
+    from fenestra.pipeline.reconstruct import fit_quads
+    from fenestra.pipeline.types import Detection
 
     yy, xx = np.mgrid[:120, :160]
     disk = (yy - 60) ** 2 + (xx - 80) ** 2 < 40 ** 2

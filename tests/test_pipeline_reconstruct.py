@@ -9,10 +9,10 @@ from typer.testing import CliRunner
 from fenestra.conventions import make_K, rotation_error_deg
 from fenestra.errors import DatasetError, PipelineError
 from fenestra.images import read_image, read_instances
-from pipeline.io import read_K
-from pipeline.detectors.oracle import detections_from_instance_map
-from pipeline.reconstruct import ReconstructConfig, reconstruct, windows_to_json
-from renders.quad_image import coverage, pixel_centre_mask, view_window
+from fenestra.pipeline.io import read_K
+from fenestra.pipeline.detectors.oracle import detections_from_instance_map
+from fenestra.pipeline.reconstruct import ReconstructConfig, reconstruct, windows_to_json
+from quad_image import coverage, pixel_centre_mask, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)
 SHAPE = (480, 640)
@@ -66,7 +66,7 @@ def test_two_blobs_one_id_is_a_failure_not_a_crash():
 
 
 def test_empty_mask_and_wrong_shape_mask():
-    from pipeline.types import Detection
+    from fenestra.pipeline.types import Detection
     rgb, _, _ = scene()
     # a (10, 10) mask is a sparse crop (at origin (0, 0) by default): outside the image only when
     # it does not fit there
@@ -106,7 +106,7 @@ def test_io_errors(tmp_path):
 
 
 def test_cli_reconstruct(tmp_path):
-    from app.cli import app
+    from fenestra.app.cli import app
     rgb, inst, _ = scene()
     cv2.imwrite(str(tmp_path / "photo.png"), rgb)
     cv2.imwrite(str(tmp_path / "inst.png"), inst)
@@ -125,8 +125,8 @@ def test_cli_reconstruct(tmp_path):
 def test_sparse_detections_fit_exactly_like_full_masks():
     """detections_from_instance_map's crops give the quad, lines and failure of mask_to_quad on
     the full (H, W) mask of each id: windows inside, touching the border, split in two blobs."""
-    from pipeline.quad import mask_to_quad
-    from pipeline.reconstruct import fit_quads
+    from fenestra.pipeline.quad import mask_to_quad
+    from fenestra.pipeline.reconstruct import fit_quads
 
     _, inst, _ = scene()
     inst[0:30, 600:640] = 5  # touches the top and right edges
@@ -147,9 +147,9 @@ def test_sparse_detections_fit_exactly_like_full_masks():
 
 def test_pose_strategies_come_from_both_registries():
     from fenestra.conventions import DEFAULTS
-    from pipeline.pose import POSE_SOLVERS
-    from pipeline.reconstruct import pose_strategies
-    from pipeline.walls import WALL_STRATEGIES
+    from fenestra.pipeline.pose import POSE_SOLVERS
+    from fenestra.pipeline.reconstruct import pose_strategies
+    from fenestra.pipeline.walls import WALL_STRATEGIES
 
     ps = pose_strategies()
     assert list(ps) == [*POSE_SOLVERS, *WALL_STRATEGIES]
@@ -164,9 +164,9 @@ def test_one_image_check_and_rgb_at_every_boundary(tmp_path):
     """One check_image (fenestra.checks) guards detect, reconstruct and the export, with one error that
     is both a PipelineError and a ValueError; colour images are read as RGB (gray = 0.299 R + 0.587 G
     + 0.114 B: pure red is 76, as BGR it would be 29)."""
-    from pipeline.detectors import detect
-    from pipeline.export import write_outputs
-    from pipeline.reconstruct import to_gray
+    from fenestra.pipeline.detectors import detect
+    from fenestra.pipeline.export import write_outputs
+    from fenestra.pipeline.reconstruct import to_gray
     from fenestra.checks import ImageError
 
     red = np.zeros((20, 30, 3), np.uint8)
@@ -190,9 +190,9 @@ def test_shared_memo_gives_each_configs_own_results():
     without it (timings aside), and the per-window solvers of one snapper shared its snapping."""
     from dataclasses import fields  # noqa: PLC0415
 
-    from pipeline.memo import StepMemo  # noqa: PLC0415
-    from pipeline.reconstruct import fit_quads, reconstruct_from_quads, to_gray  # noqa: PLC0415
-    from pipeline.segments import SegmentCache  # noqa: PLC0415
+    from fenestra.pipeline.memo import StepMemo  # noqa: PLC0415
+    from fenestra.pipeline.reconstruct import fit_quads, reconstruct_from_quads, to_gray  # noqa: PLC0415
+    from fenestra.pipeline.segments import SegmentCache  # noqa: PLC0415
 
     rgb, inst, _ = scene()
     dets = detections_from_instance_map(inst)

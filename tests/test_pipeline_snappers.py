@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from fenestra.conventions import make_K
-from pipeline.quad import mask_to_quad
-from pipeline.snappers import SNAPPERS, snap
-from renders.quad_image import pixel_centre_mask, render_window_image, view_window
+from fenestra.pipeline.quad import mask_to_quad
+from fenestra.pipeline.snappers import SNAPPERS, snap
+from quad_image import pixel_centre_mask, render_window_image, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)
 SHAPE = (480, 640)
@@ -33,8 +33,8 @@ def test_registry_entry(name):
 
 
 def test_registry_entry_must_declare_its_capabilities():
-    from pipeline.snappers.base import Snapper
-    from pipeline.snappers.none import NoneParams, snap_none
+    from fenestra.pipeline.snappers.base import Snapper
+    from fenestra.pipeline.snappers.none import NoneParams, snap_none
 
     with pytest.raises(ValueError, match="'x' needs a description"):
         Snapper("x", snap_none, NoneParams, description=" ", test_median_px=1.0)

@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 
 from fenestra.errors import PipelineError
-from pipeline.cli import run_reconstruct
-from pipeline.io import Camera, check_distortion, read_camera, read_K, undistort_photo
+from fenestra.pipeline.cli import run_reconstruct
+from fenestra.pipeline.io import Camera, check_distortion, read_camera, read_K, undistort_photo
 
 ROOT = Path(__file__).resolve().parents[1]
 EX = ROOT / "examples" / "curtainwall"
@@ -164,7 +164,7 @@ def test_cli_on_the_example(docs, tmp_path):
     """The README's command, as a user runs it: same numbers as the API, plus the exports."""
     out = tmp_path / "curtainwall"
     env = {**os.environ, "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
-    cmd = [sys.executable, "-m", "app", "reconstruct", str(_photo("017")), "--K", str(EX / "K.json"),
+    cmd = [sys.executable, "-m", "fenestra", "reconstruct", str(_photo("017")), "--K", str(EX / "K.json"),
            "--masks", str(_masks("017")), "--snapper", "linefit", "--pose", "lm", "--width", str(PANE_W_M), "--out", str(out)]
     r = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr

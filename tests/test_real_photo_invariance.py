@@ -56,7 +56,7 @@ def transformed(src: Path, kind: str, out: Path) -> Path:
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory) -> dict:
-    from pipeline import PhotoOptions, reconstruct_photo  # noqa: PLC0415
+    from fenestra.pipeline import PhotoOptions, reconstruct_photo  # noqa: PLC0415
 
     tmp = tmp_path_factory.mktemp("invariance")
     opts = PhotoOptions(export=False)

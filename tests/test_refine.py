@@ -1,13 +1,13 @@
-"""The learned corner refinement (snapper ``refine``, pipeline/snappers/refine.py): on a fresh render
+"""The learned corner refinement (snapper ``refine``, fenestra/pipeline/snappers/refine.py): on a fresh render
 of a house the detector and the refinement trained on (niedriha) (new cameras and look: seed 7777, not one of
-training/scripts/refine_data.sh's), perturbed exact corners move closer to the render's exact
+fenestra/training/scripts/refine_data.sh's), perturbed exact corners move closer to the render's exact
 corners_px; patches are sampled where they say; and a weights file it cannot use is refused in one line."""
 import numpy as np
 import pytest
 
 from fenestra.errors import FenestraError, one_line
-from pipeline.snappers import snap
-from pipeline.snappers.refine import (FLIPS, PATCH, SHIPPED, RefineParams, build_net, from_patch, load_refiner,
+from fenestra.pipeline.snappers import snap
+from fenestra.pipeline.snappers.refine import (FLIPS, PATCH, SHIPPED, RefineParams, build_net, from_patch, load_refiner,
                                       sample_patches, to_patch)
 
 
@@ -29,8 +29,8 @@ def test_patches_are_sampled_where_the_map_says():
 
 def test_refinement_moves_perturbed_corners_of_a_fresh_render_closer(tmp_path):
     from fenestra.data import read_view
-    from pipeline.reconstruct import to_gray
-    from renders.dataset import DatasetConfig, render_dataset
+    from fenestra.pipeline.reconstruct import to_gray
+    from fenestra.renders.dataset import DatasetConfig, render_dataset
 
     root = render_dataset(DatasetConfig(scene="niedriha", n_views=10, seed=7777, out_root=str(tmp_path)), progress=False)
     rng = np.random.default_rng(0)

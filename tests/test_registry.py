@@ -58,13 +58,13 @@ def test_registry_lookup_select_describe_register():
 
 
 def test_every_registry_is_one_type_of_named_described_entries():
-    from bench.real.adapters import ADAPTERS
+    from fenestra.bench.real.adapters import ADAPTERS
     from fenestra.registry import Entry
-    from pipeline.detectors import DETECTORS
-    from pipeline.pose import POSE_SOLVERS
-    from pipeline.reconstruct import POSES
-    from pipeline.snappers import SNAPPERS
-    from renders.backends import RENDERERS
+    from fenestra.pipeline.detectors import DETECTORS
+    from fenestra.pipeline.pose import POSE_SOLVERS
+    from fenestra.pipeline.reconstruct import POSES
+    from fenestra.pipeline.snappers import SNAPPERS
+    from fenestra.renders.backends import RENDERERS
 
     for reg in (ADAPTERS, DETECTORS, POSE_SOLVERS, POSES, SNAPPERS, RENDERERS):
         assert isinstance(reg, Registry) and len(reg) >= 2
@@ -93,20 +93,20 @@ def test_method_is_typed_and_labelled_as_the_tables_are():
 
 def _dummy_solve(obj, img, K):
     """The per-window IPPE solver under another name (a new strategy, as far as the registry knows)."""
-    from pipeline.pose import solve_ippe
+    from fenestra.pipeline.pose import solve_ippe
 
     return solve_ippe(obj, img, K)
 
 
 def _dummy_detector(**_):
-    from pipeline.detectors.oracle import check_instances, oracle_detections
+    from fenestra.pipeline.detectors.oracle import check_instances, oracle_detections
 
     return lambda image, instances=None: oracle_detections(check_instances(instances, image.shape))
 
 
 def _read_dummy(path, dataset="dummy-format"):
     """One photo (a grey 32 x 48 image) with one window box, from nothing on disk."""
-    from bench.views import LabelledView, LabelledWindow
+    from fenestra.bench.views import LabelledView, LabelledWindow
 
     yield LabelledView(dataset=dataset, name="only", image=np.full((32, 48, 3), 128, np.uint8),
                        windows=(LabelledWindow(id="w0", box=np.array([9.5, 7.5, 29.5, 21.5])),))
@@ -115,10 +115,10 @@ def _read_dummy(path, dataset="dummy-format"):
 @pytest.fixture
 def dummies():
     """A detector, a per-window pose strategy and a dataset format registered, removed afterwards."""
-    from bench.real.adapters import ADAPTERS, Adapter
-    from pipeline.detectors import DETECTORS, DetectorEntry
-    from pipeline.pose import PoseSolver
-    from pipeline.reconstruct import POSES, PoseStrategy
+    from fenestra.bench.real.adapters import ADAPTERS, Adapter
+    from fenestra.pipeline.detectors import DETECTORS, DetectorEntry
+    from fenestra.pipeline.pose import PoseSolver
+    from fenestra.pipeline.reconstruct import POSES, PoseStrategy
 
     det = DETECTORS.register(DetectorEntry("dummy-det", _dummy_detector, "test: the oracle's masks again",
                                            needs_instances=True))
@@ -142,20 +142,20 @@ def _help(app, *command: str) -> str:
 def test_dummies_reach_cli_profiles_gates_and_report(dummies, tmp_path):
     import typer
 
-    import bench.cli
-    import pipeline.cli
-    import reports.cli
-    from bench import gates
-    from bench.profiles import profile_from_dict
-    from bench.real.profile import load_real_profile
-    from bench.runner import plan_methods, run_benchmark
-    from reports.build import build_report
+    from fenestra.bench import cli as bench_cli
+    from fenestra.pipeline import cli as pipeline_cli
+    from fenestra.reports import cli as reports_cli
+    from fenestra.bench import gates
+    from fenestra.bench.profiles import profile_from_dict
+    from fenestra.bench.real.profile import load_real_profile
+    from fenestra.bench.runner import plan_methods, run_benchmark
+    from fenestra.reports.build import build_report
 
     det, pose, fmt = dummies
     # the CLI, as the composition root builds it: choices and their descriptions from the registries
     app = typer.Typer()
-    pipeline.cli.register(app)
-    bench.cli.register(app, write_report=reports.cli.write_report)
+    pipeline_cli.register(app)
+    bench_cli.register(app, write_report=reports_cli.write_report)
     text = _help(app, "reconstruct")
     assert f"dummy-det: {det.description}" in text and f"dummy-pose: {pose.description}" in text
     assert f"dummy-format: {fmt.description}" in _help(app, "bench")
@@ -208,8 +208,8 @@ def _plugin_package(root: Path) -> Path:
         """A snapper from another package: every corner 1 px to the right."""
         from dataclasses import dataclass
 
-        from pipeline.snappers import SNAPPERS
-        from pipeline.snappers.base import Snapper, check_inputs
+        from fenestra.pipeline.snappers import SNAPPERS
+        from fenestra.pipeline.snappers.base import Snapper, check_inputs
 
 
         @dataclass(frozen=True)
@@ -260,7 +260,7 @@ def test_a_plugin_package_is_benchmarked(tmp_path):
         """))
     env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "OMP_NUM_THREADS": "1",
            "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg", "HOME": str(tmp_path)}
-    r = subprocess.run([py, "-m", "app", "bench", "--profile", str(profile), "--out", str(tmp_path / "run"),
+    r = subprocess.run([py, "-m", "fenestra", "bench", "--profile", str(profile), "--out", str(tmp_path / "run"),
                         "--workers", "1", "--no-report"], cwd=tmp_path, env=env, capture_output=True, text=True,
                        timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]

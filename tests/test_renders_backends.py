@@ -9,21 +9,21 @@ import pytest
 
 from fenestra.conventions import look_at, make_K
 from fenestra.tolerances import TOL
-from renders.base import RenderSettings
-from renders.camera import Camera
+from fenestra.renders.base import RenderSettings
+from fenestra.renders.camera import Camera
 from fenestra.data import read_view
-from renders.dataset import DatasetConfig, render_dataset
-from renders.sampler import SamplerConfig, sample_views
-from renders.sensor import REALISTIC, SensorConfig, apply_sensor
-from renders.synthetic import wall_scene
+from fenestra.renders.dataset import DatasetConfig, render_dataset
+from fenestra.renders.sampler import SamplerConfig, sample_views
+from fenestra.renders.sensor import REALISTIC, SensorConfig, apply_sensor
+from wall_scenes import wall_scene
 
 SMALL = SamplerConfig(width=160, height=120, street_fraction=0.3, distance_m=(3.0, 8.0))
 
 
 def test_mitsuba_camera_matches_projection():
     """An emitting quad, box pixel filter: pixel values = coverage; area and centroid pin the camera."""
-    from renders.gt import polygon_area
-    from renders.photoreal import import_mitsuba, mesh_object, mitsuba_sensor
+    from fenestra.renders.gt import polygon_area
+    from fenestra.renders.photoreal import import_mitsuba, mesh_object, mitsuba_sensor
 
     mi = import_mitsuba()
     W, H = 160, 120
@@ -47,7 +47,7 @@ def test_mitsuba_camera_matches_projection():
 
 
 def test_backends_agree_and_mitsuba_renders_daylight():
-    from renders.backends import make_renderer
+    from fenestra.renders.backends import make_renderer
 
     scene = wall_scene(sill_top=1.2)
     R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
@@ -74,7 +74,7 @@ def test_backends_agree_and_mitsuba_renders_daylight():
 def test_raster_antialias_modes_share_exact_ground_truth():
     """fxaa/none draw the occluder pass as a second render target of the RGB pass, msaa4 draws it
     separately: every mode gives the standalone occluder pass's instances and depth exactly."""
-    from renders.raster import RasterRenderer, ground_truth
+    from fenestra.renders.raster import RasterRenderer, ground_truth
 
     scene = wall_scene(sill_top=1.2)
     views = sample_views(scene, SMALL, 3, seed=2).views
@@ -93,7 +93,7 @@ def test_raster_antialias_modes_share_exact_ground_truth():
 
 
 def test_sampler_is_deterministic_and_counts_rejections():
-    from renders.sampler import iter_views
+    from fenestra.renders.sampler import iter_views
 
     scene = wall_scene()
     a = sample_views(scene, SMALL, 6, seed=3)
@@ -139,7 +139,7 @@ def test_dataset_same_seed_same_files_and_reuse(tmp_path):
                       "incidence_deg", "distance_m"}
     coco = json.loads((root_a / "coco.json").read_text())
     assert coco["categories"] == [{"id": 1, "name": "window"}] and len(coco["images"]) == 3
-    from renders.dataset import coco_from_views
+    from fenestra.renders.dataset import coco_from_views
 
     # coco.json, built from the arrays the run wrote, = the one built by reading the files back
     assert coco == json.loads(json.dumps(coco_from_views(root_a, 3)))
@@ -172,8 +172,8 @@ def test_sensor_changes_images_only():
 
 
 def test_fzk_haus_views_have_consistent_ground_truth():
-    from renders.raster import RasterRenderer, ground_truth
-    from scenes import load_scene
+    from fenestra.renders.raster import RasterRenderer, ground_truth
+    from fenestra.scenes import load_scene
 
     scene = load_scene("fzk-haus")
     res = sample_views(scene, SamplerConfig(width=320, height=240, street_fraction=0.5), 3, seed=0)
@@ -198,9 +198,9 @@ def test_one_occluder_pass_per_view_and_an_exact_depth_prepass():
     included (walls and ground, glazing in frames): when the render follows the test (the dataset
     path), after a rejected candidate, and when another renderer in the same GL context drew its
     own occluder pass in between (the framebuffer they share then holds the other's pass)."""
-    from renders.backends import visibility_function
-    from renders.raster import RasterRenderer, ground_truth
-    from scenes import load_scene
+    from fenestra.renders.backends import visibility_function
+    from fenestra.renders.raster import RasterRenderer, ground_truth
+    from fenestra.scenes import load_scene
 
     scene = load_scene("fzk-haus")
     views = sample_views(scene, SamplerConfig(width=320, height=240, street_fraction=0.5), 5, seed=1).views
@@ -232,8 +232,8 @@ def test_oidn_denoising_brings_low_spp_render_closer_to_high_spp_reference():
     """4 spp + OIDN (colour only, and guided by AOVs) vs the same 4 spp samples raw, against the mean
     of two independent 128-spp renders of the view (their disagreement bounds the reference's own
     noise); cache names keep apart. Measured (80x60, sRGB RMSE): reference 2.1, raw 17.9, oidn 5.8, oidn-aov 5.7."""
-    from renders.dataset import DatasetConfig, config_hash
-    from renders.photoreal import PhotorealRenderer, linear_to_srgb
+    from fenestra.renders.dataset import DatasetConfig, config_hash
+    from fenestra.renders.photoreal import PhotorealRenderer, linear_to_srgb
 
     scene = wall_scene(sill_top=1.2)
     R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
@@ -266,8 +266,8 @@ def test_renderer_entries_declare_their_visibility_test(tmp_path, monkeypatch):
     """Every registered backend declares a visibility test that gives the same per-window visibility
     as its own render; one without a test cannot render a dataset that needs one (an error naming it,
     never a silent skip), and can when the sampler does not need it."""
-    from renders import backends
-    from renders.backends import RENDERERS, RendererEntry, visibility_function
+    from fenestra.renders import backends
+    from fenestra.renders.backends import RENDERERS, RendererEntry, visibility_function
 
     scene = wall_scene(sill_top=1.2)
     R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
@@ -286,7 +286,7 @@ def test_renderer_entries_declare_their_visibility_test(tmp_path, monkeypatch):
         name = "flat"
 
         def render(self, camera):
-            from renders.base import RenderOutput
+            from fenestra.renders.base import RenderOutput
             W, H = camera.width, camera.height
             return RenderOutput(camera, np.zeros((H, W, 3), np.uint8), np.zeros((H, W), np.uint16),
                                 np.zeros((H, W), np.float32), ())

@@ -9,9 +9,9 @@ from matplotlib.path import Path as MplPath
 
 from fenestra.conventions import look_at, project
 from fenestra.tolerances import TOL
-from renders.camera import Camera, distort_image
-from renders.synthetic import Opening, box, wall_scene
-from scenes.model import ElementMesh, Scene
+from fenestra.renders.camera import Camera, distort_image
+from wall_scenes import Opening, box, wall_scene
+from fenestra.scenes.model import ElementMesh, Scene
 
 
 def _expected_mask(poly_px: np.ndarray, W: int, H: int) -> np.ndarray:
@@ -61,7 +61,7 @@ def test_distortion_maps_are_the_inverse_of_projection():
 # ------------------------------------------------------------------------------------- raster
 @pytest.fixture(scope="module")
 def gl():
-    from renders.raster import OccluderPass  # noqa: F401  (imports pyrender via fenestra.compat)
+    from fenestra.renders.raster import OccluderPass  # noqa: F401  (imports pyrender via fenestra.compat)
 
     return OccluderPass
 
@@ -92,7 +92,7 @@ def test_gl_pass_pixel_convention_matches_projection(gl):
 
 
 def test_instance_map_of_unoccluded_window_matches_projected_corners():
-    from renders.raster import RasterRenderer
+    from fenestra.renders.raster import RasterRenderer
 
     scene = wall_scene()
     cam = _oblique_camera()
@@ -119,7 +119,7 @@ def test_instance_map_of_unoccluded_window_matches_projected_corners():
 
 def test_sill_in_front_of_void_hides_its_pixels():
     """A box flush with the wall, 0.3 m above the void's lower edge, hides exactly that strip."""
-    from renders.raster import RasterRenderer
+    from fenestra.renders.raster import RasterRenderer
 
     o = Opening(1.0, 2.2, 1.0, 2.4)
     top = o.z0 + 0.3
@@ -143,7 +143,7 @@ def test_sill_in_front_of_void_hides_its_pixels():
 
 
 def test_distorted_render_keeps_masks_and_corners_consistent():
-    from renders.raster import RasterRenderer
+    from fenestra.renders.raster import RasterRenderer
 
     scene = wall_scene()
     cam = _oblique_camera(dist=(-0.2, 0.05, 0.0, 0.0, 0.0))

@@ -1,5 +1,5 @@
 """Ignore regions in rendered views (curtain-wall glazing, glazed doors: COCO ``iscrowd``):
-renders/gt.py + raster.py draw them, renders/dataset.py writes and backfills them, the bench's
+fenestra/renders/gt.py + raster.py draw them, fenestra/renders/dataset.py writes and backfills them, the bench's
 detection AP honours them."""
 from __future__ import annotations
 
@@ -9,14 +9,14 @@ import cv2
 import numpy as np
 import pytest
 
-from bench.detection_ap import coco_ap
+from fenestra.bench.detection_ap import coco_ap
 from fenestra import data
-from renders.camera import Camera
-from renders.dataset import DatasetConfig, render_dataset
-from renders.gt import inside_convex
-from renders.sampler import SamplerConfig
-from scenes.generate import HouseSpec, make_house
-from scenes.loader import load_scene
+from fenestra.renders.camera import Camera
+from fenestra.renders.dataset import DatasetConfig, render_dataset
+from fenestra.renders.gt import inside_convex
+from fenestra.renders.sampler import SamplerConfig
+from fenestra.scenes.generate import HouseSpec, make_house
+from fenestra.scenes.loader import load_scene
 
 # seed 16 of this house's street views: view 0 sees the curtain wall, view 1 the glazed door, both
 # with windows in view (a change of the sampler may need another seed: the test says which view lacks what)
@@ -129,8 +129,8 @@ def test_bench_detection_ap_honours_a_rendered_views_ignore_region(tmp_path):
 def test_every_backend_draws_the_same_ignore_map(facade):
     """pyrender (the occluder codes as a second render target of its RGB pass, FXAA; or the
     separate occluder pass, MSAA) and mitsuba (the separate pass) give the dataset's ignore map."""
-    from renders.backends import make_renderer
-    from renders.base import RenderSettings
+    from fenestra.renders.backends import make_renderer
+    from fenestra.renders.base import RenderSettings
 
     _, scene, root, _ = facade
     v = data.read_view(root / "views" / "000001")

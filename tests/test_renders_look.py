@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renders.base import RenderSettings
-from renders.dataset import DatasetConfig, config_hash
-from renders.materials import ashlar_texture, glass_texture, sample_look
-from renders.sampler import SamplerConfig, sample_views
-from renders.synthetic import wall_scene
+from fenestra.renders.base import RenderSettings
+from fenestra.renders.dataset import DatasetConfig, config_hash
+from fenestra.renders.materials import ashlar_texture, glass_texture, sample_look
+from fenestra.renders.sampler import SamplerConfig, sample_views
+from wall_scenes import wall_scene
 
 
 def test_classic_look_draws_what_it_always_drew():
@@ -27,7 +27,7 @@ def test_classic_look_draws_what_it_always_drew():
     assert look.sky_zenith == pytest.approx((0.33154374871981346, 0.5902608635681652, 0.9223780331182299))
     assert rng.random() == pytest.approx(0.002738500170148095, abs=1e-15)
     assert look.weather == "clear" and look.sun_tint == (1.0, 1.0, 1.0) and look.glass_tint == (1.0, 1.0, 1.0)
-    from renders.photoreal import glass_diffuse
+    from fenestra.renders.photoreal import glass_diffuse
     assert glass_diffuse(look) == [0.01, 0.012, 0.015]  # mitsuba's classic glass BSDF
     seven = sample_look(np.random.default_rng(7))
     assert seven.roof_rgb == (0.25, 0.25, 0.27) and seven.sun_intensity == pytest.approx(2.5052653045655746)
@@ -78,7 +78,7 @@ def test_look_counts_in_the_dataset_hash_only_when_not_classic():
 
 
 def test_wide_look_changes_pixels_not_ground_truth():
-    from renders.raster import RasterRenderer
+    from fenestra.renders.raster import RasterRenderer
 
     scene = wall_scene(sill_top=1.2)
     views = sample_views(scene, SamplerConfig(width=96, height=72, street_fraction=0.0,

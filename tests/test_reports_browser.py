@@ -20,8 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.synthetic import synthetic_results
-from reports.build import build_report
+from synthetic_results import synthetic_results
+from fenestra.reports.build import build_report
 from test_reports_build import _write_run  # the same tiny-run writer as the report tests
 
 BROWSERS = ("chromium", "chromium-browser")

@@ -13,11 +13,11 @@ import pytest
 from scipy.stats import wilcoxon
 from typer.testing import CliRunner
 
-from bench import manifest, results
-from bench.real.simreal import write_simreal
-from bench.synthetic import synthetic_results
-from reports.build import build_report, paired_comparison
-from reports.lead import SIM_METRIC, ranks
+from fenestra.bench import manifest, results
+from fenestra.bench.real.simreal import write_simreal
+from synthetic_results import synthetic_results
+from fenestra.reports.build import build_report, paired_comparison
+from fenestra.reports.lead import SIM_METRIC, ranks
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL_SNAP = {"good": (1.4, 0.5), "bad": (0.7, 0.0)}  # on the "photos", bad is the better snapper
@@ -94,7 +94,7 @@ def _snap(df, snapper):
 def with_real(tmp_path_factory):
     """A synthetic run and a "real-photo" run (kind real) whose snapper order is reversed; the
     synthetic run's report made by the CLI with --real."""
-    from app.cli import app
+    from fenestra.app.cli import app
 
     root = tmp_path_factory.mktemp("lead")
     sim_df = synthetic_results(n_windows=80, seed=3)
@@ -193,28 +193,36 @@ def _imports(path: Path) -> list[str]:
     return out
 
 
-REPORTS_READ_FROM_BENCH = {"bench.results", "bench.manifest", "bench.paired", "bench.real.simreal"}
+REPORTS_READ_FROM_BENCH = {"fenestra.bench.results", "fenestra.bench.manifest", "fenestra.bench.paired",
+                           "fenestra.bench.real.simreal"}
+PKG = ROOT / "fenestra"
+
+
+def _floor(name: str) -> str:
+    """The floor of an imported module: "bench" for fenestra.bench.x, "" outside a floor."""
+    parts = name.split(".")
+    return parts[1] if parts[0] == "fenestra" and len(parts) > 1 else ""
 
 
 def test_bench_and_reports_do_not_import_each_other():
     """The data flows bench -> reports: reports read bench's tables through its results contract
     (REPORTS_READ_FROM_BENCH), bench never imports reports, and only the CLI's composition root
-    (app/cli.py) joins them."""
-    for path in sorted((ROOT / "bench").rglob("*.py")):
-        assert not [n for n in _imports(path) if n.split(".")[0] == "reports"], f"{path} imports reports"
-    for path in sorted((ROOT / "reports").rglob("*.py")):
-        # a package on the way to an allowed module ("from bench import paired" names "bench") is fine
-        bad = sorted(m for m in _imports(path) if m.split(".")[0] == "bench" and not any(
+    (fenestra/app/cli.py) joins them."""
+    for path in sorted((PKG / "bench").rglob("*.py")):
+        assert not [n for n in _imports(path) if _floor(n) == "reports"], f"{path} imports reports"
+    for path in sorted((PKG / "reports").rglob("*.py")):
+        # a package on the way to an allowed module ("from fenestra.bench import paired" names it) is fine
+        bad = sorted(m for m in _imports(path) if _floor(m) == "bench" and not any(
             m == a or m.startswith(a + ".") or a.startswith(m + ".") for a in REPORTS_READ_FROM_BENCH))
         assert not bad, f"{path} imports {bad}; reports read bench only through {sorted(REPORTS_READ_FROM_BENCH)}"
-    importers = {p.relative_to(ROOT).as_posix() for pkg in ("scenes", "renders", "pipeline", "bench", "fenestra", "app")
-                 for p in (ROOT / pkg).rglob("*.py") if any(n.split(".")[0] == "reports" for n in _imports(p))}
-    assert importers == {"app/cli.py"}
+    importers = {p.relative_to(ROOT).as_posix() for p in PKG.rglob("*.py")
+                 if not p.is_relative_to(PKG / "reports") and any(_floor(n) == "reports" for n in _imports(p))}
+    assert importers == {"fenestra/app/cli.py"}
 
 
 def test_bench_refuses_a_real_dir_that_is_not_a_real_run_before_running(with_real):
     """fenestra bench --real checks the folder before rendering anything (a synthetic run is refused)."""
-    from app.cli import app
+    from fenestra.app.cli import app
 
     sim, _, _, _ = with_real
     r = CliRunner().invoke(app, ["bench", "--profile", "smoke", "--real", str(sim), "--no-report"])
@@ -224,9 +232,9 @@ def test_bench_refuses_a_real_dir_that_is_not_a_real_run_before_running(with_rea
 def test_report_of_box_only_photos_with_the_oracle_only(tmp_path):
     """A real run whose photos are labelled with boxes and whose only detector is the oracle has
     no evaluable row (the oracle needs masks): its report is still written, and says so."""
-    from bench.real.profile import real_profile_from_dict
-    from bench.runner import run_benchmark
-    from reports.cli import write_report
+    from fenestra.bench.real.profile import real_profile_from_dict
+    from fenestra.bench.runner import run_benchmark
+    from fenestra.reports.cli import write_report
     from user_datasets import curtain_panes, write_yolo
 
     n = write_yolo(tmp_path / "boxes", curtain_panes(1))

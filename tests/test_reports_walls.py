@@ -1,8 +1,8 @@
-"""reports/walls.py on a hand-made results table with known answers."""
+"""fenestra/reports/walls.py on a hand-made results table with known answers."""
 import numpy as np
 import pandas as pd
 
-from reports.walls import calibration_rows, focal_rows, paired_rows, wall_sections
+from fenestra.reports.walls import calibration_rows, focal_rows, paired_rows, wall_sections
 
 
 def _table():

@@ -10,8 +10,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from bench import results as res
-from bench.results import REQUIRED_COLUMNS, RowSpool
+from fenestra.bench import results as res
+from fenestra.bench.results import REQUIRED_COLUMNS, RowSpool
 
 
 def _view(i: int) -> pd.DataFrame:
@@ -94,7 +94,7 @@ def test_summary_reads_only_its_columns():
 # ---------------------------------------------------------------- the manifest's check of a million rows
 
 def _table_and_manifest(tmp_path):
-    from bench import manifest
+    from fenestra.bench import manifest
 
     views = [_view(i) for i in range(5)]
     df = pd.concat(views, ignore_index=True)

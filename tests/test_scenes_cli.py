@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from fenestra.errors import SceneError
-from scenes.generate import HouseSpec, make_house
-from scenes.loader import load_scene
-from scenes.registry import BUNDLED, resolve
+from fenestra.scenes.generate import HouseSpec, make_house
+from fenestra.scenes.loader import load_scene
+from fenestra.scenes.registry import BUNDLED, resolve
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,7 +22,7 @@ def fenestra(*args: str, cache: Path | None = None) -> subprocess.CompletedProce
     env = dict(os.environ, PYOPENGL_PLATFORM="egl")
     if cache is not None:
         env["FENESTRA_CACHE"] = str(cache)
-    return subprocess.run([sys.executable, "-m", "app", *args], cwd=ROOT, env=env,
+    return subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=300)
 
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from fenestra.tolerances import TOL
-from scenes.generate import (DEFAULT_FOOTPRINT, HouseSpec, check_footprint, corner_margins,
+from fenestra.scenes.generate import (DEFAULT_FOOTPRINT, HouseSpec, check_footprint, corner_margins,
                              make_house, offset_polygon, plan_windows, rotate_xy)
-from scenes.loader import load_scene
+from fenestra.scenes.loader import load_scene
 
 
 def test_loader_recovers_generated_windows_on_rotated_walls(tmp_path):

@@ -1,6 +1,6 @@
 """Window ground truth of every bundled house, checked against IFC attributes and mesh geometry.
 
-Expected counts and sizes come from scenes/ifc/SOURCES.md (counted independently when the files
+Expected counts and sizes come from fenestra/scenes/ifc/SOURCES.md (counted independently when the files
 were selected); geometric checks use the host wall's own cut mesh, not the loader's computation.
 """
 from __future__ import annotations
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from fenestra.tolerances import TOL
-from scenes import ground_truth as gt
-from scenes.loader import load_scene
-from scenes.registry import BUNDLED
+from fenestra.scenes import ground_truth as gt
+from fenestra.scenes.loader import load_scene
+from fenestra.scenes.registry import BUNDLED
 
 EXPECTED_WINDOWS = {"fzk-haus": 11, "duplex": 22, "samplehouse4": 4, "jasmin-sun": 12,
                     "niedriha": 16}

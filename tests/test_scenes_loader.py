@@ -7,8 +7,8 @@ from pathlib import Path
 import ifcopenshell
 import numpy as np
 
-from scenes import list_scenes, load_scene
-from scenes.registry import BUNDLED
+from fenestra.scenes import list_scenes, load_scene
+from fenestra.scenes.registry import BUNDLED
 
 
 def test_fresh_and_cached_load_agree_and_cache_is_fast(tmp_path):
@@ -71,7 +71,7 @@ def test_cache_key_is_derived_from_the_loader_code(tmp_path):
     from importlib.metadata import version
 
     from fenestra.files import source_digest
-    from scenes import loader
+    from fenestra.scenes import loader
 
     f = tmp_path / "a.py"
     f.write_text("x = 1\n")

@@ -1,4 +1,4 @@
-"""The Ray executor's shard cache (bench/executors.py): Parquet rows + a JSON index with a
+"""The Ray executor's shard cache (fenestra/bench/executors.py): Parquet rows + a JSON index with a
 digest and row counts; nothing on disk is unpickled, a damaged shard is recomputed, never short."""
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pickle
 import numpy as np
 import pandas as pd
 
-from bench.evaluate import ViewOutcome
-from bench.executors import _load_shard, read_shard, write_shard
+from fenestra.bench.evaluate import ViewOutcome
+from fenestra.bench.executors import _load_shard, read_shard, write_shard
 
 
 def _outcomes() -> list[ViewOutcome]:

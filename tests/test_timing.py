@@ -3,7 +3,11 @@ from __future__ import annotations
 
 import json
 
-from bench import timing
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
+import timing  # noqa: E402  (tools/timing.py: a lab script, not installed)
 
 
 def _run(tmp_path):
@@ -26,9 +30,9 @@ def test_block_holds_the_run_figures_and_replaces_only_its_markers(tmp_path):
     r = doc["run"]
     assert r["artefact_mb"]["figures"] == 0.5 and r["artefact_mb"]["total"] > 3.5
     assert r["cpu_s"] == {"detect": 30.0, "reconstruct": 90.0} and r["share"]["reconstruct"] == 0.75
-    block = timing.markdown(doc, "python -m bench.timing --from-run run")
+    block = timing.markdown(doc, "python tools/timing.py --from-run run")
     assert "| one run | abcdef0 | 480 | 2 | 9000 | **123 s** | 40 s | 70 s | 3.0 s | - | 1.46 GB |" in block
-    assert "reconstruct 90 s (75 %), detect 30 s (25 %)" in block and "`python -m bench.timing --from-run run`" in block
+    assert "reconstruct 90 s (75 %), detect 30 s (25 %)" in block and "`python tools/timing.py --from-run run`" in block
     md = tmp_path / "perf.md"
     md.write_text(f"# Title\n\nbefore\n\n{timing.BEGIN}\nold figures\n{timing.END}\n\nafter\n")
     timing.write_markdown(md, block)

@@ -6,11 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.detectors import detect
-from pipeline.detectors.winnet import core_targets
+from fenestra.pipeline.detectors import detect
+from fenestra.pipeline.detectors.winnet import core_targets
 from toy_data import write_toy_dataset
 from fenestra.images import read_image
-from training.train import load_config, train
+from fenestra.training.train import load_config, train
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -50,7 +50,7 @@ def test_config_rejects_unknown_keys(tmp_path):
 
 def test_winnet_tiny_training_loss_decreases(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=6, seed=1)
-    cfg = load_config("training/configs/winnet.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
+    cfg = load_config("fenestra/training/configs/winnet.toml", data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path),
                       iterations=30, batch_size=3, crop_hw=(64, 96), log_every=1, warmup=5, lr=3e-3, threads=1)
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
@@ -65,7 +65,7 @@ def test_winnet_tiny_training_loss_decreases(tmp_path):
 @pytest.mark.slow
 def test_maskrcnn_reduced_cpu_training(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=4, seed=2)
-    cfg = load_config("training/configs/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"), state_dir=str(tmp_path),
+    cfg = load_config("fenestra/training/configs/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"), state_dir=str(tmp_path),
                       iterations=2, batch_size=1, crop_hw=(96, 128), maskrcnn_min_size=96,
                       maskrcnn_max_size=128, log_every=1, warmup=1, lr=0.005, device="cpu", amp=False, workers=0)
     path = train(cfg, log=lambda *_: None)
@@ -79,7 +79,7 @@ def test_maskrcnn_reduced_cpu_training(tmp_path):
 def test_shadow_band_darkens_rows_keeps_labels_and_is_off_by_default():
     from dataclasses import replace
 
-    from training.augment import AugmentConfig, shadow_band
+    from fenestra.training.augment import AugmentConfig, shadow_band
 
     img = np.full((64, 80, 3), 200, np.uint8)
     inst = np.zeros((64, 80), np.int32)
@@ -98,7 +98,7 @@ def test_detectors_package_imports_torch_lazily():
     import subprocess
     import sys
 
-    code = "import sys, pipeline.detectors, app.cli; print('torch' in sys.modules)"
+    code = "import sys, fenestra.pipeline.detectors, fenestra.app.cli; print('torch' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
 
@@ -106,10 +106,10 @@ def test_detectors_package_imports_torch_lazily():
 def test_batches_are_the_same_with_worker_processes(tmp_path):
     from dataclasses import replace
 
-    from training.train import batches, load_views
+    from fenestra.training.train import batches, load_views
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=3)
-    cfg = load_config("training/configs/default.toml", data=(str(ds),), iterations=5, batch_size=2,
+    cfg = load_config("fenestra/training/configs/default.toml", data=(str(ds),), iterations=5, batch_size=2,
                       crop_hw=(64, 128), real_fraction=0.0)
     data = load_views(cfg.data, None)
     serial = list(batches(data, cfg, start=1))
@@ -129,7 +129,7 @@ def test_training_is_reproducible_for_a_seed(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=4)
     weights = []
     for run in ("a", "b", "c"):
-        cfg = load_config("training/configs/default.toml", data=(str(ds),), out=str(tmp_path / f"{run}.pt"),
+        cfg = load_config("fenestra/training/configs/default.toml", data=(str(ds),), out=str(tmp_path / f"{run}.pt"),
                           state_dir=str(tmp_path / run), iterations=4, batch_size=2, crop_hw=(64, 128), real_fraction=0.0,
                           warmup=1, seed=1 if run == "c" else 0)
         weights.append(torch.load(train(cfg, log=lambda *_: None), weights_only=False)["state_dict"])
@@ -141,10 +141,10 @@ def test_training_is_reproducible_for_a_seed(tmp_path):
 def test_steptime_times_every_variant(tmp_path):
     """The step-timing command behind the model card's figures runs each variant (bf16 on the CPU too)."""
     steptime = _tool("steptime")
-    from training.train import load_views, make_batch
+    from fenestra.training.train import load_views, make_batch
 
     ds = write_toy_dataset(tmp_path / "toy", n_views=2, seed=5)
-    cfg = load_config("training/configs/winnet.toml", data=(str(ds),), batch_size=2, crop_hw=(64, 64))
+    cfg = load_config("fenestra/training/configs/winnet.toml", data=(str(ds),), batch_size=2, crop_hw=(64, 64))
     data = load_views(cfg.data, None)
     batches = [make_batch(data, cfg, it) for it in range(2)]
     for amp, channels_last in steptime.VARIANTS.values():
@@ -159,11 +159,11 @@ def test_gpu_search_variants_are_the_default_config_with_their_overrides(tmp_pat
     import os
     import subprocess
 
-    script = "training/scripts/gpu_winnet_search.sh"
+    script = "fenestra/training/scripts/gpu_winnet_search.sh"
     env = {**os.environ, "CONFIGS_ONLY": "1"}
     subprocess.run(["bash", script, str(tmp_path), "base", "seed1", "scalelo", "crop384", "c224"],
                    check=True, env=env)
-    default = load_config("training/configs/winnet.toml")
+    default = load_config("fenestra/training/configs/winnet.toml")
     expect = {"base": {"iterations": 10000, "crop_hw": (256, 256)},
               "seed1": {"iterations": 10000, "crop_hw": (256, 256), "seed": 1},
               "scalelo": {"iterations": 10000, "crop_hw": (256, 256)},
@@ -191,12 +191,12 @@ def test_pack_data_keeps_every_nth_train_view_and_lists_only_those(tmp_path, mon
     import sys
     import tarfile
 
-    from training.evaluate import evaluate
+    from fenestra.training.evaluate import evaluate
 
     monkeypatch.chdir(tmp_path)
     ds = write_toy_dataset("data/train/toy", n_views=5, seed=3)
     full = json.loads((ds / "coco.json").read_text())
-    script = Path(__file__).resolve().parents[1] / "training/pack_data.py"
+    script = Path(__file__).resolve().parents[1] / "fenestra/training/pack_data.py"
     subprocess.run([sys.executable, str(script), "p.tar.xz", "--train-step", "2", "data/train"], check=True)
     with tarfile.open("p.tar.xz") as tf:
         tf.extractall("unpacked", filter="data")
@@ -215,7 +215,7 @@ def _untrained_weights(path: Path, arch: str) -> Path:
     """A weights file of an untrained, small model of ``arch``, written as training writes it."""
     import torch
 
-    from training.train import build_model, checkpoint
+    from fenestra.training.train import build_model, checkpoint
 
     cfg = load_config(None, arch=arch, winnet_widths=(8, 16, 16, 16, 16), maskrcnn_min_size=64, maskrcnn_max_size=96)
     torch.manual_seed(0)
@@ -225,9 +225,9 @@ def _untrained_weights(path: Path, arch: str) -> Path:
 
 
 def test_every_trainable_architecture_is_loaded_by_its_detector(tmp_path):
-    """Each trainable detector's recipe (training/recipes/<arch>.py) writes a weights file that the
+    """Each trainable detector's recipe (fenestra/training/recipes/<arch>.py) writes a weights file that the
     detector reads back and runs; the default detector reads every such file."""
-    from pipeline.detectors import DETECTORS
+    from fenestra.pipeline.detectors import DETECTORS
 
     trainable = DETECTORS.where(trainable=True)
     assert trainable == ["default", "winnet", "maskrcnn"]
@@ -242,9 +242,9 @@ def test_every_trainable_architecture_is_loaded_by_its_detector(tmp_path):
 
 def test_training_writes_under_out_not_into_the_shipped_weights():
     """A bare `fenestra train` (the dataclass default, and every bundled config) writes under out/."""
-    from training.train import TrainConfig
+    from fenestra.training.train import TrainConfig
 
-    configs = sorted((ROOT / "training" / "configs").glob("*.toml"))
+    configs = sorted((ROOT / "fenestra" / "training" / "configs").glob("*.toml"))
     assert [c.name for c in configs] == ["default.toml", "maskrcnn.toml", "winnet.toml"]
     for cfg in [TrainConfig(), *(load_config(c) for c in configs)]:
         assert Path(cfg.out).parts[0] == "out" and Path(cfg.state_dir).parts[0] == "out", cfg.out
@@ -258,7 +258,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     import torch
     from typer.testing import CliRunner
 
-    from app.cli import app
+    from fenestra.app.cli import app
     from fenestra.errors import FenestraError
 
     src = _untrained_weights(tmp_path / "w.pt", "winnet")
@@ -278,19 +278,19 @@ def test_ship_weights_checks_then_copies(tmp_path):
 
 
 def test_tune_command_writes_the_best_post_processing_into_the_weights(tmp_path):
-    """`python -m training.tune --write` scores the 3 x 3 threshold grid, names the best segm AP
+    """`python -m fenestra.training.tune --write` scores the 3 x 3 threshold grid, names the best segm AP
     and stores that PostConfig in the weights file, where the default detector reads it."""
     import re
     import shutil
     import subprocess
     import sys
 
-    from pipeline.detectors import DEFAULT_WEIGHTS, load_map_predictor
+    from fenestra.pipeline.detectors import DEFAULT_WEIGHTS, load_map_predictor
 
     ds = write_toy_dataset(tmp_path / "val", n_views=2, seed=6)
     weights = tmp_path / "w.pt"
     shutil.copy(DEFAULT_WEIGHTS, weights)
-    r = subprocess.run([sys.executable, "-m", "training.tune", "--data", str(ds), "--weights", str(weights),
+    r = subprocess.run([sys.executable, "-m", "fenestra.training.tune", "--data", str(ds), "--weights", str(weights),
                         "--views-per-dataset", "0", "--write"], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     grid = [(float(v), float(c), float(ap)) for v, c, ap in
@@ -324,10 +324,10 @@ def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
 
     r = subprocess.run(["make", "-n", "train"], cwd=ROOT, capture_output=True, text=True, check=True)
     files = set(re.findall(r"[\w./-]+\.(?:sh|toml|py)\b", r.stdout))
-    assert {"training/scripts/make_data.sh", "training/configs/default.toml"} <= files
+    assert {"fenestra/training/scripts/make_data.sh", "fenestra/training/configs/default.toml"} <= files
     assert all((ROOT / f).is_file() for f in files), files
     assert "ship-weights out/train/default.pt" in r.stdout
-    assert "training/scripts/verifier_data.sh" in files
+    assert "fenestra/training/scripts/verifier_data.sh" in files
     assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("ship-weights out/train/default.pt")
-    assert "training/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
+    assert "fenestra/training/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
     assert r.stdout.index("refine_data.sh") < r.stdout.index("train-refine") and "--ship" in r.stdout

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from user_datasets import curtain_panes, write_coco, write_labelmap, write_yolo
 
-from bench.real.adapters import ADAPTERS
+from fenestra.bench.real.adapters import ADAPTERS
 
 ROOT = Path(__file__).resolve().parents[1]
 WRITERS = {"yolo": write_yolo, "coco": write_coco, "labelmap": write_labelmap}
@@ -27,7 +27,7 @@ def panes():
 def cli(*args, cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg",
            "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "app", *map(str, args)], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=600)
 
 

@@ -1,4 +1,4 @@
-"""EffWin's box verifier (pipeline/detectors/verifier.py, training/verifier.py; issue #23 item 5):
+"""EffWin's box verifier (fenestra/pipeline/detectors/verifier.py, fenestra/training/verifier.py; issue #23 item 5):
 the logistic fit, the head's checks on load, the safe weights loader, its pure-torch RoIAlign
 against torchvision's, and a head trained on a few real train photos telling held-out doors and
 signboards from windows.
@@ -19,10 +19,10 @@ import pytest
 import torch
 
 from fenestra.errors import FenestraError
-from pipeline.detectors import DEFAULT_WEIGHTS, detect, get_detector, read_weights
-from pipeline.detectors import verifier
-from pipeline.detectors.verifier import FeatureSpec, VerifierHead, head_from_dict, head_to_dict, roi_align
-from training.verifier import Samples, choose_threshold, fit_head, fit_logistic, label_detections
+from fenestra.pipeline.detectors import DEFAULT_WEIGHTS, detect, get_detector, read_weights
+from fenestra.pipeline.detectors import verifier
+from fenestra.pipeline.detectors.verifier import FeatureSpec, VerifierHead, head_from_dict, head_to_dict, roi_align
+from fenestra.training.verifier import Samples, choose_threshold, fit_head, fit_logistic, label_detections
 
 from spb import SPB, needs_spb as spb_mark
 
@@ -157,7 +157,7 @@ def test_head_trained_on_a_few_train_photos_tells_held_out_doors_from_windows():
     count over all pairs), and the fitted threshold keeps most of those windows. (16 photos, 4 held
     out, as before detector v3: the v3 network kept 74 % there, 93 % with these 6; 4 photos were too
     few to judge a threshold by.)"""
-    from training.verifier import SPEC, collect, out_of_fold, train_head
+    from fenestra.training.verifier import SPEC, collect, out_of_fold, train_head
 
     s = collect(DEFAULT_WEIGHTS, SPB / "train", max_photos=24)
     assert set(np.unique(s.y)) == {0, 1} and s.X.shape[1] == 2 * (112 + 320) + 10
@@ -215,7 +215,7 @@ def _real_photos() -> list[Path]:
     photos = [ROOT / "examples" / "curtainwall" / n for n in ("img017.jpg", "img086.jpg")]
     if not (SPB / "train" / "labels").is_dir():
         return photos
-    from training.dataset import real_box_photos
+    from fenestra.training.dataset import real_box_photos
 
     return photos + real_box_photos(SPB / "train", "val")[:3]
 
@@ -242,7 +242,7 @@ def test_detecting_imports_neither_torchvision_ops_nor_dynamo():
     """torchvision.ops pulls in torch._dynamo (seconds per process): the default detector, verifier
     included, runs without either (a fresh interpreter)."""
     code = ("import sys, numpy as np\n"
-            "from pipeline.detectors import detect\n"
+            "from fenestra.pipeline.detectors import detect\n"
             "from fenestra.images import read_image\n"
             "img = read_image('examples/curtainwall/img017.jpg')[:320, :480].copy()\n"
             "n = len(detect('default', img, score_threshold=0.0))\n"

@@ -1,7 +1,7 @@
 """A tiny synthetic dataset in the rendered-dataset format, for tests only.
 
 Textured "walls" with dark quadrilateral "voids" drawn by OpenCV. The shipped models are trained on
-real renders of IFC houses (see pipeline/models/README.md), never on this.
+real renders of IFC houses (see fenestra/pipeline/models/README.md), never on this.
 """
 from __future__ import annotations
 

@@ -49,7 +49,7 @@ def _pane(mask: np.ndarray) -> Pane:
 
 def curtain_panes(n: int = 2) -> list[tuple[str, np.ndarray, list[Pane]]]:
     """The first ``n`` curtain-wall photos, undistorted, 4x smaller, with their panes."""
-    from bench.real.adapters import read_curtainwall
+    from fenestra.bench.real.adapters import read_curtainwall
 
     out = []
     for v in list(read_curtainwall(CURTAIN))[:n]:

@@ -56,7 +56,7 @@ def photo(inst: np.ndarray | None = None) -> np.ndarray:
 def measure(args: list[str], cwd: Path) -> tuple[int, float, float, str]:
     """(exit code, peak RSS GB, wall s, last stderr line) of one CLI run under /usr/bin/time -v."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYOPENGL_PLATFORM": "egl", "MPLBACKEND": "Agg"}
-    r = subprocess.run(["/usr/bin/time", "-v", sys.executable, "-m", "app", *args], cwd=cwd, env=env,
+    r = subprocess.run(["/usr/bin/time", "-v", sys.executable, "-m", "fenestra", *args], cwd=cwd, env=env,
                        capture_output=True, text=True)
     rss_kb = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", r.stderr).group(1))
     wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): ([\d:.]+)", r.stderr).group(1)

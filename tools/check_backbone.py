@@ -3,7 +3,7 @@
 The ImageNet classifier the backbone was trained as should be most confident (highest mean top-1
 probability, lowest entropy) on natural photos under the normalisation it was trained with. This
 prints both statistics for (RGB - 127) / 128 (TensorFlow EfficientNet-Lite, used by
-pipeline/detectors/effwin.py), ImageNet mean/std and [0, 1], over centre crops of the photos.
+fenestra/pipeline/detectors/effwin.py), ImageNet mean/std and [0, 1], over centre crops of the photos.
 
     python tools/check_backbone.py [--photos '../shared/real/spb_facades/train/images/*.jpg'] [-n 24]
 """
@@ -30,7 +30,7 @@ def main() -> None:
     import torch
 
     from fenestra.images import read_image
-    from pipeline.detectors.effwin import efficientnet_lite
+    from fenestra.pipeline.detectors.effwin import efficientnet_lite
 
     files = sorted(glob.glob(args.photos))[:args.n]
     if not files:

@@ -15,9 +15,9 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from pipeline.detectors import detect  # noqa: E402
+from fenestra.pipeline.detectors import detect  # noqa: E402
 from fenestra.images import read_image, read_instances  # noqa: E402
-from training.dataset import find_datasets, list_views  # noqa: E402
+from fenestra.training.dataset import find_datasets, list_views  # noqa: E402
 
 
 def view_scores(name: str, data: Path, **opts) -> list[tuple[float, int, int, Path, Path]]:

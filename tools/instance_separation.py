@@ -1,10 +1,10 @@
 """Why learned detections miss windows on renders, and which post-processing separates touching ones.
 
     .venv/bin/python tools/instance_separation.py --data out/renders/duplex-* [--data ...] \
-        [--weights pipeline/models/default.pt] [--post nearest,watershed,...] [--markdown]
+        [--weights fenestra/pipeline/models/default.pt] [--post nearest,watershed,...] [--markdown]
 
 The network runs once per view (640x480 renders: the network's own input size); each candidate
-post-processing (``CANDIDATES``: a PostConfig each, pipeline/detectors/winnet.py) then turns the
+post-processing (``CANDIDATES``: a PostConfig each, fenestra/pipeline/detectors/winnet.py) then turns the
 same maps into instances. Per house and candidate: the evaluable ground-truth windows (the bench's
 default rules: >= 90 % visible, all corners in frame, shortest side >= 12 px, incidence <= 80 deg),
 how many are **missed** (no detection at score >= 0.5 matched one-to-one at mask IoU >= 0.5), and
@@ -37,12 +37,12 @@ import numpy as np
 from scipy import ndimage
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from bench.matching import iou_matrix, match  # noqa: E402
+from fenestra.bench.matching import iou_matrix, match  # noqa: E402
 from fenestra.data import read_view  # noqa: E402
-from pipeline.detectors import DETECTORS, load_model  # noqa: E402
-from pipeline.detectors.winnet import PostConfig, instances_from_maps  # noqa: E402
-from pipeline.detectors.oracle import oracle_detections  # noqa: E402
-from pipeline.quad import mask_to_quad  # noqa: E402
+from fenestra.pipeline.detectors import DETECTORS, load_model  # noqa: E402
+from fenestra.pipeline.detectors.winnet import PostConfig, instances_from_maps  # noqa: E402
+from fenestra.pipeline.detectors.oracle import oracle_detections  # noqa: E402
+from fenestra.pipeline.quad import mask_to_quad  # noqa: E402
 
 SCORE = 0.5  # the shipped threshold (pipeline.detectors.detect's default)
 HARD_NEGATIVE_CLASSES = (3, 5)  # spb_facades: signboard, door
@@ -109,7 +109,7 @@ def training_houses(script: Path = Path(__file__).resolve().parent.parent / "tra
 
 
 def evaluable(w: dict, shape: tuple[int, int]) -> bool:
-    """The bench's default evaluability of a rendered window (bench/evaluate.py, default profile)."""
+    """The bench's default evaluability of a rendered window (fenestra/bench/evaluate.py, default profile)."""
     H, W = shape
     q = np.asarray(w["corners_px"], dtype=np.float64)
     in_frame = bool(np.all((q[:, 0] >= -0.5) & (q[:, 0] <= W - 0.5) & (q[:, 1] >= -0.5) & (q[:, 1] <= H - 0.5)))
@@ -235,8 +235,8 @@ def real_photos(yolo: Path, part: str, predict, cache: Path | None = None) -> li
     (an .npz per photo) when given."""
     from fenestra.data import yolo_boxes  # noqa: PLC0415
     from fenestra.images import read_image  # noqa: PLC0415
-    from pipeline.detectors import downscale, input_scale  # noqa: PLC0415
-    from training.dataset import real_box_photos  # noqa: PLC0415
+    from fenestra.pipeline.detectors import downscale, input_scale  # noqa: PLC0415
+    from fenestra.training.dataset import real_box_photos  # noqa: PLC0415
 
     out = []
     for p in real_box_photos(yolo, part):
@@ -271,7 +271,7 @@ def looks_like_door(box, H: int, rule: tuple[float, float]) -> bool:
 def real_detections(photos, post: PostConfig) -> list[list[tuple[float, np.ndarray]]]:
     """Per photo, (score, full-resolution box) of every instance at score >= 0.05 (as evaluate-detector,
     without its box verifier); the corner maps, where the photo's maps hold them, go to the cuts."""
-    from pipeline.detectors import box_to_full  # noqa: PLC0415
+    from fenestra.pipeline.detectors import box_to_full  # noqa: PLC0415
 
     return [[(d.score, box_to_full(d.box, scale)) for d in instances_from_maps(
         maps[0].astype(np.float32), maps[1].astype(np.float32), post,
@@ -283,7 +283,7 @@ def real_scores(photos, dets_per_photo, rule: tuple[float, float] | None = None)
     """bbox COCO scores and the hard-negative share at the shipped threshold
     (training.evaluate.hard_negative_share) of the detections, after the door rule if given."""
     from fenestra import data  # noqa: PLC0415
-    from training.evaluate import hard_negative_share  # noqa: PLC0415
+    from fenestra.training.evaluate import hard_negative_share  # noqa: PLC0415
 
     images, anns, results, shipped = [], [], [], []
     for k, ((name, (H, W), _, _, wins, negs), dets) in enumerate(zip(photos, dets_per_photo), 1):
@@ -383,7 +383,7 @@ def main() -> None:
     mod, net, ckpt = load_model(DETECTORS["default"].model, a.weights, any_arch=True)
     shipped = mod.post_config(ckpt)
     if a.cache is not None:
-        from pipeline.detectors.verifier import network_fingerprint  # noqa: PLC0415
+        from fenestra.pipeline.detectors.verifier import network_fingerprint  # noqa: PLC0415
 
         a.cache = a.cache / network_fingerprint(net.state_dict())[:16]
     base = shipped if a.base == "shipped" else PostConfig(**BEFORE)
@@ -396,7 +396,7 @@ def main() -> None:
     if unknown:
         raise SystemExit(f"unknown candidate(s) {unknown}; choose from {sorted(CANDIDATES)}")
     lines = [f"`python tools/instance_separation.py {' '.join(sys.argv[1:])}` (weights "
-             f"{a.weights or 'pipeline/models/default.pt'}, {ckpt['arch']}; candidates override {base}; "
+             f"{a.weights or 'fenestra/pipeline/models/default.pt'}, {ckpt['arch']}; candidates override {base}; "
              f"`shipped` = {shipped})", ""]
     if a.yolo is not None:
         if "oracle" in cands:
@@ -408,7 +408,7 @@ def main() -> None:
     text = "\n".join(lines).rstrip() + "\n"
     print(text)
     if a.doc is not None:
-        from reports.markdown import write_block  # noqa: PLC0415
+        from fenestra.reports.markdown import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
 

@@ -1,7 +1,7 @@
 """The model card's real-photo rows: the shipped detectors on the St Petersburg street photos.
 
     .venv/bin/python tools/model_card_real.py [--spb ../shared/real/spb_facades] [--detectors default,winnet] \
-        [--doc pipeline/models/README.md --block real-photos] [--readme README.md]
+        [--doc fenestra/pipeline/models/README.md --block real-photos] [--readme README.md]
 
 Runs ``training.evaluate.evaluate_boxes`` (what ``fenestra evaluate-detector --yolo DIR --part P``
 prints) for each detector on (a) the validation part of ``SPB/train`` (every 5th photo by sorted
@@ -60,7 +60,7 @@ def detector_line(results: list[tuple[str, dict]], summary: dict, detector: str)
         return f"bbox AP50 {100 * r['bbox']['AP50']:.1f}, AP {100 * r['bbox']['AP']:.1f}"
 
     houses = ", ".join(f"`{r['house']}`" for r in ph["rows"] if not r["trained"] and not r.get("together"))
-    text = (f"The default detector `{detector}` ([model card](pipeline/models/README.md)), on renders of houses it "
+    text = (f"The default detector `{detector}` ([model card](fenestra/pipeline/models/README.md)), on renders of houses it "
             f"never trained on ({houses}; `make bench`): it finds {100 * unseen['detection_rate']:.0f} % of the "
             f"evaluable windows, with all four corners within 5 px for {100 * unseen['all_corners_close']:.0f} % of "
             f"them after `{ph['snapper']}` snapping (corner error median {unseen['snap_median']:.2f} px; exact masks "
@@ -79,7 +79,7 @@ def detector_line(results: list[tuple[str, dict]], summary: dict, detector: str)
 
 def measure(spb: Path, detectors: list[str]) -> list[tuple[str, dict]]:
     """``evaluate_boxes`` of every detector on every set of SETS."""
-    from training.evaluate import evaluate_boxes  # noqa: PLC0415
+    from fenestra.training.evaluate import evaluate_boxes  # noqa: PLC0415
 
     return [(data, evaluate_boxes(det, spb / sub, part)) for data, (sub, part) in SETS.items() for det in detectors]
 
@@ -97,7 +97,7 @@ def main() -> None:
     if missing:
         print(f"no St Petersburg photos: {', '.join(map(str, missing))} not found (give --spb)", file=sys.stderr)
         sys.exit(2)
-    from training.evaluate import HARD_NEGATIVE_OVERLAP  # noqa: PLC0415
+    from fenestra.training.evaluate import HARD_NEGATIVE_OVERLAP  # noqa: PLC0415
 
     results = measure(a.spb, a.detectors.split(","))
     lines = [f"`python tools/model_card_real.py {' '.join(sys.argv[1:])}` (`fenestra evaluate-detector --yolo "
@@ -106,14 +106,14 @@ def main() -> None:
     text = "\n".join(lines + table(results)) + "\n"
     print(text)
     if a.doc is not None:
-        from reports.markdown import write_block  # noqa: PLC0415
+        from fenestra.reports.markdown import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
     if a.readme is not None:
         import json  # noqa: PLC0415
 
         from fenestra.conventions import DEFAULTS  # noqa: PLC0415
-        from reports.markdown import write_block  # noqa: PLC0415
+        from fenestra.reports.markdown import write_block  # noqa: PLC0415
 
         line = detector_line(results, json.loads(a.summary.read_text()), DEFAULTS.detector)
         print(line)

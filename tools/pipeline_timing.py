@@ -17,13 +17,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # run from anywhere: the repository's packages
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the exact quad images (tests/quad_image.py)
 
 from fenestra.conventions import PAPER, make_K  # noqa: E402
-from pipeline.reconstruct import STAGES, ReconstructConfig, reconstruct  # noqa: E402
-from pipeline.snappers import SNAPPERS  # noqa: E402
-from pipeline.types import Detection  # noqa: E402
-from renders.quad_image import pixel_centre_mask, render_window_image, view_window  # noqa: E402
+from fenestra.pipeline.reconstruct import STAGES, ReconstructConfig, reconstruct  # noqa: E402
+from fenestra.pipeline.snappers import SNAPPERS  # noqa: E402
+from fenestra.pipeline.types import Detection  # noqa: E402
+from quad_image import pixel_centre_mask, render_window_image, view_window  # noqa: E402
 
 SHAPE = (480, 640)
 

@@ -4,14 +4,14 @@
         [--poses lm,wall+lines] [--out out/quadsrc-smoke] [--doc docs/experiments.md --block NAME]
 
 Runs ``bench.runner.run_benchmark`` with the learned detector ``default`` and every snapper x pose
-given, once per quad source of ``--sources``: ``mask`` (the fit to the mask, pipeline/quad.py),
+given, once per quad source of ``--sources``: ``mask`` (the fit to the mask, fenestra/pipeline/quad.py),
 ``corners`` (the corner heatmaps' peaks, falling back to the mask where they do not describe it),
 ``mask+corners`` (the mask fit, the corner heatmaps' peaks where it finds no quadrilateral),
 and prints per method: windows with a quad, corner error after snapping (median px, share of
 the bench's corner recall at 5 px), aspect-ratio error p90 and rotation error median. The bench
 lets a profile select quad sources only through this override (fenestra.methods.Method). Each
 source runs on its own: within one run the per-wall strategies reuse the per-window results of a
-(snapper, pose, K) key without the quad source (bench/evaluate.py ``_reconstruct``), so the
+(snapper, pose, K) key without the quad source (fenestra/bench/evaluate.py ``_reconstruct``), so the
 ``corners`` per-wall rows would repeat the ``mask`` ones.
 """
 from __future__ import annotations
@@ -22,10 +22,10 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from bench.profiles import load_profile  # noqa: E402
-from bench.runner import run_benchmark  # noqa: E402
+from fenestra.bench.profiles import load_profile  # noqa: E402
+from fenestra.bench.runner import run_benchmark  # noqa: E402
 from fenestra.methods import Method  # noqa: E402
-from pipeline.quad import QUAD_SOURCES  # noqa: E402
+from fenestra.pipeline.quad import QUAD_SOURCES  # noqa: E402
 
 
 def table(results: dict, methods: list[Method]) -> list[str]:
@@ -72,7 +72,7 @@ def main() -> None:
     text = "\n".join(lines + table(results, methods)) + "\n"
     print(text)
     if a.doc is not None:
-        from reports.markdown import write_block  # noqa: PLC0415
+        from fenestra.reports.markdown import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
 

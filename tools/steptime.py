@@ -1,8 +1,8 @@
 """Time one training step of a config on this machine: batch making, and the network step with and
-without bfloat16 autocast and channels-last layout (the figures quoted in pipeline/models/README.md
+without bfloat16 autocast and channels-last layout (the figures quoted in fenestra/pipeline/models/README.md
 and docs/experiments.md).
 
-    .venv/bin/python tools/steptime.py [--config training/configs/winnet.toml] [--widths 16,32,64,96,128] [--crop 256]
+    .venv/bin/python tools/steptime.py [--config fenestra/training/configs/winnet.toml] [--widths 16,32,64,96,128] [--crop 256]
 
 Reads one view per training dataset folder, makes 7 batches (times the last 6), runs 8 steps per variant from a fresh
 model and prints the median of the last 6 (ms). Medians only: the machine is shared and noisy.
@@ -19,8 +19,8 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from training.recipes.winnet import winnet_loss  # noqa: E402
-from training.train import build_model, load_config, make_batch, read_views, select_views  # noqa: E402
+from fenestra.training.recipes.winnet import winnet_loss  # noqa: E402
+from fenestra.training.train import build_model, load_config, make_batch, read_views, select_views  # noqa: E402
 
 VARIANTS = {"fp32": (False, False), "fp32 channels_last": (False, True), "bf16 channels_last": (True, True)}
 
@@ -49,7 +49,7 @@ def step_ms(cfg, batches: list, amp: bool, channels_last: bool, steps: int = 8) 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--config", default="training/configs/winnet.toml")
+    ap.add_argument("--config", default="fenestra/training/configs/winnet.toml")
     ap.add_argument("--widths", action="append", default=[],
                     help="comma-separated WinNet widths to time instead of the config's (repeatable)")
     ap.add_argument("--crop", type=int, help="square crop side (px) instead of the config's crop_hw")

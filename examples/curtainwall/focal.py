@@ -23,9 +23,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from prepare import FX, FY, glass_mask, pane_instances  # noqa: E402
 
 from fenestra.errors import PipelineError  # noqa: E402
-from pipeline.detectors.oracle import detections_from_instance_map  # noqa: E402
-from pipeline.reconstruct import fit_quads  # noqa: E402
-from pipeline.walls import WALL_STRATEGIES, fit_walls_focal  # noqa: E402
+from fenestra.pipeline.detectors.oracle import detections_from_instance_map  # noqa: E402
+from fenestra.pipeline.reconstruct import fit_quads  # noqa: E402
+from fenestra.pipeline.walls import WALL_STRATEGIES, fit_walls_focal  # noqa: E402
 
 
 def main() -> None:

@@ -1,2 +1,0 @@
-"""The top floor: the `fenestra` command line, the composition root that registers every stage's
-commands (app/cli.py). It may import every package; no package imports it."""

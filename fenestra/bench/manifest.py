@@ -1,0 +1,264 @@
+"""A run's manifest: the rows its results table must hold, and the table's checksum.
+
+``fenestra bench`` writes ``manifest.json`` beside ``results.parquet``::
+
+    {"format": 2, "profile": "smoke", "profile_hash": "1a2b3c4d", "n_rows": 2880,
+     "keys": ["house", "view", "window_id", "method"],
+     "methods": ["oracle/none/lm", ...],
+     "views": [["fzk-haus", "000000", ["w-17", "w-18", ...]], ...],
+     "sha256": {"results.parquet": "..."}}
+
+The expected rows come from the rendered views (every ground-truth window of every ``view.json``)
+times the planned methods, not from the evaluation's output: a view or method the evaluation
+dropped is missing from the table but not from the manifest. They are stored compactly, as each
+view's window ids and the methods (every row is a window x method); a set of rows that is not
+such a product (a table sealed as it is) is stored row by row, ``"rows": [[house, view,
+window_id, method], ...]`` (format 1's only form, still read). ``sha256`` holds the digest of
+each results file the run wrote (results.parquet; results.csv only when asked for). :func:`load_verified_results` is
+what ``fenestra gate`` and ``fenestra report`` read: it refuses a table that lacks or adds rows
+(naming them, grouped by method), or whose bytes changed after the run (edited values).
+
+A run folder is also claimed by its profile (:func:`claim_run_dir`): ``run.json`` records the
+profile name and hash; a folder holding another profile's run, or files that are not a run's,
+is refused unless ``force`` (then it is emptied first), so no stale report or figure survives
+beside new results.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import shutil
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from fenestra.bench.results import RESULTS_CSV, RESULTS_PARQUET, SPOOL_DIR, load_results
+from fenestra.errors import FenestraError, one_line
+from fenestra.files import file_sha256, write_json
+
+MANIFEST_JSON = "manifest.json"
+RUN_JSON = "run.json"
+KEY_COLUMNS = ("house", "view", "window_id", "method")
+FORMAT = 2
+MAX_NAMED = 5  # how many missing/extra rows an error message names
+
+
+class RunIntegrityError(FenestraError):
+    """A run folder whose results table does not match its manifest, or a foreign run folder."""
+
+
+def expected_rows(views: list[tuple[str, Path]], methods: list[str]) -> dict:
+    """The expected rows, every GT window of each (house, view folder) x method, in the manifest's
+    compact form (:func:`compact_rows`): {"methods": [...], "views": [[house, view, [window ids]], ...]}."""
+    out = []
+    for house, vdir in views:
+        meta = json.loads((Path(vdir) / "view.json").read_text())
+        out.append([house, Path(vdir).name, [str(w["id"]) for w in meta["windows"]]])
+    return {"methods": list(methods), "views": out}
+
+
+def n_expected(doc: dict) -> int:
+    """How many rows a manifest's expected rows (either form of :func:`compact_rows`) are."""
+    if "rows" in doc:
+        return len(doc["rows"])
+    return len(doc["methods"]) * sum(len(ws) for _, _, ws in doc["views"])
+
+
+def expected_frame(doc: dict) -> pd.DataFrame:
+    """The expected rows of a manifest (either form of :func:`compact_rows`) as a table with the
+    KEY_COLUMNS (categoricals for the compact form), in :func:`expand_rows` order, built with
+    array operations."""
+    if "rows" in doc:
+        return pd.DataFrame([list(r) for r in doc["rows"]], columns=list(KEY_COLUMNS), dtype="str")
+    windows = [(h, v, w) for h, v, ws in doc["views"] for w in ws]
+    n_methods = len(doc["methods"])
+    cols = {c: np.repeat(pd.Categorical([str(w[i]) for w in windows]), n_methods)
+            for i, c in enumerate(KEY_COLUMNS[:3])}
+    method = pd.Categorical([str(m) for m in doc["methods"]])
+    cols["method"] = pd.Categorical.from_codes(np.tile(method.codes, len(windows)), method.categories)
+    return pd.DataFrame(cols)
+
+
+def _key_digests(keys: pd.DataFrame) -> np.ndarray:
+    """Sorted 64-bit hashes of the rows of a KEY_COLUMNS table, each value as a string: two tables
+    hold the same rows, as multisets, when these arrays are equal (up to a 2**-64 collision)."""
+    keys = pd.DataFrame({c: keys[c] if isinstance(keys[c].dtype, pd.CategoricalDtype) else keys[c].astype("str")
+                         for c in KEY_COLUMNS})
+    return np.sort(pd.util.hash_pandas_object(keys, index=False).to_numpy())
+
+
+def table_rows(df: pd.DataFrame) -> list[tuple[str, str, str, str]]:
+    """The KEY_COLUMNS of every row of a results table, as strings."""
+    missing = [c for c in KEY_COLUMNS if c not in df.columns]
+    if missing:
+        raise RunIntegrityError(f"results table lacks key column(s) {missing}")
+    return [tuple(map(str, r)) for r in df[list(KEY_COLUMNS)].itertuples(index=False)]
+
+
+def compact_rows(rows: list[tuple]) -> dict:
+    """The manifest's form of expected rows (house, view, window_id, method): {"methods": [...],
+    "views": [[house, view, [window ids]], ...]} when they are every window of those views x
+    every method, once each, in that order; else {"rows": [[house, view, window_id, method], ...]}."""
+    if not rows:
+        return {"methods": [], "views": []}
+    methods = list(dict.fromkeys(r[3] for r in rows))
+    views: dict[tuple[str, str], list[str]] = {}
+    for h, v, w, m in rows:
+        if m == methods[0]:
+            views.setdefault((h, v), []).append(w)
+    compact = {"methods": methods, "views": [[h, v, ws] for (h, v), ws in views.items()]}
+    if expand_rows(compact) == [tuple(r) for r in rows]:
+        return compact
+    return {"rows": [list(r) for r in rows]}
+
+
+def expand_rows(doc: dict) -> list[tuple[str, str, str, str]]:
+    """The expected rows of a manifest (either form of :func:`compact_rows`), in order."""
+    if "rows" in doc:
+        return [tuple(r) for r in doc["rows"]]
+    return [(h, v, w, m) for h, v, ws in doc["views"] for w in ws for m in doc["methods"]]
+
+
+def write_manifest(run_dir: str | Path, rows: list[tuple] | dict, profile: str, profile_hash: str) -> Path:
+    """manifest.json of a run whose results tables are already written (their checksums go in).
+    rows: the expected rows, (house, view, window_id, method) tuples or already in compact form
+    (:func:`expected_rows`, :func:`compact_rows`)."""
+    run_dir = Path(run_dir)
+    sums = {name: file_sha256(run_dir / name) for name in (RESULTS_PARQUET, RESULTS_CSV)
+            if (run_dir / name).is_file()}
+    expected = rows if isinstance(rows, dict) else compact_rows(rows)
+    doc = {"format": FORMAT, "profile": profile, "profile_hash": profile_hash, "n_rows": n_expected(expected),
+           "keys": list(KEY_COLUMNS), **expected, "sha256": sums}
+    return write_json(run_dir / MANIFEST_JSON, doc, indent=None)
+
+
+def seal(run_dir: str | Path, df: pd.DataFrame, profile: str, profile_hash: str = "") -> Path:
+    """Write the manifest of a table built outside run_benchmark (expected rows = the table's)."""
+    return write_manifest(run_dir, table_rows(df), profile, profile_hash)
+
+
+def load_manifest(run_dir: str | Path, expand: bool = True) -> dict:
+    """manifest.json of a run folder, its expected rows as tuples under "rows" (``expand``; else
+    as stored: see :func:`compact_rows`); RunIntegrityError if absent or unreadable."""
+    p = Path(run_dir) / MANIFEST_JSON
+    if not p.is_file():
+        raise RunIntegrityError(f"{run_dir} has no {MANIFEST_JSON}: not a complete benchmark run "
+                                "(re-run `fenestra bench`)")
+    try:
+        doc = json.loads(p.read_text())
+        return doc | {"rows": expand_rows(doc)} if expand else doc | {"n_rows": n_expected(doc)}
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise RunIntegrityError(f"{p}: unreadable manifest ({e})") from e
+
+
+def describe_rows(rows: Counter, what: str, total: int) -> str:
+    """'lacks 96 of 480 expected rows (method a/b/c: 96, ...; e.g. house/view/window/method, ...)'."""
+    n = sum(rows.values())
+    per_method = Counter(r[3] for r in rows.elements())
+    methods = ", ".join(f"{m}: {k}" for m, k in per_method.most_common(MAX_NAMED))
+    examples = ", ".join("/".join(r) for r in list(rows)[:MAX_NAMED])
+    return f"{what} {n} of {total} expected rows (by method {methods}; e.g. {examples})"
+
+
+def verify_table(run_dir: str | Path, df: pd.DataFrame, manifest: dict) -> None:
+    """RunIntegrityError naming missing/extra rows, or a table whose bytes changed since the run.
+    manifest: :func:`load_manifest`'s, either form. The rows are compared as sorted hashes first
+    (array operations); only a table that differs is compared row by row, to name the rows."""
+    missing_keys = [c for c in KEY_COLUMNS if c not in df.columns]
+    if missing_keys:
+        raise RunIntegrityError(f"results table lacks key column(s) {missing_keys}")
+    if not np.array_equal(_key_digests(expected_frame(manifest)), _key_digests(df)):
+        _name_row_differences(run_dir, df, manifest)
+    _verify_digests(run_dir, manifest)
+
+
+def _name_row_differences(run_dir: str | Path, df: pd.DataFrame, manifest: dict) -> None:
+    """RunIntegrityError naming the rows the table lacks or adds against the manifest (none: the
+    rows match after all, and nothing is raised)."""
+    expected, got = Counter(expand_rows(manifest)), Counter(table_rows(df))
+    missing, extra = expected - got, got - expected
+    problems = []
+    if missing:
+        problems.append(describe_rows(missing, "lacks", manifest["n_rows"]))
+    if extra:
+        problems.append(describe_rows(extra, "has unexpected", manifest["n_rows"]))
+    if problems:
+        raise RunIntegrityError(f"{run_dir}: results table " + "; ".join(problems))
+
+
+def _verify_digests(run_dir: str | Path, manifest: dict) -> None:
+    """RunIntegrityError if a results file's bytes changed since the run (its sha256)."""
+    run_dir = Path(run_dir)
+    for name, digest in manifest.get("sha256", {}).items():
+        p = run_dir / name
+        if p.is_file() and file_sha256(p) != digest:
+            raise RunIntegrityError(f"{p} was modified after the run (sha256 differs from {MANIFEST_JSON}); "
+                                    "re-run `fenestra bench`")
+
+
+def load_verified_results(run_dir: str | Path) -> pd.DataFrame:
+    """The results table of a run folder, checked against its manifest (see the module doc)."""
+    df = load_results(run_dir)
+    manifest = load_manifest(run_dir, expand=False)
+    verify_table(run_dir, df, manifest)
+    return df
+
+
+def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: bool = False) -> Path:
+    """Make ``run_dir`` this profile's run folder (see the module doc); returns it.
+
+    An empty or missing folder, or one whose run.json names the same profile and hash, is reused
+    (its stale run outputs are removed by the caller's overwrite). Anything else needs ``force``.
+    """
+    run_dir = Path(run_dir)
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunIntegrityError(f"--out {run_dir} is a file, not a folder")
+    entries = sorted(p.name for p in run_dir.iterdir()) if run_dir.is_dir() else []
+    if entries and not force:
+        owner = _read_run_json(run_dir)
+        if owner is None:
+            raise RunIntegrityError(f"{run_dir} is not empty and holds no benchmark run ({', '.join(entries[:MAX_NAMED])}"
+                                    f"{', ...' if len(entries) > MAX_NAMED else ''}); choose another --out or pass --force "
+                                    "to replace its contents")
+        if (owner.get("profile"), owner.get("profile_hash")) != (profile, profile_hash):
+            raise RunIntegrityError(f"{run_dir} holds a run of profile {owner.get('profile')!r} (hash "
+                                    f"{owner.get('profile_hash')}), not {profile!r} (hash {profile_hash}); "
+                                    "choose another --out or pass --force to replace it")
+    if force and entries:
+        shutil.rmtree(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    for stale in (MANIFEST_JSON, "report.html", "report.md", "figures", SPOOL_DIR):  # outputs of an earlier run
+        p = run_dir / stale
+        shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
+    write_json(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash, "status": "running"})
+    return run_dir
+
+
+@contextlib.contextmanager
+def run_status(run_dir: str | Path):
+    """Mark the claimed run folder's run.json ``complete`` when the block ends, or ``failed`` with
+    the error's one line when it raises (a SIGTERM or Ctrl-C too): a run that did not finish is
+    never mistaken for one that did (its folder says so, and it has no manifest for gate/report)."""
+    path = Path(run_dir) / RUN_JSON
+    doc = json.loads(path.read_text())
+    try:
+        yield
+    except BaseException as e:
+        write_json(path, {**doc, "status": "failed", "error": f"{type(e).__name__}: {one_line(e)}"})
+        raise
+    write_json(path, {**doc, "status": "complete"})
+
+
+def _read_run_json(run_dir: Path) -> dict | None:
+    """{"profile", "profile_hash"} of the run in run_dir (run.json, else an older run's summary.json)."""
+    for name, keys in ((RUN_JSON, ("profile", "profile_hash")), ("summary.json", ("profile", "config_hash"))):
+        try:
+            doc = json.loads((run_dir / name).read_text())
+        except (OSError, ValueError):
+            continue
+        doc = doc.get("metadata", doc) if isinstance(doc, dict) else None
+        if isinstance(doc, dict) and keys[0] in doc:
+            return {"profile": doc.get(keys[0]), "profile_hash": doc.get(keys[1])}
+    return None

@@ -1,0 +1,263 @@
+"""CLI commands of pipeline/ (registered on the `fenestra` app by fenestra/app/cli.py).
+
+    fenestra reconstruct PHOTO|FOLDER|'GLOB'... [--K K.json | --fx F [--fy --cx --cy]] [--masks MASKS.png]
+        [--detector NAME] [--snapper NAME] [--pose NAME] [--known-height M | --known-width M |
+        --known-storey M] [--export-all] [--substitute STYLE] --out DIR
+    fenestra calibrate PHOTOS... --pattern COLSxROWS [--square M] --out K.json
+
+Without --K/--fx the intrinsics come from the photo (pipeline.intrinsics.resolve_K: EXIF, else the
+façade's vanishing points, else a stated prior); windows.json records ``K`` and ``K_source`` (with
+the focal interval and every source's value). The photo path itself is pipeline.photo.
+
+writes DIR/windows.json and, through pipeline.export, model.ifc, model.obj, overlay.png, ...
+When K.json carries lens distortion (``"distortion": [k1, k2, p1, p2, k3]``, OpenCV), the photo is
+undistorted with the same K first (cv2.undistort) and everything downstream (masks, quads, the
+overlay and the texture) lives in that undistorted image; windows.json says ``"undistorted": true``.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import typer
+
+from fenestra.conventions import DEFAULTS, LIMITS
+from fenestra.errors import PipelineError
+from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, Known
+from fenestra.pipeline.photo import PhotoOptions, reconstruct_photo
+from fenestra.pipeline.quad import QUAD_SOURCES
+from fenestra.pipeline.reconstruct import POSES
+from fenestra.pipeline.snappers import SNAPPERS
+
+
+def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
+                    fy: Optional[float] = None, cx: Optional[float] = None, cy: Optional[float] = None,
+                    masks: Optional[Path] = None, detector: str = DEFAULTS.detector, snapper: str = DEFAULTS.snapper,
+                    pose: str = DEFAULTS.pose, height: Optional[float] = None, width: Optional[float] = None,
+                    substitute: Optional[str] = None, export: bool = True, force: bool = False,
+                    quad_source: str = DEFAULTS.quad_source, storey: Optional[float] = None,
+                    export_all: bool = False, max_pixels: Optional[int] = None) -> dict:
+    """The `reconstruct` command on one photo as a function: pipeline.photo.reconstruct_photo
+    writing into ``out``; returns the windows.json dict it wrote. height / width / storey: the
+    known window height / window width / storey height, m (at most one; none: assumed);
+    max_pixels: the largest photo read (None: fenestra.conventions.LIMITS.max_image_pixels)."""
+    options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source,
+                           known=known_sizes(width, height, storey), substitute=substitute, export=export,
+                           export_all=export_all, max_pixels=max_pixels)
+    return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
+                             force=force)
+
+
+def known_sizes(width: Optional[float], height: Optional[float], storey: Optional[float]) -> Known:
+    """pipeline.facade_model.Known from the CLI's --known-width/--known-height/--known-storey;
+    PipelineError naming them when more than one is given or one is not a positive length."""
+    try:
+        return Known(window_width_m=width, window_height_m=height, storey_m=storey)
+    except ValueError as e:
+        raise PipelineError(f"--known-width/--known-height/--known-storey: {e}") from e
+
+
+def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
+    """The `calibrate` command as a function: returns the K.json dict it wrote."""
+    from fenestra.pipeline.intrinsics import calibrate_chessboard, calibration_json  # noqa: PLC0415
+    from fenestra.images import read_image  # noqa: PLC0415
+
+    try:
+        cols, rows = (int(v) for v in pattern.lower().split("x"))
+    except ValueError as e:
+        raise PipelineError(f"--pattern must be COLSxROWS inner corners (e.g. 9x6), got {pattern!r}") from e
+    cal = calibrate_chessboard([read_image(p, "photo") for p in photos], (cols, rows), square)
+    doc = calibration_json(cal)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=2))
+    return doc
+
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
+
+
+def expand_photos(args: list[str]) -> list[Path]:
+    """The photos named by command-line arguments, in order, each once: a file as it is, a folder's
+    image files (IMAGE_SUFFIXES, sorted), a glob pattern's matches (sorted). PipelineError naming an
+    argument that names nothing."""
+    import glob  # noqa: PLC0415
+
+    found: list[Path] = []
+    for a in args:
+        p = Path(a)
+        if p.is_dir():
+            hits = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES)
+        elif p.is_file():
+            hits = [p]
+        else:
+            hits = sorted(Path(q) for q in glob.glob(a) if Path(q).is_file())
+        if not hits:
+            raise PipelineError(f"no photo found for {a!r} (not a file, a folder with photos, or a matching glob)")
+        found += [h for h in hits if h not in found]
+    return found
+
+
+def output_names(photos: list[Path]) -> list[str]:
+    """One subfolder name per photo: its stem, with its parent folder's name prefixed where stems repeat."""
+    stems = [p.stem for p in photos]
+    names = [s if stems.count(s) == 1 else f"{p.parent.name}_{s}" for p, s in zip(photos, stems)]
+    return [n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names)]
+
+
+def summary_row(photo: Path, doc: dict | None, error: str | None) -> dict:
+    """One summary line of a batch: photo, K source and f, walls, windows detected/exported/flagged/failed."""
+    if doc is None:
+        return {"photo": str(photo), "error": error}
+    ws = doc["windows"]
+    return {"photo": str(photo), "error": None, "K_source": doc["K_source"]["source"],
+            "focal_px": round(doc["K_source"]["focal_px"], 1), "walls": len(doc.get("walls", [])),
+            "detected": len(ws), "exported": sum(bool(w.get("exported")) for w in ws),
+            "flagged": sum(bool(w.get("flags")) for w in ws), "failed": sum(w["failure"] is not None for w in ws),
+            "scale_assumed": doc.get("scale", {}).get("assumed")}
+
+
+def run_batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
+    """Reconstruct each photo into out/<name> (run_reconstruct with ``kw``), with a progress bar on
+    stderr; a photo that is bad input is recorded (its error) and the batch goes on. Writes
+    out/summary.json and returns its rows."""
+    import sys  # noqa: PLC0415
+
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    with typer.progressbar(list(zip(photos, output_names(photos))), label="reconstruct", file=sys.stderr,
+                           item_show_func=lambda item: item[0].name if item else "") as bar:
+        for photo, name in bar:
+            try:
+                rows.append(summary_row(photo, run_reconstruct(photo, out / name, **kw), None))
+            except (PipelineError, ValueError, OSError) as e:
+                rows.append(summary_row(photo, None, " ".join(str(e).split())))
+    (out / "summary.json").write_text(json.dumps(rows, indent=2))
+    return rows
+
+
+def format_summary(rows: list[dict]) -> str:
+    """The batch's summary table: one line per photo, then the totals."""
+    lines = [f"{'photo':<28} {'K':<17} {'f_px':>7} {'walls':>5} {'det':>4} {'exp':>4} {'flag':>4} {'fail':>4}"]
+    for r in rows:
+        name = Path(r["photo"]).name[:28]
+        if r["error"]:
+            lines.append(f"{name:<28} error: {r['error'][:80]}")
+            continue
+        lines.append(f"{name:<28} {r['K_source']:<17} {r['focal_px']:>7.0f} {r['walls']:>5} {r['detected']:>4} "
+                     f"{r['exported']:>4} {r['flagged']:>4} {r['failed']:>4}")
+    ok = [r for r in rows if not r["error"]]
+    lines.append(f"{len(ok)} of {len(rows)} photos reconstructed; {sum(r['exported'] for r in ok)} windows exported, "
+                 f"{sum(r['flagged'] for r in ok)} flagged, {sum(r['failed'] for r in ok)} failed")
+    return "\n".join(lines)
+
+
+def _echo_notes(doc: dict) -> None:
+    """The single-photo command's notes: undistortion, intrinsics and their source, scale, warnings."""
+    if doc.get("undistorted"):
+        typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")
+    ks = doc["K_source"]
+    typer.echo(f"intrinsics: {ks['source']} f = {ks['focal_px']:.0f} px [{ks['interval_px'][0]:.0f}, "
+               f"{ks['interval_px'][1]:.0f}] ({ks['detail']})")
+    typer.echo("scale: " + "; ".join(doc["scale"]["sources"] or ["no wall"]))
+    for w in doc["warnings"]:
+        typer.echo(f"warning: {w}", err=True)
+    if doc.get("geometry_failure"):
+        typer.echo(f"geometry failed (recorded in windows.json): {doc['geometry_failure']}", err=True)
+
+
+def format_table(doc: dict) -> str:
+    """A short plain-text table: one line per window, then the median per-stage timing."""
+    lines = [f"{'#':>3} {'score':>5} {'aspect':>7} {'case':<17} {'dist_m':>7} {'wall':>4} {'exp':>3} failure / flags"]
+    for w in doc["windows"]:
+        ar = f"{w['aspect_ratio']:.4f}" if w["aspect_ratio"] is not None else "-"
+        dist = f"{np.linalg.norm(w['t']):.2f}" if w["t"] is not None else "-"
+        wall = "-" if w.get("wall") is None else str(w["wall"])
+        exp = {True: "yes", False: "no", None: "-"}[w.get("exported")]
+        lines.append(f"{w['index']:>3} {w['score']:>5.2f} {ar:>7} {w['aspect_case'] or '-':<17} {dist:>7} {wall:>4} "
+                     f"{exp:>3} {w['failure'] or '; '.join(w.get('flags') or [])}")
+    stages = ("quad", "snap", "aspect", "pose")
+    med = {s: np.median([w["timings_ms"][s] for w in doc["windows"] if s in w["timings_ms"]] or [np.nan])
+           for s in stages}
+    lines.append("median ms/window: " + "  ".join(f"{s} {med[s]:.2f}" for s in stages))
+    return "\n".join(lines)
+
+
+def register(app: typer.Typer) -> None:
+    """Add this stage's commands to the top-level app (choices in the help: from the registries)."""
+    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
+
+    @app.command("reconstruct")
+    def reconstruct_cmd(
+        photos: list[str] = typer.Argument(..., help="photo(s), folder(s) of photos, or glob patterns (quoted, e.g. "
+                                                     "'street/*.jpg'); any format OpenCV reads"),
+        out: Path = typer.Option(..., "--out", help="output folder (several photos: one subfolder per photo)"),
+        K_json: Optional[Path] = typer.Option(None, "--K", help='intrinsics JSON: {"K": 3x3} or fx/fy/cx/cy, optionally with '
+                                              '"distortion": OpenCV coefficients k1, k2, p1, p2, k3 (a list): the '
+                                              'photo is then undistorted with the same K before anything else'),
+        fx: Optional[float] = typer.Option(None, "--fx", help="focal length, px"),
+        fy: Optional[float] = typer.Option(None, "--fy", help="focal length y, px (default fx)"),
+        cx: Optional[float] = typer.Option(None, "--cx", help="principal point x, px (default image centre)"),
+        cy: Optional[float] = typer.Option(None, "--cy", help="principal point y, px (default image centre)"),
+        masks: Optional[Path] = typer.Option(None, "--masks", help="instance-map PNG (16-bit ids, 0 = none) instead of a detector; with "
+                                              "lens distortion in --K it must be in the undistorted photo's frame"),
+        detector: str = typer.Option(DEFAULTS.detector, "--detector", help=f"detector (without --masks): {DETECTORS.describe()}"),
+        snapper: str = typer.Option(DEFAULTS.snapper, "--snapper", help=f"corner snapper: {SNAPPERS.describe()}"),
+        pose: str = typer.Option(DEFAULTS.pose, "--pose", help=f"pose strategy: {POSES.describe()}"),
+        height: Optional[float] = typer.Option(None, "--known-height", "--height",
+                                               help="a typical window's height, m: each wall's median window gets it "
+                                                    f"(none of the --known-* given: {DEFAULT_WINDOW_HEIGHT_M:g} m, "
+                                                    "flagged assumed)"),
+        width: Optional[float] = typer.Option(None, "--known-width", "--width",
+                                              help="a typical window's width, m (each wall's median window)"),
+        storey: Optional[float] = typer.Option(None, "--known-storey",
+                                               help="the storey (floor-to-floor) height, m: each wall's median "
+                                                    "pitch between window rows"),
+        export_all: bool = typer.Option(False, "--export-all", help="export the windows flagged implausible too"),
+        max_pixels: Optional[int] = typer.Option(None, "--max-pixels", min=1,
+                                                 help="the largest photo read, pixels, checked before decoding "
+                                                      f"(default {LIMITS.max_image_pixels:_})"),
+        substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
+        force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),
+        quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
+                                        help=f"quad from: {', '.join(QUAD_SOURCES)} (corners: the detector's corner head, "
+                                             "the mask fit where it has none; mask+corners: the mask fit, the "
+                                             "corner head where the fit finds no quadrilateral)"),
+    ) -> None:
+        """Reconstruct the windows of photos: windows.json, overlay.png, IFC, OBJ, GLB per photo.
+
+        Without --K/--fx the focal length comes from EXIF, the façade's vanishing points or a stated prior (windows.json: K_source); failures are recorded, not fatal. Several photos: a progress bar, one subfolder of --out per photo, a summary table (also --out/summary.json).
+        """  # noqa: E501 -- one paragraph: the help reflows it
+        if quad_source not in QUAD_SOURCES:
+            raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
+        paths = expand_photos(photos)
+        if masks is not None and len(paths) > 1:
+            raise PipelineError(f"--masks describes one photo; {len(paths)} photos given")
+        kw = dict(K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, detector=detector, snapper=snapper,
+                  pose=pose, height=height, width=width, substitute=substitute, force=force,
+                  quad_source=quad_source, storey=storey, export_all=export_all, max_pixels=max_pixels)
+        if len(paths) == 1:
+            doc = run_reconstruct(paths[0], out, **kw)
+            typer.echo(format_table(doc))
+            _echo_notes(doc)
+            typer.echo(f"wrote {out / 'windows.json'}")
+            return
+        rows = run_batch(paths, out, kw)
+        typer.echo(format_summary(rows))
+        typer.echo(f"wrote {out / 'summary.json'} and one folder per photo in {out}")
+        if any(r["error"] for r in rows):
+            raise SystemExit(1)
+
+    @app.command("calibrate")
+    def calibrate_cmd(
+        photos: list[Path] = typer.Argument(..., help="chessboard photos (one camera, one size)"),
+        pattern: str = typer.Option(..., "--pattern", help="inner corners COLSxROWS, e.g. 9x6"),
+        square: float = typer.Option(1.0, "--square", help="square size, m (does not affect K)"),
+        out: Path = typer.Option(..., "--out", help="K.json to write (what `reconstruct --K` reads)"),
+    ) -> None:
+        """Camera intrinsics and distortion from chessboard photos (OpenCV), with the reprojection error."""
+        doc = run_calibrate(photos, pattern, square, out)
+        typer.echo(f"board found in {doc['n_images']} of {doc['n_given']} photos; reprojection RMS "
+                   f"{doc['reprojection_rms_px']:.3f} px; fx {doc['K'][0][0]:.2f} fy {doc['K'][1][1]:.2f}")
+        typer.echo(f"wrote {out}")

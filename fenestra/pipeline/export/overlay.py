@@ -1,0 +1,168 @@
+"""Overlay PNG: the pipeline's quads and the reprojected 3D window drawn on the photo, with a
+side panel (legend, header lines, each window's status and reason) to its right.
+
+Colours (RGB, like the image): mask-fit quad yellow, snapped quad magenta, reprojected 3D window
+green (void outline at the facade and the frame's back outline, depth edges between), window axes
+x red, y green, z blue (length half the window height). Flagged (not exported) windows: orange
+quad; failed windows: red quad, or their detection box where no quad was found. Each window's
+number is drawn once where it is; its reason is in the panel.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from fenestra.checks import check_image, check_K
+from fenestra.conventions import project
+from fenestra.pipeline.export.geometry import place
+from fenestra.pipeline.types import WindowResult
+
+COLOURS = {"mask": (255, 220, 0), "snapped": (255, 0, 255), "reprojected": (0, 230, 0),
+           "x": (255, 0, 0), "y": (0, 200, 0), "z": (0, 80, 255), "failed": (255, 40, 40),
+           "flagged": (255, 150, 0), "exported": (0, 230, 0)}
+_SHIFT = 4  # fractional bits for sub-pixel drawing
+
+
+def _pts(px: np.ndarray) -> np.ndarray:
+    return np.round(np.asarray(px, dtype=np.float64) * (1 << _SHIFT)).astype(np.int32)
+
+
+def _segment(img, a, b, colour, thick):
+    if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+        cv2.line(img, tuple(_pts(a)), tuple(_pts(b)), colour, thick, cv2.LINE_AA, _SHIFT)
+
+
+def _poly(img, quad, colour, thick):
+    cv2.polylines(img, [_pts(quad)], True, colour, thick, cv2.LINE_AA, _SHIFT)
+
+
+def _text(img, s, at, colour, scale):
+    """Text drawn once, on a dark box (readable on any photo; no second stroke of other glyph widths)."""
+    at = (int(round(at[0])), int(round(at[1])))
+    thick = max(1, int(round(scale * 1.5)))
+    (w, h), base = cv2.getTextSize(s, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+    x0, y0 = max(at[0] - 2, 0), max(at[1] - h - 3, 0)
+    cv2.rectangle(img, (x0, y0), (at[0] + w + 2, at[1] + base), (20, 20, 20), cv2.FILLED)
+    cv2.putText(img, s, at, cv2.FONT_HERSHEY_SIMPLEX, scale, colour, thick, cv2.LINE_AA)
+
+
+def _draw_3d(img, K, result, thick, depth_m: float = 0.07):
+    """Reprojected window box (facade outline, back outline, depth edges) and axes."""
+    pw = place(result)
+    if isinstance(pw, str):  # no usable pose: nothing to reproject
+        return
+    front = pw.void_corners()
+    back = front - [0.0, 0.0, depth_m]
+    P = np.concatenate([front, back])
+    ok = pw.to_camera(P)[:, 2] > 1e-6
+    px = project(K, pw.R, pw.t, P)
+    for i in range(4):
+        j = (i + 1) % 4
+        for a, b in ((i, j), (4 + i, 4 + j), (i, 4 + i)):
+            if ok[a] and ok[b]:
+                _segment(img, px[a], px[b], COLOURS["reprojected"], thick)
+    L = 0.5 * pw.height_m
+    axes = np.array([[0, 0, 0], [L, 0, 0], [0, L, 0], [0, 0, L]], dtype=np.float64)
+    ok = pw.to_camera(axes)[:, 2] > 1e-6
+    apx = project(K, pw.R, pw.t, axes)
+    for k, name in enumerate("xyz", start=1):
+        if ok[0] and ok[k]:
+            _segment(img, apx[0], apx[k], COLOURS[name], thick + 1)
+
+
+def _status(r: WindowResult, exclude: dict[int, str]) -> tuple[str, str]:
+    """("exported" | "flagged" | "failed", one line) for the panel and the colour."""
+    if r.failure:
+        return "failed", r.failure
+    if r.index in exclude:
+        return "flagged", exclude[r.index]
+    placed = place(r)
+    if isinstance(placed, str):
+        return "failed", placed
+    return "exported", f"{placed.width_m:.2f} x {placed.height_m:.2f} m, w/h {r.aspect_ratio:.3f}"
+
+
+def _wrap(s: str, width: int) -> list[str]:
+    words, lines, line = s.split(), [], ""
+    for w in words:
+        if line and len(line) + 1 + len(w) > width:
+            lines.append(line)
+            line = w
+        else:
+            line = f"{line} {w}" if line else w
+    return lines + ([line] if line else [])
+
+
+def _panel_lines(results: list[WindowResult], exclude: dict[int, str], header: list[str], chars: int
+                 ) -> list[tuple[str, tuple]]:
+    """The panel's text lines with their colours: header lines, then per window its status and reason
+    (wrapped at ``chars``; continuation lines indented)."""
+    grey, white = (200, 200, 200), (235, 235, 235)
+    lines = [(part, white) for line in header for part in _wrap(line, chars)] + [("", white)]
+    for r in results:
+        kind, why = _status(r, exclude)
+        for j, part in enumerate(_wrap(f"#{r.index} {kind}: {why}", chars - 3)):
+            lines.append((part if j == 0 else "   " + part, COLOURS[kind] if j == 0 else grey))
+    return lines
+
+
+def _panel(height: int, width: int, results: list[WindowResult], exclude: dict[int, str], header: list[str],
+           scale: float) -> np.ndarray:
+    """The side panel (at least ``height``, ``width``, 3) uint8 RGB: legend, header lines, one entry
+    per window (taller than ``height`` when the entries need it)."""
+    thick = max(1, int(round(scale * 1.5)))
+    sample = "window failed: quad 0.61 x 1.52 m, w/h"  # typical text: its mean glyph width
+    (sw, ch), base = cv2.getTextSize(sample, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+    step = ch + base + 8
+    chars = max(20, int((width - 16) * len(sample) / sw))
+    legend = (("mask", "mask-fit quad"), ("snapped", "snapped quad"), ("reprojected", "exported window (3D)"),
+              ("flagged", "flagged: not exported"), ("failed", "failed"))
+    lines = _panel_lines(results, exclude, header, chars)
+    panel = np.full((max(height, step * (len(legend) + len(lines) + 2)), width, 3), 30, np.uint8)
+    y = step
+    for name, label in legend:
+        cv2.rectangle(panel, (8, y - ch), (8 + ch, y), COLOURS[name], cv2.FILLED)
+        _text(panel, label, (16 + ch, y), (235, 235, 235), scale)
+        y += step
+    for text, colour in lines:
+        y += step
+        if text:
+            _text(panel, text, (8, y), colour, scale)
+    return panel
+
+
+def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], exclude: dict[int, str] | None = None,
+                 boxes: dict[int, tuple] | None = None, header: list[str] | None = None) -> np.ndarray:
+    """(H', W + panel, 3) uint8 RGB (H' >= H: taller when the panel needs it; the photo stays at the
+    top left, pixel for pixel): a copy of the RGB ``image`` with every result drawn where it is
+    (its quads, its reprojected 3D window, its number), and a side panel on the right with the
+    legend, ``header`` lines (e.g. the intrinsics' source) and each window's status and reason.
+
+    exclude: {index: reason} of windows not exported (drawn in the "flagged" colour); boxes:
+    {index: (x0, y0, x1, y1) px} of detections, drawn for failed windows without a quad.
+    """
+    img = check_image(image).copy()
+    K = check_K(K)
+    exclude, boxes = exclude or {}, boxes or {}
+    H, W = img.shape[:2]
+    thick = max(1, int(round(min(H, W) / 400)))
+    scale = max(0.4, min(H, W) / 1600)
+    for r in results:
+        kind, _ = _status(r, exclude)
+        if r.quad_mask is not None:
+            _poly(img, r.quad_mask, COLOURS["mask"], thick)
+        if r.quad_snapped is not None:
+            _poly(img, np.asarray(r.quad_snapped, dtype=np.float64), COLOURS["snapped"] if kind == "exported"
+                  else COLOURS[kind], thick + (kind != "exported"))
+        elif r.quad_mask is None and r.index in boxes:
+            x0, y0, x1, y1 = boxes[r.index]
+            _poly(img, np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64), COLOURS["failed"], thick)
+        if kind == "exported":
+            _draw_3d(img, K, r, thick)
+        anchor = next((np.asarray(q, dtype=np.float64).min(axis=0) for q in (r.quad_snapped, r.quad_mask)
+                       if q is not None), np.asarray(boxes.get(r.index, (10.0, 30.0 + 20 * r.index))[:2], dtype=np.float64))
+        _text(img, f"#{r.index}", anchor + [2, -4], COLOURS[kind], scale)
+    panel = _panel(H, max(360, int(0.4 * W)), results, exclude, header or [], scale)
+    if panel.shape[0] > H:  # a long list: the photo gets a dark band below it
+        img = np.concatenate([img, np.full((panel.shape[0] - H, W, 3), 30, np.uint8)])
+    return np.concatenate([img, panel], axis=1)

@@ -1,0 +1,224 @@
+"""From per-window results to a façade model: one wall per façade plane, one scale per wall, and
+the windows a BIM should not get (issue 24 items 3 and 4).
+
+    results, model = facade_model(results, Known(window_height_m=1.4))
+    model.walls      # WallModel per wall: members, normal, scale and where it came from
+    model.flags      # {window index: [reasons]}: implausible windows (not exported by default)
+
+Scale. A single photo fixes a window only up to a factor along its viewing ray; the wall fit gives
+every window the same height (the scale parameter), so the windows of one flat façade end up at
+different depths. Here every window of a wall is moved along its ray onto the wall's one plane
+(the plane of the wall's rotation through the windows' centres, which is a similarity about the
+camera centre: the reprojection does not change), and the plane's distance is set once per wall
+from what the user knows (:class:`Known`), else from DEFAULT_WINDOW_HEIGHT_M, flagged "assumed".
+
+Walls. Walls whose rotations agree within MERGE_DEG (the same vanishing points; LONE_TOL_DEG for a
+one-window wall) are merged into one wall: one façade plane.
+
+Plausibility. A window is flagged (with a reason) when its aspect ratio is outside ASPECT_RANGE,
+when its shape or size disagrees with its wall's windows (ratio to the wall's median beyond
+WALL_RATIO), when it is behind the wall's plane, or when it stands alone in a plane of its own
+while the façade has a wall of several windows (a right-angled side wall shows several). Flagged windows keep their geometry; their intervals
+widen by FLAG_WIDEN.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from fenestra.conventions import rotation_error_deg
+from fenestra.pipeline.types import WindowResult
+
+DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
+MERGE_DEG = 5.0  # walls whose rotations differ by less are one façade plane
+ASPECT_RANGE = (0.2, 4.0)  # w/h of any window: 99.8 % of the 4552 labelled window boxes of spb_facades/train
+WALL_RATIO = 2.5  # a window's w/h or height more than this factor off its wall's median
+LONE_TOL_DEG = 10.0  # a one-window wall within this of a larger wall joins it (one quad's rotation is noisier)
+FLAG_WIDEN = 3.0  # a flagged window's 90 % intervals are this many times wider
+
+
+@dataclass(frozen=True)
+class Known:
+    """What the user knows that sets the scale (at most one): window_width_m / window_height_m of a
+    typical window (each wall's median window gets it), storey_m (floor-to-floor height: each
+    wall's median vertical pitch between window rows)."""
+
+    window_width_m: float | None = None
+    window_height_m: float | None = None
+    storey_m: float | None = None
+
+    def __post_init__(self) -> None:
+        given = {k: v for k, v in vars(self).items() if v is not None}
+        if len(given) > 1:
+            raise ValueError(f"give at most one known size, got {given}")
+        for k, v in given.items():
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{k} must be a positive length in m, got {v}")
+
+
+@dataclass(frozen=True)
+class WallModel:
+    """One façade plane: id, members (window indices), normal (3,) camera frame (the window z axis,
+    outward), distance_m (of the plane from the camera), scale_source (how its size was set),
+    assumed (True when from the default), merged_from (the wall fit's wall ids it joins)."""
+
+    id: int
+    members: tuple[int, ...]
+    normal: np.ndarray
+    distance_m: float
+    scale_source: str
+    assumed: bool
+    merged_from: tuple[int, ...]
+
+    def to_json(self) -> dict:
+        return {"id": self.id, "members": list(self.members), "normal": self.normal.tolist(),
+                "distance_m": self.distance_m, "scale_source": self.scale_source, "assumed": self.assumed,
+                "merged_from": list(self.merged_from)}
+
+
+@dataclass(frozen=True)
+class FacadeModel:
+    """walls: list of WallModel; flags: {window index: [reasons]} (implausible windows)."""
+
+    walls: list
+    flags: dict
+
+    def wall_of(self, index: int) -> WallModel | None:
+        return next((w for w in self.walls if index in w.members), None)
+
+
+def _posed(r: WindowResult) -> bool:
+    return r.failure is None and r.R is not None and r.t is not None and r.aspect_ratio is not None
+
+
+def _centre(r: WindowResult) -> np.ndarray:
+    """The window's centre (3,) in the camera frame, m."""
+    h = float(r.height_m)
+    return np.asarray(r.t, dtype=np.float64).reshape(3) + np.asarray(r.R) @ np.array([r.aspect_ratio * h / 2, h / 2, 0.0])
+
+
+def merge_groups(results: list[WindowResult], tol_deg: float = MERGE_DEG,
+                 lone_tol_deg: float = LONE_TOL_DEG) -> list[tuple[tuple[int, ...], tuple]]:
+    """Posed windows grouped into façade planes: [(members, merged wall-fit ids)], largest first.
+
+    Windows of one wall fit start together; a window without a wall (a per-window strategy) is its
+    own start. Groups whose rotations (their largest member's) agree within tol_deg merge; a
+    one-window group (its rotation from one quad: noisier) within lone_tol_deg.
+    """
+    starts: dict = {}
+    for k, r in enumerate(results):
+        if _posed(r):
+            starts.setdefault(("wall", r.wall) if r.wall is not None else ("window", k), []).append(k)
+    groups: list[tuple[list[int], list, np.ndarray]] = []
+    for key, members in sorted(starts.items(), key=lambda kv: -len(kv[1])):
+        R = np.asarray(results[members[0]].R)
+        tol = lone_tol_deg if len(members) == 1 else tol_deg
+        for g in groups:
+            if rotation_error_deg(g[2], R) <= tol:
+                g[0].extend(members)
+                g[1].append(key[1] if key[0] == "wall" else None)
+                break
+        else:
+            groups.append((list(members), [key[1] if key[0] == "wall" else None], R))
+    return [(tuple(sorted(m)), tuple(x for x in ids if x is not None)) for m, ids, _ in groups]
+
+
+def _rows_pitch(heights_up: np.ndarray, window_h: np.ndarray) -> float | None:
+    """Median vertical pitch between window rows (same unit as the inputs), or None with < 2 rows.
+    heights_up: the windows' bottom edges along the wall's up axis; rows split at gaps above half
+    the median window height."""
+    y = np.sort(heights_up)
+    if len(y) < 2:
+        return None
+    cut = np.flatnonzero(np.diff(y) > 0.5 * float(np.median(window_h))) + 1
+    rows = [float(np.mean(part)) for part in np.split(y, cut)]
+    return float(np.median(np.diff(rows))) if len(rows) >= 2 else None
+
+
+def wall_scale(results: list[WindowResult], members: tuple[int, ...], offsets: np.ndarray, up: np.ndarray,
+               known: Known) -> tuple[float, str, bool]:
+    """(distance of the plane from the camera in m, scale source, assumed) for one wall whose
+    members sit at plane offsets ``offsets`` (their |n . centre|, m at the fit's scale); up (3,): the
+    wall's up axis in the camera frame."""
+    h = np.array([float(results[k].height_m) for k in members]) / offsets  # height per unit distance
+    w = h * np.array([float(results[k].aspect_ratio) for k in members])
+    if known.window_width_m is not None:
+        return known.window_width_m / float(np.median(w)), f"known window width {known.window_width_m:g} m", False
+    if known.window_height_m is not None:
+        return known.window_height_m / float(np.median(h)), f"known window height {known.window_height_m:g} m", False
+    if known.storey_m is not None:
+        bottoms = np.array([float(up @ np.asarray(results[k].t).reshape(3)) for k in members]) / offsets
+        pitch = _rows_pitch(bottoms, h)
+        if pitch:
+            return known.storey_m / pitch, f"known storey height {known.storey_m:g} m", False
+    why = "" if known.storey_m is None else " (storey height given but the wall shows < 2 window rows)"
+    return (DEFAULT_WINDOW_HEIGHT_M / float(np.median(h)),
+            f"assumed: median window height {DEFAULT_WINDOW_HEIGHT_M:g} m{why}", True)
+
+
+def _rescaled(r: WindowResult, s: float) -> WindowResult:
+    """The window scaled by s about the camera centre (same image, s times the size and distance)."""
+    return replace(r, t=np.asarray(r.t, dtype=np.float64) * s, height_m=float(r.height_m) * s)
+
+
+def _widened(unc: dict | None, factor: float = FLAG_WIDEN) -> dict | None:
+    if unc is None:
+        return None
+    a = 0.5 * (unc["aspect_lo"] + unc["aspect_hi"])
+    half = 0.5 * (unc["aspect_hi"] - unc["aspect_lo"]) * factor
+    return {**unc, "aspect_sd": unc["aspect_sd"] * factor, "aspect_lo": a - half, "aspect_hi": a + half,
+            "rot_deg": unc["rot_deg"] * factor, "trans_rel": unc["trans_rel"] * factor, "widened": factor}
+
+
+def plausibility(results: list[WindowResult], walls: list[WallModel]) -> dict[int, list[str]]:
+    """{window index: reasons} for the posed windows that should not become BIM windows."""
+    flags: dict[int, list[str]] = {}
+    main = walls[0] if walls else None
+    for wall in walls:
+        a = np.array([float(results[k].aspect_ratio) for k in wall.members])
+        h = np.array([float(results[k].height_m) for k in wall.members])
+        for k, ak, hk in zip(wall.members, a, h):
+            why = []
+            if not ASPECT_RANGE[0] <= ak <= ASPECT_RANGE[1]:
+                why.append(f"shape: w/h {ak:.3g} outside {ASPECT_RANGE[0]:g}-{ASPECT_RANGE[1]:g}")
+            if len(wall.members) >= 3:
+                ma, mh = float(np.median(a)), float(np.median(h))
+                if max(ak / ma, ma / ak) > WALL_RATIO:
+                    why.append(f"shape: w/h {ak:.3g} vs its wall's median {ma:.3g}")
+                if max(hk / mh, mh / hk) > WALL_RATIO:
+                    why.append(f"size: height {hk:.3g} m vs its wall's median {mh:.3g} m")
+            if len(wall.members) == 1 and main is not None and wall is not main and len(main.members) >= 2:
+                ang = float(np.degrees(np.arccos(np.clip(abs(wall.normal @ main.normal), 0.0, 1.0))))
+                why.append(f"plane: a lone window at {ang:.0f} deg to the facade (no other window in its plane)")
+            if why:
+                flags[k] = why
+    return flags
+
+
+def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[list[WindowResult], FacadeModel]:
+    """One plane and one scale per wall, then the plausibility flags (see the module docstring).
+
+    Returns the results moved onto their walls' planes and scaled (``wall``: the merged wall id;
+    flagged windows' ``uncertainty`` widened by FLAG_WIDEN) and the FacadeModel. Failed windows pass
+    unchanged.
+    """
+    out = list(results)
+    walls = []
+    for wid, (members, merged) in enumerate(merge_groups(results)):
+        R = np.asarray(results[members[0]].R, dtype=np.float64)
+        n = R[:, 2]
+        offsets = np.abs([float(n @ _centre(results[k])) for k in members])  # facing: n . centre < 0
+        dist, source, assumed = wall_scale(results, members, np.maximum(offsets, 1e-9), R[:, 1], known)
+        for k, off in zip(members, offsets):
+            out[k] = replace(_rescaled(results[k], dist / max(off, 1e-9)), wall=wid)
+        walls.append(WallModel(wid, members, n, dist, source, assumed, merged))
+    flags = plausibility(out, walls)
+    for wall in walls:
+        R = np.asarray(out[wall.members[0]].R)
+        for k in wall.members:
+            if float(R[:, 2] @ _centre(out[k])) >= 0:
+                flags.setdefault(k, []).append("plane: behind the camera side of its wall")
+    for k in flags:
+        out[k] = replace(out[k], uncertainty=_widened(out[k].uncertainty))
+    return out, FacadeModel(walls, flags)

@@ -1,0 +1,337 @@
+"""Intrinsics when the user gives none: a ranked chain of focal sources, or chessboard photos.
+
+The chain used by ``fenestra reconstruct`` / ``pipeline.reconstruct_photo`` (:func:`resolve_K`),
+first usable source wins; every source that gave a value is kept, and two whose intervals do not
+overlap give a warning naming both values:
+
+1. ``K``: the user's K (--K K.json or --fx), interval = the value itself (taken as exact).
+2. ``exif``: FocalLengthIn35mmFilm (f_px = f35 / 36 mm * max(W, H)), else FocalLength (mm) with
+   FocalPlaneXResolution (px per unit of FocalPlaneResolutionUnit), rescaled from the EXIF
+   PixelX/YDimension to the photo's size when they are given. Rationals and (num, den) tuples are
+   read as numbers. Interval: +- EXIF_REL_INTERVAL (nominal focal lengths, focus breathing).
+3. ``vanishing points``: the focal length from the walls' two orthogonal vanishing directions,
+   refined over all their windows' corners and, with a ``+lines`` strategy, the façade's own line
+   segments (pipeline.walls.focal_from_walls); principal point at the image centre, square pixels.
+   Interval: f +- 1.645 sd (90 %) x VP_INTERVAL_INFLATION (the fit's sd understates the spread measured
+   on real street photos re-encoded, mirrored or cropped). Not used when its field of view is outside
+   PLAUSIBLE_FOV_DEG or its interval is wider than +- VP_MAX_REL_HALF_WIDTH.
+4. ``prior``: a typical phone camera, PRIOR_FOV_DEG horizontal field of view along the photo's long
+   side, with the wide interval PRIOR_FOV_RANGE_DEG. Always available: the chain never fails.
+
+:func:`calibrate_chessboard` is the paper's calibration step (OpenCV): K and distortion from
+photos of a chessboard, with the RMS reprojection error; :func:`calibration_json` writes the
+K.json that ``--K`` reads.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from fenestra.errors import PipelineError
+
+if TYPE_CHECKING:  # annotations only; pipeline.walls is imported lazily below
+    from fenestra.pipeline.segments import SegmentCache
+    from fenestra.pipeline.walls import WallParams
+
+FULL_FRAME_WIDTH_MM = 36.0  # the 35 mm-equivalent focal length refers to a 36 x 24 mm frame
+EXIF_IFD = 0x8769
+TAG_FOCAL = 0x920A
+TAG_FOCAL_35 = 0xA405
+TAG_PLANE_XRES = 0xA20E
+TAG_PLANE_UNIT = 0xA210
+TAG_PIXEL_X = 0xA002
+TAG_PIXEL_Y = 0xA003
+PLANE_UNIT_MM = {2: 25.4, 3: 10.0, 4: 1.0}  # inch, cm, mm
+
+
+def centred_K(focal_px: float, image_size: tuple[int, int]) -> np.ndarray:
+    """Square-pixel K (3, 3) with focal ``focal_px`` and the principal point at the centre of an
+    image of ``image_size`` (W, H) px."""
+    W, H = image_size
+    if not (np.isfinite(focal_px) and focal_px > 0):
+        raise PipelineError(f"focal length must be positive, got {focal_px}")
+    return np.array([[focal_px, 0.0, (W - 1) / 2.0], [0.0, focal_px, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+def exif_number(value) -> float | None:
+    """An EXIF value as a positive finite float, or None: numbers, PIL's IFDRational, (num, den)
+    tuples (a rational as some writers store it; den 0 gives None) and one-element sequences."""
+    if isinstance(value, (tuple, list)):
+        if len(value) == 2:
+            try:
+                num, den = float(value[0]), float(value[1])
+            except (TypeError, ValueError):
+                return None
+            return exif_number(num / den) if den else None
+        return exif_number(value[0]) if len(value) == 1 else None
+    try:
+        v = float(value)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return None
+    return v if np.isfinite(v) and v > 0 else None
+
+
+def focal_from_exif_tags(tags: dict, image_size: tuple[int, int]) -> tuple[float, str] | None:
+    """(focal px, how) from EXIF tags {tag id: value}, or None if they do not give it.
+
+    tags: FocalLengthIn35mmFilm (0xA405, mm), FocalLength (0x920A, mm), FocalPlaneXResolution
+    (0xA20E, px per unit), FocalPlaneResolutionUnit (0xA210: 2 inch, 3 cm, 4 mm), PixelXDimension /
+    PixelYDimension (0xA002 / 0xA003: the size the focal-plane resolution refers to, else the
+    photo's). Values may be numbers, rationals or (num, den) tuples. image_size (W, H).
+    """
+    W, H = image_size
+    f35 = exif_number(tags.get(TAG_FOCAL_35))
+    if f35:
+        return f35 / FULL_FRAME_WIDTH_MM * max(W, H), f"exif FocalLengthIn35mmFilm {f35:g} mm"
+    f_mm, xres = exif_number(tags.get(TAG_FOCAL)), exif_number(tags.get(TAG_PLANE_XRES))
+    unit = PLANE_UNIT_MM.get(int(exif_number(tags.get(TAG_PLANE_UNIT)) or 2))
+    if f_mm and xres and unit:
+        px_per_mm = xres / unit
+        dims = [exif_number(tags.get(t)) for t in (TAG_PIXEL_X, TAG_PIXEL_Y)]
+        rescale = max(W, H) / max(dims) if all(dims) else 1.0
+        how = f"exif FocalLength {f_mm:g} mm x FocalPlaneXResolution {px_per_mm:g} px/mm"
+        return f_mm * px_per_mm * rescale, how + (f" x {rescale:.4g} (photo resized)" if rescale != 1.0 else "")
+    return None
+
+
+def read_exif_tags(path: str | Path) -> dict:
+    """{tag id: value} of a photo's EXIF (main IFD and the Exif sub-IFD); {} if it has none."""
+    from PIL import Image  # noqa: PLC0415
+
+    from fenestra.pipeline.io import pil_open  # noqa: PLC0415
+
+    try:
+        with pil_open(path) as im:
+            exif = im.getexif()
+            tags = dict(exif)
+            tags.update(exif.get_ifd(EXIF_IFD))
+    except (OSError, ValueError, Image.DecompressionBombError):
+        return {}
+    return tags
+
+
+def focal_from_exif(path: str | Path, image_size: tuple[int, int]) -> tuple[float, str] | None:
+    """(focal px, how) from the photo file's EXIF, or None. Note: FocalPlaneXResolution refers to
+    the sensor's full resolution; it is used as is (photos resized after capture give a wrong f)."""
+    return focal_from_exif_tags(read_exif_tags(path), image_size)
+
+
+EXIF_REL_INTERVAL = 0.05  # EXIF focal lengths are nominal: +- 5 %
+Z90 = 1.6449  # two-sided 90 % normal quantile (vanishing-point interval)
+PRIOR_FOV_DEG = 65.0  # a typical phone's horizontal field of view (along the long side)
+PRIOR_FOV_RANGE_DEG = (40.0, 90.0)  # the prior's wide interval (tele-ish to ultra-wide-ish)
+PLAUSIBLE_FOV_DEG = (30.0, 100.0)  # a vanishing-point focal length outside is not used (phone: 2-3x tele .. wide)
+VP_INTERVAL_INFLATION = 3.0  # the fit's 90 % interval x 3: measured spread under re-encoding/mirroring/cropping
+VP_MAX_REL_HALF_WIDTH = 0.15  # a vanishing-point estimate vaguer than +- 15 % (inflated) is not used
+
+
+def focal_from_fov(fov_deg: float, image_size: tuple[int, int]) -> float:
+    """Focal length (px) giving a field of view ``fov_deg`` along the long side of a (W, H) image."""
+    return max(image_size) / 2.0 / np.tan(np.radians(fov_deg) / 2.0)
+
+
+def fov_from_focal(focal_px: float, image_size: tuple[int, int]) -> float:
+    """Field of view (deg) along the long side of a (W, H) image for a focal length (px)."""
+    return float(np.degrees(2.0 * np.arctan(max(image_size) / 2.0 / focal_px)))
+
+
+@dataclass(frozen=True)
+class FocalEstimate:
+    """One source's focal length: source "K" | "exif" | "vanishing points" | "prior"; focal_px;
+    interval_px (lo, hi) px (90 % for vanishing points, stated ranges otherwise); detail: how."""
+
+    source: str
+    focal_px: float
+    interval_px: tuple[float, float]
+    detail: str
+
+    def overlaps(self, other: "FocalEstimate") -> bool:
+        """Whether the two intervals share a value."""
+        return self.interval_px[0] <= other.interval_px[1] and other.interval_px[0] <= self.interval_px[1]
+
+    def to_json(self) -> dict:
+        return {"source": self.source, "focal_px": self.focal_px, "interval_px": list(self.interval_px),
+                "detail": self.detail}
+
+
+def user_focal(K: np.ndarray, how: str) -> FocalEstimate:
+    """The user's K as a chain entry (interval: the value itself)."""
+    f = float(K[0, 0])
+    return FocalEstimate("K", f, (f, f), how)
+
+
+def exif_focal(photo: str | Path, image_size: tuple[int, int]) -> FocalEstimate | None:
+    """The photo's EXIF focal length (:func:`focal_from_exif`) +- EXIF_REL_INTERVAL, or None."""
+    found = focal_from_exif(photo, image_size)
+    if found is None:
+        return None
+    f, how = found
+    return FocalEstimate("exif", f, (f * (1 - EXIF_REL_INTERVAL), f * (1 + EXIF_REL_INTERVAL)), how)
+
+
+def prior_focal(image_size: tuple[int, int]) -> FocalEstimate:
+    """The stated prior: PRIOR_FOV_DEG along the long side, interval from PRIOR_FOV_RANGE_DEG."""
+    lo, hi = (focal_from_fov(a, image_size) for a in PRIOR_FOV_RANGE_DEG[::-1])
+    return FocalEstimate("prior", focal_from_fov(PRIOR_FOV_DEG, image_size), (lo, hi),
+                         f"assumed: a typical phone camera, {PRIOR_FOV_DEG:g} deg field of view along the long side "
+                         f"({PRIOR_FOV_RANGE_DEG[0]:g}-{PRIOR_FOV_RANGE_DEG[1]:g} deg)")
+
+
+def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallParams | None = None,
+                    segment_cache: SegmentCache | None = None) -> FocalEstimate | str:
+    """The façade's vanishing-point focal length (pipeline.walls.focal_from_walls) from snapped
+    window quads (N, 4, 2) px, or why there is none (unobservable, or an implausible field of view)."""
+    from fenestra.pipeline.walls import WallParams, focal_from_walls  # noqa: PLC0415
+
+    W, H = image_size
+    if not len(quads):
+        return "no window quads"
+    try:
+        f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), segment_cache)
+    except PipelineError as e:
+        return str(e)
+    if not (np.isfinite(f) and f > 0 and np.isfinite(sd)):
+        return f"focal length {f} +- {sd} px"
+    fov = fov_from_focal(f, image_size)
+    if not PLAUSIBLE_FOV_DEG[0] <= fov <= PLAUSIBLE_FOV_DEG[1]:
+        return (f"f = {f:.0f} px is a {fov:.0f} deg field of view, outside the plausible "
+                f"{PLAUSIBLE_FOV_DEG[0]:g}-{PLAUSIBLE_FOV_DEG[1]:g} deg")
+    half = VP_INTERVAL_INFLATION * Z90 * sd
+    if half > VP_MAX_REL_HALF_WIDTH * f:
+        return (f"f = {f:.0f} +- {half:.0f} px (90 %, x{VP_INTERVAL_INFLATION:g} measured inflation) is vaguer than "
+                f"+- {100 * VP_MAX_REL_HALF_WIDTH:.0f} %")
+    lines = " and the facade line segments" if wall is not None and wall.lines else ""
+    return FocalEstimate("vanishing points", f, (max(f - half, 1e-6), f + half),
+                         f"f = {f:.1f} +- {sd:.1f} px (sd) from {len(quads)} window(s){lines}, principal point at the "
+                         f"image centre; interval: 90 % x{VP_INTERVAL_INFLATION:g}")
+
+
+@dataclass(frozen=True)
+class ResolvedK:
+    """K (3, 3) from the first usable focal source (:class:`FocalEstimate` ``chosen``), every
+    source that gave a value (``estimates``, in rank order), the sources that gave none with why
+    (``unavailable``: {source: reason}), and warnings where two sources' intervals do not overlap."""
+
+    K: np.ndarray
+    chosen: FocalEstimate
+    estimates: tuple[FocalEstimate, ...]
+    unavailable: dict
+    warnings: tuple[str, ...]
+
+    @property
+    def source(self) -> str:
+        return self.chosen.source
+
+    @property
+    def detail(self) -> str:
+        return self.chosen.detail
+
+    def to_json(self) -> dict:
+        """windows.json's ``K_source``: source, detail, focal_px, interval_px, candidates, unavailable."""
+        return {**self.chosen.to_json(), "candidates": [e.to_json() for e in self.estimates],
+                "unavailable": dict(self.unavailable)}
+
+
+def disagreements(estimates: list[FocalEstimate]) -> list[str]:
+    """A warning for each pair of measured sources (not the prior) whose intervals do not overlap."""
+    measured = [e for e in estimates if e.source != "prior"]
+    return [f"focal sources disagree: {a.source} {a.focal_px:.0f} px [{a.interval_px[0]:.0f}, {a.interval_px[1]:.0f}] "
+            f"vs {b.source} {b.focal_px:.0f} px [{b.interval_px[0]:.0f}, {b.interval_px[1]:.0f}]; using {measured[0].source}"
+            for i, a in enumerate(measured) for b in measured[i + 1:] if not a.overlaps(b)]
+
+
+def choose_focal(ranked: list[FocalEstimate | str | None], names: list[str], image_size: tuple[int, int],
+                 principal_point: tuple[float, float] | None = None) -> ResolvedK:
+    """The chain's answer: ``ranked`` holds each source's estimate, or why it has none (str, or
+    None for "not given"), in rank order, named by ``names``; the prior closes the chain.
+    principal_point (cx, cy) px: kept from the user's K, else the image centre."""
+    estimates = [e for e in ranked if isinstance(e, FocalEstimate)] + [prior_focal(image_size)]
+    unavailable = {n: e for n, e in zip(names, ranked) if isinstance(e, str)}
+    chosen = estimates[0]
+    K = centred_K(chosen.focal_px, image_size)
+    if principal_point is not None:
+        K[0, 2], K[1, 2] = principal_point
+    return ResolvedK(K, chosen, tuple(estimates), unavailable, tuple(disagreements(estimates)))
+
+
+def resolve_K(photo: str | Path, quads: np.ndarray, image_size: tuple[int, int],
+              wall: WallParams | None = None, segment_cache: SegmentCache | None = None) -> ResolvedK:
+    """Intrinsics for a photo without --K: EXIF, then the façade's vanishing points, then the prior
+    (never fails). Both measured sources are computed so that a disagreement can be reported.
+
+    quads: (N, 4, 2) px snapped window quads of the photo; image_size (W, H); wall: the per-wall
+    strategy's parameters (default ``WallParams()``; with ``lines`` the photo's façade segments join
+    the focal fit, which needs segment_cache, the photo's pipeline.segments.SegmentCache).
+    """
+    exif = exif_focal(photo, image_size)
+    vp = vanishing_focal(quads, image_size, wall, segment_cache)
+    return choose_focal([exif if exif is not None else "no EXIF focal length", vp], ["exif", "vanishing points"],
+                        image_size)
+
+
+# ------------------------------------------------------------------ chessboard calibration
+
+@dataclass(frozen=True)
+class Calibration:
+    """K (3, 3), distortion (5,) OpenCV k1 k2 p1 p2 k3, rms_px: RMS reprojection error over all
+    corners; image_size (W, H); n_images: photos where the board was found, of n_given."""
+
+    K: np.ndarray
+    distortion: np.ndarray
+    rms_px: float
+    image_size: tuple[int, int]
+    n_images: int
+    n_given: int
+
+
+def board_points(pattern: tuple[int, int], square_m: float) -> np.ndarray:
+    """(cols*rows, 3) inner-corner coordinates (m) of a chessboard, z = 0, OpenCV's row-major order."""
+    cols, rows = pattern
+    g = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2)
+    return np.hstack([g * float(square_m), np.zeros((len(g), 1))]).astype(np.float32)
+
+
+def find_corners(gray: np.ndarray, pattern: tuple[int, int]) -> np.ndarray | None:
+    """Sub-pixel inner corners (cols*rows, 2) px of a chessboard in a uint8 gray image, or None."""
+    ok, c = cv2.findChessboardCorners(gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if not ok:
+        return None
+    c = cv2.cornerSubPix(gray, c, (5, 5), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4))
+    return c.reshape(-1, 2)
+
+
+def calibrate_chessboard(images: list[np.ndarray], pattern: tuple[int, int], square_m: float = 1.0,
+                         fix_aspect: bool = False) -> Calibration:
+    """Calibrate from chessboard photos (uint8 gray or RGB, one size) with ``pattern`` = inner
+    corners (cols, rows). Needs the board in >= 3 photos; PipelineError otherwise."""
+    if len(pattern) != 2 or min(pattern) < 2:
+        raise PipelineError(f"pattern must be (cols, rows) inner corners >= 2, got {pattern}")
+    sizes = {im.shape[:2] for im in images}
+    if len(sizes) != 1:
+        raise PipelineError(f"calibration photos must share one size, got {sorted(sizes)}")
+    H, W = sizes.pop()
+    obj, img = [], []
+    for im in images:
+        gray = im if im.ndim == 2 else cv2.cvtColor(im, cv2.COLOR_RGB2GRAY)
+        c = find_corners(gray, pattern)
+        if c is not None:
+            obj.append(board_points(pattern, square_m))
+            img.append(c.astype(np.float32))
+    if len(img) < 3:
+        raise PipelineError(f"chessboard {pattern[0]}x{pattern[1]} found in {len(img)} of {len(images)} photos; need >= 3")
+    flags = cv2.CALIB_FIX_ASPECT_RATIO if fix_aspect else 0
+    rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, (W, H), None, None, flags=flags)
+    return Calibration(K=np.asarray(K, dtype=np.float64), distortion=np.asarray(dist, dtype=np.float64).ravel()[:5],
+                       rms_px=float(rms), image_size=(W, H), n_images=len(img), n_given=len(images))
+
+
+def calibration_json(cal: Calibration) -> dict:
+    """The K.json document ``--K`` reads (pipeline.io.read_camera), with the calibration's quality."""
+    W, H = cal.image_size
+    return {"K": cal.K.tolist(), "distortion": cal.distortion.tolist(), "width": W, "height": H,
+            "reprojection_rms_px": cal.rms_px, "n_images": cal.n_images, "n_given": cal.n_given,
+            "source": "fenestra calibrate (OpenCV chessboard calibration)"}

@@ -1,0 +1,394 @@
+"""Exact window-void ground truth from IFC: the opening's outline on the host wall's exterior face.
+
+For every ``IfcWindow`` that fills an ``IfcOpeningElement`` (``IfcRelFillsElement``) which voids a
+wall (``IfcRelVoidsElement``; ``IfcWall`` and subtypes, ``IfcCurtainWall``):
+
+1. Wall normal axis ``n`` (horizontal unit vector): among the opening's own horizontal face
+   directions (an opening is a prism through the wall), the one along which the host wall's mesh
+   has the most face area. A straight wall's two faces dwarf its reveals and end faces.
+2. The two face planes: the host wall's triangles with normal +n / -n that touch the opening's
+   lateral extent; their outermost offsets along n are the two faces the opening passes through.
+3. Exterior side (the rule, tested in tests/test_scenes_ground_truth.py): from a point just off
+   each face, at the void's centre, cast a fixed fan of rays over the hemisphere on that side
+   (upward-biased: never below -10 deg, so terrain/ground does not count) against every mesh of
+   the building except the site. The side from which more rays escape to infinity is outside.
+   Interior faces see walls, floors, ceilings, glazing in every direction; exterior faces see the
+   sky. If the two escape fractions differ by less than ``MIN_ESCAPE_MARGIN`` the window is skipped
+   with that reason rather than guessed.
+4. The void outline: the opening mesh sectioned by the exterior face plane (1e-5 m inside when the
+   opening's cap lies exactly on that face: openings are prisms along n, so the projection onto the
+   face is exact). 2-D coordinates on the face: x = up x n (to the right seen from outside),
+   y = world z. A 4-vertex outline with right angles is a rectangle and its own vertices are the
+   corners; anything else (FZK-Haus's round gable windows) gets its bounding rectangle and
+   ``shape="non_rectangular"``.
+
+5. ``notes`` names any other opening of the same wall that overlaps the void (the visible hole is
+   then their union: NiedriHa's Wind-074 and its neighbouring door, by 2.9 mm).
+
+Windows hosted elsewhere (a roof or slab: the Duplex skylights) or whose geometry does not fit the
+above go to ``Scene.skipped`` with the reason; none is dropped silently.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fenestra.scenes.model import ElementMesh, SkippedWindow, WindowGT
+
+WALL_CLASSES: tuple[str, ...] = ("IfcWall", "IfcCurtainWall")  # is_a() includes subtypes
+MIN_ESCAPE_MARGIN = 0.1  # exterior side needs this many more escaping rays (fraction)
+N_RAYS = 48
+RAY_OFFSET_M = 0.02
+CAP_INSET_M = 1e-5
+RIGHT_ANGLE_DEG = 0.01
+EZ = np.array([0.0, 0.0, 1.0])
+
+
+class VoidGeometryError(Exception):
+    """The void cannot be measured for this window; the message is the skip reason."""
+
+
+@dataclass(frozen=True)
+class VoidGeometry:
+    """Result of :func:`void_on_wall`. corners (4, 3) m TL TR BR BL; normal (3,) outward unit."""
+
+    corners: np.ndarray
+    normal: np.ndarray
+    width: float
+    height: float
+    shape: str
+    outline: np.ndarray  # (K, 3) m, the void outline on the exterior face
+    escape_out: float  # fraction of rays escaping from the exterior face
+    escape_in: float  # ... from the interior face
+
+
+# --------------------------------------------------------------------------- mesh helpers
+def triangle_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals (M, 3) and areas (M,) m^2 of triangles; degenerate triangles get normal 0."""
+    tri = vertices[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(cross, axis=1)
+    safe = np.where(norm > 0, norm, 1.0)
+    return cross / safe[:, None], 0.5 * norm
+
+
+def face_axes(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """In-plane axes of a vertical face with outward ``normal``: x = up x normal (right, seen from
+    outside), y = world up."""
+    x = np.cross(EZ, normal)
+    return x / np.linalg.norm(x), EZ.copy()
+
+
+def wall_normal_axis(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
+                     wall_faces: np.ndarray) -> np.ndarray:
+    """Horizontal unit normal axis (3,) of the host wall at the opening (sign arbitrary).
+
+    Candidates are the opening's own horizontal face directions (an opening is a prism through
+    the wall, so the wall normal is one of them); the winner is the one along which the host wall
+    has the most face area. Raises VoidGeometryError when no candidate is parallel to a wall face.
+    """
+    op_n, op_a = triangle_normals(op_vertices, op_faces)
+    w_n, w_a = triangle_normals(wall_vertices, wall_faces)
+    cand = op_n[(np.abs(op_n[:, 2]) < 1e-6) & (op_a > 1e-9)]
+    best, best_area = None, 0.0
+    tried: list[np.ndarray] = []
+    for c in cand:
+        c = c / np.linalg.norm(c)
+        if any(abs(c @ t) > 1 - 1e-9 for t in tried):
+            continue
+        tried.append(c)
+        area = float(w_a[np.abs(w_n @ c) > 1 - 1e-9].sum())
+        if area > best_area:
+            best, best_area = c, area
+    if best is None:
+        raise VoidGeometryError("no vertical face of the opening is parallel to a host wall face")
+    best = best.copy()
+    best[2] = 0.0
+    return best / np.linalg.norm(best)
+
+
+def face_offsets(axis: np.ndarray, op_vertices: np.ndarray, wall_vertices: np.ndarray,
+                 wall_faces: np.ndarray) -> tuple[float, float]:
+    """Offsets (m, along ``axis``) of the wall's two face planes where the opening passes.
+
+    Uses wall triangles with normal +-axis having a vertex inside the opening's lateral extent
+    (x along the wall, z), expanded by 1 mm. Returns (d_minus, d_plus), d_minus < d_plus.
+    """
+    normals, areas = triangle_normals(wall_vertices, wall_faces)
+    x_ax = np.cross(EZ, axis)
+    tri = wall_vertices[wall_faces]  # (M, 3, 3)
+    tx, tz = tri @ x_ax, tri[..., 2]
+    ox, oz = op_vertices @ x_ax, op_vertices[:, 2]
+    pad = 1e-3
+    inside = ((tx >= ox.min() - pad) & (tx <= ox.max() + pad)
+              & (tz >= oz.min() - pad) & (tz <= oz.max() + pad)).any(axis=1)
+    dots = normals @ axis
+    plus = inside & (dots > 1 - 1e-9) & (areas > 0)
+    minus = inside & (dots < -1 + 1e-9) & (areas > 0)
+    if not plus.any() or not minus.any():
+        raise VoidGeometryError("host wall has no pair of faces around the opening")
+    d = (tri @ axis).mean(axis=1)
+    return float(d[minus].min()), float(d[plus].max())
+
+
+# --------------------------------------------------------------------------- ray casting
+def hemisphere_directions(normal: np.ndarray, n_rays: int = N_RAYS,
+                          min_elevation_deg: float = -10.0) -> np.ndarray:
+    """Deterministic unit directions (n_rays, 3) in the half-space of ``normal`` (horizontal),
+    elevation in [min_elevation_deg, 85] deg, azimuth within +-85 deg of the normal."""
+    n = normal / np.linalg.norm(normal)
+    x = np.cross(EZ, n)
+    k = int(np.ceil(np.sqrt(n_rays)))
+    az = np.radians(np.linspace(-85.0, 85.0, k))
+    el = np.radians(np.linspace(min_elevation_deg, 85.0, k))
+    A, E = np.meshgrid(az, el)
+    A, E = A.ravel()[:n_rays], E.ravel()[:n_rays]
+    d = (np.cos(E) * np.cos(A))[:, None] * n + (np.cos(E) * np.sin(A))[:, None] * x \
+        + np.sin(E)[:, None] * EZ
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def rays_hit_any(origin: np.ndarray, directions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(R,) bool: does the ray origin + s*direction (s > 1e-9) hit any of triangles (T, 3, 3)?
+
+    Moller-Trumbore, vectorised over triangles, one ray at a time (T can be ~10^5).
+    """
+    v0 = triangles[:, 0]
+    e1 = triangles[:, 1] - v0
+    e2 = triangles[:, 2] - v0
+    tvec = origin - v0  # (T, 3)
+    qvec = np.cross(tvec, e1)
+    hits = np.zeros(len(directions), dtype=bool)
+    for i, d in enumerate(directions):
+        pvec = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, pvec)
+        ok = np.abs(det) > 1e-12
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        u = np.einsum("ij,ij->i", tvec, pvec) * inv
+        v = (qvec @ d) * inv
+        s = np.einsum("ij,ij->i", e2, qvec) * inv
+        hits[i] = bool(np.any(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (s > 1e-9)))
+    return hits
+
+
+def escape_fraction(point: np.ndarray, normal: np.ndarray, triangles: np.ndarray) -> float:
+    """Fraction of a hemisphere ray fan from ``point + RAY_OFFSET_M*normal`` that hits nothing."""
+    origin = point + RAY_OFFSET_M * normal
+    dirs = hemisphere_directions(normal)
+    # keep only triangles in front of the origin's half-space (cheap cull)
+    front = ((triangles - origin) @ normal > -1e-9).any(axis=1)
+    return float(1.0 - rays_hit_any(origin, dirs, triangles[front]).mean())
+
+
+# --------------------------------------------------------------------------- section
+def section_outline(op_vertices: np.ndarray, op_faces: np.ndarray, normal: np.ndarray,
+                    d_face: float) -> np.ndarray:
+    """Outline (K, 2) m of the opening on the plane n.p = d_face, in face coordinates (x, y).
+
+    Sections the opening mesh at the face (or CAP_INSET_M inside it when the opening's cap lies on
+    the face) and returns the largest polygon, collinear vertices removed, counter-clockwise.
+    """
+    import shapely
+    import trimesh
+    from shapely.geometry import MultiLineString
+    from shapely.ops import polygonize
+
+    depth = op_vertices @ normal
+    if depth.max() < d_face - 1e-3:
+        raise VoidGeometryError(
+            f"opening stops {d_face - depth.max():.3f} m short of the exterior face")
+    d_cut = min(d_face, depth.max() - CAP_INSET_M)
+    d_cut = max(d_cut, depth.min() + CAP_INSET_M)
+    mesh = trimesh.Trimesh(op_vertices, op_faces, process=False)
+    segs = trimesh.intersections.mesh_plane(mesh, normal, normal * d_cut)
+    if len(segs) == 0:
+        raise VoidGeometryError("opening does not cross the exterior face plane")
+    x_ax, y_ax = face_axes(normal)
+    seg2 = np.stack([segs @ x_ax, segs @ y_ax], axis=-1)
+    polys = list(polygonize(MultiLineString([tuple(map(tuple, s)) for s in np.round(seg2, 9)])))
+    if not polys:
+        raise VoidGeometryError("opening section is not a closed outline")
+    poly = max(polys, key=lambda p: p.area)
+    poly = shapely.geometry.polygon.orient(poly.simplify(1e-7, preserve_topology=True), 1.0)
+    return np.asarray(poly.exterior.coords)[:-1]
+
+
+def rectangle_corners(outline: np.ndarray) -> tuple[np.ndarray, str]:
+    """Outline (K, 2) in face coords -> corners (4, 2) TL TR BR BL and shape name.
+
+    A 4-vertex outline with right angles (RIGHT_ANGLE_DEG) returns its own vertices; any other
+    outline its axis-aligned bounding rectangle with shape "non_rectangular".
+    """
+    if len(outline) == 4:
+        edges = np.roll(outline, -1, axis=0) - outline
+        unit = edges / np.linalg.norm(edges, axis=1, keepdims=True)
+        cosines = np.abs(np.einsum("ij,ij->i", unit, np.roll(unit, -1, axis=0)))
+        if np.all(cosines < np.sin(np.radians(RIGHT_ANGLE_DEG))):
+            c = outline.mean(axis=0)
+            picks = []
+            for sx, sy in ((-1, 1), (1, 1), (1, -1), (-1, -1)):  # TL TR BR BL
+                score = (outline - c) @ np.array([sx, sy], dtype=float)
+                picks.append(outline[np.argmax(score)])
+            return np.array(picks), "rectangle"
+    (x0, y0), (x1, y1) = outline.min(axis=0), outline.max(axis=0)
+    return np.array([[x0, y1], [x1, y1], [x1, y0], [x0, y0]]), "non_rectangular"
+
+
+def to_world(points2: np.ndarray, normal: np.ndarray, d_face: float) -> np.ndarray:
+    """Face coordinates (K, 2) -> world points (K, 3) on the plane normal.p = d_face."""
+    x_ax, y_ax = face_axes(normal)
+    return points2[:, :1] * x_ax + points2[:, 1:2] * y_ax + d_face * normal
+
+
+# --------------------------------------------------------------------------- one window
+def void_on_wall(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
+                 wall_faces: np.ndarray, scene_triangles: np.ndarray) -> VoidGeometry:
+    """The void of one opening on its host wall's exterior face (see module docstring).
+
+    op_*: the opening's mesh, wall_*: the host wall's cut mesh, scene_triangles (T, 3, 3): every
+    building triangle used for the exterior test; all world coordinates, m.
+    Raises VoidGeometryError (message = skip reason) when the geometry does not fit.
+    """
+    axis = wall_normal_axis(op_vertices, op_faces, wall_vertices, wall_faces)
+    d_minus, d_plus = face_offsets(axis, op_vertices, wall_vertices, wall_faces)
+    x_ax = np.cross(EZ, axis)
+    c2 = np.array([(op_vertices @ x_ax).min() + (op_vertices @ x_ax).max(),
+                   op_vertices[:, 2].min() + op_vertices[:, 2].max()]) / 2.0
+    centre_plus = c2[0] * x_ax + c2[1] * EZ + d_plus * axis
+    centre_minus = c2[0] * x_ax + c2[1] * EZ + d_minus * axis
+    esc_plus = escape_fraction(centre_plus, axis, scene_triangles)
+    esc_minus = escape_fraction(centre_minus, -axis, scene_triangles)
+    if abs(esc_plus - esc_minus) < MIN_ESCAPE_MARGIN:
+        raise VoidGeometryError(
+            f"cannot tell the exterior side: {esc_plus:.0%} vs {esc_minus:.0%} of rays escape "
+            "from the two faces (interior wall?)")
+    if esc_plus > esc_minus:
+        normal, d_face, esc_out, esc_in = axis, d_plus, esc_plus, esc_minus
+    else:
+        normal, d_face, esc_out, esc_in = -axis, -d_minus, esc_minus, esc_plus
+    outline2 = section_outline(op_vertices, op_faces, normal, d_face)
+    corners2, shape = rectangle_corners(outline2)
+    corners = to_world(corners2, normal, d_face)
+    return VoidGeometry(
+        corners=corners, normal=normal, shape=shape, outline=to_world(outline2, normal, d_face),
+        width=float(np.linalg.norm(corners[1] - corners[0])),
+        height=float(np.linalg.norm(corners[0] - corners[3])),
+        escape_out=esc_out, escape_in=esc_in)
+
+
+def _opening_vertices(opening, settings, cache: dict[str, np.ndarray]) -> np.ndarray | None:
+    """World vertices (N, 3) of an opening's body (cached by GlobalId); None without geometry."""
+    import ifcopenshell.geom
+
+    if opening.GlobalId not in cache:
+        try:
+            sh = ifcopenshell.geom.create_shape(settings, opening)
+            cache[opening.GlobalId] = np.asarray(sh.geometry.verts, dtype=np.float64).reshape(-1, 3)
+        except RuntimeError:
+            cache[opening.GlobalId] = np.zeros((0, 3))
+    v = cache[opening.GlobalId]
+    return v if len(v) else None
+
+
+def overlap_notes(g: VoidGeometry, opening, host, settings, cache: dict[str, np.ndarray]) -> str:
+    """Text naming the other openings of the same host whose extent on the face overlaps this void
+    (e.g. NiedriHa's Wind-074 overlaps the neighbouring door opening by 2.9 mm: the visible hole
+    is their union); "" when none."""
+    x_ax, _ = face_axes(g.normal)
+    x0, x1 = sorted((g.corners[0] @ x_ax, g.corners[1] @ x_ax))
+    z0, z1 = g.corners[3][2], g.corners[0][2]
+    notes = []
+    for rel in host.HasOpenings:
+        other = rel.RelatedOpeningElement
+        if other.GlobalId == opening.GlobalId:
+            continue
+        v = _opening_vertices(other, settings, cache)
+        if v is None:
+            continue
+        ox0, ox1, oz0, oz1 = (v @ x_ax).min(), (v @ x_ax).max(), v[:, 2].min(), v[:, 2].max()
+        dx, dz = min(x1, ox1) - max(x0, ox0), min(z1, oz1) - max(z0, oz0)
+        if dx > 1e-6 and dz > 1e-6:
+            fills = [f"{r.RelatedBuildingElement.is_a()} '{r.RelatedBuildingElement.Name}'"
+                     for r in other.HasFillings] or ["nothing"]
+            notes.append(f"void overlaps opening {other.GlobalId} (filled by {', '.join(fills)}) "
+                         f"by {min(dx, dz) * 1000:.1f} mm; the visible hole is their union")
+    return "; ".join(notes)
+
+
+# --------------------------------------------------------------------------- whole file
+def scene_triangles(meshes: dict[str, ElementMesh]) -> np.ndarray:
+    """(T, 3, 3) world triangles of every mesh except the site (terrain), for the exterior test."""
+    tris = [m.vertices[m.faces] for m in meshes.values() if m.ifc_class != "IfcSite"]
+    return np.concatenate(tris) if tris else np.zeros((0, 3, 3))
+
+
+def windows_ground_truth(ifc_file, meshes: dict[str, ElementMesh], label: str,
+                         geom_settings, strict: bool = True
+                         ) -> tuple[list[WindowGT], list[SkippedWindow]]:
+    """Ground truth of every IfcWindow of an open ifcopenshell file.
+
+    meshes: GlobalId -> ElementMesh (hosts already cut). label names the file in messages.
+    strict: a window that fills no opening raises SceneError (else it is skipped with the reason).
+    """
+    import ifcopenshell.geom
+    import ifcopenshell.util.unit
+
+    from fenestra.errors import SceneError
+
+    scale = ifcopenshell.util.unit.calculate_unit_scale(ifc_file)
+    tris = scene_triangles(meshes)
+    windows: list[WindowGT] = []
+    skipped: list[SkippedWindow] = []
+    opening_cache: dict[str, np.ndarray] = {}
+    for win in ifc_file.by_type("IfcWindow"):
+        name = win.Name or ""
+
+        def skip(reason: str) -> None:
+            skipped.append(SkippedWindow(id=win.GlobalId, name=name, reason=reason))
+
+        if not win.FillsVoids:
+            if strict:
+                raise SceneError(f"{label}: window {win.GlobalId} ('{name}') fills no opening "
+                                 "(no IfcRelFillsElement)")
+            skip("fills no opening (no IfcRelFillsElement)")
+            continue
+        opening = win.FillsVoids[0].RelatingOpeningElement
+        if not opening.VoidsElements:
+            skip(f"opening {opening.GlobalId} voids no element (no IfcRelVoidsElement)")
+            continue
+        host = opening.VoidsElements[0].RelatingBuildingElement
+        if not any(host.is_a(c) for c in WALL_CLASSES):
+            kind = host.is_a()
+            skip(f"hosted in {kind} {host.GlobalId}, not a wall"
+                 + (" (roof window / skylight)" if kind in ("IfcRoof", "IfcSlab") else ""))
+            continue
+        host_mesh = meshes.get(host.GlobalId)
+        if host_mesh is None:
+            skip(f"host {host.is_a()} {host.GlobalId} has no body geometry")
+            continue
+        try:
+            shape = ifcopenshell.geom.create_shape(geom_settings, opening)
+        except RuntimeError as e:
+            skip(f"opening {opening.GlobalId} has no usable geometry ({e})")
+            continue
+        op_v = np.asarray(shape.geometry.verts, dtype=np.float64).reshape(-1, 3)
+        op_f = np.asarray(shape.geometry.faces, dtype=np.int64).reshape(-1, 3)
+        if len(op_f) == 0:
+            skip(f"opening {opening.GlobalId} has an empty body")
+            continue
+        try:
+            g = void_on_wall(op_v, op_f, host_mesh.vertices, host_mesh.faces, tris)
+        except VoidGeometryError as e:
+            skip(str(e))
+            continue
+        notes = overlap_notes(g, opening, host, geom_settings, opening_cache)
+        ow, oh = win.OverallWidth, win.OverallHeight
+        windows.append(WindowGT(
+            id=win.GlobalId, host_id=host.GlobalId, host_class=host.is_a(),
+            opening_id=opening.GlobalId, name=name, corners_world=g.corners, normal=g.normal,
+            width=g.width, height=g.height,
+            ifc_overall_width=None if ow is None else float(ow) * scale,
+            ifc_overall_height=None if oh is None else float(oh) * scale,
+            shape=g.shape, outline_world=g.outline, notes=notes))
+    return windows, skipped

@@ -1,0 +1,277 @@
+"""Load an IFC house: element meshes (openings cut) + window ground truth, cached on disk.
+
+    >>> from scenes import load_scene
+    >>> scene = load_scene("fzk-haus")          # bundled short name or a path to an .ifc
+    >>> len(scene.windows), scene.windows[0].width
+    (11, 2.0)
+
+Meshes come from ``ifcopenshell.geom.iterator`` (all cores, world coordinates, openings subtracted),
+one :class:`ElementMesh` per element; IfcOpeningElement, IfcSpace and IfcAnnotation bodies are not
+loaded. Colours come from the IFC surface styles (per face when an element has several; the
+element colour is the largest-area style), else :data:`CLASS_COLOURS`.
+
+Cache: ``$FENESTRA_CACHE`` or ``~/.cache/fenestra/scenes``; one ``<sha256>-<code>.npz`` (arrays) and
+``.json`` (everything else) per file content and :func:`cache_version` (a digest of the sources in
+:data:`CACHE_SOURCES` and the ifcopenshell version), so edits to a file or to that code never serve
+stale data, with no version number to bump by hand.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import multiprocessing
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fenestra.errors import SceneError
+from fenestra.files import file_sha256, source_digest, write_atomic, write_json
+from fenestra.scenes.model import ElementMesh, Scene, SkippedWindow, WindowGT
+from fenestra.scenes.registry import BUNDLED, resolve, scene_name
+
+# The code a loaded Scene depends on (this module's folder); with the ifcopenshell version they key the cache.
+CACHE_SOURCES: tuple[str, ...] = ("loader.py", "ground_truth.py", "model.py")
+SKIP_CLASSES: tuple[str, ...] = ("IfcOpeningElement", "IfcSpace", "IfcAnnotation")
+
+# Fallback colours (RGBA, 0-1) for elements without a surface style.
+CLASS_COLOURS: dict[str, tuple[float, float, float, float]] = {
+    "IfcWall": (0.85, 0.82, 0.76, 1.0),
+    "IfcWallStandardCase": (0.85, 0.82, 0.76, 1.0),
+    "IfcCurtainWall": (0.6, 0.7, 0.8, 0.5),
+    "IfcWindow": (0.55, 0.75, 0.9, 0.4),
+    "IfcDoor": (0.55, 0.35, 0.2, 1.0),
+    "IfcSlab": (0.7, 0.7, 0.7, 1.0),
+    "IfcRoof": (0.6, 0.25, 0.2, 1.0),
+    "IfcSite": (0.35, 0.55, 0.3, 1.0),
+}
+DEFAULT_COLOUR = (0.75, 0.75, 0.75, 1.0)
+
+
+# --------------------------------------------------------------------------- helpers
+def default_cache_dir() -> Path:
+    """``$FENESTRA_CACHE`` (if set) else ``~/.cache/fenestra/scenes``."""
+    env = os.environ.get("FENESTRA_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "fenestra" / "scenes"
+
+
+def open_ifc(path: Path):
+    """Open an IFC-SPF file with ifcopenshell; SceneError for unreadable/truncated files."""
+    import ifcopenshell
+
+    with open(path, "rb") as f:
+        head = f.read(64)
+        f.seek(max(0, path.stat().st_size - 256))
+        tail = f.read()
+    if not head.lstrip().startswith(b"ISO-10303-21"):
+        raise SceneError(f"{path}: not an IFC-SPF file (does not start with 'ISO-10303-21;')")
+    if b"END-ISO-10303-21" not in tail:
+        raise SceneError(f"{path}: truncated IFC file (no 'END-ISO-10303-21;' at the end)")
+    try:
+        return ifcopenshell.open(str(path))
+    except Exception as e:  # ifcopenshell raises its own Error / RuntimeError types
+        raise SceneError(f"{path}: unreadable IFC ({e})") from None
+
+
+def _style_rgba(material) -> tuple[float, float, float, float]:
+    """ifcopenshell geometry style -> RGBA in [0, 1] (alpha = 1 - transparency)."""
+    rgb = tuple(float(c) for c in material.diffuse.components)
+    alpha = 1.0 - float(material.transparency) if material.has_transparency else 1.0
+    if not np.all(np.isfinite(rgb)) or len(rgb) != 3:
+        raise ValueError(f"bad diffuse colour {rgb}")
+    return (*rgb, alpha)
+
+
+def _element_mesh(shape) -> ElementMesh | None:
+    """One iterator shape -> ElementMesh (None when its body is empty)."""
+    g = shape.geometry
+    verts = np.asarray(g.verts, dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(g.faces, dtype=np.int64).reshape(-1, 3)
+    if len(faces) == 0:
+        return None
+    default = CLASS_COLOURS.get(shape.type, DEFAULT_COLOUR)
+    palette = []
+    for m in g.materials:
+        try:
+            palette.append(_style_rgba(m))
+        except (ValueError, AttributeError, TypeError):
+            palette.append(default)
+    mat_ids = np.asarray(g.material_ids, dtype=np.int64)
+    face_rgba = None
+    rgba = default
+    if palette and len(mat_ids) == len(faces) and mat_ids.min() >= 0:
+        pal = np.asarray(palette, dtype=np.float64)
+        tri = verts[faces]
+        areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        rgba = tuple(float(c) for c in pal[np.argmax(np.bincount(mat_ids, weights=areas,
+                                                                 minlength=len(pal)))])
+        if len(np.unique(mat_ids)) > 1:
+            face_rgba = pal[mat_ids]
+    return ElementMesh(global_id=shape.guid, ifc_class=shape.type, name=shape.name or "",
+                       vertices=verts, faces=faces, rgba=rgba, face_rgba=face_rgba)
+
+
+def geom_settings():
+    """ifcopenshell geometry settings used everywhere: world coordinates, openings cut."""
+    import ifcopenshell.geom
+
+    s = ifcopenshell.geom.settings()
+    s.set("use-world-coords", True)
+    return s
+
+
+def iterate_meshes(ifc_file, label: str) -> dict[str, ElementMesh]:
+    """GlobalId -> ElementMesh for every element with a body (multi-core geometry iterator)."""
+    import ifcopenshell.geom
+
+    exclude = [e for c in SKIP_CLASSES for e in ifc_file.by_type(c)]
+    it = ifcopenshell.geom.iterator(geom_settings(), ifc_file, multiprocessing.cpu_count(),
+                                    exclude=exclude)
+    meshes: dict[str, ElementMesh] = {}
+    if not it.initialize():
+        raise SceneError(f"{label}: no element with 3D geometry")
+    while True:
+        mesh = _element_mesh(it.get())
+        if mesh is not None:
+            meshes[mesh.global_id] = mesh
+        if not it.next():
+            break
+    for gid, m in meshes.items():
+        parent = _aggregate_parent(ifc_file, gid)
+        if parent:
+            meshes[gid] = dataclasses.replace(m, parent_id=parent)
+    return meshes
+
+
+def _aggregate_parent(ifc_file, global_id: str) -> str:
+    """GlobalId of the element ``global_id`` is aggregated into (IfcRelAggregates), "" when none
+    or when the whole is a spatial element (storey, building, site)."""
+    el = ifc_file.by_guid(global_id)
+    for rel in getattr(el, "Decomposes", None) or ():
+        whole = rel.RelatingObject
+        if rel.is_a("IfcRelAggregates") and whole.is_a("IfcElement"):
+            return whole.GlobalId
+    return ""
+
+
+# --------------------------------------------------------------------------- cache
+@functools.cache
+def cache_version() -> str:
+    """12 hex digits of the CACHE_SOURCES' bytes and the ifcopenshell version (the cache key's code part)."""
+    from importlib.metadata import version  # noqa: PLC0415
+
+    here = Path(__file__).resolve().parent
+    return source_digest([here / f for f in CACHE_SOURCES], f"ifcopenshell {version('ifcopenshell')}")
+
+
+def _cache_paths(cache_dir: Path, sha: str) -> tuple[Path, Path]:
+    stem = cache_dir / f"{sha}-{cache_version()}"
+    return stem.with_suffix(".npz"), stem.with_suffix(".json")
+
+
+def _save_cache(scene: Scene, cache_dir: Path) -> None:
+    """Write scene arrays (.npz) and metadata (.json) atomically (temp file + rename)."""
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    npz_path, json_path = _cache_paths(cache_dir, scene.sha256)
+    arrays: dict[str, np.ndarray] = {}
+    meshes_meta = []
+    for i, m in enumerate(scene.meshes):
+        arrays[f"v{i}"], arrays[f"f{i}"] = m.vertices, m.faces
+        if m.face_rgba is not None:
+            arrays[f"c{i}"] = m.face_rgba
+        meshes_meta.append({"global_id": m.global_id, "ifc_class": m.ifc_class, "name": m.name,
+                            "rgba": list(m.rgba), "face_rgba": m.face_rgba is not None,
+                            "parent_id": m.parent_id})
+    for i, w in enumerate(scene.windows):
+        arrays[f"wc{i}"], arrays[f"wn{i}"] = w.corners_world, w.normal
+        if w.outline_world is not None:
+            arrays[f"wo{i}"] = w.outline_world
+    windows_meta = [{k: getattr(w, k) for k in ("id", "host_id", "host_class", "opening_id", "name",
+                                                "width", "height", "ifc_overall_width",
+                                                "ifc_overall_height", "shape", "notes")}
+                    | {"outline": w.outline_world is not None} for w in scene.windows]
+    meta = {"name": scene.name, "schema": scene.schema, "sha256": scene.sha256,
+            "meshes": meshes_meta, "windows": windows_meta,
+            "skipped": [{"id": s.id, "name": s.name, "reason": s.reason} for s in scene.skipped]}
+    write_atomic(npz_path, lambda p: np.savez(p, **arrays))
+    write_json(json_path, meta, indent=None)
+
+
+def _load_cache(cache_dir: Path, sha: str, path: Path, name: str) -> Scene | None:
+    """Scene from the cache, or None when absent or unreadable."""
+    npz_path, json_path = _cache_paths(cache_dir, sha)
+    if not (npz_path.is_file() and json_path.is_file()):
+        return None
+    try:
+        meta = json.loads(json_path.read_text())
+        with np.load(npz_path) as z:
+            arrays = {k: z[k] for k in z.files}
+        meshes = tuple(
+            ElementMesh(global_id=m["global_id"], ifc_class=m["ifc_class"], name=m["name"],
+                        vertices=arrays[f"v{i}"], faces=arrays[f"f{i}"], rgba=tuple(m["rgba"]),
+                        face_rgba=arrays[f"c{i}"] if m["face_rgba"] else None,
+                        parent_id=m.get("parent_id", ""))
+            for i, m in enumerate(meta["meshes"]))
+        windows = tuple(
+            WindowGT(**{k: v for k, v in w.items() if k != "outline"},
+                     corners_world=arrays[f"wc{i}"], normal=arrays[f"wn{i}"],
+                     outline_world=arrays[f"wo{i}"] if w["outline"] else None)
+            for i, w in enumerate(meta["windows"]))
+        skipped = tuple(SkippedWindow(**s) for s in meta["skipped"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return Scene(name=name, path=str(path), schema=meta["schema"], sha256=sha, meshes=meshes,
+                 windows=windows, skipped=skipped)
+
+
+# --------------------------------------------------------------------------- public API
+def load_scene(name_or_path: str | Path, cache_dir: str | Path | None = None,
+               use_cache: bool = True, strict: bool = True) -> Scene:
+    """Load a bundled house (short name) or an .ifc path -> :class:`Scene`.
+
+    cache_dir: defaults to :func:`default_cache_dir`. strict: a window filling no opening is a
+    SceneError (else it is listed in ``Scene.skipped``). Raises SceneError naming the file for a
+    missing, non-IFC, truncated or unreadable file, and for a file with no IfcWindow.
+    """
+    path = resolve(name_or_path)
+    name = scene_name(path)
+    sha = file_sha256(path)
+    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    if use_cache:
+        cached = _load_cache(cache, sha, path, name)
+        if cached is not None:
+            return cached
+    scene = build_scene(path, name, sha, strict=strict)
+    if use_cache:
+        try:
+            _save_cache(scene, cache)
+        except OSError:
+            pass  # a read-only cache folder only costs speed
+    return scene
+
+
+def build_scene(path: Path, name: str, sha: str, strict: bool = True) -> Scene:
+    """Read the IFC and compute meshes and ground truth (no cache)."""
+    from fenestra.scenes.ground_truth import windows_ground_truth
+
+    f = open_ifc(path)
+    if not f.by_type("IfcWindow"):
+        raise SceneError(f"{path}: the model has no IfcWindow")
+    meshes = iterate_meshes(f, str(path))
+    windows, skipped = windows_ground_truth(f, meshes, str(path), geom_settings(), strict=strict)
+    return Scene(name=name, path=str(path), schema=f.schema, sha256=sha,
+                 meshes=tuple(meshes.values()), windows=tuple(windows), skipped=tuple(skipped))
+
+
+def list_scenes() -> list[str]:
+    """Short names of the bundled houses."""
+    return list(BUNDLED)
+
+
+def timed_load(name_or_path: str | Path, **kwargs) -> tuple[Scene, float]:
+    """(scene, seconds) for benchmarking the loader."""
+    t0 = time.perf_counter()
+    scene = load_scene(name_or_path, **kwargs)
+    return scene, time.perf_counter() - t0

@@ -1,0 +1,145 @@
+"""Read rendered dataset folders (DESIGN.md data contract) for detector training and evaluation.
+
+A dataset folder holds ``views/NNNNNN/image.png`` (RGB), ``views/NNNNNN/instances.png`` (uint16,
+0 = no window, k = the window with ``instance_id`` k), ``views/NNNNNN/view.json`` and a
+``coco.json`` with RLE masks (fenestra.data: the contract, its readers and the COCO builder).
+Only the files are read: pipeline/ never imports renders/.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fenestra.data import yolo_boxes
+from fenestra.errors import DatasetError
+from fenestra.images import read_image
+
+
+@dataclass(frozen=True)
+class ViewFiles:
+    """Paths of one rendered view."""
+
+    name: str  # e.g. "000012"
+    image: Path
+    instances: Path
+    view_json: Path
+
+
+def list_views(dataset_dir: str | Path) -> list[ViewFiles]:
+    """All views of a dataset folder, sorted by name; raises DatasetError if there are none."""
+    root = Path(dataset_dir)
+    views_dir = root / "views"
+    if not views_dir.is_dir():
+        raise DatasetError(f"{root} is not a dataset folder: no views/ directory inside")
+    out = []
+    for d in sorted(p for p in views_dir.iterdir() if p.is_dir()):
+        img, inst = d / "image.png", d / "instances.png"
+        if img.is_file() and inst.is_file():
+            out.append(ViewFiles(d.name, img, inst, d / "view.json"))
+    if not out:
+        raise DatasetError(f"{views_dir} has no view folders with image.png and instances.png")
+    return out
+
+
+def find_datasets(paths) -> list[Path]:
+    """Dataset folders (those with a views/ directory) among ``paths`` and up to 2 levels below.
+
+    Lets a config name a root such as ``out/detector-data/train`` holding many rendered datasets.
+    Raises DatasetError naming a path that is missing or holds no dataset.
+    """
+    found: list[Path] = []
+    for p in (Path(x) for x in paths):
+        if not p.is_dir():
+            raise DatasetError(f"dataset path {p} does not exist")
+        if (p / "views").is_dir():
+            found.append(p)
+            continue
+        below = sorted({v.parent for v in list(p.glob("*/views")) + list(p.glob("*/*/views")) if v.is_dir()})
+        if not below:
+            raise DatasetError(f"{p} holds no dataset folder (no views/ inside it or below it)")
+        found += below
+    return found
+
+
+def load_coco(dataset_dir: str | Path) -> dict:
+    """The dataset's coco.json as a dict; raises DatasetError if missing."""
+    p = Path(dataset_dir) / "coco.json"
+    if not p.is_file():
+        raise DatasetError(f"{dataset_dir} has no coco.json")
+    return json.loads(p.read_text())
+
+
+def coco_image_path(dataset_dir: str | Path, image_entry: dict) -> Path:
+    """Path of a coco.json image entry's file (file_name relative to the dataset folder)."""
+    root = Path(dataset_dir)
+    p = root / image_entry["file_name"]
+    if not p.is_file():
+        raise DatasetError(f"coco.json image {image_entry.get('id')} file {p} does not exist")
+    return p
+
+
+def view_corners(view_json: str | Path) -> np.ndarray:
+    """(N, 4, 2) float32 px: the corners of every window facing the camera in a view.json, ordered
+    TL TR BR BL in the image (pipeline.quad.order_corners); a corner the renderer marks unseen
+    (occluded or outside the image: ``corner_visible``) is NaN. (0, 4, 2) without windows. A view
+    without ``visible_fraction`` / ``corner_visible`` (hand-made data) counts every corner seen."""
+    from fenestra.pipeline.quad import order_corners  # noqa: PLC0415
+
+    meta = json.loads(Path(view_json).read_text())
+    out = []
+    for w in meta.get("windows", []):
+        if w.get("visible_fraction", 1.0) <= 0.0:
+            continue
+        q = np.asarray(w["corners_px"], dtype=np.float64)
+        seen = np.asarray(w.get("corner_visible", [True] * 4), dtype=bool)
+        o = order_corners(q)
+        idx = [int(np.argmin(np.abs(q - p).sum(axis=1))) for p in o]  # where each ordered corner came from
+        o[~seen[idx]] = np.nan
+        out.append(o)
+    return np.asarray(out, dtype=np.float32).reshape(-1, 4, 2)
+
+
+def box_instances(boxes: list[np.ndarray], shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) int32 instance map painted from boxes (4,) x0 y0 x1 y1 px (pixel-edge outline,
+    centres at integers): id k + 1 covers the pixel centres inside box k; larger boxes are painted
+    first, so a small box on a big one stays visible."""
+    H, W = shape
+    inst = np.zeros((H, W), dtype=np.int32)
+    for k in sorted(range(len(boxes)), key=lambda k: -float((boxes[k][2] - boxes[k][0]) * (boxes[k][3] - boxes[k][1]))):
+        x0, y0, x1, y1 = boxes[k]
+        c0, c1 = max(0, int(np.ceil(x0))), min(W, int(np.ceil(x1)))
+        r0, r1 = max(0, int(np.ceil(y0))), min(H, int(np.ceil(y1)))
+        inst[r0:r1, c0:c1] = k + 1
+    return inst
+
+
+def real_box_photos(root: str | Path, part: str, holdout_every: int = 5) -> list[Path]:
+    """Photos of a YOLO folder (``root/images/*.jpg``, ``root/labels/*.txt``), split by sorted
+    name: ``part`` "val" is every ``holdout_every``-th photo (index % n == 0), "train" the rest,
+    "all" every photo. Photos without a label file are left out (not known to hold no window)."""
+    if part not in ("train", "val", "all"):
+        raise ValueError(f"part must be train, val or all, got {part!r}")
+    if holdout_every < 2:
+        raise ValueError(f"holdout_every must be >= 2, got {holdout_every}")
+    images = Path(root) / "images"
+    if not images.is_dir():
+        raise DatasetError(f"{root}: no images/ folder (a YOLO dataset has images/ and labels/)")
+    photos = sorted((p for p in images.iterdir() if p.suffix.lower() in (".jpg", ".jpeg", ".png")),
+                    key=lambda p: p.name)
+    photos = [p for p in photos if (Path(root) / "labels" / f"{p.stem}.txt").is_file()]
+    if not photos:
+        raise DatasetError(f"{images} has no photo with a label file in {Path(root) / 'labels'}")
+    keep = {"all": lambda i: True, "val": lambda i: i % holdout_every == 0,
+            "train": lambda i: i % holdout_every != 0}[part]
+    return [p for i, p in enumerate(photos) if keep(i)]
+
+
+def read_box_photo(photo: Path, classes: tuple[int, ...] = (0,)) -> tuple[np.ndarray, np.ndarray, None]:
+    """(image (H, W, 3) uint8, box instance map (H, W) int32, None: no corners) of a YOLO photo."""
+    image = read_image(photo)
+    lab = photo.parent.parent / "labels" / f"{photo.stem}.txt"
+    boxes = yolo_boxes(lab.read_text(), image.shape[1], image.shape[0], classes, str(lab))
+    return image, box_instances(boxes, image.shape[:2]), None

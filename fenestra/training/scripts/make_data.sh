@@ -1,0 +1,141 @@
+#!/usr/bin/env bash
+# Render the detector training data and the held-out evaluation data with `fenestra render`
+# (fenestra/renders/dataset.py; each call writes a hashed dataset folder under the given root).
+#
+# Split: TRAIN on fzk-haus, duplex, jasmin-sun, niedriha + procedural houses (scenes make, seeds
+#        101..108, varied 111..126, facade-feature 131..146). VALIDATION: procedural houses varied
+#        201..204 and facade 205..208 (out/detector-data/val). HELD OUT: samplehouse4, never seen in
+#        training, evaluated once per shipped model.
+# Domain randomisation: every chunk has its own seed, so its own look (palette, textures, sun, sky);
+#        half the chunks add the realistic sensor model (noise, blur, JPEG), some radial distortion;
+#        a path-traced (mitsuba) chunk per bundled house and per second varied house; far (<= 22 m)
+#        and grazing (<= 70 deg) cameras for the varied houses; facade-feature houses add roof
+#        overhangs with dark fascias, glazed doors and curtain walls (unlabelled glazing: negatives).
+# Usage:  bash fenestra/training/scripts/make_data.sh [ROOT=out/detector-data]   (about 30 min on 2 cores;
+#         reruns reuse rendered views)
+# Then:   make train      (= this and make_data_street.sh (the v3 town houses, ROOT/train-street),
+#         then fenestra train --config fenestra/training/configs/default.toml, ship-weights)
+set -euo pipefail
+cd "$(dirname "$0")/../../.."
+ROOT=${1:-out/detector-data}
+PY=${PY:-.venv/bin/python}
+export PYOPENGL_PLATFORM=egl
+
+render() {  # scene views seed renderer root [extra options]
+  local scene=$1 views=$2 seed=$3 renderer=$4 root=$5; shift 5
+  $PY -m fenestra render --scene "$scene" --views "$views" --seed "$seed" --renderer "$renderer" \
+      --out "$root" "$@" | tail -1
+}
+
+# Bundled training houses: 6 raster chunks of 25 views + 1 mitsuba chunk of 20 views each.
+h=0
+for house in fzk-haus duplex jasmin-sun niedriha; do
+  h=$((h + 1))
+  for c in 1 2 3 4 5 6; do
+    s=$((1000 + 10 * h + c))
+    extra=()
+    [ $((c % 2)) -eq 0 ] && extra+=(--sensor)
+    [ "$c" -eq 3 ] && extra+=(--k1 0.15)
+    [ "$c" -eq 5 ] && extra+=(--no-shadows)
+    render "$house" 25 "$s" pyrender "$ROOT/train" "${extra[@]}"
+  done
+  render "$house" 20 $((2000 + h)) mitsuba "$ROOT/train" --spp 16
+done
+
+# Procedural houses (1-3 storeys, 1-3 windows per wall, rotated): 2 chunks of 20 views each.
+mkdir -p "$ROOT/procedural"
+for i in 1 2 3 4 5 6 7 8; do
+  s=$((100 + i))
+  ifc="$ROOT/procedural/house-$s.ifc"
+  [ -f "$ifc" ] || $PY -m fenestra scenes make "$ifc" --seed $s --storeys $((1 + i % 3)) \
+      --windows-per-wall $((1 + (i / 2) % 3)) --rotation-deg $((i * 17))
+  render "$ifc" 20 $((3000 + s)) pyrender "$ROOT/train"
+  render "$ifc" 20 $((4000 + s)) pyrender "$ROOT/train" --sensor
+done
+
+# Varied procedural houses (added for the second default model): strip windows of extreme aspect
+# ratio close under the ceiling slab, small windows, tall glazed openings, deep reveals, other
+# footprints, 2.5-3.2 m storeys. Written with scenes.generate.make_house (the `scenes make` CLI has
+# no width/height-range options). Seeds 111..126 train; seeds 201..204 are the VALIDATION split
+# (never trained on; used to choose models and thresholds instead of the held-out house).
+$PY - "$ROOT/procedural" <<'PYEOF'
+import sys
+from pathlib import Path
+from scenes.generate import HouseSpec, make_house
+root = Path(sys.argv[1])
+STYLES = {  # width_range, height_range (m), windows per wall, storey height, wall thickness, reveal
+    "strip": ((1.4, 3.6), (0.3, 0.7), 2, 2.6, 0.3, 0.1),
+    "small": ((0.3, 0.7), (0.3, 0.8), 4, 3.0, 0.35, 0.15),
+    "tall":  ((0.5, 1.1), (1.5, 2.4), 3, 3.2, 0.3, 0.05),
+    "mixed": ((0.4, 2.6), (0.4, 1.9), 3, 2.8, 0.5, 0.3),
+}
+FOOTPRINTS = [((0, 0), (12, 0), (12, 8), (0, 8)),
+              ((0, 0), (16, 0), (16, 6), (0, 6)),
+              ((0, 0), (10, 0), (13, 4), (10, 8), (0, 8)),
+              ((0.0, 0.0), (9.0, 0.0), (11.5, 4.5), (7.0, 9.0), (-1.5, 6.5))]
+for seed in list(range(111, 127)) + list(range(201, 205)):
+    name = list(STYLES)[seed % 4]
+    wr, hr, n, sh, th, rev = STYLES[name]
+    spec = HouseSpec(seed=seed, footprint=FOOTPRINTS[(seed // 4) % 4], storeys=1 + seed % 3,
+                     storey_height=sh, wall_thickness=th, reveal_depth=rev, rotation_deg=(seed * 23) % 90,
+                     windows_per_wall=1 + (seed // 2) % n, width_range=wr, height_range=hr)
+    out = root / f"varied-{seed}.ifc"
+    if not out.exists():
+        h = make_house(spec, out)
+        print(f"{out}: {name}, {len(h.windows)} windows")
+# Facade-feature houses (third default model): the same styles plus roof overhangs with a dark
+# fascia band and eave shadow over the top windows, glazed doors and glazed curtain walls (IfcDoor /
+# IfcPlate: unlabelled glazing, i.e. negatives). Seeds 131..146 train, 205..208 validation.
+from dataclasses import replace
+for seed in list(range(131, 147)) + list(range(205, 209)):
+    name = list(STYLES)[seed % 4]
+    wr, hr, n, sh, th, rev = STYLES[name]
+    base = HouseSpec(seed=seed, footprint=FOOTPRINTS[(seed // 4) % 4], storeys=1 + seed % 2,
+                     storey_height=max(sh, 2.6), wall_thickness=th, reveal_depth=rev,
+                     rotation_deg=(seed * 31) % 90, windows_per_wall=1 + (seed // 2) % n,
+                     width_range=wr, height_range=hr,
+                     roof_overhang=(0.3, 0.5, 0.8, 1.1)[(seed // 3) % 4],
+                     fascia_height=(0.25, 0.4, 0.6)[seed % 3])
+    out = root / f"facade-{seed}.ifc"
+    if out.exists():
+        continue
+    for doors, cws in ((1 + seed % 2, seed % 2 == 0), (1, seed % 2 == 0), (1, False), (0, False)):
+        try:  # fewer doors / no curtain wall where the house has no suitable wall for them
+            h = make_house(replace(base, glazed_doors=doors, curtain_walls=int(cws)), out)
+            break
+        except ValueError as e:
+            print(f"{out.name}: {e}; trying fewer features")
+    print(f"{out}: {name}, {len(h.windows)} windows, {len(h.doors)} doors, {len(h.curtain_walls)} curtain-wall bays")
+PYEOF
+for s in $(seq 111 126); do
+  ifc="$ROOT/procedural/varied-$s.ifc"
+  render "$ifc" 20 $((5000 + s)) pyrender "$ROOT/train" --sensor --k1 0.1
+  render "$ifc" 20 $((6000 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
+  if [ $((s % 2)) -eq 0 ]; then render "$ifc" 8 $((7000 + s)) mitsuba "$ROOT/train" --spp 16; fi
+done
+for s in $(seq 131 146); do
+  ifc="$ROOT/procedural/facade-$s.ifc"
+  render "$ifc" 20 $((5500 + s)) pyrender "$ROOT/train" --sensor
+  render "$ifc" 20 $((6500 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
+  if [ $((s % 2)) -eq 1 ]; then render "$ifc" 8 $((7500 + s)) mitsuba "$ROOT/train" --spp 16; fi
+done
+for s in 205 206 207 208; do  # validation split, facade features
+  ifc="$ROOT/procedural/facade-$s.ifc"
+  render "$ifc" 20 $((8500 + s)) pyrender "$ROOT/val"
+  render "$ifc" 6 $((8700 + s)) mitsuba "$ROOT/val" --spp 16
+done
+for s in 201 202 203 204; do  # validation split
+  ifc="$ROOT/procedural/varied-$s.ifc"
+  render "$ifc" 20 $((8000 + s)) pyrender "$ROOT/val"
+  render "$ifc" 20 $((8100 + s)) pyrender "$ROOT/val" --sensor --distance-max 22 --azimuth-max 70
+  render "$ifc" 6 $((8200 + s)) mitsuba "$ROOT/val" --spp 16
+done
+
+# Held-out house: raster (4 looks, 2 with the sensor model) and path-traced.
+for c in 1 2 3 4; do
+  extra=()
+  [ $((c % 2)) -eq 0 ] && extra+=(--sensor)
+  render samplehouse4 25 $((9000 + c)) pyrender "$ROOT/heldout-pyrender" "${extra[@]}"
+done
+render samplehouse4 24 9100 mitsuba "$ROOT/heldout-mitsuba" --spp 16
+echo "done: $ROOT"

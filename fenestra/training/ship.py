@@ -1,0 +1,53 @@
+"""Shipping trained weights: the one explicit step from a training run's output to the product.
+
+    fenestra ship-weights out/train/default.pt      # -> fenestra/pipeline/models/default.pt (EffWin; out/train/winnet.pt -> winnet.pt)
+
+Training writes under out/ (never into pipeline/); this copies a weights file to where its
+detector loads it, after checking that the detector builds from it and runs on an image.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fenestra.errors import FenestraError
+from fenestra.files import write_bytes
+from fenestra.pipeline.detectors import DETECTORS, read_weights
+
+CHECK_IMAGE_HW = (64, 96)  # the blank image the shipped detector must run on
+
+
+@dataclass(frozen=True)
+class Shipped:
+    """Where the weights went, the detector that loads them, the file's sha256, its training metadata."""
+
+    path: Path
+    detector: str
+    sha256: str
+    meta: dict
+
+
+def ship_weights(src: str | Path, dest: str | Path | None = None) -> Shipped:
+    """Check ``src`` (its architecture's detector builds from it and runs on a blank
+    CHECK_IMAGE_HW image), then copy it atomically to ``dest`` (default: the file that detector
+    loads: the registered trainable detector of its arch, ``DETECTORS[name].model.weights``).
+    FenestraError naming the problem; nothing is written then."""
+    src = Path(src)
+    if not src.is_file():
+        raise FenestraError(f"no weights file at {src}")
+    ckpt = read_weights(src)  # FenestraError unless it is a trainable detector's weights file
+    detector = next(n for n in DETECTORS.where(trainable=True) if DETECTORS[n].model.arch == ckpt["arch"])
+    dest = Path(dest) if dest is not None else DETECTORS[detector].model.weights
+    if dest.resolve() == src.resolve():
+        raise FenestraError(f"{src} is already the destination")
+    run = DETECTORS[detector].build(weights=src)
+    dets = run(np.zeros((*CHECK_IMAGE_HW, 3), np.uint8))
+    if not isinstance(dets, list):
+        raise FenestraError(f"detector {detector!r} with {src} returned {type(dets).__name__}, not a list")
+    data = src.read_bytes()
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    write_bytes(dest, data)
+    return Shipped(dest, detector, hashlib.sha256(data).hexdigest(), ckpt.get("meta", {}))

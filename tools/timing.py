@@ -1,0 +1,288 @@
+"""Where the benchmark's time goes, as a fresh clone measures it (prints figures; not a test).
+
+    .venv/bin/python tools/timing.py [--profile default] [--executor local] [--json out/timing.json] [--ray]
+
+Runs ``fenestra bench`` twice in a fresh, empty working folder (so no cached render, scene or
+result of this checkout is reused): first cold (procedural houses generated, every view rendered),
+then again with the renders it just cached. Then each pose family's CPU cost per view (per-window
+solvers, per-wall strategies, with K withheld) on a sample of those views. Then the render throughput of ``fenestra render`` at
+the margin: (time for 60 views - time for 10 views) / 50, so start-up does not count. Prints one
+JSON document: wall times, each stage's CPU seconds and share, matching's share of the CPU time,
+per-view and per-window stage milliseconds, the machine's load average before and after, versions.
+With ``--ray``, the cached-render run again on a local Ray cluster (a third run, its own folder).
+Each run also records its artefacts' sizes and its peak memory (summary.json ``peak_rss_mb``).
+
+``--markdown docs/performance.md`` writes the figures as a Markdown block between the markers
+``<!-- timing:begin -->`` and ``<!-- timing:end -->`` of that file (the docs' speed figures come
+from this command, never typed). ``--from-json out/timing.json`` takes the figures of an earlier
+measurement instead of measuring; ``--from-run RUN`` those of one finished bench run folder
+(its summary.json; ``--time-log`` the ``/usr/bin/time -v`` output of that run, for its peak RSS
+over every process).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent  # the checkout whose `app` (command line) runs
+
+
+def _fenestra(args: list[str], cwd: Path) -> float:
+    """Run ``python -m fenestra ARGS`` (the ``fenestra`` command of this checkout) in cwd; its wall
+    seconds (raises on failure)."""
+    t0 = time.perf_counter()
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "PYTHONPATH": path, "MPLBACKEND": "Agg",
+           "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
+    r = subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=cwd, env=env, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"fenestra {' '.join(args)} failed ({r.returncode}): {r.stderr[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def stage_split(summary: dict) -> dict:
+    """CPU seconds per evaluation stage and each one's share of their total (from summary.json)."""
+    st = summary["metadata"]["stage_time_s"]
+    cpu = {k[4:]: v for k, v in st.items() if k.startswith("cpu.") and "." not in k[4:]}
+    total = sum(cpu.values())
+    return {"cpu_s": cpu, "cpu_total_s": total,
+            "share": {k: v / total for k, v in cpu.items()} if total > 0 else {}}
+
+
+def artefact_mb(run: Path) -> dict[str, float]:
+    """Size (MB) of each file a run folder holds (figures/ as one entry), and their ``total``."""
+    sizes = {p.name: sum(f.stat().st_size for f in ([p] if p.is_file() else p.rglob("*")) if f.is_file()) / 1e6
+             for p in sorted(Path(run).iterdir())}
+    return {**sizes, "total": sum(sizes.values())}
+
+
+def run_figures(run: Path, wall_s: float | None = None) -> dict:
+    """The figures of one finished bench run folder: wall seconds (``wall_s``, else the run's
+    own), the stage figures of its summary, its artefacts' sizes and its peak memory."""
+    summary = json.loads((Path(run) / "summary.json").read_text())
+    meta = summary["metadata"]
+    return {"wall_s": meta["wall_time_s"] if wall_s is None else wall_s, "bench_wall_s": meta["wall_time_s"],
+            "n_views": meta["n_views"], "n_rows": meta["n_rows"], "n_methods": len(meta.get("methods", [])),
+            "commit": meta.get("commit"), "stage_time_s": meta["stage_time_s"], **stage_split(summary),
+            "stage_ms_per_view": meta.get("stage_ms_per_view"),
+            "stage_ms_per_window": meta.get("stage_ms_per_window"), "artefact_mb": artefact_mb(run),
+            "peak_rss_mb": meta.get("peak_rss_mb"), "load_average": meta.get("load_average")}
+
+
+def bench_run(profile: str, executor: str, cwd: Path, label: str) -> dict:
+    """One ``fenestra bench`` run in cwd: wall seconds and the figures of its run folder."""
+    run = cwd / "out" / "bench" / label
+    wall = _fenestra(["bench", "--profile", profile, "--out", str(run), "--executor", executor], cwd)
+    return run_figures(run, wall)
+
+
+def time_log_rss_mb(text: str) -> float | None:
+    """Peak RSS (MB) from ``/usr/bin/time -v`` output ("Maximum resident set size (kbytes): N"),
+    or None."""
+    import re  # noqa: PLC0415
+
+    m = re.search(r"Maximum resident set size \(kbytes\): (\d+)", text)
+    return None if m is None else int(m.group(1)) / 1024.0
+
+
+BEGIN, END = "<!-- timing:begin -->", "<!-- timing:end -->"
+RUN_LABELS = {"cold": "fresh clone, renders included", "cached_renders": "cached renders",
+              "ray_cached_renders": "cached renders, `--executor ray` (local cluster)", "run": "one run"}
+
+
+def _s(x) -> str:
+    return "-" if x is None else f"{x:.0f} s" if x >= 10 else f"{x:.1f} s"
+
+
+def markdown(doc: dict, command: str) -> str:
+    """The figures of a timing document (:func:`main`'s) as a Markdown block: one row per bench
+    run (wall time, stages, peak memory, artefacts), then each pose family's CPU cost per view
+    and the render throughput, where measured; ``command`` is the one that made them."""
+    lines = [BEGIN, f"Generated by `{command}`, profile `{doc['profile']}`, {doc.get('cpus', '?')} CPUs; "
+             f"load average before {_load(doc.get('load_before'))}, after {_load(doc.get('load_after'))}"
+             + (" (the machine was shared: compare ratios, not absolute times)." if _busy(doc) else "."), "",
+             "| run | commit | views | methods | rows | wall | render | evaluation | tables | report | "
+             "peak RSS | artefacts |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for key, label in RUN_LABELS.items():
+        r = doc.get(key)
+        if not r:
+            continue
+        st = r["stage_time_s"]
+        rss = r.get("peak_rss_mb") or {}
+        peak = max([v for v in rss.values() if v] or [0.0])
+        art = r.get("artefact_mb") or {}
+        lines.append(f"| {label} | {(r.get('commit') or '?')[:7]} | {r['n_views']} | {r.get('n_methods', '-')} | "
+                     f"{r['n_rows']} | **{_s(r['wall_s'])}** | {_s(st.get('render'))} | {_s(st.get('evaluate_wall'))} | "
+                     f"{_s(st.get('summarize'))} | {_s(st.get('report'))} | "
+                     f"{f'{peak / 1024:.2f} GB' if peak else '-'} | {art.get('total', 0):.1f} MB |")
+    for key, label in RUN_LABELS.items():
+        r = doc.get(key)
+        if r and r.get("cpu_s"):
+            lines += ["", f"CPU seconds by stage ({label}; summed over the worker processes): "
+                      + ", ".join(f"{k} {v:.0f} s ({100 * r['share'][k]:.0f} %)"
+                                  for k, v in sorted(r["cpu_s"].items(), key=lambda kv: -kv[1])) + "."]
+            art = {k: v for k, v in (r.get("artefact_mb") or {}).items() if k != "total"}
+            if art:
+                lines.append("Artefacts: " + ", ".join(f"`{k}` {v:.1f} MB" for k, v in art.items()) + ".")
+            break
+    fam = doc.get("pose_family_cost")
+    if fam:
+        lines += ["", "| pose family | methods | CPU s / view |", "|---|---|---|"]
+        lines += [f"| {k} | {v['methods']} | {v['cpu_s_per_view']:.2f} |" for k, v in fam.items()]
+    r = doc.get("render")
+    if r:
+        lines += ["", f"`fenestra render --scene {r['scene']}` at the margin ({' minus '.join(reversed(list(r['wall_s'])))} "
+                  f"views): **{r['views_per_s']:.1f} views/s**."]
+    return "\n".join([*lines, END])
+
+
+def _load(x) -> str:
+    return "-" if not x else "/".join(f"{v:.1f}" for v in x)
+
+
+def _busy(doc: dict) -> bool:
+    cpus = doc.get("cpus") or 1
+    return any(x and x[0] > 0.75 * cpus for x in (doc.get("load_before"), doc.get("load_after")))
+
+
+def write_markdown(path: Path, block: str) -> Path:
+    """Put ``block`` between the timing markers of the Markdown file ``path`` (appended when it
+    has none)."""
+    text = path.read_text() if path.is_file() else ""
+    if BEGIN in text and END in text:
+        text = text[:text.index(BEGIN)] + block + text[text.index(END) + len(END):]
+    else:
+        text = text.rstrip("\n") + ("\n\n" if text else "") + block + "\n"
+    path.write_text(text)
+    return path
+
+
+def pose_families(methods) -> dict[str, list]:
+    """Methods (fenestra.methods.Method) by pose family, chosen by capability: every per-window
+    solver together, then each per-wall strategy with K given, then with K withheld."""
+    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
+
+    per_window = f"per-window ({', '.join(POSES.where(per_wall=False))})"
+    out: dict[str, list] = {}
+    for m in sorted(methods, key=lambda m: (POSES[m.pose].per_wall, m.withhold_K)):
+        out.setdefault(m.pose_label if POSES[m.pose].per_wall else per_window, []).append(m)
+    return out
+
+
+def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default") -> dict:
+    """CPU seconds per view of evaluate_task for each pose family (every detector x snapper of
+    ``profile``), on the first views of each rendered house under ``renders``, in this process."""
+    from fenestra.bench.evaluate import evaluate_task  # noqa: PLC0415
+    from fenestra.bench.executors import init_worker, view_tasks  # noqa: PLC0415
+    from fenestra.bench.profiles import load_profile  # noqa: PLC0415
+    from fenestra.bench.runner import make_plan, plan_methods  # noqa: PLC0415
+
+    init_worker()
+    p = load_profile(profile)
+    allm, _ = plan_methods(dataclasses.replace(p, methods=dataclasses.replace(
+        p.methods, pose_solvers=("all",), withhold_K=(False, True))))
+    houses = sorted(d for d in renders.iterdir() if (d / "views").is_dir())
+    out = {}
+    for family, members in pose_families(allm).items():
+        methods = tuple(members)
+        plan = make_plan(p, methods, renders, renders / "unused")
+        tasks = [t for d in houses for t in view_tasks(plan, d.name, d)[:views_per_house]]
+        evaluate_task(tasks[0])  # warm-up: detector weights
+        stages: dict[str, float] = {}
+        t0 = time.process_time()
+        for t in tasks:
+            for k, v in evaluate_task(t).stage_s.items():
+                stages[k] = stages.get(k, 0.0) + v
+        out[family] = {"methods": len(methods), "views": len(tasks),
+                       "cpu_s_per_view": (time.process_time() - t0) / len(tasks),
+                       "stage_cpu_s_per_view": {k: v / len(tasks) for k, v in stages.items() if "." not in k}}
+    return out
+
+
+def render_margin(cwd: Path, scene: str = "fzk-haus", few: int = 10, many: int = 60) -> dict:
+    """Views per second of ``fenestra render`` at the margin (many - few views, fresh folders),
+    after one uncounted warm-up render (the first render of a machine fills the driver's shader and
+    the scene caches, which would otherwise be charged to the few-view run). NaN if the margin is
+    not positive (a measurement drowned in noise, never an infinite rate)."""
+    _fenestra(["render", "--scene", scene, "--views", "2", "--out", str(cwd / "render-warmup")], cwd)
+    t = {n: _fenestra(["render", "--scene", scene, "--views", str(n), "--out", str(cwd / f"render-{n}")], cwd)
+         for n in (few, many)}
+    per_view = (t[many] - t[few]) / (many - few)
+    return {"scene": scene, "wall_s": {str(k): v for k, v in t.items()}, "s_per_view": per_view,
+            "views_per_s": 1.0 / per_view if per_view > 0 else float("nan")}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default="default")
+    ap.add_argument("--executor", default="local")
+    ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    ap.add_argument("--skip-render", action="store_true", help="skip the render-throughput part")
+    ap.add_argument("--ray", action="store_true",
+                    help="also run the cached-render bench on a local Ray cluster (as many CPUs as cores) "
+                         "and report its wall time against the local executor's")
+    ap.add_argument("--markdown", type=Path, default=None,
+                    help="write the figures as a Markdown block between the timing markers of this file")
+    ap.add_argument("--from-json", type=Path, default=None, help="take the figures of this earlier --json output")
+    ap.add_argument("--from-run", type=Path, default=None, help="take the figures of this finished bench run folder")
+    ap.add_argument("--time-log", type=Path, default=None, help="with --from-run: that run's /usr/bin/time -v output")
+    a = ap.parse_args(argv)
+    if a.from_json is not None:
+        out = json.loads(a.from_json.read_text())
+    elif a.from_run is not None:
+        out = from_run(a.from_run, a.time_log)
+    else:
+        out = measure(a)
+    text = json.dumps(out, indent=1)
+    print(text)
+    if a.json:
+        a.json.parent.mkdir(parents=True, exist_ok=True)
+        a.json.write_text(text)
+    if a.markdown:
+        command = "python tools/timing.py " + " ".join(str(x) for x in (argv if argv is not None else sys.argv[1:]))
+        write_markdown(a.markdown, markdown(out, command))
+    return out
+
+
+def from_run(run: Path, time_log: Path | None = None) -> dict:
+    """A timing document of one finished run folder (its profile, the run's figures as ``run``);
+    time_log: its /usr/bin/time -v output, whose peak RSS (every process) replaces the run's own."""
+    fig = run_figures(run)
+    if time_log is not None and (rss := time_log_rss_mb(time_log.read_text())) is not None:
+        fig["peak_rss_mb"] = {"any_process (time -v)": rss}
+    summary = json.loads((Path(run) / "summary.json").read_text())
+    load = fig.get("load_average") or {}
+    return {"profile": summary["metadata"].get("profile"), "cpus": os.cpu_count(),
+            "load_before": load.get("before"), "load_after": load.get("after"), "run": fig}
+
+
+def measure(a: argparse.Namespace) -> dict:
+    """Measure as the module docstring says (two or three bench runs, pose families, render)."""
+    from fenestra.bench.results import versions  # noqa: PLC0415
+
+    out = {"profile": a.profile, "executor": a.executor, "cpus": os.cpu_count(),
+           "load_before": os.getloadavg(), "machine": platform.platform(), "versions": versions()}
+    with tempfile.TemporaryDirectory(prefix="fenestra-timing-") as tmp:
+        cwd = Path(tmp)
+        out["cold"] = bench_run(a.profile, a.executor, cwd, "cold")
+        out["cached_renders"] = bench_run(a.profile, a.executor, cwd, "cached")
+        if a.ray:
+            out["ray_cached_renders"] = bench_run(a.profile, "ray", cwd, "ray")
+            out["ray_over_local_wall"] = out["ray_cached_renders"]["wall_s"] / out["cached_renders"]["wall_s"]
+        out["pose_family_cost"] = pose_costs(cwd / "out" / "renders", profile=a.profile)
+        if not a.skip_render:
+            out["render"] = render_margin(cwd)
+    out["load_after"] = os.getloadavg()
+    return out
+
+
+if __name__ == "__main__":
+    main()
