@@ -9,7 +9,8 @@ import pytest
 from fenestra.conventions import make_K, rotation_error_deg
 from fenestra.tolerances import TOL
 from fenestra.pipeline.aspect import AspectError, aspect_ratio, classify, focal_from_quad
-from fenestra.pipeline.pose import POSE_SOLVERS, PoseError, estimate_pose
+from fenestra.pipeline.pose import PoseError, estimate_pose
+from fenestra.pipeline.poses import POSES
 from quad_image import view_window
 
 K = make_K(812.0, 805.0, 331.3, 238.9)
@@ -90,7 +91,7 @@ def test_aspect_bad_input():
         aspect_ratio(np.array([[0, 0], [1, 0], [2, 0], [0, 1.0]]), K)
 
 
-@pytest.mark.parametrize("solver", sorted(POSE_SOLVERS))
+@pytest.mark.parametrize("solver", POSES.where(per_wall=False))
 def test_pose_exact(solver):
     for sw in random_views(30, seed=3):
         ratio = aspect_ratio(sw.corners_px, K).ratio
@@ -112,7 +113,7 @@ def test_pose_scale_by_width_and_default_height():
 
 def test_pose_bad_input():
     sw = next(random_views(1, seed=5))
-    with pytest.raises(ValueError, match="unknown pose solver 'epnp'"):
+    with pytest.raises(ValueError, match="unknown pose strategy 'epnp'"):
         estimate_pose(sw.corners_px, K, 1.0, solver="epnp")
     with pytest.raises(ValueError, match="aspect ratio must be positive"):
         estimate_pose(sw.corners_px, K, -1.0)

@@ -145,17 +145,36 @@ def test_sparse_detections_fit_exactly_like_full_masks():
     assert dets[2].box.tolist() == [599.5, -0.5, 639.5, 29.5]  # pixel-edge outline of columns 600-639, rows 0-29
 
 
-def test_pose_strategies_come_from_both_registries():
+def test_pose_strategies_are_one_registry_that_sees_late_entries():
+    """Built-in solvers and wall strategies in one registry; a strategy registered after import
+    reaches ReconstructConfig, estimate_pose by name and the reconstruction itself."""
     from fenestra.conventions import DEFAULTS
-    from fenestra.pipeline.pose import POSE_SOLVERS
+    from fenestra.pipeline.pose import SOLVERS, PoseSolver, solve_ippe
+    from fenestra.pipeline.poses import POSES, PoseStrategy
     from fenestra.pipeline.reconstruct import pose_strategies
     from fenestra.pipeline.walls import WALL_STRATEGIES
 
     ps = pose_strategies()
-    assert list(ps) == [*POSE_SOLVERS, *WALL_STRATEGIES]
+    assert ps is POSES and list(ps) == [*(s.name for s in SOLVERS), *WALL_STRATEGIES]
     for name, s in ps.items():
         assert s.name == name and s.description.strip() and s.per_wall == (name in WALL_STRATEGIES)
         assert ReconstructConfig(pose=name).pose == name
+    calls = []
+
+    def counted(obj, img, K):
+        calls.append(1)
+        return solve_ippe(obj, img, K)
+
+    POSES.register(PoseStrategy.per_window(PoseSolver("late-ippe", counted, "test: IPPE, counted")))
+    try:
+        from fenestra.pipeline.pose import estimate_pose
+        from fenestra.tolerances import TOL
+
+        sw = view_window(K, 1.2, 1.5, 30.0, 10.0, 5.0, 6.0)
+        p = estimate_pose(sw.corners_px, K, 1.2 / 1.5, 1.5, solver="late-ippe")
+        assert calls and rotation_error_deg(p.R, sw.R) < TOL.exact_rotation_deg
+    finally:
+        POSES.unregister("late-ippe")
     cfg = ReconstructConfig()
     assert (cfg.snapper, cfg.pose) == (DEFAULTS.snapper, DEFAULTS.pose)
 

@@ -61,17 +61,17 @@ def test_every_registry_is_one_type_of_named_described_entries():
     from fenestra.bench.real.adapters import ADAPTERS
     from fenestra.registry import Entry
     from fenestra.pipeline.detectors import DETECTORS
-    from fenestra.pipeline.pose import POSE_SOLVERS
-    from fenestra.pipeline.reconstruct import POSES
+    from fenestra.pipeline.pose import SOLVERS
+    from fenestra.pipeline.poses import POSES
     from fenestra.pipeline.snappers import SNAPPERS
     from fenestra.renders.backends import RENDERERS
 
-    for reg in (ADAPTERS, DETECTORS, POSE_SOLVERS, POSES, SNAPPERS, RENDERERS):
+    for reg in (ADAPTERS, DETECTORS, POSES, SNAPPERS, RENDERERS):
         assert isinstance(reg, Registry) and len(reg) >= 2
         for name, entry in reg.items():
             assert isinstance(entry, Entry) and entry.name == name and entry.description.strip(), (reg.kind, name)
             assert set(capabilities(entry)) == {"in_all", "needs_instances", "trainable", "per_wall", "fits_focal"}
-    assert POSES.where(per_wall=True) == POSES.where(fits_focal=True) and POSES.where(per_wall=False) == list(POSE_SOLVERS)
+    assert POSES.where(per_wall=True) == POSES.where(fits_focal=True) and POSES.where(per_wall=False) == [s.name for s in SOLVERS]
     assert DETECTORS.where(needs_instances=True) == ["oracle", "oracle-degraded"]
 
 

@@ -3,7 +3,8 @@
 Window frame: x along the wall, y up, z outward (toward the viewer), origin at the bottom-left
 corner. Image corners TL, TR, BR, BL are the object points (0,h,0), (w,h,0), (w,0,0), (0,0,0).
 Single-image scale is unknown: h is a parameter (default 1 m), or the user gives the true height or
-width. Solvers (registry ``POSE_SOLVERS``: name -> :class:`PoseSolver`):
+width. Solvers (:data:`SOLVERS`, registered as per-window pose strategies in the one registry
+``fenestra.pipeline.poses.POSES``):
 
 - ``lm``: ``cv2.SOLVEPNP_ITERATIVE`` (homography initialisation, Levenberg-Marquardt refinement).
 - ``ippe``: ``cv2.SOLVEPNP_IPPE`` (infinitesimal plane-based pose; of its two solutions the one
@@ -20,7 +21,6 @@ import numpy as np
 from fenestra.checks import check_K
 from fenestra.conventions import PAPER
 from fenestra.errors import PipelineError
-from fenestra.registry import Registry
 
 
 class PoseError(PipelineError):
@@ -100,10 +100,10 @@ class PoseSolver:
     description: str
 
 
-POSE_SOLVERS: Registry[PoseSolver] = Registry("pose solver", [
+SOLVERS: tuple[PoseSolver, ...] = (  # the built-in per-window solvers (entries of pipeline.poses.POSES)
     PoseSolver("lm", solve_lm, "per window, cv2.solvePnP iterative Levenberg-Marquardt, the paper's"),
     PoseSolver("ippe", solve_ippe, "per window, cv2.solvePnP IPPE, the solution facing the camera"),
-])
+)
 
 
 def estimate_pose(quad: np.ndarray, K: np.ndarray, ratio: float, height_m: float | None = 1.0,
@@ -111,10 +111,15 @@ def estimate_pose(quad: np.ndarray, K: np.ndarray, ratio: float, height_m: float
     """Pose of the w x h window imaged as ``quad`` (4, 2) px TL TR BR BL, with intrinsics K (3, 3).
 
     w = ratio * h with h = ``height_m`` (default 1 m), or h = width_m / ratio if ``width_m`` is
-    given. solver: a name of POSE_SOLVERS or a PoseSolver. Raises ValueError for bad input or an
-    unknown solver, PoseError if no valid pose.
+    given. solver: a PoseSolver, or the name of a per-window strategy of pipeline.poses.POSES.
+    Raises ValueError for bad input or an unknown solver, PoseError if no valid pose.
     """
-    solver = POSE_SOLVERS[solver] if isinstance(solver, str) else solver
+    if isinstance(solver, str):
+        from fenestra.pipeline.poses import POSES  # noqa: PLC0415  (the registry holds this module's solvers)
+
+        name, solver = solver, POSES[solver].solver
+        if solver is None:
+            raise ValueError(f"pose strategy {name!r} is per wall, not a per-window solver")
     img = np.asarray(quad, dtype=np.float64)
     if img.shape != (4, 2) or not np.all(np.isfinite(img)):
         raise ValueError(f"quad must be finite with shape (4, 2), got {img.tolist()}")

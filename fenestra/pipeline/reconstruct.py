@@ -24,76 +24,17 @@ import numpy as np
 from fenestra.checks import check_image, check_K
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
-from fenestra.registry import Registry
 from fenestra.pipeline.aspect import aspect_ratio
 from fenestra.pipeline.memo import StepMemo, key
-from fenestra.pipeline.pose import POSE_SOLVERS, PoseSolver, estimate_pose
+from fenestra.pipeline.pose import estimate_pose
+from fenestra.pipeline.poses import POSES, PoseStrategy, pose_strategies  # noqa: F401  (re-exported: the one registry)
 from fenestra.pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from fenestra.pipeline.segments import SegmentCache
 from fenestra.pipeline.snappers import SNAPPERS
 from fenestra.pipeline.types import Detection, WindowResult
-from fenestra.pipeline.walls import WALL_STRATEGIES, WallParams, apply_walls
+from fenestra.pipeline.walls import apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
-
-
-@dataclass(frozen=True)
-class PoseStrategy:
-    """A pose strategy as :func:`reconstruct` offers it (``ReconstructConfig.pose``): an entry of
-    :data:`POSES`.
-
-    Exactly one of ``solver`` (a per-window :class:`~pipeline.pose.PoseSolver`: each window from its
-    own quad; with K None, from the focal length of its own quad) and ``wall`` (a per-wall
-    :class:`~pipeline.walls.WallParams`: windows grouped into walls, each wall fitted once; with K
-    None the focal length is a parameter of that fit). description: one line for CLI help and docs.
-    Capabilities (fenestra.registry): ``per_wall``, and ``fits_focal`` (the per-wall ones: the bench
-    runs them with K withheld too).
-    """
-
-    name: str
-    description: str
-    solver: PoseSolver | None = None
-    wall: WallParams | None = None
-
-    def __post_init__(self) -> None:
-        if (self.solver is None) == (self.wall is None):
-            raise ValueError(f"pose strategy {self.name!r} needs exactly one of solver= (per window) or wall= (per wall)")
-
-    @property
-    def per_wall(self) -> bool:
-        return self.wall is not None
-
-    @property
-    def fits_focal(self) -> bool:
-        return self.wall is not None
-
-    @property
-    def per_window_pose(self) -> str:
-        """The per-window solver whose results it starts from (itself, or the wall's base_pose)."""
-        return self.name if self.wall is None else self.wall.base_pose
-
-    @classmethod
-    def per_window(cls, solver: PoseSolver) -> PoseStrategy:
-        return cls(solver.name, solver.description, solver=solver)
-
-    @classmethod
-    def walls(cls, name: str, params: WallParams) -> PoseStrategy:
-        return cls(name, params.description, wall=params)
-
-
-# Every pose strategy, per-window solvers first: the one registry that the CLI, profiles, the bench,
-# the gates and the reports read. A new solver is a line of pipeline.pose.POSE_SOLVERS, a new
-# per-wall strategy a line of pipeline.walls.WALL_STRATEGIES; a plug-in (or a test) registers a
-# PoseStrategy here.
-POSES: Registry[PoseStrategy] = Registry("pose strategy", [
-    *(PoseStrategy.per_window(s) for s in POSE_SOLVERS.snapshot()),
-    *(PoseStrategy.walls(n, w) for n, w in WALL_STRATEGIES.items()),
-])
-
-
-def pose_strategies() -> Registry[PoseStrategy]:
-    """:data:`POSES` (the name it had before it was a registry)."""
-    return POSES
 
 
 @dataclass(frozen=True)

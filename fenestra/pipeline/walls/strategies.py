@@ -1,7 +1,8 @@
 """Per-wall strategies: group a photo's windows into walls, estimate each wall's geometry once.
 
-Registry ``WALL_STRATEGIES`` (pose-strategy names beside ``pipeline.pose.POSE_SOLVERS``; the
-bench's method combinations run both). A wall strategy takes the per-window results (their
+The built-in strategies are :data:`WALL_STRATEGIES`, registered (beside the per-window solvers
+of pipeline.pose) in the one pose registry ``fenestra.pipeline.poses.POSES``; the bench's method
+combinations run both kinds. A wall strategy takes the per-window results (their
 snapped quads), groups the windows into walls (:func:`pipeline.walls.vanishing.group_walls`), fits
 each wall jointly (:func:`pipeline.walls.fit.refine_walls`: one rotation, per-window translation
 and width) and gives every window its aspect ratio, pose and error bars from the shared plane
@@ -39,7 +40,7 @@ from fenestra.pipeline.walls.vanishing import (FacadeError, WallVP, fit_vps, foc
                                       initial_rotation, tie_walls)
 
 
-WALL_STRATEGIES: dict[str, WallParams] = {
+WALL_STRATEGIES: dict[str, WallParams] = {  # built-in entries of pipeline.poses.POSES (read there once)
     "wall": WallParams(description="per wall, one rotation fitted over all its windows' corners (the shared plane)"),
     "building": WallParams(manhattan=True, description="per wall, walls at right angles tied into one rotation"),
     "wall+lines": WallParams(lines=True, snap_sigma=True,
