@@ -92,3 +92,63 @@ def test_wide_look_changes_pixels_not_ground_truth():
         np.testing.assert_array_equal(c.depth, w.depth)
         assert (c.instances > 0).any()
         assert np.abs(c.rgb.astype(int) - w.rgb.astype(int)).mean() > 5
+
+
+# ---------------------------------------------------------------- a look per view (issue #36)
+def _per_view_config(root, look_per: str, seed: int = 4, n_views: int = 3) -> DatasetConfig:
+    sampler = SamplerConfig(width=96, height=72, street_fraction=0.0, distance_m=(3.0, 6.0))
+    return DatasetConfig("w", n_views=n_views, seed=seed, sampler=sampler, out_root=str(root),
+                         settings=RenderSettings(look="wide", look_per=look_per))
+
+
+def test_each_view_draws_its_own_look_and_renders_in_it(tmp_path):
+    """look_per = "view": two views of one house get different looks (drawn from each view's own
+    stream, recomputed here with numpy), and each image is what a renderer built with that look
+    draws for the view's camera; look_per = "set" keeps one look and view.json as it was."""
+    import json
+
+    from fenestra import data
+    from fenestra.renders.camera import Camera
+    from fenestra.renders.dataset import LOOK_STREAM, render_dataset
+    from fenestra.renders.raster import RasterRenderer
+
+    scene = wall_scene(sill_top=1.2)
+    root = render_dataset(_per_view_config(tmp_path, "view"), scene, progress=False)
+    views = [data.read_view(root / "views" / f"{i:06d}") for i in range(3)]
+    seeds = [int(np.random.SeedSequence([4, i, LOOK_STREAM]).generate_state(1, np.uint32)[0]) for i in range(3)]
+    assert [v.meta["look"]["seed"] for v in views] == seeds and len(set(seeds)) == 3
+    looks = [sample_look(np.random.default_rng(s), "wide") for s in seeds]
+    for v, lk in zip(views, looks):
+        assert v.meta["look"]["wall_rgb"] == list(lk.wall_rgb) and v.meta["look"]["weather"] == lk.weather
+    assert len({lk.wall_rgb for lk in looks}) == 3 and len({lk.sun_azimuth_deg for lk in looks}) == 3
+    for i in (0, 2):  # rendered in its own look: a renderer with that look's seed draws the same bytes
+        with RasterRenderer(scene, RenderSettings(seed=seeds[i], look="wide")) as r:
+            out = r.render(Camera.from_dict(views[i].meta))
+        np.testing.assert_array_equal(out.rgb, views[i].image)
+        np.testing.assert_array_equal(out.instances, views[i].instances)
+    # one look per set: no look in view.json, every view drawn by the one renderer of the dataset's seed
+    flat = render_dataset(_per_view_config(tmp_path, "set"), scene, progress=False)
+    assert flat != root and "look" not in json.loads((flat / "views" / "000001" / "view.json").read_text())
+    same = data.read_view(flat / "views" / "000001")
+    with RasterRenderer(scene, RenderSettings(seed=4, look="wide")) as r:
+        np.testing.assert_array_equal(r.render(Camera.from_dict(same.meta)).rgb, same.image)
+
+
+def test_a_view_with_its_seed_is_bit_identical_and_the_look_changes_the_folder(tmp_path):
+    from fenestra.renders.dataset import render_dataset
+
+    scene = wall_scene()
+    a = render_dataset(_per_view_config(tmp_path / "a", "view", n_views=2), scene, progress=False)
+    b = render_dataset(_per_view_config(tmp_path / "b", "view", n_views=2), scene, progress=False)
+    assert a.name == b.name
+    for i in range(2):
+        for f in ("image.png", "instances.png", "view.json"):
+            assert (a / "views" / f"{i:06d}" / f).read_bytes() == (b / "views" / f"{i:06d}" / f).read_bytes(), f
+    other = render_dataset(_per_view_config(tmp_path / "a", "view", seed=5, n_views=2), scene, progress=False)
+    assert (other / "views" / "000000" / "image.png").read_bytes() != (a / "views" / "000000" / "image.png").read_bytes()
+    # the folder hash: look_per counts only when it is not "set" (old folders keep their names)
+    assert config_hash(DatasetConfig("w", settings=RenderSettings(look_per="set")), scene) == "4e2ec70ae75e"
+    assert config_hash(DatasetConfig("w", settings=RenderSettings(look_per="view")), scene) != "4e2ec70ae75e"
+    assert len({a.name, other.name}) == 2
+    with pytest.raises(ValueError, match="look_per.*'house'"):
+        RenderSettings(look_per="house")

@@ -10,6 +10,7 @@ from fenestra.renders.gt import WindowView
 
 DENOISERS = ("none", "oidn", "oidn-aov")
 LOOKS = ("classic", "wide")  # renders.materials.sample_look styles
+LOOK_PER = ("set", "view")  # RenderSettings.look_per: one look per render set, or one per view
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,10 @@ class RenderSettings:
     denoise: str = "none"  # mitsuba: "none" | "oidn" | "oidn-aov" (see the class docstring, fenestra/renders/photoreal.py)
     look: str = "classic"  # renders.materials.LOOKS: "classic" (the original palette), "wide" (broader)
     antialias: str = "fxaa"  # raster: "fxaa" (post filter, fast), "msaa4" (4x multisampling, ~2.5x slower), "none"
+    # "set": one look (palette, textures, sun, sky) drawn from the seed for every view of a render set (as
+    # always; folders unchanged); "view": each view of a dataset draws its own look from its own random
+    # stream (renders.dataset.view_settings), so no figure rests on one random look per house (issue #36)
+    look_per: str = "set"
 
     def __post_init__(self) -> None:
         if self.spp < 1:
@@ -37,6 +42,8 @@ class RenderSettings:
             raise ValueError(f"denoise must be one of {DENOISERS}, got {self.denoise!r}")
         if self.look not in LOOKS:
             raise ValueError(f"look must be one of {LOOKS}, got {self.look!r}")
+        if self.look_per not in LOOK_PER:
+            raise ValueError(f"look_per must be one of {LOOK_PER}, got {self.look_per!r}")
         if self.max_depth < 1:
             raise ValueError(f"max_depth must be >= 1, got {self.max_depth}")
 

@@ -17,7 +17,7 @@ def register(app: typer.Typer) -> None:
     from the registries)."""
     from fenestra.config import choices  # noqa: PLC0415
     from fenestra.renders.backends import RENDERERS  # noqa: PLC0415
-    from fenestra.renders.base import DENOISERS, LOOKS, RenderSettings  # noqa: PLC0415
+    from fenestra.renders.base import DENOISERS, LOOK_PER, LOOKS, RenderSettings  # noqa: PLC0415
     from fenestra.renders.dataset import DatasetConfig  # noqa: PLC0415
     from fenestra.renders.sampler import SamplerConfig  # noqa: PLC0415
 
@@ -41,6 +41,8 @@ def register(app: typer.Typer) -> None:
                                            "oidn-aov guided by albedo/normal; the photoreal profile: 4 spp + oidn)"),
                look: str = typer.Option(R.look, help=f"palette, textures and lighting drawn per seed: {', '.join(LOOKS)} "
                                         "(wide: more wall colours/materials, glass variants, low sun, overcast)"),
+               look_per: str = typer.Option(R.look_per, help=f"{' or '.join(LOOK_PER)}: one look drawn from --seed for "
+                                            "every view, or each view its own look from its own stream"),
                no_shadows: bool = typer.Option(not R.shadows, help="raster: no sun shadows"),
                sensor: bool = typer.Option(False, help="apply realistic sensor noise/blur/JPEG to images")) -> None:
         """Render a dataset of views (images, 16-bit instance maps, view.json, coco.json)."""
@@ -54,7 +56,7 @@ def register(app: typer.Typer) -> None:
                                   street_fraction=street_fraction, min_visible_fraction=min_visible,
                                   k1_range=(-abs(k1), abs(k1))),
             settings=RenderSettings(seed=seed, spp=spp, shadows=not no_shadows, denoise=denoise,
-                                    look=look),
+                                    look=look, look_per=look_per),
             sensor=REALISTIC if sensor else SensorConfig())
         root = render_dataset(cfg)
         stats = json.loads((root / "stats.json").read_text())

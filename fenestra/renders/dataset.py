@@ -5,17 +5,22 @@
         views/000000/image.png  instances.png (16-bit)  [ignore.png (16-bit)]  view.json
 
 The folder name is a hash of the config that changes the output (scene sha256, sampler config,
-renderer + settings, sensor config, seed, number of views) and FORMAT_VERSION, so re-running a
+renderer + settings (the look and whether it is drawn per view), sensor config, seed, number of
+views) and FORMAT_VERSION, so re-running a
 config reuses the views already there. The renderers' code is not hashed: a change to what a
 backend draws must bump FORMAT_VERSION (or the cached views are reused as they are). Ignore
 regions (renders.gt: curtain-wall glazing, glazed doors) came later without a bump: every view.json
 now lists ``ignore`` (maybe empty); a cached view without the key gets them from the occluder pass
-alone (ignore.png and view.json added, image and instances untouched: they are the same). Python API:
+alone (ignore.png and view.json added, image and instances untouched: they are the same).
+Looks (issue #36): ``settings.look_per = "set"`` draws one look from the seed for every view (as
+always); ``"view"`` gives each view its own look, drawn from its own stream (:func:`view_settings`),
+rendered by a renderer built for that look, and recorded in its view.json (``look``). Python API:
 :func:`render_dataset`; read a view with fenestra.data.read_view.
 """
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import sys
@@ -27,13 +32,14 @@ import numpy as np
 
 from fenestra import data, files
 from fenestra.checks import INSTANCE_DTYPE
-from fenestra.renders.backends import RENDERERS, make_renderer, visibility_function
+from fenestra.renders.backends import RENDERERS, make_renderer, occluder_visibility, visibility_function
 from fenestra.renders.base import RenderSettings
 from fenestra.renders.sampler import SamplerConfig, ViewSpec, iter_views
 from fenestra.renders.sensor import SensorConfig, apply_sensor
 from fenestra.scenes.model import Scene
 
 FORMAT_VERSION = 2  # 2: GL raster backend rewrite (shader shadows, per-pixel sky, FXAA default)
+LOOK_STREAM = 0x6C6F6F6B  # "look": a per-view look's stream, [seed, view, LOOK_STREAM] (the sensor's is [seed, view])
 
 
 @dataclass(frozen=True)
@@ -63,7 +69,8 @@ def config_hash(config: DatasetConfig, scene: Scene) -> str:
 
     ``settings.denoise`` counts only for mitsuba and only when not "none", so the folders of raster
     datasets and of undenoised mitsuba ones keep the names they had before the option existed;
-    likewise ``settings.look`` counts only when not "classic".
+    likewise ``settings.look`` counts only when not "classic" and ``settings.look_per`` only when
+    not "set" (a look drawn per view changes every view: another folder).
     """
     d = dataclasses.asdict(config)
     d.pop("out_root")
@@ -71,10 +78,23 @@ def config_hash(config: DatasetConfig, scene: Scene) -> str:
         d["settings"].pop("denoise")
     if config.settings.look == "classic":
         d["settings"].pop("look")
+    if config.settings.look_per == "set":
+        d["settings"].pop("look_per")
     d["settings"]["seed"] = config.seed
     d["scene_sha256"] = scene.sha256
     d["format"] = FORMAT_VERSION
     return hashlib.sha256(json.dumps(d, sort_keys=True, default=list).encode()).hexdigest()[:12]
+
+
+def view_settings(config: DatasetConfig, i: int) -> RenderSettings:
+    """The render settings of view ``i``: ``config.settings`` whose ``seed`` (what the renderers draw
+    the look from, and mitsuba its samples) is the dataset's seed when the look is drawn per set, and
+    with ``look_per = "view"`` an int drawn from view ``i``'s own stream
+    ``SeedSequence([config.seed, i, LOOK_STREAM])``: every view its own look, the same on every run."""
+    if config.settings.look_per == "set":
+        return dataclasses.replace(config.settings, seed=config.seed)
+    seed = int(np.random.SeedSequence([config.seed, i, LOOK_STREAM]).generate_state(1, np.uint32)[0])
+    return dataclasses.replace(config.settings, seed=seed)
 
 
 def dataset_dir(config: DatasetConfig, scene: Scene) -> Path:
@@ -140,17 +160,22 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     known: dict[int, tuple[tuple, list[dict]]] = {}
     if missing:
         t0 = time.perf_counter()
-        settings = dataclasses.replace(config.settings, seed=config.seed)
-        renderer = make_renderer(config.renderer, scene, settings)
+        per_view = config.settings.look_per == "view"
+        renderer = make_renderer(config.renderer, scene, view_settings(config, 0) if per_view else
+                                 dataclasses.replace(config.settings, seed=config.seed))
         try:
-            vis = visibility_function(config.renderer, renderer) if config.sampler.min_visible_fraction > 0 else None
+            vis = None
+            if config.sampler.min_visible_fraction > 0:  # per view: the occluder pass alone (no RGB of another look)
+                vis = (functools.partial(occluder_visibility, renderer) if per_view else
+                       visibility_function(config.renderer, renderer))
             with ViewWriter() as writer:
                 last = None
                 for last in _progress(iter_views(scene, config.sampler, config.n_views, config.seed, visibility=vis),
                                       progress, f"render {scene.name} ({config.renderer})", config.n_views):
                     if last.index in todo:
                         writer.submit(last.index, root / "views" / f"{last.index:06d}",
-                                      render_view(renderer, config, scene, last.index, last.view))
+                                      render_view(renderer, config, scene, last.index, last.view) if not per_view
+                                      else render_own_look(config, scene, last.index, last.view))
                 known = writer.results()
             files.write_text(root / "sampling.json", json.dumps({"rejected": last.rejected, "tries": last.tries,
                                                             "accepted": config.n_views}, indent=1))
@@ -177,6 +202,19 @@ def render_view(renderer, config: DatasetConfig, scene: Scene, i: int, spec: Vie
             "ignore": list(out.ignore_regions)}
     ignore = None if out.ignore is None else out.ignore.astype(INSTANCE_DTYPE)
     return data.View(out.rgb, out.instances.astype(INSTANCE_DTYPE), meta, ignore)
+
+
+def render_own_look(config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> data.View:
+    """View ``i`` rendered in its own look (``look_per = "view"``): a renderer built for
+    :func:`view_settings` of the view (the look is baked into its geometry, textures and shadow
+    map), closed after it; the look drawn goes to view.json (``look``)."""
+    renderer = make_renderer(config.renderer, scene, view_settings(config, i))
+    try:
+        view = render_view(renderer, config, scene, i, spec)
+        view.meta["look"] = {"seed": renderer.settings.seed, **dataclasses.asdict(renderer.look)}
+        return view
+    finally:
+        renderer.close()
 
 
 class ViewWriter:

@@ -48,8 +48,9 @@ class MaterialGroup:
 
 @dataclass(frozen=True)
 class Look:
-    """The seeded appearance choices of one render set (palette, sun, sky). The fields after
-    sky_horizon default to what the "classic" look always used (see :func:`sample_look`)."""
+    """The seeded appearance choices of one renderer (palette, sun, sky): of a whole render set with
+    ``RenderSettings.look_per = "set"``, of one view with ``"view"`` (renders.dataset.view_settings).
+    The fields after sky_horizon default to what the "classic" look always used (see :func:`sample_look`)."""
 
     wall_style: str  # "plaster" | "brick" | "stone" (stone: "wide" only)
     wall_rgb: tuple[float, float, float]
