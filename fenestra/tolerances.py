@@ -27,6 +27,14 @@ class Tolerances:
     match_iou: float = 0.5  # detection <-> ground truth matching
     recall_thresholds_px: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0)
     all_corners_px: float = 5.0  # a window's quad is usable when all four corners are this close (issue 23)
+    # `fenestra compare RUN_A RUN_B` (fenestra/reports/compare.py): a method regresses when a metric's
+    # median over the windows paired in both runs gets worse by more than its tolerance AND the
+    # paired Wilcoxon test gives p < compare_p_value. The tolerances are about 5-10 % of the CLI
+    # method's medians on `make bench` (1.02 px, 1.9 %, 0.32 deg): below them, a change is noise to a user.
+    compare_p_value: float = 0.01
+    compare_corner_px: float = 0.05  # corner_err_px_snap
+    compare_aspect_rel: float = 0.002  # aspect_err_rel (0.2 percentage points)
+    compare_rot_deg: float = 0.02  # rot_err_deg
 
 
 TOL = Tolerances()

@@ -7,7 +7,7 @@ nothing imports it.
     fenestra reconstruct | calibrate        (fenestra/pipeline/cli.py)
     fenestra train | evaluate-detector | ship-weights | train-verifier    (fenestra/training/cli.py)
     fenestra bench | gate                   (fenestra/bench/cli.py; bench ends with reports' writer)
-    fenestra report                         (fenestra/reports/cli.py)
+    fenestra report | compare              (fenestra/reports/cli.py)
 """
 from __future__ import annotations
 

@@ -330,7 +330,7 @@ def _inline_html(text: str) -> str:
     return re.sub(r"`(.+?)`", r"<code>\1</code>", text)
 
 
-def _to_html(sections: list[tuple]) -> str:
+def to_html(sections: list[tuple]) -> str:
     """One self-contained page: images as data URIs (each <img> with the id of its file's stem);
     after a ("fold",) marker every h2 opens a closed <details> holding its section."""
     esc = html_lib.escape
@@ -439,7 +439,7 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
     sections[at:at] = real_sections(run_dir, results, summary)
     md, html = run_dir / "report.md", run_dir / "report.html"
     write_text(md, _to_md(sections, run_dir))
-    write_text(html, _to_html(sections))
+    write_text(html, to_html(sections))
     return html, md
 
 

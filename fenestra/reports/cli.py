@@ -2,6 +2,7 @@
 
     fenestra report RUN_DIR [--real REAL_RUN_DIR]
     fenestra report RUN_DIR --markdown docs/results.md [--real REAL_RUN_DIR]   (the results docs, reports.markdown)
+    fenestra compare RUN_A RUN_B [--method LABEL] [--html PATH]   (two runs of one profile, reports.compare)
 
 :func:`write_report` is also what fenestra/app/cli.py hands to bench.cli, so ``fenestra bench`` ends
 with the same report without bench/ importing reports/.
@@ -39,6 +40,29 @@ def report(run_dir: Path = typer.Argument(..., help="a run folder with results.p
     typer.echo(f"report: {html}\nmarkdown: {md}")
 
 
+def compare(run_a: Path = typer.Argument(..., help="the baseline run folder"),
+            run_b: Path = typer.Argument(..., help="the run after the change (same profile, any commit)"),
+            method: str = typer.Option(None, "--method", help="the method whose significant regression exits 1 "
+                                                              "(default: the CLI's, fenestra.conventions.DEFAULTS)"),
+            html: Path = typer.Option(None, "--html", help="the comparison page (default RUN_B/compare-<RUN_A's name>.html)"),
+            top: int = typer.Option(10, "--top", help="how many of the windows that changed most to list")) -> None:
+    """Compare run B with baseline run A window by window: per method the change of median and p90
+    of corner, aspect and rotation error, the paired Wilcoxon test, the share of windows better and
+    worse, the windows that changed most; exit 1 on a significant regression of the gated method
+    (median worse by more than fenestra/tolerances.py's compare_* tolerance, p < 0.01)."""
+    from fenestra.reports import compare as cmp  # noqa: PLC0415
+
+    if top < 0:
+        raise ValueError(f"--top must be >= 0, got {top}")
+    c = cmp.compare_runs(run_a, run_b, method=method, top=top)
+    typer.echo(cmp.text(c))
+    page = cmp.write_html(c, html if html is not None else Path(run_b) / f"compare-{Path(run_a).resolve().name}.html")
+    typer.echo(f"page: {page}")
+    if c.regressions:
+        raise typer.Exit(1)
+
+
 def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app."""
     app.command("report")(report)
+    app.command("compare")(compare)
