@@ -28,9 +28,9 @@ import numpy as np
 import pandas as pd
 from scipy.stats import wilcoxon
 
-from fenestra.bench.manifest import load_verified_results
+from fenestra.bench.manifest import KEY_COLUMNS, load_manifest, load_verified_results, verify_table
 from fenestra.bench.paired import PAIR_KEY
-from fenestra.bench.results import TRUTH_FLAGS, load_summary
+from fenestra.bench.results import RESULTS_PARQUET, TRUTH_FLAGS, load_summary, parquet_columns
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import FenestraError
 from fenestra.files import write_text
@@ -126,6 +126,24 @@ def run_info(run_dir: Path) -> RunInfo:
     return RunInfo(Path(run_dir), str(meta.get("profile")), meta.get("commit"), meta.get("config_hash"))
 
 
+def load_columns(run_dir: Path) -> pd.DataFrame:
+    """The columns a comparison reads of a run's results table, checked against its manifest like
+    ``load_verified_results`` (its rows and the file's sha256), reading only those columns of the
+    Parquet (a default run's table has ~70 columns and a million rows)."""
+    p = run_dir / RESULTS_PARQUET
+    if not p.is_file():
+        return load_verified_results(run_dir)  # a CSV-only run, or the loader's one-line error
+    have = parquet_columns(p)
+    want = [*KEY_COLUMNS, *PAIR_KEY, "evaluable", *(m.column for m in METRICS),
+            *(TRUTH_FLAGS[m.column] for m in METRICS if m.column in TRUTH_FLAGS)]
+    missing = [c for c in ("method", "evaluable", *(m.column for m in METRICS)) if c not in have]
+    if missing:
+        raise CompareError(f"{p} lacks column(s) {missing}: not a results table")
+    df = pd.read_parquet(p, columns=[c for c in dict.fromkeys(want) if c in have])
+    verify_table(run_dir, df, load_manifest(run_dir, expand=False))
+    return df
+
+
 def _prepared(df: pd.DataFrame, key: list[str]) -> pd.DataFrame:
     """Evaluable rows: key, method, each metric (NaN where the row lacks its truth)."""
     ev = df[df["evaluable"].astype(bool)]
@@ -180,10 +198,10 @@ def compare_runs(run_a: str | Path, run_b: str | Path, method: str | None = None
     if a.profile != b.profile:
         raise CompareError(f"{b.path} is a run of profile {b.profile!r}, {a.path} of {a.profile!r}: "
                            "compare two runs of one profile")
-    dfa, dfb = load_verified_results(a.path), load_verified_results(b.path)
+    dfa, dfb = load_columns(a.path), load_columns(b.path)
     key = [k for k in PAIR_KEY if k in dfa.columns and k in dfb.columns]
     pa, pb = _prepared(dfa, key), _prepared(dfb, key)
-    ma, mb = list(dict.fromkeys(dfa["method"])), list(dict.fromkeys(dfb["method"]))
+    ma, mb = [str(m) for m in pd.unique(dfa["method"])], [str(m) for m in pd.unique(dfb["method"])]
     gated = method or DEFAULTS.label
     common = sorted((m for m in ma if m in set(mb)), key=lambda m: m != gated)  # the gated method first
     if not common:
