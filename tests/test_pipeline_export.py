@@ -31,8 +31,14 @@ K = K_from_fov(IMG_W, IMG_H, 65.0)
 R_F, T_F = look_at([1.8, 1.0, 6.5], [0.8, 0.8, 0.0], up=(0.0, 1.0, 0.0))
 # Voids on the facade: (x0, y0, w, h) m. The third one's reconstruction "fails".
 VOIDS = [(0.0, 0.0, 1.2, 1.5), (2.2, 0.2, 1.0, 1.3), (-2.0, 0.0, 1.0, 1.5)]
-# export world -> camera: x_C = x_E, y_C = -z_E, z_C = y_E (the documented z-up mapping, inverted)
-EXPORT_TO_CAMERA = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+# glTF's y-up frame from a z-up one: (x, y, z) -> (x, z, -y)
+Z_TO_Y_UP = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
+
+
+def export_to_camera(manifest: dict) -> np.ndarray:
+    """Export world -> camera rotation (3, 3) as export.json states it (its inverse, camera ->
+    export, is checked against the true façade's vertical by test_export_world_is_upright...)."""
+    return np.asarray(manifest["world_frame"]["camera_to_export"], dtype=np.float64).T
 
 
 def pinhole(X_cam: np.ndarray, K: np.ndarray = K) -> np.ndarray:
@@ -159,23 +165,24 @@ def test_ifc_is_schema_valid(ifc):
     assert logger.statements == []
 
 
-def _window_corners_px(window) -> np.ndarray:
+def _window_corners_px(window, E2C: np.ndarray) -> np.ndarray:
     M = ifcopenshell.util.placement.get_local_placement(window.ObjectPlacement)
     w, h = window.OverallWidth, window.OverallHeight
     local = np.array([[0, h, 0, 1], [w, h, 0, 1], [w, 0, 0, 1], [0, 0, 0, 1]], dtype=np.float64)
     world = (local @ M.T)[:, :3]
-    return pinhole(world @ EXPORT_TO_CAMERA.T)
+    return pinhole(world @ E2C.T)
 
 
-def test_ifc_window_placement_and_size_match_pose(ifc):
+def test_ifc_window_placement_and_size_match_pose(ifc, outputs):
+    E2C = export_to_camera(outputs[1])
     by_name = {wnd.Name.split()[1]: wnd for wnd in ifc.by_type("IfcWindow")}
     for i, height_m in ((0, 1.0), (1, 1.3)):
         wnd = by_name[str(i)]
         assert wnd.OverallHeight == pytest.approx(height_m, abs=1e-9)
         assert wnd.OverallWidth / wnd.OverallHeight == pytest.approx(VOIDS[i][2] / VOIDS[i][3], rel=1e-9)
-        assert np.abs(_window_corners_px(wnd) - gt_quad(i)).max() < 0.5
+        assert np.abs(_window_corners_px(wnd, E2C) - gt_quad(i)).max() < 0.5
         # Exact in practice, not just within the 0.5 px requirement.
-        assert np.abs(_window_corners_px(wnd) - gt_quad(i)).max() < 1e-6
+        assert np.abs(_window_corners_px(wnd, E2C) - gt_quad(i)).max() < 1e-6
 
 
 def _iterated_meshes(ifc, ifc_class):
@@ -189,9 +196,10 @@ def _iterated_meshes(ifc, ifc_class):
     return meshes
 
 
-def test_ifc_window_rerendered_covers_void(ifc):
+def test_ifc_window_rerendered_covers_void(ifc, outputs):
+    E2C = export_to_camera(outputs[1])
     for name, (V, F) in _iterated_meshes(ifc, "IfcWindow").items():
-        px = pinhole(V @ EXPORT_TO_CAMERA.T)
+        px = pinhole(V @ E2C.T)
         render = np.zeros((IMG_H, IMG_W), dtype=np.uint8)
         for tri in F:
             cv2.fillPoly(render, [np.round(px[tri] * 16).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
@@ -207,7 +215,7 @@ def test_ifc_wall_has_void_cut_and_photo_texture(ifc, outputs):
         i = int(name)
         k = (1.0 if i == 0 else 1.3) / VOIDS[i][3]
         x0, y0, w, h = VOIDS[i]
-        cam = V @ EXPORT_TO_CAMERA.T
+        cam = V @ export_to_camera(manifest).T
         facade = ((cam / k - T_F) @ R_F)  # back to the true facade frame (R_F orthonormal)
         assert facade[:, 0].min() == pytest.approx(x0 - 1.0 / k, abs=1e-6)
         assert facade[:, 2].min() == pytest.approx(-0.30 / k, abs=1e-6)
@@ -241,7 +249,7 @@ def test_ifc_texture_coordinates_reproduce_projection(ifc, outputs):
                 if abs(p[2]) > 1e-9:
                     continue  # only the exterior face is seen in the photo
                 world = M[:3, :3] @ p + M[:3, 3]
-                expected = pinhole((world @ EXPORT_TO_CAMERA.T)[None])[0]
+                expected = pinhole((world @ export_to_camera(manifest).T)[None])[0]
                 s, t = uv[b - 1]
                 got = np.array([s * tex["width"] - 0.5 - tex["pad_left"],
                                 (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
@@ -307,7 +315,8 @@ def test_glb_and_obj_agree_on_wall_uvs(outputs):
         scene = trimesh.load(str(outputs[0][key]), force="scene")
         walls = [m for m in scene.dump() if m.visual.kind == "texture" and getattr(m.visual, "uv", None) is not None
                  and len(m.visual.uv)]
-        r = np.round(np.concatenate([np.column_stack([m.vertices, m.visual.uv]) for m in walls]), 4)
+        to_y_up = np.eye(3) if key == "glb" else Z_TO_Y_UP  # the GLB's root node turned its world y-up
+        r = np.round(np.concatenate([np.column_stack([m.vertices @ to_y_up.T, m.visual.uv]) for m in walls]), 4)
         rows[key] = r[np.lexsort(r.T[::-1])]
     assert rows["obj"].shape == rows["glb"].shape
     assert np.abs(rows["obj"] - rows["glb"]).max() < 1e-3
@@ -323,7 +332,7 @@ def test_obj_wall_uvs_reproduce_projection(outputs):
              for c in line.split()[1:]}
     errs = []
     for vi, ti in pairs:
-        cam = EXPORT_TO_CAMERA @ V[vi - 1]
+        cam = export_to_camera(manifest) @ V[vi - 1]
         expected = pinhole(cam[None])[0]
         s, t = VT[ti - 1]
         got = np.array([s * tex["width"] - 0.5 - tex["pad_left"], (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
@@ -456,7 +465,8 @@ def test_texture_is_padded_when_the_wall_leaves_the_photo(tmp_path, photo):
     q = pinhole(void_corners_facade(*VOIDS[0]) @ R_F.T + T_F, K_zoom)
     r = WindowResult(0, 0.9, q, q, w / h, "general", None, R_F, T_F + R_F @ [x0, y0, 0.0], h, q, None)
     paths = write_outputs(tmp_path, photo, K_zoom, [r])
-    tex = json.loads(paths["manifest"].read_text())["texture"]
+    manifest = json.loads(paths["manifest"].read_text())
+    tex = manifest["texture"]
     assert tex["pad_left"] + tex["pad_right"] + tex["pad_top"] + tex["pad_bottom"] > 0
     texture = read_rgb(paths["texture"])
     assert texture.shape[:2] == (tex["height"], tex["width"])
@@ -468,7 +478,7 @@ def test_texture_is_padded_when_the_wall_leaves_the_photo(tmp_path, photo):
              for c in line.split()[1:]}
     corners = []
     for vi, ti in pairs:
-        cam = EXPORT_TO_CAMERA @ V[vi - 1]
+        cam = export_to_camera(manifest) @ V[vi - 1]
         facade = (cam - T_F) @ R_F
         if abs(facade[2]) > 1e-5:
             continue
@@ -494,13 +504,14 @@ def test_glb_rerendered_from_the_photo_camera_reproduces_the_photo(outputs):
     from fenestra.conventions import CV_TO_GL, PYRENDER_PIXEL_OFFSET
 
     pyrender = import_pyrender()
-    paths, _ = outputs
+    paths, manifest = outputs
     scene = pyrender.Scene.from_trimesh_scene(trimesh.load(str(paths["glb"]), force="scene"),
                                               bg_color=[0, 0, 0, 0], ambient_light=[1, 1, 1])
     camera = pyrender.IntrinsicsCamera(K[0, 0], K[1, 1], K[0, 2] + PYRENDER_PIXEL_OFFSET,
                                        K[1, 2] + PYRENDER_PIXEL_OFFSET, znear=0.05, zfar=100.0)
     pose = np.eye(4)
-    pose[:3, :3] = EXPORT_TO_CAMERA.T @ CV_TO_GL  # camera frame axes in the export world, GL style
+    # camera frame axes in the GLB's (y-up) world, GL style
+    pose[:3, :3] = Z_TO_Y_UP @ export_to_camera(manifest).T @ CV_TO_GL
     scene.add(camera, pose=pose)
     renderer = pyrender.OffscreenRenderer(IMG_W, IMG_H)
     try:
@@ -575,3 +586,161 @@ def test_glb_texture_is_at_most_8192_px_and_keeps_its_uvs(tmp_path):
     assert image.shape[:2] == (8, GLB_MAX_TEXTURE_PX)
     assert image[..., :3].mean() == pytest.approx(100.0, abs=0.5)
     assert np.allclose(mesh.visual.uv, uv, atol=1e-6)
+
+
+def _glb_json(path) -> dict:
+    """The JSON chunk of a binary glTF, parsed here (header, then chunk 0: length, type 'JSON')."""
+    data = path.read_bytes()
+    assert data[:4] == b"glTF"
+    length = int.from_bytes(data[12:16], "little")
+    assert data[16:20] == b"JSON"
+    return json.loads(data[20:20 + length])
+
+
+def _rect_axes(V: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A slab's (normal, side a, side b), unit (3,) each: the normal is its thinnest principal axis;
+    the sides are those of the smallest rectangle (cv2.minAreaRect) around its vertices in that plane."""
+    c = V - V.mean(axis=0)
+    _, _, vt = np.linalg.svd(c, full_matrices=False)
+    e1, e2, n = vt
+    xy = np.column_stack([c @ e1, c @ e2]).astype(np.float32)
+    (_, _), (_, _), ang = cv2.minAreaRect(xy)
+    a = np.radians(ang)
+    return n, np.cos(a) * e1 + np.sin(a) * e2, -np.sin(a) * e1 + np.cos(a) * e2
+
+
+def _up_error_deg(V: np.ndarray, up: np.ndarray) -> float:
+    """How far (deg) a wall slab (vertices (N, 3)) is from standing along ``up``: the angle between
+    ``up`` and the nearer of its rectangle's side directions."""
+    _, a, b = _rect_axes(V)
+    cos = max(abs(a @ up), abs(b @ up))
+    return float(np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
+
+
+def test_export_world_is_upright_with_the_facade_vertical(outputs):
+    """The camera looks slightly down at the façade (R_F): the export world's z is the façade's up
+    (R_F's y axis, the truth here), the camera's heading is +y, and the rotation is proper."""
+    _, manifest = outputs
+    M = np.asarray(manifest["world_frame"]["camera_to_export"])
+    assert np.allclose(M @ M.T, np.eye(3), atol=1e-12) and np.linalg.det(M) == pytest.approx(1.0)
+    assert np.allclose(M @ (R_F @ np.array([0.0, 1.0, 0.0])), [0, 0, 1], atol=1e-9)
+    heading = M @ np.array([0.0, 0.0, 1.0])
+    assert abs(heading[0]) < 1e-12 and heading[1] > 0.9
+    g = manifest["world_frame"]["gravity"]
+    assert g["windows"] == 2 and "up axes" in g["source"] and g["tilt_deg"] > 1.0  # the camera is not level
+
+
+def test_glb_root_node_turns_the_model_y_up(outputs):
+    """glTF is y-up: the GLB's one root node holds (x, y, z) -> (x, z, -y) (column-major, read from
+    the file's JSON), and a viewer's world (trimesh applies the node) has each wall standing on +y."""
+    paths, _ = outputs
+    gltf = _glb_json(paths["glb"])
+    roots = gltf["scenes"][gltf.get("scene", 0)]["nodes"]
+    assert len(roots) == 1
+    node, M = gltf["nodes"][roots[0]], np.eye(4)
+    while len(node.get("children", [])) == 1:  # trimesh's "world" node, then ours: the transforms compose
+        M = M @ np.asarray(node.get("matrix", np.eye(4).ravel()), dtype=np.float64).reshape(4, 4).T  # column-major
+        node = gltf["nodes"][node["children"][0]]
+    M = M @ np.asarray(node.get("matrix", np.eye(4).ravel()), dtype=np.float64).reshape(4, 4).T
+    assert np.allclose(M[:3, :3], Z_TO_Y_UP) and np.allclose(M[:3, 3], 0)
+    parts = [n for n in gltf["nodes"] if "mesh" in n]
+    assert len(node["children"]) == len(parts) and all("matrix" not in n for n in parts)  # every part under it
+    meshes = trimesh.load(str(paths["glb"]), force="scene").dump(concatenate=False)
+    walls = [m for m in meshes if m.visual.kind == "texture" and getattr(m.visual, "uv", None) is not None
+             and len(m.visual.uv)]
+    assert len(walls) == 2
+    for m in walls:
+        assert _up_error_deg(m.vertices, np.array([0.0, 1.0, 0.0])) < 1e-3
+        n, _, _ = _rect_axes(m.vertices)
+        assert abs(n[1]) < 1e-5  # vertical: its normal is horizontal
+
+
+def _tilted_two_wall_results(noise_px: float = 0.5, seed: int = 3):
+    """A building corner (front wall z = 0 facing +z, side wall x = 0 facing +x; world y up) seen by
+    a camera pitched up ~22 deg and rolled 4 deg: window quads with corner noise, fitted by the real
+    per-wall strategy ('wall', K known), then pipeline.facade_model. Returns (K, results, walls,
+    true up in the camera frame, image shape)."""
+    from fenestra.conventions import project  # noqa: PLC0415
+    from fenestra.pipeline import walls as wallpkg  # noqa: PLC0415
+    from fenestra.pipeline.facade_model import Known, facade_model  # noqa: PLC0415
+
+    shape = (960, 1280)
+    Kt = np.array([[1000.0, 0, 639.5], [0, 1000.0, 479.5], [0, 0, 1]])
+    R0, t0 = look_at([11.0, 1.6, 15.0], [3.5, 7.5, 3.5], up=(0.0, 1.0, 0.0))
+    roll = np.radians(4.0)
+    Rz = np.array([[np.cos(roll), -np.sin(roll), 0], [np.sin(roll), np.cos(roll), 0], [0, 0, 1.0]])
+    R_cam, t_cam = Rz @ R0, Rz @ t0  # world -> camera, rolled about the optical axis
+    side = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # side wall frame: x along world -z, facing +x
+    rng = np.random.default_rng(seed)
+    quads, truth = [], []
+    for R_f, xs in ((np.eye(3), (1.0, 3.2, 5.4)), (side, (-7.0, -4.8, -2.6))):
+        for x0 in xs:
+            for y0 in (1.0, 4.2, 7.4):
+                R = R_cam @ R_f
+                t = R_cam @ (R_f @ np.array([x0, y0, 0.0])) + t_cam
+                q = project(Kt, R, t, np.array([[0, 1.6, 0], [1.2, 1.6, 0], [1.2, 0, 0], [0, 0, 0]], dtype=float))
+                quads.append(q + rng.normal(0.0, noise_px, q.shape))
+    base = [WindowResult(i, 1.0, q, q, None, "general", None, None, None, 1.0, None, None) for i, q in enumerate(quads)]
+    fitted = wallpkg.apply_walls(base, Kt, shape, 1.0, None, wallpkg.WallParams())
+    assert all(r.failure is None for r in fitted)
+    results, model = facade_model(fitted, Known(window_height_m=1.6))
+    assert len(model.walls) == 2 and not model.flags
+    walls = {k: w.id for w in model.walls for k in w.members}
+    return Kt, results, walls, R_cam @ np.array([0.0, 1.0, 0.0]), shape
+
+
+def test_a_tilted_camera_gives_vertical_walls(tmp_path):
+    """Issue 35: the model came out in the camera frame, walls leaning by the camera's tilt. With a
+    camera pitched ~22 deg and rolled 4 deg (true gravity known), gravity from the fitted walls'
+    up axes makes every wall vertical within 1 deg in model.ifc (z up), model.obj (z up) and
+    model.glb (y up, read back); the camera-level frame (gravity=False) leaves them leaning."""
+    Kt, results, walls, up_true, (H, W) = _tilted_two_wall_results()
+    photo = np.full((H, W, 3), 128, np.uint8)
+    paths = write_outputs(tmp_path / "up", photo, Kt, results, walls=walls)
+    manifest = json.loads(paths["manifest"].read_text())
+    up_est = np.asarray(manifest["world_frame"]["gravity"]["up_camera"])
+    assert np.degrees(np.arccos(np.clip(up_est @ up_true, -1, 1))) < 1.0
+    assert manifest["world_frame"]["gravity"]["windows"] == 18
+    meshes = trimesh.load(str(paths["glb"]), force="scene").dump(concatenate=False)
+    glb_walls = [m for m in meshes if m.visual.kind == "texture" and getattr(m.visual, "uv", None) is not None
+                 and len(m.visual.uv)]
+    assert len(glb_walls) == 2
+    for m in glb_walls:
+        assert _up_error_deg(m.vertices, np.array([0.0, 1.0, 0.0])) < 1.0
+    f = ifcopenshell.open(str(paths["ifc"]))
+    for wall in f.by_type("IfcWall"):
+        M = ifcopenshell.util.placement.get_local_placement(wall.ObjectPlacement)
+        lean = np.degrees(np.arccos(np.clip(M[2, 1], -1, 1)))  # the wall frame's y (up) against world z
+        assert lean < 1.0, (wall.Name, lean)
+    level = write_outputs(tmp_path / "level", photo, Kt, results, walls=walls, gravity=False)
+    meshes = trimesh.load(str(level["glb"]), force="scene").dump(concatenate=False)
+    leans = [_up_error_deg(m.vertices, np.array([0.0, 1.0, 0.0])) for m in meshes
+             if m.visual.kind == "texture" and getattr(m.visual, "uv", None) is not None and len(m.visual.uv)]
+    assert min(leans) > 10.0  # the test can fail: without gravity the walls lean by the camera's tilt
+
+
+def test_gravity_argument_and_fallbacks():
+    """gravity_up: walls vote (the larger agreeing set wins over a lone wall whose axes are off);
+    a winner over GRAVITY_MAX_TILT_DEG falls back to the camera level; bad values are one-line errors."""
+    from fenestra.pipeline.export import export_gravity  # noqa: PLC0415
+    from fenestra.pipeline.export.geometry import CAMERA_TO_EXPORT, PlacedWindow, camera_to_world, gravity_up  # noqa: PLC0415
+
+    def pw(i, R):
+        return PlacedWindow(i, 1.0, 1.5, R, np.array([0.0, 0.0, 10.0]))
+
+    def rot_x(deg):
+        a = np.radians(deg)
+        return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+
+    level = np.diag([1.0, -1.0, -1.0])  # window frame y up = camera -y, facing the camera
+    placed = [pw(i, rot_x(10.0) @ level) for i in range(3)] + [pw(3, rot_x(40.0) @ level)]
+    g = gravity_up(placed, {0: 0, 1: 0, 2: 0, 3: 1})
+    assert g.windows == 3 and g.tilt_deg == pytest.approx(10.0, abs=1e-9)
+    M = camera_to_world(g.up)
+    assert np.allclose(M @ g.up, [0, 0, 1])
+    assert np.allclose(camera_to_world(np.array([0.0, -1.0, 0.0])), CAMERA_TO_EXPORT)
+    lying = gravity_up([pw(0, rot_x(75.0) @ level)])
+    assert lying.up is None and "75 deg" in lying.source
+    assert gravity_up([]).up is None
+    with pytest.raises(ValueError, match=r"gravity must be .* got \[0, 0, 0\]"):
+        export_gravity(placed, None, [0, 0, 0])

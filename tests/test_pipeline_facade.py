@@ -183,7 +183,8 @@ def test_apply_walls_without_K_fails_cleanly_when_unobservable():
     quads = np.array([project(K, R, t, c) for c in wall_windows([0, 0, 0], EX_FRONT, FRONT[:3])])
     base = [replace(r, focal_estimate_px=700.0) for r in _results(quads)]  # a per-window (Zhang & He) f
     out = walls.apply_walls(base, None, SHAPE, 1.0, None, walls.WallParams())
-    assert all(r.failure and "focal length unobservable" in r.failure and r.R is None for r in out)
+    assert all(r.failure and r.failure.stage == "wall" and "focal length unobservable" in r.failure.reason
+               and r.R is None for r in out)
     assert all(r.focal_estimate_px is None for r in out)  # the bench must not count the per-window f
 
 
@@ -681,3 +682,42 @@ def test_quantiles_are_scipy_stats_bit_for_bit():
             assert wallfit.chi2_ppf(level, dof) == float(chi2.ppf(level, dof))
     for level in (0.5, 0.9, 0.95, 0.975):
         assert wallfit.norm_ppf(level) == float(norm.ppf(level))
+
+
+def test_a_runaway_focal_length_stops_early_and_a_good_one_is_unchanged(monkeypatch):
+    """Issue 35: with K withheld on a fronto-parallel wall f is unobservable and LM let it drift
+    for thousands of evaluations (148 CPU-s on one photo) before the answer was rejected. The fit
+    now stops as soon as f leaves WALL_FIT.focal_range_rel x the long side, or after max_nfev
+    evaluations; a well-posed fit (two walls at an angle) gives the same f with or without the bounds."""
+    R, t = look_at(np.array([0.5, -8.0, 2.0]), np.array([0.5, 0.0, 2.0]))  # fronto-parallel
+    quads = np.array([project(K, R, t, c) for c in wall_windows([0, 0, 0], EX_FRONT, FRONT)])
+    quads = quads + np.random.default_rng(4).normal(0.0, 0.3, quads.shape)
+    R0 = R @ np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # window frame (x, y up, z out) -> camera
+    calls = []
+    real = wallfit.least_squares
+
+    def counting(fun, *a, **k):  # the real solver, its residual evaluations counted
+        def f(x):
+            calls.append(1)
+            return fun(x)
+        return real(f, *a, **k)
+
+    monkeypatch.setattr(wallfit, "least_squares", counting)
+    with pytest.raises(vanishing.FacadeError, match=r"f ran away to -?\d+ px, outside \[100, 6400\]"):
+        wallfit.refine_walls(quads, K, R0, focal_free=True, focal_bounds=(100.0, 6400.0))
+    ran_away = len(calls)
+    calls.clear()
+    with pytest.raises(vanishing.FacadeError, match="did not converge in 5 evaluations"):
+        wallfit.refine_walls(quads, K, R0, focal_free=True, max_nfev=5)
+    assert ran_away < 100 and len(calls) <= 6
+    monkeypatch.undo()
+    with pytest.raises(vanishing.FacadeError, match="focal length unobservable"):
+        walls.fit_walls_focal(quads, SHAPE)
+    _, _, q2, _, _ = scene()  # two walls at an angle: f observable (true 820 px)
+    q2 = q2 + np.random.default_rng(5).normal(0.0, 0.3, q2.shape)
+    f_bounded, sd = walls.focal_from_walls(q2, SHAPE)
+    assert abs(f_bounded - 820.0) < 3.0 * sd
+    members, wall_ids, fit = walls.fit_walls_focal(q2, SHAPE)
+    one = wallfit.refine_walls(q2[list(members)], walls.pseudo_K(SHAPE, fit.focal_px), fit.R, fit.wall_of,
+                               focal_free=True, max_nfev=None)
+    assert one.focal_px == pytest.approx(f_bounded, rel=1e-6)  # the cap does not bind on a well-posed fit

@@ -14,7 +14,9 @@ overlap give a warning naming both values:
    segments (pipeline.walls.focal_from_walls); principal point at the image centre, square pixels.
    Interval: f +- 1.645 sd (90 %) x VP_INTERVAL_INFLATION (the fit's sd understates the spread measured
    on real street photos re-encoded, mirrored or cropped). Not used when its field of view is outside
-   PLAUSIBLE_FOV_DEG or its interval is wider than +- VP_MAX_REL_HALF_WIDTH.
+   PLAUSIBLE_FOV_DEG or its interval is wider than +- VP_MAX_REL_HALF_WIDTH. Bounded time: the fit
+   stops as soon as f runs away, after a capped number of evaluations, or when its first pass is
+   already several times vaguer than that gate (pipeline.walls.fit_walls_focal).
 4. ``prior``: a typical phone camera, PRIOR_FOV_DEG horizontal field of view along the photo's long
    side, with the wide interval PRIOR_FOV_RANGE_DEG. Always available: the chain never fails.
 
@@ -191,7 +193,8 @@ def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallPa
     if not len(quads):
         return "no window quads"
     try:
-        f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), segment_cache)
+        f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), segment_cache,
+                                 max_rel_sd=VP_MAX_REL_HALF_WIDTH / (VP_INTERVAL_INFLATION * Z90))
     except PipelineError as e:
         return str(e)
     if not (np.isfinite(f) and f > 0 and np.isfinite(sd)):
@@ -258,7 +261,7 @@ def choose_focal(ranked: list[FocalEstimate | str | None], names: list[str], ima
     return ResolvedK(K, chosen, tuple(estimates), unavailable, tuple(disagreements(estimates)))
 
 
-def resolve_K(photo: str | Path, quads: np.ndarray, image_size: tuple[int, int],
+def resolve_K(photo: str | Path | None, quads: np.ndarray, image_size: tuple[int, int],
               wall: WallParams | None = None, segment_cache: SegmentCache | None = None) -> ResolvedK:
     """Intrinsics for a photo without --K: EXIF, then the façade's vanishing points, then the prior
     (never fails). Both measured sources are computed so that a disagreement can be reported.
@@ -267,7 +270,7 @@ def resolve_K(photo: str | Path, quads: np.ndarray, image_size: tuple[int, int],
     strategy's parameters (default ``WallParams()``; with ``lines`` the photo's façade segments join
     the focal fit, which needs segment_cache, the photo's pipeline.segments.SegmentCache).
     """
-    exif = exif_focal(photo, image_size)
+    exif = None if photo is None else exif_focal(photo, image_size)  # None: an image without a file (a render)
     vp = vanishing_focal(quads, image_size, wall, segment_cache)
     return choose_focal([exif if exif is not None else "no EXIF focal length", vp], ["exif", "vanishing points"],
                         image_size)

@@ -19,8 +19,8 @@ from fenestra.checks import check_image, check_K
 from fenestra.errors import PipelineError
 from fenestra.files import write_image
 from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, window_mesh
-from fenestra.pipeline.export.geometry import (CAMERA_TO_EXPORT, PlacedWindow, place, texture_layout, union_layout,
-                                      wall_groups, wall_margin_m)
+from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, camera_to_world, gravity_up, place,
+                                               texture_layout, union_layout, upright, wall_groups, wall_margin_m)
 from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import inpaint_voids
 from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
@@ -65,10 +65,28 @@ def write_overlay(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                                                        boxes, header))
 
 
+def export_gravity(placed: list[PlacedWindow], walls: dict[int, int] | None,
+                   gravity: Gravity | np.ndarray | bool = True) -> Gravity:
+    """The export world's vertical for :func:`write_outputs` (its ``gravity`` argument): True:
+    estimated (geometry.gravity_up of the placed windows and their walls), False: camera level, a
+    (3,) camera-frame up vector: that (ValueError naming it when not a finite non-zero 3-vector)."""
+    if isinstance(gravity, Gravity):
+        return gravity
+    if gravity is True:
+        return gravity_up(placed, walls)
+    if gravity is False or gravity is None:
+        return Gravity(None, "camera level: as asked")
+    up = np.asarray(gravity, dtype=np.float64).reshape(-1)
+    if up.shape != (3,) or not (np.all(np.isfinite(up)) and np.linalg.norm(up) > 1e-9):
+        raise ValueError(f"gravity must be True, False or a finite non-zero 3-vector (camera frame), got {gravity!r}")
+    return Gravity(up / np.linalg.norm(up), "given")
+
+
 def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
                   substitute: str | WindowStyle | None = None, exclude: dict[int, str] | None = None,
                   walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
-                  wall_properties: dict[int, dict] | None = None, overlay: bool = True) -> dict[str, Path]:
+                  wall_properties: dict[int, dict] | None = None, overlay: bool = True,
+                  gravity: Gravity | np.ndarray | bool = True) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
     image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
@@ -78,8 +96,10 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     also shapes the IFC/OBJ/GLB windows). exclude: {index: reason} of windows not to export;
     walls: {index: wall id} (one IfcWall per wall; None: one per window); properties: {index:
     {name: value}}, the IFC Fenestra property set of each window; overlay: write overlay.png too;
-    wall_properties: {wall id: {name:
-    value}}, that of each fitted wall.
+    wall_properties: {wall id: {name: value}}, that of each fitted wall; gravity: the export world's
+    vertical (pipeline.export.geometry): True estimates it from the exported windows' wall up axes
+    (:func:`~pipeline.export.geometry.gravity_up`, with ``walls``), a (3,) up vector in the camera
+    frame or a Gravity gives it, False keeps the camera-level frame (CAMERA_TO_EXPORT).
     """
     t_start = time.perf_counter()
     image = check_image(image)
@@ -90,6 +110,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     placed, skipped = split_results(list(results), style, exclude)
+    gravity = export_gravity(placed, walls, gravity)
+    placed = upright(placed, gravity)
     timings: dict[str, float] = {}
 
     def _timed(name, fn, *args, **kw):
@@ -126,8 +148,10 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     timings["total_ms"] = 1000.0 * (time.perf_counter() - t_start)
     manifest = {
         "style": style.name,
-        "world_frame": {"camera_to_export": CAMERA_TO_EXPORT.tolist(),
-                        "note": "export world = OpenCV camera frame turned z-up; camera at the origin, looking along +y"},
+        "world_frame": {"camera_to_export": camera_to_world(gravity.up).tolist(), "gravity": gravity.to_json(),
+                        "glb_root": "model.glb's root node turns this z-up world y-up (x, y, z) -> (x, z, -y)",
+                        "note": "export world = OpenCV camera frame turned upright (z = gravity's up); camera at "
+                                "the origin, its heading along +y"},
         "texture": {"file": "texture.png", "pad_left": layout.pad_left, "pad_top": layout.pad_top,
                     "pad_right": layout.pad_right, "pad_bottom": layout.pad_bottom,
                     "width": layout.width, "height": layout.height},
@@ -142,4 +166,4 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     return paths
 
 
-__all__ = ["write_outputs", "write_overlay", "split_results", "DEFAULT_STYLE"]
+__all__ = ["write_outputs", "write_overlay", "split_results", "export_gravity", "DEFAULT_STYLE"]

@@ -4,11 +4,15 @@ Frames
     window frame  (W)  x along the wall, y up, z outward; origin at the void's bottom-left corner on
                        the facade; the void is [0, w] x [0, h] at z = 0 (see pipeline.types).
     camera frame  (C)  OpenCV: x right, y down, z forward. ``X_C = R @ X_W + t`` (WindowResult R, t).
-    export world  (E)  the frame of model.ifc / model.obj / model.glb: the camera frame turned z-up,
-                       camera at the origin looking along +y:
-                           X_E = CAMERA_TO_EXPORT @ X_C,  x_E = x_C, y_E = z_C, z_E = -y_C.
-                       A level camera therefore gives a vertical wall. Units: metres, at the scale
-                       the pose was solved with (the window is ``height_m`` tall).
+    export world  (E)  the frame of model.ifc / model.obj / model.glb: upright, z up (gravity, as
+                       the walls' fitted up axes give it: :func:`gravity_up`), camera at the origin,
+                       its optical axis's horizontal heading along +y:
+                           X_E = M @ X_C,  M = :func:`camera_to_world` (up); PlacedWindow.world.
+                       For a level camera (up = -y_C) M is CAMERA_TO_EXPORT: x_E = x_C, y_E = z_C,
+                       z_E = -y_C; without a usable gravity estimate the export falls back to it.
+                       Units: metres, at the scale the pose was solved with (the window is
+                       ``height_m`` tall). model.glb holds the same coordinates under a root node
+                       that turns them y-up, as glTF requires (:data:`Z_UP_TO_Y_UP`).
 
 Texture
     The texture is the inpainted photo, padded by replication so that every wall vertex projects
@@ -19,7 +23,7 @@ Texture
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -28,8 +32,12 @@ from fenestra.checks import check_K, check_rotation
 from fenestra.conventions import project
 from fenestra.pipeline.types import WindowResult
 
-# Camera frame (OpenCV) -> export world (z up, camera looking along +y); a proper rotation.
+# Camera frame (OpenCV) -> export world of a level camera (z up, camera looking along +y); a proper rotation.
 CAMERA_TO_EXPORT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+# The export world (z up) -> glTF's y-up frame: (x, y, z) -> (x, z, -y); model.glb's root node.
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+GRAVITY_AGREE_DEG = 5.0  # walls whose up axes agree within this vote for one gravity direction
+GRAVITY_MAX_TILT_DEG = 60.0  # a gravity estimate further than this from the camera's -y is not believed
 
 WALL_MARGIN_M = 1.0  # wall fragment extends this far beyond the void on every side
 WALL_THICKNESS_M = 0.30
@@ -47,6 +55,7 @@ class PlacedWindow:
     height_m: float
     R: np.ndarray  # (3, 3) window -> camera
     t: np.ndarray  # (3,) m
+    world: np.ndarray = field(default_factory=CAMERA_TO_EXPORT.copy)  # (3, 3) camera -> export world
 
     def to_camera(self, X: np.ndarray) -> np.ndarray:
         """Window-frame points (N, 3) m -> camera frame (N, 3) m."""
@@ -54,13 +63,13 @@ class PlacedWindow:
 
     def to_export(self, X: np.ndarray) -> np.ndarray:
         """Window-frame points (N, 3) m -> export world (N, 3) m."""
-        return self.to_camera(X) @ CAMERA_TO_EXPORT.T
+        return self.to_camera(X) @ self.world.T
 
     def export_matrix(self) -> np.ndarray:
         """4x4 homogeneous window-frame -> export-world transform (the IFC object placement)."""
         T = np.eye(4)
-        T[:3, :3] = CAMERA_TO_EXPORT @ self.R
-        T[:3, 3] = CAMERA_TO_EXPORT @ self.t
+        T[:3, :3] = self.world @ self.R
+        T[:3, 3] = self.world @ self.t
         return T
 
     def void_corners(self) -> np.ndarray:
@@ -277,7 +286,8 @@ def wall_placement(wall_id: int, members: list[PlacedWindow]) -> PlacedWindow:
     ref = members[0]
     pts = np.concatenate([(m.to_camera(m.void_corners()) - ref.t) @ ref.R for m in members])  # (4n, 3) ref frame
     (x0, y0), (x1, y1) = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
-    return PlacedWindow(int(wall_id), float(x1 - x0), float(y1 - y0), ref.R, ref.t + ref.R @ np.array([x0, y0, 0.0]))
+    return PlacedWindow(int(wall_id), float(x1 - x0), float(y1 - y0), ref.R, ref.t + ref.R @ np.array([x0, y0, 0.0]),
+                        ref.world)
 
 
 def wall_groups(placed: list[PlacedWindow], walls: dict[int, int] | None) -> list[tuple[PlacedWindow, list[PlacedWindow]]]:
@@ -301,3 +311,82 @@ def union_layout(a: TextureLayout, b: TextureLayout) -> TextureLayout:
     """The padding that holds both layouts' (same photo)."""
     return TextureLayout(a.photo_width, a.photo_height, max(a.pad_left, b.pad_left), max(a.pad_top, b.pad_top),
                          max(a.pad_right, b.pad_right), max(a.pad_bottom, b.pad_bottom))
+
+
+@dataclass(frozen=True)
+class Gravity:
+    """The export world's vertical: ``up`` (3,) unit vector in the camera frame, or None (the
+    camera-level frame, CAMERA_TO_EXPORT); ``source``: how it was found; ``windows``: how many
+    windows voted for it; ``tilt_deg``: its angle from the camera's -y (0 for a level camera)."""
+
+    up: np.ndarray | None
+    source: str
+    windows: int = 0
+
+    @property
+    def tilt_deg(self) -> float:
+        return 0.0 if self.up is None else float(np.degrees(np.arccos(np.clip(-self.up[1], -1.0, 1.0))))
+
+    def to_json(self) -> dict:
+        return {"up_camera": None if self.up is None else self.up.tolist(), "source": self.source,
+                "windows": self.windows, "tilt_deg": self.tilt_deg}
+
+
+def gravity_up(placed: list[PlacedWindow], walls: dict[int, int] | None = None,
+               agree_deg: float = GRAVITY_AGREE_DEG, max_tilt_deg: float = GRAVITY_MAX_TILT_DEG) -> Gravity:
+    """Gravity from the windows' fitted up axes (each window's R[:, 1], the wall's vertical: its
+    vertical vanishing direction, refined over all the wall's corners and façade lines).
+
+    Each wall of ``walls`` ({window index: wall id}; a window without one is a wall of its own)
+    proposes the mean up axis of its windows; the proposal that the most windows' walls agree with
+    (within ``agree_deg``) wins, and the up is the window-weighted mean of the agreeing walls'. None
+    (the camera-level frame) when no window is placed or the winner leans more than
+    ``max_tilt_deg`` from the camera's -y (a wall fit with its axes confused, not a camera pitch).
+    """
+    groups: dict = {}
+    for pw in placed:
+        wid = None if walls is None else walls.get(pw.index)
+        groups.setdefault(("wall", wid) if wid is not None else ("own", pw.index), []).append(pw.R[:, 1])
+    if not groups:
+        return Gravity(None, "camera level: no placed window")
+    ups, weights = [], []
+    for members in groups.values():
+        u = np.sum(members, axis=0)
+        ups.append(u / np.linalg.norm(u))
+        weights.append(len(members))
+    ups, weights = np.array(ups), np.array(weights, dtype=np.float64)
+    agree = ups @ ups.T >= np.cos(np.radians(agree_deg))  # (G, G)
+    support = agree @ weights
+    best = int(np.argmax(support))
+    inl = agree[best]
+    up = (weights[inl, None] * ups[inl]).sum(axis=0)
+    up /= np.linalg.norm(up)
+    n = int(weights[inl].sum())
+    g = Gravity(up, f"walls' up axes ({n} of {int(weights.sum())} windows agree within {agree_deg:g} deg)", n)
+    if g.tilt_deg > max_tilt_deg:
+        return Gravity(None, f"camera level: the walls' up axis is {g.tilt_deg:.0f} deg from the camera's vertical "
+                             f"(over {max_tilt_deg:g})", 0)
+    return g
+
+
+def camera_to_world(up: np.ndarray | None) -> np.ndarray:
+    """Camera frame -> export world rotation (3, 3): z along ``up`` (3,) camera frame (gravity's
+    opposite), y the optical axis's horizontal heading, x = y x z; CAMERA_TO_EXPORT for None.
+    A camera looking straight up or down has no heading: y is then the camera's -y made horizontal."""
+    if up is None:
+        return CAMERA_TO_EXPORT.copy()
+    z = np.asarray(up, dtype=np.float64).reshape(3)
+    if not (np.all(np.isfinite(z)) and np.linalg.norm(z) > 1e-9):
+        raise ValueError(f"up must be a finite non-zero 3-vector, got {z.tolist()}")
+    z = z / np.linalg.norm(z)
+    y = np.array([0.0, 0.0, 1.0]) - z[2] * z
+    if np.linalg.norm(y) < 1e-6:
+        y = np.array([0.0, -1.0, 0.0]) - (-z[1]) * z
+    y /= np.linalg.norm(y)
+    return np.array([np.cross(y, z), y, z])
+
+
+def upright(placed: list[PlacedWindow], gravity: Gravity) -> list[PlacedWindow]:
+    """``placed`` in the export world of ``gravity`` (:func:`camera_to_world`)."""
+    M = camera_to_world(gravity.up)
+    return [replace(pw, world=M) for pw in placed]

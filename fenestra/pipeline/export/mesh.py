@@ -2,7 +2,8 @@
 
 Per fitted wall: one slab with every window's void cut out (photo-textured, UVs as in the IFC; a
 window without a wall: a fragment of its own), and per window the catalogue window's frame and glass. Coordinates in the export world of
-fenestra/pipeline/export/geometry.py (metres, z up, camera at the origin).
+fenestra/pipeline/export/geometry.py (metres, z up: upright, camera at the origin); model.glb holds them
+under a root node that turns them y-up (glTF's convention).
 """
 from __future__ import annotations
 
@@ -14,13 +15,15 @@ import cv2
 import numpy as np
 
 from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
-from fenestra.pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
-                                      facade_pixels, hole_in, void_hole, wall_groups, wall_margin_m, wall_mesh)
+from fenestra.pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, Z_UP_TO_Y_UP, PlacedWindow,
+                                               TextureLayout, facade_pixels, hole_in, void_hole, wall_groups,
+                                               wall_margin_m, wall_mesh)
 
 
 # A GLB's texture is at most this many px along its longer side: glTF viewers (WebGL) commonly
 # refuse larger textures, and a 100 Mpx photo's texture would hold gigabytes while written.
 GLB_MAX_TEXTURE_PX = 8192
+GLB_ROOT_NODE = "z_up_to_y_up"  # the GLB's root node: the export world (z up) turned y-up for glTF
 
 
 @dataclass(frozen=True)
@@ -74,7 +77,7 @@ def write_obj(obj_path: str | Path, parts: list[MeshPart], style: str | WindowSt
     obj_path = Path(obj_path)
     mtl_path = obj_path.with_suffix(".mtl")
     mtl_path.write_text(_materials(get_style(style), texture_file))
-    lines = ["# Fenestra reconstruction: metres, z up, camera at the origin looking along +y",
+    lines = ["# Fenestra reconstruction: metres, z up (upright), camera at the origin looking along +y",
              f"mtllib {mtl_path.name}"]
     v_off = vt_off = 0
     for p in parts:
@@ -105,7 +108,9 @@ def glb_texture(texture_rgb: np.ndarray, max_px: int = GLB_MAX_TEXTURE_PX) -> np
 def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarray,
               style: str | WindowStyle = "casement-white") -> Path:
     """Write a textured binary glTF. ``texture_rgb``: (H, W, 3) uint8 RGB (the padded texture; the
-    GLB holds :func:`glb_texture` of it)."""
+    GLB holds :func:`glb_texture` of it). The parts' vertices (export world, z up) are stored as they
+    are, under one root node (GLB_ROOT_NODE) whose matrix is Z_UP_TO_Y_UP: a glTF viewer (y up)
+    shows the model upright."""
     import trimesh  # noqa: PLC0415
     from PIL import Image  # noqa: PLC0415
 
@@ -120,6 +125,10 @@ def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarr
     photo = _fixed_hash(trimesh.visual.material.PBRMaterial, int.from_bytes(digest[:8], "little"))(
         name="photo", baseColorTexture=image, metallicFactor=0.0, roughnessFactor=1.0)
     scene = trimesh.Scene()
+    # glTF is y-up: one root node turns the export world (z up) into it, the parts stay in its coordinates
+    root = np.eye(4)
+    root[:3, :3] = Z_UP_TO_Y_UP
+    scene.graph.update(frame_from=scene.graph.base_frame, frame_to=GLB_ROOT_NODE, matrix=root)
     for p in parts:
         if p.uv is not None:
             visual = trimesh.visual.TextureVisuals(uv=p.uv, material=photo)
@@ -130,7 +139,7 @@ def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarr
                 alphaMode="BLEND" if rgba[3] < 1 else "OPAQUE")
             visual = trimesh.visual.TextureVisuals(material=material)
         mesh = trimesh.Trimesh(p.vertices, p.faces, visual=visual, process=False)
-        scene.add_geometry(mesh, node_name=p.name, geom_name=p.name)
+        scene.add_geometry(mesh, node_name=p.name, geom_name=p.name, parent_node_name=GLB_ROOT_NODE)
     glb_path = Path(glb_path)
     glb_path.write_bytes(scene.export(file_type="glb"))
     return glb_path

@@ -200,6 +200,10 @@ class _Unpacked:
         return self.last[1]
 
 
+class _Runaway(Exception):
+    """A free focal length left refine_walls' focal_bounds (args[0]: its value, px)."""
+
+
 def _inverse(A: np.ndarray) -> np.ndarray:
     """Inverse of a symmetric positive semi-definite (P, P) matrix (pseudo-inverse if singular)."""
     try:
@@ -211,7 +215,8 @@ def _inverse(A: np.ndarray) -> np.ndarray:
 def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.ndarray | None = None,
                  height: float = 1.0, focal_free: bool = False, sigma_px: float = 1.0,
                  prior_dof: float = 0.0, Q: np.ndarray | None = None, lines: "LineObs | None" = None,
-                 corner_sigma: np.ndarray | None = None) -> WallFit:
+                 corner_sigma: np.ndarray | None = None, max_nfev: int | None = WALL_FIT.max_nfev,
+                 focal_bounds: tuple[float, float] | None = None) -> WallFit:
     """Joint LM over all corners of the windows of one or more walls (quads (N, 4, 2) px).
 
     R0: (3, 3) for one wall, or (G, 3, 3) with wall_of (N,) giving each window's wall. Parameters:
@@ -225,7 +230,10 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
     rotations (and f); None: corners only. corner_sigma (N,) px: each window's own corner sigma
     for the covariance (at least the pooled one; the estimate stays unweighted, so the covariance
     is the sandwich (J^T J)^-1 J^T V J (J^T J)^-1 with V the residuals' variances); None: the
-    pooled sigma for all. Raises FacadeError if the fit fails.
+    pooled sigma for all. max_nfev: at most this many residual evaluations (None: scipy's default,
+    100 x (P + 1)); with ``focal_free`` not converging within them raises, with K fixed the last
+    estimate is kept. focal_bounds (lo, hi) px: with ``focal_free``, the fit stops (FacadeError) as
+    soon as f leaves them (a runaway focal length; None: no bound). Raises FacadeError if the fit fails.
     """
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
     n = len(q)
@@ -247,6 +255,8 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
     at = _Unpacked(G, wall_of, R0, K, Q, focal_free)
 
     def residuals(x: np.ndarray) -> np.ndarray:
+        if focal_free and focal_bounds is not None and not focal_bounds[0] <= x[-1] <= focal_bounds[1]:
+            raise _Runaway(float(x[-1]))
         R, t, w, Kx, Rn = at(x)
         r = (_project(_corners_cam(Rn, t, w, height)[1], Kx) - q).ravel()
         return r if lines is None else np.concatenate([r, lines.residuals(R, Kx)])
@@ -258,7 +268,14 @@ def refine_walls(quads: np.ndarray, K: np.ndarray, R0: np.ndarray, wall_of: np.n
             return J
         return np.vstack([J, lines.jacobian(x, R, Kx, len(x), focal_free)])
 
-    sol = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac")
+    try:
+        sol = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac", max_nfev=max_nfev)
+    except _Runaway as e:
+        raise FacadeError(f"focal length unobservable: f ran away to {e.args[0]:.0f} px, outside "
+                          f"[{focal_bounds[0]:.0f}, {focal_bounds[1]:.0f}] px, during the joint fit") from None
+    if focal_free and sol.status == 0:
+        raise FacadeError(f"focal length unobservable: the joint fit did not converge in {sol.nfev} evaluations "
+                          f"(f = {sol.x[-1]:.0f} px)")
     if not np.all(np.isfinite(sol.x)):
         raise FacadeError(f"wall refinement diverged ({sol.message})")
     R, t, w, Kx = _unpack(sol.x, G, n, R0, K, focal_free)

@@ -23,6 +23,14 @@ class WallFitSettings:
     window whose corner RMS in its wall fit exceeds outlier_factor x the median and outlier_px is
     split off into a wall of its own; manhattan_deg: walls this close to k x 90 deg about a shared
     vertical are tied; focal_max_rel_sd: a focal estimate with a larger relative sd is not used;
+    max_nfev: at most this many residual evaluations per joint fit (a well-posed fit converges in
+    tens; an unobservable focal length drifts for thousands: 148 CPU-s on one street photo, issue
+    35); focal_range_rel: with the focal length free, the fit stops as soon as f leaves this range
+    x the image's long side (a 0.05x .. 20x focal length is a 170 .. 2.9 deg field of view: f is
+    running away, the façade is near fronto-parallel); focal_give_up_factor: with f free and a
+    relative-sd gate, the first of the +lines fit's two passes stops the chain when its relative sd
+    is above this x the gate (the second pass reassigns the lines, which tightens f by well under
+    that; its answer would be rejected anyway);
     interval_level: the level of the reported uncertainty intervals; lsd_scale: the image scale
     OpenCV's LSD sees when it finds a photo's façade line segments (0.8, OpenCV's default: what the
     line settings of WallParams were tuned with).
@@ -38,6 +46,9 @@ class WallFitSettings:
     outlier_px: float = 1.0
     manhattan_deg: float = 8.0
     focal_max_rel_sd: float = 0.25
+    max_nfev: int = 400
+    focal_range_rel: tuple[float, float] = (0.05, 20.0)
+    focal_give_up_factor: float = 3.0
     interval_level: float = 0.90
     lsd_scale: float = 0.8
 

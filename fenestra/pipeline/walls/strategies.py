@@ -32,7 +32,7 @@ import numpy as np
 from fenestra.errors import PipelineError
 from fenestra.pipeline.memo import StepMemo, key
 from fenestra.pipeline.segments import SegmentCache
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import AspectCase, Failure, WindowResult
 from fenestra.pipeline.walls.fit import WallFit, refine_walls, window_uncertainty
 from fenestra.pipeline.walls.lines import LineObs, WallLines, line_obs, photo_segments, refit_lines, wall_vps
 from fenestra.pipeline.walls.settings import WALL_FIT, WallParams
@@ -114,11 +114,14 @@ def _rotation_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], para
 def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: list[int],
                 R0: np.ndarray, group: np.ndarray, Q: np.ndarray, height: float, params: WallParams,
                 focal_free: bool, lines: list[WallLines] | None = None, sigmas: np.ndarray | None = None,
-                memo: StepMemo | None = None) -> Fit:
+                memo: StepMemo | None = None, focal_bounds: tuple[float, float] | None = None,
+                give_up_rel_sd: float | None = None) -> Fit:
     """One joint fit of the walls of rotation groups ``groups`` (their first wall is the reference),
     with their façade segments ``lines`` (per wall) when given, and each window's corner sigma
     ``sigmas`` (N,) px (None: params.sigma_px for all); the fit kept in ``memo`` under its inputs
-    (None: not kept)."""
+    (None: not kept). With ``focal_free``: focal_bounds (lo, hi) px stop a runaway f
+    (refine_walls), and a pass whose focal relative sd is above give_up_rel_sd stops the fit
+    (FacadeError) before the +lines refit runs (None: never)."""
     sel = [g for g in range(len(walls)) if group[g] in groups]
     members = tuple(i for g in sel for i in walls[g].members)
     wall_ids = tuple(g for g in sel for _ in walls[g].members)
@@ -135,13 +138,17 @@ def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: l
 
         def run() -> WallFit:
             return refine_walls(q, K, R0s, set_of, height, focal_free, params.sigma_px, params.prior_dof, Qw,
-                                lines=lines_in, corner_sigma=cs)
+                                lines=lines_in, corner_sigma=cs, focal_bounds=focal_bounds)
 
         if memo is None:
-            return run()
-        obs_key = None if lines_in is None else tuple(getattr(lines_in, f.name) for f in fields(lines_in))
-        return memo("refine_walls", key(q, K, R0s, set_of, Qw, height, focal_free, params.sigma_px, params.prior_dof,
-                                        cs, obs_key), run)
+            out = run()
+        else:
+            obs_key = None if lines_in is None else tuple(getattr(lines_in, f.name) for f in fields(lines_in))
+            out = memo("refine_walls", key(q, K, R0s, set_of, Qw, height, focal_free, params.sigma_px,
+                                           params.prior_dof, cs, obs_key, focal_bounds), run)
+        if focal_free and give_up_rel_sd is not None:
+            check_focal_sd(out, give_up_rel_sd, "already after the first pass")
+        return out
 
     def solve() -> WallFit | None:
         try:
@@ -158,7 +165,7 @@ def _fit_groups(quads: np.ndarray, K: np.ndarray, walls: list[WallVP], groups: l
     if memo is None:
         return members, wall_ids, solve()
     wall_lines = None if lines is None else ([lines[g] for g in sel], [groups.index(group[g]) for g in sel], Q[sel])
-    k = key(q, K, R0s, set_of, Qw, height, focal_free, _shared(params), cs, wall_lines)
+    k = key(q, K, R0s, set_of, Qw, height, focal_free, _shared(params), cs, wall_lines, focal_bounds, give_up_rel_sd)
     return members, wall_ids, memo("fit", k, solve)
 
 
@@ -217,9 +224,24 @@ def fit_walls(quads: np.ndarray, K: np.ndarray, height: float, params: WallParam
     return fits
 
 
+def check_focal_sd(fit: WallFit, max_rel_sd: float, when: str = "") -> float:
+    """The sd (px) of a free-focal fit's f; FacadeError when its variance is not positive or its
+    relative sd is above max_rel_sd (``when``: words for the message)."""
+    var = float(fit.cov[-1, -1])
+    if not var > 0.0:  # an indefinite covariance (rank-deficient fit): no sd to trust
+        raise FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} px, its variance {var:.3g} "
+                          f"is not positive")
+    sd = float(np.sqrt(var))
+    if not sd / fit.focal_px <= max_rel_sd:
+        raise FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} +- {sd:.0f} px "
+                          f"(relative sd above {max_rel_sd:.3g}{' ' + when if when else ''})")
+    return sd
+
+
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
                     params: WallParams = WallParams(), segments: np.ndarray | None = None,
-                    sigmas: np.ndarray | None = None, memo: StepMemo | None = None) -> Fit:
+                    sigmas: np.ndarray | None = None, memo: StepMemo | None = None,
+                    give_up_rel_sd: float | None = None) -> Fit:
     """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
     median of the walls' vanishing-point estimates (:func:`focal_from_vanishing`), then fit
     all walls jointly with one shared f (principal point at the image centre). segments: the
@@ -227,7 +249,10 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
     sigmas (N,) px: each window's corner sigma, or None; memo: as for :func:`fit_walls`.
 
     Returns (windows, their walls, the joint fit). Raises FacadeError when no wall gives f, or the
-    fitted f's relative sd exceeds WALL_FIT.focal_max_rel_sd (unobservable).
+    fitted f's relative sd exceeds WALL_FIT.focal_max_rel_sd (unobservable). Bounded time: the fit
+    stops when f leaves WALL_FIT.focal_range_rel x the long side, after WALL_FIT.max_nfev
+    evaluations, and (give_up_rel_sd, the caller's own gate x WALL_FIT.focal_give_up_factor; None:
+    not used) when a pass's relative sd already exceeds give_up_rel_sd.
     """
     memo = StepMemo() if memo is None else memo
     q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
@@ -240,30 +265,26 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
                           f"two converging side pairs")
     K1 = pseudo_K(image_shape, float(np.median(f0)))
     R0, group, Q, lines = _rotation_groups(q, K1, walls, params, segments, memo)
+    bounds = tuple(float(r * max(image_shape)) for r in WALL_FIT.focal_range_rel)
     try:
         members, wall_ids, fit = _fit_groups(q, K1, walls, sorted(set(group)), R0, group, Q, height, params,
-                                             True, lines, sigmas, memo)
+                                             True, lines, sigmas, memo, bounds, give_up_rel_sd)
     except (np.linalg.LinAlgError, ValueError) as e:
         raise FacadeError(f"joint fit with free focal length failed: {e}") from e
-    var = float(fit.cov[-1, -1])
-    if not var > 0.0:  # an indefinite covariance (rank-deficient fit): no sd to trust
-        raise FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} px, its variance {var:.3g} "
-                          f"is not positive")
-    sd = float(np.sqrt(var))
-    if not sd / fit.focal_px <= WALL_FIT.focal_max_rel_sd:
-        raise FacadeError(f"focal length unobservable: f = {fit.focal_px:.0f} +- {sd:.0f} px "
-                          f"(relative sd above {WALL_FIT.focal_max_rel_sd})")
+    check_focal_sd(fit, WALL_FIT.focal_max_rel_sd)
     return members, wall_ids, fit
 
 
 def focal_from_walls(quads: np.ndarray, image_shape: tuple[int, int],
                      params: WallParams = WallParams(),
-                     segment_cache: SegmentCache | None = None) -> tuple[float, float]:
+                     segment_cache: SegmentCache | None = None, max_rel_sd: float | None = None) -> tuple[float, float]:
     """Focal length (px) and its standard deviation from window quads (N, 4, 2) px of an (H, W)
     image (:func:`fit_walls_focal`; segment_cache: the photo's segments, needed when params.lines,
-    see :func:`apply_walls`); FacadeError when unobservable."""
+    see :func:`apply_walls`); FacadeError when unobservable. max_rel_sd: the caller's own gate on
+    the relative sd (None: none): a pass above WALL_FIT.focal_give_up_factor x it stops the fit early."""
     segments = photo_segments(segment_cache, params, image_shape)
-    fit = fit_walls_focal(quads, image_shape, 1.0, params, segments)[2]
+    give_up = None if max_rel_sd is None else WALL_FIT.focal_give_up_factor * max_rel_sd
+    fit = fit_walls_focal(quads, image_shape, 1.0, params, segments, give_up_rel_sd=give_up)[2]
     return fit.focal_px, float(np.sqrt(fit.cov[-1, -1]))  # > 0: fit_walls_focal checked it
 
 
@@ -286,7 +307,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     idx = [k for k, r in enumerate(results) if r.quad_snapped is not None]
     out = list(results)
     for k in [k for k in idx if not usable_quad(results[k].quad_snapped)]:
-        out[k] = replace(out[k], failure="wall: degenerate quad (a side under 1 px or non-finite)",
+        out[k] = replace(out[k], failure=Failure("wall", "degenerate quad (a side under 1 px or non-finite)"),
                          R=None, t=None, quad_reprojected=None, focal_estimate_px=None)
         idx.remove(k)
     if not idx:
@@ -300,7 +321,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             fits = [fit_walls_focal(quads, image_shape, height_m, params, segments, sigmas, memo)]
         except FacadeError as e:
             for k in idx:
-                out[k] = replace(out[k], failure=f"wall: {e}", R=None, t=None, quad_reprojected=None,
+                out[k] = replace(out[k], failure=Failure("wall", str(e)), R=None, t=None, quad_reprojected=None,
                                  focal_estimate_px=None)
             return out
         f_est = fits[0][2].focal_px
@@ -310,14 +331,14 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
         for j, (m, wid) in enumerate(zip(members, wall_ids)):
             k = idx[m]
             if fit is None:
-                out[k] = replace(out[k], failure="wall: joint fit failed", R=None, t=None,
+                out[k] = replace(out[k], failure=Failure("wall", "joint fit failed"), R=None, t=None,
                                  quad_reprojected=None, focal_estimate_px=None, wall=wid)
                 continue
             unc = window_uncertainty(fit, j)
             scale = 1.0 if width_m is None else width_m / fit.width[j]
-            case = out[k].aspect_case or "general"
+            case = out[k].aspect_case or AspectCase.GENERAL
             out[k] = replace(out[k], aspect_ratio=float(fit.width[j] / fit.height),
-                             aspect_case="ill_conditioned" if unc["ill_conditioned"] else case,
+                             aspect_case=AspectCase.ILL_CONDITIONED if unc["ill_conditioned"] else case,
                              focal_estimate_px=f_est, R=fit.window_R(j), t=fit.t[j] * scale,
                              height_m=fit.height * scale, quad_reprojected=fit.reprojected[j],
                              failure=None, wall=wid, uncertainty=unc)
