@@ -11,8 +11,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import model_card_real  # noqa: E402
 
 
-def _result(detector: str, n_images: int, n_gt: int, ap: float, ap50: float, n_det: int, n_hard: int) -> dict:
+def _result(detector: str, n_images: int, n_gt: int, ap: float, ap50: float, n_det: int, n_hard: int,
+            held: bool = True) -> dict:
     return {"detector": detector, "n_images": n_images, "n_gt": n_gt, "bbox": {"AP": ap, "AP50": ap50},
+            "held_out": {"held_out": held, "why": "yes: H" if held else "**no**: N"},
             "hard_negatives": {"n_det_at_threshold": n_det, "n_hard_negative": n_hard,
                                "hard_negative_share": n_hard / n_det if n_det else float("nan"), "threshold": 0.5}}
 
@@ -21,8 +23,8 @@ def test_table_rows_by_hand():
     lines = model_card_real.table([("val", _result("default", 112, 944, 0.51449, 0.82751, 700, 13)),
                                    ("test", _result("winnet", 10, 101, 0.2, 0.4149, 0, 0))])
     assert lines[0].endswith("| detections at score >= 0.5 | on a door/signboard (n, %) |")
-    assert lines[2] == "| val | `default` | 112 | 944 | 51.4 | 82.8 | 700 | 13 (1.9 %) |"  # 13 / 700 = 1.857 %
-    assert lines[3] == "| test | `winnet` | 10 | 101 | 20.0 | 41.5 | 0 | 0 (-) |"
+    assert lines[2] == "| val | `default` | yes: H | 112 | 944 | 51.4 | 82.8 | 700 | 13 (1.9 %) |"  # 13 / 700 = 1.857 %
+    assert lines[3] == "| test | `winnet` | yes: H | 10 | 101 | 20.0 | 41.5 | 0 | 0 (-) |"
     assert len(lines) == 4
 
 
@@ -33,10 +35,33 @@ def test_counts_on_a_small_yolo_folder(tmp_path):
     n = write_yolo(tmp_path / "y", curtain_panes(2))
     from fenestra.training.evaluate import evaluate_boxes
 
-    r = evaluate_boxes("default", tmp_path / "y", "all")
+    r = {**evaluate_boxes("default", tmp_path / "y", "all"), "held_out": {"held_out": True, "why": "yes"}}
     cells = model_card_real.table([("d", r)])[2].strip("|").split("|")
-    assert [c.strip() for c in cells[:4]] == ["d", "`default`", "2", str(n)]
-    assert int(cells[7].split("(")[0]) <= int(cells[6]) == r["hard_negatives"]["n_det_at_threshold"]
+    assert [c.strip() for c in cells[:5]] == ["d", "`default`", "yes", "2", str(n)]
+    assert int(cells[8].split("(")[0]) <= int(cells[7]) == r["hard_negatives"]["n_det_at_threshold"]
+
+
+def test_held_out_only_when_the_weights_prove_it(tmp_path):
+    """Issue #36: a photo is held out from weights that trained on no real photo, or that list their
+    photos without it (by name, or by the bytes' sha256 under another name); weights that trained
+    on real photos without listing them (the shipped ones, trained before the folder's cleaning) are
+    not known to hold anything out. The sha256 here is computed by hashlib on the file written."""
+    import hashlib
+
+    a, b = tmp_path / "img_1.jpg", tmp_path / "img_2.jpg"
+    a.write_bytes(b"photo one"), b.write_bytes(b"photo two")
+    real = {"real_data": "spb/train", "real_fraction": 0.25}
+    held = model_card_real.held_out
+    assert held({"real_data": None, "real_fraction": 0.0}, {}, [a])["held_out"]
+    assert not held(real, {}, [a])["held_out"]  # no list: not known
+    assert "before its cleaning" in held(real, {"real_photos": None}, [a])["why"]
+    other = [f"img_9.jpg {hashlib.sha256(b'another photo').hexdigest()}"]
+    assert held(real, {"real_photos": other}, [a, b]) == {"held_out": True, "why": "yes: none of its 1 training photos"}
+    by_name = other + [f"img_2.jpg {hashlib.sha256(b're-encoded').hexdigest()}"]
+    by_bytes = other + [f"renamed.jpg {hashlib.sha256(b'photo one').hexdigest()}"]
+    for listed in (by_name, by_bytes):
+        v = held(real, {"real_photos": listed}, [a, b])
+        assert not v["held_out"] and v["why"].startswith("**no**: 1 of these photos"), v
 
 
 def test_without_the_photos_one_line_and_exit_2(tmp_path):
@@ -55,13 +80,20 @@ def test_readme_detector_line_quotes_its_sources():
             {"house": "unseen houses", "trained": False, "together": True, "detection_rate": 0.991,
              "all_corners_close": 0.834, "snap_median": 0.7961, "exact_snap_median": 0.1251, "aspect_p90": 0.1144}]
     summary = {"synthetic": {"per_house": {"default": {"snapper": "refine", "pose": "wall+lines", "rows": rows}}}}
-    results = [("spb train, validation part (never trained on)", _result("default", 112, 944, 0.512, 0.827, 1393, 28)),
-               ("spb test set (never trained on)", _result("default", 10, 101, 0.536, 0.877, 133, 4)),
-               ("spb test set (never trained on)", _result("winnet", 10, 101, 0.22, 0.447, 459, 91))]
+    results = [("spb train, validation part", _result("default", 112, 944, 0.512, 0.827, 1393, 28)),
+               ("spb test set", _result("default", 10, 101, 0.536, 0.877, 133, 4)),
+               ("spb test set", _result("winnet", 10, 101, 0.22, 0.447, 459, 91))]
     text = model_card_real.detector_line(results, summary, "default")
-    assert "(`samplehouse4`, `procedural:0`; `make bench`)" in text
+    assert ("(`samplehouse4`, `procedural:0`; the procedural ones from the generator of its training houses; "
+            "`make bench`, one seed: one random look per house)") in text
+    assert "photos its weights never trained on" in text and "training-set" not in text
     assert "finds 99 % of the evaluable windows, with all four corners within 5 px for 83 %" in text
     assert "after `refine` snapping (corner error median 0.80 px; exact masks 0.13 px)" in text
     assert "aspect-ratio error p90 of 11.4 % under `wall+lines`" in text and "it finds 95 % of them" in text
     assert "bbox AP50 82.7, AP 51.2 on the 112 validation photos" in text
     assert "bbox AP50 87.7, AP 53.6 on the 10 test photos, where 3.0 % of its detections" in text  # 4 / 133
+    # weights that trained on the test photos' folder: the same figures, called training-set figures
+    results[1] = ("spb test set", _result("default", 10, 101, 0.536, 0.877, 133, 4, held=False))
+    text = model_card_real.detector_line(results, summary, "default")
+    assert "bbox AP50 87.7, AP 53.6 on the 10 test photos" in text and "never trained on)" not in text
+    assert "These are **training-set figures**" in text and "never trained on" not in text.split("`make bench`")[1]

@@ -1,0 +1,48 @@
+"""tools/seed_spread.py: a learned detector's per-house figures over seeds, median and min-max."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import seed_spread  # noqa: E402
+from synthetic_results import synthetic_results  # noqa: E402
+
+
+def test_cell_median_and_range_by_hand():
+    assert seed_spread.spread([0.5, None, 0.9, 0.6]) == (0.6, 0.5, 0.9)
+    assert seed_spread.spread([None, None]) is None
+    assert seed_spread.cell([0.58, 0.94, 0.86], 100, " %", 0) == "**86** % [58–94] (58, 94, 86)"
+    assert seed_spread.cell([3.6, None], 1, " px", 2) == "**3.60** px [3.60–3.60] (3.60, -)"
+    assert seed_spread.cell([None], 1, " px", 2) == "-"
+
+
+def test_table_per_house_from_results_tables():
+    """Two seeds' results tables (synthetic, known misses), two houses: each house's detection rate
+    and corner median in the table are those counted here with numpy, per seed, then their median
+    and range; the house the default detector trained on is flagged."""
+    per_seed, truth = {}, {}
+    for seed in (0, 1):
+        df = synthetic_results(n_windows=80, seed=seed, miss_rate=0.1 + 0.3 * seed)
+        df = df[df["snapper"] == "good"].assign(detector="default", snapper="refine", pose="wall+lines")
+        df["house"] = np.where(np.arange(len(df)) % 2 == 0, "duplex", "samplehouse4")
+        per_seed[seed] = seed_spread.house_figures(df, "default/refine/wall+lines")
+        for house, rows in df.groupby("house"):
+            ev = rows[rows["evaluable"]]
+            truth[seed, house] = ((ev["status"] != "missed").mean(), np.median(ev["corner_err_px_snap"].dropna()))
+    lines = seed_spread.table(per_seed, "default")
+    assert lines[0].startswith("| house | trained on | evaluable windows (per seed) | detected |")
+    rows = {ln.split("|")[1].strip(): [c.strip() for c in ln.strip("|").split("|")] for ln in lines[2:]}
+    assert set(rows) == {"duplex", "samplehouse4"} and rows["duplex"][1] == "**yes**" and rows["samplehouse4"][1] == "no"
+    for house, cells in rows.items():
+        rates = [truth[s, house][0] for s in (0, 1)]
+        assert rates[1] < rates[0]  # the second seed misses more: the range is not one value
+        assert cells[3] == seed_spread.cell(rates, 100, " %", 0), (house, cells[3], rates)
+        med = [truth[s, house][1] for s in (0, 1)]  # the figures are rounded, then the median is rounded again: 0.01 px
+        shown = [float(x) for x in cells[6].replace("*", " ").replace("[", " ").replace("]", " ").replace("–", " ")
+                 .replace("(", " ").replace(")", " ").replace(",", " ").replace("px", " ").split()]
+        assert np.allclose(shown, [np.median(med), min(med), max(med), *med], atol=0.011), (shown, med)

@@ -1,0 +1,127 @@
+"""A learned detector's figures over several seeds, per house: the median and the spread (min-max).
+
+    .venv/bin/python tools/seed_spread.py [--profile heldout-seeds] [--seeds 0,1,2] [--views N] \
+        [--method default/refine/wall+lines] [--doc docs/experiments.md --block seed-spread]
+
+Runs the bench profile (``fenestra bench --profile P``: renders and all) once per seed, the seed
+replacing the profile's (it draws the cameras and, with ``look_per = "view"``, every view's look),
+``--views`` replacing its views per house, each run in ``out/bench/seed-spread/<profile>-s<seed>-<hash>``
+(cached renders and runs are reused). Per house and seed it takes the method's figures as the
+results docs do (fenestra.reports.markdown: evaluable windows, detection rate, quads, all four
+corners within 5 px, snapped corner median, rotation median, aspect-ratio error p90), and writes
+one Markdown table: each figure's median over the seeds and its min-max, then the seeds' values
+one by one, so a reader sees the spread instead of one lucky or unlucky draw (issue #36). The
+houses the detector trained on are flagged (fenestra.reports.markdown.TRAINED_ON).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+# (key of fenestra.reports.markdown._house_figures, column title, scale, unit, decimals)
+FIGURES = (("detection_rate", "detected", 100, " %", 0), ("quad_rate", "quads", 100, " %", 0),
+           ("all_corners_close", "all corners within 5 px", 100, " %", 0),
+           ("snap_median", "corner median", 1, " px", 2), ("rot_median", "rotation median", 1, "°", 2),
+           ("aspect_p90", "aspect p90", 100, " %", 1))
+
+
+def spread(values: list) -> tuple[float, float, float] | None:
+    """(median, min, max) of the values that are not None; None when there is none."""
+    import numpy as np  # noqa: PLC0415
+
+    v = [float(x) for x in values if x is not None]
+    return None if not v else (float(np.median(v)), min(v), max(v))
+
+
+def cell(values: list, scale: float, unit: str, decimals: int) -> str:
+    """``median [min-max]`` of per-seed values, each scaled, then the per-seed values in order."""
+    s = spread(values)
+    if s is None:
+        return "-"
+    f = lambda x: f"{scale * x:.{decimals}f}"  # noqa: E731
+    each = ", ".join("-" if x is None else f(x) for x in values)
+    return f"**{f(s[0])}**{unit} [{f(s[1])}–{f(s[2])}] ({each})"
+
+
+def house_figures(df, method: str) -> dict[str, dict]:
+    """house -> the figures of ``method`` (detector/snapper/pose) on that house's rows."""
+    from fenestra.reports.markdown import _house_figures  # noqa: PLC0415
+
+    det, snap, pose = method.split("/")
+    g = df[(df["detector"] == det) & (df["snapper"] == snap) & (df["pose"] == pose)]
+    return {house: _house_figures(rows) for house, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])}
+
+
+def table(per_seed: dict[int, dict[str, dict]], detector: str) -> list[str]:
+    """The Markdown table of {seed: {house: figures}}: per house, each figure's median over the
+    seeds, [min-max], (the seeds' values in seed order)."""
+    from fenestra.reports.markdown import TRAINED_ON  # noqa: PLC0415
+
+    seeds = sorted(per_seed)
+    houses = sorted({h for figs in per_seed.values() for h in figs})
+    trained = set(TRAINED_ON.get(detector, ()))
+    head = ["house", "trained on", "evaluable windows (per seed)"] + [title for _, title, *_ in FIGURES]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for h in houses:
+        rows = [per_seed[s].get(h) or {} for s in seeds]
+        n = ", ".join(str(r.get("n_evaluable", 0)) for r in rows)
+        cells = [cell([r.get(k) for r in rows], scale, unit, dec) for k, _, scale, unit, dec in FIGURES]
+        lines.append(f"| {h} | {'**yes**' if h in trained else 'no'} | {n} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def run_seed(profile, seed: int, views: int | None, out_root: Path):
+    """The results table of ``profile`` run with ``seed`` (and ``views`` per house)."""
+    from fenestra.bench.results import load_results  # noqa: PLC0415
+    from fenestra.bench.runner import run_benchmark  # noqa: PLC0415
+
+    p = dataclasses.replace(profile, seed=seed)
+    if views is not None:
+        p = dataclasses.replace(p, render=dataclasses.replace(p.render, views_per_house=views))
+    run_dir = out_root / f"{p.name}-s{seed}-{p.config_hash()}"
+    if not (run_dir / "results.parquet").is_file():
+        run_benchmark(p, out_dir=run_dir, progress=False, report=None)
+    return load_results(run_dir)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default="heldout-seeds")
+    ap.add_argument("--seeds", default="0,1,2", help="comma-separated seeds (at least 2)")
+    ap.add_argument("--views", type=int, default=None, help="views per house (default: the profile's)")
+    ap.add_argument("--method", default=None, help="detector/snapper/pose (default: the CLI's, fenestra.conventions.DEFAULTS)")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench" / "seed-spread")
+    ap.add_argument("--doc", type=Path, default=None)
+    ap.add_argument("--block", default="seed-spread")
+    a = ap.parse_args()
+    seeds = [int(s) for s in a.seeds.split(",")]
+    if len(seeds) < 2 or len(set(seeds)) != len(seeds) or min(seeds) < 0:
+        ap.error(f"--seeds needs at least 2 distinct seeds >= 0, got {a.seeds!r}")
+    from fenestra.bench.profiles import load_profile  # noqa: PLC0415
+    from fenestra.conventions import DEFAULTS  # noqa: PLC0415
+
+    method = a.method or f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
+    profile = load_profile(a.profile)
+    look = dict(dict(profile.render.options).get("settings", {})).get("look_per", "set")
+    per_seed = {s: house_figures(run_seed(profile, s, a.views, a.out), method) for s in seeds}
+    views = a.views or profile.render.views_per_house
+    lines = [f"`python tools/seed_spread.py {' '.join(sys.argv[1:])}`: `{method}` on profile `{profile.name}`, "
+             f"{views} views per house and seed ({profile.render.width}x{profile.render.height} "
+             f"{profile.render.renderer}, look drawn per {look}), seeds {', '.join(map(str, seeds))}. Each cell: "
+             "**median over the seeds** [min–max] (the seeds' values in order); quads and corners within 5 px "
+             "are shares of the evaluable windows (a missed window counts as neither).", ""]
+    text = "\n".join(lines + table(per_seed, method.split("/")[0])) + "\n"
+    print(text)
+    if a.doc is not None:
+        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+
+        write_block(a.doc, a.block, text)
+
+
+if __name__ == "__main__":
+    main()
