@@ -169,6 +169,18 @@ def load_training_data(cfg: TrainConfig, log=print) -> list[tuple]:
     return data
 
 
+def real_photo_records(cfg: TrainConfig) -> list[str] | None:
+    """``"NAME SHA256"`` of every real photo training reads (cfg.real_data's training part, the
+    photo file's bytes), kept in the weights' meta (``real_photos``) so that a figure on real photos
+    can be checked to be held out from them (tools/model_card_real.py); None without real photos."""
+    if cfg.real_fraction <= 0:
+        return None
+    import hashlib  # noqa: PLC0415
+
+    return [f"{p.name} {hashlib.sha256(p.read_bytes()).hexdigest()}"
+            for p in real_box_photos(cfg.real_data, "train", cfg.real_holdout_every)]
+
+
 def make_batch(data, cfg: TrainConfig, it: int):
     """The batch of iteration ``it`` (same for any number of workers): see winnet_batch, maskrcnn_batch."""
     rng = np.random.default_rng([cfg.seed, it])
@@ -243,6 +255,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
     state_path = Path(cfg.state_dir) / f"{out.stem}.state.pt"
     state_path.parent.mkdir(parents=True, exist_ok=True)
     data = load_training_data(cfg, log) if cfg.workers == 0 else []  # workers read their own copies
+    real_photos = real_photo_records(cfg)
     model, opt = build_model(cfg)
     model.to(cfg.device)
     if cfg.channels_last:
@@ -291,7 +304,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
                         "torch": torch.__version__, "threads": cfg.threads, "device": _device_name(cfg.device),
                         "n_train_views": sum(d[2] is not None for d in data) if data else None,
                         "n_train_real_photos": sum(d[2] is None for d in data) if data else None,
-                        "python": sys.version.split()[0]}
+                        "python": sys.version.split()[0], "real_photos": real_photos}
                 torch.save(checkpoint(model, cfg, meta), out)
     return out
 
