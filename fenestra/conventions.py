@@ -153,6 +153,11 @@ class InputLimits:
         108 Mpx, passes; ``fenestra reconstruct --max-pixels`` raises the pixel bound).
     max_render_side_px: the longest side a render may have (OpenGL renderbuffers of the software
         rasteriser stop at 8192 or 16384 px).
+    max_label_bytes / max_label_lines: a dataset's label file (YOLO txt) larger than this, or with
+        more lines, is refused before its lines are parsed (a 108 MB file of 6 million boxes took
+        4.6 GB). A COCO RLE mask is an image: its stated size is bounded by max_image_pixels and
+        must be its photo's, and an image's window annotations by max_windows_per_photo, all
+        checked before any mask is decoded.
     """
 
     max_windows_per_photo: int = 1000
@@ -163,6 +168,8 @@ class InputLimits:
     max_image_pixels: int = 150_000_000
     max_image_bytes: int = 512 * 2**20
     max_render_side_px: int = 8192
+    max_label_bytes: int = 4 * 2**20
+    max_label_lines: int = 100_000
 
 
 LIMITS = InputLimits()

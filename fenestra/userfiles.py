@@ -5,7 +5,10 @@ JSON only up to a stated size (fenestra.conventions.LIMITS.max_json_bytes).
     regular_file(p)                        # DatasetError for a FIFO, a device, a folder, a missing file
     doc = read_json(folder / "annotations.json", "COCO annotations")
 
-Errors are fenestra.data.DatasetError (a ValueError) naming the file and what is wrong.
+    text = read_text(folder / "labels" / "a.txt", "YOLO label file", limit, "max_label_bytes")
+
+Errors are fenestra.errors.DatasetError (a ValueError) naming the file and what is wrong, never
+quoting a file's content.
 """
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ import stat
 from pathlib import Path
 
 from fenestra.conventions import LIMITS
-from fenestra.data import DatasetError
+from fenestra.errors import DatasetError
 
 
 def inside(root: str | Path, name: str, where: str) -> Path:
@@ -54,16 +57,32 @@ def regular_file(path: str | Path, what: str = "file") -> Path:
     return p
 
 
-def read_json(path: str | Path, what: str = "JSON file", limit: int | None = None):
-    """The parsed JSON of a regular file of at most ``limit`` bytes (default
-    LIMITS.max_json_bytes), checked before reading; DatasetError naming the file otherwise."""
+def read_bytes(path: str | Path, what: str, limit: int, limit_name: str) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes (``limit_name``: its field of
+    fenestra.conventions.LIMITS), the size checked before reading; DatasetError naming the file."""
     p = regular_file(path, what)
-    limit = LIMITS.max_json_bytes if limit is None else limit
     size = p.stat().st_size
     if size > limit:
         raise DatasetError(f"{what} {p} is {size / 2**20:.1f} MB, more than the {limit / 2**20:.0f} MB "
-                           "limit (fenestra.conventions.LIMITS.max_json_bytes)")
+                           f"limit (fenestra.conventions.LIMITS.{limit_name})")
+    return p.read_bytes()
+
+
+def read_text(path: str | Path, what: str, limit: int, limit_name: str) -> str:
+    """The UTF-8 text of a regular file of at most ``limit`` bytes (:func:`read_bytes`);
+    DatasetError naming the file when it is not text."""
     try:
-        return json.loads(p.read_bytes())
+        return read_bytes(path, what, limit, limit_name).decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise DatasetError(f"{what} {path} is not UTF-8 text (byte {e.start})") from e
+
+
+def read_json(path: str | Path, what: str = "JSON file", limit: int | None = None):
+    """The parsed JSON of a regular file of at most ``limit`` bytes (default
+    LIMITS.max_json_bytes), checked before reading; DatasetError naming the file otherwise."""
+    p = Path(path)
+    raw = read_bytes(p, what, LIMITS.max_json_bytes if limit is None else limit, "max_json_bytes")
+    try:
+        return json.loads(raw)
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
         raise DatasetError(f"{what} {p} is not valid JSON: {e}") from e

@@ -200,7 +200,7 @@ def test_task_reads_the_view_in_the_worker(view_dir):
 def test_rows_identical_with_dense_reference_matching(view_dir, monkeypatch):
     """The sparse IoU (crops of overlapping boxes) gives the rows of full-image dense matching."""
     from fenestra.bench import matching
-    from fenestra.data import SparseMask
+    from fenestra.masks import SparseMask
 
     methods = [Method("oracle", "none", "lm"), Method("oracle-degraded", "linefit", "ippe")]
     sparse = _run(view_dir, methods).rows

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from fenestra.bench import matching, metrics
-from fenestra import data
+from fenestra.coco import coco_result, gt_annotation
+from fenestra.masks import SparseMask, instance_masks
 from fenestra.conventions import look_at, make_K, project
 
 
@@ -169,9 +170,9 @@ def test_detection_ap_hand_values():
 
     gts, dts = [], []
     for i in range(4):
-        m = data.SparseMask.from_dense(_box_mask(5 * i, 0, 5 * i + 4, 6))
-        gts.append(data.gt_annotation("v", m.rle(), m.box(), m.area))
-        dts.append(data.coco_result("v", 1.0, m.box(), m.rle()))
+        m = SparseMask.from_dense(_box_mask(5 * i, 0, 5 * i + 4, 6))
+        gts.append(gt_annotation("v", m.rle(), m.box(), m.area))
+        dts.append(coco_result("v", 1.0, m.box(), m.rle()))
     assert gts[1]["bbox"] == [5.0, 0.0, 4.0, 6.0]  # COCO (pixel edges at integers) of columns 5-8, rows 0-5
     assert coco_ap(gts, dts)["segm_AP"] == pytest.approx(1.0)
     assert coco_ap(gts, dts)["bbox_AP"] == pytest.approx(1.0)
@@ -202,7 +203,7 @@ def test_sparse_iou_equals_dense_reference_bit_for_bit():
     gt_dense = [inst == k for k in ids]
     det_dense = [np.roll(m, (int(rng.integers(-4, 5)), int(rng.integers(-4, 5))), axis=(0, 1))
                  for m in gt_dense[:6]] + [np.zeros((H, W), bool), rng.random((H, W)) < 0.3]
-    gt_sparse = data.instance_masks(inst, ids)
+    gt_sparse = instance_masks(inst, ids)
     assert [m.area for m in gt_sparse] == [int(m.sum()) for m in gt_dense]
     for s, d in zip(gt_sparse, gt_dense):
         assert np.array_equal(s.dense(), d)
@@ -215,6 +216,6 @@ def test_sparse_iou_equals_dense_reference_bit_for_bit():
 
 def test_instance_masks_bad_input():
     with pytest.raises(ValueError, match="ids must be >= 1.*0"):
-        data.instance_masks(np.zeros((4, 4), np.int32), [0, 1])
+        instance_masks(np.zeros((4, 4), np.int32), [0, 1])
     with pytest.raises(ValueError, match="integer map"):
-        data.instance_masks(np.zeros((4, 4), np.float32), [1])
+        instance_masks(np.zeros((4, 4), np.float32), [1])

@@ -22,7 +22,7 @@ from fenestra.bench.real.profile import ProfileError, load_real_profile, real_pr
 from fenestra.bench.real.simreal import ranking
 from fenestra.bench.runner import run_benchmark
 from fenestra.bench.views import LabelledWindow
-from fenestra.data import coco_result
+from fenestra.coco import coco_result
 from fenestra.pipeline.types import WindowResult
 
 ROOT = Path(__file__).resolve().parents[1]

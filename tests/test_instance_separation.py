@@ -91,7 +91,7 @@ def test_split_post_processing_separates_adjacent_windows_in_a_render(tmp_path):
     """duplex, view 0 of seed 0 (640x480 raster): its ground truth holds windows 4-5 px apart
     (measured on the instance map here); on the shipped network's maps the separating
     post-processing returns one detection per window, the default merges some of them."""
-    from fenestra.data import read_view
+    from fenestra.rendered_view import read_view
     from fenestra.renders.dataset import DatasetConfig, render_dataset
 
     root = render_dataset(DatasetConfig(scene="duplex", n_views=1, seed=0, out_root=str(tmp_path)), progress=False)
@@ -176,7 +176,7 @@ def test_corner_cuts_separate_adjacent_windows_of_a_rendered_duplex_view(tmp_pat
     (ground truth: the render's instance map) come out one detection each, matched one-to-one at
     mask IoU >= 0.5. The post-processing shipped before the corner cuts (``nearest-blob``), and the
     one before issue #23, merge at least two pairs of them on the same network maps."""
-    from fenestra.data import read_view
+    from fenestra.rendered_view import read_view
     from fenestra.pipeline.detectors import DETECTORS, detect, effwin, load_model
     from fenestra.renders.dataset import DatasetConfig, render_dataset
 

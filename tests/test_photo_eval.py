@@ -193,7 +193,7 @@ def test_bench_real_reaches_the_kfree_block(tmp_path):
 
 
 def test_labelled_masks_written_as_the_instance_map_reconstruct_reads(tmp_path):
-    from fenestra.data import SparseMask
+    from fenestra.masks import SparseMask
     from fenestra.images import read_instances
 
     m = np.zeros((40, 50), bool)
@@ -218,7 +218,7 @@ def _facade(seed: int) -> np.ndarray:
 
 
 def test_kfree_in_two_processes_gives_the_rows_of_one(tmp_path):
-    from fenestra.data import SparseMask
+    from fenestra.masks import SparseMask
 
     m = np.zeros((120, 160), bool)
     m[15:50, 15:45] = True

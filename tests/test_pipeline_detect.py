@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fenestra.data import coco_scores
+from fenestra.coco import coco_scores
 from fenestra.errors import FenestraError
 from fenestra.pipeline.detectors import DETECTORS, DEFAULT_WEIGHTS, DegradeConfig, detect
 from fenestra.pipeline.types import Detection
@@ -109,7 +109,7 @@ def test_coco_eval_of_oracle_is_100(tmp_path):
     ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=5)
     r = evaluate("oracle", ds)
     assert r["n_gt"] == 9 and r["n_det"] == 9
-    for iou in ("bbox", "segm"):  # fractions (fenestra.data.coco_scores)
+    for iou in ("bbox", "segm"):  # fractions (fenestra.coco.coco_scores)
         assert r[iou]["AP"] == pytest.approx(1.0)
         assert r[iou]["AP75"] == pytest.approx(1.0)
     # The degraded oracle is found at IoU 0.5 but loses AP at strict thresholds.
@@ -270,7 +270,7 @@ def test_learned_detector_on_a_large_photo_returns_sparse_full_resolution_masks(
     the crop's outline and its corners (if the detector predicts them) inside that frame."""
     import cv2
 
-    from fenestra.data import SparseMask
+    from fenestra.masks import SparseMask
 
     H, W = 2000, 3000
     image = np.empty((H, W, 3), np.uint8)

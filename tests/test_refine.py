@@ -28,7 +28,7 @@ def test_patches_are_sampled_where_the_map_says():
 
 
 def test_refinement_moves_perturbed_corners_of_a_fresh_render_closer(tmp_path):
-    from fenestra.data import read_view
+    from fenestra.rendered_view import read_view
     from fenestra.pipeline.reconstruct import to_gray
     from fenestra.renders.dataset import DatasetConfig, render_dataset
 

@@ -11,7 +11,7 @@ from fenestra.conventions import look_at, make_K
 from fenestra.tolerances import TOL
 from fenestra.renders.base import RenderSettings
 from fenestra.renders.camera import Camera
-from fenestra.data import read_view
+from fenestra.rendered_view import read_view
 from fenestra.renders.dataset import DatasetConfig, render_dataset
 from fenestra.renders.sampler import SamplerConfig, sample_views
 from fenestra.renders.sensor import REALISTIC, SensorConfig, apply_sensor

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from fenestra.bench.detection_ap import coco_ap
-from fenestra import data
+from fenestra.coco import coco_result
+from fenestra.masks import mask_box, rle_from_mask
+from fenestra.rendered_view import check_view, read_view, view_annotations, write_view
 from fenestra.renders.camera import Camera
 from fenestra.renders.dataset import DatasetConfig, render_dataset
 from fenestra.renders.gt import inside_convex
@@ -53,7 +55,7 @@ def test_generated_house_views_carry_curtain_wall_and_glazed_door_ignore_regions
     for i, (kind, gid, void) in enumerate(expected):
         d = root / "views" / f"{i:06d}"
         assert (d / "ignore.png").is_file(), f"view {i} shows no {kind}: pick another SAMPLER seed"
-        v = data.read_view(d)
+        v = read_view(d)
         assert [(r["kind"], r["id"]) for r in v.ignore_regions] == [(kind, gid)], f"view {i}"
         (r,) = v.ignore_regions
         ign = v.ignore == r["instance_id"]
@@ -88,12 +90,12 @@ def test_cached_views_without_ignore_regions_get_them_without_re_rendering(facad
     assert json.loads((root / "stats.json").read_text())["ignore_added"] == 1
     assert {n: (d / n).read_bytes() for n in before} == before
     assert (d / "image.png").stat().st_mtime_ns == mtime
-    assert json.loads((d / "view.json").read_text()) == meta and data.check_view(d) is None
+    assert json.loads((d / "view.json").read_text()) == meta and check_view(d) is None
 
 
 def test_bench_detection_ap_honours_a_rendered_views_ignore_region(tmp_path):
     """The bench's AP (bench.detection_ap.coco_ap) on the ground truth of a written view
-    (fenestra.data.view_annotations: windows A, B and ignore region R from ignore.png).
+    (fenestra.rendered_view.view_annotations: windows A, B and ignore region R from ignore.png).
 
     Detections, best score first: d1 (0.9) inside R, d2 (0.8) on nothing, d3 (0.7) exactly A; B is
     missed. With R: d1 counts neither way; ranked d2 (FP: precision 0/1, recall 0), d3 (TP:
@@ -108,8 +110,8 @@ def test_bench_detection_ap_honours_a_rendered_views_ignore_region(tmp_path):
     meta = {"K": np.eye(3).tolist(), "width": 100, "height": 100, "R": np.eye(3).tolist(), "t": [0, 0, 1],
             "windows": [{"id": "A", "instance_id": 1}, {"id": "B", "instance_id": 2}],
             "ignore": [{"id": "R", "instance_id": 3, "kind": "curtain_wall"}]}
-    data.write_view(tmp_path / "v", np.zeros((*S, 3), np.uint8), inst, meta, ignore=ign)
-    gt = data.view_annotations(data.read_view(tmp_path / "v"), "house/000000")
+    write_view(tmp_path / "v", np.zeros((*S, 3), np.uint8), inst, meta, ignore=ign)
+    gt = view_annotations(read_view(tmp_path / "v"), "house/000000")
     assert [a["iscrowd"] for a in gt] == [0, 0, 1]
 
     def rect(r0, r1, c0, c1):
@@ -117,7 +119,7 @@ def test_bench_detection_ap_honours_a_rendered_views_ignore_region(tmp_path):
         m[r0:r1, c0:c1] = True
         return m
 
-    dt = [data.coco_result("house/000000", s, data.mask_box(m), data.rle_from_mask(m))
+    dt = [coco_result("house/000000", s, mask_box(m), rle_from_mask(m))
           for s, m in ((0.9, rect(65, 85, 20, 40)), (0.8, rect(40, 50, 80, 96)), (0.7, inst == 1))]
     with_r, without_r = coco_ap(gt, dt), coco_ap(gt[:2], dt)
     for t in ("bbox", "segm"):
@@ -133,7 +135,7 @@ def test_every_backend_draws_the_same_ignore_map(facade):
     from fenestra.renders.base import RenderSettings
 
     _, scene, root, _ = facade
-    v = data.read_view(root / "views" / "000001")
+    v = read_view(root / "views" / "000001")
     cam = Camera.from_dict(v.meta)
     for name, settings in (("pyrender", RenderSettings(seed=16, antialias="fxaa")),
                            ("pyrender", RenderSettings(seed=16, antialias="msaa4")),

@@ -107,14 +107,14 @@ def test_each_view_draws_its_own_look_and_renders_in_it(tmp_path):
     draws for the view's camera; look_per = "set" keeps one look and view.json as it was."""
     import json
 
-    from fenestra import data
+    from fenestra.rendered_view import read_view
     from fenestra.renders.camera import Camera
     from fenestra.renders.dataset import LOOK_STREAM, render_dataset
     from fenestra.renders.raster import RasterRenderer
 
     scene = wall_scene(sill_top=1.2)
     root = render_dataset(_per_view_config(tmp_path, "view"), scene, progress=False)
-    views = [data.read_view(root / "views" / f"{i:06d}") for i in range(3)]
+    views = [read_view(root / "views" / f"{i:06d}") for i in range(3)]
     seeds = [int(np.random.SeedSequence([4, i, LOOK_STREAM]).generate_state(1, np.uint32)[0]) for i in range(3)]
     assert [v.meta["look"]["seed"] for v in views] == seeds and len(set(seeds)) == 3
     looks = [sample_look(np.random.default_rng(s), "wide") for s in seeds]
@@ -129,7 +129,7 @@ def test_each_view_draws_its_own_look_and_renders_in_it(tmp_path):
     # one look per set: no look in view.json, every view drawn by the one renderer of the dataset's seed
     flat = render_dataset(_per_view_config(tmp_path, "set"), scene, progress=False)
     assert flat != root and "look" not in json.loads((flat / "views" / "000001" / "view.json").read_text())
-    same = data.read_view(flat / "views" / "000001")
+    same = read_view(flat / "views" / "000001")
     with RasterRenderer(scene, RenderSettings(seed=4, look="wide")) as r:
         np.testing.assert_array_equal(r.render(Camera.from_dict(same.meta)).rgb, same.image)
 

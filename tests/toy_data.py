@@ -11,7 +11,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fenestra import data, files
+from fenestra import files
+from fenestra.coco import coco_ground_truth, gt_annotation
+from fenestra.masks import instance_masks
+from fenestra.rendered_view import write_view
 
 
 def toy_view(rng: np.random.Generator, width: int = 160, height: int = 120,
@@ -43,7 +46,7 @@ def toy_view(rng: np.random.Generator, width: int = 160, height: int = 120,
 def write_toy_dataset(out_dir: str | Path, n_views: int = 4, seed: int = 0, width: int = 160,
                       height: int = 120) -> Path:
     """Write a toy dataset folder (views/NNNNNN/{image,instances}.png, view.json, coco.json) with
-    fenestra.data's view writer and COCO builder."""
+    fenestra.rendered_view's view writer and fenestra.coco's builder."""
     out = Path(out_dir)
     rng = np.random.default_rng(seed)
     images, anns = [], []
@@ -55,9 +58,9 @@ def write_toy_dataset(out_dir: str | Path, n_views: int = 4, seed: int = 0, widt
                 "renderer": "toy", "seed": seed,
                 "windows": [{"id": f"toy{k + 1}", "instance_id": k + 1, "corners_px": q.tolist()}
                             for k, q in enumerate(quads)]}
-        data.write_view(out / "views" / f"{i:06d}", img, inst, meta)
+        write_view(out / "views" / f"{i:06d}", img, inst, meta)
         key = f"views/{i:06d}/image.png"
         images.append((key, height, width))
-        anns += [data.gt_annotation(key, m.rle()) for m in data.instance_masks(inst, range(1, len(quads) + 1))]
-    files.write_text(out / "coco.json", json.dumps(data.coco_ground_truth(images, anns)))
+        anns += [gt_annotation(key, m.rle()) for m in instance_masks(inst, range(1, len(quads) + 1))]
+    files.write_text(out / "coco.json", json.dumps(coco_ground_truth(images, anns)))
     return out

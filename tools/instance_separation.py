@@ -38,7 +38,7 @@ from scipy import ndimage
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from fenestra.bench.matching import iou_matrix, match  # noqa: E402
-from fenestra.data import read_view  # noqa: E402
+from fenestra.rendered_view import read_view  # noqa: E402
 from fenestra.pipeline.detectors import DETECTORS, load_model  # noqa: E402
 from fenestra.pipeline.detectors.winnet import PostConfig, instances_from_maps  # noqa: E402
 from fenestra.pipeline.detectors.oracle import oracle_detections  # noqa: E402
@@ -233,16 +233,16 @@ def real_photos(yolo: Path, part: str, predict, cache: Path | None = None) -> li
     network's maps (C, h, w) float16 of the photo as pipeline.detectors.detect feeds the network
     (long side <= 1024 px; void, core and, for EffWin, its four corner maps); cached in ``cache``
     (an .npz per photo) when given."""
-    from fenestra.data import yolo_boxes  # noqa: PLC0415
+    from fenestra.yolo import yolo_boxes  # noqa: PLC0415
     from fenestra.images import read_image  # noqa: PLC0415
     from fenestra.pipeline.detectors import downscale, input_scale  # noqa: PLC0415
-    from fenestra.training.dataset import real_box_photos  # noqa: PLC0415
+    from fenestra.training.dataset import photo_labels, real_box_photos  # noqa: PLC0415
 
     out = []
     for p in real_box_photos(yolo, part):
         image = read_image(p)
         H, W = image.shape[:2]
-        text = (p.parent.parent / "labels" / f"{p.stem}.txt").read_text()
+        text = photo_labels(p)[0]
         wins = yolo_boxes(text, W, H, (0,), p.name)
         negs = yolo_boxes(text, W, H, HARD_NEGATIVE_CLASSES, p.name)
         scale = input_scale((H, W))
@@ -282,18 +282,18 @@ def real_detections(photos, post: PostConfig) -> list[list[tuple[float, np.ndarr
 def real_scores(photos, dets_per_photo, rule: tuple[float, float] | None = None) -> dict:
     """bbox COCO scores and the hard-negative share at the shipped threshold
     (training.evaluate.hard_negative_share) of the detections, after the door rule if given."""
-    from fenestra import data  # noqa: PLC0415
+    from fenestra.coco import coco_ground_truth, coco_result, coco_scores, gt_annotation  # noqa: PLC0415
     from fenestra.training.evaluate import hard_negative_share  # noqa: PLC0415
 
     images, anns, results, shipped = [], [], [], []
     for k, ((name, (H, W), _, _, wins, negs), dets) in enumerate(zip(photos, dets_per_photo), 1):
         images.append((name, H, W))
-        anns += [data.gt_annotation(name, box=b) for b in wins]
+        anns += [gt_annotation(name, box=b) for b in wins]
         if rule is not None:
             dets = [(sc, b) for sc, b in dets if not looks_like_door(b, H, rule)]
-        results += [data.coco_result(k, sc, b) for sc, b in dets]
+        results += [coco_result(k, sc, b) for sc, b in dets]
         shipped.append(([b for sc, b in dets if sc >= SCORE], negs, wins))
-    scores = data.coco_scores(data.coco_ground_truth(images, anns), results, ("bbox",))
+    scores = coco_scores(coco_ground_truth(images, anns), results, ("bbox",))
     return {**scores, **hard_negative_share(shipped)}
 
 

@@ -165,8 +165,8 @@ def check_data(folder: Path = typer.Argument(..., help="a labelled photo folder"
                                                 help="adapter option KEY=JSON, e.g. classes=[0,4] (repeatable)")) -> None:
     """Read a dataset as `fenestra bench --data` would: print each photo's windows, what was
     refused and why; exit 2 with the first problem when the dataset cannot be used."""
-    from fenestra.bench.real.adapters import check_dataset  # noqa: PLC0415
-    from fenestra.data import DatasetError  # noqa: PLC0415
+    from fenestra.bench.real.adapters.check import check_dataset  # noqa: PLC0415
+    from fenestra.errors import DatasetError  # noqa: PLC0415
 
     c = check_dataset(folder, fmt, **_options(option))
     typer.echo(f"{c.format} dataset {c.folder}: {len(c.views)} photo(s), {c.n_windows} window(s), "

@@ -4,18 +4,18 @@ Ground truth: every labelled window with pixels (or a box) of every view, evalua
 detector should find partly hidden and cut windows too), and the views' ignore regions (COCO
 ``iscrowd``: detections there count neither way). Detections: every detection down to
 bench.evaluate.AP_SCORE_MIN, with its score. A detector is scored over the views it ran on (an
-oracle cannot run on a photo labelled with boxes only). Scoring: fenestra.data.coco_scores
+oracle cannot run on a photo labelled with boxes only). Scoring: fenestra.coco.coco_scores
 (fractions in [0, 1]; NaN where undefined, e.g. mask AP of box-only labels).
 """
 from __future__ import annotations
 
-from fenestra import data
+from fenestra.coco import coco_ground_truth, coco_scores
 
 
 def coco_ap(gt: list[dict], dt: list[dict]) -> dict[str, float]:
-    """fenestra.data.coco_scores {"bbox_AP", ..., "segm_R50"} (fractions; NaN if undefined).
+    """fenestra.coco.coco_scores {"bbox_AP", ..., "segm_R50"} (fractions; NaN if undefined).
 
-    gt: fenestra.data.gt_annotation per window or ignore region; dt: fenestra.data.coco_result per
+    gt: fenestra.coco.gt_annotation per window or ignore region; dt: fenestra.coco.coco_result per
     detection; both keyed by their view ("image", e.g. "house/000012"), every one with a mask
     (its RLE gives the view's size). Images are numbered in sorted key order.
     """
@@ -23,7 +23,7 @@ def coco_ap(gt: list[dict], dt: list[dict]) -> dict[str, float]:
     for a in gt + dt:
         size.setdefault(a["image"], a["segmentation"]["size"])
     images = [(k, *size[k]) for k in sorted(size)]
-    return data.coco_scores(data.coco_ground_truth(images, gt), dt)
+    return coco_scores(coco_ground_truth(images, gt), dt)
 
 
 def coco_ap_of(outcomes: list, detector: str) -> dict:
@@ -38,7 +38,7 @@ def coco_ap_of(outcomes: list, detector: str) -> dict:
     gt = [g for o in ran for g in o.coco_gt]
     dt = [d for o in ran for d in o.coco_dt[detector]]
     images = sorted((o.key, *o.size) for o in ran)
-    stats = data.coco_scores(data.coco_ground_truth(images, gt), dt)
+    stats = coco_scores(coco_ground_truth(images, gt), dt)
     return {**stats, "false_positives": sum(o.n_false_positives.get(detector, 0) for o in ran),
             "n_detections": len(dt), "n_gt": sum(not g["iscrowd"] for g in gt)}
 

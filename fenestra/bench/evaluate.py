@@ -38,7 +38,7 @@ import numpy as np
 from fenestra.bench import matching, metrics, uncertainty
 from fenestra.bench.profiles import EvalSpec
 from fenestra.bench.views import LabelledView, LabelledWindow
-from fenestra import data
+from fenestra import coco, masks
 from fenestra.conventions import camera_depths
 from fenestra.tolerances import TOL
 from fenestra.methods import Method
@@ -264,7 +264,7 @@ def gt_coco(view: LabelledView) -> list[dict]:
         for w in regions:
             if w.mask is not None and not w.mask.area:
                 continue
-            out.append(data.gt_annotation(view.key, None if w.mask is None else w.mask.rle(), w.bbox(),
+            out.append(coco.gt_annotation(view.key, None if w.mask is None else w.mask.rle(), w.bbox(),
                                           None if w.mask is None else w.mask.area, ignore=ignore))
     return out
 
@@ -375,7 +375,7 @@ def detect_view(name: str, view: LabelledView, long_side: int, score_threshold: 
     for d in detect(name, small, score_threshold=score_threshold, **options):
         m = cv2.resize(d.mask.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
         if m.any():
-            out.append(Detection(mask=m, box=data.mask_box(m), score=d.score, label=d.label))
+            out.append(Detection(mask=m, box=masks.mask_box(m), score=d.score, label=d.label))
     return out
 
 
@@ -412,7 +412,7 @@ def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list
                                   memo=memo), counted
 
 
-def _match_ious(view: LabelledView, det_masks: list[data.SparseMask], dets: list) -> np.ndarray:
+def _match_ious(view: LabelledView, det_masks: list[masks.SparseMask], dets: list) -> np.ndarray:
     """(D, G) mask IoU when every window has a mask, else box IoU."""
     if view.has_masks:
         return matching.iou_matrix(det_masks, [w.mask for w in view.windows])
@@ -505,8 +505,8 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         keep = [i for i, d in enumerate(cands) if d.score >= MATCH_SCORE_MIN]
         dets = [cands[i] for i in keep]
         t0 = tick("detect", t0)
-        sparse = [data.SparseMask.from_crop(d.mask, d.origin, view.size) for d in cands]
-        out.coco_dt[det_name] = [data.coco_result(view.key, d.score, d.box, m.rle()) for d, m in zip(cands, sparse)]
+        sparse = [masks.SparseMask.from_crop(d.mask, d.origin, view.size) for d in cands]
+        out.coco_dt[det_name] = [coco.coco_result(view.key, d.score, d.box, m.rle()) for d, m in zip(cands, sparse)]
         mt = matching.match(_match_ious(view, [sparse[i] for i in keep], dets), TOL.match_iou)
         out.n_false_positives[det_name] = len(mt.false_positives)
         det_for_gt = mt.det_for_gt()

@@ -3,7 +3,7 @@
 A detection and a ground-truth window match when the assignment that maximises the total IoU
 pairs them and their IoU is at least ``TOL.match_iou``. Ground-truth windows left unmatched are
 "missed"; detections left unmatched are false positives. Masks: full (H, W) bool arrays or
-fenestra.data.SparseMask (a crop: cost grows with the box, not the image).
+fenestra.masks.SparseMask (a crop: cost grows with the box, not the image).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from fenestra.tolerances import TOL
-from fenestra.data import SparseMask
+from fenestra.masks import SparseMask
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,8 @@ import numpy as np
 
 from fenestra.bench.profiles import Profile, ProfileError
 from fenestra.bench.views import NAN, LabelledView, LabelledWindow
-from fenestra import data
+from fenestra.masks import SparseMask
+from fenestra.rendered_view import View, read_view
 
 PROCEDURAL_DIR = Path("out") / "scenes"
 
@@ -82,7 +83,7 @@ def dataset_config(profile: Profile, house: str, renders_dir: Path):
 
 # ---------------------------------------------------------------- rendered views
 
-def _window(w: dict, mask: data.SparseMask) -> LabelledWindow:
+def _window(w: dict, mask: SparseMask) -> LabelledWindow:
     """A view.json window (exact truth) with its mask from instances.png."""
     Cw = np.asarray(w["corners_world"], dtype=np.float64)
     width, height = float(np.linalg.norm(Cw[1] - Cw[0])), float(np.linalg.norm(Cw[0] - Cw[3]))
@@ -94,30 +95,24 @@ def _window(w: dict, mask: data.SparseMask) -> LabelledWindow:
                           corner_visible=tuple(bool(v) for v in w.get("corner_visible", [True] * 4)))
 
 
-def labelled_view(view: data.View, house: str, name: str, renderer: str) -> LabelledView:
-    """The LabelledView of a rendered view (fenestra.data.View): every view.json window with its
+def labelled_view(view: View, house: str, name: str, renderer: str) -> LabelledView:
+    """The LabelledView of a rendered view (fenestra.rendered_view.View): every view.json window with its
     exact quad (corners_px, may lie outside the image), world corners, aspect and size, its mask
-    from instances.png (empty when hidden), the camera pose and K; the ignore regions present in
-    ignore.png as masks."""
-    wins = view.windows
-    masks = data.instance_masks(view.instances, [int(w["instance_id"]) for w in wins])
-    regions = view.ignore_regions
-    ignore = []
-    if regions:
-        for r, m in zip(regions, data.instance_masks(view.ignore, [int(r["instance_id"]) for r in regions])):
-            if m.area:
-                ignore.append(LabelledWindow(id=str(r["id"]), mask=m, instance_id=int(r["instance_id"])))
+    from instances.png (View.window_masks: empty when hidden), the camera pose and K; the ignore
+    regions present in ignore.png as masks (View.ignore_masks)."""
+    ignore = tuple(LabelledWindow(id=str(r["id"]), mask=m, instance_id=int(r["instance_id"]))
+                   for r, m in view.ignore_masks())
     meta = view.meta
     return LabelledView(dataset=house, name=name, image=view.image,
-                        windows=tuple(_window(w, m) for w, m in zip(wins, masks)), K=view.K,
-                        ignore=tuple(ignore), renderer=renderer, instances=view.instances,
+                        windows=tuple(_window(w, m) for w, m in zip(view.windows, view.window_masks())), K=view.K,
+                        ignore=ignore, renderer=renderer, instances=view.instances,
                         pose=(np.asarray(meta["R"], dtype=np.float64), np.asarray(meta["t"], dtype=np.float64)))
 
 
 def read_rendered_view(view_dir: str | Path, house: str, renderer: str) -> LabelledView:
     """The LabelledView of a view folder (image.png, instances.png, ignore.png, view.json; see
     :func:`labelled_view`), named by the folder; DatasetError naming a missing or damaged file."""
-    return labelled_view(data.read_view(view_dir), house, Path(view_dir).name, renderer)
+    return labelled_view(read_view(view_dir), house, Path(view_dir).name, renderer)
 
 
 @dataclass(frozen=True)

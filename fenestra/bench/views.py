@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fenestra.checks import check_K, check_quad
-from fenestra.data import SparseMask
+from fenestra.masks import SparseMask
 
 NAN = float("nan")
 PHOTO = "photo"  # the ``renderer`` of a photo (a results table's ``renderer`` column)

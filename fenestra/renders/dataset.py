@@ -15,7 +15,7 @@ alone (ignore.png and view.json added, image and instances untouched: they are t
 Looks (issue #36): ``settings.look_per = "set"`` draws one look from the seed for every view (as
 always); ``"view"`` gives each view its own look, drawn from its own stream (:func:`view_settings`),
 rendered by a renderer built for that look, and recorded in its view.json (``look``). Python API:
-:func:`render_dataset`; read a view with fenestra.data.read_view.
+:func:`render_dataset`; read a view with fenestra.rendered_view.read_view.
 """
 from __future__ import annotations
 
@@ -30,7 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fenestra import data, files
+from fenestra import files
+from fenestra.coco import coco_ground_truth
+from fenestra.rendered_view import View, check_view, read_meta, read_view, view_annotations, write_ignore, write_view
 from fenestra.checks import INSTANCE_DTYPE
 from fenestra.renders.backends import RENDERERS, make_renderer, occluder_visibility, visibility_function
 from fenestra.renders.base import RenderSettings
@@ -103,7 +105,7 @@ def dataset_dir(config: DatasetConfig, scene: Scene) -> Path:
 
 
 def coco_from_views(root: Path, n_views: int, known: dict[int, tuple[tuple, list[dict]]] | None = None) -> dict:
-    """coco.json of the views under root/views (image ids from 0): fenestra.data.view_annotations
+    """coco.json of the views under root/views (image ids from 0): fenestra.rendered_view.view_annotations
     of each view (RLE masks, COCO boxes; ignore regions as ``iscrowd`` annotations).
 
     known: view index -> :func:`view_coco` of the views this run wrote (from the arrays it wrote,
@@ -111,16 +113,16 @@ def coco_from_views(root: Path, n_views: int, known: dict[int, tuple[tuple, list
     known = known or {}
     images, anns = [], []
     for i in range(n_views):
-        image, ann = known[i] if i in known else view_coco(i, data.read_view(root / "views" / f"{i:06d}"))
+        image, ann = known[i] if i in known else view_coco(i, read_view(root / "views" / f"{i:06d}"))
         images.append(image)
         anns += ann
-    return data.coco_ground_truth(images, anns, first_image_id=0)
+    return coco_ground_truth(images, anns, first_image_id=0)
 
 
-def view_coco(i: int, view: data.View) -> tuple[tuple[str, int, int], list[dict]]:
+def view_coco(i: int, view: View) -> tuple[tuple[str, int, int], list[dict]]:
     """View ``i``'s coco.json image entry (key, height, width) and annotations."""
     key = f"views/{i:06d}/image.png"
-    return (key, view.meta["height"], view.meta["width"]), data.view_annotations(view, key)
+    return (key, view.meta["height"], view.meta["width"]), view_annotations(view, key)
 
 
 def _load_scene(config: DatasetConfig) -> Scene:
@@ -153,7 +155,7 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     missing = [i for i in indices if not _reusable(root / "views" / f"{i:06d}")]
     stats = {"rendered": 0, "reused": config.n_views - len(missing), "seconds": 0.0}
     todo = set(missing)
-    stale = [i for i in indices if i not in todo and "ignore" not in data.read_meta(root / "views" / f"{i:06d}")]
+    stale = [i for i in indices if i not in todo and "ignore" not in read_meta(root / "views" / f"{i:06d}")]
     if stale:
         add_ignore_regions(scene, [root / "views" / f"{i:06d}" for i in stale])
         stats["ignore_added"] = len(stale)
@@ -189,8 +191,8 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     return root
 
 
-def render_view(renderer, config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> data.View:
-    """View ``i`` (sampled as ``spec``) rendered: its files' contents as fenestra.data.read_view
+def render_view(renderer, config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> View:
+    """View ``i`` (sampled as ``spec``) rendered: its files' contents as fenestra.rendered_view.read_view
     reads them back (image RGB, instances int32, view.json dict without ``files``, ignore map or None)."""
     out = renderer.render(spec.camera)
     if config.sensor.active:
@@ -201,10 +203,10 @@ def render_view(renderer, config: DatasetConfig, scene: Scene, i: int, spec: Vie
             "scene_sha256": scene.sha256, "windows": [w.to_dict() for w in out.windows],
             "ignore": list(out.ignore_regions)}
     ignore = None if out.ignore is None else out.ignore.astype(INSTANCE_DTYPE)
-    return data.View(out.rgb, out.instances.astype(INSTANCE_DTYPE), meta, ignore)
+    return View(out.rgb, out.instances.astype(INSTANCE_DTYPE), meta, ignore)
 
 
-def render_own_look(config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> data.View:
+def render_own_look(config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> View:
     """View ``i`` rendered in its own look (``look_per = "view"``): a renderer built for
     :func:`view_settings` of the view (the look is baked into its geometry, textures and shadow
     map), closed after it; the look drawn goes to view.json (``look``)."""
@@ -218,7 +220,7 @@ def render_own_look(config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec)
 
 
 class ViewWriter:
-    """Writes views (fenestra.data.write_view) on one background thread, in submission order, at
+    """Writes views (fenestra.rendered_view.write_view) on one background thread, in submission order, at
     most ``depth`` pending (bounded memory), and keeps each written view's :func:`view_coco`.
     A failed write raises from the next submit() or from results(); use as a context manager
     (leaving it waits for the pending writes)."""
@@ -231,7 +233,7 @@ class ViewWriter:
         self._depth = depth
         self._done: dict[int, tuple[tuple, list[dict]]] = {}
 
-    def submit(self, i: int, view_dir: Path, view: data.View) -> None:
+    def submit(self, i: int, view_dir: Path, view: View) -> None:
         while len(self._pending) >= self._depth:
             self._finish_one()
         self._pending.append((i, self._pool.submit(_write_view, i, view_dir, view)))
@@ -253,8 +255,8 @@ class ViewWriter:
         self._pool.shutdown(wait=True)
 
 
-def _write_view(i: int, view_dir: Path, view: data.View) -> tuple[tuple, list[dict]]:
-    data.write_view(view_dir, view.image, view.instances, view.meta, ignore=view.ignore)
+def _write_view(i: int, view_dir: Path, view: View) -> tuple[tuple, list[dict]]:
+    write_view(view_dir, view.image, view.instances, view.meta, ignore=view.ignore)
     return view_coco(i, view)
 
 
@@ -267,8 +269,8 @@ def add_ignore_regions(scene: Scene, view_dirs: list[Path]) -> None:
     occ = OccluderPass(scene)
     try:
         for d in view_dirs:
-            _, _, _, (ign, regions) = ground_truth(occ, Camera.from_dict(data.read_meta(d)))
-            data.write_ignore(d, ign, regions)
+            _, _, _, (ign, regions) = ground_truth(occ, Camera.from_dict(read_meta(d)))
+            write_ignore(d, ign, regions)
     finally:
         occ.close()
 
@@ -277,7 +279,7 @@ def _reusable(view_dir: Path) -> bool:
     """True if the cached view can be reused; a broken one is reported on stderr (re-rendered)."""
     if not (view_dir / "view.json").is_file():
         return False
-    reason = data.check_view(view_dir)
+    reason = check_view(view_dir)
     if reason is not None:
         print(f"warning: cached view {view_dir} is damaged ({reason}); re-rendering it", file=sys.stderr)
     return reason is None

@@ -2,45 +2,33 @@
 
 A dataset folder holds ``views/NNNNNN/image.png`` (RGB), ``views/NNNNNN/instances.png`` (uint16,
 0 = no window, k = the window with ``instance_id`` k), ``views/NNNNNN/view.json`` and a
-``coco.json`` with RLE masks (fenestra.data: the contract, its readers and the COCO builder).
+``coco.json`` with RLE masks (fenestra.rendered_view: the view contract and its one reader; fenestra.coco: the COCO builder).
 Only the files are read: pipeline/ never imports renders/.
 """
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from fenestra.data import yolo_boxes
+from fenestra.rendered_view import ViewFiles
+from fenestra.yolo import read_label_file, yolo_boxes
 from fenestra.errors import DatasetError
 from fenestra.images import read_image
 
 
-@dataclass(frozen=True)
-class ViewFiles:
-    """Paths of one rendered view."""
-
-    name: str  # e.g. "000012"
-    image: Path
-    instances: Path
-    view_json: Path
-
-
 def list_views(dataset_dir: str | Path) -> list[ViewFiles]:
-    """All views of a dataset folder, sorted by name; raises DatasetError if there are none."""
+    """The complete views of a dataset folder (fenestra.rendered_view.ViewFiles: view.json, written
+    last, and both PNGs present), sorted by name; read each with fenestra.rendered_view.read_view.
+    DatasetError if there are none."""
     root = Path(dataset_dir)
     views_dir = root / "views"
     if not views_dir.is_dir():
         raise DatasetError(f"{root} is not a dataset folder: no views/ directory inside")
-    out = []
-    for d in sorted(p for p in views_dir.iterdir() if p.is_dir()):
-        img, inst = d / "image.png", d / "instances.png"
-        if img.is_file() and inst.is_file():
-            out.append(ViewFiles(d.name, img, inst, d / "view.json"))
+    out = [v for v in (ViewFiles(d) for d in sorted(p for p in views_dir.iterdir() if p.is_dir())) if v.complete()]
     if not out:
-        raise DatasetError(f"{views_dir} has no view folders with image.png and instances.png")
+        raise DatasetError(f"{views_dir} has no complete view folder (view.json, image.png, instances.png)")
     return out
 
 
@@ -81,14 +69,14 @@ def coco_image_path(dataset_dir: str | Path, image_entry: dict) -> Path:
     return p
 
 
-def view_corners(view_json: str | Path) -> np.ndarray:
-    """(N, 4, 2) float32 px: the corners of every window facing the camera in a view.json, ordered
+def view_corners(meta: dict) -> np.ndarray:
+    """(N, 4, 2) float32 px: the corners of every window facing the camera in a view.json dict
+    (fenestra.rendered_view.View.meta), ordered
     TL TR BR BL in the image (pipeline.quad.order_corners); a corner the renderer marks unseen
     (occluded or outside the image: ``corner_visible``) is NaN. (0, 4, 2) without windows. A view
     without ``visible_fraction`` / ``corner_visible`` (hand-made data) counts every corner seen."""
     from fenestra.pipeline.quad import order_corners  # noqa: PLC0415
 
-    meta = json.loads(Path(view_json).read_text())
     out = []
     for w in meta.get("windows", []):
         if w.get("visible_fraction", 1.0) <= 0.0:
@@ -137,9 +125,16 @@ def real_box_photos(root: str | Path, part: str, holdout_every: int = 5) -> list
     return [p for i, p in enumerate(photos) if keep(i)]
 
 
+def photo_labels(photo: Path) -> tuple[str, str]:
+    """(text, path as text) of the YOLO label file of a photo of a YOLO folder (``labels/NAME.txt``
+    beside ``images/NAME.jpg``), bounded before it is read (fenestra.yolo.read_label_file)."""
+    lab = photo.parent.parent / "labels" / f"{photo.stem}.txt"
+    return read_label_file(lab), str(lab)
+
+
 def read_box_photo(photo: Path, classes: tuple[int, ...] = (0,)) -> tuple[np.ndarray, np.ndarray, None]:
     """(image (H, W, 3) uint8, box instance map (H, W) int32, None: no corners) of a YOLO photo."""
     image = read_image(photo)
-    lab = photo.parent.parent / "labels" / f"{photo.stem}.txt"
-    boxes = yolo_boxes(lab.read_text(), image.shape[1], image.shape[0], classes, str(lab))
+    text, where = photo_labels(photo)
+    boxes = yolo_boxes(text, image.shape[1], image.shape[0], classes, where)
     return image, box_instances(boxes, image.shape[:2]), None

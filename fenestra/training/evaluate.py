@@ -1,6 +1,6 @@
-"""COCO evaluation (fenestra.data.coco_scores: COCOeval, bbox and segm) of a detector on a rendered dataset.
+"""COCO evaluation (fenestra.coco.coco_scores: COCOeval, bbox and segm) of a detector on a rendered dataset.
 
-Ground truth is the dataset's own coco.json (written by the renderer with fenestra.data's builder;
+Ground truth is the dataset's own coco.json (written by the renderer with fenestra.coco's builder;
 ignore regions as ``iscrowd``), never recomputed here. Scores are fractions in [0, 1];
 :func:`format_table` prints them in percent, beside the paper's Table 2.
 """
@@ -11,7 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fenestra import data
+from fenestra.coco import coco_ground_truth, coco_result, coco_scores, complete_coco, gt_annotation
+from fenestra.masks import mask_box, rle_from_crop, rle_iou, segmentation_to_rle
+from fenestra.yolo import yolo_boxes
 from fenestra.errors import DatasetError
 from fenestra.images import read_image, read_instances
 from fenestra.pipeline.detectors import DETECTORS, get_detector
@@ -27,10 +29,10 @@ PAPER_TABLE2 = {"bbox": {"AP": 61.9, "AP50": 92.8, "AP75": 81.1},
 
 
 def detection_to_coco(det: Detection, image_id: int, shape: tuple[int, int] | None = None) -> dict:
-    """fenestra.data.coco_result of a Detection (full mask, or a crop at ``det.origin`` of an image
+    """fenestra.coco.coco_result of a Detection (full mask, or a crop at ``det.origin`` of an image
     of ``shape`` (H, W); default: the mask's own shape, a full mask)."""
     shape = np.asarray(det.mask).shape if shape is None else shape
-    return data.coco_result(image_id, det.score, det.box, data.rle_from_crop(det.mask, det.origin, shape))
+    return coco_result(image_id, det.score, det.box, rle_from_crop(det.mask, det.origin, shape))
 
 
 def best_overlaps(gt: dict, results: list[dict]) -> np.ndarray:
@@ -40,12 +42,12 @@ def best_overlaps(gt: dict, results: list[dict]) -> np.ndarray:
     gts: dict[int, list] = {}
     for a in gt["annotations"]:
         if not a.get("iscrowd", 0):
-            gts.setdefault(a["image_id"], []).append(data.segmentation_to_rle(a["segmentation"], *sizes[a["image_id"]]))
+            gts.setdefault(a["image_id"], []).append(segmentation_to_rle(a["segmentation"], *sizes[a["image_id"]]))
     ious = np.zeros(len(results))
     for j, r in enumerate(results):
         g = gts.get(r["image"], [])
         if g:
-            ious[j] = data.rle_iou([r["segmentation"]], g).max()
+            ious[j] = rle_iou([r["segmentation"]], g).max()
     return ious
 
 
@@ -57,7 +59,7 @@ def rescored_by_overlap(results: list[dict], overlaps: np.ndarray) -> list[dict]
 
 
 def scores_by_type(scores: dict[str, float]) -> dict[str, dict[str, float]]:
-    """fenestra.data.coco_scores' flat {"bbox_AP": ...} as {"bbox": {"AP": ...}, "segm": {...}}."""
+    """fenestra.coco.coco_scores' flat {"bbox_AP": ...} as {"bbox": {"AP": ...}, "segm": {...}}."""
     out: dict[str, dict[str, float]] = {}
     for k, v in scores.items():
         t, stat = k.split("_", 1)
@@ -91,7 +93,7 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
     Returns {"detector", "dataset", "n_images", "n_gt" (windows), "n_ignore" (ignore regions),
     "n_det", "ms_per_image_median", "bbox": {AP, AP50, ..., R50}, "segm": {...},
     "segm_perfect_ranking": {...}, "n_det_matching_no_window", "paper_table2"}; scores are
-    fractions in [0, 1] (fenestra.data.coco_scores). options are passed to the detector's
+    fractions in [0, 1] (fenestra.coco.coco_scores). options are passed to the detector's
     factory (e.g. weights=PATH). ignore_regions=False drops the ignore regions (curtain-wall and
     glazed-door glazing), so detections there count as false positives: the figures before the
     project counted glazing that way.
@@ -118,14 +120,14 @@ def evaluate(detector_name: str, dataset_dir: str | Path, max_images: int | None
         dets = detector(image, **per_image)
         times.append((time.perf_counter() - t0) * 1000.0)
         results += [detection_to_coco(d, im["id"], image.shape[:2]) for d in dets if d.score >= min_score]
-    gt = data.complete_coco(coco)
+    gt = complete_coco(coco)
     overlaps = best_overlaps(gt, results)
     n_ignore = sum(bool(a["iscrowd"]) for a in gt["annotations"])
-    scores = scores_by_type(data.coco_scores(gt, results))
+    scores = scores_by_type(coco_scores(gt, results))
     return {"detector": detector_name, "dataset": str(dataset_dir), "n_images": len(images),
             "n_gt": len(gt["annotations"]) - n_ignore, "n_ignore": n_ignore, "n_det": len(results),
             "ms_per_image_median": float(np.median(times)), **scores,
-            "segm_perfect_ranking": scores_by_type(data.coco_scores(gt, rescored_by_overlap(results, overlaps),
+            "segm_perfect_ranking": scores_by_type(coco_scores(gt, rescored_by_overlap(results, overlaps),
                                                                     ("segm",)))["segm"],
             "n_det_matching_no_window": int((overlaps < 0.5).sum()),  # segm IoU < 0.5 with every window
             "paper_table2": PAPER_TABLE2}
@@ -144,7 +146,7 @@ def evaluate_boxes(detector_name: str, yolo_dir: str | Path, part: str = "val", 
     score pipeline.detectors.detect keeps by default, on the labels' doors and signboards).
     """
     from fenestra.pipeline.detectors import detect  # noqa: PLC0415
-    from fenestra.training.dataset import read_box_photo, real_box_photos  # noqa: PLC0415
+    from fenestra.training.dataset import photo_labels, read_box_photo, real_box_photos  # noqa: PLC0415
 
     if DETECTORS[detector_name].needs_instances:
         raise ValueError(f"detector {detector_name!r} needs instance maps; real photos have boxes only")
@@ -153,17 +155,16 @@ def evaluate_boxes(detector_name: str, yolo_dir: str | Path, part: str = "val", 
     for k, p in enumerate(photos, 1):
         image, inst, _ = read_box_photo(p)
         images.append((p.name, *image.shape[:2]))
-        wins = [data.mask_box(inst == i) for i in np.unique(inst) if i]
-        anns += [data.gt_annotation(p.name, box=b) for b in wins]
+        wins = [mask_box(inst == i) for i in np.unique(inst) if i]
+        anns += [gt_annotation(p.name, box=b) for b in wins]
         t0 = time.perf_counter()
         dets = detect(detector_name, image, score_threshold=min_score, **options)
         times.append((time.perf_counter() - t0) * 1000.0)
-        results += [data.coco_result(k, d.score, d.box) for d in dets]
-        negs = data.yolo_boxes((p.parent.parent / "labels" / f"{p.stem}.txt").read_text(), image.shape[1],
-                               image.shape[0], HARD_NEGATIVE_CLASSES, p.name)
+        results += [coco_result(k, d.score, d.box) for d in dets]
+        negs = yolo_boxes(photo_labels(p)[0], image.shape[1], image.shape[0], HARD_NEGATIVE_CLASSES, p.name)
         hard.append(([d.box for d in dets if d.score >= shipped_threshold], negs, wins))
-    gt = data.coco_ground_truth(images, anns)
-    scores = scores_by_type(data.coco_scores(gt, results, ("bbox",)))
+    gt = coco_ground_truth(images, anns)
+    scores = scores_by_type(coco_scores(gt, results, ("bbox",)))
     return {"detector": detector_name, "dataset": f"{yolo_dir} ({part}, every {holdout_every}th photo held out)",
             "n_images": len(images), "n_gt": len(anns), "n_ignore": 0, "n_det": len(results),
             "ms_per_image_median": float(np.median(times)), **scores, "paper_table2": PAPER_TABLE2,

@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from fenestra.config import from_table, read_toml
-from fenestra.images import read_image, read_instances
+from fenestra.rendered_view import read_view
 from fenestra.training.augment import AugmentConfig
 from fenestra.training.recipes import recipe
 from fenestra.training.dataset import find_datasets, list_views, read_box_photo, real_box_photos, view_corners
@@ -144,12 +144,12 @@ def select_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> lis
 
 def read_views(views: list) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(image (H, W, 3) uint8, instances (H, W) uint16/int32, corners (N, 4, 2) px) of each view
-    (dataset.view_corners; (0, 4, 2) where the view has no view.json)."""
+    (fenestra.rendered_view.read_view; dataset.view_corners)."""
     out = []
     for v in views:
-        inst = read_instances(v.instances)
-        corners = view_corners(v.view_json) if v.view_json.is_file() else np.zeros((0, 4, 2), np.float32)
-        out.append((read_image(v.image), inst.astype(np.uint16 if inst.max() < 65536 else np.int32), corners))
+        view = read_view(v.dir)
+        inst = view.instances
+        out.append((view.image, inst.astype(np.uint16 if inst.max() < 65536 else np.int32), view_corners(view.meta)))
     return out
 
 

@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from fenestra.data import coco_ground_truth, coco_scores, gt_annotation, instance_masks
-from fenestra.images import read_image, read_instances
+from fenestra.coco import coco_ground_truth, coco_scores, gt_annotation
+from fenestra.masks import instance_masks
+from fenestra.rendered_view import read_view
 from fenestra.pipeline.detectors import DEFAULT_WEIGHTS, load_map_predictor
 from fenestra.pipeline.detectors.winnet import PostConfig, instances_from_maps
 from fenestra.training.dataset import find_datasets, list_views
@@ -25,14 +26,14 @@ from fenestra.training.evaluate import detection_to_coco
 
 
 def instance_maps_to_coco(instances: list[np.ndarray]) -> dict:
-    """COCO ground truth (fenestra.data builder) of instance maps (H, W), image ids 1, 2, ..."""
+    """COCO ground truth (fenestra.coco builder) of instance maps (H, W), image ids 1, 2, ..."""
     anns = [gt_annotation(str(i), m.rle()) for i, inst in enumerate(instances, 1)
             for m in instance_masks(inst, [k for k in np.unique(inst).tolist() if k])]
     return coco_ground_truth([(str(i), *inst.shape) for i, inst in enumerate(instances, 1)], anns)
 
 
 def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[dict, PostConfig]]:
-    """(fenestra.data.coco_scores segm scores, PostConfig) for every grid point, best segm AP first
+    """(fenestra.coco.coco_scores segm scores, PostConfig) for every grid point, best segm AP first
     (views_per_dataset 0: all)."""
     predict, shipped = load_map_predictor(weights)
     maps, insts = [], []
@@ -41,8 +42,9 @@ def tune(weights: Path, data: Path, views_per_dataset: int = 3) -> list[tuple[di
         if views_per_dataset > 0:
             vs = [vs[j] for j in np.linspace(0, len(vs) - 1, views_per_dataset).round().astype(int)]
         for v in vs:
-            maps.append(predict(read_image(v.image)))
-            insts.append((len(insts) + 1, read_instances(v.instances)))
+            view = read_view(v.dir)
+            maps.append(predict(view.image))
+            insts.append((len(insts) + 1, view.instances))
     gt = instance_maps_to_coco([inst for _, inst in insts])  # ids 1, 2, ... as in insts
     out = []
     for vt, ct in itertools.product((0.4, 0.5, 0.6), (0.3, 0.5, 0.7)):

@@ -24,7 +24,8 @@ from typing import Callable
 
 import numpy as np
 
-from fenestra import data
+from fenestra.masks import box_from_coco, mask_box
+from fenestra.yolo import yolo_boxes
 from fenestra.errors import DatasetError, FenestraError
 from fenestra.pipeline.detectors.verifier import (FeatureSpec, VerifierHead, box_features, detection_extras, head_to_dict,
                                          network_fingerprint)
@@ -89,14 +90,13 @@ def image_samples(net, post, image: np.ndarray, windows: list, negatives: list, 
 
 def photo_items(yolo_dir: str | Path, holdout_every: int, max_photos: int | None):
     """(image, window boxes, door and signboard boxes) of the TRAIN part of a YOLO photo folder."""
-    from fenestra.training.dataset import read_box_photo, real_box_photos  # noqa: PLC0415
+    from fenestra.training.dataset import photo_labels, read_box_photo, real_box_photos  # noqa: PLC0415
     from fenestra.training.evaluate import HARD_NEGATIVE_CLASSES  # noqa: PLC0415
 
     for p in real_box_photos(yolo_dir, "train", holdout_every)[:max_photos]:
         image, inst, _ = read_box_photo(p)
-        text = (p.parent.parent / "labels" / f"{p.stem}.txt").read_text()
-        yield (image, [data.mask_box(inst == i) for i in np.unique(inst) if i],
-               data.yolo_boxes(text, image.shape[1], image.shape[0], HARD_NEGATIVE_CLASSES, p.name))
+        yield (image, [mask_box(inst == i) for i in np.unique(inst) if i],
+               yolo_boxes(photo_labels(p)[0], image.shape[1], image.shape[0], HARD_NEGATIVE_CLASSES, p.name))
 
 
 def render_items(roots: list, n_views: int):
@@ -113,7 +113,7 @@ def render_items(roots: list, n_views: int):
     for a in coco["annotations"]:
         anns.setdefault(a["image_id"], []).append(a)
     for i in pick:
-        boxes = [(data.box_from_coco(a["bbox"]), bool(a.get("iscrowd", 0))) for a in anns.get(i, [])]
+        boxes = [(box_from_coco(a["bbox"]), bool(a.get("iscrowd", 0))) for a in anns.get(i, [])]
         yield read_image(paths[i]), [b for b, crowd in boxes if not crowd], [b for b, crowd in boxes if crowd]
 
 

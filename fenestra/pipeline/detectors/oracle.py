@@ -1,8 +1,8 @@
 """Oracle detectors: exact masks from an instance map, and a degraded copy imitating a network.
 
 :func:`detections_from_instance_map` is the one instance map -> detections helper (the ``oracle``
-detector and ``fenestra reconstruct --masks``). Boxes follow fenestra.data: (x0, y0, x1, y1) on the
-pixel-edge outline, pixel centres at integers (:func:`fenestra.data.mask_box`).
+detector and ``fenestra reconstruct --masks``). Boxes follow fenestra.masks: (x0, y0, x1, y1) on the
+pixel-edge outline, pixel centres at integers (:func:`fenestra.masks.mask_box`).
 
 ``oracle`` isolates the downstream stages from detection errors; ``oracle-degraded`` gives them the
 kind of mask a Mask R-CNN head produces (a 28x28 soft mask inside a slightly wrong box, upsampled:
@@ -17,7 +17,7 @@ import numpy as np
 
 from fenestra.checks import check_instances
 from fenestra.conventions import LIMITS
-from fenestra.data import mask_box
+from fenestra.masks import mask_box
 from fenestra.errors import PipelineError
 from fenestra.pipeline.types import Detection
 
@@ -28,7 +28,7 @@ def detections_from_instance_map(instances: np.ndarray, max_windows: int = LIMIT
     the ``oracle`` detector (full masks) and ``fenestra reconstruct --masks`` (sparse).
 
     Score 1, label ``"window:<id>"``, ``instance_id`` the id; box (x0, y0, x1, y1) on the
-    pixel-edge outline (fenestra.data.mask_box); mask: the id's bounding-box crop at ``origin``
+    pixel-edge outline (fenestra.masks.mask_box); mask: the id's bounding-box crop at ``origin``
     (memory O(H W) once, plus the crops), or with ``full_masks`` the (H, W) mask at origin (0, 0)
     (the quad fit of a crop equals the full mask's to ~1e-14 px, not bit for bit: the bench's
     oracle rows keep the full-mask figures). An id with two separate blobs still gives one
