@@ -15,7 +15,9 @@ displayed, and a truncated JPEG decodes with its missing part grey.
 
 Bounded before decoding: a file larger than ``LIMITS.max_image_bytes``, or whose header states
 more than ``max_pixels`` pixels (default ``LIMITS.max_image_pixels``), is refused before a byte of
-pixels is decoded (:func:`header_size` reads the header only).
+pixels is decoded (:func:`header_size` reads the header only, with PIL's parsers;
+:func:`radiance_size` the Radiance HDR header PIL does not know). A file whose size neither can
+read is refused, never decoded blind (a decompression bomb in a format the check does not know).
 
 A missing, oversized or undecodable file raises :class:`fenestra.errors.DatasetError` (a
 FenestraError and a ValueError) naming the file.
@@ -58,6 +60,26 @@ def header_size(path: str | Path) -> tuple[int, int] | None:
     return None
 
 
+RADIANCE_MAGIC = (b"#?RADIANCE", b"#?RGBE")
+
+
+def radiance_size(path: str | Path) -> tuple[int, int] | None:
+    """(W, H) px of a Radiance HDR file (which OpenCV decodes and PIL cannot parse), read from its
+    text header (``#?RADIANCE``, lines, a blank line, then ``-Y H +X W`` or another axis order);
+    None when the file is not one. DatasetError for one whose header states no size."""
+    with open(path, "rb") as fp:
+        head = fp.read(64 * 1024)
+    if not head.startswith(RADIANCE_MAGIC):
+        return None
+    _, sep, rest = head.partition(b"\n\n")
+    parts = rest.split(b"\n", 1)[0].split() if sep else []
+    if len(parts) == 4 and parts[0][1:] in (b"Y", b"X") and parts[2][1:] in (b"X", b"Y") \
+            and parts[1].isdigit() and parts[3].isdigit():
+        a, b = int(parts[1]), int(parts[3])
+        return (b, a) if parts[0][1:] == b"Y" else (a, b)
+    raise DatasetError(f"cannot read {path}: a Radiance HDR file whose header states no size")
+
+
 def check_size(path: str | Path, what: str = "image", max_pixels: int | None = None) -> None:
     """DatasetError naming the file when it is larger than LIMITS.max_image_bytes, or its header
     states more than ``max_pixels`` (default LIMITS.max_image_pixels) pixels; checked before decoding."""
@@ -69,8 +91,11 @@ def check_size(path: str | Path, what: str = "image", max_pixels: int | None = N
     if n_bytes > LIMITS.max_image_bytes:
         raise DatasetError(f"{what} {p} is {n_bytes / 2**20:.0f} MiB, over the {LIMITS.max_image_bytes / 2**20:.0f} MiB "
                            "an image file may have (fenestra.conventions.LIMITS.max_image_bytes)")
-    size = header_size(p)
-    if size is not None and size[0] * size[1] > max_pixels:
+    size = header_size(p) or radiance_size(p)
+    if size is None:  # its size cannot be known before decoding: refused, never decoded blind
+        raise DatasetError(f"cannot read {what} {p}: not an image format whose size Fenestra can read before "
+                           "decoding (JPEG, PNG, TIFF, BMP, WebP, PNM, Radiance HDR, ...); convert it to PNG or JPEG")
+    if size[0] * size[1] > max_pixels:
         raise DatasetError(f"{what} {p} is {size[0]}x{size[1]} = {size[0] * size[1] / 1e6:.0f} Mpx, over the limit of "
                            f"{max_pixels / 1e6:.0f} Mpx (--max-pixels raises it; decoding needs about "
                            f"{3 * size[0] * size[1] / 2**30:.1f} GiB)")

@@ -16,7 +16,11 @@ entries by name, by ``"all"`` or by capability, never by a hard-coded name.
 Plug-ins: a package declares entry points in the group ``fenestra.plugins`` (pyproject.toml
 ``[project.entry-points."fenestra.plugins"] myname = "my_module"``). The first time any registry
 is read, every such entry point is loaded (imported; an entry point naming a callable is then
-called with no arguments) and registers its entries with ``REGISTRY.register(entry)``.
+called with no arguments) and registers its entries with ``REGISTRY.register(entry)``. A plug-in
+replaces an entry already registered (a built-in) only when that entry says ``override = True``
+(an attribute), and :func:`plugin_metadata` (recorded in a bench run's summary.json) names it.
+A plug-in that fails to load (any exception, ``sys.exit`` during its import, a refused name) is
+undone and named in one warning line; Fenestra goes on without it.
 """
 from __future__ import annotations
 
@@ -65,33 +69,64 @@ def capabilities(entry: object) -> dict[str, Any]:
 
 @dataclass
 class _Plugins:
-    """Whether the ``fenestra.plugins`` entry points were loaded (once per process)."""
+    """Whether the ``fenestra.plugins`` entry points were loaded (once per process), which
+    loaded, which failed (name -> reason), the one loading now, and which registry entries a
+    plug-in replaced ("kind name" -> plug-in)."""
 
     loaded: bool = False
     names: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+    current: str | None = None
+    overrides: dict[str, str] = field(default_factory=dict)
+    undo: list = field(default_factory=list)  # (registry, name, previous entry or None) of the current plug-in
 
 
 _PLUGINS = _Plugins()
 
 
+def _warn(line: str) -> None:
+    import sys  # noqa: PLC0415
+
+    print(f"warning: {' '.join(line.split())}", file=sys.stderr)
+
+
 def load_plugins() -> list[str]:
-    """Load every ``fenestra.plugins`` entry point once (see the module docstring); returns their
-    names. FenestraError naming the entry point when one fails to load."""
+    """Load every ``fenestra.plugins`` entry point once (see the module docstring); returns the
+    names of those that loaded. A plug-in that fails (an exception, ``sys.exit`` during its import,
+    a name already taken without ``override = True``) is undone (what it registered is removed,
+    what it replaced restored) and named in one warning line on stderr: every command still works."""
     if _PLUGINS.loaded:
         return list(_PLUGINS.names)
     _PLUGINS.loaded = True  # before loading: a plug-in reads and registers into the registries
     from importlib.metadata import entry_points  # noqa: PLC0415
 
     for ep in entry_points(group=PLUGIN_GROUP):
+        _PLUGINS.current, _PLUGINS.undo = ep.name, []
         try:
             obj = ep.load()
             if callable(obj):
                 obj()
-        except Exception as e:  # noqa: BLE001 - any failure of foreign code: named, not swallowed
-            raise FenestraError(f"fenestra plug-in {ep.name!r} ({ep.value}) failed to load: "
-                                f"{type(e).__name__}: {e}") from e
+        except (Exception, SystemExit) as e:  # noqa: BLE001 - foreign code: named, undone, never fatal
+            for reg, name, previous in reversed(_PLUGINS.undo):
+                reg._entries.pop(name, None)
+                if previous is not None:
+                    reg._entries[name] = previous
+            _PLUGINS.overrides = {k: v for k, v in _PLUGINS.overrides.items() if v != ep.name}
+            why = f"{type(e).__name__}: {e}" if not isinstance(e, SystemExit) else f"it called sys.exit({e.code!r})"
+            _PLUGINS.failed[ep.name] = why
+            _warn(f"fenestra plug-in {ep.name!r} ({ep.value}) failed to load and is ignored: {why}")
+            continue
+        finally:
+            _PLUGINS.current = None
         _PLUGINS.names.append(ep.name)
     return list(_PLUGINS.names)
+
+
+def plugin_metadata() -> dict:
+    """What a run records about plug-ins: {"loaded": [names], "failed": {name: reason},
+    "overrides": {"<kind> <entry>": plug-in}} (a built-in a plug-in replaced with override = True)."""
+    load_plugins()
+    return {"loaded": list(_PLUGINS.names), "failed": dict(_PLUGINS.failed), "overrides": dict(_PLUGINS.overrides)}
 
 
 class Registry(MutableMapping[str, E], Generic[E]):
@@ -112,8 +147,17 @@ class Registry(MutableMapping[str, E], Generic[E]):
             raise ValueError(f"a {self.kind} entry needs a non-empty str name, got {name!r}")
         if not str(getattr(entry, "description", "")).strip():
             raise ValueError(f"{self.kind} {name!r} needs a description (CLI help, docs)")
-        if name in self._entries and not replace:
+        taken = name in self._entries
+        if taken and not replace:
             raise ValueError(f"{self.kind} {name!r} is already registered; choose another name")
+        plugin = _PLUGINS.current
+        if taken and plugin is not None and getattr(entry, "override", False) is not True:
+            raise ValueError(f"{self.kind} {name!r} is already registered; a plug-in replaces it only with an "
+                             "explicit override = True on its entry")
+        if plugin is not None:
+            _PLUGINS.undo.append((self, name, self._entries.get(name)))
+            if taken:
+                _PLUGINS.overrides[f"{self.kind} {name}"] = plugin
         self._entries[name] = entry
         return entry
 
@@ -198,4 +242,5 @@ class Registry(MutableMapping[str, E], Generic[E]):
         return "; ".join(f"{n}: {e.description}" for n, e in self.items())
 
 
-__all__ = ["ALL", "CAPABILITIES", "PLUGIN_GROUP", "Entry", "Registry", "UnknownName", "capabilities", "load_plugins"]
+__all__ = ["ALL", "CAPABILITIES", "PLUGIN_GROUP", "Entry", "Registry", "UnknownName", "capabilities", "load_plugins",
+           "plugin_metadata"]

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from fenestra.bench.evaluate import ViewOutcome
-from fenestra.bench.executors import _load_shard, read_shard, write_shard
+from fenestra.bench.executors import _index_digest, _load_shard, read_shard, write_shard
 
 
 def _outcomes() -> list[ViewOutcome]:
@@ -81,6 +81,7 @@ def test_truncated_or_short_shard_is_recomputed(tmp_path, capsys):
     df.to_parquet(pq, index=False)
     doc = json.loads(idx.read_text())
     doc["rows_sha256"] = hashlib.sha256(pq.read_bytes()).hexdigest()
+    doc["index_sha256"] = _index_digest(doc)  # the index's own digest rewritten too
     idx.write_text(json.dumps(doc))
     assert _load_shard(str(idx)) is None and "2 rows, the index says 3" in capsys.readouterr().err
     write_shard(idx, "d", _outcomes(), 1.0)  # recomputed: every row back

@@ -75,8 +75,11 @@ def main() -> None:
         typer.echo(f"error: {one_line(e)}", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        typer.echo("error: interrupted; partial outputs removed", err=True)
-        sys.exit(130)
+        _interrupted()
+    except SystemExit as e:
+        if e.code == INTERRUPTED:  # typer turns Ctrl-C into a silent exit 130: say so
+            _interrupted()
+        raise
     except Exception as e:  # noqa: BLE001  (the one place that turns a bug into one line)
         try:
             where = f"with the traceback in {crash_log(e, sys.argv)}"
@@ -84,6 +87,14 @@ def main() -> None:
             where = "(its traceback could not be written to a log file)"
         typer.echo(f"error: internal error ({type(e).__name__}: {one_line(e)}); please report it {where}", err=True)
         sys.exit(INTERNAL_EXIT)
+
+
+INTERRUPTED = 130  # 128 + SIGINT
+
+
+def _interrupted() -> None:
+    typer.echo("error: interrupted; partial outputs removed", err=True)
+    sys.exit(INTERRUPTED)
 
 
 def crash_log(e: BaseException, argv: list[str], folder: str | Path | None = None) -> Path:

@@ -79,6 +79,8 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
             raise ValueError(f"--shard-views must be >= 1, got {shard_views}")
         get_executor(executor)  # an unknown name fails before anything is rendered
         opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
+        inputs = tuple(p for p in (data, real, Path(profile) if Path(profile).is_file() else None)
+                       if p is not None and p.exists())  # what the run reads: never in --out
         if is_real_profile(profile):
             from fenestra.bench.real.profile import load_real_profile, with_user_data  # noqa: PLC0415
 
@@ -88,7 +90,8 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
             p = load_real_profile(profile)
             if data is not None:
                 p = with_user_data(p, data, fmt)
-            info = run_benchmark(p, out_dir=out, report=None if no_report else write_report, force=force, sim_dir=sim, csv=csv)
+            info = run_benchmark(p, out_dir=out, report=None if no_report else write_report, force=force, sim_dir=sim, csv=csv,
+                                 inputs=inputs)
         elif data is not None or sim is not None:
             raise ValueError(f"--data/--sim need a real profile (kind = \"real\"), got profile {profile!r}")
         else:
@@ -99,7 +102,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
             # the report in its own process: its memory and the evaluation's never add up (#26)
             report = None if no_report else functools.partial(report_apart, functools.partial(write_report, real_dir=real))
             info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
-                                 report=report, executor=executor, executor_options=opts, force=force, csv=csv)
+                                 report=report, executor=executor, executor_options=opts, force=force, csv=csv, inputs=inputs)
         summary = load_summary(info.run_dir)
         typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
         typer.echo("stages (s): " + ", ".join(f"{k} {v:.1f}" for k, v in info.stage_time_s.items()))
@@ -124,12 +127,13 @@ def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.par
          margin: float = typer.Option(0.5, "--margin", help="with --suggest: relative margin on ceilings")) -> None:
     """Check a run against accuracy gates; exit 1 naming each violated metric, value and bound."""
     from fenestra.bench.gates import DEFAULT_GATES, check, suggest_gates  # noqa: PLC0415
-    from fenestra.bench.manifest import load_verified_results  # noqa: PLC0415
+    from fenestra.bench.manifest import load_verified_results, require_complete  # noqa: PLC0415
     from fenestra.bench.results import load_summary, summarize  # noqa: PLC0415
 
     if suggest:
-        if margin < 0:
-            raise ValueError(f"--margin must be >= 0, got {margin}")
+        if not (math.isfinite(margin) and margin >= 0):
+            raise ValueError(f"--margin must be a finite number >= 0, got {margin}")
+        require_complete(run_dir)
         name = profile or load_summary(run_dir)["metadata"].get("profile")
         typer.echo(suggest_gates(summarize(load_verified_results(run_dir)), name, margin), nl=False)
         return

@@ -18,7 +18,7 @@ views (read by bench.real.adapters).
     imported inside the worker), evaluates them and writes the shard's outcomes to
     ``<run>/shards/<key>.parquet`` (the rows) and ``<run>/shards/<key>.json`` (its index: the
     parquet file's sha256 and row count, each view's row count, stage seconds, COCO gt/dt lists
-    and false-positive counts), each atomically; the driver merges the shards in canonical
+    and false-positive counts, and the sha256 of all of that), each atomically; the driver merges the shards in canonical
     order. Nothing is unpickled from disk. A shard written by an interrupted run with the same
     code, config and methods is reused, as cached views are; one whose digest or row counts do
     not match its index is recomputed with a warning, never trusted and never silently short. Connects to a running cluster (``address``, e.g. "auto" or
@@ -247,7 +247,16 @@ def plan_shards(plan: Plan, shard_views: int) -> list[Shard]:
     return shards
 
 
-SHARD_FORMAT = 1  # version of the shard files (index JSON + rows Parquet)
+SHARD_FORMAT = 2  # version of the shard files (index JSON + rows Parquet); 2: the index's own digest
+
+
+def _index_digest(index: dict) -> str:
+    """sha256 of a shard index's content (every key but ``index_sha256``), as canonical JSON
+    (sorted keys): it covers the detections, false-positive counts and stage seconds that feed
+    the figures, as ``rows_sha256`` covers the rows."""
+    body = {k: v for k, v in index.items() if k != "index_sha256"}
+    canon = json.dumps(json.loads(json.dumps(body, default=_jsonable)), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canon.encode()).hexdigest()
 
 
 def _jsonable(x):
@@ -280,6 +289,7 @@ def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome
              "views": [{"n_rows": len(o.rows), "stage_s": o.stage_s, "coco_gt": o.coco_gt, "coco_dt": o.coco_dt,
                         "n_false_positives": o.n_false_positives, "dataset": o.dataset, "view": o.view,
                         "size": list(o.size), "window_ids": list(o.window_ids)} for o in outcomes]}
+    index["index_sha256"] = _index_digest(index)
     write_bytes(index_path, json.dumps(index, default=_jsonable).encode())
     return index_path
 
@@ -298,6 +308,8 @@ def read_shard(index_path: str | Path) -> dict:
         raise ValueError(f"index is not valid JSON ({e})") from e
     if not isinstance(index, dict) or index.get("format") != SHARD_FORMAT:
         raise ValueError(f"index is not a format-{SHARD_FORMAT} shard index")
+    if _index_digest(index) != index.get("index_sha256"):
+        raise ValueError("index does not match its own digest (detections or counts changed)")
     data = index_path.with_suffix(".parquet").read_bytes()
     if hashlib.sha256(data).hexdigest() != index.get("rows_sha256"):
         raise ValueError("rows file does not match the digest in its index")

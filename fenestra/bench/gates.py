@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fenestra.bench.manifest import load_verified_results
+from fenestra.bench.manifest import load_verified_results, require_complete
 from fenestra.bench.results import load_summary, summarize
 from fenestra.config import read_toml
 from fenestra.errors import FenestraError
@@ -158,10 +158,13 @@ def check(run_dir: str | Path, gates: list[Gate] | str | Path = DEFAULT_GATES,
     bench.manifest) re-summarised, its profile from summary.json.
 
     ``profile`` overrides the run's profile name (e.g. to gate a custom run against smoke bounds).
+    A run whose run.json is not ``complete`` (failed, interrupted, still running) is refused
+    (bench.manifest.require_complete).
     """
     if not isinstance(gates, list):
         gates = load_gates(gates)
     run_dir = Path(run_dir)
+    require_complete(run_dir)
     if profile is None:
         profile = load_summary(run_dir)["metadata"].get("profile")
     if not any(g.profile == profile for g in gates):

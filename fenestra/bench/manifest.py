@@ -18,16 +18,16 @@ each results file the run wrote (results.parquet; results.csv only when asked fo
 what ``fenestra gate`` and ``fenestra report`` read: it refuses a table that lacks or adds rows
 (naming them, grouped by method), or whose bytes changed after the run (edited values).
 
-A run folder is also claimed by its profile (:func:`claim_run_dir`): ``run.json`` records the
-profile name and hash; a folder holding another profile's run, or files that are not a run's,
-is refused unless ``force`` (then it is emptied first), so no stale report or figure survives
-beside new results.
+A run folder is also claimed by its profile (:func:`claim_run_dir`, under a lock: :func:`claimed`):
+``run.json`` records the profile name and hash and the run's status; a folder holding another
+profile's run is refused unless ``force`` (then exactly the files Fenestra listed there are
+removed, fenestra.outputs' rule), a folder holding files Fenestra did not write is refused
+whatever ``force`` says, and no stale report or figure survives beside new results.
 """
 from __future__ import annotations
 
 import contextlib
 import json
-import shutil
 from collections import Counter
 from pathlib import Path
 
@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from fenestra.bench.results import RESULTS_CSV, RESULTS_PARQUET, SPOOL_DIR, load_results
+from fenestra import outputs
 from fenestra.errors import FenestraError, one_line
 from fenestra.files import file_sha256, write_json
 
@@ -206,33 +207,45 @@ def load_verified_results(run_dir: str | Path) -> pd.DataFrame:
     return df
 
 
-def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: bool = False) -> Path:
+STALE = (MANIFEST_JSON, "report.html", "report.md", "figures", SPOOL_DIR)  # an earlier run's outputs
+
+
+def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: bool = False,
+                  inputs: tuple = ()) -> Path:
     """Make ``run_dir`` this profile's run folder (see the module doc); returns it.
 
-    An empty or missing folder, or one whose run.json names the same profile and hash, is reused
-    (its stale run outputs are removed by the caller's overwrite). Anything else needs ``force``.
+    File ownership is fenestra.outputs' rule: a folder that holds or lies inside one of
+    ``inputs`` (the datasets, the render cache, profiles, --sim/--real runs) is refused; so is a
+    folder holding any file that Fenestra's manifest there does not list with its digest
+    (``force`` or not: a user's file is never deleted). A folder holding this profile's run (same
+    name and hash) is reused, its earlier outputs (STALE) removed; another profile's run needs
+    ``force``, and then exactly the files Fenestra listed are removed, never the folder.
     """
     run_dir = Path(run_dir)
     if run_dir.exists() and not run_dir.is_dir():
         raise RunIntegrityError(f"--out {run_dir} is a file, not a folder")
-    entries = sorted(p.name for p in run_dir.iterdir()) if run_dir.is_dir() else []
-    if entries and not force:
+    outputs.check_out(run_dir, inputs, force=True)  # a file, or a folder overlapping an input
+    owned = outputs.read_manifest(run_dir) if run_dir.is_dir() else None
+    foreign = outputs.foreign_files(run_dir, owned or {})
+    if foreign:
+        named = ", ".join(foreign[:MAX_NAMED]) + (", ..." if len(foreign) > MAX_NAMED else "")
+        if owned is None:
+            raise RunIntegrityError(f"{run_dir} is not empty and holds no benchmark run Fenestra listed ({named}); "
+                                    "choose another --out (--force replaces only a run Fenestra wrote)")
+        raise RunIntegrityError(f"{run_dir} holds files that Fenestra did not write or that changed since ({named}); "
+                                "move them away or choose another --out (--force never deletes them)")
+    if owned:
         owner = _read_run_json(run_dir)
-        if owner is None:
-            raise RunIntegrityError(f"{run_dir} is not empty and holds no benchmark run ({', '.join(entries[:MAX_NAMED])}"
-                                    f"{', ...' if len(entries) > MAX_NAMED else ''}); choose another --out or pass --force "
-                                    "to replace its contents")
-        if (owner.get("profile"), owner.get("profile_hash")) != (profile, profile_hash):
-            raise RunIntegrityError(f"{run_dir} holds a run of profile {owner.get('profile')!r} (hash "
-                                    f"{owner.get('profile_hash')}), not {profile!r} (hash {profile_hash}); "
-                                    "choose another --out or pass --force to replace it")
-    if force and entries:
-        shutil.rmtree(run_dir)
+        if owner is None or (owner.get("profile"), owner.get("profile_hash")) != (profile, profile_hash):
+            if not force:
+                raise RunIntegrityError(f"{run_dir} holds a run of profile {(owner or {}).get('profile')!r} (hash "
+                                        f"{(owner or {}).get('profile_hash')}), not {profile!r} (hash {profile_hash}); "
+                                        "choose another --out or pass --force to replace it")
+            outputs.remove_owned(run_dir)  # exactly the files listed, each with its digest
     run_dir.mkdir(parents=True, exist_ok=True)
-    for stale in (MANIFEST_JSON, "report.html", "report.md", "figures", SPOOL_DIR):  # outputs of an earlier run
-        p = run_dir / stale
-        shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
+    outputs.remove_owned(run_dir, STALE)
     write_json(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash, "status": "running"})
+    outputs.record(run_dir, [RUN_JSON])
     return run_dir
 
 
@@ -240,15 +253,61 @@ def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: b
 def run_status(run_dir: str | Path):
     """Mark the claimed run folder's run.json ``complete`` when the block ends, or ``failed`` with
     the error's one line when it raises (a SIGTERM or Ctrl-C too): a run that did not finish is
-    never mistaken for one that did (its folder says so, and it has no manifest for gate/report)."""
+    never mistaken for one that did (its folder says so, and ``fenestra gate`` refuses it). Either
+    way every file in the folder is then listed, with its digest, in Fenestra's manifest
+    (fenestra.outputs), so a later run may replace them."""
     path = Path(run_dir) / RUN_JSON
     doc = json.loads(path.read_text())
     try:
         yield
     except BaseException as e:
         write_json(path, {**doc, "status": "failed", "error": f"{type(e).__name__}: {one_line(e)}"})
+        outputs.record(run_dir)
         raise
     write_json(path, {**doc, "status": "complete"})
+    outputs.record(run_dir)
+
+
+@contextlib.contextmanager
+def claimed(run_dir: str | Path, profile: str, profile_hash: str, force: bool = False, inputs: tuple = ()):
+    """The run folder for one run: refused at once when another process is running into it
+    (fenestra.outputs.locked), claimed (:func:`claim_run_dir`) and marked by :func:`run_status`.
+    A folder this call made is removed again (rmdir) when the claim is refused."""
+    run_dir = Path(run_dir)
+    outputs.check_out(run_dir, inputs, force=True)
+    created = not run_dir.exists()
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        if not created and outputs.read_manifest(run_dir) is None and outputs.files_in(run_dir):
+            claim_run_dir(run_dir, profile, profile_hash, force, inputs)  # refuses: no lock file left there
+        with outputs.locked(run_dir, "benchmark run"):
+            claim_run_dir(run_dir, profile, profile_hash, force, inputs)
+            with run_status(run_dir):
+                yield run_dir
+    except BaseException:
+        if created and not outputs.files_in(run_dir):
+            (run_dir / outputs.LOCK).unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                run_dir.rmdir()
+        raise
+
+
+def require_complete(run_dir: str | Path) -> None:
+    """RunIntegrityError unless the run folder's run.json says ``complete`` (a run that failed,
+    was interrupted, or is still running is never gated). A folder without run.json (a table
+    sealed outside ``fenestra bench``, :func:`seal`) passes."""
+    p = Path(run_dir) / RUN_JSON
+    if not p.is_file():
+        return
+    try:
+        doc = json.loads(p.read_bytes())
+        status = doc.get("status") if isinstance(doc, dict) else None
+    except (OSError, ValueError) as e:
+        raise RunIntegrityError(f"{p} is unreadable ({type(e).__name__}); re-run `fenestra bench`") from e
+    if status != "complete":
+        why = f": {doc.get('error')}" if isinstance(doc, dict) and doc.get("error") else ""
+        raise RunIntegrityError(f"{p} says status {status!r}{why}, not 'complete': the run did not finish; "
+                                "re-run `fenestra bench`")
 
 
 def _read_run_json(run_dir: Path) -> dict | None:

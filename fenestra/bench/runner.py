@@ -39,6 +39,7 @@ from fenestra.bench.profiles import ALL, Profile, selected
 from fenestra.bench.real.profile import RealProfile
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
+from fenestra.registry import plugin_metadata
 
 OUT_ROOT = Path("out")
 LEARNED_DETECTOR_OPTIONS = {"threads": 1}  # one torch thread per worker process
@@ -247,12 +248,22 @@ def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) ->
             "stage_ms_per_window": {k: 1000.0 * v / max(1, n_windows) for k, v in cpu.items()}}
 
 
+def run_inputs(profile: Profile | RealProfile, renders_dir: str | Path | None) -> list[Path]:
+    """What a run reads and its folder must neither hold nor lie inside (fenestra.outputs): a
+    real profile's dataset folders; a synthetic profile's IFC files given as paths and the
+    render cache."""
+    if isinstance(profile, RealProfile):
+        return [Path(d.folder()) for d in profile.available_datasets(kfree=True)[0]]
+    ifcs = [Path(h) for h in profile.scenes.houses if Path(h).is_file()]
+    return [*ifcs, Path(renders_dir) if renders_dir is not None else OUT_ROOT / "renders"]
+
+
 def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = None, workers: int | None = None,
                   progress: bool = True, report: ReportWriter | None = None,
                   methods: tuple[Method, ...] | None = None,
                   renders_dir: str | Path | None = None, executor: str = "local",
                   executor_options: dict | None = None, force: bool = False,
-                  sim_dir: str | Path | None = None, csv: bool = False) -> RunInfo:
+                  sim_dir: str | Path | None = None, csv: bool = False, inputs: tuple = ()) -> RunInfo:
     """Run a profile, synthetic or real, end to end; see the module docstring. Returns a RunInfo.
 
     methods: override the profile's method combinations (e.g. a test's extra snapper);
@@ -263,7 +274,9 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     synthetic run folder for simreal.json (FileNotFoundError if it is not a run folder); report:
     called with the run folder once the tables (and simreal.json) are written, its time recorded
     as stage "report" (None or False: no report); csv: also write results.csv (the Parquet
-    table is the results table).
+    table is the results table); inputs: further paths the run reads (a profile file, a --real
+    run), which the run folder may neither hold nor lie inside (:func:`run_inputs` adds the
+    datasets and the render cache).
     """
     t_start = time.perf_counter()
     load_before = os.getloadavg()
@@ -272,9 +285,9 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         raise ValueError(f"sim_dir needs a real profile, got profile {profile.name!r}")
     if sim_dir is not None and not (Path(sim_dir) / res.SUMMARY_JSON).is_file():
         raise FileNotFoundError(f"--sim {sim_dir}: not a benchmark run folder (no {res.SUMMARY_JSON})")
-    run_dir = manifest.claim_run_dir(Path(out_dir) if out_dir else default_run_dir(profile),
-                                     profile.name, profile.config_hash(), force)
-    with manifest.run_status(run_dir):
+    run_dir = Path(out_dir) if out_dir else default_run_dir(profile)
+    with manifest.claimed(run_dir, profile.name, profile.config_hash(), force,
+                          inputs=(*inputs, sim_dir, *run_inputs(profile, renders_dir))):
         workers = workers or max(1, min(os.cpu_count() or 1, 8))
         skipped: dict[str, str] = {}
         if methods is None:
@@ -308,7 +321,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
                                  **per_unit_timings(stage_s, len(outcomes), n_rows // max(1, len(methods))),
                                  methods=[m.name for m in methods], skipped_detectors=skipped,
                                  load_average={"before": load_before, "after": os.getloadavg()},
-                                 peak_rss_mb=peak_rss_mb(), **ev.meta)
+                                 peak_rss_mb=peak_rss_mb(), plugins=plugin_metadata(), **ev.meta)
         res.write_summary(run_dir, meta, summary, det, **blocks)
         n_views = len(outcomes)
         del ev, outcomes  # the views' COCO material: freed before the report reads the table (peak RSS)

@@ -43,6 +43,7 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     writing into ``out``; returns the windows.json dict it wrote. height / width / storey: the
     known window height / window width / storey height, m (at most one; none: assumed);
     max_pixels: the largest photo read (None: fenestra.conventions.LIMITS.max_image_pixels)."""
+    check_style(substitute)
     options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source,
                            known=known_sizes(width, height, storey), substitute=substitute, export=export,
                            export_all=export_all, max_pixels=max_pixels)
@@ -50,13 +51,34 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                              force=force)
 
 
+# the physical range of each --known-* size, m: a value outside is a typo or a unit mistake
+KNOWN_RANGE_M = {"--known-width": (0.01, 30.0), "--known-height": (0.01, 30.0), "--known-storey": (1.0, 50.0)}  # 1 cm: a curtain-wall pane is 9.3 cm (examples/)
+
+
 def known_sizes(width: Optional[float], height: Optional[float], storey: Optional[float]) -> Known:
     """pipeline.facade_model.Known from the CLI's --known-width/--known-height/--known-storey;
-    PipelineError naming them when more than one is given or one is not a positive length."""
+    PipelineError naming them when more than one is given, or naming the option and its range
+    (KNOWN_RANGE_M) when one lies outside it (not finite included)."""
+    for opt, v in zip(KNOWN_RANGE_M, (width, height, storey)):
+        lo, hi = KNOWN_RANGE_M[opt]
+        if v is not None and not lo <= v <= hi:
+            raise PipelineError(f"{opt} {v:g} m is outside the physical range [{lo:g}, {hi:g}] m")
     try:
         return Known(window_width_m=width, window_height_m=height, storey_m=storey)
     except ValueError as e:
         raise PipelineError(f"--known-width/--known-height/--known-storey: {e}") from e
+
+
+def check_style(style: Optional[str]) -> None:
+    """PipelineError naming --substitute and the catalogue's styles when ``style`` is not one:
+    checked before the photo is read, not found missing after the pipeline ran."""
+    from fenestra.pipeline.catalogue import get_style  # noqa: PLC0415
+
+    if style is not None:
+        try:
+            get_style(style)
+        except ValueError as e:
+            raise PipelineError(f"--substitute: {e}") from e
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
@@ -118,13 +140,22 @@ def summary_row(photo: Path, doc: dict | None, error: str | None) -> dict:
             "scale_assumed": doc.get("scale", {}).get("assumed")}
 
 
-def run_batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
+def run_batch(photos: list[Path], out: Path, kw: dict, inputs: tuple = ()) -> list[dict]:
     """Reconstruct each photo into out/<name> (run_reconstruct with ``kw``), with a progress bar on
     stderr; a photo that is bad input is recorded (its error) and the batch goes on. Writes
-    out/summary.json and returns its rows."""
+    out/summary.json and returns its rows. ``out`` follows fenestra.outputs' rule, checked
+    before any photo: never a folder holding or inside the photos, ``inputs`` (the folders
+    named) or K/masks; summary.json replaces only a summary Fenestra wrote."""
     import sys  # noqa: PLC0415
 
-    out.mkdir(parents=True, exist_ok=True)
+    from fenestra import outputs  # noqa: PLC0415
+
+    try:
+        outputs.check_out(out, (*inputs, *photos, kw.get("K_json"), kw.get("masks")), kw.get("force", False))
+        out.mkdir(parents=True, exist_ok=True)
+        outputs.write_owned(out, "summary.json", b"[]")  # claimed up front: refused before any photo runs
+    except outputs.OwnershipError as e:
+        raise PipelineError(str(e)) from e
     rows = []
     with typer.progressbar(list(zip(photos, output_names(photos))), label="reconstruct", file=sys.stderr,
                            item_show_func=lambda item: item[0].name if item else "") as bar:
@@ -133,7 +164,7 @@ def run_batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
                 rows.append(summary_row(photo, run_reconstruct(photo, out / name, **kw), None))
             except (PipelineError, ValueError, OSError) as e:
                 rows.append(summary_row(photo, None, " ".join(str(e).split())))
-    (out / "summary.json").write_text(json.dumps(rows, indent=2))
+    outputs.write_owned(out, "summary.json", json.dumps(rows, indent=2).encode())
     return rows
 
 
@@ -231,6 +262,8 @@ def register(app: typer.Typer) -> None:
         """  # noqa: E501 -- one paragraph: the help reflows it
         if quad_source not in QUAD_SOURCES:
             raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
+        check_style(substitute)  # option mistakes: refused before any photo is read
+        known_sizes(width, height, storey)
         paths = expand_photos(photos)
         if masks is not None and len(paths) > 1:
             raise PipelineError(f"--masks describes one photo; {len(paths)} photos given")
@@ -243,7 +276,7 @@ def register(app: typer.Typer) -> None:
             _echo_notes(doc)
             typer.echo(f"wrote {out / 'windows.json'}")
             return
-        rows = run_batch(paths, out, kw)
+        rows = run_batch(paths, out, kw, inputs=tuple(Path(a) for a in photos if Path(a).is_dir()))
         typer.echo(format_summary(rows))
         typer.echo(f"wrote {out / 'summary.json'} and one folder per photo in {out}")
         if any(r["error"] for r in rows):
