@@ -101,3 +101,42 @@ def test_a_lone_window_near_the_facade_joins_it_and_a_lone_one_off_plane_is_flag
     results, model = facade_model(ws, Known(window_height_m=1.6))
     assert [w.members for w in model.walls] == [(0, 1, 2, 3, 4, 5, 6), (7,)]
     assert list(model.flags) == [7] and "lone window at 90 deg" in model.flags[7][0]
+
+
+def test_bad_boxes_do_not_set_the_scale_nor_flag_the_clean_windows():
+    """Issue 35 (img_498): boxes over two windows at once and over a shop front set the wall's
+    medians, so the clean windows were flagged and a 7 m "window" exported. The scale and the
+    medians now come from the typical windows (plausible shape, agreeing with each other): the
+    clean windows keep the assumed 1.5 m height exactly, every bad box is flagged."""
+    true = [(-4.0, 4.2, 1.2, 1.6), (-1.0, 4.2, 1.2, 1.6),  # clean windows, w/h 0.75
+            (-4.0, 7.4, 3.4, 1.6), (-0.2, 7.4, 3.4, 1.6),  # two windows in one box each, w/h 2.125
+            (-4.5, 0.3, 7.0, 3.5)]  # a shop front, w/h 2
+    results, model = facade_model(_scrambled(true), Known())
+    assert len(model.walls) == 1 and model.walls[0].assumed
+    assert set(model.flags) == {2, 3, 4}
+    k = DEFAULT_WINDOW_HEIGHT_M / 1.6  # the scale the clean windows set: true size x k
+    for r, (_, _, w, h) in zip(results, true):
+        assert r.height_m == pytest.approx(h * k) and r.aspect_ratio * r.height_m == pytest.approx(w * k)
+    assert any("vs its wall's median 0.75" in f for f in model.flags[2])
+    assert any(f.startswith("size: width 6.56 m above 4 m") for f in model.flags[4])  # 7.0 x 1.5 / 1.6
+
+
+def test_a_window_taller_than_the_known_storey_is_flagged():
+    """--known-storey 3.2: the rows' pitch sets the scale (the true one here), and a 3.5 m tall box
+    on the ground floor (taller than a storey: issue 35, img_481 / img_294) is flagged, the others not."""
+    true = TRUE + [(5.0, 1.0, 1.4, 3.5)]
+    results, model = facade_model(_scrambled(true), Known(storey_m=3.2))
+    assert model.walls[0].scale_source.startswith("known storey height") and not model.walls[0].assumed
+    for r, (_, _, _, h) in zip(results, true):
+        assert r.height_m == pytest.approx(h)  # the true scale: pitch 3.2 m between the rows
+    assert list(model.flags) == [6]
+    assert any(f == "size: height 3.5 m above 3.2 m (the known storey 3.2 m)" for f in model.flags[6])
+
+
+def test_typical_members_is_the_largest_agreeing_set_of_plausible_shapes():
+    from fenestra.pipeline.facade_model import typical_members  # noqa: PLC0415
+
+    a = np.array([0.75, 0.7, 2.1, 0.8, 0.72, 0.1])  # a wide box and a sliver: not window-shaped
+    h = np.array([1.0, 1.1, 1.0, 3.0, 0.95, 1.0])  # the third window-shaped one is three times taller
+    assert typical_members(a, h).tolist() == [0, 1, 4]
+    assert typical_members(np.array([3.0, 0.1]), np.array([1.0, 1.0])).tolist() == [0, 1]  # none: all

@@ -15,11 +15,19 @@ from what the user knows (:class:`Known`), else from DEFAULT_WINDOW_HEIGHT_M, fl
 Walls. Walls whose rotations agree within MERGE_DEG (the same vanishing points; LONE_TOL_DEG for a
 one-window wall) are merged into one wall: one façade plane.
 
+Robust statistics (issue 35). A wall's scale and the medians its windows are compared with come
+from its *typical* windows (:func:`typical_members`): those of a plausible window shape
+(TYPICAL_ASPECT) that agree with each other in height and shape (within AGREE_RATIO, the largest
+such set), so boxes over shop fronts or two windows at once cannot set the scale and flag the
+clean windows; a wall without one typical window falls back to all its windows.
+
 Plausibility. A window is flagged (with a reason) when its aspect ratio is outside ASPECT_RANGE,
-when its shape or size disagrees with its wall's windows (ratio to the wall's median beyond
-WALL_RATIO), when it is behind the wall's plane, or when it stands alone in a plane of its own
-while the façade has a wall of several windows (a right-angled side wall shows several). Flagged windows keep their geometry; their intervals
-widen by FLAG_WIDEN.
+when its shape or size disagrees with its wall's typical windows (ratio to their median beyond
+WALL_RATIO), when it is taller or wider than MAX_WINDOW_M at an assumed scale (or, with a known
+window size, WALL_RATIO times it), when it is taller than a known storey, when it is behind the
+wall's plane, or when it stands alone in a plane of its own while the façade has a wall of several
+windows (a right-angled side wall shows several). Flagged windows keep their geometry; their
+intervals widen by FLAG_WIDEN.
 """
 from __future__ import annotations
 
@@ -36,6 +44,9 @@ ASPECT_RANGE = (0.2, 4.0)  # w/h of any window: 99.8 % of the 4552 labelled wind
 WALL_RATIO = 2.5  # a window's w/h or height more than this factor off its wall's median
 LONE_TOL_DEG = 10.0  # a one-window wall within this of a larger wall joins it (one quad's rotation is noisier)
 FLAG_WIDEN = 3.0  # a flagged window's 90 % intervals are this many times wider
+TYPICAL_ASPECT = (0.35, 1.5)  # w/h of a typical window: 2.5-97.5 % (0.38-1.49) of the 3606 window boxes of spb_facades/train
+AGREE_RATIO = 1.5  # typical windows of a wall agree within this factor in height (per unit distance) and w/h
+MAX_WINDOW_M = 4.0  # a window taller or wider than this is flagged unless a known size says otherwise
 
 
 @dataclass(frozen=True)
@@ -136,24 +147,47 @@ def _rows_pitch(heights_up: np.ndarray, window_h: np.ndarray) -> float | None:
     return float(np.median(np.diff(rows))) if len(rows) >= 2 else None
 
 
+def typical_members(aspects: np.ndarray, heights: np.ndarray, ratio: float = AGREE_RATIO,
+                    aspect_range: tuple[float, float] = TYPICAL_ASPECT) -> np.ndarray:
+    """Indices of a wall's typical windows: of a plausible window shape (w/h within
+    ``aspect_range``), the largest set that agrees within ``ratio`` with one of them in height
+    (``heights``: per unit distance, or m at one scale) and in w/h (ties: the set with the smaller
+    spread of heights); all windows when none has a plausible shape."""
+    a, h = np.asarray(aspects, dtype=np.float64), np.asarray(heights, dtype=np.float64)
+    shaped = np.flatnonzero((a >= aspect_range[0]) & (a <= aspect_range[1]) & (h > 0))
+    if not len(shaped):
+        return np.arange(len(a))
+    best, best_key = shaped[:1], None
+    for c in shaped:
+        near = shaped[(np.maximum(h[shaped] / h[c], h[c] / h[shaped]) <= ratio)
+                      & (np.maximum(a[shaped] / a[c], a[c] / a[shaped]) <= ratio)]
+        k = (len(near), -float(np.ptp(np.log(h[near]))))
+        if best_key is None or k > best_key:
+            best, best_key = near, k
+    return np.sort(best)
+
+
 def wall_scale(results: list[WindowResult], members: tuple[int, ...], offsets: np.ndarray, up: np.ndarray,
                known: Known) -> tuple[float, str, bool]:
     """(distance of the plane from the camera in m, scale source, assumed) for one wall whose
     members sit at plane offsets ``offsets`` (their |n . centre|, m at the fit's scale); up (3,): the
-    wall's up axis in the camera frame."""
+    wall's up axis in the camera frame. Every median is over the wall's typical windows
+    (:func:`typical_members`), so implausible boxes do not set the scale."""
     h = np.array([float(results[k].height_m) for k in members]) / offsets  # height per unit distance
-    w = h * np.array([float(results[k].aspect_ratio) for k in members])
+    a = np.array([float(results[k].aspect_ratio) for k in members])
+    typ = typical_members(a, h)
+    w = h * a
     if known.window_width_m is not None:
-        return known.window_width_m / float(np.median(w)), f"known window width {known.window_width_m:g} m", False
+        return known.window_width_m / float(np.median(w[typ])), f"known window width {known.window_width_m:g} m", False
     if known.window_height_m is not None:
-        return known.window_height_m / float(np.median(h)), f"known window height {known.window_height_m:g} m", False
+        return known.window_height_m / float(np.median(h[typ])), f"known window height {known.window_height_m:g} m", False
     if known.storey_m is not None:
         bottoms = np.array([float(up @ np.asarray(results[k].t).reshape(3)) for k in members]) / offsets
-        pitch = _rows_pitch(bottoms, h)
+        pitch = _rows_pitch(bottoms[typ], h[typ])
         if pitch:
             return known.storey_m / pitch, f"known storey height {known.storey_m:g} m", False
     why = "" if known.storey_m is None else " (storey height given but the wall shows < 2 window rows)"
-    return (DEFAULT_WINDOW_HEIGHT_M / float(np.median(h)),
+    return (DEFAULT_WINDOW_HEIGHT_M / float(np.median(h[typ])),
             f"assumed: median window height {DEFAULT_WINDOW_HEIGHT_M:g} m{why}", True)
 
 
@@ -171,23 +205,46 @@ def _widened(unc: dict | None, factor: float = FLAG_WIDEN) -> dict | None:
             "rot_deg": unc["rot_deg"] * factor, "trans_rel": unc["trans_rel"] * factor, "widened": factor}
 
 
-def plausibility(results: list[WindowResult], walls: list[WallModel]) -> dict[int, list[str]]:
-    """{window index: reasons} for the posed windows that should not become BIM windows."""
+def size_limits(known: Known, assumed: bool) -> tuple[float, float, str]:
+    """(largest plausible window height, width, in m, and why) for a wall whose scale is
+    ``assumed`` or set by ``known``: MAX_WINDOW_M, or WALL_RATIO x a known window size when larger;
+    a known storey caps the height (a window is not taller than its storey)."""
+    if not assumed and known.window_height_m is not None:
+        m = max(MAX_WINDOW_M, WALL_RATIO * known.window_height_m)
+        return m, m, f"{WALL_RATIO:g} x the known window height"
+    if not assumed and known.window_width_m is not None:
+        m = max(MAX_WINDOW_M, WALL_RATIO * known.window_width_m)
+        return m, m, f"{WALL_RATIO:g} x the known window width"
+    if known.storey_m is not None:
+        return min(MAX_WINDOW_M, known.storey_m) if assumed else known.storey_m, MAX_WINDOW_M, \
+            f"the known storey {known.storey_m:g} m"
+    return MAX_WINDOW_M, MAX_WINDOW_M, "a window's plausible size"
+
+
+def plausibility(results: list[WindowResult], walls: list[WallModel], known: Known = Known()) -> dict[int, list[str]]:
+    """{window index: reasons} for the posed windows that should not become BIM windows; medians
+    over each wall's typical windows (:func:`typical_members`), sizes against :func:`size_limits`."""
     flags: dict[int, list[str]] = {}
     main = walls[0] if walls else None
     for wall in walls:
         a = np.array([float(results[k].aspect_ratio) for k in wall.members])
         h = np.array([float(results[k].height_m) for k in wall.members])
+        typ = typical_members(a, h)
+        ma, mh = float(np.median(a[typ])), float(np.median(h[typ]))
+        max_h, max_w, why_max = size_limits(known, wall.assumed)
         for k, ak, hk in zip(wall.members, a, h):
             why = []
             if not ASPECT_RANGE[0] <= ak <= ASPECT_RANGE[1]:
                 why.append(f"shape: w/h {ak:.3g} outside {ASPECT_RANGE[0]:g}-{ASPECT_RANGE[1]:g}")
             if len(wall.members) >= 3:
-                ma, mh = float(np.median(a)), float(np.median(h))
                 if max(ak / ma, ma / ak) > WALL_RATIO:
                     why.append(f"shape: w/h {ak:.3g} vs its wall's median {ma:.3g}")
                 if max(hk / mh, mh / hk) > WALL_RATIO:
                     why.append(f"size: height {hk:.3g} m vs its wall's median {mh:.3g} m")
+            if hk > max_h:
+                why.append(f"size: height {hk:.3g} m above {max_h:.3g} m ({why_max})")
+            if ak * hk > max_w:
+                why.append(f"size: width {ak * hk:.3g} m above {max_w:.3g} m ({why_max})")
             if len(wall.members) == 1 and main is not None and wall is not main and len(main.members) >= 2:
                 ang = float(np.degrees(np.arccos(np.clip(abs(wall.normal @ main.normal), 0.0, 1.0))))
                 why.append(f"plane: a lone window at {ang:.0f} deg to the facade (no other window in its plane)")
@@ -213,7 +270,7 @@ def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[l
         for k, off in zip(members, offsets):
             out[k] = replace(_rescaled(results[k], dist / max(off, 1e-9)), wall=wid)
         walls.append(WallModel(wid, members, n, dist, source, assumed, merged))
-    flags = plausibility(out, walls)
+    flags = plausibility(out, walls, known)
     for wall in walls:
         R = np.asarray(out[wall.members[0]].R)
         for k in wall.members:
