@@ -90,6 +90,13 @@ def _warn(line: str) -> None:
     print(f"warning: {' '.join(line.split())}", file=sys.stderr)
 
 
+def _caller() -> str:
+    """The module that called the Registry method that calls this."""
+    import sys  # noqa: PLC0415
+
+    return str(sys._getframe(2).f_globals.get("__name__", ""))
+
+
 def load_plugins() -> list[str]:
     """Load every ``fenestra.plugins`` entry point once (see the module docstring); returns the
     names of those that loaded. A plug-in that fails (an exception, ``sys.exit`` during its import,
@@ -141,7 +148,11 @@ class Registry(MutableMapping[str, E], Generic[E]):
 
     # -------------------------------------------------------------- registering
 
-    def _add(self, entry: E, replace: bool) -> E:
+    def _add(self, entry: E, replace: bool, caller: str = "fenestra") -> E:
+        """Add ``entry``; ``caller``: the module registering it. One outside fenestra registering
+        while a plug-in loads is that plug-in: a built-in name needs override = True, and
+        what it adds is undone if the plug-in then fails (a built-in that a module of fenestra
+        registers while a plug-in imports it is never the plug-in's)."""
         name = getattr(entry, "name", None)
         if not isinstance(name, str) or not name:
             raise ValueError(f"a {self.kind} entry needs a non-empty str name, got {name!r}")
@@ -150,7 +161,7 @@ class Registry(MutableMapping[str, E], Generic[E]):
         taken = name in self._entries
         if taken and not replace:
             raise ValueError(f"{self.kind} {name!r} is already registered; choose another name")
-        plugin = _PLUGINS.current
+        plugin = _PLUGINS.current if not (caller == "fenestra" or caller.startswith("fenestra.")) else None
         if taken and plugin is not None and getattr(entry, "override", False) is not True:
             raise ValueError(f"{self.kind} {name!r} is already registered; a plug-in replaces it only with an "
                              "explicit override = True on its entry")
@@ -164,7 +175,7 @@ class Registry(MutableMapping[str, E], Generic[E]):
     def register(self, entry: E, replace: bool = False) -> E:
         """Add ``entry`` under ``entry.name`` (ValueError if taken, unless ``replace``); returns it."""
         load_plugins()
-        return self._add(entry, replace)
+        return self._add(entry, replace, _caller())
 
     def unregister(self, name: str) -> E:
         """Remove and return the entry ``name`` (UnknownName if absent)."""
@@ -184,7 +195,7 @@ class Registry(MutableMapping[str, E], Generic[E]):
     def __setitem__(self, name: str, entry: E) -> None:
         if getattr(entry, "name", None) != name:
             raise ValueError(f"{self.kind} registered as {name!r} must be named so, got {getattr(entry, 'name', None)!r}")
-        self._add(entry, replace=True)
+        self._add(entry, replace=True, caller=_caller())
 
     def __delitem__(self, name: str) -> None:
         self.unregister(name)

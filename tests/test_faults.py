@@ -59,12 +59,16 @@ def env() -> dict:
     return e
 
 
-def fenestra(*args, cwd: Path, limit_bytes: int | None = None, timeout: float = 300) -> subprocess.CompletedProcess:
-    """Run the CLI in ``cwd`` (its out/ holds renders); limit_bytes: the largest file it may write."""
+def fenestra(*args, cwd: Path, limit_bytes: int | None = None, timeout: float = 300,
+             pythonpath: tuple = ()) -> subprocess.CompletedProcess:
+    """Run the CLI in ``cwd`` (its out/ holds renders); limit_bytes: the largest file it may write;
+    pythonpath: folders put after the checkout on PYTHONPATH (a plug-in's distribution)."""
     def limit():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=env(),
+    e = env()
+    e["PYTHONPATH"] = os.pathsep.join([e["PYTHONPATH"], *map(str, pythonpath)])
+    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=e,
                           capture_output=True, text=True, timeout=timeout,
                           preexec_fn=limit if limit_bytes is not None else None)
 
@@ -747,6 +751,38 @@ def huge_image_in_dataset(d: Path) -> list:
     return ["check-data", "ds", "--format", "yolo"]
 
 
+def radiance(name: str, w: int, h: int):
+    """A Radiance HDR file (which PIL's header reader does not know) stating w x h px, a few bytes of pixels."""
+    def build(d: Path) -> list:
+        (d / name).write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w) + bytes(4096))
+        return ["reconstruct", name, "--K", EXAMPLE / "K.json", "--out", "o"]
+    return build
+
+
+def pam_photo(d: Path) -> list:
+    """A PAM image (P7): OpenCV decodes it, neither PIL nor Fenestra reads its size from the header."""
+    ok, buf = cv2.imencode(".pam", np.zeros((48, 64, 3), np.uint8))
+    (d / "a.png").write_bytes(buf.tobytes())
+    return ["reconstruct", "a.png", "--K", EXAMPLE / "K.json", "--out", "o"]
+
+
+def run_with_status(status: str):
+    """A run folder with a verified results table (sealed) whose run.json says ``status``."""
+    def build(d: Path) -> list:
+        from fenestra.bench import results
+        from synthetic_results import synthetic_results
+
+        df = synthetic_results(n_windows=20, seed=1)
+        results.write_results(df, d / "run")
+        manifest.seal(d / "run", df, "synthetic")
+        results.write_summary(d / "run", {"profile": "synthetic"}, results.summarize(df))
+        (d / "run" / "run.json").write_text(json.dumps({"profile": "synthetic", "profile_hash": "", "status": status,
+                                                        "error": "KeyboardInterrupt: "}))
+        (d / "g.toml").write_text('[[gate]]\nprofile = "synthetic"\nmethod = "*"\nmetric = "detection_rate"\nmin = 0\n')
+        return ["gate", "run", "--gates", "g.toml"]
+    return build
+
+
 OUTSIDE = "../../outside/secret.png"
 # (case, builder of the input in a fresh folder -> command line, the one error line's needles)
 FAULTS = [
@@ -806,6 +842,23 @@ FAULTS = [
     ("photo of 24000 x 24000 px", huge_photo(24000, 24000),
      ["big.png is 24000x24000 = 576 Mpx, over the limit of 150 Mpx (--max-pixels raises it"]),
     ("dataset photo of 24000 x 24000 px", huge_image_in_dataset, ["b.png is 24000x24000 = 576 Mpx, over the limit"]),
+    ("photo a Radiance HDR of 16000 x 16000 px named .jpg", radiance("big.jpg", 16000, 16000),
+     ["big.jpg is 16000x16000 = 256 Mpx, over the limit of 150 Mpx"]),
+    ("Radiance HDR photo over --max-pixels", lambda d: [*radiance("a.hdr", 2000, 2000)(d), "--max-pixels", "1000000"],
+     ["a.hdr is 2000x2000 = 4 Mpx, over the limit of 1 Mpx"]),
+    ("photo whose size no header reader knows (PAM)", pam_photo,
+     ["cannot read photo a.png: not an image format whose size Fenestra can read before decoding"]),
+    ("--known-height 1e300", lambda d: [*_reconstruct("o")(d), "--known-height", "1e300"],
+     ["--known-height 1e+300 m is outside the physical range [0.01, 30] m"]),
+    ("--known-storey 0.2", lambda d: [*_reconstruct("o")(d), "--known-storey", "0.2"],
+     ["--known-storey 0.2 m is outside the physical range [1, 50] m"]),
+    ("--substitute nosuch", lambda d: [*_reconstruct("o")(d), "--substitute", "nosuch"],
+     ["--substitute: unknown window style 'nosuch'; choose one of"]),
+    ("gate --suggest --margin nan", lambda d: [*run_with_status("complete")(d), "--suggest", "--margin", "nan"],
+     ["--margin must be a finite number >= 0, got nan"]),
+    ("gate on a run marked failed", run_with_status("failed"),
+     ["run.json says status 'failed': KeyboardInterrupt", "not 'complete'"]),
+    ("gate on a run still running", run_with_status("running"), ["says status 'running'"]),
     ("render 20000 px wide", lambda d: ["render", "--views", "1", "--width", "20000", "--height", "120"],
      ["image size 20000x120: a side may be at most 8192 px"]),
 ]
@@ -904,3 +957,219 @@ def test_a_failed_bench_run_is_marked_failed(tmp_path):
     with run_status(claim_run_dir(run, "tiny", "abc")):  # the same profile reclaims it and completes
         pass
     assert json.loads((run / RUN_JSON).read_text())["status"] == "complete"
+
+
+# ---------------------------------------------------------------- 8. dataset paths, label bounds, names (issue 37: 6, 7, 9)
+
+SECRET = "root:x:0:0:fenestra-secret-line"  # content of a file outside the dataset: never printed
+
+
+def _outside_file(d: Path, name: str, content: bytes | None = None) -> Path:
+    """A file beside the dataset folder ds/ (outside it): the target of a symlink leading out."""
+    p = d / name
+    if content is None:
+        _photo(p)
+    else:
+        p.write_bytes(content)
+    return p
+
+
+def labelmap_case(d: Path) -> list:
+    """A label-map folder: a 64x48 photo and its label map (a red window on blue)."""
+    _photo(d / "ds" / "images" / "a.png")
+    lab = np.zeros((48, 64, 3), np.uint8)
+    lab[:] = (255, 0, 0)  # blue, written as BGR
+    lab[10:20, 10:30] = (0, 0, 255)  # red
+    (d / "ds" / "labels").mkdir(parents=True)
+    cv2.imwrite(str(d / "ds" / "labels" / "a.png"), lab)
+    return ["check-data", "ds", "--format", "labelmap"]
+
+
+def _link_out(rel: str, target: str, content: bytes | None = None):
+    """After building: ds/<rel> becomes a symlink to ``target`` beside ds/ (outside the dataset)."""
+    def after(d: Path) -> None:
+        (d / "ds" / rel).unlink()
+        (d / "ds" / rel).symlink_to(_outside_file(d, target, content))
+    return after
+
+
+def _photos_also(*names: str):
+    def after(d: Path) -> None:
+        for n in names:
+            _photo(d / "ds" / "images" / n)
+    return after
+
+
+def _many_windows(n: int):
+    def edit(doc):
+        doc["annotations"] = [{"id": i + 1, "image_id": 1, "category_id": 1, "bbox": [10, 10, 20, 15]} for i in range(n)]
+    return edit
+
+
+def _no_stated_size(seg):
+    def edit(doc):
+        del doc["images"][0]["width"], doc["images"][0]["height"]
+        doc["annotations"][0]["segmentation"] = seg
+    return edit
+
+
+# (case, builder, needles of the one error line); every case fails before a label is parsed or a mask decoded
+DATASET_FAULTS = [
+    ("yolo label symlinked to a file outside", _then(yolo_case("0 0.5 0.5 0.2 0.2\n"),
+                                                     _link_out("labels/a.txt", "passwd", (SECRET + "\n").encode())),
+     ["YOLO label file", "a.txt", "leads outside the dataset folder"]),
+    ("label map symlinked to a file outside", _then(labelmap_case, _link_out("labels/a.png", "other.png")),
+     ["label map", "a.png", "leads outside the dataset folder"]),
+    ("yolo label file of 5 MB", _then(yolo_case(""), _replace("labels/a.txt", _sparse(5 * 2**20))),
+     ["a.txt is 5.0 MB, more than the 4 MB limit (fenestra.conventions.LIMITS.max_label_bytes)"]),
+    ("yolo label file of 100001 lines", yolo_case("0 0.5 0.5 0.01 0.01\n" * 100_001),
+     ["a.txt has 100001 lines, more than the 100000 limit (fenestra.conventions.LIMITS.max_label_lines)"]),
+    ("yolo 1001 window boxes", yolo_case("0 0.5 0.5 0.01 0.01\n" * 1001),
+     ["a.txt: 1001 window boxes, more than the 1000 per photo"]),
+    ("yolo box 30 times the photo", yolo_case("0 0.5 0.5 30 30\n"),
+     ["a.txt:1: box w 30, h 30 is larger than the 64x48 photo"]),
+    ("yolo photos a.png and a.jpg", _then(yolo_case("0 0.5 0.5 0.2 0.2\n"), _photos_also("a.jpg")),
+     ["photos 'a.jpg' and 'a.png' differ only by case or extension"]),
+    ("yolo photos a.png and A.PNG", _then(yolo_case("0 0.5 0.5 0.2 0.2\n"), _photos_also("A.PNG")),
+     ["photos 'A.PNG' and 'a.png' differ only by case or extension"]),
+    ("labelmap photos a.png and a.jpeg", _then(labelmap_case, _photos_also("a.jpeg")),
+     ["photos 'a.jpeg' and 'a.png' differ only by case or extension"]),
+    ("coco photos a.png and A.png", coco_case(photos=("a.png", "A.png")),
+     ["images[1] file_name 'A.png' has the name 'A' of images[0] 'a.png'"]),
+    ("coco unknown category_id", coco_case(_set("annotations.0.category_id", 7)),
+     ["annotations[0] (id 1): category_id 7 matches no category (the file's: [1])"]),
+    ("bench on coco with an unknown category_id", bench_case(coco_case(_set("annotations.0.category_id", 7))),
+     ["annotations[0] (id 1): category_id 7 matches no category"]),
+    ("coco RLE of 40000 x 40000 px, no stated size", coco_case(_no_stated_size({"size": [40000, 40000],
+                                                                                 "counts": [1_600_000_000]})),
+     ["annotations.json: annotations[0] (id 1): RLE size [40000, 40000] is 1600 Mpx, over the limit of 150 Mpx"]),
+    ("coco RLE of another size than its photo, no stated size",
+     coco_case(_no_stated_size({"size": [10, 10], "counts": [5, 95]})),
+     ["annotations.json: annotations[0] (id 1): RLE size [10, 10] != the photo's [height, width] [48, 64]"]),
+    ("coco RLE counts not covering its size", coco_case(_set("annotations.0.segmentation",
+                                                             {"size": [48, 64], "counts": [5, 95]})),
+     ["annotations[0] (id 1): RLE counts cover 100 pixels, not the 48 x 64 = 3072 of its size"]),
+    ("coco 1001 window annotations on one photo", coco_case(_many_windows(1001)),
+     ["image 1 (a.png) has 1001 window annotations, more than the 1000 per photo"]),
+]
+
+
+@pytest.mark.parametrize("case, build, needles", DATASET_FAULTS, ids=[c for c, _, _ in DATASET_FAULTS])
+def test_dataset_fault_is_one_line_error(case, build, needles, tmp_path):
+    r = fenestra(*build(tmp_path), cwd=tmp_path, timeout=120)
+    one_line_error(r, *needles)
+    assert SECRET not in r.stderr + r.stdout
+
+
+# ---------------------------------------------------------------- 8. plug-ins cannot take the CLI down
+
+def plugin(d: Path, code: str, name: str = "badplug") -> Path:
+    """An installed plug-in distribution, as pip leaves one (a module and its dist-info with a
+    ``fenestra.plugins`` entry point), in d/site: put that folder on PYTHONPATH."""
+    site = d / "site"
+    info = site / f"{name}-0.1.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[fenestra.plugins]\n{name} = {name}\n")
+    (site / f"{name}.py").write_text(code)
+    return site
+
+
+ENTRY = 'class E:\n    name = "lsd"\n    description = "a plug-in lsd"\n'
+# (case, the plug-in's code, the one warning line's needles): `fenestra --version` still prints the
+# version and exits 0, with that one warning line naming the plug-in, and the built-in 'lsd' stays
+PLUGINS = [
+    ("raises at import", 'raise ImportError("no module named fancy")\n',
+     ["fenestra plug-in 'badplug' (badplug) failed to load and is ignored: ImportError: no module named fancy"]),
+    ("calls sys.exit(0) at import", "import sys\nsys.exit(0)\n", ["'badplug'", "it called sys.exit(0)"]),
+    ("registers a built-in's name", "from fenestra.pipeline.snappers import SNAPPERS\n" + ENTRY + "SNAPPERS.register(E())\n",
+     ["'badplug'", "snapper 'lsd' is already registered"]),
+    ("replaces a built-in without override", "from fenestra.pipeline.snappers import SNAPPERS\n" + ENTRY
+     + 'SNAPPERS["lsd"] = E()\n', ["'badplug'", "a plug-in replaces it only with an explicit override = True"]),
+    ("replaces a built-in, then fails", "from fenestra.pipeline.snappers import SNAPPERS\n" + ENTRY
+     + 'E.override = True\nSNAPPERS["lsd"] = E()\nraise RuntimeError("half done")\n', ["RuntimeError: half done"]),
+]
+SHOW_LSD = ["-c", "from fenestra.pipeline.snappers import SNAPPERS; from fenestra.registry import plugin_metadata; "
+                  "print(SNAPPERS['lsd'].description); print(plugin_metadata())"]
+
+
+@pytest.mark.parametrize("case, code, needles", PLUGINS, ids=[c for c, _, _ in PLUGINS])
+def test_a_failing_plugin_is_one_warning(case, code, needles, tmp_path):
+    site = plugin(tmp_path, code)
+    r = fenestra("--version", cwd=tmp_path, pythonpath=(site,))
+    assert r.returncode == 0 and r.stdout.startswith("fenestra "), (r.returncode, r.stdout, r.stderr[-2000:])
+    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr[-2000:]
+    for n in needles:
+        assert n in r.stderr, r.stderr
+    shown = subprocess.run([sys.executable, *SHOW_LSD], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                           env={**env(), "PYTHONPATH": f"{ROOT}{os.pathsep}{site}"})
+    assert shown.returncode == 0 and "a plug-in lsd" not in shown.stdout, shown.stdout + shown.stderr[-2000:]
+    assert "'overrides': {}" in shown.stdout and "'badplug'" in shown.stdout.splitlines()[1]  # named as failed
+
+
+def test_a_plugin_replaces_a_builtin_only_with_override_and_is_recorded(tmp_path):
+    code = "from fenestra.pipeline.snappers import SNAPPERS\n" + ENTRY + 'E.override = True\nSNAPPERS["lsd"] = E()\n'
+    site = plugin(tmp_path, code, name="goodplug")
+    shown = subprocess.run([sys.executable, *SHOW_LSD], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                           env={**env(), "PYTHONPATH": f"{ROOT}{os.pathsep}{site}"})
+    assert shown.returncode == 0 and shown.stderr == "", shown.stderr[-2000:]
+    lsd, meta = shown.stdout.splitlines()
+    assert lsd == "a plug-in lsd"
+    assert meta == str({"loaded": ["goodplug"], "failed": {}, "overrides": {"snapper lsd": "goodplug"}})
+
+
+# ---------------------------------------------------------------- 9. what feeds a figure is covered by a digest
+
+def _shard_outcomes():
+    from fenestra.bench.evaluate import ViewOutcome
+
+    gt = [{"image": "h/000000", "rle": {"size": [4, 5], "counts": "52"}, "bbox": [1.0, 2.0, 3.0, 1.0],
+           "area": 3.0, "iscrowd": 0}]
+    dt = {"oracle": [{"image": "h/000000", "bbox": [1.5, 2.0, 3.0, 1.0], "score": 0.75}]}
+    row = {"house": "h", "view": "000000", "window_id": "w", "method": "oracle/none/lm", "corner_err_px_snap": 0.5}
+    return [ViewOutcome([row], {"detect": 0.5}, gt, dt, {"oracle": 1})]
+
+
+def _set_in_index(edit):
+    def apply(doc: dict) -> None:
+        edit(doc["views"][0])
+    return apply
+
+
+# (case, an edit of a shard index's JSON, the rows file and its digest untouched): the shard is
+# recomputed with a warning, never trusted (issue 37: one digit moved a detector's box AP)
+SHARD_EDITS = [
+    ("a detection's box moved", _set_in_index(lambda v: v["coco_dt"]["oracle"][0]["bbox"].__setitem__(0, 1.0))),
+    ("detections replaced by the ground truth", _set_in_index(lambda v: v["coco_dt"].__setitem__(
+        "oracle", [{**{k: g[k] for k in ("image", "bbox")}, "score": 1.0} for g in v["coco_gt"]]))),
+    ("false-positive count lowered", _set_in_index(lambda v: v["n_false_positives"].__setitem__("oracle", 0))),
+    ("stage seconds changed", _set_in_index(lambda v: v["stage_s"].__setitem__("detect", 0.001))),
+    ("a ground-truth window dropped", _set_in_index(lambda v: v["coco_gt"].clear())),
+]
+
+
+@pytest.mark.parametrize("case, edit", SHARD_EDITS, ids=[c for c, _ in SHARD_EDITS])
+def test_an_edited_shard_index_is_recomputed(case, edit, tmp_path, capsys):
+    from fenestra.bench.executors import _load_shard, write_shard
+
+    idx = write_shard(tmp_path / "k.json", "d", _shard_outcomes(), 1.0)
+    assert _load_shard(str(idx)) is not None
+    doc = json.loads(idx.read_text())
+    edit(doc)
+    idx.write_text(json.dumps(doc))
+    assert _load_shard(str(idx)) is None
+    assert "index does not match its own digest" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- 10. Ctrl-C
+
+def test_ctrl_c_prints_interrupted(tmp_path):
+    p = subprocess.Popen([sys.executable, "-m", "fenestra", *RENDER_ARGS[:2], "400", *RENDER_ARGS[3:]], cwd=tmp_path,
+                         env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not list(tmp_path.glob("out/renders/*/views/000001/view.json")) and time.time() < deadline:
+        time.sleep(0.02)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and "Traceback" not in err, (p.returncode, err[-2000:])
+    assert [ln for ln in err.splitlines() if ln.startswith("error: ")] == ["error: interrupted; partial outputs removed"]
