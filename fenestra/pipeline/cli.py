@@ -17,11 +17,13 @@ overlay and the texture) lives in that undistorted image; windows.json says ``"u
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 import typer
+from typer.core import TyperCommand
 
 from fenestra.conventions import DEFAULTS, LIMITS
 from fenestra.errors import PipelineError
@@ -128,16 +130,41 @@ def output_names(photos: list[Path]) -> list[str]:
     return [n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names)]
 
 
-def summary_row(photo: Path, doc: dict | None, error: str | None) -> dict:
-    """One summary line of a batch: photo, K source and f, walls, windows detected/exported/flagged/failed."""
+def summary_row(photo: Path, doc: dict | None, error: str | None, seconds: float | None = None,
+                cpu_s: float | None = None, out_dir: Path | None = None) -> dict:
+    """One summary line of a batch: photo, its time (wall and CPU seconds), its size (pixels and
+    bytes) and its output folder's bytes, K source and f, walls, windows
+    detected/exported/flagged/failed."""
+    size = {"seconds": None if seconds is None else round(seconds, 2), "cpu_s": None if cpu_s is None else round(cpu_s, 2),
+            "photo_bytes": photo.stat().st_size if photo.is_file() else None,
+            "output_bytes": None if out_dir is None or not out_dir.is_dir() else
+            sum(f.stat().st_size for f in out_dir.rglob("*") if f.is_file())}
     if doc is None:
-        return {"photo": str(photo), "error": error}
+        return {"photo": str(photo), "error": error, **size}
     ws = doc["windows"]
-    return {"photo": str(photo), "error": None, "K_source": doc["K_source"]["source"],
+    W, H = doc.get("image_size") or (None, None)
+    return {"photo": str(photo), "error": None, **size, "width_px": W, "height_px": H,
+            "K_source": doc["K_source"]["source"],
             "focal_px": round(doc["K_source"]["focal_px"], 1), "walls": len(doc.get("walls", [])),
             "detected": len(ws), "exported": sum(bool(w.get("exported")) for w in ws),
             "flagged": sum(bool(w.get("flags")) for w in ws), "failed": sum(w["failure"] is not None for w in ws),
             "scale_assumed": doc.get("scale", {}).get("assumed")}
+
+
+SUMMARY_CSV_COLUMNS = ("photo", "error", "seconds", "cpu_s", "width_px", "height_px", "photo_bytes", "output_bytes",
+                       "K_source", "focal_px", "walls", "detected", "exported", "flagged", "failed", "scale_assumed")
+
+
+def summary_csv(rows: list[dict]) -> str:
+    """summary.csv: one row per photo, the columns SUMMARY_CSV_COLUMNS (empty where not known)."""
+    import csv  # noqa: PLC0415
+    import io  # noqa: PLC0415
+
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=SUMMARY_CSV_COLUMNS, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows([{k: ("" if r.get(k) is None else r.get(k)) for k in SUMMARY_CSV_COLUMNS} for r in rows])
+    return buf.getvalue()
 
 
 def run_batch(photos: list[Path], out: Path, kw: dict, inputs: tuple = ()) -> list[dict]:
@@ -154,34 +181,59 @@ def run_batch(photos: list[Path], out: Path, kw: dict, inputs: tuple = ()) -> li
         outputs.check_out(out, (*inputs, *photos, kw.get("K_json"), kw.get("masks")), kw.get("force", False))
         out.mkdir(parents=True, exist_ok=True)
         outputs.write_owned(out, "summary.json", b"[]")  # claimed up front: refused before any photo runs
+        outputs.write_owned(out, "summary.csv", summary_csv([]).encode())
     except outputs.OwnershipError as e:
         raise PipelineError(str(e)) from e
     rows = []
     with typer.progressbar(list(zip(photos, output_names(photos))), label="reconstruct", file=sys.stderr,
                            item_show_func=lambda item: item[0].name if item else "") as bar:
         for photo, name in bar:
+            t0, c0 = time.perf_counter(), time.process_time()
             try:
-                rows.append(summary_row(photo, run_reconstruct(photo, out / name, **kw), None))
+                doc, error = run_reconstruct(photo, out / name, **kw), None
             except (PipelineError, ValueError, OSError) as e:
-                rows.append(summary_row(photo, None, " ".join(str(e).split())))
+                doc, error = None, " ".join(str(e).split())
+            rows.append(summary_row(photo, doc, error, time.perf_counter() - t0, time.process_time() - c0, out / name))
     outputs.write_owned(out, "summary.json", json.dumps(rows, indent=2).encode())
+    outputs.write_owned(out, "summary.csv", summary_csv(rows).encode())
     return rows
 
 
 def format_summary(rows: list[dict]) -> str:
-    """The batch's summary table: one line per photo, then the totals."""
-    lines = [f"{'photo':<28} {'K':<17} {'f_px':>7} {'walls':>5} {'det':>4} {'exp':>4} {'flag':>4} {'fail':>4}"]
+    """The batch's summary table: one line per photo (with its time, size and output size), then the totals."""
+    lines = [f"{'photo':<24} {'time_s':>6} {'size_px':>10} {'out_MB':>6} {'K':<17} {'f_px':>6} {'walls':>5} "
+             f"{'det':>4} {'exp':>4} {'flag':>4} {'fail':>4}"]
     for r in rows:
-        name = Path(r["photo"]).name[:28]
+        name = Path(r["photo"]).name[:24]
+        t = "-" if r.get("seconds") is None else f"{r['seconds']:.1f}"
+        mb = "-" if r.get("output_bytes") is None else f"{r['output_bytes'] / 1e6:.1f}"
         if r["error"]:
-            lines.append(f"{name:<28} error: {r['error'][:80]}")
+            lines.append(f"{name:<24} {t:>6} error: {r['error'][:80]}")
             continue
-        lines.append(f"{name:<28} {r['K_source']:<17} {r['focal_px']:>7.0f} {r['walls']:>5} {r['detected']:>4} "
-                     f"{r['exported']:>4} {r['flagged']:>4} {r['failed']:>4}")
+        px = "-" if r.get("width_px") is None else f"{r['width_px']}x{r['height_px']}"
+        lines.append(f"{name:<24} {t:>6} {px:>10} {mb:>6} {r['K_source']:<17} {r['focal_px']:>6.0f} {r['walls']:>5} "
+                     f"{r['detected']:>4} {r['exported']:>4} {r['flagged']:>4} {r['failed']:>4}")
     ok = [r for r in rows if not r["error"]]
-    lines.append(f"{len(ok)} of {len(rows)} photos reconstructed; {sum(r['exported'] for r in ok)} windows exported, "
-                 f"{sum(r['flagged'] for r in ok)} flagged, {sum(r['failed'] for r in ok)} failed")
+    total = sum(r.get("seconds") or 0.0 for r in rows)
+    lines.append(f"{len(ok)} of {len(rows)} photos reconstructed in {total:.1f} s; {sum(r['exported'] for r in ok)} "
+                 f"windows exported, {sum(r['flagged'] for r in ok)} flagged, {sum(r['failed'] for r in ok)} failed")
     return "\n".join(lines)
+
+
+def empty_note(doc: dict) -> str | None:
+    """One line when the output holds no window (issue 35: img_552 wrote an empty model.ifc with
+    nothing said): how many were detected, flagged and failed; None when a window was exported or
+    no model was written."""
+    export = doc.get("export") or {}
+    if "exported" not in export or export["exported"] or not export.get("files", {}).get("ifc"):
+        return None
+    ws = doc["windows"]
+    if not ws:
+        return "empty output: no window detected; model.ifc and model.obj hold no window, no model.glb"
+    flagged = sum(bool(w.get("flags")) for w in ws)
+    failed = sum(w["failure"] is not None for w in ws)
+    return (f"empty output: none of the {len(ws)} detected windows exported ({flagged} flagged implausible, "
+            f"{failed} failed; --export-all exports the flagged); model.ifc and model.obj hold no window, no model.glb")
 
 
 def _echo_notes(doc: dict) -> None:
@@ -215,11 +267,21 @@ def format_table(doc: dict) -> str:
     return "\n".join(lines)
 
 
+class PlainHelp(TyperCommand):
+    """A command whose --help is click's plain layout: option names are never cut short (rich's
+    table truncates them to fit 80 columns: ``--known-height,--heig…``) and ``\\b`` paragraphs
+    (the examples) keep their lines."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs["rich_markup_mode"] = None
+        super().__init__(*args, **kwargs)
+
+
 def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app (choices in the help: from the registries)."""
     from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
 
-    @app.command("reconstruct")
+    @app.command("reconstruct", cls=PlainHelp)
     def reconstruct_cmd(
         photos: list[str] = typer.Argument(..., help="photo(s), folder(s) of photos, or glob patterns (quoted, e.g. "
                                                      "'street/*.jpg'); any format OpenCV reads"),
@@ -258,7 +320,14 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Reconstruct the windows of photos: windows.json, overlay.png, IFC, OBJ, GLB per photo.
 
-        Without --K/--fx the focal length comes from EXIF, the façade's vanishing points or a stated prior (windows.json: K_source); failures are recorded, not fatal. Several photos: a progress bar, one subfolder of --out per photo, a summary table (also --out/summary.json).
+        Without --K/--fx the focal length comes from EXIF, the façade's vanishing points or a stated prior (windows.json: K_source); failures are recorded, not fatal. Several photos: a progress bar, one subfolder of --out per photo, a summary table (also --out/summary.json and summary.csv, with each photo's time and file sizes).
+
+        \b
+        Examples:
+          fenestra reconstruct street.jpg --out out/street
+          fenestra reconstruct street.jpg --out out/street --known-storey 3.2
+          fenestra reconstruct 'photos/*.jpg' --out out/batch
+          fenestra reconstruct img017.jpg --K K.json --masks panes017.png --out out/cw
         """  # noqa: E501 -- one paragraph: the help reflows it
         if quad_source not in QUAD_SOURCES:
             raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
@@ -274,11 +343,13 @@ def register(app: typer.Typer) -> None:
             doc = run_reconstruct(paths[0], out, **kw)
             typer.echo(format_table(doc))
             _echo_notes(doc)
+            if (note := empty_note(doc)) is not None:
+                typer.echo(note, err=True)
             typer.echo(f"wrote {out / 'windows.json'}")
             return
         rows = run_batch(paths, out, kw, inputs=tuple(Path(a) for a in photos if Path(a).is_dir()))
         typer.echo(format_summary(rows))
-        typer.echo(f"wrote {out / 'summary.json'} and one folder per photo in {out}")
+        typer.echo(f"wrote {out / 'summary.json'}, {out / 'summary.csv'} and one folder per photo in {out}")
         if any(r["error"] for r in rows):
             raise SystemExit(1)
 
