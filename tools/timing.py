@@ -182,13 +182,15 @@ def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default"
     ``profile``), on the first views of each rendered house under ``renders``, in this process."""
     from fenestra.bench.evaluate import evaluate_task  # noqa: PLC0415
     from fenestra.bench.executors import init_worker, view_tasks  # noqa: PLC0415
-    from fenestra.bench.profiles import load_profile  # noqa: PLC0415
+    from fenestra.bench.profiles import load_profile, selected  # noqa: PLC0415
     from fenestra.bench.runner import make_plan, plan_methods  # noqa: PLC0415
 
     init_worker()
     p = load_profile(profile)
+    # every detector x snapper the profile names (a designed profile's grids: their union), every pose
     allm, _ = plan_methods(dataclasses.replace(p, methods=dataclasses.replace(
-        p.methods, pose_solvers=("all",), withhold_K=(False, True))))
+        p.methods, detectors=tuple(selected(p.methods, "detectors")), snappers=tuple(selected(p.methods, "snappers")),
+        pose_solvers=("all",), withhold_K=(False, True), grids=())))
     houses = sorted(d for d in renders.iterdir() if (d / "views").is_dir())
     out = {}
     for family, members in pose_families(allm).items():

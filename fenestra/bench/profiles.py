@@ -8,6 +8,10 @@ values raise :class:`ProfileError` naming the file, the key and the value.
     [render]      renderer, views_per_house, width, height, options = {...}  (options go to renders/)
     [methods]     detectors, snappers, pose_solvers: names, ["all"] or {capability = value};
                   withhold_K = [false] | [true] | [false, true]; height_m
+                  or, instead of the four selectors, [[methods.grids]] tables (question, detectors,
+                  snappers, pose_solvers, withhold_K): the union of their cross products
+                  (:func:`planned_methods`); a name "@cli" / "@paper" in a selector stands for the
+                  entry of fenestra.conventions.DEFAULTS / PAPER (no profile types a default's name)
     [evaluation]  min_visible_fraction, require_corners_in_frame, min_window_px, max_incidence_deg
 
 Tables become the dataclasses below through ``fenestra.config.from_table``. Names are checked
@@ -19,6 +23,7 @@ accepted, and ``["all"]`` or a capability table that it matches runs it, with no
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 from dataclasses import asdict, dataclass, field
@@ -27,6 +32,7 @@ from typing import Any
 
 from fenestra.config import from_table, read_toml
 from fenestra.errors import FenestraError
+from fenestra.methods import Method
 
 PROFILE_DIR = Path(__file__).parent / "profiles"
 ALL = "all"
@@ -57,6 +63,21 @@ class RenderSpec:
 
 
 Selector = tuple[str, ...] | dict  # names, ["all"], or a capability table {capability = value}
+# selector names standing for a field of fenestra.conventions.DEFAULTS (the CLI's method) or PAPER
+CLI_TOKEN, PAPER_TOKEN = "@cli", "@paper"
+SELECTOR_FIELD = {"detectors": "detector", "snappers": "snapper", "pose_solvers": "pose"}
+
+
+@dataclass(frozen=True)
+class Grid:
+    """One cross product of a profile's methods (a ``[[methods.grids]]`` table) and the question it
+    answers; a profile runs the union of its grids."""
+
+    question: str = ""
+    detectors: Selector = (ALL,)
+    snappers: Selector = (ALL,)
+    pose_solvers: Selector = (ALL,)
+    withhold_K: tuple[bool, ...] = (False,)
 
 
 @dataclass(frozen=True)
@@ -74,6 +95,7 @@ class MethodsSpec:
     pose_solvers: Selector = (ALL,)
     withhold_K: tuple[bool, ...] = (False,)
     height_m: float = 1.0  # the pose's scale parameter (errors are rescaled with the true height)
+    grids: tuple[Grid, ...] = ()  # when given: the union of these instead of the selectors above
 
 
 @dataclass(frozen=True)
@@ -113,6 +135,8 @@ def config_hash(config: dict) -> str:
     """8 hex digits of a profile's plain dict (``to_dict()``) without its ``name`` and
     ``description``: everything that changes results. Every kind of profile hashes with this."""
     d = {k: v for k, v in config.items() if k not in ("name", "description")}
+    if isinstance(d.get("methods"), dict) and not d["methods"].get("grids", True):  # no grids: hashes as before them
+        d["methods"] = {k: v for k, v in d["methods"].items() if k != "grids"}
     return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
 
 
@@ -125,29 +149,75 @@ def method_registries() -> dict[str, Any]:
     return {"detectors": DETECTORS, "snappers": SNAPPERS, "pose_solvers": POSES}
 
 
-def selected(methods: MethodsSpec, key: str) -> list[str]:
-    """The names ``methods.<key>`` selects (fenestra.registry.Registry.select); ProfileError naming
-    the key, the bad value and the choices."""
-    registry = method_registries()[key]
+def _resolve(selector: Selector, key: str) -> Selector:
+    """A selector with "@cli" / "@paper" replaced by DEFAULTS' / PAPER's entry for ``key``."""
+    if isinstance(selector, dict):
+        return selector
+    from fenestra.conventions import DEFAULTS, PAPER  # noqa: PLC0415
+
+    method = {CLI_TOKEN: DEFAULTS, PAPER_TOKEN: PAPER}
+    names = (selector,) if isinstance(selector, str) else tuple(selector)
+    return tuple(getattr(method[n], SELECTOR_FIELD[key]) if n in method else n for n in names)
+
+
+def _select(selector: Selector, key: str) -> list[str]:
     try:
-        return registry.select(getattr(methods, key))
+        return method_registries()[key].select(_resolve(selector, key))
     except ValueError as e:  # an unknown name or capability, or an empty list
         raise ProfileError(f"methods.{key}: {e}") from e
 
 
+def selected(methods: MethodsSpec | Grid, key: str) -> list[str]:
+    """The names ``methods.<key>`` selects (fenestra.registry.Registry.select, "@cli"/"@paper"
+    resolved); for a spec with grids, the union over its grids in the registry's order. ProfileError naming
+    the key, the bad value and the choices."""
+    grids = getattr(methods, "grids", ())
+    if grids:
+        union = {n for g in grids for n in _select(getattr(g, key), key)}
+        return [n for n in method_registries()[key] if n in union]  # in the registry's order
+    return _select(getattr(methods, key), key)
+
+
+def _conditions(poses: list[str], withhold_K: tuple[bool, ...]) -> list[tuple[str, bool]]:
+    """(pose, withhold_K) pairs: K withheld only from the strategies that fit the focal length."""
+    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
+
+    return [(p, wk) for wk in withhold_K for p in poses if not wk or POSES[p].fits_focal]
+
+
+def planned_methods(methods: MethodsSpec, detectors: list[str] | None = None) -> tuple[Method, ...]:
+    """The methods a ``[methods]`` spec runs, for ``detectors`` (the available ones; default: every
+    selected one): detector x snapper x pose x K condition, or with grids the union of each grid's
+    cross product. Order: detector, snapper, then the K-given poses and the K-withheld ones (a
+    designed profile's methods are a subsequence of its full cross product's)."""
+    dets = selected(methods, "detectors") if detectors is None else list(detectors)
+    grids = methods.grids or (methods,)
+    wanted = {Method(d, s, p, withhold_K=wk) for g in grids for d in selected(g, "detectors") if d in dets
+              for s in selected(g, "snappers") for p, wk in _conditions(selected(g, "pose_solvers"), g.withhold_K)}
+    withhold = tuple(dict.fromkeys(wk for g in grids for wk in sorted(g.withhold_K)))
+    return tuple(m for m in (Method(d, s, p, withhold_K=wk) for d, s, (p, wk) in itertools.product(
+        dets, selected(methods, "snappers"), _conditions(selected(methods, "pose_solvers"), withhold))) if m in wanted)
+
+
+def _check_withhold(withhold_K: tuple[bool, ...], where: str) -> None:
+    if not withhold_K or len(set(withhold_K)) != len(withhold_K):
+        raise ProfileError(f"{where}: methods.withhold_K must be [false], [true] or [false, true], got {list(withhold_K)}")
+
+
 def check_methods(methods: MethodsSpec, where: str) -> None:
-    """Every ``[methods]`` selector chooses registered entries, at least one, and withhold_K is a
-    non-empty list of distinct bools; ProfileError naming the key, the bad value and the choices."""
-    for key in method_registries():
-        try:
-            names = selected(methods, key)
-        except ProfileError as e:
-            raise ProfileError(f"{where}: {e}") from e
-        if not names:
-            raise ProfileError(f"{where}: methods.{key} = {getattr(methods, key)!r} selects nothing")
-    if not methods.withhold_K or len(set(methods.withhold_K)) != len(methods.withhold_K):
-        raise ProfileError(f"{where}: methods.withhold_K must be [false], [true] or [false, true], got "
-                           f"{list(methods.withhold_K)}")
+    """Every ``[methods]`` selector (each grid's) chooses registered entries, at least one, and
+    withhold_K is a non-empty list of distinct bools; ProfileError naming the key, the bad value
+    and the choices."""
+    for i, g in enumerate(methods.grids or (methods,)):
+        at = f"{where}: methods.grid[{i}]" if methods.grids else where
+        for key in method_registries():
+            try:
+                names = selected(g, key)
+            except ProfileError as e:
+                raise ProfileError(f"{at}: {e}") from e
+            if not names:
+                raise ProfileError(f"{at}: methods.{key} = {getattr(g, key)!r} selects nothing")
+        _check_withhold(g.withhold_K, at)
 
 
 def _validate(p: Profile, where: str) -> None:
@@ -183,6 +253,11 @@ def _validate(p: Profile, where: str) -> None:
 
 def profile_from_dict(data: dict, where: str = "profile") -> Profile:
     """Profile from a parsed TOML dict (top-level: name, description, seed and the sections)."""
+    m = data.get("methods")
+    both = sorted(k for k in ("detectors", "snappers", "pose_solvers", "withhold_K") if k in m) \
+        if isinstance(m, dict) and m.get("grids") else []
+    if both:
+        raise ProfileError(f"{where}: [methods] has [[methods.grids]] and also {both}: give the selectors in each grid")
     p = from_table(Profile, data, where, ProfileError)
     _validate(p, where)
     return p

@@ -19,7 +19,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from fenestra.bench.results import CORNER_STAGES, STAGE_LABELS  # noqa: E402
-from fenestra.conventions import PAPER  # noqa: E402
+from fenestra.conventions import DEFAULTS, PAPER  # noqa: E402
 
 HIST_MAX_PX = 20.0  # histogram range; larger errors go to the overflow bar
 STAGE_COLOURS = {"mask": "#888888", "snap": "#1f77b4", "reproj": "#d62728"}
@@ -36,10 +36,14 @@ LINESTYLES = ("-", "--", ":", "-.")
 
 
 def main_pose(df: pd.DataFrame) -> str:
-    """The pose column the curves show: the paper's solver (fenestra.conventions.PAPER) if present
-    or if the table has no row (e.g. no evaluable window: nothing to show), else the first."""
-    poses = sorted(df["pose"].unique())
-    return PAPER.pose if PAPER.pose in poses or not poses else poses[0]
+    """The pose column the curves and snapper rankings show: the pose with the most (detector,
+    snapper) pairs (a designed profile compares snappers under the CLI's pose: issue 34); among
+    equals the paper's solver (fenestra.conventions.PAPER), then the CLI's (DEFAULTS), then by
+    name. PAPER's pose for a table with no row (nothing to show)."""
+    if df.empty:
+        return PAPER.pose
+    pairs = df[["pose", "detector", "snapper"]].drop_duplicates().groupby("pose").size()
+    return min(pairs.index, key=lambda p: (-int(pairs[p]), p != PAPER.pose, p != DEFAULTS.pose, str(p)))
 
 
 def line_styles(df: pd.DataFrame) -> dict[str, dict]:
