@@ -381,3 +381,37 @@ def test_photo_rows_equal_those_of_the_former_real_evaluator(tmp_path, yolo_dir)
                                and r[k] == pytest.approx(e[k], rel=1e-9, abs=1e-12)))}
             assert not bad, (v.dataset, r["method"], r["window_id"], bad)
     assert sum(e["rel_size_err"] is not None for e in golden["views"]["curtainwall"]["rows"]) > 0
+
+
+def test_photos_differing_by_case_or_extension_are_an_error_at_load(yolo_dir):
+    """a.png with a.jpg (or A.PNG) would be two views named 'a' scored against one label file:
+    refused when the dataset is read, naming both photos; one of them alone reads."""
+    from fenestra.errors import DatasetError
+
+    for other in ("a.jpg", "A.PNG"):
+        _write_rgb(yolo_dir / "images" / other, _photo(seed=1))
+        with pytest.raises(DatasetError, match=rf"photos '{other}' and 'a.png' differ only by case or extension"):
+            list(ADAPTERS["yolo"](yolo_dir))
+        (yolo_dir / "images" / other).unlink()
+    assert [v.name for v in ADAPTERS["yolo"](yolo_dir)] == ["a"]
+
+
+def test_coco_annotation_of_an_unknown_category_is_an_error_at_load(tmp_path):
+    """A window annotated with a category the file does not list is an error naming it, not a
+    window silently left out (which would make it background); with categories listed and known
+    ids, windows of other categories are still left out by choice (category option)."""
+    from fenestra.errors import DatasetError
+
+    _write_rgb(tmp_path / "p.png", _photo())
+    doc = {"images": [{"id": 1, "file_name": "p.png", "width": 100, "height": 100}],
+           "categories": [{"id": 1, "name": "window"}, {"id": 2, "name": "door"}],
+           "annotations": [{"id": 1, "image_id": 1, "category_id": 1, "bbox": [10, 10, 20, 20]},
+                           {"id": 2, "image_id": 1, "category_id": 2, "bbox": [50, 10, 20, 20]},
+                           {"id": 3, "image_id": 1, "category_id": 3, "bbox": [10, 60, 20, 20]}]}
+    (tmp_path / "annotations.json").write_text(json.dumps(doc))
+    with pytest.raises(DatasetError, match=r"annotations\[2\] \(id 3\): category_id 3 matches no category"):
+        list(read_coco(tmp_path))
+    doc["annotations"].pop()
+    (tmp_path / "annotations.json").write_text(json.dumps(doc))
+    (v,) = list(read_coco(tmp_path))
+    assert [w.id for w in v.windows] == ["1"]
