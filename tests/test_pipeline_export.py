@@ -744,3 +744,50 @@ def test_gravity_argument_and_fallbacks():
     assert gravity_up([]).up is None
     with pytest.raises(ValueError, match=r"gravity must be .* got \[0, 0, 0\]"):
         export_gravity(placed, None, [0, 0, 0])
+
+
+def _grid_results(n: int, reason: str = "quad: too small a window here, a long reason to wrap") -> list[WindowResult]:
+    """n failed windows on a 640 x 480 photo, ten per row, the first row touching the top edge."""
+    out = []
+    for i in range(n):
+        x, y = 20 + (i % 10) * 60, (i // 10) * 75
+        q = np.array([[x, y], [x + 40, y], [x + 40, y + 60], [x, y + 60]], dtype=np.float64)
+        out.append(WindowResult(i, 0.9, q, q, None, None, None, None, None, 1.0, None, reason))
+    return out
+
+
+@pytest.mark.parametrize("n", [3, 25, 60])
+def test_overlay_panel_stays_within_the_photo_height_with_every_entry(n):
+    """Issue 35: with more than ~20 windows the panel ran past the photo. Now the overlay is the
+    photo's height; every window's entry is laid out once, inside the panel, entries not overlapping."""
+    from fenestra.pipeline.export.overlay import MIN_PANEL_SCALE, draw_overlay, panel_layout  # noqa: PLC0415
+
+    photo = np.full((480, 640, 3), 128, np.uint8)
+    results = _grid_results(n)
+    img = draw_overlay(photo, K, results, header=["K: prior", "scale: assumed"])
+    assert img.shape[0] == 480 and np.array_equal(img[:, :640], draw_overlay(photo, K, results)[:, :640])
+    width = max(360, int(0.4 * 640))
+    scale, n_cols, columns = panel_layout(480, width, results, {}, ["K: prior", "scale: assumed"], 0.4)
+    assert img.shape[1] == 640 + n_cols * width
+    firsts = [(x, y, t) for col in columns for x, y, t, _ in col if t.startswith("#")]
+    assert sorted(int(t.split()[0][1:]) for _, _, t in firsts) == list(range(n))
+    placed = [(x, y) for col in columns for x, y, _, _ in col]
+    assert len(placed) == len(set(placed)) and all(0 <= x < n_cols * width and 0 < y <= 480 for x, y in placed)
+    if n == 3:
+        assert n_cols == 1 and scale == 0.4  # a short list keeps the font and one column
+    if n == 60:
+        assert n_cols >= 2 and scale == MIN_PANEL_SCALE
+
+
+def test_overlay_labels_at_the_top_edge_are_not_clipped():
+    """A window touching the top edge: its number is drawn inside the photo (it was drawn above it)."""
+    from fenestra.pipeline.export.overlay import COLOURS, draw_overlay  # noqa: PLC0415
+
+    photo = np.full((480, 640, 3), 128, np.uint8)
+    img = draw_overlay(photo, K, _grid_results(1))[:, :640]
+    (w, h), _ = cv2.getTextSize("#0", cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+    label = img[3:h + 4, 23:18 + w + 4].astype(int)  # inside the quad's top and left edges (red too)
+    red = np.abs(label - COLOURS["failed"]).sum(axis=2) < 120
+    dark = np.abs(label - 20).sum(axis=2) < 30
+    assert red.sum() > 10  # the glyphs, inside the photo
+    assert dark.any(axis=1).sum() >= h - 2  # on their dark box, its whole height inside the photo

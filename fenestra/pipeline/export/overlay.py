@@ -1,5 +1,6 @@
 """Overlay PNG: the pipeline's quads and the reprojected 3D window drawn on the photo, with a
-side panel (legend, header lines, each window's status and reason) to its right.
+side panel (legend, header lines, each window's status and reason) to its right, no taller than the
+photo: with many windows its font shrinks, then its entries flow into more columns (panel_layout).
 
 Colours (RGB, like the image): mask-fit quad yellow, snapped quad magenta, reprojected 3D window
 green (void outline at the facade and the frame's back outline, depth edges between), window axes
@@ -37,10 +38,14 @@ def _poly(img, quad, colour, thick):
 
 
 def _text(img, s, at, colour, scale):
-    """Text drawn once, on a dark box (readable on any photo; no second stroke of other glyph widths)."""
-    at = (int(round(at[0])), int(round(at[1])))
+    """Text drawn once, on a dark box (readable on any photo; no second stroke of other glyph widths),
+    moved inside the image where it would leave it (a label of a window at the top or right edge)."""
     thick = max(1, int(round(scale * 1.5)))
     (w, h), base = cv2.getTextSize(s, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+    H, W = img.shape[:2]
+    x = min(max(float(at[0]), 2.0), max(W - w - 3.0, 2.0))
+    y = min(max(float(at[1]), h + 3.0), max(H - base - 1.0, h + 3.0))
+    at = (int(round(x)), int(round(y)))
     x0, y0 = max(at[0] - 2, 0), max(at[1] - h - 3, 0)
     cv2.rectangle(img, (x0, y0), (at[0] + w + 2, at[1] + base), (20, 20, 20), cv2.FILLED)
     cv2.putText(img, s, at, cv2.FONT_HERSHEY_SIMPLEX, scale, colour, thick, cv2.LINE_AA)
@@ -93,41 +98,76 @@ def _wrap(s: str, width: int) -> list[str]:
     return lines + ([line] if line else [])
 
 
-def _panel_lines(results: list[WindowResult], exclude: dict[int, str], header: list[str], chars: int
-                 ) -> list[tuple[str, tuple]]:
-    """The panel's text lines with their colours: header lines, then per window its status and reason
-    (wrapped at ``chars``; continuation lines indented)."""
-    grey, white = (200, 200, 200), (235, 235, 235)
-    lines = [(part, white) for line in header for part in _wrap(line, chars)] + [("", white)]
+MIN_PANEL_SCALE = 0.3  # the smallest panel font (cv2 Hershey scale) before the entries go into columns
+LEGEND = (("mask", "mask-fit quad"), ("snapped", "snapped quad"), ("reprojected", "exported window (3D)"),
+          ("flagged", "flagged: not exported"), ("failed", "failed"))
+
+
+def _metrics(width: int, scale: float) -> tuple[int, int, int]:
+    """(line step, glyph height, characters per line) px of panel text at ``scale`` in a column ``width`` px wide."""
+    thick = max(1, int(round(scale * 1.5)))
+    sample = "window failed: quad 0.61 x 1.52 m, w/h"  # typical text: its mean glyph width
+    (sw, ch), base = cv2.getTextSize(sample, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+    return ch + base + max(2, int(round(8 * scale / 0.5))), ch, max(20, int((width - 16) * len(sample) / sw))
+
+
+def _entries(results: list[WindowResult], exclude: dict[int, str], chars: int) -> list[list[tuple[str, tuple]]]:
+    """Each window's panel lines (status, then its wrapped reason), one list per window."""
+    out = []
     for r in results:
         kind, why = _status(r, exclude)
-        for j, part in enumerate(_wrap(f"#{r.index} {kind}: {why}", chars - 3)):
-            lines.append((part if j == 0 else "   " + part, COLOURS[kind] if j == 0 else grey))
-    return lines
+        out.append([(part if j == 0 else "   " + part, COLOURS[kind] if j == 0 else (200, 200, 200))
+                    for j, part in enumerate(_wrap(f"#{r.index} {kind}: {why}", chars - 3))])
+    return out
+
+
+def panel_layout(height: int, width: int, results: list[WindowResult], exclude: dict[int, str], header: list[str],
+                 scale: float) -> tuple[float, int, list[list[tuple[int, int, str, tuple]]]]:
+    """Where the panel's text goes: (scale, columns, per column [(x, y, text, colour)]), y the
+    baseline. Everything fits in ``height`` px: the font shrinks (to MIN_PANEL_SCALE at most), then
+    the windows' entries flow into further columns of ``width`` px (an entry is never split); only a
+    photo too short for the legend and header gets a taller panel."""
+    s = scale
+    while True:
+        step, _, chars = _metrics(width, s)
+        head = [(part, (235, 235, 235)) for line in header for part in _wrap(line, chars)] + [("", (235, 235, 235))]
+        entries = _entries(results, exclude, chars)
+        rows = max(1, (height - step // 2) // step)
+        top = len(LEGEND) + 1 + len(head)
+        if top + sum(map(len, entries)) <= rows or s <= MIN_PANEL_SCALE:
+            break
+        s = max(MIN_PANEL_SCALE, s * 0.85)
+    rows = max(rows, top + (max(map(len, entries)) if entries else 0))  # too short a photo: a taller panel
+    columns, y = [[]], step * (top + 1)
+    for k, (text, colour) in enumerate(head):
+        if text:
+            columns[0].append((8, step * (len(LEGEND) + 2 + k), text, colour))
+    for entry in entries:
+        if y // step + len(entry) - 1 > rows:
+            columns.append([])
+            y = step
+        for text, colour in entry:
+            columns[-1].append((8 + width * (len(columns) - 1), y, text, colour))
+            y += step
+    return s, len(columns), columns
 
 
 def _panel(height: int, width: int, results: list[WindowResult], exclude: dict[int, str], header: list[str],
            scale: float) -> np.ndarray:
-    """The side panel (at least ``height``, ``width``, 3) uint8 RGB: legend, header lines, one entry
-    per window (taller than ``height`` when the entries need it)."""
-    thick = max(1, int(round(scale * 1.5)))
-    sample = "window failed: quad 0.61 x 1.52 m, w/h"  # typical text: its mean glyph width
-    (sw, ch), base = cv2.getTextSize(sample, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
-    step = ch + base + 8
-    chars = max(20, int((width - 16) * len(sample) / sw))
-    legend = (("mask", "mask-fit quad"), ("snapped", "snapped quad"), ("reprojected", "exported window (3D)"),
-              ("flagged", "flagged: not exported"), ("failed", "failed"))
-    lines = _panel_lines(results, exclude, header, chars)
-    panel = np.full((max(height, step * (len(legend) + len(lines) + 2)), width, 3), 30, np.uint8)
+    """The side panel (at least ``height``, width x columns, 3) uint8 RGB: legend, header lines, one
+    entry per window, laid out by :func:`panel_layout` so that it is no taller than ``height``."""
+    s, n_cols, columns = panel_layout(height, width, results, exclude, header, scale)
+    step, ch, _ = _metrics(width, s)
+    bottom = max([y for col in columns for _, y, _, _ in col] + [step * (len(LEGEND) + 1)])
+    panel = np.full((max(height, bottom + step), width * n_cols, 3), 30, np.uint8)
     y = step
-    for name, label in legend:
+    for name, label in LEGEND:
         cv2.rectangle(panel, (8, y - ch), (8 + ch, y), COLOURS[name], cv2.FILLED)
-        _text(panel, label, (16 + ch, y), (235, 235, 235), scale)
+        _text(panel, label, (16 + ch, y), (235, 235, 235), s)
         y += step
-    for text, colour in lines:
-        y += step
-        if text:
-            _text(panel, text, (8, y), colour, scale)
+    for col in columns:
+        for x, y, text, colour in col:
+            _text(panel, text, (x, y), colour, s)
     return panel
 
 
