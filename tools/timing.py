@@ -3,8 +3,9 @@
     .venv/bin/python tools/timing.py [--profile default] [--executor local] [--json out/timing.json] [--ray]
 
 Runs ``fenestra bench`` twice in a fresh, empty working folder (so no cached render, scene or
-result of this checkout is reused): first cold (procedural houses generated, every view rendered),
-then again with the renders it just cached. Then each pose family's CPU cost per view (per-window
+result of this checkout is reused, and the caches outside the checkout, :func:`fresh_caches`, start
+empty too): first cold (procedural houses generated, scenes tessellated, shaders compiled, every
+view rendered), then again with the renders and caches it just filled. Then each pose family's CPU cost per view (per-window
 solvers, per-wall strategies, with K withheld) on a sample of those views. Then the render throughput of ``fenestra render`` at
 the margin: (time for 60 views - time for 10 views) / 50, so start-up does not count. Prints one
 JSON document: wall times, each stage's CPU seconds and share, matching's share of the CPU time,
@@ -35,13 +36,24 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent  # the checkout whose `app` (command line) runs
 
 
+def fresh_caches(cwd: Path) -> dict[str, str]:
+    """Environment that points every cache a run fills outside its checkout into ``cwd/cache``
+    (issue 34): the tessellated scenes (``$FENESTRA_CACHE``, else ~/.cache/fenestra/scenes), Mesa's
+    compiled shaders (~/.cache/mesa_shader_cache), matplotlib's font cache (~/.cache/matplotlib or
+    ~/.config/matplotlib), anything else under $XDG_CACHE_HOME. Without it a machine that ran the
+    bench before serves the "cold" run from those caches, which a fresh machine does not have."""
+    c = cwd / "cache"
+    return {"XDG_CACHE_HOME": str(c), "FENESTRA_CACHE": str(c / "fenestra" / "scenes"),
+            "MESA_SHADER_CACHE_DIR": str(c / "mesa_shader_cache"), "MPLCONFIGDIR": str(c / "matplotlib")}
+
+
 def _fenestra(args: list[str], cwd: Path) -> float:
-    """Run ``python -m fenestra ARGS`` (the ``fenestra`` command of this checkout) in cwd; its wall
-    seconds (raises on failure)."""
+    """Run ``python -m fenestra ARGS`` (the ``fenestra`` command of this checkout) in cwd, with the
+    caches outside a checkout fresh in cwd (:func:`fresh_caches`); its wall seconds (raises on failure)."""
     t0 = time.perf_counter()
     path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
     env = {**os.environ, "PYTHONPATH": path, "MPLBACKEND": "Agg",
-           "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
+           "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"), **fresh_caches(cwd)}
     r = subprocess.run([sys.executable, "-m", "fenestra", *args], cwd=cwd, env=env, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"fenestra {' '.join(args)} failed ({r.returncode}): {r.stderr[-2000:]}")
