@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke real report docs docs-check gate train train-winnet timing clean
+.PHONY: help setup sysdeps test test-all bench smoke real report docs docs-check gate train train-winnet timing compare clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -57,6 +57,10 @@ gate: smoke real  ## smoke and real profiles, then the accuracy gates
 
 timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s), written into docs/performance.md
 	$(PY) tools/timing.py --json out/timing.json --markdown docs/performance.md
+
+compare:  ## compare two bench runs of one profile window by window: make compare A=out/bench/before B=out/bench/after (exit 1 on a significant regression of the CLI's method; page in B)
+	@test -n "$(A)" -a -n "$(B)" || { echo "error: give two run folders: make compare A=RUN_A B=RUN_B"; exit 2; }
+	$(PY) -m fenestra compare $(A) $(B)
 
 report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present), then `make docs`
 	$(PY) -m fenestra report $(LATEST_DEFAULT) $(REAL_RUN)
