@@ -331,3 +331,26 @@ def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
     assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("ship-weights out/train/default.pt")
     assert "fenestra/training/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
     assert r.stdout.index("refine_data.sh") < r.stdout.index("train-refine") and "--ship" in r.stdout
+
+
+def test_weights_list_the_real_photos_they_train_on(tmp_path):
+    """Issue #36: the training part of a YOLO folder (every photo but each 5th by sorted name) is
+    what real_photo_records lists, name and the file's sha256 (hashlib here), for the weights' meta;
+    None without real photos."""
+    import hashlib
+
+    import cv2
+
+    from fenestra.training.train import real_photo_records
+
+    (tmp_path / "y" / "images").mkdir(parents=True)
+    (tmp_path / "y" / "labels").mkdir()
+    for k in range(7):
+        img = np.full((16, 16, 3), 20 * k, np.uint8)
+        cv2.imwrite(str(tmp_path / "y" / "images" / f"p{k}.jpg"), img)
+        (tmp_path / "y" / "labels" / f"p{k}.txt").write_text("0 0.5 0.5 0.25 0.25\n")
+    cfg = load_config("fenestra/training/configs/default.toml", real_data=str(tmp_path / "y"), real_fraction=0.25)
+    want = [f"p{k}.jpg {hashlib.sha256((tmp_path / 'y' / 'images' / f'p{k}.jpg').read_bytes()).hexdigest()}"
+            for k in (1, 2, 3, 4, 6)]
+    assert real_photo_records(cfg) == want
+    assert real_photo_records(load_config("fenestra/training/configs/default.toml", real_fraction=0.0)) is None
