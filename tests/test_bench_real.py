@@ -41,11 +41,12 @@ def _photo(h: int = 100, w: int = 100, seed: int = 0) -> np.ndarray:
 
 @pytest.fixture
 def yolo_dir(tmp_path) -> Path:
-    _write_rgb(tmp_path / "images" / "a.png", _photo())
-    (tmp_path / "labels").mkdir()
+    ds = tmp_path / "yolo"  # its own folder: a run's --out beside it, never inside an input
+    _write_rgb(ds / "images" / "a.png", _photo())
+    (ds / "labels").mkdir()
     # window (class 0) at x 15..35, y 15..35 px; window 60..80 x 50..70; a door (class 5) ignored
-    (tmp_path / "labels" / "a.txt").write_text("0 0.25 0.25 0.2 0.2\n0 0.7 0.6 0.2 0.2\n5 0.5 0.9 0.1 0.1\n")
-    return tmp_path
+    (ds / "labels" / "a.txt").write_text("0 0.25 0.25 0.2 0.2\n0 0.7 0.6 0.2 0.2\n5 0.5 0.9 0.1 0.1\n")
+    return ds
 
 
 def test_yolo_boxes_in_pixel_centre_convention(yolo_dir):
@@ -359,8 +360,10 @@ def test_photo_rows_equal_those_of_the_former_real_evaluator(tmp_path, yolo_dir)
     """The one evaluation path gives photos the rows fenestra/bench/real's own evaluator of commit 991c33e
     gave (tests/golden/photo_view_rows.json, written by that code): a labelled quad with aspect and
     K, box-only labels (oracles not run), and a coplanar curtain-wall photo (relative sizes, partial
-    panes); every column in the photo table's order, every value, and the COCO material's sizes."""
-    from fenestra.bench.evaluate import PHOTO_COLUMNS
+    panes); every column in the photo table's order, every value, and the COCO material's sizes.
+    The session added the BIM columns (bench.evaluate.BIM_COLUMNS); the former ones are unchanged
+    but a per-window method's ``wall_id`` would be (a photo table has none)."""
+    from fenestra.bench.evaluate import BIM_COLUMNS, PHOTO_COLUMNS
 
     golden = json.loads((ROOT / "tests" / "golden" / "photo_view_rows.json").read_text())
     methods = tuple(Method.from_label(m) for m in golden["methods"])
@@ -374,8 +377,8 @@ def test_photo_rows_equal_those_of_the_former_real_evaluator(tmp_path, yolo_dir)
         assert out.n_false_positives == g["n_false_positives"] and len(out.coco_gt) == g["n_coco_gt"]
         assert {k: len(x) for k, x in out.coco_dt.items()} == g["n_coco_dt"]
         for r, e in zip(out.rows, g["rows"]):
-            assert list(r) == list(PHOTO_COLUMNS) and set(r) == set(e)
-            bad = {k: (r[k], e[k]) for k in r
+            assert list(r) == list(PHOTO_COLUMNS) and set(r) == set(e) | set(BIM_COLUMNS)
+            bad = {k: (r[k], e[k]) for k in e
                    if not (r[k] == e[k] or (e[k] is None and isinstance(r[k], float) and np.isnan(r[k]))
                            or (isinstance(r[k], float) and isinstance(e[k], float)
                                and r[k] == pytest.approx(e[k], rel=1e-9, abs=1e-12)))}

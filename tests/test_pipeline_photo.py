@@ -55,10 +55,16 @@ def test_street_photo_without_K_always_gives_an_output(tmp_path):
 def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
     from fenestra.pipeline.photo import aspect_interval  # noqa: PLC0415
 
-    w = {"index": 3, "failure": None, "aspect_ratio": 0.70, "uncertainty": {"aspect_lo": 0.68, "aspect_hi": 0.72}}
+    from dataclasses import replace  # noqa: PLC0415
+
+    from fenestra.pipeline.types import Failure, WindowResult  # noqa: PLC0415
+
+    w = WindowResult(index=3, score=0.9, quad_mask=None, quad_snapped=None, aspect_ratio=0.70, aspect_case=None,
+                     focal_estimate_px=None, R=None, t=None, height_m=1.0, quad_reprojected=None, failure=None,
+                     uncertainty={"aspect_lo": 0.68, "aspect_hi": 0.72})
     assert aspect_interval(w, {}) == pytest.approx([0.68, 0.72])
     assert aspect_interval(w, {3: (0.61, 0.71)}) == pytest.approx([0.61, 0.72])  # f at the interval's ends
-    assert aspect_interval({**w, "failure": "quad: x", "aspect_ratio": None}, {}) is None
+    assert aspect_interval(replace(w, failure=Failure("quad", "x"), aspect_ratio=None), {}) is None
 
 
 def test_focal_envelope_follows_the_closed_form_aspect_at_the_focal_interval_ends():

@@ -61,7 +61,8 @@ def test_two_blobs_one_id_is_a_failure_not_a_crash():
     inst[inst == 2] = 1  # both windows carry id 1
     inst[300:340, 300:340] = 3  # a square window, fine
     res = reconstruct(rgb, K, detections_from_instance_map(inst))
-    assert res[0].failure.startswith("quad: multiple_blobs") and res[0].R is None
+    assert res[0].failure.stage == "quad" and res[0].failure.reason.startswith("multiple_blobs") and res[0].R is None
+    assert str(res[0].failure).startswith("quad: multiple_blobs")  # the form windows.json and the tables hold
     assert res[1].failure is None
 
 
@@ -74,8 +75,8 @@ def test_empty_mask_and_wrong_shape_mask():
             Detection(np.zeros((10, 10), bool), np.zeros(4), 0.9, origin=(SHAPE[1] - 5, 0)),
             Detection(np.zeros((SHAPE[0] + 1, SHAPE[1]), bool), np.zeros(4), 0.9)]
     res = reconstruct(rgb, K, dets)
-    assert res[0].failure.startswith("quad: empty_mask")
-    assert "mask shape" in res[1].failure and "mask shape" in res[2].failure
+    assert str(res[0].failure).startswith("quad: empty_mask")
+    assert "mask shape" in res[1].failure.reason and "mask shape" in res[2].failure.reason
     with pytest.raises(ValueError, match="unknown snapper"):
         ReconstructConfig(snapper="magic")
     with pytest.raises(ValueError, match="K must be 3x3"):

@@ -3,7 +3,7 @@
 Ground truth: every labelled window with pixels (or a box) of every view, evaluable or not (a
 detector should find partly hidden and cut windows too), and the views' ignore regions (COCO
 ``iscrowd``: detections there count neither way). Detections: every detection down to
-bench.evaluate.AP_SCORE_MIN, with its score. A detector is scored over the views it ran on (an
+pipeline.session.CANDIDATE_SCORE_MIN, with its score. A detector is scored over the views it ran on (an
 oracle cannot run on a photo labelled with boxes only). Scoring: fenestra.coco.coco_scores
 (fractions in [0, 1]; NaN where undefined, e.g. mask AP of box-only labels).
 """

@@ -7,12 +7,18 @@ bench.real.adapters); output: one row per labelled window per method combination
 missed, failed, non-evaluable windows and methods that cannot run on the view keep a row with
 ``status`` and ``reason``), the time spent per stage, and COCO material for detection AP.
 
-Each detector runs once per view; its detections are matched to the labelled windows (mask IoU
-when every window has a mask, else box IoU), the quads are fitted once per detector, and every
-snapper x pose method reconstructs from them. The pipeline is fed exactly what a user would give
-it: the RGB image and K (none where K is unknown or withheld), plus the instance map for the
-oracle detectors (which stand in for a perfect or imperfect network; they cannot run on a photo
-labelled with boxes only).
+Every method runs through the view's pipeline.session.PhotoSession, exactly as ``fenestra
+reconstruct`` runs it on a photo (one session object, two callers): the detector at the CLI's
+resolution, the quads, snapping, aspect ratio and pose, the focal chain where K is unknown or the
+method withholds it (EXIF, vanishing points, prior: the rows' ``K_source``), the façade model (one
+plane and one scale per wall: ``scale_source``; once with nothing known, the assumed window
+height, and once with the house's true storey height, columns ``*_storey``) and the export
+decision (``exported``, ``not_exported``). The session shares what methods have in common (each
+detector runs once per view, the quads are fitted once per detector, snapping and per-window
+poses are reused by the per-wall strategies), so that every method's rows are those of a run of
+its own. The detections are matched to the labelled windows (mask IoU when every window has a
+mask, else box IoU). The oracle detectors read the view's instance map (they stand in for a
+perfect or imperfect network; they cannot run on a photo labelled with boxes only).
 
 Errors whose truth the view lacks are NaN (absent), never 0: corner errors and 2D IoU need a
 labelled quad; aspect error a known aspect; rotation, normal and translation errors and the
@@ -32,7 +38,6 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
-import cv2
 import numpy as np
 
 from fenestra.bench import matching, metrics, uncertainty
@@ -43,8 +48,6 @@ from fenestra.conventions import camera_depths
 from fenestra.tolerances import TOL
 from fenestra.methods import Method
 
-AP_SCORE_MIN = 0.05  # detections kept for COCO AP
-MATCH_SCORE_MIN = 0.5  # detections passed on to matching and reconstruction
 NAN = float("nan")
 
 
@@ -153,8 +156,11 @@ ERROR_COLUMNS = (
     "iou_2d_reproj", "match_iou", "det_score", "corner_err_px_head",
 )
 PHOTO_ERRORS = ("reproj_consistency_px", "rel_size_err")
-RENDER_TAIL = (*ERROR_COLUMNS, *uncertainty.COLUMNS, "status", "reason", "aspect_case")
-PHOTO_TAIL = (*ERROR_COLUMNS, *PHOTO_ERRORS, "aspect_case", "status", "reason")  # the order photo tables always had
+# what a BIM user gets (bim_columns): every table, renders and photos
+BIM_COLUMNS = ("K_source", "K_focal_px", "scale_source", "exported", "not_exported", "width_err_m", "height_err_m",
+               "pos_err_m", "scale_source_storey", "width_err_m_storey", "height_err_m_storey", "pos_err_m_storey")
+RENDER_TAIL = (*ERROR_COLUMNS, *uncertainty.COLUMNS, *BIM_COLUMNS, "status", "reason", "aspect_case")
+PHOTO_TAIL = (*ERROR_COLUMNS, *PHOTO_ERRORS, *BIM_COLUMNS, "aspect_case", "status", "reason")
 RENDER_COLUMNS = (*RENDER_BASE, *METHOD_COLUMNS, *RENDER_TAIL)
 PHOTO_COLUMNS = (*PHOTO_BASE, *METHOD_COLUMNS, *PHOTO_TAIL)
 
@@ -346,70 +352,83 @@ def add_relative_sizes(rows: list[dict], results: dict[int, object], view: Label
     idx = [g for g, r in results.items() if r.R is not None and view.windows[g].size_m is not None]
     if len(idx) < 2:
         return
-    d = [metrics.plane_distance(results[g].R, results[g].t) for g in idx]
+    # distance per unit of the window's own scale: invariant to the façade model's move along the ray
+    d = [metrics.plane_distance(results[g].R, results[g].t) / float(results[g].height_m) for g in idx]
     errs = metrics.relative_size_errors(np.array(d), np.array([view.windows[g].size_m[1] for g in idx]))
     for g, e in zip(idx, errs):
         rows[g]["rel_size_err"] = float(e)
 
 
-# ---------------------------------------------------------------- detection and reconstruction
+# ---------------------------------------------------------------- what a BIM user gets
 
-def detect_view(name: str, view: LabelledView, long_side: int, score_threshold: float, **options: object) -> list:
-    """Detections (pipeline.types.Detection) at full size, best first. Oracles read the view's
-    instance map at full size; a learned detector sees a copy resized to ``long_side`` px
-    (INTER_AREA; 0 or an image no larger: full size), its masks scaled back (nearest) and boxes
-    recomputed from them (empty masks dropped; predicted corners are not scaled: none). options:
-    the detector's build options (e.g. weights=PATH), one torch thread unless given."""
-    from fenestra.pipeline.detectors import detect, detector_entry  # noqa: PLC0415
-    from fenestra.pipeline.types import Detection  # noqa: PLC0415
+def true_storey_m(view: LabelledView) -> float | None:
+    """The storey height (m) of the house a render shows (its IFC storeys:
+    fenestra.scenes.storeys), what a user who knows it gives as ``--known-storey``; None for a
+    photo or a house with fewer than two storeys."""
+    if view.pose is None:
+        return None
+    from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
+    from fenestra.errors import SceneError  # noqa: PLC0415
+    from fenestra.scenes.registry import resolve  # noqa: PLC0415
+    from fenestra.scenes.storeys import storey_height_m  # noqa: PLC0415
 
-    if detector_entry(name).needs_instances:
-        return detect(name, view.image, score_threshold=score_threshold, instances=view.instance_map())
-    options = {"threads": 1, **options}
-    H, W = view.size
-    s = long_side / max(H, W) if long_side else 1.0
-    if s >= 1.0:
-        return detect(name, view.image, score_threshold=score_threshold, **options)
-    small = cv2.resize(view.image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
-    out = []
-    for d in detect(name, small, score_threshold=score_threshold, **options):
-        m = cv2.resize(d.mask.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
-        if m.any():
-            out.append(Detection(mask=m, box=masks.mask_box(m), score=d.score, label=d.label))
+    try:
+        path = resolve(house_path(view.dataset))
+    except SceneError:  # a view folder made by hand names no house
+        return None
+    return storey_height_m(str(path))
+
+
+def metric_errors(res, w: LabelledWindow, view: LabelledView, suffix: str) -> dict:
+    """``width_err_m``, ``height_err_m`` (|error| m, the window at its wall's scale) and
+    ``pos_err_m`` (its centre, camera frame; renders) of one window of a façade model, each
+    name + ``suffix``; NaN where the window has no pose or the truth no size."""
+    out = {f"{k}{suffix}": NAN for k in ("width_err_m", "height_err_m", "pos_err_m")}
+    if res.failure is not None or res.R is None or res.aspect_ratio is None or w.size_m is None:
+        return out
+    out[f"width_err_m{suffix}"], out[f"height_err_m{suffix}"] = metrics.size_errors_m(res.aspect_ratio, res.height_m,
+                                                                                    w.size_m)
+    if view.pose is not None and w.corners_world is not None:
+        out[f"pos_err_m{suffix}"] = metrics.centre_error_m(res.R, res.t, res.aspect_ratio * res.height_m, res.height_m,
+                                                          *view.pose, w.corners_world)
     return out
 
 
-PER_WINDOW_STAGES = ("snap", "aspect", "pose")
+def bim_columns(rec, rec_storey, d: int, w: LabelledWindow, view: LabelledView) -> dict:
+    """The BIM columns of one matched window (detection ``d``) under one method: where K came from
+    (``K_source``: "K", "exif", "vanishing points", "prior") and its focal length (``K_focal_px``;
+    where K was not given, the rows' ``focal_est_px`` and ``focal_err_rel`` are that of the K
+    used), how its wall got its scale (``scale_source``), whether it is exported
+    (``exported``: 1.0 or 0.0, NaN for a missed window, like the calibration columns) or why not
+    (``not_exported``), and its metric errors (:func:`metric_errors`)
+    with nothing known (the assumed scale) and, suffix ``_storey``, with the true storey height
+    given (``rec_storey``; NaN without one)."""
+    res = rec.windows[d]
+    out = {"K_source": rec.resolved.source, "K_focal_px": float(rec.K[0, 0]),
+           "scale_source": rec.scale_source(d), "exported": float(d not in rec.not_exported),
+           "not_exported": rec.not_exported.get(d, ""), **metric_errors(res, w, view, "")}
+    if rec_storey is not None:
+        out.update(metric_errors(rec_storey.windows[d], w, view, "_storey"),
+                   scale_source_storey=rec_storey.scale_source(d))
+    if rec.resolved.source != "K" and view.K is not None:  # the focal chain's answer against the truth
+        f_true = float(np.sqrt(view.K[0, 0] * view.K[1, 1]))
+        out.update(focal_est_px=float(rec.K[0, 0]), focal_err_rel=abs(float(rec.K[0, 0]) - f_true) / f_true)
+    return out
 
 
-def _reconstruct(gray: np.ndarray, K: np.ndarray | None, dets: list, quads: list, cfg, withhold_K: bool,
-                 per_window: dict, segment_cache, memo) -> tuple[list, tuple[str, ...]]:
-    """reconstruct_from_quads of one method, and the timing keys it spent time on.
+# ---------------------------------------------------------------- the session: detection and reconstruction
 
-    A per-wall strategy starts from the per-window results of its base pose; those are computed
-    once per snapper (or taken from that per-window method's own run) and kept in ``per_window``,
-    so every method's results are exactly those of a run of its own. segment_cache: the view's
-    pipeline.segments.SegmentCache (its façade line segments, found once for every method);
-    memo: the view's pipeline.memo.StepMemo (the steps with identical inputs computed once for
-    every method: the snapping and aspect ratio of ``lm`` and ``ippe``; the per-wall grouping,
-    vanishing points and fits of ``wall`` and ``building`` where no walls are tied).
-    """
-    from fenestra.pipeline.reconstruct import POSES, reconstruct_from_quads  # noqa: PLC0415
+def view_session(view: LabelledView, options: EvalOptions, detectors: tuple[str, ...]):
+    """The pipeline.session.PhotoSession a user's ``fenestra reconstruct`` would make for the
+    view: the image, the view's K as the user's (if known), the instance map for the oracles, each
+    of ``detectors`` with its profile options (torch threads: the worker's, bench.executors), at
+    the profile's resolution (``detector_long_side``; 0: the CLI's)."""
+    from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415
 
-    if not dets:
-        return [], ()
-    wall = POSES[cfg.pose].wall
-    if wall is None:
-        results = reconstruct_from_quads(gray, K, dets, quads, cfg, memo=memo)
-        per_window[(cfg.quad, cfg.snapper, cfg.pose, withhold_K)] = results
-        return results, PER_WINDOW_STAGES
-    key = (cfg.quad, cfg.snapper, wall.base_pose, withhold_K)
-    counted: tuple[str, ...] = ("wall",)
-    if key not in per_window:
-        per_window[key] = reconstruct_from_quads(gray, K, dets, quads, replace(cfg, pose=wall.base_pose), memo=memo)
-        counted = (*PER_WINDOW_STAGES, "wall")
-    return reconstruct_from_quads(gray, K, dets, quads, cfg, base=per_window[key], segment_cache=segment_cache,
-                                  memo=memo), counted
+    opts = {name: options.options_of(name) for name in detectors}
+    return PhotoSession(view.image, camera=None if view.K is None else UserCamera(view.K, "the view's K"),
+                        instances=view.instance_map(), detector_options=opts,
+                        max_side=options.detector_long_side or None)
 
 
 def _match_ious(view: LabelledView, det_masks: list[masks.SparseMask], dets: list) -> np.ndarray:
@@ -431,43 +450,50 @@ def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> 
     return row
 
 
-def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tuple[str, ...], by_gt: dict,
-                 det_for_gt: dict, dets: list, gt_poses: dict, quad_iou=metrics.quad_iou,
+def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tuple[str, ...], rec, rec_storey,
+                 det_for_gt: dict, gt_poses: dict, quad_iou=metrics.quad_iou,
                  head_errors: dict | None = None) -> list[dict]:
     """One method's rows, one per labelled window in order: missed, or its result's errors.
 
-    by_gt: {window index: WindowResult}; det_for_gt: {window index: (detection index, IoU)};
-    dets: the detections matched against; gt_poses: {window index: true (R, t)}, filled here once
-    per window of a render (the same for every method); quad_iou: as for window_errors; head_errors:
-    {(detection index, window index): head_error}, kept across the methods of one detector (None:
-    computed here)."""
+    rec / rec_storey: the method's pipeline.session.Reconstruction (nothing known; the true storey
+    height known, or None); det_for_gt: {window index: (detection index, IoU)}; gt_poses: {window
+    index: true (R, t)}, filled here once per window of a render (the same for every method);
+    quad_iou: as for window_errors; head_errors: {(detection index, window index): head_error},
+    kept across the methods of one detector (None: computed here)."""
     head_errors = {} if head_errors is None else head_errors
-    rows = []
+    dets = rec.detections
+    rows, by_gt = [], {}
     for g, (w, b) in enumerate(zip(view.windows, base)):
-        if g not in by_gt:
+        if g not in det_for_gt:
             rows.append(_method_row(b, method, tail, status="missed", reason="missed", aspect_case=None))
             continue
-        res, (d, iou) = by_gt[g], det_for_gt[g]
+        d, iou = det_for_gt[g]
+        res = by_gt[g] = rec.windows[d]
         if view.pose is not None and g not in gt_poses:
             gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
         errs = window_errors(res, w, gt_poses.get(g), view.K, quad_iou)
         if (d, g) not in head_errors:
             head_errors[(d, g)] = head_error(dets[d], w)
-        errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_errors[(d, g)])
-        rows.append(_method_row(b, method, tail, **errs, aspect_case=res.aspect_case,
-                                status="ok" if res.failure is None else "failed",
-                                reason="" if res.failure is None else f"failed: {res.failure}"))
+        errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_errors[(d, g)],
+                    **bim_columns(rec, rec_storey, d, w, view))
+        rows.append(_method_row(b, method, tail, **errs,
+                                aspect_case=None if res.aspect_case is None else res.aspect_case.value,
+                                status=res.status.value, reason="" if res.failure is None else f"failed: {res.failure}"))
     add_relative_sizes(rows, by_gt, view)
     return rows
 
 
 def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: EvalOptions) -> ViewOutcome:
-    """Rows for every (labelled window x method) of one view; see the module docstring."""
+    """Rows for every (labelled window x method) of one view; see the module docstring.
+
+    The view gets one pipeline.session.PhotoSession (:func:`view_session`) and every method is
+    its ``run``: what ``fenestra reconstruct`` gives on the same image and K. A method's windows are
+    matched to the labels through its detector's detections (score >= SCORE_MIN, the CLI's);
+    every candidate down to CANDIDATE_SCORE_MIN feeds detection AP.
+    """
     from fenestra.pipeline.detectors import detector_entry  # noqa: PLC0415
-    from fenestra.pipeline.reconstruct import ReconstructConfig, fit_quads, to_gray  # noqa: PLC0415
-    from fenestra.pipeline.quad import QuadParams  # noqa: PLC0415
-    from fenestra.pipeline.segments import SegmentCache  # noqa: PLC0415
-    from fenestra.pipeline.memo import StepMemo  # noqa: PLC0415
+    from fenestra.pipeline.facade_model import Known  # noqa: PLC0415
+    from fenestra.pipeline.session import SCORE_MIN  # noqa: PLC0415
 
     stage_s: dict[str, float] = {}
 
@@ -483,10 +509,9 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
                       size=view.size, window_ids=tuple(str(w.id) for w in view.windows))
     gt_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     iou_memo = QuadIoUMemo()  # quad IoUs of this view, each pair computed once for every method
+    storey = true_storey_m(view)
     t0 = tick("load", t0)
-    gray = to_gray(view.image)  # RGB, as detect() and reconstruct() take it; once per view, shared by every method
-    segment_cache = SegmentCache(gray)  # the view's line segments (+lines strategies): found once, shared too
-    memo = StepMemo()  # the pipeline steps of this view, each distinct input computed once for every method
+    session = view_session(view, options, tuple(dict.fromkeys(m.detector for m in methods)))
     t0 = tick("reconstruct", t0)
     can_oracle = view.instance_map() is not None
 
@@ -498,11 +523,8 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
                                      status="missed", reason=why, aspect_case=None)
                          for m in det_methods for b in base]
             continue
-        # every candidate down to AP_SCORE_MIN feeds detection AP; reconstruction gets the
-        # detections a user would (score >= MATCH_SCORE_MIN, the detectors' default threshold)
-        cands = detect_view(det_name, view, options.detector_long_side, AP_SCORE_MIN,
-                            **options.options_of(det_name))
-        keep = [i for i, d in enumerate(cands) if d.score >= MATCH_SCORE_MIN]
+        cands = session.candidates(det_name)
+        keep = [i for i, d in enumerate(cands) if d.score >= SCORE_MIN]  # = session.detections(det_name)
         dets = [cands[i] for i in keep]
         t0 = tick("detect", t0)
         sparse = [masks.SparseMask.from_crop(d.mask, d.origin, view.size) for d in cands]
@@ -510,32 +532,18 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         mt = matching.match(_match_ious(view, [sparse[i] for i in keep], dets), TOL.match_iou)
         out.n_false_positives[det_name] = len(mt.false_positives)
         det_for_gt = mt.det_for_gt()
-        matched = sorted(det_for_gt.items())  # [(gt_index, (det_index, iou))]
         t0 = tick("match", t0)
-        rec_dets = [dets[d] for _, (d, _) in matched]
-        quads: dict = {}  # QuadParams -> fit_quads(rec_dets): the quads are fitted once per detector
-        per_window: dict = {}  # (quad params, snapper, pose, K withheld) -> per-window results, reused by per-wall strategies
         head_errors: dict = {}  # (detection, window) -> the detection's predicted corners' error, for every method
         for method in det_methods:
-            withhold_K = method.withhold_K
-            cfg = ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=options.height_m,
-                                    quad=QuadParams(source=method.quad_source))
-            if cfg.quad not in quads:
-                quads[cfg.quad] = fit_quads(rec_dets, cfg.quad, gray.shape)
-                stage_s["reconstruct.quad"] = (stage_s.get("reconstruct.quad", 0.0)
-                                               + sum(q.ms for q in quads[cfg.quad]) / 1000.0)
-            K_in = None if withhold_K else view.K
-            results, counted = _reconstruct(gray, K_in, rec_dets, quads[cfg.quad], cfg, withhold_K, per_window,
-                                             segment_cache, memo)
+            rec = session.run(method, height_m=options.height_m)
+            rec_storey = None if storey is None else session.run(method, Known(storey_m=storey),
+                                                                 height_m=options.height_m)
             t0 = tick("reconstruct", t0)
-            by_gt = {matched[r.index][0]: r for r in results}
-            for r in results:
-                for k, ms in r.timings_ms.items():
-                    if k in counted:  # the shared quad fit and reused per-window stages: counted once
-                        stage_s[f"reconstruct.{k}"] = stage_s.get(f"reconstruct.{k}", 0.0) + ms / 1000.0
-            out.rows += _method_rows(view, base, method, cols, by_gt, det_for_gt, dets, gt_poses, iou_memo,
+            out.rows += _method_rows(view, base, method, cols, rec, rec_storey, det_for_gt, gt_poses, iou_memo,
                                      head_errors)
             t0 = tick("metrics", t0)
+    for k, s in session.stage_s.items():  # inside "detect" and "reconstruct": where the session's CPU went
+        stage_s[f"session.{k}"] = s
     return out
 
 

@@ -197,3 +197,24 @@ def relative_size_errors(plane_dists: np.ndarray, true_heights_m: np.ndarray) ->
     est = (1.0 / d) / np.median(1.0 / d)
     true = H / np.median(H)
     return np.abs(est / true - 1.0)
+
+
+def size_errors_m(aspect_est: float, height_est_m: float, size_gt_m: tuple[float, float]) -> tuple[float, float]:
+    """(|width error|, |height error|) m of a window reconstructed at metric scale: estimated
+    width = aspect_est * height_est_m, height = height_est_m; size_gt_m: the true (width, height) m."""
+    w_gt, h_gt = (float(v) for v in size_gt_m)
+    h = float(height_est_m)
+    return abs(float(aspect_est) * h - w_gt), abs(h - h_gt)
+
+
+def centre_error_m(R_est: np.ndarray, t_est: np.ndarray, width_est_m: float, height_est_m: float,
+                   R_cam: np.ndarray, t_cam: np.ndarray, corners_world: np.ndarray) -> float:
+    """Distance (m) between a reconstructed window's centre and the true one, both in the camera
+    frame: estimated centre = t_est + R_est @ (w/2, h/2, 0) (window frame origin at its bottom-left
+    corner, pipeline.types.WindowResult); true centre = R_cam @ mean(corners_world) + t_cam (the
+    camera's world-to-camera pose, corners (4, 3) m)."""
+    c_est = np.asarray(t_est, dtype=np.float64).reshape(3) + np.asarray(R_est, dtype=np.float64) @ np.array(
+        [float(width_est_m) / 2.0, float(height_est_m) / 2.0, 0.0])
+    c_gt = np.asarray(R_cam, dtype=np.float64) @ np.asarray(corners_world, dtype=np.float64).mean(axis=0) + np.asarray(
+        t_cam, dtype=np.float64).reshape(3)
+    return float(np.linalg.norm(c_est - c_gt))

@@ -30,8 +30,10 @@ import numpy as np
 from fenestra.checks import check_K, check_quad
 from fenestra.tolerances import TOL
 from fenestra.errors import PipelineError
+from fenestra.pipeline.types import AspectCase
 
-CASES = ("general", "one_pair_parallel", "fronto_parallel")
+# the cases by the number of parallel opposite side pairs (0, 1, 2); AspectCase.ILL_CONDITIONED is a per-wall verdict
+CASES = (AspectCase.GENERAL, AspectCase.ONE_PAIR_PARALLEL, AspectCase.FRONTO_PARALLEL)
 
 
 class AspectError(PipelineError):
@@ -76,7 +78,7 @@ def side_angles_deg(quad: np.ndarray) -> tuple[float, float]:
     return angle(q[1] - q[0], q[2] - q[3]), angle(q[3] - q[0], q[2] - q[1])
 
 
-def classify(quad: np.ndarray, tol_deg: float = TOL.parallel_sides_deg) -> str:
+def classify(quad: np.ndarray, tol_deg: float = TOL.parallel_sides_deg) -> AspectCase:
     """"general", "one_pair_parallel" or "fronto_parallel" from the opposite sides' angles."""
     n_par = sum(a < tol_deg for a in side_angles_deg(quad))
     return CASES[n_par]

@@ -20,12 +20,12 @@ import numpy as np
 
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
-from fenestra.pipeline.facade_model import FacadeModel, Known, facade_model
+from fenestra.methods import Method
+from fenestra.pipeline.facade_model import Known
 from fenestra.pipeline.quad import QuadParams
-from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct_from_quads, to_gray,
-                                  windows_to_json)
-from fenestra.pipeline.segments import SegmentCache, to_uint8
-from fenestra.pipeline.types import Detection
+from fenestra.pipeline.reconstruct import ReconstructConfig
+from fenestra.pipeline.session import focal_envelope  # noqa: F401  (re-exported)
+from fenestra.pipeline.types import Detection, WindowResult
 
 
 @dataclass(frozen=True)
@@ -66,33 +66,11 @@ def user_camera(photo: Path, size: tuple[int, int], K_json: Path | None, fx: flo
     return None, "", []
 
 
-def window_quads(gray: np.ndarray, detections: list[Detection], cfg: ReconstructConfig) -> np.ndarray:
-    """Snapped quads (N, 4, 2) px of the detections, found without K (per-window pass with the pose
-    strategy's own per-window solver and a provisional focal length of the long side; only the
-    snapped corners are used: they do not depend on the pose)."""
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
-
-    H, W = gray.shape
-    per = reconstruct_from_quads(gray, None, detections, fit_quads(detections, cfg.quad, gray.shape),
-                                 replace(cfg, pose=POSES[cfg.pose].per_window_pose,
-                                         fallback_focal_px=float(max(H, W))))
-    return np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
-
-
-def resolve_intrinsics(photo: Path, gray: np.ndarray, detections: list[Detection], cfg: ReconstructConfig,
-                       segment_cache: SegmentCache, user=None, user_how: str = ""):
-    """pipeline.intrinsics.ResolvedK for the photo: the user's K first when given (compared with
-    EXIF), else EXIF, vanishing points (the chosen per-wall strategy's, with its façade lines), prior."""
-    from fenestra.pipeline.intrinsics import choose_focal, exif_focal, resolve_K, user_focal  # noqa: PLC0415
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
-
-    H, W = gray.shape
-    if user is not None:
-        exif = exif_focal(photo, (W, H))
-        return choose_focal([user_focal(user.K, user_how), exif if exif is not None else "no EXIF focal length"],
-                            ["K", "exif"], (W, H), principal_point=(float(user.K[0, 2]), float(user.K[1, 2])))
-    quads = window_quads(gray, detections, cfg)
-    return resolve_K(photo, quads, (W, H), POSES[cfg.pose].wall, segment_cache)
+def method_of(options: PhotoOptions, masks: bool) -> Method:
+    """The method a user runs: the options' detector (``oracle``, which reads the instance map,
+    when ``--masks`` gives the masks), snapper, pose and quad source."""
+    return Method("oracle" if masks else options.detector, options.snapper, options.pose,
+                  quad_source=options.quad_source)
 
 
 def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_json: str | Path | None = None,
@@ -109,15 +87,18 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     pipeline.intrinsics.resolve_K decides. masks: an instance-map PNG (16-bit ids, 0 = none)
     instead of the detector.
 
-    The dict: ``K``, ``K_source`` (source, focal_px, interval_px, candidates, unavailable, detail),
-    ``image_size`` [W, H], ``config``, ``windows`` (one per detection, failures included),
-    ``warnings``, ``geometry_failure`` (None, or why the geometry failed as a whole),
-    ``undistorted``, ``distortion``, ``export`` (what was exported or skipped, when written).
-    Raises PipelineError only for bad input.
+    The work is :meth:`fenestra.pipeline.session.PhotoSession.run` (what the bench runs too);
+    this reads the inputs, builds the windows.json data (:func:`reconstruction_json`) and writes
+    the files. The dict: ``K``, ``K_source`` (source, focal_px, interval_px, candidates,
+    unavailable, detail), ``image_size`` [W, H], ``config``, ``windows`` (one per detection,
+    failures included), ``warnings``, ``geometry_failure`` (None, or why the geometry failed as a
+    whole), ``undistorted``, ``distortion``, ``export`` (what was exported or skipped, when
+    written). Raises PipelineError only for bad input.
     """
-    from fenestra.images import read_image  # noqa: PLC0415
+    from fenestra.images import read_image, read_instances  # noqa: PLC0415
     from fenestra.pipeline.io import intrinsics_warnings, photo_warnings, undistort_photo  # noqa: PLC0415
     from fenestra.pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
+    from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415
 
     photo = Path(photo)
     inputs = (photo, K_json, masks)  # never inside out: replacing it would delete them
@@ -129,123 +110,89 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     warnings = photo_warnings(photo) + warnings
     if camera is not None:
         image = undistort_photo(image, camera)  # masks are taken to be in this frame
-    cfg = options.config()
-    detections = detect_windows(image, size, masks, options.detector)
-    gray = to_gray(image)
-    segment_cache = SegmentCache(to_uint8(gray))  # the photo's line segments, found once for all steps
-    resolved = resolve_intrinsics(photo, gray, detections, cfg, segment_cache, camera, how)
-    K = resolved.K
-    warnings += list(resolved.warnings) + intrinsics_warnings(K, size)
-    geometry_failure, envelope = None, {}
-    try:
-        results = reconstruct_from_quads(gray, K, detections, fit_quads(detections, cfg.quad, gray.shape), cfg,
-                                         segment_cache=segment_cache)
-        envelope = focal_envelope(results, K, resolved.chosen.interval_px)
-    except PipelineError as e:  # recorded: the detections are still written, each with this failure
-        geometry_failure = str(e)
-        results = failed_results(detections, cfg, f"geometry: {e}")
-    del gray, segment_cache  # export needs neither: a 100 Mpx photo's gray copies are 0.5 GB
-    results, model = facade_model(results, options.known)
-    doc = windows_to_json(results, K=K, image_size=size, config=cfg)
-    annotate(doc, model, resolved.source, envelope)
-    doc.update(photo=str(photo), K_source=resolved.to_json(), geometry_failure=geometry_failure,
-               undistorted=bool(camera is not None and camera.has_distortion),
-               distortion=None if camera is None or camera.distortion is None else camera.distortion.tolist(),
-               warnings=warnings)
+    instances = None if masks is None else read_instances(Path(masks), size, "--masks instance map")
+    session = PhotoSession(image, camera=None if camera is None else UserCamera(camera.K, how), photo=photo,
+                           instances=instances)
+    rec = session.run(method_of(options, masks is not None), options.known, options.export_all, options.substitute)
+    del session  # export needs no gray copy: a 100 Mpx photo's are 0.5 GB
+    doc = reconstruction_json(rec, size, warnings + intrinsics_warnings(rec.K, size), options.export)
+    doc.update(photo=str(photo), undistorted=bool(camera is not None and camera.has_distortion),
+               distortion=None if camera is None or camera.distortion is None else camera.distortion.tolist())
     if out is not None:
         with staged_dir(Path(out), force, inputs) as tmp:
-            doc["export"] = write_all(tmp, image, K, results, options, model, doc, detections)
+            doc["export"] = write_all(tmp, image, rec, options, doc)
             (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
     return doc
 
 
-def detect_windows(image: np.ndarray, size: tuple[int, int], masks: str | Path | None, detector: str) -> list[Detection]:
-    """Detections from an instance-map PNG (``masks``) or the detector ``detector`` on ``image``."""
-    if masks is not None:
-        from fenestra.pipeline.detectors.oracle import detections_from_instance_map  # noqa: PLC0415
-        from fenestra.images import read_instances  # noqa: PLC0415
-
-        return detections_from_instance_map(read_instances(Path(masks), size, "--masks instance map"))
-    from fenestra.pipeline.detectors import detect  # noqa: PLC0415
-
-    return detect(detector, image)
-
-
-def focal_envelope(results: list, K: np.ndarray, interval_px: tuple[float, float]) -> dict[int, tuple[float, float]]:
-    """{window index: (min, max) aspect ratio} when the focal length moves to the ends of its
-    interval: each posed window's aspect ratio plus the change of its quad's closed-form aspect
-    ratio (pipeline.aspect.aspect_ratio, Zhang & He with K) from K's focal length to each end (ms
-    per window, no refit). {} when the interval is a single value (the user's K)."""
-    from fenestra.pipeline.aspect import AspectError, aspect_ratio  # noqa: PLC0415
-
-    lo, hi = interval_px
-    if not hi > lo:
-        return {}
-
-    def with_f(f: float) -> np.ndarray:
-        Kf = np.array(K, dtype=np.float64)
-        Kf[0, 0], Kf[1, 1] = f, f * K[1, 1] / K[0, 0]
-        return Kf
-
-    out = {}
-    for r in results:
-        if r.failure is not None or r.aspect_ratio is None or r.quad_snapped is None:
-            continue
-        try:
-            a0 = aspect_ratio(r.quad_snapped, K).ratio
-            d = [aspect_ratio(r.quad_snapped, with_f(f)).ratio - a0 for f in (lo, hi)]
-        except (AspectError, ValueError):
-            continue
-        out[r.index] = (float(r.aspect_ratio + min(0.0, *d)), float(r.aspect_ratio + max(0.0, *d)))
-    return out
-
-
-def aspect_interval(w: dict, envelope: dict[int, tuple[float, float]]) -> list[float] | None:
+def aspect_interval(w: WindowResult, envelope: dict[int, tuple[float, float]]) -> list[float] | None:
     """A window's aspect interval: its fit's 90 % interval (widened when flagged) joined with its
-    aspect ratios at the ends of the focal interval (:func:`focal_envelope`); None for a failed window."""
-    if w["failure"] is not None or w["aspect_ratio"] is None:
+    aspect ratios at the ends of the focal interval (pipeline.session.focal_envelope); None for a
+    failed window."""
+    if w.failure is not None or w.aspect_ratio is None:
         return None
-    unc = w["uncertainty"] or {}
-    vals = [w["aspect_ratio"], *(unc[k] for k in ("aspect_lo", "aspect_hi") if k in unc),
-            *envelope.get(w["index"], ())]
+    unc = w.uncertainty or {}
+    vals = [w.aspect_ratio, *(unc[k] for k in ("aspect_lo", "aspect_hi") if k in unc), *envelope.get(w.index, ())]
     return [float(min(vals)), float(max(vals))]
 
 
-def annotate(doc: dict, model: FacadeModel, K_source: str, envelope: dict[int, tuple[float, float]]) -> None:
-    """Add the façade model to windows.json: ``walls``, ``scale`` and per window ``plausible``,
-    ``flags`` (reasons), ``scale_source``, ``scale_assumed``, ``K_source``, ``aspect_interval``
-    (:func:`aspect_interval`) and ``confidence`` (detector score, halved when ill-conditioned,
-    quartered when flagged; 0 for a failed window)."""
-    doc["walls"] = [w.to_json() for w in model.walls]
+def confidence(w: WindowResult, flagged: bool) -> float:
+    """The detector score, halved when the wall fit calls the window ill-conditioned, quartered
+    when flagged; 0 for a failed window."""
+    if w.failure is not None:
+        return 0.0
+    ill = bool(w.uncertainty and w.uncertainty.get("ill_conditioned"))
+    return w.score * (0.5 if ill else 1.0) * (0.25 if flagged else 1.0)
+
+
+def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], export: bool = True) -> dict:
+    """windows.json's data of a pipeline.session.Reconstruction (a new dict; nothing changed in
+    place): ``K``, ``K_source``, ``image_size``, ``config``, ``walls``, ``scale``, ``windows`` (per
+    window its stage results plus ``plausible``, ``flags``, ``scale_source``, ``scale_assumed``,
+    ``K_source``, ``aspect_interval``, ``confidence``, ``exported``: the export decision, None when
+    no model is made (``export`` False), ``not_exported``: why not), ``warnings`` (the photo's, the
+    focal chain's), ``geometry_failure``."""
+    from fenestra.pipeline.reconstruct import windows_to_json  # noqa: PLC0415
+
+    model = rec.model
+    cfg = replace(ReconstructConfig(snapper=rec.method.snapper, pose=rec.method.pose),
+                  quad=QuadParams(source=rec.method.quad_source))
+    doc = windows_to_json(list(rec.windows), K=rec.K, image_size=image_size, config=cfg)
     assumed = [w.id for w in model.walls if w.assumed]
-    doc["scale"] = {"assumed": bool(assumed), "assumed_walls": assumed,
-                    "sources": sorted({w.scale_source for w in model.walls})}
-    for w in doc["windows"]:
-        i = w["index"]
-        wall = model.wall_of(i)
-        flags = model.flags.get(i, [])
-        ill = bool(w["uncertainty"] and w["uncertainty"].get("ill_conditioned"))
-        conf = 0.0 if w["failure"] else w["score"] * (0.5 if ill else 1.0) * (0.25 if flags else 1.0)
-        w.update(plausible=w["failure"] is None and not flags, flags=flags, confidence=conf, K_source=K_source,
-                 exported=None, aspect_interval=aspect_interval(w, envelope),
-                 scale_source=None if wall is None else wall.scale_source,
-                 scale_assumed=None if wall is None else wall.assumed)
+    windows = []
+    for r, w in zip(rec.windows, doc["windows"]):
+        wall = model.wall_of(r.index)
+        flags = model.flags.get(r.index, [])
+        windows.append({**w, "plausible": r.failure is None and not flags, "flags": flags,
+                        "confidence": confidence(r, bool(flags)), "K_source": rec.resolved.source,
+                        "exported": (r.index not in rec.not_exported) if export else None,
+                        "not_exported": rec.not_exported.get(r.index),
+                        "aspect_interval": aspect_interval(r, rec.envelope),
+                        "scale_source": None if wall is None else wall.scale_source,
+                        "scale_assumed": None if wall is None else wall.assumed})
+    return {**doc, "windows": windows, "walls": [w.to_json() for w in model.walls],
+            "scale": {"assumed": bool(assumed), "assumed_walls": assumed,
+                      "sources": sorted({w.scale_source for w in model.walls})},
+            "K_source": rec.resolved.to_json(),
+            "geometry_failure": None if rec.geometry_failure is None else rec.geometry_failure.reason,
+            "warnings": [*warnings, *rec.resolved.warnings]}
 
 
-def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, options: PhotoOptions,
-              model: FacadeModel, doc: dict, detections: list[Detection]) -> dict:
-    """The overlay always, then (options.export) the models; returns {"files", "exported", "skipped",
-    "failure"}: an export that fails is recorded, not raised (windows.json is still written by the
-    caller). Flagged windows are skipped unless options.export_all; with options.export each
-    window of ``doc`` gets ``exported`` (bool; None when no model is written)."""
+def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dict) -> dict:
+    """The overlay always, then (options.export) the models of a pipeline.session.Reconstruction;
+    returns {"files", "exported", "skipped", "failure"}: an export that fails is recorded, not
+    raised (windows.json is still written by the caller). The windows the reconstruction decided
+    not to export (``rec.not_exported``) stay out; with options.export each window of ``doc`` keeps
+    ``exported`` only if its model was written (else False)."""
     from fenestra.pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
 
+    model, results = rec.model, list(rec.windows)
     exclude = {} if options.export_all else {k: "implausible: " + "; ".join(v) for k, v in model.flags.items()}
     report = {"files": {}, "exported": [], "skipped": [], "failure": None}
     if options.export:
         info = {w["index"]: w for w in doc["windows"]}
         try:
-            paths = write_outputs(out, image, K, results, substitute=options.substitute, exclude=exclude,
+            paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=exclude,
                                   walls={k: w.id for w in model.walls for k in w.members},
                                   properties={k: window_properties(info[k]) for k in info},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False)
@@ -256,9 +203,10 @@ def write_all(out: Path, image: np.ndarray, K: np.ndarray, results: list, option
             report.update(files={k: p.name for k, p in paths.items()},
                           exported=[e["index"] for e in manifest["exported"]], skipped=manifest["skipped"])
     reasons = {**exclude, **{e["index"]: e["reason"] for e in report["skipped"]}}
-    report["files"]["overlay"] = write_overlay(out, image, K, results, reasons, boxes=detection_boxes(detections),
+    report["files"]["overlay"] = write_overlay(out, image, rec.K, results, reasons,
+                                               boxes=detection_boxes(list(rec.detections)),
                                                header=overlay_header(doc)).name
-    if options.export:
+    if options.export:  # what was written (the decision, unless the export failed)
         for w in doc["windows"]:
             w["exported"] = w["index"] in report["exported"]
     return report

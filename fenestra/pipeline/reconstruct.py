@@ -9,7 +9,7 @@ To run several configs on the same detections, fit the quads (the costly stage) 
     for cfg in configs:
         results = reconstruct_from_quads(to_gray(image_rgb), K, detections, quads, cfg)
 
-Each stage's failure is recorded in the result's ``failure`` (``"<stage>: <reason>"``) and the
+Each stage's failure is recorded in the result's ``failure`` (a pipeline.types.Failure) and the
 remaining windows carry on; only malformed arguments (wrong shapes, unknown strategy) raise.
 """
 from __future__ import annotations
@@ -31,7 +31,7 @@ from fenestra.pipeline.poses import POSES, PoseStrategy, pose_strategies  # noqa
 from fenestra.pipeline.quad import QuadParams, QuadResult, corners_agree_with_mask, corners_to_quad, mask_to_quad
 from fenestra.pipeline.segments import SegmentCache
 from fenestra.pipeline.snappers import SNAPPERS
-from fenestra.pipeline.types import Detection, WindowResult
+from fenestra.pipeline.types import Detection, Failure, WindowResult
 from fenestra.pipeline.walls import apply_walls
 
 STAGES = ("quad", "snap", "aspect", "pose")
@@ -77,7 +77,7 @@ def to_gray(image: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(check_image(img), cv2.COLOR_RGB2GRAY).astype(np.float32)
 
 
-def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failure: str | None = None,
+def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failure: Failure | None = None,
             **stages) -> WindowResult:
     """A WindowResult with the stages reached so far (``stages``: WindowResult fields); rest None."""
     fields = dict(quad_mask=None, quad_snapped=None, aspect_ratio=None, aspect_case=None,
@@ -87,7 +87,7 @@ def _result(i: int, det: Detection, cfg: ReconstructConfig, timings: dict, failu
                         instance_id=det.instance_id, **fields)
 
 
-def failed_results(detections: list[Detection], cfg: ReconstructConfig, reason: str) -> list[WindowResult]:
+def failed_results(detections: list[Detection], cfg: ReconstructConfig, reason: Failure) -> list[WindowResult]:
     """One WindowResult per detection, in order, each failed with ``reason`` (no stage reached):
     what a photo's output holds when its geometry failed as a whole."""
     return [_result(i, d, cfg, {}, reason) for i, d in enumerate(detections)]
@@ -188,13 +188,13 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
     H, W = gray.shape
     outside = mask_outside(det, (H, W))
     if outside:
-        return _result(i, det, cfg, timings, f"quad: {outside}")
+        return _result(i, det, cfg, timings, Failure("quad", outside))
     if fit is None or fit.result is None:
         fit = fit_quads([det], cfg.quad, (H, W))[0]
     qr = fit.result
     timings["quad"] = fit.ms
     if qr.failure:
-        return _result(i, det, cfg, timings, f"quad: {qr.failure}")
+        return _result(i, det, cfg, timings, Failure("quad", qr.failure))
     t0 = time.perf_counter()
     s = SNAPPERS[cfg.snapper]
     sp = cfg.snapper_params or s.params()
@@ -214,14 +214,14 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
         ar = aspect() if memo is None else memo("aspect", key(snapped, K, pp, cfg.fallback_focal_px), aspect)
     except (PipelineError, ValueError) as e:
         timings["aspect"] = (time.perf_counter() - t0) * 1e3
-        return _result(i, det, cfg, timings, f"aspect: {e}", **done)
+        return _result(i, det, cfg, timings, Failure("aspect", str(e)), **done)
     timings["aspect"] = (time.perf_counter() - t0) * 1e3
     done.update(aspect_ratio=ar.ratio, aspect_case=ar.case,
                 focal_estimate_px=ar.focal_px if ar.focal_source != "K" else None)
     if K is None:
         if ar.focal_px is None:
-            return _result(i, det, cfg, timings, "pose: no K and no focal length (fronto-parallel quad); "
-                                                 "give K or fallback_focal_px", **done)
+            return _result(i, det, cfg, timings, Failure("pose", "no K and no focal length (fronto-parallel quad); "
+                                                                   "give K or fallback_focal_px"), **done)
         K_used = np.array([[ar.focal_px, 0.0, pp[0]], [0.0, ar.focal_px, pp[1]], [0.0, 0.0, 1.0]])
     else:
         K_used = K
@@ -230,7 +230,7 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
         pr = estimate_pose(snapped, K_used, ar.ratio, cfg.height_m, cfg.width_m, POSES[cfg.pose].solver)
     except (PipelineError, ValueError) as e:
         timings["pose"] = (time.perf_counter() - t0) * 1e3
-        return _result(i, det, cfg, timings, f"pose: {e}", **done)
+        return _result(i, det, cfg, timings, Failure("pose", str(e)), **done)
     timings["pose"] = (time.perf_counter() - t0) * 1e3
     return _result(i, det, cfg, timings, None, R=pr.R, t=pr.t, quad_reprojected=pr.reprojected,
                    height_m=pr.height_m, **done)
@@ -300,13 +300,13 @@ def window_to_dict(r: WindowResult) -> dict:
     return {
         "index": r.index, "instance_id": r.instance_id, "score": r.score,
         "quad_mask": _list(r.quad_mask), "quad_snapped": _list(r.quad_snapped),
-        "aspect_ratio": r.aspect_ratio, "aspect_case": r.aspect_case,
+        "aspect_ratio": r.aspect_ratio, "aspect_case": None if r.aspect_case is None else r.aspect_case.value,
         "focal_estimate_px": r.focal_estimate_px,
         "R": _list(r.R), "t": _list(None if r.t is None else np.asarray(r.t).reshape(3)),
         "height_m": r.height_m,
         "width_m": None if r.aspect_ratio is None or r.R is None else r.aspect_ratio * r.height_m,
         "quad_reprojected": _list(r.quad_reprojected),
-        "failure": r.failure, "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
+        "failure": None if r.failure is None else str(r.failure), "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
         "wall": r.wall, "uncertainty": r.uncertainty,
     }
 

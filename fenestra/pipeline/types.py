@@ -8,8 +8,52 @@ only inside calls to OpenCV's reading, writing and drawing functions.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
+
+
+class AspectCase(str, Enum):
+    """How a window's aspect ratio was conditioned: which opposite image sides are parallel
+    (pipeline.aspect.classify), or, after a per-wall fit, ``ILL_CONDITIONED`` (its 90 % interval
+    too wide: pipeline.walls). A str: it compares equal to, and is written as, its value."""
+
+    GENERAL = "general"
+    ONE_PAIR_PARALLEL = "one_pair_parallel"
+    FRONTO_PARALLEL = "fronto_parallel"
+    ILL_CONDITIONED = "ill_conditioned"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class Status(str, Enum):
+    """A reconstructed window's outcome: ``OK`` (posed), ``FAILED`` (a stage failed: ``failure``)."""
+
+    OK = "ok"
+    FAILED = "failed"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+STAGES = ("quad", "snap", "aspect", "pose", "wall", "geometry")  # where a window can fail
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why a window has no (full) result: the stage (one of :data:`STAGES`) and the reason.
+    ``str(f)`` is ``"<stage>: <reason>"``, the form windows.json and the results tables hold."""
+
+    stage: str
+    reason: str
+
+    def __post_init__(self) -> None:
+        if self.stage not in STAGES:
+            raise ValueError(f"Failure.stage must be one of {STAGES}, got {self.stage!r}")
+
+    def __str__(self) -> str:
+        return f"{self.stage}: {self.reason}"
 
 
 @dataclass(frozen=True)
@@ -39,7 +83,8 @@ class WindowResult:
     Quads are (4, 2) px, TL TR BR BL, pixel centres at integers (see fenestra.conventions).
     R (3, 3), t (3,) map the window frame (x along the wall, y up, z outward; origin at the
     bottom-left corner; size aspect_ratio*height x height m) to the camera frame (OpenCV).
-    Fields are None when the stage failed; ``failure`` then names the stage and reason.
+    Fields are None when the stage failed; ``failure`` (a :class:`Failure`) then names the stage
+    and reason.
     wall: index of the wall the window was grouped into (per-wall strategies, pipeline.walls),
     else None; uncertainty: its 90 % intervals (pipeline.walls.window_uncertainty), else None.
     """
@@ -49,14 +94,18 @@ class WindowResult:
     quad_mask: np.ndarray | None
     quad_snapped: np.ndarray | None
     aspect_ratio: float | None
-    aspect_case: str | None  # "general", "one_pair_parallel", "fronto_parallel"; per-wall: "ill_conditioned"
+    aspect_case: AspectCase | None
     focal_estimate_px: float | None
     R: np.ndarray | None
     t: np.ndarray | None
     height_m: float  # the scale parameter used for the pose (default 1 m)
     quad_reprojected: np.ndarray | None
-    failure: str | None
+    failure: Failure | None
     timings_ms: dict[str, float] = field(default_factory=dict)
     instance_id: int | None = None  # the detection's id in the input instance map, if any
     wall: int | None = None
     uncertainty: dict | None = None
+
+    @property
+    def status(self) -> Status:
+        return Status.OK if self.failure is None else Status.FAILED

@@ -44,12 +44,14 @@ Detector = Callable[..., list[Detection]]
 
 
 def set_cpu_threads(n: int | None = None) -> None:
-    """Use at most n (default: all, capped at 4) torch CPU threads for inference."""
+    """Use at most n torch CPU threads for inference (default: OMP_NUM_THREADS when set, as in the
+    bench's workers, else all cores capped at 4)."""
     import os  # noqa: PLC0415
 
     import torch  # noqa: PLC0415  (lazy: torch costs ~1.5 s to import)
 
-    torch.set_num_threads(n or max(1, min(4, os.cpu_count() or 1)))
+    env = os.environ.get("OMP_NUM_THREADS", "")
+    torch.set_num_threads(n or (int(env) if env.isdigit() and int(env) > 0 else max(1, min(4, os.cpu_count() or 1))))
 
 
 def _oracle(**_: object) -> Detector:
@@ -220,11 +222,14 @@ def get_detector(name: str, **options: object) -> Detector:
 
 
 def detect(name: str, image: np.ndarray, score_threshold: float = 0.5,
-           instances: np.ndarray | None = None, **options: object) -> list[Detection]:
+           instances: np.ndarray | None = None, max_side: int = LIMITS.detector_max_side_px,
+           **options: object) -> list[Detection]:
     """Detect window voids in one RGB photo (H, W, 3) uint8; Detections best first.
 
-    instances: (H, W) int instance map, required by the oracles only. options: the detector's
-    build options (e.g. weights=PATH, config=DegradeConfig(...), threads=N).
+    instances: (H, W) int instance map, required by the oracles only. max_side: a learned
+    detector sees the photo with its long side at most this (px; :func:`input_scale`), its masks,
+    boxes and corners mapped back (:func:`full_resolution`). options: the detector's build options
+    (e.g. weights=PATH, config=DegradeConfig(...), threads=N).
     """
     image = check_image(image)
     if not 0.0 <= score_threshold <= 1.0:
@@ -234,7 +239,9 @@ def detect(name: str, image: np.ndarray, score_threshold: float = 0.5,
     if needs_instances and instances is None:
         raise ValueError(f"detector {name!r} needs instances= an (H, W) instance map")
     run = get_detector(name, **options)
-    scale = 1.0 if needs_instances else input_scale(image.shape[:2])
+    if not (isinstance(max_side, int) and max_side > 0):
+        raise ValueError(f"max_side must be a positive number of pixels, got {max_side!r}")
+    scale = 1.0 if needs_instances else input_scale(image.shape[:2], max_side)
     if scale == 1.0:
         dets = run(image, **per_image)
     else:  # bounded memory and time: the network sees a smaller copy, masks come back sparse

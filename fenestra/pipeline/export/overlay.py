@@ -78,7 +78,7 @@ def _draw_3d(img, K, result, thick, depth_m: float = 0.07):
 def _status(r: WindowResult, exclude: dict[int, str]) -> tuple[str, str]:
     """("exported" | "flagged" | "failed", one line) for the panel and the colour."""
     if r.failure:
-        return "failed", r.failure
+        return "failed", str(r.failure)
     if r.index in exclude:
         return "flagged", exclude[r.index]
     placed = place(r)

@@ -1,0 +1,298 @@
+"""One photo, any number of methods: the session that ``fenestra reconstruct`` and the bench share.
+
+    session = PhotoSession(image, camera=UserCamera(K, "--K K.json"))   # or camera=None: K-free
+    rec = session.run(Method("default", "refine", "wall+lines"))         # a Reconstruction
+    rec.windows          # one WindowResult per detection, on its wall's plane, at its wall's scale
+    rec.resolved         # the K used and where it came from (pipeline.intrinsics.ResolvedK)
+    rec.model            # walls, their scales and the implausible windows (pipeline.facade_model)
+    rec.exported         # {detection index: True/False}: what goes into the BIM model
+
+The CLI makes one session per photo and runs one method; the bench makes one per view and runs
+every method of its profile, then measures the rows. Both get the same answer for the same method,
+because both go through :meth:`PhotoSession.run`: the detector at the CLI's resolution
+(pipeline.detectors.detect), the quad fit, snapping, aspect ratio and pose, the focal chain when
+the method has no K (EXIF, vanishing points, prior: pipeline.intrinsics), the façade model (one
+plane and one scale per wall: pipeline.facade_model) and the export decision
+(pipeline.export.split_results).
+
+The session owns what the methods on one photo share, each computed once: the gray image, its line
+segments (pipeline.segments.SegmentCache), the step memo (pipeline.memo.StepMemo), each detector's
+detections, the quads per detector and quad source, the per-window results a per-wall strategy
+starts from, the resolved K per method, and the geometry per method (the façade model, cheap, is
+applied per ``known``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from fenestra.errors import PipelineError
+from fenestra.methods import Method
+from fenestra.pipeline.facade_model import FacadeModel, Known, facade_model
+from fenestra.pipeline.intrinsics import ResolvedK
+from fenestra.pipeline.memo import StepMemo
+from fenestra.pipeline.poses import POSES
+from fenestra.pipeline.quad import QuadParams
+from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct_from_quads,
+                                           to_gray)
+from fenestra.pipeline.segments import SegmentCache, to_uint8
+from fenestra.pipeline.types import Detection, Failure, WindowResult
+
+SCORE_MIN = 0.5  # detections a user gets (the detectors' default threshold): reconstructed and exported
+CANDIDATE_SCORE_MIN = 0.05  # detections kept for detection AP (the bench), a superset of the above
+
+
+@dataclass(frozen=True)
+class UserCamera:
+    """The intrinsics a user gave: K (3, 3) px, in the frame of the session's image, and how it
+    was given (e.g. "--K K.json", for ``K_source``)."""
+
+    K: np.ndarray
+    how: str
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """A method's reconstruction before the façade model: results (one per detection), the K
+    used, where it came from, the aspect envelope of the focal interval, and the geometry's
+    failure as a whole (None, or a Failure every window then carries)."""
+
+    results: tuple[WindowResult, ...]
+    resolved: ResolvedK
+    envelope: dict
+    failure: Failure | None
+
+
+@dataclass(frozen=True)
+class Reconstruction:
+    """What one method gives on one photo (what windows.json holds, typed).
+
+    method; detections (the detector's, score >= SCORE_MIN, best first; ``windows[i]`` is
+    ``detections[i]``'s); windows: WindowResult per detection after the façade model; resolved:
+    pipeline.intrinsics.ResolvedK (``K``: the K used); model: pipeline.facade_model.FacadeModel;
+    known: what set the scale; envelope: {index: (lo, hi)} aspect ratio at the ends of the focal
+    interval; geometry_failure: Failure or None; not_exported: {index: reason} of every window that
+    stays out of the BIM model (failed, implausible unless export_all, unusable pose or size).
+    """
+
+    method: Method
+    detections: tuple[Detection, ...]
+    windows: tuple[WindowResult, ...]
+    resolved: ResolvedK
+    model: FacadeModel
+    known: Known
+    envelope: dict
+    geometry_failure: Failure | None
+    not_exported: dict
+
+    @property
+    def K(self) -> np.ndarray:
+        return self.resolved.K
+
+    @property
+    def exported(self) -> dict[int, bool]:
+        """{detection index: whether the window goes into the model}."""
+        return {r.index: r.index not in self.not_exported for r in self.windows}
+
+    def scale_source(self, index: int) -> str | None:
+        """How window ``index``'s wall got its scale: "assumed" (the default window height), or
+        the Known field that set it ("storey_m", "window_height_m", "window_width_m"); None for a
+        window on no wall (failed)."""
+        wall = self.model.wall_of(index)
+        if wall is None:
+            return None
+        if wall.assumed:
+            return "assumed"
+        return next(k for k, v in vars(self.known).items() if v is not None)
+
+
+@dataclass
+class PhotoSession:
+    """The per-photo state every method shares (see the module docstring). Not thread-safe; one
+    per photo.
+
+    image: (H, W, 3) uint8 RGB, in the frame of ``camera`` and ``instances`` (undistorted where
+    the camera has distortion). camera: the user's intrinsics, or None (a method then resolves K
+    through the focal chain). photo: the photo's file (its EXIF focal length), or None.
+    instances: an (H, W) instance map (a user's ``--masks``, or a render's truth) for the
+    detectors that read one (capability ``needs_instances``: ``oracle``). detector_options:
+    {detector: {build option: value}}. max_side: learned detectors see the photo with its long
+    side at most this (px; None: fenestra.conventions.LIMITS.detector_max_side_px, the CLI's).
+    """
+
+    image: np.ndarray
+    camera: UserCamera | None = None
+    photo: Path | None = None
+    instances: np.ndarray | None = None
+    detector_options: dict = field(default_factory=dict)
+    max_side: int | None = None
+    stage_s: dict = field(default_factory=dict)  # CPU seconds per stage computed (not reused) in this session
+
+    def __post_init__(self) -> None:
+        self.gray = to_gray(self.image)
+        self.size = (self.image.shape[1], self.image.shape[0])  # (W, H)
+        self.segments = SegmentCache(to_uint8(self.gray))  # the photo's line segments, found once
+        self.memo = StepMemo()  # the steps with identical inputs, computed once for every method
+        self._candidates: dict[str, list[Detection]] = {}
+        self._quads: dict = {}
+        self._per_window: dict = {}
+        self._resolved: dict = {}
+        self._geometry: dict = {}
+
+    # ------------------------------------------------------------ detection
+
+    def candidates(self, detector: str) -> list[Detection]:
+        """Every detection of ``detector`` down to CANDIDATE_SCORE_MIN, best first (cached)."""
+        if detector not in self._candidates:
+            from fenestra.pipeline.detectors import detect, detector_entry  # noqa: PLC0415
+
+            t0 = time.process_time()
+            if detector_entry(detector).needs_instances:
+                if self.instances is None:
+                    raise PipelineError(f"detector {detector!r} needs an instance map (--masks); none was given")
+                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, instances=self.instances)
+            else:
+                opts = dict(self.detector_options.get(detector, {}))
+                if self.max_side:
+                    opts["max_side"] = self.max_side
+                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, **opts)
+            self._tick("detect", t0)
+            self._candidates[detector] = dets
+        return self._candidates[detector]
+
+    def detections(self, detector: str) -> list[Detection]:
+        """The detections a user gets (score >= SCORE_MIN), best first."""
+        return [d for d in self.candidates(detector) if d.score >= SCORE_MIN]
+
+    # ------------------------------------------------------------ geometry
+
+    def config(self, method: Method, height_m: float = 1.0) -> ReconstructConfig:
+        return ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=height_m,
+                                 quad=QuadParams(source=method.quad_source))
+
+    def quads(self, detector: str, params: QuadParams) -> list:
+        """fit_quads of the detector's detections (cached per detector and quad parameters)."""
+        k = (detector, params)
+        if k not in self._quads:
+            t0 = time.process_time()
+            self._quads[k] = fit_quads(self.detections(detector), params, self.gray.shape)
+            self._tick("quad", t0)
+        return self._quads[k]
+
+    def _per_window_results(self, detector: str, K: np.ndarray | None, cfg: ReconstructConfig) -> list:
+        """reconstruct_from_quads with a per-window solver (``cfg.pose``), cached per detector, K,
+        snapper, quad parameters and scale: the base every per-wall strategy starts from."""
+        k = (detector, None if K is None else np.asarray(K).tobytes(), cfg)
+        if k not in self._per_window:
+            t0 = time.process_time()
+            self._per_window[k] = reconstruct_from_quads(self.gray, K, self.detections(detector),
+                                                         self.quads(detector, cfg.quad), cfg, memo=self.memo)
+            self._tick("reconstruct", t0)
+        return self._per_window[k]
+
+    def reconstruct(self, detector: str, K: np.ndarray | None, cfg: ReconstructConfig) -> list[WindowResult]:
+        """One method's per-window or per-wall results with K (None: K-free per-window estimate)."""
+        wall = POSES[cfg.pose].wall
+        if wall is None:
+            return list(self._per_window_results(detector, K, cfg))
+        base = self._per_window_results(detector, K, replace(cfg, pose=wall.base_pose))
+        t0 = time.process_time()
+        out = reconstruct_from_quads(self.gray, K, self.detections(detector), self.quads(detector, cfg.quad), cfg,
+                                     base=base, segment_cache=self.segments, memo=self.memo)
+        self._tick("wall", t0)
+        return out
+
+    def resolve(self, method: Method) -> ResolvedK:
+        """The method's intrinsics: the user's K (compared with EXIF) unless the method withholds
+        it; else the focal chain (EXIF, the façade's vanishing points with the method's per-wall
+        strategy and its snapped quads, the prior). Cached per (detector, snapper, pose, quad)."""
+        from fenestra.pipeline.intrinsics import choose_focal, exif_focal, resolve_K, user_focal  # noqa: PLC0415
+
+        if self.camera is not None and not method.withhold_K:
+            exif = None if self.photo is None else exif_focal(self.photo, self.size)
+            K = np.asarray(self.camera.K, dtype=np.float64)
+            r = choose_focal([user_focal(K, self.camera.how), exif if exif is not None else "no EXIF focal length"],
+                             ["K", "exif"], self.size, principal_point=(float(K[0, 2]), float(K[1, 2])))
+            return replace(r, K=K)  # the user's K as given (fy, skew kept)
+        k = (method.detector, method.snapper, method.pose, method.quad_source)
+        if k not in self._resolved:
+            t0 = time.process_time()
+            cfg = self.config(method)
+            W, H = self.size
+            per = self._per_window_results(method.detector, None,
+                                           replace(cfg, pose=POSES[cfg.pose].per_window_pose,
+                                                   fallback_focal_px=float(max(H, W))))
+            quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
+            self._resolved[k] = resolve_K(self.photo, quads, self.size, POSES[cfg.pose].wall, self.segments)
+            self._tick("focal", t0)
+        return self._resolved[k]
+
+    def geometry(self, method: Method, height_m: float = 1.0) -> Geometry:
+        """The method's results before the façade model (cached): K resolved, then every detection
+        reconstructed with it; a failure of the geometry as a whole is recorded, not raised."""
+        k = (method, height_m)
+        if k not in self._geometry:
+            resolved = self.resolve(method)
+            cfg = self.config(method, height_m)
+            dets = self.detections(method.detector)
+            try:
+                results = self.reconstruct(method.detector, resolved.K, cfg)
+                envelope = focal_envelope(results, resolved.K, resolved.chosen.interval_px)
+                failure = None
+            except PipelineError as e:  # recorded: the detections are still written, each with this failure
+                failure = Failure("geometry", str(e))
+                results, envelope = failed_results(dets, cfg, failure), {}
+            self._geometry[k] = Geometry(tuple(results), resolved, envelope, failure)
+        return self._geometry[k]
+
+    def run(self, method: Method, known: Known = Known(), export_all: bool = False,
+            style: str | None = None, height_m: float = 1.0) -> Reconstruction:
+        """The method on this photo, as ``fenestra reconstruct`` runs it: geometry, façade model
+        with ``known``, and the export decision (flagged windows stay out unless export_all;
+        style: the catalogue window, None for the default)."""
+        from fenestra.pipeline.export import DEFAULT_STYLE, split_results  # noqa: PLC0415
+
+        g = self.geometry(method, height_m)
+        results, model = facade_model(list(g.results), known)
+        flagged = {} if export_all else {k: "implausible: " + "; ".join(v) for k, v in model.flags.items()}
+        _, skipped = split_results(results, style or DEFAULT_STYLE, flagged)
+        return Reconstruction(method, tuple(self.detections(method.detector)), tuple(results), g.resolved, model,
+                              known, g.envelope, g.failure, {s["index"]: s["reason"] for s in skipped})
+
+    def _tick(self, stage: str, t0: float) -> None:
+        self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.process_time() - t0
+
+
+def focal_envelope(results: list, K: np.ndarray, interval_px: tuple[float, float]) -> dict[int, tuple[float, float]]:
+    """{window index: (min, max) aspect ratio} when the focal length moves to the ends of its
+    interval: each posed window's aspect ratio plus the change of its quad's closed-form aspect
+    ratio (pipeline.aspect.aspect_ratio, Zhang & He with K) from K's focal length to each end (ms
+    per window, no refit). {} when the interval is a single value (the user's K)."""
+    from fenestra.pipeline.aspect import AspectError, aspect_ratio  # noqa: PLC0415
+
+    lo, hi = interval_px
+    if not hi > lo:
+        return {}
+
+    def with_f(f: float) -> np.ndarray:
+        Kf = np.array(K, dtype=np.float64)
+        Kf[0, 0], Kf[1, 1] = f, f * K[1, 1] / K[0, 0]
+        return Kf
+
+    out = {}
+    for r in results:
+        if r.failure is not None or r.aspect_ratio is None or r.quad_snapped is None:
+            continue
+        try:
+            a0 = aspect_ratio(r.quad_snapped, K).ratio
+            d = [aspect_ratio(r.quad_snapped, with_f(f)).ratio - a0 for f in (lo, hi)]
+        except (AspectError, ValueError):
+            continue
+        out[r.index] = (float(r.aspect_ratio + min(0.0, *d)), float(r.aspect_ratio + max(0.0, *d)))
+    return out
+
+
+__all__ = ["CANDIDATE_SCORE_MIN", "Geometry", "focal_envelope", "PhotoSession", "Reconstruction", "SCORE_MIN", "UserCamera"]
