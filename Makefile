@@ -40,9 +40,8 @@ REAL_RUN = $(if $(wildcard out/bench/real/summary.json),--real out/bench/real)
 
 LATEST_DEFAULT = $$(ls -td out/bench/default* | head -1)
 
-bench:  ## default profile: render, reconstruct with every strategy, report (photo column from out/bench/real when present), then `make docs`
+bench:  ## default profile: render, reconstruct with every strategy, report (photo column from out/bench/real when present); tracked files untouched (`make docs` regenerates them)
 	$(PY) -m fenestra bench --profile default $(REAL_RUN)
-	$(MAKE) --no-print-directory docs
 
 smoke:  ## smoke profile (what CI gates)
 	$(PY) -m fenestra bench --profile smoke --out out/bench/smoke
@@ -62,11 +61,10 @@ compare:  ## compare two bench runs of one profile window by window: make compar
 	@test -n "$(A)" -a -n "$(B)" || { echo "error: give two run folders: make compare A=RUN_A B=RUN_B"; exit 2; }
 	$(PY) -m fenestra compare $(A) $(B)
 
-report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present), then `make docs`
+report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present)
 	$(PY) -m fenestra report $(LATEST_DEFAULT) $(REAL_RUN)
-	$(MAKE) --no-print-directory docs
 
-docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real)
+docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real; without it the committed real-photo figures are kept, marked with their provenance)
 	$(PY) -m fenestra report $(LATEST_DEFAULT) --markdown docs/results.md $(REAL_RUN)
 
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)

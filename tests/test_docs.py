@@ -240,3 +240,60 @@ def test_readme_detector_line_is_the_summary_s_unseen_houses():
     assert f"corner error median {unseen['snap_median']:.2f} px" in text
     assert f"within 5 px for {100 * unseen['all_corners_close']:.0f} %" in text
     assert "validation photos" in text and "test photos" in text and "tools/model_card_real.py" in text
+
+
+def _bim_run(d: Path) -> tuple[Path, "pd.DataFrame"]:  # noqa: F821
+    """A synthetic run holding the CLI's method with BIM columns whose values are known per row."""
+    from fenestra.bench.evaluate import BIM_COLUMNS
+
+    df = synthetic_results(n_windows=60, seed=7)
+    df = df[df["snapper"] == df["snapper"].iloc[0]].copy()
+    df["detector"], df["snapper"], df["pose"] = DEFAULTS.detector, DEFAULTS.snapper, DEFAULTS.pose
+    df["method"] = f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
+    rng = np.random.default_rng(3)
+    for c in BIM_COLUMNS:
+        df[c] = np.nan
+    ok = (df["status"] == "ok").to_numpy()
+    df["K_source"] = np.where(ok, "K", None)
+    df["scale_source"] = np.where(ok, "assumed", None)
+    df["scale_source_storey"] = np.where(ok, np.where(rng.random(len(df)) < 0.25, "assumed", "storey_m"), None)
+    df["exported"] = np.where(ok, (rng.random(len(df)) < 0.8).astype(float), np.nan)
+    for c in ("width_err_m", "height_err_m", "pos_err_m", "width_err_m_storey", "height_err_m_storey", "pos_err_m_storey"):
+        df[c] = np.where(ok, rng.uniform(0.0, 0.5, len(df)), np.nan)
+    results.write_results(df, d)
+    manifest.seal(d, df, "synthetic")
+    results.write_summary(d, {"profile": "synthetic", "seed": 7, "config_hash": "abc124", "commit": "e" * 40,
+                              "n_views": 10, "datasets": {"fzk-haus": "x"}}, results.summarize(df), {})
+    return d, df
+
+
+def test_bim_figures_are_the_tables_medians(tmp_path):
+    """The BIM sentence (README and results.md) quotes the CLI method's metric errors: the
+    medians of its evaluable reconstructed windows, computed here from the table."""
+    d, df = _bim_run(tmp_path / "run")
+    doc = md.collect(d)
+    b = doc["synthetic"]["default_method"]["bim"]
+    ev = df[df.evaluable.astype(bool) & (df.status == "ok")]
+    for c in ("width_err_m", "height_err_m", "width_err_m_storey"):
+        assert b[c]["median"] == pytest.approx(float(np.median(ev[c])), rel=1e-3)
+    assert b["exported_rate"] == pytest.approx(float(ev["exported"].mean()), abs=1e-3)
+    assert b["assumed_rate_storey"] == pytest.approx(float((ev["scale_source_storey"] == "assumed").mean()), abs=1e-3)
+    text = md.answer(doc)
+    assert f"width off by {np.median(ev['width_err_m']):.2f} m" in text and "`--known-storey`" in text
+    assert "no window of known size" in text  # no real run: said, not left out
+
+
+def test_docs_without_a_real_run_keep_the_committed_real_figures(tmp_path):
+    """`make docs` with no real run keeps the real-photo figures already in the summary, marked as
+    kept with their own provenance (never deleted)."""
+    d, _ = _bim_run(tmp_path / "run")
+    paths = md.DocPaths.for_markdown(tmp_path / "docs" / "results.md")
+    paths.summary.parent.mkdir(parents=True)
+    committed = json.loads((ROOT / "docs" / "results" / "summary.json").read_text())
+    assert committed["real"] is not None
+    paths.summary.write_text(json.dumps({**committed, "synthetic": None}))
+    md.write_docs(d, paths.markdown)
+    doc = json.loads(paths.summary.read_text())
+    assert doc["real"]["kept"] and doc["real"]["provenance"] == committed["real"]["provenance"]
+    text = paths.markdown.read_text()
+    assert "Kept from an earlier real-photo run" in text and "No real-photo run was given" not in text

@@ -30,7 +30,8 @@ def test_default_profile_answers_the_four_questions_and_nothing_else():
     expected = ({Method(DEFAULTS.detector, s, DEFAULTS.pose) for s in snappers}           # which snapper
                 | {Method(DEFAULTS.detector, DEFAULTS.snapper, p) for p in POSE_LIST}    # which pose
                 | {Method(d, DEFAULTS.snapper, DEFAULTS.pose) for d in dets}            # which detector
-                | {PAPER} | {Method(d, PAPER.snapper, PAPER.pose) for d in dets})       # the paper's
+                | {PAPER} | {Method(d, PAPER.snapper, PAPER.pose) for d in dets}        # the paper's
+                | {Method(DEFAULTS.detector, DEFAULTS.snapper, DEFAULTS.pose, withhold_K=True)})  # the CLI without K
     got = planned_methods(load_profile("default").methods)
     assert len(got) == len(set(got)) and set(got) == expected
     assert len(expected) < 25 and DEFAULTS in got and PAPER in got
@@ -45,9 +46,12 @@ def test_full_profile_is_the_cross_product_on_the_default_renders():
     snappers = SNAPPERS.where(in_all=True)
     assert planned_methods(full.methods) == tuple(Method(d, s, p) for d, s, p in itertools.product(dets, snappers, POSE_LIST))
     assert (full.scenes, full.render, full.evaluation) == (default.scenes, default.render, default.evaluation)
-    # the designed methods are a subsequence of the full product's order (tables read alike)
+    # the designed K-given methods are a subsequence of the full product's order (tables read alike);
+    # the default adds the CLI's method with K withheld (the focal chain), which `full` does not run
     it = iter(_labels_ordered := [m.label for m in planned_methods(full.methods)])
-    assert all(m.label in it for m in planned_methods(default.methods, dets)) and _labels_ordered
+    designed = planned_methods(default.methods, dets)
+    assert all(m.label in it for m in designed if not m.withhold_K) and _labels_ordered
+    assert [m.label for m in designed if m.withhold_K] == ["default/refine/wall+lines+noK"]
 
 
 @pytest.mark.parametrize("name", ["smoke", "full", "walls"])

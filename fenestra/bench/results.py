@@ -41,6 +41,11 @@ OTHER_ERRORS = ("aspect_err_rel", "rot_err_deg", "normal_err_deg", "trans_err_m"
 # summarised when present: fenestra/bench/real's; corner_err_px_head: the detector's corner head (its
 # predicted corners, where it has one), beside the mask fit, for the same matched windows
 OPTIONAL_ERRORS = ("reproj_consistency_px", "rel_size_err", "corner_err_px_head")
+# what a BIM user gets (bench.evaluate.BIM_COLUMNS), summarised when present: the window at its
+# wall's metric scale with nothing known (the assumed window height) and with the true storey height
+METRIC_ERRORS = ("width_err_m", "height_err_m", "pos_err_m", "width_err_m_storey", "height_err_m_storey",
+                 "pos_err_m_storey")
+K_SOURCES = ("K", "exif", "vanishing points", "prior")  # pipeline.intrinsics: the focal chain's sources
 # Where a table says which windows have the truth an error needs (the real bench: fenestra/bench/real),
 # that error's statistics are over those windows only: absent truth is not a failure.
 TRUTH_FLAGS = {**{f"corner_err_px_{s}": "has_quad" for s in CORNER_STAGES}, "iou_2d": "has_quad",
@@ -234,7 +239,8 @@ def _stats_with_recall(errors: np.ndarray) -> dict:
 def summary_columns(columns) -> list[str]:
     """The columns of a results table (any iterable of names) that :func:`summarize` reads."""
     want = ("method", "evaluable", "status", *(f"corner_err_px_{s}" for s in CORNER_STAGES), *OTHER_ERRORS,
-            *OPTIONAL_ERRORS, "focal_err_rel", *CALIBRATION_COLUMNS, *TRUTH_FLAGS.values())
+            *OPTIONAL_ERRORS, "focal_err_rel", *CALIBRATION_COLUMNS, *TRUTH_FLAGS.values(), *METRIC_ERRORS,
+            "exported", "K_source", "scale_source", "scale_source_storey")
     return [c for c in dict.fromkeys(want) if c in set(columns)]
 
 
@@ -248,6 +254,11 @@ def _columns(df: pd.DataFrame) -> dict[str, np.ndarray]:
             out["failed"] = (df[c] == "failed").to_numpy(bool)
         elif c == "evaluable" or c in TRUTH_FLAGS.values():
             out[c] = df[c].astype(bool).to_numpy()
+        elif c == "K_source":  # one flag per source of the focal chain
+            for s in K_SOURCES:
+                out[f"K_source={s}"] = (df[c] == s).to_numpy(bool)
+        elif c.startswith("scale_source"):
+            out[f"{c}=assumed"] = (df[c] == "assumed").to_numpy(bool)
         elif c != "method":
             out[c] = df[c].to_numpy(float)
     return out
@@ -273,6 +284,31 @@ def _summarize_columns(cols: dict[str, np.ndarray], n_gt: int) -> dict:
     if "focal_err_rel" in ev:  # per-wall strategies with K withheld (bench.uncertainty)
         out["focal_err_rel"] = error_stats(ev["focal_err_rel"])
     out["calibration"] = _calibration(ev)
+    if "exported" in ev:
+        out["bim"] = _bim(ev)
+    return out
+
+
+def _bim(ev: dict[str, np.ndarray]) -> dict:
+    """What a BIM user gets, over the evaluable windows the method reconstructed (status ok):
+    ``n``; the share of them exported into the model; the share whose K came from each source of
+    the focal chain; the share whose wall's scale was assumed (``assumed_rate``; ``_storey``: with
+    the true storey height given, where the wall showed too few rows to use it); and the metric
+    errors (m) with their statistics (METRIC_ERRORS)."""
+    ok = ev["detected"] & ~ev["failed"]
+    n = int(ok.sum())
+
+    def rate(flag: np.ndarray) -> float:
+        return float(flag[ok].mean()) if n else float("nan")
+
+    out: dict = {"n": n, "exported_rate": float(np.nanmean(ev["exported"][ok])) if n else float("nan"),
+                 "K_source": {s: rate(ev[f"K_source={s}"]) for s in K_SOURCES if f"K_source={s}" in ev}}
+    for c in ("scale_source", "scale_source_storey"):
+        if f"{c}=assumed" in ev:
+            out["assumed_rate" + c.removeprefix("scale_source")] = rate(ev[f"{c}=assumed"])
+    for c in METRIC_ERRORS:
+        if c in ev:
+            out[c] = error_stats(ev[c][ok])
     return out
 
 

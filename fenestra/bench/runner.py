@@ -21,7 +21,6 @@ reports/ (reports read bench's tables): the CLI (fenestra/app/cli.py) passes the
 from __future__ import annotations
 
 import gc
-import itertools
 import os
 import time
 from collections.abc import Callable
@@ -35,7 +34,7 @@ from fenestra.bench import results as res
 from fenestra.bench.detection_ap import detection_ap
 from fenestra.bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTask
 from fenestra.bench.executors import HousePlan, Keep, Plan, evaluate_local, get_executor
-from fenestra.bench.profiles import ALL, Profile, selected
+from fenestra.bench.profiles import ALL, Profile, planned_methods, selected
 from fenestra.bench.real.profile import RealProfile
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
@@ -83,20 +82,15 @@ def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
 
 
 def plan_methods(profile: Profile | RealProfile) -> tuple[tuple[Method, ...], dict[str, str]]:
-    """Every available detector x snapper x pose strategy x K condition the profile selects
-    (bench.profiles.MethodsSpec; K withheld only where the strategy fits the focal length), and
-    the skipped detectors. Order: detector, snapper, then the K-given poses and the K-withheld ones."""
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
-
+    """The methods the profile plans (bench.profiles.planned_methods: its cross product, or the
+    union of its designed grids; K withheld only where the strategy fits the focal length) for
+    the available detectors, and the skipped detectors."""
     spec = profile.methods
     requested = selected(spec, "detectors")
     dets, skipped = available_detectors(requested)
     if not dets:
         raise FenestraError(f"no detector of {requested} is available: {skipped}")
-    poses = selected(spec, "pose_solvers")
-    conditions = [(p, wk) for wk in spec.withhold_K for p in poses if not wk or POSES[p].fits_focal]
-    return tuple(Method(d, s, p, withhold_K=wk) for d, s, (p, wk)
-                 in itertools.product(dets, selected(spec, "snappers"), conditions)), skipped
+    return planned_methods(spec, dets), skipped
 
 
 # ---------------------------------------------------------------- renders

@@ -32,8 +32,9 @@ from fenestra.files import REPO_ROOT
 from fenestra.bench.manifest import load_verified_results
 from fenestra.bench.paired import paired_comparison
 from fenestra.bench.real.simreal import method_medians, ranking
-from fenestra.bench.results import summarize, summarize_method
+from fenestra.bench.results import METRIC_ERRORS, summarize, summarize_method
 from fenestra.conventions import DEFAULTS, PAPER
+from fenestra.methods import NO_K_SUFFIX
 from fenestra.tolerances import TOL
 from fenestra.pipeline.detectors import DETECTORS
 from fenestra.reports.lead import FEW_WINDOWS, PHOTO_METRICS, SIGNIFICANT_P, SIM_METRIC, ranks
@@ -249,7 +250,24 @@ def _method_figures(results: dict, method: str) -> dict:
             "rot_median": _stat(results, method, "rot_err_deg", "median"),
             "rot_p90": _stat(results, method, "rot_err_deg", "p90"),
             "aspect_median": _stat(results, method, "aspect_err_rel", "median"),
-            "aspect_p90": _stat(results, method, "aspect_err_rel", "p90")}
+            "aspect_p90": _stat(results, method, "aspect_err_rel", "p90"),
+            "bim": bim_figures(results, method), "bim_noK": bim_figures(results, method + NO_K_SUFFIX)}
+
+
+def bim_figures(results: dict, method: str) -> dict | None:
+    """What a BIM user gets from one method (bench.results' ``bim`` block, rounded): windows
+    reconstructed, exported share, focal sources, assumed-scale shares and the metric errors'
+    median and p90 (m); None when the run lacks the method or the block."""
+    b = results.get(method, {}).get("bim")
+    if not b:
+        return None
+    out = {"n": b["n"], "exported_rate": _r(b["exported_rate"]),
+           "K_source": {k: _r(v) for k, v in b["K_source"].items()},
+           "assumed_rate": _r(b.get("assumed_rate")), "assumed_rate_storey": _r(b.get("assumed_rate_storey"))}
+    for c in METRIC_ERRORS:
+        if c in b:
+            out[c] = {"median": _r(b[c]["median"]), "p90": _r(b[c]["p90"]), "n": b[c]["n_valid"]}
+    return out
 
 
 def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
@@ -274,10 +292,13 @@ def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
                                   "best_sim_real_rank": int(r["best_sim_real_rank"]), "n": r["n"],
                                   "spearman": _r(r["spearman"])}
     meta = summary.get("metadata", {})
+    cli = f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
+    bim = {m: bim_figures(results, m) for m in (cli, cli + NO_K_SUFFIX, *sorted(results))
+           if (bim_figures(results, m) or {}).get("width_err_m", {}).get("n")}
     det_ap = {d: {k: _r(v.get(k)) for k in ("bbox_AP", "bbox_AP50", "segm_AP", "segm_AP50")} | {"n_gt": v.get("n_gt")}
               for d, v in sorted((summary.get("detection") or {}).items())}
     return {"provenance": provenance(real_dir, summary), "metric": metric, "snap": snap if metric else {},
-            "agreement": agreement, "detection": det_ap, "n_windows": meta.get("n_windows"),
+            "agreement": agreement, "detection": det_ap, "n_windows": meta.get("n_windows"), "bim": bim,
             "kfree": collect_kfree(summary.get("kfree"))}
 
 
@@ -407,6 +428,54 @@ def _default_sentence(syn: dict) -> str:
             + _why_default(syn.get("default_vs_recommended"), rec, d))
 
 
+def _m(x) -> str:
+    return "-" if x is None else f"{x:.2f} m"
+
+
+def _bim_clause(b: dict, storey: bool = True) -> str:
+    """Width / height / position error of a method's BIM windows, with the assumed scale and
+    (storey) with the true storey height given."""
+    def err(suffix: str) -> str:
+        w, h = b.get(f"width_err_m{suffix}"), b.get(f"height_err_m{suffix}")
+        pos = b.get(f"pos_err_m{suffix}")
+        text = f"width off by {_m(w['median'])} (p90 {_m(w['p90'])}), height {_m(h['median'])} (p90 {_m(h['p90'])})"
+        if pos and pos.get("median") is not None:
+            text += f", position {_m(pos['median'])} (p90 {_m(pos['p90'])})"
+        return text
+
+    text = f"with nothing known (each wall's median window assumed 1.5 m tall) its windows have their {err('')}"
+    if storey and b.get("width_err_m_storey") and b["width_err_m_storey"].get("n"):
+        used = 1.0 - (b.get("assumed_rate_storey") or 0.0)
+        text += (f"; with the house's true storey height given (`--known-storey`) {err('_storey')} (the storey "
+                 f"height set the scale of {_pct(used, 0)} of them; the others' walls show fewer than two window rows)")
+    return text
+
+
+def bim_sentence(syn: dict, real: dict | None) -> str:
+    """What a BIM user gets from the CLI's method: metric size and position errors (renders), the
+    focal chain's sources with K withheld, the exported share, and the real-photo counterpart."""
+    d = syn["default_method"]
+    b = d.get("bim") if d.get("in_run") else None
+    if not b:
+        return "This run has no BIM figures of the CLI's method (an older run, or the method is not in it)."
+    text = (f"As a BIM user gets it, from the CLI's method on the renders (K known, {b['n']} windows): "
+            f"{_bim_clause(b)}; {_pct(b['exported_rate'], 0)} of them are exported.")
+    nk = d.get("bim_noK")
+    if nk:
+        src = ", ".join(f"{k} {_pct(v, 0)}" for k, v in nk["K_source"].items() if v)
+        text += f" With K withheld the focal length comes from: {src}; {_bim_clause(nk, storey=False)}."
+    rb = (real or {}).get("bim") or {}
+    cli = d["method"]
+    m = cli if cli in rb else next(iter(rb), None)
+    if m is None:
+        text += " On real photos no window of known size was reconstructed, so there is no photo counterpart."
+    else:
+        who = "the CLI's method" if m == cli else f"`{m}` (the CLI's method reconstructed none)"
+        text += (f" On real photos of known window size ({', '.join(real['provenance']['houses'])}), {who}: "
+                 f"{_bim_clause(rb[m], storey=False)} ({rb[m]['width_err_m']['n']} windows).")
+    return text
+
+
 def _why_default(c: dict | None, rec: dict | None, d: dict) -> str:
     """Why the CLI default differs from the recommendation, from the numbers. The recommendation
     picks the snapper by corner error first; the pose is what a user gets. The default stays
@@ -459,6 +528,10 @@ def _real_sentence(real: dict | None) -> str:
     """Whether the renders' choice of snapper holds on the photos, per detector, in one sentence."""
     if real is None:
         return "No real-photo run is part of these figures."
+    if real.get("kept"):
+        pv = real["provenance"]
+        return (f"(Real-photo figures kept from an earlier run, commit `{pv['commit']}`, {pv['date']}: this run had "
+                "none.) " + _real_sentence({k: v for k, v in real.items() if k != "kept"}))
     if real["metric"] is None:
         return "The real-photo run measures no error its labels allow to rank snappers by."
     parts = []
@@ -489,7 +562,8 @@ def answer(doc: dict) -> str:
                f"evaluable windows of the `{pv['profile']}` bench profile ({pv['n_views']} rendered views of {houses} "
                f"house{'s' * (houses != 1)}), best per detector in bold; † a learned detector, trained on some of these "
                "houses (per house: [docs/results.md](docs/results.md)).")
-    para = " ".join([caption, _recommend_sentence(syn), _default_sentence(syn), _real_sentence(doc.get("real")),
+    para = " ".join([caption, _recommend_sentence(syn), _default_sentence(syn), bim_sentence(syn, doc.get("real")),
+                     _real_sentence(doc.get("real")),
                      f"Provenance (commit `{pv['commit']}`, config `{pv['config_hash']}`, {pv['date']}) and every "
                      "table behind this: [docs/results.md](docs/results.md)."])
     return "\n".join([*lead_table(syn), "", para])
@@ -563,6 +637,9 @@ def _real_section(real: dict | None) -> list[str]:
     out = ["## Real photos", ""]
     if real is None:
         return out + ["No real-photo run was given (`--real`): `make real` writes one to out/bench/real.", ""]
+    if real.get("kept"):
+        out += [f"Kept from an earlier real-photo run (commit `{real['provenance']['commit']}`, "
+                f"{real['provenance']['date']}): the run behind the rest of this page had none (`make real`).", ""]
     n = real.get("n_windows") or {}
     out += ["Labelled windows per dataset: " + ", ".join(f"{k} {v}" for k, v in n.items()) + "." if n else "", ""]
     if real["metric"] is None:
@@ -636,6 +713,7 @@ def results_md(doc: dict) -> str:
             "on the pose), over each method's evaluable windows with a value; best per detector in bold; † learned "
             "detector (trained on some of these houses: per house below).", "",
             _recommend_sentence(syn) + " " + _default_sentence(syn), "",
+            "## What a BIM user gets", "", bim_sentence(syn, real), "",
             *_pose_section(syn), *_detection_section(syn), *_per_house_section(syn), *_real_section(real),
             *_kfree_section((real or {}).get("kfree"))]
     return "\n".join(out).rstrip() + "\n"
@@ -685,9 +763,17 @@ def write_summary(doc: dict, path: Path) -> None:
 
 
 def write_docs(run_dir: Path, markdown: Path, real_dir: Path | None = None) -> list[Path]:
-    """collect the run(s) into markdown's summary file, then render every doc from that file."""
+    """collect the run(s) into markdown's summary file, then render every doc from that file.
+
+    Without a real-photo run, the real-photo figures of the summary already there are kept (marked
+    ``kept``: their own provenance says which run they are from), never dropped."""
     paths = DocPaths.for_markdown(markdown)
-    write_summary(collect(run_dir, real_dir), paths.summary)
+    doc = collect(run_dir, real_dir)
+    if doc["real"] is None and paths.summary.is_file():
+        before = json.loads(paths.summary.read_text()).get("real")
+        if before is not None:
+            doc["real"] = {**before, "kept": True}
+    write_summary(doc, paths.summary)
     return [paths.summary, *render_docs(paths)]
 
 
