@@ -22,16 +22,20 @@ T = TypeVar("T")
 def read_toml(path: str | Path, error: type[Exception] = ValueError, what: str = "file") -> dict:
     """Parse a TOML file into a dict.
 
-    Raises ``error`` naming the path when the file is missing or is not valid TOML; ``what``
-    names the kind of file in the message (e.g. "profile file").
+    Raises ``error`` naming the path when the file is missing, unreadable, binary (not UTF-8) or
+    not valid TOML; ``what`` names the kind of file in the message (e.g. "profile file").
     """
     p = Path(path)
     if not p.is_file():
         raise error(f"{what} {p} does not exist")
     try:
-        return tomllib.loads(p.read_text())
+        return tomllib.loads(p.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as e:
         raise error(f"{p}: not valid TOML: {e}") from e
+    except UnicodeDecodeError as e:  # a binary file: TOML is UTF-8 text
+        raise error(f"{p}: not a TOML {what} (not UTF-8 text: byte {e.object[e.start]:#04x} at offset {e.start})") from e
+    except OSError as e:
+        raise error(f"{p}: cannot read the {what}: {e.strerror or e}") from e
 
 
 def choices(registry: dict) -> str:

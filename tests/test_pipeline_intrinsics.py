@@ -38,6 +38,29 @@ def test_focal_from_exif_35mm_and_sensor(tmp_path):
     assert focal_from_exif(_jpeg(tmp_path / "b.jpg"), SIZE) is None
 
 
+def test_exif_focal_outside_the_physical_range_is_refused_never_used(tmp_path):
+    """A 35 mm equivalent of 65535 mm (the largest EXIF SHORT: a 2 x atan(18 / 65535) = 0.031 deg
+    view) and one of 1 mm (173.6 deg) are refused naming the range; the chain records EXIF as
+    unavailable with that reason and falls through to the prior. 3000 mm (0.69 deg, a real
+    super-zoom) and 8 mm (132 deg) are used."""
+    from fenestra.pipeline.intrinsics import EXIF_FOV_RANGE_DEG, PRIOR_FOV_DEG  # noqa: PLC0415
+
+    assert EXIF_FOV_RANGE_DEG == (0.5, 170.0)
+    for f35, fov in ((65535, 0.0315), (1, 173.6)):
+        with pytest.raises(PipelineError, match=r"FocalLengthIn35mmFilm .* outside the physical 0\.5-170 deg") as e:
+            focal_from_exif_tags({TAG_FOCAL_35: f35}, SIZE)
+        assert f"{fov:.3g} deg" in str(e.value)
+        r = resolve_K(_jpeg(tmp_path / f"f{f35}.jpg", {TAG_FOCAL_35: f35}), np.zeros((0, 4, 2)), SIZE)
+        assert r.source == "prior" and r.K[0, 0] == pytest.approx(320 / np.tan(np.radians(PRIOR_FOV_DEG / 2)))
+        assert "outside the physical 0.5-170 deg" in r.to_json()["unavailable"]["exif"]
+        assert [c["source"] for c in r.to_json()["candidates"]] == ["prior"]  # never a candidate
+    for f35 in (3000, 8):
+        assert focal_from_exif_tags({TAG_FOCAL_35: f35}, SIZE)[0] == pytest.approx(f35 / 36 * 640)
+    # the sensor branch too: 4.2 mm x 200000 px/mm = 840000 px on 640 px, a 0.044 deg view
+    with pytest.raises(PipelineError, match="FocalLength 4.2 mm .* outside the physical"):
+        focal_from_exif_tags({TAG_FOCAL: 4.2, TAG_PLANE_XRES: 200000.0, TAG_PLANE_UNIT: 4}, SIZE)
+
+
 def test_exif_rationals_and_tuples_are_numbers():
     from PIL.TiffImagePlugin import IFDRational  # noqa: PLC0415
 

@@ -8,7 +8,10 @@ overlap give a warning naming both values:
 2. ``exif``: FocalLengthIn35mmFilm (f_px = f35 / 36 mm * max(W, H)), else FocalLength (mm) with
    FocalPlaneXResolution (px per unit of FocalPlaneResolutionUnit), rescaled from the EXIF
    PixelX/YDimension to the photo's size when they are given. Rationals and (num, den) tuples are
-   read as numbers. Interval: +- EXIF_REL_INTERVAL (nominal focal lengths, focus breathing).
+   read as numbers. Interval: +- EXIF_REL_INTERVAL (nominal focal lengths, focus breathing). A
+   focal length whose field of view along the long side is outside EXIF_FOV_RANGE_DEG (no camera
+   makes it: a 35 mm equivalent of 65535 mm is a 0.03 deg view) is refused: EXIF is then
+   unavailable with that reason, never used.
 3. ``vanishing points``: the focal length from the walls' two orthogonal vanishing directions,
    refined over all their windows' corners and, with a ``+lines`` strategy, the façade's own line
    segments (pipeline.walls.focal_from_walls); principal point at the image centre, square pixels.
@@ -48,6 +51,10 @@ TAG_PLANE_UNIT = 0xA210
 TAG_PIXEL_X = 0xA002
 TAG_PIXEL_Y = 0xA003
 PLANE_UNIT_MM = {2: 25.4, 3: 10.0, 4: 1.0}  # inch, cm, mm
+# The physical range of an EXIF focal length, as the field of view (deg) along the photo's long side:
+# 0.5 deg is a 35 mm equivalent of 4125 mm (super-zoom bridge cameras reach 3000 mm, 0.69 deg), 170 deg
+# one of 1.6 mm (beyond any rectilinear lens; fisheyes are read as pinholes here). Outside: refused.
+EXIF_FOV_RANGE_DEG = (0.5, 170.0)
 
 
 def centred_K(focal_px: float, image_size: tuple[int, int]) -> np.ndarray:
@@ -84,11 +91,14 @@ def focal_from_exif_tags(tags: dict, image_size: tuple[int, int]) -> tuple[float
     (0xA20E, px per unit), FocalPlaneResolutionUnit (0xA210: 2 inch, 3 cm, 4 mm), PixelXDimension /
     PixelYDimension (0xA002 / 0xA003: the size the focal-plane resolution refers to, else the
     photo's). Values may be numbers, rationals or (num, den) tuples. image_size (W, H).
+    PipelineError (naming the tag, the value and EXIF_FOV_RANGE_DEG) for a focal length whose
+    field of view is outside that physical range.
     """
     W, H = image_size
     f35 = exif_number(tags.get(TAG_FOCAL_35))
     if f35:
-        return f35 / FULL_FRAME_WIDTH_MM * max(W, H), f"exif FocalLengthIn35mmFilm {f35:g} mm"
+        return exif_in_range(f35 / FULL_FRAME_WIDTH_MM * max(W, H), f"exif FocalLengthIn35mmFilm {f35:g} mm",
+                             image_size)
     f_mm, xres = exif_number(tags.get(TAG_FOCAL)), exif_number(tags.get(TAG_PLANE_XRES))
     unit = PLANE_UNIT_MM.get(int(exif_number(tags.get(TAG_PLANE_UNIT)) or 2))
     if f_mm and xres and unit:
@@ -96,8 +106,21 @@ def focal_from_exif_tags(tags: dict, image_size: tuple[int, int]) -> tuple[float
         dims = [exif_number(tags.get(t)) for t in (TAG_PIXEL_X, TAG_PIXEL_Y)]
         rescale = max(W, H) / max(dims) if all(dims) else 1.0
         how = f"exif FocalLength {f_mm:g} mm x FocalPlaneXResolution {px_per_mm:g} px/mm"
-        return f_mm * px_per_mm * rescale, how + (f" x {rescale:.4g} (photo resized)" if rescale != 1.0 else "")
+        return exif_in_range(f_mm * px_per_mm * rescale,
+                             how + (f" x {rescale:.4g} (photo resized)" if rescale != 1.0 else ""), image_size)
     return None
+
+
+def exif_in_range(focal_px: float, how: str, image_size: tuple[int, int]) -> tuple[float, str]:
+    """(focal_px, how) when its field of view along the long side is inside EXIF_FOV_RANGE_DEG,
+    else PipelineError naming it, the field of view and the range (also in 35 mm-equivalent mm)."""
+    fov = fov_from_focal(focal_px, image_size) if np.isfinite(focal_px) and focal_px > 0 else float("nan")
+    lo, hi = EXIF_FOV_RANGE_DEG
+    if not lo <= fov <= hi:
+        mm = [FULL_FRAME_WIDTH_MM / 2.0 / np.tan(np.radians(a) / 2.0) for a in (hi, lo)]
+        raise PipelineError(f"{how} (f = {focal_px:.4g} px) is a {fov:.3g} deg field of view, outside the physical "
+                            f"{lo:g}-{hi:g} deg (35 mm equivalent {mm[0]:.1f}-{mm[1]:.0f} mm)")
+    return focal_px, how
 
 
 def read_exif_tags(path: str | Path) -> dict:
@@ -117,8 +140,9 @@ def read_exif_tags(path: str | Path) -> dict:
 
 
 def focal_from_exif(path: str | Path, image_size: tuple[int, int]) -> tuple[float, str] | None:
-    """(focal px, how) from the photo file's EXIF, or None. Note: FocalPlaneXResolution refers to
-    the sensor's full resolution; it is used as is (photos resized after capture give a wrong f)."""
+    """(focal px, how) from the photo file's EXIF, or None; PipelineError for one outside the
+    physical range (:func:`focal_from_exif_tags`). Note: FocalPlaneXResolution refers to the
+    sensor's full resolution; it is used as is (photos resized after capture give a wrong f)."""
     return focal_from_exif_tags(read_exif_tags(path), image_size)
 
 
@@ -166,9 +190,13 @@ def user_focal(K: np.ndarray, how: str) -> FocalEstimate:
     return FocalEstimate("K", f, (f, f), how)
 
 
-def exif_focal(photo: str | Path, image_size: tuple[int, int]) -> FocalEstimate | None:
-    """The photo's EXIF focal length (:func:`focal_from_exif`) +- EXIF_REL_INTERVAL, or None."""
-    found = focal_from_exif(photo, image_size)
+def exif_focal(photo: str | Path, image_size: tuple[int, int]) -> FocalEstimate | str | None:
+    """The photo's EXIF focal length (:func:`focal_from_exif`) +- EXIF_REL_INTERVAL, None without
+    one, or why it is refused (str: outside EXIF_FOV_RANGE_DEG; the chain records it as unavailable)."""
+    try:
+        found = focal_from_exif(photo, image_size)
+    except PipelineError as e:
+        return str(e)
     if found is None:
         return None
     f, how = found

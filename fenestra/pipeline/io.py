@@ -213,9 +213,12 @@ def _read_K_json(path: str | Path, image_size: tuple[int, int] | None) -> tuple[
                                 f"{LIMITS.max_json_bytes / 2**20:.0f} MB limit (fenestra.conventions.LIMITS)")
         if not p.is_file():
             raise PipelineError(f"intrinsics file {p} is not a regular file")
-        data = json.loads(p.read_text())
+        data = json.loads(p.read_text(encoding="utf-8"))
     except FileNotFoundError as e:
         raise PipelineError(f"intrinsics file not found: {p}") from e
+    except UnicodeDecodeError as e:  # a binary file: JSON is UTF-8 text
+        raise PipelineError(f"intrinsics file {p} is not JSON (not UTF-8 text: byte {e.object[e.start]:#04x} "
+                            f"at offset {e.start})") from e
     except (OSError, json.JSONDecodeError) as e:
         raise PipelineError(f"cannot read intrinsics JSON {p}: {e}") from e
     if not isinstance(data, dict):
