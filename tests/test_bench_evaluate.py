@@ -34,37 +34,55 @@ def _window(x0: float, z0: float, w: float, h: float) -> np.ndarray:
     return np.array([[x0, 0, z0 + h], [x0 + w, 0, z0 + h], [x0 + w, 0, z0], [x0, 0, z0]], float)
 
 
-@pytest.fixture(scope="module")
-def view_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("views") / "000000"
+def _write_view(d: Path, wins: list[np.ndarray], hidden: tuple[int, ...] = (), ignore: tuple[int, ...] = (),
+                unlisted: tuple[int, ...] = ()) -> Path:
+    """A view folder of voids on the wall y = 0 (world corners ``wins``; instance id k + 1 each):
+    the image drawn with exact area coverage, the instance map by pixel centres. ``hidden``: listed
+    windows never drawn; ``ignore``: voids drawn and in the instance map but listed as ignore
+    regions (glazed doors: view.json's ``ignore``, ignore.png), not windows; ``unlisted``: voids
+    drawn and in the instance map but neither window nor ignore region (a dark panel)."""
     d.mkdir()
     K = K_from_fov(W, H, 60.0)
     R, t = look_at(eye=[1.0, -7.0, 2.0], target=[2.5, 0.0, 1.6])
-    wins = [_window(0.5, 1.0, 1.2, 1.4), _window(2.6, 1.0, 0.9, 1.4), _window(6.0, 1.0, 1.6, 1.4),
-            _window(0.5, 3.0, 0.8, 0.8)]
     img = np.full((H, W), 190.0)
     inst = np.zeros((H, W), np.uint16)
-    meta_wins = []
+    ign = np.zeros((H, W), np.uint16)
+    meta_wins, meta_ignore = [], []
     for k, C in enumerate(wins, start=1):
         q = project(K, R, t, C)
-        if k < 4:  # window 4 is hidden behind something: listed, never drawn
+        if k not in hidden:
             img += (35.0 - 190.0) * coverage(q, (H, W))
             inst[pixel_centre_mask(q, (H, W))] = k
+        if k in ignore:
+            ign[pixel_centre_mask(q, (H, W))] = k
+            meta_ignore.append({"id": f"D{k}", "instance_id": k, "kind": "glazed_door"})
+        if k in ignore or k in unlisted:
+            continue
         n = np.array([0.0, -1.0, 0.0])
         cam = -R.T @ t
         v = cam - C.mean(0)
         meta_wins.append({"id": f"W{k}", "instance_id": k, "corners_world": C.tolist(),
-                          "corners_px": q.tolist(), "corner_visible": [k < 4] * 4,
-                          "visible_fraction": 1.0 if k < 4 else 0.0,
+                          "corners_px": q.tolist(), "corner_visible": [k not in hidden] * 4,
+                          "visible_fraction": 0.0 if k in hidden else 1.0,
                           "incidence_deg": float(np.degrees(np.arccos(n @ v / np.linalg.norm(v)))),
                           "distance_m": float(np.linalg.norm(v))})
     rgb = np.repeat(np.clip(np.round(img), 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
     cv2.imwrite(str(d / "image.png"), rgb)
     cv2.imwrite(str(d / "instances.png"), inst)
-    (d / "view.json").write_text(json.dumps({"K": K.tolist(), "width": W, "height": H,
-                                             "R": R.tolist(), "t": t.tolist(), "distortion": None,
-                                             "renderer": "hand", "seed": 0, "windows": meta_wins}))
+    meta = {"K": K.tolist(), "width": W, "height": H, "R": R.tolist(), "t": t.tolist(), "distortion": None,
+            "renderer": "hand", "seed": 0, "windows": meta_wins}
+    if meta_ignore:
+        cv2.imwrite(str(d / "ignore.png"), ign)
+        meta["ignore"] = meta_ignore
+    (d / "view.json").write_text(json.dumps(meta))
     return d
+
+
+@pytest.fixture(scope="module")
+def view_dir(tmp_path_factory):
+    wins = [_window(0.5, 1.0, 1.2, 1.4), _window(2.6, 1.0, 0.9, 1.4), _window(6.0, 1.0, 1.6, 1.4),
+            _window(0.5, 3.0, 0.8, 0.8)]
+    return _write_view(tmp_path_factory.mktemp("views") / "000000", wins, hidden=(4,))  # window 4: behind something
 
 
 def _run(view_dir, methods):
@@ -322,3 +340,67 @@ def test_per_wall_reuse_keeps_quad_sources_apart(view_dir):
         for k in a:
             same = (a[k] == b[k]) or (isinstance(a[k], float) and np.isnan(a[k]) and np.isnan(b[k]))
             assert same, (k, a[k], b[k])
+
+
+@pytest.fixture(scope="module")
+def door_view_dir(tmp_path_factory):
+    """Two windows, a glazed door (an ignore region: a negative) and a dark panel that is neither
+    window nor door; the oracle detects all four voids (instance ids 1-4), so what each detection
+    is, is known by construction."""
+    wins = [_window(0.5, 1.0, 1.2, 1.4), _window(2.6, 1.0, 0.9, 1.4), _window(4.2, 0.0, 1.0, 2.2),
+            _window(2.6, 3.0, 0.8, 0.8)]
+    return _write_view(tmp_path_factory.mktemp("doors") / "000000", wins, ignore=(3,), unlisted=(4,))
+
+
+WHAT = {1: "n_matched", 2: "n_matched", 3: "n_on_ignore", 4: "n_on_nothing"}  # door_view_dir's voids by instance id
+
+
+def test_export_counts_know_the_door_and_the_panel(door_view_dir):
+    """Per method, the exported detections: matched to a window, on the door (a false export) or on
+    nothing; what each detection is comes from the view's construction (its instance id), the
+    export decision from the session's run of the method (what `fenestra reconstruct` exports)."""
+    from fenestra.bench.evaluate import view_session
+    from fenestra.bench.results import add_export_precision, export_precision
+
+    view = read_rendered_view(door_view_dir, "hand", "hand")
+    assert [w.id for w in view.windows] == ["W1", "W2"] and [r.id for r in view.ignore] == ["D3"]
+    methods = (Method("oracle", "none", "lm"), Method("oracle", "linefit", "ippe"))
+    out = evaluate_view(view, methods, EvalOptions())
+    session = view_session(view, EvalOptions(), ("oracle",))
+    for m in methods:
+        rec = session.run(m)
+        assert [d.instance_id for d in rec.detections] == [1, 2, 3, 4]
+        want = {"n_exported": 0, "n_matched": 0, "n_on_ignore": 0, "n_on_nothing": 0}
+        for d, exported in rec.exported.items():
+            if exported:
+                want["n_exported"] += 1
+                want[WHAT[rec.detections[d].instance_id]] += 1
+        assert out.export_counts[m.name] == want
+    # every void is a plausible window here: the door and the panel are exported, and counted as false
+    assert out.export_counts["oracle/none/lm"] == {"n_exported": 4, "n_matched": 2, "n_on_ignore": 1, "n_on_nothing": 1}
+    assert out.n_false_positives["oracle"] == 2
+    prec = export_precision([out, out])
+    assert prec["oracle/none/lm"] == {"n_exported": 8, "n_matched": 4, "n_on_ignore": 2, "n_on_nothing": 2,
+                                      "n_views": 2, "precision": 0.5}
+    summary = add_export_precision({"oracle/none/lm": {"n_gt": 2}}, [out])
+    assert summary["oracle/none/lm"]["export"]["precision"] == 0.5 and "oracle/linefit/ippe" not in summary
+
+
+def test_a_detection_on_a_door_box_is_on_the_ignore_region(door_view_dir):
+    """Ignore regions labelled by box only (a photo's): a detection is on one when at least
+    TOL.match_iou of its box lies inside; the door's own box, then that box moved sideways by 60 %
+    of its width (40 % of the detection inside) and by 40 % (60 % inside)."""
+    from fenestra.bench.evaluate import on_ignore
+    from fenestra.bench.views import LabelledWindow
+    from fenestra.masks import SparseMask
+
+    view = read_rendered_view(door_view_dir, "hand", "hand")
+    inst = cv2.imread(str(door_view_dir / "instances.png"), cv2.IMREAD_UNCHANGED)
+    masks = [SparseMask.from_dense(inst == k) for k in (1, 2, 3, 4)]
+    dets = [dataclasses.make_dataclass("D", ["box"])(m.box()) for m in masks]
+    assert on_ignore(view, masks, dets) == {2}  # by mask: the door is detection 2
+    b = masks[2].box()
+    for shift, want in ((0.0, {2}), (0.6, set()), (0.4, {2})):
+        box = b + np.array([1, 0, 1, 0]) * shift * (b[2] - b[0])
+        boxed = dataclasses.replace(view, ignore=(LabelledWindow("D3", box=box),))
+        assert on_ignore(boxed, masks, dets) == want, shift

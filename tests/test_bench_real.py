@@ -263,6 +263,11 @@ def test_every_labelled_window_one_row_per_method(tmp_path, yolo_dir):
     assert s["oracle/none/lm"]["aspect_err_rel"]["n_valid"] == 14
     assert s["oracle/none/lm"]["corner_err_px_snap"]["n"] == 0  # no labelled quads: absent, not 0
     assert s["oracle/none/lm"]["corner_err_px_snap"]["recall"]["2"] is None
+    # export precision: counted on the 5 photos the oracle ran on (not the box-only set); the
+    # oracle's masks are the labelled windows', so every window it exports is one
+    e = s["oracle/none/lm"]["export"]
+    assert e["n_views"] == 5 and e["n_exported"] > 0 and e["n_matched"] == e["n_exported"] and e["precision"] == 1.0
+    assert e["n_on_ignore"] == e["n_on_nothing"] == 0
 
 
 def test_real_profile_loads_and_resolves_paths():

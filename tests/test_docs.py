@@ -283,6 +283,25 @@ def test_bim_figures_are_the_tables_medians(tmp_path):
     assert "no window of known size" in text  # no real run: said, not left out
 
 
+def test_bim_sentence_quotes_the_cli_method_s_export_precision(tmp_path):
+    """The export precision on renders (summary.json's per-method ``export`` block, counted per
+    detection by the bench: not in the table) reaches the BIM figures and the sentence; a run
+    without the block says nothing of it."""
+    d, _ = _bim_run(tmp_path / "run")
+    cli = f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
+    assert "export precision" not in md.answer(md.collect(d))
+    s = json.loads((d / "summary.json").read_text())
+    s["results"][cli]["export"] = {"n_exported": 40, "n_matched": 37, "n_on_ignore": 2, "n_on_nothing": 1,
+                                   "n_views": 10, "precision": 37 / 40}
+    (d / "summary.json").write_text(json.dumps(s))
+    doc = md.collect(d)
+    assert doc["synthetic"]["default_method"]["bim"]["export"] == {"precision": 0.925, "n_exported": 40, "n_matched": 37,
+                                                                   "n_on_ignore": 2, "n_on_nothing": 1}
+    text = md.answer(doc)
+    assert ("export precision on the renders is 92.5 %: of the 40 detections it exports, 37 are labelled windows, "
+            "2 lie on a door or glazing") in text
+
+
 def test_docs_without_a_real_run_keep_the_committed_real_figures(tmp_path):
     """`make docs` with no real run keeps the real-photo figures already in the summary, marked as
     kept with their own provenance (never deleted)."""

@@ -162,9 +162,9 @@ def test_intervals_cover_about_90_percent():
     for _ in range(30):
         out = walls.apply_walls(_results(quads + rng.normal(0.0, 0.5, quads.shape)), K, SHAPE, 1.0, None, params)
         for r, a, lab in zip(out, a_gt, labels):
-            hits_a.append(r.uncertainty["aspect_lo"] <= a <= r.uncertainty["aspect_hi"])
+            hits_a.append(r.uncertainty.aspect_lo <= a <= r.uncertainty.aspect_hi)
             err = rotation_error_deg(r.R, true_R(R, EX_FRONT if lab == 0 else EX_SIDE))
-            hits_r.append(err <= r.uncertainty["rot_deg"])
+            hits_r.append(err <= r.uncertainty.rot_deg)
     assert 0.85 <= np.mean(hits_a) <= 0.95
     assert 0.83 <= np.mean(hits_r) <= 0.97  # one rotation per wall: fewer independent draws
 
@@ -198,7 +198,7 @@ def test_ill_conditioned_flag_small_window_not_large_one():
         q = project(K, R, t, wall_windows([0, 0, 0], EX_FRONT, [spot])[0])[None]
         q = q + np.random.default_rng(1).normal(0, 0.5, q.shape)
         r = walls.apply_walls(_results(q), K, SHAPE, 1.0, None, params)[0]
-        assert r.uncertainty["ill_conditioned"] is flagged
+        assert r.uncertainty.ill_conditioned is flagged
         assert (r.aspect_case == "ill_conditioned") is flagged
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from fenestra.conventions import look_at, project
 from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, FLAG_WIDEN, Known, facade_model
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Uncertainty, WindowResult
 
 # a façade plane z = 0 (world), x along the wall, y up; seen obliquely from 12 m
 R_W, T_W = look_at(np.array([4.0, 1.5, 12.0]), np.array([0.0, 3.0, 0.0]), up=(0.0, 1.0, 0.0))
@@ -16,8 +16,8 @@ K = np.array([[1000.0, 0, 640], [0, 1000.0, 480], [0, 0, 1]])
 # (x0, y0, w, h) m on the façade: two rows of windows, 1.2 x 1.6 m, storey pitch 3.2 m
 TRUE = [(-4.0, 1.0, 1.2, 1.6), (-1.0, 1.0, 1.2, 1.6), (2.0, 1.0, 1.2, 1.6),
         (-4.0, 4.2, 1.2, 1.6), (-1.0, 4.2, 1.2, 1.6), (2.0, 4.2, 1.2, 1.6)]
-UNC = {"level": 0.9, "sigma_px": 0.5, "aspect_sd": 0.01, "aspect_lo": 0.73, "aspect_hi": 0.77, "rot_deg": 1.0,
-       "trans_rel": 0.02, "ill_conditioned": False}
+UNC = Uncertainty(level=0.9, sigma_px=0.5, aspect_sd=0.01, aspect_lo=0.73, aspect_hi=0.77, rot_deg=1.0,
+                  trans_rel=0.02, ill_conditioned=False)
 
 
 def _window(i: int, x0: float, y0: float, w: float, h: float, s: float, wall: int | None = 0, R_F=np.eye(3)):
@@ -26,7 +26,7 @@ def _window(i: int, x0: float, y0: float, w: float, h: float, s: float, wall: in
     t = R_W @ (R_F @ np.array([x0, y0, 0.0])) + T_W
     q = project(K, R, t, np.array([[0, h, 0], [w, h, 0], [w, 0, 0], [0, 0, 0]], dtype=float))
     return WindowResult(i, 0.9, q, q, w / h, "general", None, R, t * s, h * s, q, None, wall=wall,
-                        uncertainty=dict(UNC))
+                        uncertainty=UNC)
 
 
 def _scrambled(true=TRUE, seed=0):
@@ -81,9 +81,14 @@ def test_implausible_windows_are_flagged_with_reasons_and_wider_error_bars():
     assert any(f.startswith("size") or f.startswith("shape") for f in model.flags[7])
     for k in (6, 7, 8):
         u = results[k].uncertainty
-        assert u["aspect_hi"] - u["aspect_lo"] == pytest.approx(FLAG_WIDEN * (UNC["aspect_hi"] - UNC["aspect_lo"]))
-        assert u["rot_deg"] == pytest.approx(FLAG_WIDEN * UNC["rot_deg"]) and u["widened"] == FLAG_WIDEN
-    assert results[0].uncertainty["aspect_hi"] == UNC["aspect_hi"]  # plausible ones keep theirs
+        assert u.aspect_hi - u.aspect_lo == pytest.approx(FLAG_WIDEN * (UNC.aspect_hi - UNC.aspect_lo))
+        assert 0.5 * (u.aspect_hi + u.aspect_lo) == pytest.approx(0.5 * (UNC.aspect_hi + UNC.aspect_lo))
+        assert u.rot_deg == pytest.approx(FLAG_WIDEN * UNC.rot_deg) and u.widened == FLAG_WIDEN
+        assert u.trans_rel == pytest.approx(FLAG_WIDEN * UNC.trans_rel) and u.aspect_sd == pytest.approx(0.03)
+        assert u.to_json() == {**UNC.to_json(), "aspect_sd": u.aspect_sd, "aspect_lo": u.aspect_lo,
+                               "aspect_hi": u.aspect_hi, "rot_deg": u.rot_deg, "trans_rel": u.trans_rel,
+                               "widened": FLAG_WIDEN}  # windows.json: the same keys, widened last
+    assert results[0].uncertainty == UNC and "widened" not in UNC.to_json()  # plausible ones keep theirs
 
 
 def test_known_takes_one_positive_size():

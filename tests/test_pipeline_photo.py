@@ -50,6 +50,8 @@ def test_street_photo_without_K_always_gives_an_output(tmp_path):
     posed = [w for w in saved["windows"] if w["failure"] is None and w["uncertainty"]]
     assert posed and all(w["aspect_interval"][0] <= w["uncertainty"]["aspect_lo"] <= w["aspect_ratio"]
                          <= w["uncertainty"]["aspect_hi"] <= w["aspect_interval"][1] for w in posed)
+    keys = ["level", "sigma_px", "aspect_sd", "aspect_lo", "aspect_hi", "rot_deg", "trans_rel", "ill_conditioned"]
+    assert all(list(w["uncertainty"]) == keys + ([] if w["plausible"] else ["widened"]) for w in posed)  # flagged: widened
 
 
 def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
@@ -57,11 +59,11 @@ def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
 
     from dataclasses import replace  # noqa: PLC0415
 
-    from fenestra.pipeline.types import Failure, WindowResult  # noqa: PLC0415
+    from fenestra.pipeline.types import Failure, Uncertainty, WindowResult  # noqa: PLC0415
 
     w = WindowResult(index=3, score=0.9, quad_mask=None, quad_snapped=None, aspect_ratio=0.70, aspect_case=None,
                      focal_estimate_px=None, R=None, t=None, height_m=1.0, quad_reprojected=None, failure=None,
-                     uncertainty={"aspect_lo": 0.68, "aspect_hi": 0.72})
+                     uncertainty=Uncertainty(0.9, 0.5, 0.012, 0.68, 0.72, 1.0, 0.02, False))
     assert aspect_interval(w, {}) == pytest.approx([0.68, 0.72])
     assert aspect_interval(w, {3: (0.61, 0.71)}) == pytest.approx([0.61, 0.72])  # f at the interval's ends
     assert aspect_interval(replace(w, failure=Failure("quad", "x"), aspect_ratio=None), {}) is None

@@ -18,7 +18,8 @@ from fenestra.bench.executors import _index_digest, _load_shard, read_shard, wri
 
 def _outcomes() -> list[ViewOutcome]:
     """Two views as evaluate_view returns them: rows with floats, NaN, None, strings and bools;
-    stage seconds; COCO gt (RLE) and dt lists; false-positive counts; a third view with no row."""
+    stage seconds; COCO gt (RLE) and dt lists; false-positive and export counts; a third view with
+    no row."""
     def row(v, w, err):
         return {"house": "fzk-haus", "view": f"{v:06d}", "window_id": str(w), "method": "oracle/none/lm",
                 "detected": err is not None, "corner_err_px_snap": err, "iou": np.float64(0.5 + w / 10),
@@ -26,7 +27,9 @@ def _outcomes() -> list[ViewOutcome]:
     gt = [{"image": "h/000000", "rle": {"size": [4, 5], "counts": "52"}, "bbox": [1.0, 2.0, 3.0, 1.0],
            "area": 3.0, "iscrowd": 0}]
     dt = {"oracle": [{"image": "h/000000", "bbox": [1.0, 2.0, 3.0, 1.0], "score": np.float32(0.75)}]}
-    return [ViewOutcome([row(0, 1, 0.25), row(0, 2, None)], {"detect": 0.5, "snap": 0.125}, gt, dt, {"oracle": 1}),
+    exported = {"oracle/none/lm": {"n_exported": 3, "n_matched": 1, "n_on_ignore": 1, "n_on_nothing": 1}}
+    return [ViewOutcome([row(0, 1, 0.25), row(0, 2, None)], {"detect": 0.5, "snap": 0.125}, gt, dt, {"oracle": 1},
+                        exported),
             ViewOutcome([row(1, 3, 1.5)], {"detect": 0.25}, [], {"oracle": []}, {"oracle": 0}),
             ViewOutcome([], {"detect": 0.0})]
 
@@ -38,6 +41,7 @@ def test_shard_round_trip(tmp_path):
     assert back["dataset"] == "out/renders/h" and back["render_s"] == 2.5
     for a, b in zip(_outcomes(), back["outcomes"], strict=True):
         assert len(a.rows) == len(b.rows) and a.stage_s == b.stage_s and a.n_false_positives == b.n_false_positives
+        assert a.export_counts == b.export_counts and (a.dataset, a.view, a.size) == (b.dataset, b.view, b.size)
         assert json.loads(json.dumps(a.coco_dt, default=float)) == b.coco_dt and a.coco_gt == b.coco_gt
         for ra, rb in zip(a.rows, b.rows):
             for k, v in ra.items():
@@ -86,3 +90,13 @@ def test_truncated_or_short_shard_is_recomputed(tmp_path, capsys):
     assert _load_shard(str(idx)) is None and "2 rows, the index says 3" in capsys.readouterr().err
     write_shard(idx, "d", _outcomes(), 1.0)  # recomputed: every row back
     assert sum(len(o.rows) for o in read_shard(idx)["outcomes"]) == 3
+
+
+def test_an_edited_export_count_makes_the_shard_recomputed(tmp_path, capsys):
+    """The export counts feed the export precision: the index's own digest covers them."""
+    idx = write_shard(tmp_path / "k.json", "d", _outcomes(), 1.0)
+    assert read_shard(idx)["outcomes"][0].export_counts["oracle/none/lm"]["n_on_ignore"] == 1
+    doc = json.loads(idx.read_text())
+    doc["views"][0]["export_counts"]["oracle/none/lm"]["n_on_ignore"] = 0  # a door export hidden
+    idx.write_text(json.dumps(doc))
+    assert _load_shard(str(idx)) is None and "does not match its own digest" in capsys.readouterr().err

@@ -13,7 +13,9 @@ resolution, the quads, snapping, aspect ratio and pose, the focal chain where K 
 method withholds it (EXIF, vanishing points, prior: the rows' ``K_source``), the façade model (one
 plane and one scale per wall: ``scale_source``; once with nothing known, the assumed window
 height, and once with the house's true storey height, columns ``*_storey``) and the export
-decision (``exported``, ``not_exported``). The session shares what methods have in common (each
+decision (``exported``, ``not_exported``; per view and method, ViewOutcome.export_counts: the
+exported detections matched to a labelled window, on an ignore region such as a glazed door, or
+on nothing, the export precision's counts). The session shares what methods have in common (each
 detector runs once per view, the quads are fitted once per detector, snapping and per-window
 poses are reused by the per-wall strategies), so that every method's rows are those of a run of
 its own. The detections are matched to the labelled windows (mask IoU when every window has a
@@ -106,7 +108,9 @@ class ViewOutcome:
 
     dataset/view/size: the view's dataset (house), name and (H, W); window_ids: its labelled
     windows (a run manifest's expected rows); coco_dt holds the detectors that ran on the view
-    (an oracle needs masks).
+    (an oracle needs masks). n_false_positives: {detector: its detections (score >= SCORE_MIN)
+    matched to no labelled window}. export_counts: {method name: :func:`export_counts`, what the
+    method exports into the BIM model with nothing known (:data:`EXPORT_COUNTS`)}.
     """
 
     rows: list[dict]
@@ -114,6 +118,7 @@ class ViewOutcome:
     coco_gt: list[dict] = field(default_factory=list)  # fenestra.data.gt_annotation per window / ignore region
     coco_dt: dict[str, list[dict]] = field(default_factory=dict)  # detector -> fenestra.data.coco_result
     n_false_positives: dict[str, int] = field(default_factory=dict)
+    export_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     dataset: str = ""
     view: str = ""
     size: tuple[int, int] = (0, 0)
@@ -438,6 +443,36 @@ def _match_ious(view: LabelledView, det_masks: list[masks.SparseMask], dets: lis
     return metrics.box_iou_matrix([d.box for d in dets], [w.bbox() for w in view.windows])
 
 
+def on_ignore(view: LabelledView, det_masks: list[masks.SparseMask], dets: list) -> set[int]:
+    """The detections (indices into ``dets``) lying on one of the view's ignore regions (a glazed
+    door, curtain-wall glazing): at least TOL.match_iou of the detection inside one region (COCO's
+    test against an ``iscrowd`` region), by mask when every region has one, else by box."""
+    if not view.ignore or not dets:
+        return set()
+    if all(r.mask is not None for r in view.ignore):
+        cover = matching.cover_matrix(det_masks, [r.mask for r in view.ignore])
+    else:
+        cover = metrics.box_cover_matrix([d.box for d in dets], [r.bbox() for r in view.ignore])
+    return {int(d) for d in np.nonzero(cover.max(axis=1) >= TOL.match_iou)[0]}
+
+
+# what a method exports, counted per view (ViewOutcome.export_counts; summed by bench.results.export_precision)
+EXPORT_COUNTS = ("n_exported", "n_matched", "n_on_ignore", "n_on_nothing")
+
+
+def export_counts(rec, matched: set[int], ignored: set[int]) -> dict[str, int]:
+    """What one method's Reconstruction exports (``rec.exported``), as EXPORT_COUNTS: the exported
+    detections; of them, those matched to a labelled window (``matched``: detection indices), those
+    matched to none but lying on an ignore region (``ignored``: a door or glazing exported as a
+    window) and those on neither. n_exported = n_matched + n_on_ignore + n_on_nothing."""
+    out = dict.fromkeys(EXPORT_COUNTS, 0)
+    for d, exported in rec.exported.items():
+        if exported:
+            out["n_exported"] += 1
+            out["n_matched" if d in matched else "n_on_ignore" if d in ignored else "n_on_nothing"] += 1
+    return out
+
+
 def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> dict:
     """One results row in the table's column order: the window's columns, the method, then the
     ``tail`` columns (errors: NaN unless in ``values``; status, reason, aspect_case: required)."""
@@ -529,9 +564,12 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         t0 = tick("detect", t0)
         sparse = [masks.SparseMask.from_crop(d.mask, d.origin, view.size) for d in cands]
         out.coco_dt[det_name] = [coco.coco_result(view.key, d.score, d.box, m.rle()) for d, m in zip(cands, sparse)]
-        mt = matching.match(_match_ious(view, [sparse[i] for i in keep], dets), TOL.match_iou)
+        kept = [sparse[i] for i in keep]
+        mt = matching.match(_match_ious(view, kept, dets), TOL.match_iou)
         out.n_false_positives[det_name] = len(mt.false_positives)
         det_for_gt = mt.det_for_gt()
+        matched = {d for d, _ in det_for_gt.values()}
+        ignored = on_ignore(view, kept, dets)
         t0 = tick("match", t0)
         head_errors: dict = {}  # (detection, window) -> the detection's predicted corners' error, for every method
         for method in det_methods:
@@ -539,6 +577,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
             rec_storey = None if storey is None else session.run(method, Known(storey_m=storey),
                                                                  height_m=options.height_m)
             t0 = tick("reconstruct", t0)
+            out.export_counts[method.name] = export_counts(rec, matched, ignored)
             out.rows += _method_rows(view, base, method, cols, rec, rec_storey, det_for_gt, gt_poses, iou_memo,
                                      head_errors)
             t0 = tick("metrics", t0)

@@ -247,13 +247,13 @@ def plan_shards(plan: Plan, shard_views: int) -> list[Shard]:
     return shards
 
 
-SHARD_FORMAT = 2  # version of the shard files (index JSON + rows Parquet); 2: the index's own digest
+SHARD_FORMAT = 3  # version of the shard files (index JSON + rows Parquet); 2: the index's own digest; 3: export counts
 
 
 def _index_digest(index: dict) -> str:
     """sha256 of a shard index's content (every key but ``index_sha256``), as canonical JSON
-    (sorted keys): it covers the detections, false-positive counts and stage seconds that feed
-    the figures, as ``rows_sha256`` covers the rows."""
+    (sorted keys): it covers the detections, false-positive and export counts and stage seconds
+    that feed the figures, as ``rows_sha256`` covers the rows."""
     body = {k: v for k, v in index.items() if k != "index_sha256"}
     canon = json.dumps(json.loads(json.dumps(body, default=_jsonable)), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canon.encode()).hexdigest()
@@ -272,7 +272,8 @@ def _jsonable(x):
 
 def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome], render_s: float) -> Path:
     """Write a shard: its rows as Parquet beside the JSON index (sha256 of the Parquet bytes, row
-    counts, each view's stage seconds and COCO lists); the index last, so it names a complete file."""
+    counts, each view's stage seconds, COCO lists, false-positive and export counts); the index last,
+    so it names a complete file."""
     import io  # noqa: PLC0415
 
     import pandas as pd  # noqa: PLC0415
@@ -287,7 +288,8 @@ def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome
     index = {"format": SHARD_FORMAT, "dataset": dataset, "render_s": render_s,
              "rows_sha256": hashlib.sha256(data).hexdigest(), "n_rows": len(rows),
              "views": [{"n_rows": len(o.rows), "stage_s": o.stage_s, "coco_gt": o.coco_gt, "coco_dt": o.coco_dt,
-                        "n_false_positives": o.n_false_positives, "dataset": o.dataset, "view": o.view,
+                        "n_false_positives": o.n_false_positives, "export_counts": o.export_counts,
+                        "dataset": o.dataset, "view": o.view,
                         "size": list(o.size), "window_ids": list(o.window_ids)} for o in outcomes]}
     index["index_sha256"] = _index_digest(index)
     write_bytes(index_path, json.dumps(index, default=_jsonable).encode())
@@ -323,8 +325,8 @@ def read_shard(index_path: str | Path) -> dict:
         if len(sub) != v["n_rows"]:
             raise ValueError(f"view {i} has {len(sub)} rows, the index says {v['n_rows']}")
         outcomes.append(ViewOutcome(sub.to_dict("records"), v["stage_s"], v["coco_gt"], v["coco_dt"],
-                                    v["n_false_positives"], v["dataset"], v["view"], tuple(v["size"]),
-                                    tuple(v["window_ids"])))
+                                    v["n_false_positives"], v["export_counts"], v["dataset"], v["view"],
+                                    tuple(v["size"]), tuple(v["window_ids"])))
     return {"dataset": index["dataset"], "outcomes": outcomes, "render_s": float(index["render_s"])}
 
 

@@ -48,6 +48,28 @@ def iou_matrix(det_masks: list, gt_masks: list) -> np.ndarray:
     """
     if not det_masks or not gt_masks:
         return np.zeros((len(det_masks), len(gt_masks)))
+    dets, gts, inter = _intersections(det_masks, gt_masks)
+    union = (np.array([d.area for d in dets])[:, None] + np.array([g.area for g in gts])[None, :]
+             - inter)
+    # float32 ratio: the figures of the dense float32 implementation this replaced, bit for bit
+    ratio = inter.astype(np.float32) / np.maximum(union, 1).astype(np.float32)
+    return np.where(union > 0, ratio, np.float32(0.0)).astype(np.float64)
+
+
+def cover_matrix(det_masks: list, region_masks: list) -> np.ndarray:
+    """(D, R) share of each detection's pixels inside each region (intersection / detection area,
+    COCO's test against an ``iscrowd`` region), in [0, 1]; 0 for an empty detection. Masks as for
+    :func:`iou_matrix`."""
+    if not det_masks or not region_masks:
+        return np.zeros((len(det_masks), len(region_masks)))
+    dets, _, inter = _intersections(det_masks, region_masks)
+    area = np.array([d.area for d in dets], dtype=np.float64)[:, None]
+    return np.where(area > 0, inter / np.maximum(area, 1.0), 0.0)
+
+
+def _intersections(det_masks: list, gt_masks: list) -> tuple[list[SparseMask], list[SparseMask], np.ndarray]:
+    """(detections, windows, (D, G) int64 pixel counts of their intersections), as SparseMasks;
+    only pairs whose boxes overlap are compared, on the overlap of their crops."""
     dets, gts = _sparse(det_masks), _sparse(gt_masks)
     shape = gts[0].shape
     for name, masks in (("det_masks", dets), ("gt_masks", gts)):
@@ -65,11 +87,7 @@ def iou_matrix(det_masks: list, gt_masks: list) -> np.ndarray:
         c0, c1 = max(d.c0, g.c0), min(d.c1, g.c1)
         inter[i, j] = np.count_nonzero(d.crop[r0 - d.r0:r1 - d.r0, c0 - d.c0:c1 - d.c0]
                                        & g.crop[r0 - g.r0:r1 - g.r0, c0 - g.c0:c1 - g.c0])
-    union = (np.array([d.area for d in dets])[:, None] + np.array([g.area for g in gts])[None, :]
-             - inter)
-    # float32 ratio: the figures of the dense float32 implementation this replaced, bit for bit
-    ratio = inter.astype(np.float32) / np.maximum(union, 1).astype(np.float32)
-    return np.where(union > 0, ratio, np.float32(0.0)).astype(np.float64)
+    return dets, gts, inter
 
 
 def match(iou: np.ndarray, min_iou: float = TOL.match_iou) -> Matching:

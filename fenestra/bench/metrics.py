@@ -155,14 +155,32 @@ def box_iou_matrix(det_boxes: list[np.ndarray], gt_boxes: list[np.ndarray]) -> n
     """Box IoU of every detection box with every ground-truth box: (D, G) float64 in [0, 1]."""
     if not det_boxes or not gt_boxes:
         return np.zeros((len(det_boxes), len(gt_boxes)))
+    D, G, inter = _box_intersections(det_boxes, gt_boxes)
+    union = _box_area(D)[:, None] + _box_area(G)[None, :] - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+
+
+def box_cover_matrix(det_boxes: list[np.ndarray], region_boxes: list[np.ndarray]) -> np.ndarray:
+    """Share of every detection box's area inside every region box (intersection / detection
+    area, COCO's test against an ``iscrowd`` region): (D, R) float64 in [0, 1]; 0 for an empty box."""
+    if not det_boxes or not region_boxes:
+        return np.zeros((len(det_boxes), len(region_boxes)))
+    D, _, inter = _box_intersections(det_boxes, region_boxes)
+    a = _box_area(D)[:, None]
+    return np.where(a > 0, inter / np.where(a > 0, a, 1.0), 0.0)
+
+
+def _box_area(B: np.ndarray) -> np.ndarray:
+    return (B[:, 2] - B[:, 0]) * (B[:, 3] - B[:, 1])
+
+
+def _box_intersections(det_boxes, gt_boxes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(D (n, 4), G (m, 4) as float64 x0 y0 x1 y1, (n, m) areas of their intersections, px^2)."""
     D = np.asarray(det_boxes, dtype=np.float64).reshape(-1, 4)
     G = np.asarray(gt_boxes, dtype=np.float64).reshape(-1, 4)
     iw = np.clip(np.minimum(D[:, None, 2], G[None, :, 2]) - np.maximum(D[:, None, 0], G[None, :, 0]), 0, None)
     ih = np.clip(np.minimum(D[:, None, 3], G[None, :, 3]) - np.maximum(D[:, None, 1], G[None, :, 1]), 0, None)
-    inter = iw * ih
-    area = lambda B: (B[:, 2] - B[:, 0]) * (B[:, 3] - B[:, 1])  # noqa: E731
-    union = area(D)[:, None] + area(G)[None, :] - inter
-    return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+    return D, G, iw * ih
 
 
 def reprojection_consistency_px(quad_snapped: np.ndarray, quad_reprojected: np.ndarray) -> float:

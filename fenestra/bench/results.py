@@ -8,7 +8,9 @@ with their unit in the column name; ``results.csv``, the same table, only when a
      "results": {method: {n_gt, n_evaluable, detection_rate, failure_rate,
                           corner_err_px_{mask,snap,reproj}: {median, p90, max, mean, n, n_valid,
                                                              fail_rate, recall: {"1": .., "2": ..}},
-                          aspect_err_rel / rot_err_deg / normal_err_deg / trans_err_m / iou_2d: {...}}},
+                          aspect_err_rel / rot_err_deg / normal_err_deg / trans_err_m / iou_2d: {...},
+                          bim: {...}, export: {precision, n_exported, n_matched, n_on_ignore, n_on_nothing,
+                                               n_views}}},
      "detection": {detector: {bbox_AP, bbox_AP50, segm_AP, segm_AP50, ...}}}
 
 Statistics are over *evaluable* rows (see bench.evaluate.window_base). Medians/p90 are
@@ -310,6 +312,36 @@ def _bim(ev: dict[str, np.ndarray]) -> dict:
         if c in ev:
             out[c] = error_stats(ev[c][ok])
     return out
+
+
+def export_precision(outcomes: list) -> dict[str, dict]:
+    """{method: its export precision over the views it ran on}: the bench.evaluate.EXPORT_COUNTS of
+    every view's ``export_counts`` (bench.evaluate.ViewOutcome) summed, ``n_views``, and
+    ``precision`` = n_matched / n_exported (the exported detections that are labelled windows; a
+    detection on an ignore region, a glazed door or curtain-wall glazing, counts as a false export;
+    NaN when nothing was exported). Not in the results table: the counts are per detection, and a
+    detection on no labelled window has no row."""
+    from fenestra.bench.evaluate import EXPORT_COUNTS  # noqa: PLC0415
+
+    out: dict[str, dict] = {}
+    for o in outcomes:
+        for m, c in o.export_counts.items():
+            t = out.setdefault(m, {**dict.fromkeys(EXPORT_COUNTS, 0), "n_views": 0})
+            for k in EXPORT_COUNTS:
+                t[k] += int(c[k])
+            t["n_views"] += 1
+    for t in out.values():
+        t["precision"] = t["n_matched"] / t["n_exported"] if t["n_exported"] else float("nan")
+    return {m: out[m] for m in sorted(out)}
+
+
+def add_export_precision(results: dict[str, dict], outcomes: list) -> dict[str, dict]:
+    """``results`` (:func:`summarize`'s) with each method's :func:`export_precision` as its
+    ``export`` block (in place; returned)."""
+    for m, block in export_precision(outcomes).items():
+        if m in results:
+            results[m]["export"] = block
+    return results
 
 
 def summarize_method(df: pd.DataFrame) -> dict:

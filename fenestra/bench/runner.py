@@ -308,6 +308,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         det = detection_ap(outcomes, per_dataset=photos)
         pq_path = run_dir / res.RESULTS_PARQUET
         summary = res.summarize(pd.read_parquet(pq_path, columns=res.summary_columns(res.parquet_columns(pq_path))))
+        res.add_export_precision(summary, outcomes)  # per detection, from the outcomes: not in the table
         stage_s["summarize"] = time.perf_counter() - t0
         wall = time.perf_counter() - t_start
         meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,

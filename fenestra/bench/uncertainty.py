@@ -4,9 +4,9 @@ Methods with K withheld (``fenestra.methods.Method.withhold_K``; pose column ``w
 K withheld (the principal point is then the image centre, as for a user's photo): their rows
 carry the focal length the pipeline found (``focal_est_px``) and its relative error.
 
-Calibration: a window with error bars (``WindowResult.uncertainty``, 90 % intervals) gets
-``aspect_in90`` / ``rot_in90`` / ``trans_in90`` (1.0 when its true error lies inside the interval,
-0.0 when not, NaN without intervals); the summary's calibration is their mean.
+Calibration: a window with error bars (``WindowResult.uncertainty``, a pipeline.types.Uncertainty:
+90 % intervals) gets ``aspect_in90`` / ``rot_in90`` / ``trans_in90`` (1.0 when its true error lies
+inside the interval, 0.0 when not, NaN without intervals); the summary's calibration is their mean.
 """
 from __future__ import annotations
 
@@ -35,10 +35,10 @@ def columns(res, aspect_gt: float, gt_pose: tuple[np.ndarray, np.ndarray], K: np
     u = res.uncertainty
     if u is None or res.R is None:
         return out
-    out["aspect_in90"] = float(u["aspect_lo"] <= aspect_gt <= u["aspect_hi"])
-    out["aspect_ci90_rel"] = 0.5 * (u["aspect_hi"] - u["aspect_lo"]) / res.aspect_ratio
-    out["rot_ci90_deg"] = u["rot_deg"]
-    out["rot_in90"] = float(errors["rot_err_deg"] <= u["rot_deg"])
+    out["aspect_in90"] = float(u.aspect_lo <= aspect_gt <= u.aspect_hi)
+    out["aspect_ci90_rel"] = 0.5 * (u.aspect_hi - u.aspect_lo) / res.aspect_ratio
+    out["rot_ci90_deg"] = u.rot_deg
+    out["rot_in90"] = float(errors["rot_err_deg"] <= u.rot_deg)
     t_gt = gt_pose[1]
-    out["trans_in90"] = float(errors["trans_err_m"] / np.linalg.norm(t_gt) <= u["trans_rel"])
+    out["trans_in90"] = float(errors["trans_err_m"] / np.linalg.norm(t_gt) <= u.trans_rel)
     return out

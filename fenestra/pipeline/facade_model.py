@@ -36,7 +36,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fenestra.conventions import rotation_error_deg
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Uncertainty, WindowResult
 
 DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
 MERGE_DEG = 5.0  # walls whose rotations differ by less are one façade plane
@@ -196,13 +196,14 @@ def _rescaled(r: WindowResult, s: float) -> WindowResult:
     return replace(r, t=np.asarray(r.t, dtype=np.float64) * s, height_m=float(r.height_m) * s)
 
 
-def _widened(unc: dict | None, factor: float = FLAG_WIDEN) -> dict | None:
+def _widened(unc: Uncertainty | None, factor: float = FLAG_WIDEN) -> Uncertainty | None:
+    """The intervals ``factor`` times wider about their centres (``widened`` = factor)."""
     if unc is None:
         return None
-    a = 0.5 * (unc["aspect_lo"] + unc["aspect_hi"])
-    half = 0.5 * (unc["aspect_hi"] - unc["aspect_lo"]) * factor
-    return {**unc, "aspect_sd": unc["aspect_sd"] * factor, "aspect_lo": a - half, "aspect_hi": a + half,
-            "rot_deg": unc["rot_deg"] * factor, "trans_rel": unc["trans_rel"] * factor, "widened": factor}
+    a = 0.5 * (unc.aspect_lo + unc.aspect_hi)
+    half = 0.5 * (unc.aspect_hi - unc.aspect_lo) * factor
+    return replace(unc, aspect_sd=unc.aspect_sd * factor, aspect_lo=a - half, aspect_hi=a + half,
+                   rot_deg=unc.rot_deg * factor, trans_rel=unc.trans_rel * factor, widened=factor)
 
 
 def size_limits(known: Known, assumed: bool) -> tuple[float, float, str]:

@@ -131,8 +131,8 @@ def aspect_interval(w: WindowResult, envelope: dict[int, tuple[float, float]]) -
     failed window."""
     if w.failure is not None or w.aspect_ratio is None:
         return None
-    unc = w.uncertainty or {}
-    vals = [w.aspect_ratio, *(unc[k] for k in ("aspect_lo", "aspect_hi") if k in unc), *envelope.get(w.index, ())]
+    unc = w.uncertainty
+    vals = [w.aspect_ratio, *(() if unc is None else (unc.aspect_lo, unc.aspect_hi)), *envelope.get(w.index, ())]
     return [float(min(vals)), float(max(vals))]
 
 
@@ -141,7 +141,7 @@ def confidence(w: WindowResult, flagged: bool) -> float:
     when flagged; 0 for a failed window."""
     if w.failure is not None:
         return 0.0
-    ill = bool(w.uncertainty and w.uncertainty.get("ill_conditioned"))
+    ill = w.uncertainty is not None and w.uncertainty.ill_conditioned
     return w.score * (0.5 if ill else 1.0) * (0.25 if flagged else 1.0)
 
 

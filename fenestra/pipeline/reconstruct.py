@@ -307,7 +307,7 @@ def window_to_dict(r: WindowResult) -> dict:
         "width_m": None if r.aspect_ratio is None or r.R is None else r.aspect_ratio * r.height_m,
         "quad_reprojected": _list(r.quad_reprojected),
         "failure": None if r.failure is None else str(r.failure), "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
-        "wall": r.wall, "uncertainty": r.uncertainty,
+        "wall": r.wall, "uncertainty": None if r.uncertainty is None else r.uncertainty.to_json(),
     }
 
 

@@ -77,6 +77,40 @@ class Detection:
 
 
 @dataclass(frozen=True)
+class Uncertainty:
+    """A window's error bars from its wall's joint fit (pipeline.walls.window_uncertainty):
+    first-order covariance, reported as intervals at ``level`` (0.9: 90 %).
+
+    level: the intervals' coverage, in (0, 1); sigma_px: the corner sigma (px) the covariance
+    used; aspect_sd: the aspect ratio's (width / height, unitless) standard deviation; aspect_lo,
+    aspect_hi: its interval (unitless); rot_deg: bound on the rotation error (deg); trans_rel:
+    bound on |t error| / |t| (unitless); ill_conditioned: the aspect interval or the rotation bound
+    too wide (pipeline.walls.settings.WALL_FIT; aspect_case then becomes ``ill_conditioned``);
+    widened: None, or the factor the façade model widened every interval by (a flagged window,
+    pipeline.facade_model.FLAG_WIDEN). Scalars, all; :meth:`to_json` is windows.json's form.
+    """
+
+    level: float
+    sigma_px: float
+    aspect_sd: float
+    aspect_lo: float
+    aspect_hi: float
+    rot_deg: float
+    trans_rel: float
+    ill_conditioned: bool
+    widened: float | None = None
+
+    def to_json(self) -> dict:
+        """windows.json's ``uncertainty``: every field in order, ``widened`` only when set."""
+        out = {"level": self.level, "sigma_px": self.sigma_px, "aspect_sd": self.aspect_sd,
+               "aspect_lo": self.aspect_lo, "aspect_hi": self.aspect_hi, "rot_deg": self.rot_deg,
+               "trans_rel": self.trans_rel, "ill_conditioned": self.ill_conditioned}
+        if self.widened is not None:
+            out["widened"] = self.widened
+        return out
+
+
+@dataclass(frozen=True)
 class WindowResult:
     """Reconstruction of one detected window (one entry of windows.json).
 
@@ -86,7 +120,8 @@ class WindowResult:
     Fields are None when the stage failed; ``failure`` (a :class:`Failure`) then names the stage
     and reason.
     wall: index of the wall the window was grouped into (per-wall strategies, pipeline.walls),
-    else None; uncertainty: its 90 % intervals (pipeline.walls.window_uncertainty), else None.
+    else None; uncertainty: its 90 % intervals (:class:`Uncertainty`, pipeline.walls.window_uncertainty),
+    else None.
     """
 
     index: int
@@ -104,7 +139,7 @@ class WindowResult:
     timings_ms: dict[str, float] = field(default_factory=dict)
     instance_id: int | None = None  # the detection's id in the input instance map, if any
     wall: int | None = None
-    uncertainty: dict | None = None
+    uncertainty: Uncertainty | None = None
 
     @property
     def status(self) -> Status:

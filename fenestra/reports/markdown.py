@@ -212,7 +212,7 @@ def collect_synthetic(run_dir: Path) -> dict:
     """The figures of a synthetic run the docs show (rounded), with its provenance."""
     df = load_verified_results(run_dir)
     summary = json.loads((run_dir / "summary.json").read_text())
-    results = summarize(df)
+    results = with_export(summarize(df), summary)
     snap = _snap_ranks(df, results, SIM_METRIC)
     pose = {det: {"snapper": rk[0]["snapper"], "rows": _pose_rows(df, results, det, rk[0]["snapper"])}
             for det, rk in snap.items() if rk and rk[0]["median"] is not None}
@@ -254,10 +254,21 @@ def _method_figures(results: dict, method: str) -> dict:
             "bim": bim_figures(results, method), "bim_noK": bim_figures(results, method + NO_K_SUFFIX)}
 
 
+def with_export(results: dict, summary: dict) -> dict:
+    """``results`` (bench.results.summarize of the verified table) with each method's ``export``
+    block (export precision and its counts, bench.results.export_precision) from the run's
+    summary.json: counted per detection, it is not in the table (in place; returned)."""
+    for m, r in (summary.get("results") or {}).items():
+        if m in results and r.get("export"):
+            results[m]["export"] = r["export"]
+    return results
+
+
 def bim_figures(results: dict, method: str) -> dict | None:
     """What a BIM user gets from one method (bench.results' ``bim`` block, rounded): windows
     reconstructed, exported share, focal sources, assumed-scale shares and the metric errors'
-    median and p90 (m); None when the run lacks the method or the block."""
+    median and p90 (m), and, where the run counted them (:func:`with_export`), ``export``: the
+    export precision and its counts; None when the run lacks the method or the block."""
     b = results.get(method, {}).get("bim")
     if not b:
         return None
@@ -267,6 +278,10 @@ def bim_figures(results: dict, method: str) -> dict | None:
     for c in METRIC_ERRORS:
         if c in b:
             out[c] = {"median": _r(b[c]["median"]), "p90": _r(b[c]["p90"]), "n": b[c]["n_valid"]}
+    e = results[method].get("export")
+    if e:
+        out["export"] = {"precision": _r(e["precision"]),
+                         **{k: int(e[k]) for k in ("n_exported", "n_matched", "n_on_ignore", "n_on_nothing")}}
     return out
 
 
@@ -275,7 +290,7 @@ def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
     measures, whether renders choose the same snapper by that metric, and detection AP."""
     df = load_verified_results(real_dir)
     summary = json.loads((real_dir / "summary.json").read_text())
-    results = summarize(df)
+    results = with_export(summarize(df), summary)
     metric, snap = None, {}
     for m in PHOTO_METRICS:
         snap = _snap_ranks(df, results, m)
@@ -453,13 +468,20 @@ def _bim_clause(b: dict, storey: bool = True) -> str:
 
 def bim_sentence(syn: dict, real: dict | None) -> str:
     """What a BIM user gets from the CLI's method: metric size and position errors (renders), the
-    focal chain's sources with K withheld, the exported share, and the real-photo counterpart."""
+    exported share, the export precision on the renders with its counts (where the run has them:
+    doors and glazing are labelled negatives), the focal chain's sources with K withheld, and the
+    real-photo counterpart."""
     d = syn["default_method"]
     b = d.get("bim") if d.get("in_run") else None
     if not b:
         return "This run has no BIM figures of the CLI's method (an older run, or the method is not in it)."
     text = (f"As a BIM user gets it, from the CLI's method on the renders (K known, {b['n']} windows): "
             f"{_bim_clause(b)}; {_pct(b['exported_rate'], 0)} of them are exported.")
+    e = b.get("export")
+    if e and e["n_exported"]:
+        text += (f" Its export precision on the renders is {_pct(e['precision'])}: of the {e['n_exported']} "
+                 f"detections it exports, {e['n_matched']} are labelled windows, {e['n_on_ignore']} lie on a "
+                 f"door or glazing (labelled as negatives) and {e['n_on_nothing']} on neither.")
     nk = d.get("bim_noK")
     if nk:
         src = ", ".join(f"{k} {_pct(v, 0)}" for k, v in nk["K_source"].items() if v)

@@ -24,6 +24,7 @@ from scipy import special
 from scipy.optimize import least_squares
 
 from fenestra.checks import check_K, check_quad
+from fenestra.pipeline.types import Uncertainty
 from fenestra.pipeline.walls.settings import WALL_FIT
 from fenestra.pipeline.walls.vanishing import FacadeError, cross3, homog
 
@@ -323,8 +324,9 @@ def norm_ppf(level: float) -> float:
     return float(special.ndtri(level))
 
 
-def window_uncertainty(fit: WallFit, i: int, level: float = WALL_FIT.interval_level) -> dict:
-    """90 % intervals of window i of a wall fit: aspect (lo, hi), rotation (deg), |dt| / |t|."""
+def window_uncertainty(fit: WallFit, i: int, level: float = WALL_FIT.interval_level) -> Uncertainty:
+    """90 % intervals of window i of a wall fit: aspect (lo, hi), rotation (deg), |dt| / |t|
+    (pipeline.types.Uncertainty)."""
     z = norm_ppf(0.5 + level / 2.0)
     wb, rb = fit.window_block(i), fit.rot_block(i)
     cw = fit.cov[wb, wb]
@@ -333,6 +335,5 @@ def window_uncertainty(fit: WallFit, i: int, level: float = WALL_FIT.interval_le
     rot = np.degrees(norm_quantile(fit.cov[rb, rb], level))
     trans = norm_quantile(cw[:3, :3], level) / float(np.linalg.norm(fit.t[i]))
     ill = bool(z * a_sd / a > WALL_FIT.ill_conditioned_aspect_rel or rot > WALL_FIT.ill_conditioned_rot_deg)
-    return {"level": level, "sigma_px": fit.sigma_px, "aspect_sd": a_sd, "aspect_lo": a - z * a_sd,
-            "aspect_hi": a + z * a_sd, "rot_deg": float(rot), "trans_rel": float(trans),
-            "ill_conditioned": ill}
+    return Uncertainty(level=level, sigma_px=fit.sigma_px, aspect_sd=a_sd, aspect_lo=a - z * a_sd,
+                       aspect_hi=a + z * a_sd, rot_deg=float(rot), trans_rel=float(trans), ill_conditioned=ill)

@@ -17,7 +17,7 @@ Unknown intrinsics (K None): the focal length is estimated from the walls (each 
 vanishing directions, then the joint fit with f free; walls combined by inverse variance); the
 principal point is the image centre (:func:`fit_walls_focal`, :func:`focal_from_walls`).
 
-Uncertainty per window (``WindowResult.uncertainty``): first-order covariance of the joint fit
+Uncertainty per window (``WindowResult.uncertainty``, a pipeline.types.Uncertainty): first-order covariance of the joint fit
 with the corner sigma pooled from the residuals and a prior (WALL_FIT.sigma_px; with
 WallParams.snap_sigma, per window at least how far snapping moved its corners), reported as 90 %
 intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), ``trans_rel``
@@ -338,7 +338,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             scale = 1.0 if width_m is None else width_m / fit.width[j]
             case = out[k].aspect_case or AspectCase.GENERAL
             out[k] = replace(out[k], aspect_ratio=float(fit.width[j] / fit.height),
-                             aspect_case=AspectCase.ILL_CONDITIONED if unc["ill_conditioned"] else case,
+                             aspect_case=AspectCase.ILL_CONDITIONED if unc.ill_conditioned else case,
                              focal_estimate_px=f_est, R=fit.window_R(j), t=fit.t[j] * scale,
                              height_m=fit.height * scale, quad_reprojected=fit.reprojected[j],
                              failure=None, wall=wid, uncertainty=unc)
