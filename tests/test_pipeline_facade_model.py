@@ -145,3 +145,16 @@ def test_typical_members_is_the_largest_agreeing_set_of_plausible_shapes():
     h = np.array([1.0, 1.1, 1.0, 3.0, 0.95, 1.0])  # the third window-shaped one is three times taller
     assert typical_members(a, h).tolist() == [0, 1, 4]
     assert typical_members(np.array([3.0, 0.1]), np.array([1.0, 1.0])).tolist() == [0, 1]  # none: all
+
+
+def test_rows_that_are_not_a_storey_apart_do_not_take_the_storey_height():
+    """Two rows 1.9 m apart of 1.6 m windows (a high and a low row of one storey, or a basement row):
+    a 3.2 m storey would make the windows 2.7 m tall (0.84 of the storey), so the wall keeps the
+    assumed height and says why; rows 3.2 m apart take it (the true scale)."""
+    close = [(x, y if y < 2 else 2.9, w, h) for x, y, w, h in TRUE]
+    results, model = facade_model(_scrambled(close), Known(storey_m=3.2))
+    wall = model.walls[0]
+    assert wall.assumed and "not a storey apart" in wall.scale_source and "2.69 m tall" in wall.scale_source
+    assert float(np.median([r.height_m for r in results])) == pytest.approx(DEFAULT_WINDOW_HEIGHT_M)
+    results, model = facade_model(_scrambled(), Known(storey_m=3.2))
+    assert not model.walls[0].assumed and results[0].height_m == pytest.approx(1.6)

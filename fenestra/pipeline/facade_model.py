@@ -44,6 +44,9 @@ ASPECT_RANGE = (0.2, 4.0)  # w/h of any window: 99.8 % of the 4552 labelled wind
 WALL_RATIO = 2.5  # a window's w/h or height more than this factor off its wall's median
 LONE_TOL_DEG = 10.0  # a one-window wall within this of a larger wall joins it (one quad's rotation is noisier)
 FLAG_WIDEN = 3.0  # a flagged window's 90 % intervals are this many times wider
+# a window's height as a share of the storey's: rows whose pitch implies more or less are not storeys
+# (two rows of one storey, a basement row, dormers), and the known storey height is not used on them
+STOREY_WINDOW_SHARE = (0.2, 0.75)
 TYPICAL_ASPECT = (0.35, 1.5)  # w/h of a typical window: 2.5-97.5 % (0.38-1.49) of the 3606 window boxes of spb_facades/train
 AGREE_RATIO = 1.5  # typical windows of a wall agree within this factor in height (per unit distance) and w/h
 MAX_WINDOW_M = 4.0  # a window taller or wider than this is flagged unless a known size says otherwise
@@ -181,12 +184,16 @@ def wall_scale(results: list[WindowResult], members: tuple[int, ...], offsets: n
         return known.window_width_m / float(np.median(w[typ])), f"known window width {known.window_width_m:g} m", False
     if known.window_height_m is not None:
         return known.window_height_m / float(np.median(h[typ])), f"known window height {known.window_height_m:g} m", False
+    why = ""
     if known.storey_m is not None:
         bottoms = np.array([float(up @ np.asarray(results[k].t).reshape(3)) for k in members]) / offsets
         pitch = _rows_pitch(bottoms[typ], h[typ])
-        if pitch:
+        implied = None if not pitch else known.storey_m * float(np.median(h[typ])) / pitch  # the windows' height, m
+        if implied is not None and STOREY_WINDOW_SHARE[0] <= implied / known.storey_m <= STOREY_WINDOW_SHARE[1]:
             return known.storey_m / pitch, f"known storey height {known.storey_m:g} m", False
-    why = "" if known.storey_m is None else " (storey height given but the wall shows < 2 window rows)"
+        why = (" (storey height given but the wall shows < 2 window rows)" if implied is None else
+               f" (storey height given but the wall's window rows are not a storey apart: they would make its "
+               f"windows {implied:.2f} m tall, outside {STOREY_WINDOW_SHARE[0]:g}-{STOREY_WINDOW_SHARE[1]:g} of the storey)")
     return (DEFAULT_WINDOW_HEIGHT_M / float(np.median(h[typ])),
             f"assumed: median window height {DEFAULT_WINDOW_HEIGHT_M:g} m{why}", True)
 
