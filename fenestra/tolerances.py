@@ -35,6 +35,11 @@ class Tolerances:
     compare_corner_px: float = 0.05  # corner_err_px_snap
     compare_aspect_rel: float = 0.002  # aspect_err_rel (0.2 percentage points)
     compare_rot_deg: float = 0.02  # rot_err_deg
+    # mask -> quad on thin windows (issue 36, tests/test_pipeline_quad.py): every corner of an exact
+    # pixel-centre mask of a thin rectangle (10x60 .. 20x120 px, any rotation), and of a thin window
+    # with corners rounded up to a third of its short side against its straight-sided truth
+    thin_quad_exact_px: float = 0.5
+    thin_quad_rounded_px: float = 1.5
 
 
 TOL = Tolerances()

@@ -9,6 +9,7 @@ import pytest
 
 from fenestra.conventions import make_K
 from fenestra.pipeline.quad import QuadParams, mask_to_quad, order_corners
+from fenestra.tolerances import TOL
 from quad_image import pixel_centre_mask, view_window
 
 K = make_K(800.0, 800.0, 319.5, 239.5)
@@ -121,3 +122,150 @@ def test_mask_plus_corners_takes_the_corner_head_only_where_the_mask_fit_finds_n
     rect = (yy >= 30) & (yy < 90) & (xx >= 40) & (xx < 120)
     fit = quad_of(rect, inscribed, "mask+corners").quad  # the mask fit where it succeeds, not the head
     np.testing.assert_allclose(fit, [[39.5, 29.5], [119.5, 29.5], [119.5, 89.5], [39.5, 89.5]], atol=0.3)
+
+
+# --- thin windows (issue 36): a short side of 10-20 px is shorter than the local line fit --------------
+
+THIN = (200, 200)
+
+
+def rotated_rect(w, h, angle_deg, centre):
+    """Corners (4, 2) of a w x h px rectangle turned by angle_deg about centre (independent truth)."""
+    a = np.radians(angle_deg)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    return np.array([[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]]) @ R.T + centre
+
+
+def rounded_mask(corners, radius, shape):
+    """Pixels whose centre lies inside the rectangle ``corners`` (TL TR BR BL, any projective view of
+    a rectangle) with its corners rounded by ``radius`` in the rectangle's own frame (unit square
+    scaled to its side lengths in px at the TL corner): mapped back through the exact homography."""
+    wpx = np.linalg.norm(corners[1] - corners[0])
+    hpx = np.linalg.norm(corners[3] - corners[0])
+    frame = np.array([[0, 0], [wpx, 0], [wpx, hpx], [0, hpx]], np.float32)
+    H = cv2.getPerspectiveTransform(np.asarray(corners, np.float32), frame).astype(np.float64)
+    v, u = np.mgrid[:shape[0], :shape[1]]
+    X = np.stack([u.ravel(), v.ravel(), np.ones(u.size)], axis=1) @ H.T
+    x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
+    qx = np.abs(x - wpx / 2) - (wpx / 2 - radius)
+    qy = np.abs(y - hpx / 2) - (hpx / 2 - radius)
+    d = np.hypot(np.maximum(qx, 0), np.maximum(qy, 0)) + np.minimum(np.maximum(qx, qy), 0)
+    return (d <= radius).reshape(shape)
+
+
+def in_frame(q, shape, margin=3.0):
+    return bool(np.all(q >= margin) and np.all(q[:, 0] < shape[1] - margin) and np.all(q[:, 1] < shape[0] - margin))
+
+
+def corner_err(r, truth):
+    assert r.failure is None, r.failure
+    return np.linalg.norm(r.quad - order_corners(truth), axis=1).max()
+
+
+@pytest.mark.parametrize("w, h", [(10, 60), (14, 70), (20, 120)])
+def test_thin_rectangle_on_pixel_edges_is_exact(w, h):
+    # the colleague's case: a 14 x 70 px rectangle failed with "a side explains only 0.0%"
+    for m, truth in ((np.zeros(THIN, bool), np.array([[49.5, 59.5], [49.5 + w, 59.5], [49.5 + w, 59.5 + h], [49.5, 59.5 + h]])),
+                     (np.zeros(THIN, bool), np.array([[59.5, 49.5], [59.5 + h, 49.5], [59.5 + h, 49.5 + w], [59.5, 49.5 + w]]))):
+        x0, y0 = truth[0] + 0.5
+        x1, y1 = truth[2] + 0.5
+        m[int(y0):int(y1), int(x0):int(x1)] = True
+        r = mask_to_quad(m)
+        assert r.failure is None, r.failure
+        assert np.abs(r.quad - truth).max() < 1e-6, r.quad - truth
+
+
+@pytest.mark.parametrize("w, h", [(10, 60), (14, 70), (20, 120)])
+def test_thin_rotated_rectangles_within_half_a_pixel(w, h):
+    """Every 2.5 deg, at random sub-pixel centres. Away from the pixel axes every corner is within
+    TOL.thin_quad_exact_px; within 10 deg of an axis a 10-20 px edge is one or two pixel rows, which
+    fix its position only to the pixel, and its few points its direction poorly: up to 1.13 px
+    measured (14 x 70 at 90.5 deg), bounded here at 1.2 px."""
+    rng = np.random.default_rng(w)
+    errs, fails = {}, []
+    for ang in np.arange(0.5, 180.0, 2.5):
+        truth = rotated_rect(w, h, ang, 100.0 + rng.uniform(0, 1, 2))
+        r = mask_to_quad(pixel_centre_mask(truth, THIN))
+        if r.failure is not None:
+            fails.append((ang, r.failure))
+            continue
+        errs[ang] = corner_err(r, truth)
+    assert len(fails) <= (1 if w == 10 else 0), fails  # 10 px: one sub-pixel phase in 72 fails
+    off_axis = [e for a, e in errs.items() if min(a % 90.0, 90.0 - a % 90.0) >= 10.0]
+    assert max(off_axis) < TOL.thin_quad_exact_px, max(off_axis)
+    assert max(errs.values()) < 1.2 and np.median(list(errs.values())) < 0.3, errs
+
+
+def test_thin_windows_in_perspective_within_half_a_pixel():
+    """0.35-0.5 x 1.4-2 m windows seen at up to 75 deg yaw, short sides 12 px or more."""
+    rng = np.random.default_rng(11)
+    errs = []
+    while len(errs) < 60:
+        sw = view_window(K, rng.uniform(0.35, 0.5), rng.uniform(1.4, 2.0), rng.uniform(-75, 75),
+                         rng.uniform(-30, 30), rng.uniform(-15, 15), rng.uniform(5, 20),
+                         tuple(rng.uniform(-120, 120, 2)))
+        q = sw.corners_px
+        if np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).min() < 12 or not in_frame(q, SHAPE):
+            continue
+        errs.append(corner_err(mask_to_quad(pixel_centre_mask(q, SHAPE)), q))
+    errs = np.array(errs)
+    assert np.median(errs) < 0.25 and np.mean(errs < TOL.thin_quad_exact_px) >= 0.9, np.sort(errs)[-8:]
+    assert errs.max() < 1.0, np.sort(errs)[-8:]
+
+
+@pytest.mark.parametrize("w, h, radius", [(10, 60, 3), (14, 70, 4.5), (20, 120, 6.5), (24, 100, 8), (45, 160, 15)])
+def test_thin_rounded_masks_give_the_straight_sided_quad(w, h, radius):
+    # a learned mask rounds the corners: 24 x 100 px with radius 8 failed ("3.1% of the outline")
+    rng = np.random.default_rng(int(radius * 10))
+    for ang in (0.0, 4.0, 17.0, 45.0, 73.0, 90.0):
+        truth = rotated_rect(w, h, ang, 100.0 + rng.uniform(0, 1, 2))
+        err = corner_err(mask_to_quad(rounded_mask(truth, radius, THIN)), truth)
+        assert err < TOL.thin_quad_rounded_px, (ang, err)
+
+
+def test_thin_rounded_windows_in_perspective():
+    rng = np.random.default_rng(12)
+    n = 0
+    while n < 30:
+        sw = view_window(K, rng.uniform(0.35, 0.5), rng.uniform(1.4, 2.0), rng.uniform(-60, 60),
+                         rng.uniform(-30, 30), rng.uniform(-15, 15), rng.uniform(4, 12),
+                         tuple(rng.uniform(-100, 100, 2)))
+        q = sw.corners_px
+        short = np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).min()
+        if short < 12 or not in_frame(q, SHAPE):
+            continue
+        m = rounded_mask(q, rng.uniform(0.0, 1.0 / 3.0) * short, SHAPE)
+        assert corner_err(mask_to_quad(m), q) < TOL.thin_quad_rounded_px
+        n += 1
+
+
+def clipped_triangle(tri, k, frac):
+    """Triangle (3, 2) with corner k cut off at ``frac`` of both sides that meet there."""
+    A, B, C = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]
+    return np.array([A + frac * (B - A), B, C, A + frac * (C - A)])
+
+
+@pytest.mark.parametrize("make", [
+    lambda: cv2.fillPoly(np.zeros(SHAPE, np.uint8), [np.int32(clipped_triangle(
+        np.array([[100.0, 300.0], [400.0, 320.0], [250.0, 60.0]]), 2, 0.05))], 1),
+    lambda: cv2.fillPoly(np.zeros(SHAPE, np.uint8), [np.int32(clipped_triangle(
+        np.array([[100.0, 300.0], [400.0, 320.0], [250.0, 60.0]]), 0, 0.04))], 1),
+    lambda: cv2.fillPoly(np.zeros(SHAPE, np.uint8), [np.int32(clipped_triangle(  # a sliver: thin
+        np.array([[90.0, 110.0], [470.0, 310.0], [141.0, 71.0]]), 0, 0.04))], 1),
+    lambda: cv2.fillPoly(np.zeros(SHAPE, np.uint8), [np.int32([[300, 100], [330, 110], [310, 400]])], 1),
+    lambda: cv2.ellipse(np.zeros(SHAPE, np.uint8), (320, 240), (20, 90), 17, 0, 360, 1, -1),
+    lambda: cv2.ellipse(np.zeros(SHAPE, np.uint8), (320, 240), (12, 60), 0, 0, 360, 1, -1),
+    lambda: disc(SHAPE, (300, 200), 15),
+])
+def test_thin_and_clipped_non_quadrilaterals_still_fail(make):
+    """The side rule judged against each side's own length keeps its guard: a triangle with a
+    clipped corner (a short side facing a long one), a thin triangle, thin ellipses, small discs."""
+    r = mask_to_quad(make())
+    assert r.quad is None and r.failure.startswith("not_quadrilateral"), r.failure
+
+
+def test_two_thin_windows_in_one_mask_fail():
+    m = np.zeros(SHAPE, bool)
+    m[100:170, 200:214] = True
+    m[100:170, 230:244] = True
+    assert mask_to_quad(m).failure.startswith("multiple_blobs")

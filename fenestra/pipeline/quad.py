@@ -7,7 +7,10 @@ Steps (:func:`mask_to_quad`):
 2. Take the outer contour (``cv2.findContours``, ``CHAIN_APPROX_NONE``): the centres of the mask's
    border pixels, in order around the blob.
 3. At every outline point fit a line (principal component) through its ~``window_pts`` neighbours
-   along the outline (fewer for small masks: at most a sixth of the outline).
+   along the outline (fewer for small masks: at most a sixth of the outline). For a thin blob, whose
+   short side holds fewer outline points than that fit spans, add the candidates of a second,
+   shorter fit (``short_fit_frac`` x the short side of the blob's minimum-area rectangle), so the
+   short sides get a line of their own.
 4. Greedily keep the four candidate lines that explain most outline points (distance below
    ``inlier_px``), removing the points each chosen line explains and refusing a candidate whose
    support overlaps a chosen line's (so one long edge is never chosen twice).
@@ -15,6 +18,10 @@ Steps (:func:`mask_to_quad`):
    shift each one outward by the half-pixel that separates a border pixel's centre from the mask's
    true edge (see :func:`edge_offset_px`), intersect neighbours -> quad, corners TL, TR, BR, BL.
 6. Check the quad explains the outline (a disc or a triangle fails with ``not_quadrilateral``).
+   Each side must explain ``min_side_frac`` of the whole outline, or, for a side short against
+   the outline (a thin window's top and bottom), ``min_side_own`` of its own expected outline
+   (its length in outline points) while being at least ``min_opposite_ratio`` x as long as the
+   opposite side: a triangle with a clipped corner (a short side facing a long one) still fails.
 
 Pixel convention (``fenestra.conventions``): the centre of pixel (u, v) is at (u, v). A rasterised
 mask contains the pixels whose centres lie inside the polygon, so on a straight edge the border
@@ -44,10 +51,25 @@ class QuadParams:
         wobbles in proportion to the window size).
     max_candidates: local fits considered as candidate lines (every k-th outline point).
     max_overlap: a candidate sharing more than this fraction of its inliers with a chosen line is
-        a copy of that line and is refused.
+        a copy of that line and is refused; for a thin blob (see ``short_fit_frac``) only if it
+        also runs within ``copy_angle_deg`` of that line's direction (a short side of a few
+        pixels shares a good part of its inliers with the long sides at its ends).
     min_area_px: masks smaller than this fail with ``too_small``.
     min_explained: the four lines must explain at least this fraction of the outline.
     min_side_frac: each line must explain at least this fraction of the outline.
+    short_fit_frac: for a thin blob (its short side, in outline points, shorter than the local
+        fit), a second set of candidate lines from local fits over this fraction of the short
+        side (at least 5 points). Only for a blob that fills at least ``thin_min_fill`` of its
+        minimum-area rectangle (a thin quadrilateral, even under perspective; a sliver of a
+        triangle fills half and keeps the single fit).
+    min_side_own, min_opposite_ratio: a side below ``min_side_frac`` is still accepted when the
+        outline points it explains are at least ``min_side_own`` x its expected outline points
+        (the side's Chebyshev length: the contour has one point per pixel step) and its length is
+        at least ``min_opposite_ratio`` x the opposite side's (issue 36: thin tall windows, whose
+        short sides are a few per cent of the outline, more so with rounded corners).
+    side_trim: a side shorter than the local fit is refitted to the outline points near it whose
+        projection lies between ``side_trim`` and ``1 - side_trim`` of the way between its corners
+        (its neighbours' lines fix those): a rounded corner's arc would otherwise tilt it.
     speck_px, speck_rel: extra connected components up to max(speck_px, speck_rel x the largest
         component) are ignored (noise specks, as a network's masks have); larger ones make the
         mask fail with ``multiple_blobs`` (e.g. two windows in one mask).
@@ -69,6 +91,12 @@ class QuadParams:
     min_area_px: int = 64
     min_explained: float = 0.6
     min_side_frac: float = 0.04
+    short_fit_frac: float = 0.5
+    thin_min_fill: float = 0.75
+    min_side_own: float = 0.35
+    min_opposite_ratio: float = 0.4
+    copy_angle_deg: float = 30.0
+    side_trim: float = 0.2
     speck_px: int = 4
     speck_rel: float = 0.05
     allow_border: bool = False
@@ -205,17 +233,41 @@ def order_corners(quad: np.ndarray) -> np.ndarray:
     return np.roll(q, -int(np.argmin(mid_y)), axis=0)
 
 
+def short_side_pts(P: np.ndarray) -> tuple[float, float]:
+    """(short side in outline points, fill) of the outline's minimum-area rectangle: its short
+    side's Chebyshev length (an 8-connected contour has one point per pixel step along the longer
+    axis) and the share of the rectangle the outline polygon covers (a rectangle ~1, a triangle 1/2)."""
+    (_, _), (w, h), angle = cv2.minAreaRect(P.astype(np.float32))
+    a = np.radians(angle if w <= h else angle + 90.0)  # direction of the short side
+    fill = abs(cv2.contourArea(P.astype(np.float32))) / max(float(w * h), 1e-9)
+    return float(min(w, h)) * max(abs(np.cos(a)), abs(np.sin(a))), fill
+
+
+def _fit_windows(P: np.ndarray, params: QuadParams) -> list[int]:
+    """Outline points of the local fits whose lines are the candidates: the main fit, and for a
+    thin, four-sided blob (short side in outline points below the main fit's span, filling at
+    least ``thin_min_fill`` of its minimum-area rectangle) a shorter one."""
+    N = len(P)
+    window = int(min(params.window_pts, max(5, N // 6)))
+    short, fill = short_side_pts(P)
+    if window <= short or fill < params.thin_min_fill:
+        return [window]
+    return [window, int(max(5, min(window - 1, round(params.short_fit_frac * short))))]
+
+
 def _choose_lines(P: np.ndarray, params: QuadParams, inlier_px: float) -> np.ndarray | None:
     """Greedy choice of four candidate lines; returns (4, 3) lines or None if fewer found."""
     N = len(P)
-    window = int(min(params.window_pts, max(5, N // 6)))
-    normals, offsets = local_lines(P, window)
     step = max(1, N // params.max_candidates)
     cand = np.arange(0, N, step)
+    windows = _fit_windows(P, params)
+    fits = [local_lines(P, w) for w in windows]
+    normals = np.concatenate([n[cand] for n, _ in fits])
+    offsets = np.concatenate([c[cand] for _, c in fits])
     # (N, C) inlier table as 0/1 floats: counting inliers becomes a matrix-vector product
-    D = (np.abs(P @ normals[cand].T - offsets[cand]) < inlier_px).astype(np.float32)
+    D = (np.abs(P @ normals.T - offsets) < inlier_px).astype(np.float32)
     remaining = np.ones(N, dtype=np.float32)
-    allowed = np.ones(len(cand), dtype=bool)
+    allowed = np.ones(len(normals), dtype=bool)
     support = np.maximum(D.sum(axis=0), 1.0)
     chosen = []
     for _ in range(4):
@@ -224,10 +276,12 @@ def _choose_lines(P: np.ndarray, params: QuadParams, inlier_px: float) -> np.nda
         if counts[best] <= 0:
             return None
         inl = D[:, best]
-        chosen.append(np.array([*normals[cand[best]], offsets[cand[best]]]))
+        chosen.append(np.array([*normals[best], offsets[best]]))
         remaining *= 1.0 - inl
-        overlap = (inl @ D) / support
-        allowed &= overlap <= params.max_overlap
+        copy = (inl @ D) / support > params.max_overlap
+        if len(windows) > 1:  # thin blob: a short side shares its end points with the long sides
+            copy &= np.abs(normals @ normals[best]) > np.cos(np.radians(params.copy_angle_deg))
+        allowed &= ~copy
         allowed[best] = False
     return np.array(chosen)
 
@@ -272,13 +326,14 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
     if explained < params.min_explained:
         return _fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
                      f"< min_explained={params.min_explained:.0%}", explained)
-    if counts.min() < params.min_side_frac * N:
+    if counts.min() < 3:  # no line to speak of, whatever its length
         return _fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
                      f"< min_side_frac={params.min_side_frac:.0%}", explained)
     # order the lines around the contour: circular mean of the outline index of their points
     ang = 2.0 * np.pi * np.arange(N) / N
     pos = [np.angle(np.exp(1j * ang[assign == k]).mean()) for k in range(4)]
-    lines = lines[np.argsort(pos)]
+    order = np.argsort(pos)
+    lines, counts = lines[order], counts[order]
     # orient normals outward (away from the blob's centroid) and shift by the half-pixel offset
     centre = P.mean(axis=0)
     for k in range(4):
@@ -288,6 +343,10 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
     corners = np.array([intersect(lines[k], lines[(k + 1) % 4]) for k in range(4)])
     if not np.all(np.isfinite(corners)):
         return _fail("not_quadrilateral: two neighbouring sides are parallel", explained)
+    lines, corners = _refit_short_sides(P, lines, corners, _fit_windows(P, params)[0], inlier_px, params)
+    reason = _side_support(corners, counts, N, params)
+    if reason is not None:
+        return _fail(reason, explained)
     # each corner must lie near the outline (a triangle's fourth 'side' puts a corner far away)
     size = np.sqrt(float(m.sum()))
     gap = np.min(np.linalg.norm(P[None] - corners[:, None], axis=2), axis=1)
@@ -297,6 +356,70 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
     if not _is_convex(quad):
         return _fail("not_quadrilateral: the four lines give a non-convex quad", explained)
     return QuadResult(quad=quad, lines=_lines_in_corner_order(lines, quad), explained=explained, failure=None)
+
+
+def _refit_short_sides(P: np.ndarray, lines: np.ndarray, corners: np.ndarray, window: int,
+                       band_px: float, params: QuadParams, iters: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Refit each side shorter than ``window`` outline points (a thin window's short sides) to the
+    outline points within ``band_px`` of it between ``side_trim`` and ``1 - side_trim`` of the way
+    from its first corner to its second, then intersect again.
+
+    lines (4, 3) outward, half-pixel shifted, in contour order; corners (4, 2): corner k joins
+    side k and side k+1. Returns (lines, corners); a side with fewer than 3 such points is kept.
+    """
+    lines, corners = lines.copy(), corners.copy()
+    for it in range(iters + 1):
+        trim = params.side_trim if it < iters else 0.0  # last pass: the whole side, from a level start
+        changed = False
+        for k in range(4):
+            a, b = corners[k - 1], corners[k]
+            d = b - a
+            if np.abs(d).max() >= window:
+                continue
+            t = (P - a) @ d / max(float(d @ d), 1e-12)
+            shift = np.array([edge_offset_px(n) for n in lines[:, :2]])
+            dist = np.abs(P @ lines[:, :2].T - (lines[:, 2] - shift))  # (N, 4), to the unshifted lines
+            near = (np.argmin(dist, axis=1) == k) & (dist[:, k] < band_px)
+            pts = P[near & (t >= trim) & (t <= 1.0 - trim)]
+            if len(pts) < 3:
+                continue
+            new = fit_line(pts)
+            if new[:2] @ lines[k, :2] < 0:
+                new = -new
+            new[2] += edge_offset_px(new[:2])
+            lines[k] = new
+            changed = True
+        if not changed:
+            break
+        fresh = np.array([intersect(lines[k], lines[(k + 1) % 4]) for k in range(4)])
+        if not np.all(np.isfinite(fresh)):
+            break
+        corners = fresh
+    return lines, corners
+
+
+def _side_support(corners: np.ndarray, counts: np.ndarray, N: int, params: QuadParams) -> str | None:
+    """None if every side is supported by the outline, else the failure reason.
+
+    corners (4, 2): corner k joins side k and side k+1; counts (4,): outline points explained by
+    side k. A side passes with ``min_side_frac`` of the outline, or else (a thin window's short
+    side) with ``min_side_own`` of its own expected outline points while at least
+    ``min_opposite_ratio`` x as long as the side opposite it.
+    """
+    ends = corners - np.roll(corners, 1, axis=0)  # side k runs from corner k-1 to corner k
+    length = np.linalg.norm(ends, axis=1)
+    expected = np.maximum(np.abs(ends).max(axis=1), 1.0)  # outline points along each side
+    for k in np.argsort(counts):
+        if counts[k] >= params.min_side_frac * N:
+            return None  # every remaining side explains more
+        own, opposite = counts[k] / expected[k], length[k] / max(length[(k + 2) % 4], 1e-9)
+        if own < params.min_side_own or opposite < params.min_opposite_ratio:
+            return (f"not_quadrilateral: a side explains only {counts[k] / N:.1%} of the outline "
+                    f"< min_side_frac={params.min_side_frac:.0%}, and {min(own, 9.99):.0%} of its own "
+                    f"{length[k]:.1f} px (min_side_own={params.min_side_own:.0%}) at "
+                    f"{min(opposite, 9.99):.2f} x the opposite side's length "
+                    f"(min_opposite_ratio={params.min_opposite_ratio})")
+    return None
 
 
 def _lines_in_corner_order(lines: np.ndarray, quad: np.ndarray) -> np.ndarray:
