@@ -86,25 +86,30 @@ def write_json(path: str | Path, doc, indent: int | None = 1) -> Path:
     return write_text(path, json.dumps(doc, indent=indent))
 
 
-def write_image(path: str | Path, image: np.ndarray) -> Path:
+def write_image(path: str | Path, image: np.ndarray, scratch: bool = False) -> Path:
     """Write an image atomically, in the format of ``path``'s suffix (``.png``: lossless).
 
     image: (H, W, 3) uint8 **RGB** (stored as the file's BGR), or (H, W) uint8 / uint16 single
-    channel (an instance map: 16-bit PNG). ValueError for another shape, OSError naming ``path``
-    when it cannot be encoded or written.
+    channel (an instance map: 16-bit PNG). ``scratch``: the caller no longer needs ``image``, so
+    an RGB one is turned BGR in place (no copy of a 100 Mpx image; it holds BGR afterwards).
+    ValueError for another shape, OSError naming ``path`` when it cannot be encoded or written.
     """
     import cv2  # noqa: PLC0415  (only the image writers need OpenCV)
 
     a = np.asarray(image)
     if a.ndim == 3 and a.shape[2] == 3 and a.dtype == np.uint8:
-        a = a[..., ::-1]
+        if scratch and a.flags.c_contiguous and a.flags.writeable:
+            for y in range(0, a.shape[0], 256):  # in bands: cv2.cvtColor in place would copy the whole image
+                a[y:y + 256] = a[y:y + 256, :, ::-1]
+        else:
+            a = a[..., ::-1]
     elif not (a.ndim == 2 and a.dtype in (np.uint8, np.uint16)):
         raise ValueError(f"image for {path} must be (H, W, 3) uint8 RGB or (H, W) uint8/uint16, "
                          f"got shape {a.shape}, dtype {a.dtype}")
     ok, buf = cv2.imencode(Path(path).suffix or ".png", np.ascontiguousarray(a))
     if not ok:
         raise OSError(f"cannot write {path}: cv2 cannot encode a {a.shape} {a.dtype} image as {Path(path).suffix}")
-    return write_bytes(path, buf.tobytes())
+    return write_bytes(path, memoryview(buf.reshape(-1)))  # the encoded bytes, not copied again
 
 
 def staging_dir(out: str | Path) -> Path:

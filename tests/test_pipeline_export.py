@@ -275,6 +275,53 @@ def test_inpainting_fills_every_void_and_keeps_the_rest(outputs, photo):
         assert after < 0.3 * before, (i, before, after)
 
 
+def test_a_huge_photo_is_inpainted_and_textured_at_the_capped_size(tmp_path, photo):
+    """Issue #37 item 9: with ``max_px`` 400 the 640 x 480 photo's padded texture (wider than 400
+    px) is made at the reduced size: texture.png at most 400 px along its longer side, inpainted.png
+    and substituted.png the reduced photo; the IFC's texture coordinates still land on this test's
+    own projection of each wall vertex (mapped to the reduced photo by the pixel-centre rule,
+    u' = (u + 0.5) W' / W - 0.5), and every void is still filled."""
+    full = json.loads(write_outputs(tmp_path / "full", photo, K, all_results())["manifest"].read_text())
+    assert max(full["texture"]["width"], full["texture"]["height"]) > 400  # the cap has work to do
+    paths = write_outputs(tmp_path / "cap", photo, K, all_results(), substitute="two-by-two-mullion", max_px=400)
+    tex = json.loads(paths["manifest"].read_text())["texture"]
+    texture, inpainted = read_rgb(paths["texture"]), read_rgb(paths["inpainted"])
+    assert max(texture.shape[:2]) <= 400 and texture.shape[:2] == (tex["height"], tex["width"])
+    w, h = tex["photo_width"], tex["photo_height"]
+    assert inpainted.shape[:2] == (h, w) == read_rgb(paths["substituted"]).shape[:2]
+    assert w < IMG_W and abs(w / IMG_W - h / IMG_H) < 2 / IMG_H and tex["scale"] == pytest.approx(w / IMG_W)
+    assert np.array_equal(texture[tex["pad_top"]:tex["pad_top"] + h, tex["pad_left"]:tex["pad_left"] + w], inpainted)
+    sx, sy = w / IMG_W, h / IMG_H
+    ifc_model = ifcopenshell.open(str(paths["ifc"]))
+    manifest = json.loads(paths["manifest"].read_text())
+    checked = 0
+    for m in ifc_model.by_type("IfcIndexedTriangleTextureMap"):
+        wall = next(p for p in ifc_model.by_type("IfcWall") if m.MappedTo in p.Representation.Representations[0].Items)
+        M = ifcopenshell.util.placement.get_local_placement(wall.ObjectPlacement)
+        local, uv = np.asarray(m.MappedTo.Coordinates.CoordList), np.asarray(m.TexCoords.TexCoordsList)
+        for tri_xyz, tri_uv in zip(m.MappedTo.CoordIndex, m.TexCoordIndex):
+            for a, b in zip(tri_xyz, tri_uv):
+                if abs(local[a - 1][2]) > 1e-9:
+                    continue
+                u, v = pinhole(((M[:3, :3] @ local[a - 1] + M[:3, 3]) @ export_to_camera(manifest).T)[None])[0]
+                s, t = uv[b - 1]
+                got = np.array([s * tex["width"] - 0.5 - tex["pad_left"], (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
+                assert np.abs(got - [(u + 0.5) * sx - 0.5, (v + 0.5) * sy - 0.5]).max() < 1e-3
+                checked += 1
+    assert checked >= 2 * 6
+    small = cv2.resize(photo, (w, h), interpolation=cv2.INTER_AREA)
+    voids = [cv2.fillPoly(np.zeros((h, w), np.uint8), [np.round(((gt_quad(i) + 0.5) * [sx, sy] - 0.5) * 16)
+                                                         .astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
+             for i in range(3)]
+    far = ~cv2.dilate(np.any(voids, axis=0).astype(np.uint8), np.ones((15, 15), np.uint8)).astype(bool)
+    wall_level = np.median(small[far].astype(float), axis=0)
+    for i, void in enumerate(voids):  # the failed window's void too
+        inside = cv2.erode(void, np.ones((5, 5), np.uint8)).astype(bool)
+        before = np.abs(small[inside].astype(float).mean(axis=0) - wall_level).max()
+        after = np.abs(inpainted[inside].astype(float).mean(axis=0) - wall_level).max()
+        assert inside.sum() > 100 and after < 0.3 * before, (i, before, after)
+
+
 def test_obj_and_glb_reload_with_trimesh(outputs):
     paths, _ = outputs
     counts = {}

@@ -22,12 +22,17 @@ from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, wi
 from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, camera_to_world, gravity_up, place,
                                                texture_layout, union_layout, upright, wall_groups, wall_margin_m)
 from fenestra.pipeline.export.ifc import write_ifc
-from fenestra.pipeline.export.inpaint import inpaint_voids
+from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
 from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
 from fenestra.pipeline.export.overlay import draw_overlay
 from fenestra.pipeline.types import WindowResult
 
 DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
+# texture.png (padding included), inpainted.png and substituted.png are at most this many px along
+# their longer side: a larger photo is inpainted and textured at a reduced size (one factor, the
+# texture coordinates exact for it), so that a 100 Mpx photo's export costs what a 12 Mpx one's
+# does. 4096 px is the texture size every WebGL / BIM viewer takes (GL_MAX_TEXTURE_SIZE >= 4096).
+EXPORT_MAX_PX = 4096
 
 
 def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE,
@@ -62,7 +67,7 @@ def write_overlay(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return write_image(out / "overlay.png", draw_overlay(check_image(image), check_K(K), list(results), exclude,
-                                                       boxes, header))
+                                                       boxes, header), scratch=True)
 
 
 def export_gravity(placed: list[PlacedWindow], walls: dict[int, int] | None,
@@ -86,11 +91,12 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                   substitute: str | WindowStyle | None = None, exclude: dict[int, str] | None = None,
                   walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
                   wall_properties: dict[int, dict] | None = None, overlay: bool = True,
-                  gravity: Gravity | np.ndarray | bool = True) -> dict[str, Path]:
+                  gravity: Gravity | np.ndarray | bool = True, max_px: int = EXPORT_MAX_PX) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
     image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
-    texture.png (inpainted photo, padded), inpainted.png (photo size), model.obj + model.mtl,
+    texture.png (inpainted photo, padded), inpainted.png (the photo's size, or smaller: below),
+    model.obj + model.mtl,
     model.glb, overlay.png, export.json (manifest: exported and skipped windows, with reasons, and
     export timings), and substituted.png when ``substitute`` names a catalogue style (which then
     also shapes the IFC/OBJ/GLB windows). exclude: {index: reason} of windows not to export;
@@ -100,6 +106,10 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     vertical (pipeline.export.geometry): True estimates it from the exported windows' wall up axes
     (:func:`~pipeline.export.geometry.gravity_up`, with ``walls``), a (3,) up vector in the camera
     frame or a Gravity gives it, False keeps the camera-level frame (CAMERA_TO_EXPORT).
+    Bounded cost: when the padded texture would exceed ``max_px`` (EXPORT_MAX_PX) along its longer
+    side, the photo is inpainted and textured at the reduced size that fits (inpaint.capped_size;
+    export.json's ``texture``: ``photo_width``/``photo_height``, the size the texture's photo
+    region has, and ``scale``); the overlay stays at the photo's size.
     """
     t_start = time.perf_counter()
     image = check_image(image)
@@ -120,20 +130,29 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
         timings[name] = 1000.0 * (time.perf_counter() - t0)
         return value
 
-    inpainted, _ = _timed("inpaint_ms", inpaint_voids, image, list(results))
-    layout = texture_layout(K, image.shape, placed)
-    for wall_pw, members in wall_groups(placed, walls):  # the fitted walls' slabs need their texture too
-        layout = union_layout(layout, texture_layout(K, image.shape, [wall_pw], wall_margin_m(members)))
+    def layout_of(K_tex: np.ndarray, shape: tuple[int, ...]):
+        layout = texture_layout(K_tex, shape, placed)
+        for wall_pw, members in wall_groups(placed, walls):  # the fitted walls' slabs need their texture too
+            layout = union_layout(layout, texture_layout(K_tex, shape, [wall_pw], wall_margin_m(members)))
+        return layout
+
+    photo_size = (image.shape[1], image.shape[0])
+    layout = layout_of(K, image.shape)  # geometry only: cheap at any size
+    size = capped_size(photo_size, (layout.width, layout.height), int(max_px))
+    K_tex = scaled_K(K, photo_size, size) if size != photo_size else K  # the texture's photo region's K
+    if size != photo_size:
+        layout = layout_of(K_tex, (size[1], size[0]))
+    inpainted, _ = _timed("inpaint_ms", inpaint_voids, image, list(results), size=size)
     texture = layout.pad(inpainted)
     paths = {"inpainted": write_image(out / "inpainted.png", inpainted)}
     if texture.shape == inpainted.shape:  # no padding: the same image, the same file (no second encode)
         paths["texture"] = Path(shutil.copyfile(paths["inpainted"], out / "texture.png"))
     else:
         paths["texture"] = write_image(out / "texture.png", texture)
-    ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K, placed, layout, "texture.png", style,
+    ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K_tex, placed, layout, "texture.png", style,
                  walls=walls, properties=properties, wall_properties=wall_properties)
     paths["ifc"] = out / "model.ifc"
-    parts = model_parts(K, placed, layout, style, walls=walls)
+    parts = model_parts(K_tex, placed, layout, style, walls=walls)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
     if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
         paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)
@@ -144,7 +163,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
         from fenestra.pipeline.export.substitute import composite  # noqa: PLC0415
 
         paths["substituted"] = write_image(out / "substituted.png",
-                                          _timed("substitute_ms", composite, inpainted, K, placed, style))
+                                          _timed("substitute_ms", composite, inpainted, K_tex, placed, style))
     timings["total_ms"] = 1000.0 * (time.perf_counter() - t_start)
     manifest = {
         "style": style.name,
@@ -154,7 +173,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                                 "the origin, its heading along +y"},
         "texture": {"file": "texture.png", "pad_left": layout.pad_left, "pad_top": layout.pad_top,
                     "pad_right": layout.pad_right, "pad_bottom": layout.pad_bottom,
-                    "width": layout.width, "height": layout.height},
+                    "width": layout.width, "height": layout.height, "photo_width": size[0], "photo_height": size[1],
+                    "scale": size[0] / photo_size[0], "max_px": int(max_px)},
         "exported": [{"index": pw.index, "width_m": pw.width_m, "height_m": pw.height_m, **ids[pw.index],
                       "style_scaled": fitted_style(style, pw.width_m, pw.height_m) != style}
                      for pw in placed],
@@ -166,4 +186,4 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     return paths
 
 
-__all__ = ["write_outputs", "write_overlay", "split_results", "export_gravity", "DEFAULT_STYLE"]
+__all__ = ["write_outputs", "write_overlay", "split_results", "export_gravity", "DEFAULT_STYLE", "EXPORT_MAX_PX"]

@@ -32,15 +32,45 @@ def void_mask(shape: tuple[int, int], quads: list[np.ndarray], dilate_px: int = 
     return mask
 
 
+def scaled_K(K: np.ndarray, photo_size: tuple[int, int], size: tuple[int, int]) -> np.ndarray:
+    """K of the photo (W, H) resized to ``size`` (W', H'), keeping the pixel-centre convention:
+    u' = (u + 0.5) W' / W - 0.5 (likewise v); the identity scaling returns K unchanged."""
+    sx, sy = size[0] / photo_size[0], size[1] / photo_size[1]
+    S = np.array([[sx, 0.0, 0.5 * sx - 0.5], [0.0, sy, 0.5 * sy - 0.5], [0.0, 0.0, 1.0]])
+    return S @ np.asarray(K, dtype=np.float64)
+
+
+def capped_size(photo_size: tuple[int, int], texture_size: tuple[int, int], max_px: int) -> tuple[int, int]:
+    """The photo size (W', H') at which its padded texture (texture_size (Wt, Ht) at the photo's
+    size) is at most ``max_px`` along its longer side, padding included: the photo (W, H) itself
+    when it already is, else both scaled by one factor and floored (so that the padding, which
+    scales with it and is rounded up by at most 1 px per side, keeps the texture within max_px)."""
+    W, H = int(photo_size[0]), int(photo_size[1])
+    longest = max(int(texture_size[0]), int(texture_size[1]))
+    if longest <= max_px:
+        return W, H
+    k = (max_px - 2) / longest
+    return max(1, int(np.floor(W * k))), max(1, int(np.floor(H * k)))
+
+
 def inpaint_voids(image: np.ndarray, results: list[WindowResult], dilate_px: int = 4,
-                  radius_px: float = 5.0) -> tuple[np.ndarray, np.ndarray]:
+                  radius_px: float = 5.0, size: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(inpainted image (H, W, 3) uint8, mask (H, W) uint8) with every detected void filled.
 
     Every result with a quad is inpainted, failed reconstructions included: the void is still in
     the photo. ``dilate_px`` grows the mask to cover the frame's edge and mask-fit error.
+    ``size`` (W', H'): inpaint the photo resized to that size (INTER_AREA; the quads mapped with
+    :func:`scaled_K`'s convention; ``dilate_px`` and ``radius_px`` in its pixels), so that a huge
+    photo costs what its export needs (:func:`capped_size`), not what its pixels would; the
+    returned image and mask have that size. None: the photo's size.
     """
     image = check_image(image)
     quads = [q for q in (result_quad(r) for r in results) if q is not None]
+    H, W = image.shape[:2]
+    if size is not None and (int(size[0]), int(size[1])) != (W, H):
+        sx, sy = int(size[0]) / W, int(size[1]) / H
+        image = check_image(cv2.resize(image, (int(size[0]), int(size[1])), interpolation=cv2.INTER_AREA))
+        quads = [(q + 0.5) * np.array([sx, sy]) - 0.5 for q in quads]
     mask = void_mask(image.shape, quads, dilate_px)
     if not mask.any():
         return image.copy(), mask

@@ -181,12 +181,19 @@ def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], 
     exclude: {index: reason} of windows not exported (drawn in the "flagged" colour); boxes:
     {index: (x0, y0, x1, y1) px} of detections, drawn for failed windows without a quad.
     """
-    img = check_image(image).copy()
+    image = check_image(image)
     K = check_K(K)
     exclude, boxes = exclude or {}, boxes or {}
-    H, W = img.shape[:2]
+    H, W = image.shape[:2]
     thick = max(1, int(round(min(H, W) / 400)))
     scale = max(0.4, min(H, W) / 1600)
+    panel = _panel(H, max(360, int(0.4 * W)), results, exclude, header or [], scale)  # at least H tall
+    # one canvas, the photo copied in once and drawn on in place (a 100 Mpx photo: no second copy)
+    canvas = np.full((panel.shape[0], W + panel.shape[1], 3), 30, np.uint8)  # a long list: a dark band below
+    canvas[:, W:] = panel
+    del panel
+    img = canvas[:H, :W]
+    img[...] = image
     for r in results:
         kind, _ = _status(r, exclude)
         if r.quad_mask is not None:
@@ -202,7 +209,4 @@ def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], 
         anchor = next((np.asarray(q, dtype=np.float64).min(axis=0) for q in (r.quad_snapped, r.quad_mask)
                        if q is not None), np.asarray(boxes.get(r.index, (10.0, 30.0 + 20 * r.index))[:2], dtype=np.float64))
         _text(img, f"#{r.index}", anchor + [2, -4], COLOURS[kind], scale)
-    panel = _panel(H, max(360, int(0.4 * W)), results, exclude, header or [], scale)
-    if panel.shape[0] > H:  # a long list: the photo gets a dark band below it
-        img = np.concatenate([img, np.full((panel.shape[0] - H, W, 3), 30, np.uint8)])
-    return np.concatenate([img, panel], axis=1)
+    return canvas
