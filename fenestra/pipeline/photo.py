@@ -73,6 +73,69 @@ def method_of(options: PhotoOptions, masks: bool) -> Method:
                   quad_source=options.quad_source)
 
 
+def _is_path(v) -> bool:
+    import os  # noqa: PLC0415
+
+    return isinstance(v, (str, os.PathLike)) and str(v) != ""
+
+
+def check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force) -> None:
+    """PipelineError, one line naming the argument, for what :func:`reconstruct_photo` cannot take:
+    paths that are not str/PathLike (photo, K_json and masks must be existing regular files), focal
+    values and principal point that are not finite real numbers (fx, fy > 0), options that are not
+    a PhotoOptions (or name an unknown detector, snapper, pose, quad source or substitute style, a
+    ``known`` that is not a Known, flags that are not bool, a max_pixels that is not a positive
+    int), a force that is not bool. Checked before anything is read or written."""
+    import numbers  # noqa: PLC0415
+
+    from fenestra.pipeline.catalogue import CATALOGUE  # noqa: PLC0415
+    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
+    from fenestra.pipeline.poses import POSES  # noqa: PLC0415
+    from fenestra.pipeline.quad import QUAD_SOURCES  # noqa: PLC0415
+    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
+
+    def bad(name: str, why: str, v) -> PipelineError:
+        return PipelineError(f"reconstruct_photo: {name} {why}, got {v!r} ({type(v).__name__})")
+
+    for name, v, optional in (("photo", photo, False), ("K_json", K_json, True), ("masks", masks, True)):
+        if v is None and optional:
+            continue
+        if not _is_path(v):
+            raise bad(name, "must be a path (str or os.PathLike)", v)
+        if not Path(v).is_file():
+            raise bad(name, "must be an existing regular file" + (" (not found)" if not Path(v).exists() else ""), v)
+    if out is not None and not _is_path(out):
+        raise bad("out", "must be a folder path (str or os.PathLike) or None", out)
+    for name, v in (("fx", fx), ("fy", fy), ("cx", cx), ("cy", cy)):
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(float(v)):
+            raise bad(name, "must be a finite number (px) or None", v)
+        if name in ("fx", "fy") and v <= 0:
+            raise bad(name, "must be positive (px)", v)
+    if not isinstance(force, bool):
+        raise bad("force", "must be True or False", force)
+    if not isinstance(options, PhotoOptions):
+        raise bad("options", "must be a fenestra.pipeline.photo.PhotoOptions", options)
+    for field, registry in (("detector", DETECTORS), ("snapper", SNAPPERS), ("pose", POSES)):
+        v = getattr(options, field)
+        if not isinstance(v, str) or v not in registry:
+            raise bad(f"options.{field}", f"must be one of {sorted(registry)}", v)
+    if options.quad_source not in QUAD_SOURCES:
+        raise bad("options.quad_source", f"must be one of {list(QUAD_SOURCES)}", options.quad_source)
+    if options.substitute is not None and (not isinstance(options.substitute, str)
+                                           or options.substitute not in CATALOGUE):
+        raise bad("options.substitute", f"must be None or one of {sorted(CATALOGUE)}", options.substitute)
+    if not isinstance(options.known, Known):
+        raise bad("options.known", "must be a fenestra.pipeline.facade_model.Known", options.known)
+    for field in ("export_all", "export"):
+        if not isinstance(getattr(options, field), bool):
+            raise bad(f"options.{field}", "must be True or False", getattr(options, field))
+    mp = options.max_pixels
+    if mp is not None and (isinstance(mp, bool) or not isinstance(mp, numbers.Integral) or mp <= 0):
+        raise bad("options.max_pixels", "must be a positive int or None", mp)
+
+
 def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_json: str | Path | None = None,
                       fx: float | None = None, fy: float | None = None, cx: float | None = None,
                       cy: float | None = None, masks: str | Path | None = None,
@@ -93,13 +156,17 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     unavailable, detail), ``image_size`` [W, H], ``config``, ``windows`` (one per detection,
     failures included), ``warnings``, ``geometry_failure`` (None, or why the geometry failed as a
     whole), ``undistorted``, ``distortion``, ``export`` (what was exported or skipped, when
-    written). Raises PipelineError only for bad input.
+    written). Raises PipelineError only for bad input: one line naming the argument for a bad
+    argument (:func:`check_arguments`, before anything is read), naming the file for a bad K file;
+    a photo or instance map that cannot be decoded is a fenestra.errors.DatasetError (the file
+    named). Both are FenestraError.
     """
     from fenestra.images import read_image, read_instances  # noqa: PLC0415
     from fenestra.pipeline.io import intrinsics_warnings, photo_warnings, undistort_photo  # noqa: PLC0415
     from fenestra.pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
     from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415
 
+    check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force)  # PipelineError naming the argument
     photo = Path(photo)
     inputs = (photo, K_json, masks)  # never inside out: replacing it would delete them
     if out is not None:
