@@ -22,12 +22,12 @@ try:
 except PackageNotFoundError:  # running from a source tree that was never installed
     __version__ = "0+unknown"
 
-__all__ = ["Known", "PhotoOptions", "PhotoSession", "reconstruct_photo", "__version__"]
+__all__ = ["Known", "PhotoOptions", "PhotoSession", "UserCamera", "reconstruct_photo", "__version__"]
 
 
 def __getattr__(name: str):
     """The public API, imported on first use (the pipeline pulls in OpenCV and torch)."""
-    if name in ("Known", "PhotoOptions", "PhotoSession", "reconstruct_photo"):
+    if name in ("Known", "PhotoOptions", "PhotoSession", "UserCamera", "reconstruct_photo"):
         import fenestra.pipeline as pipeline  # noqa: PLC0415  (the one upward import: the API facade)
 
         return getattr(pipeline, name)

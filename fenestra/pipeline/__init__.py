@@ -1,8 +1,9 @@
-"""The pipeline: detect -> quad -> snap -> aspect -> pose -> walls -> export.
+"""The pipeline: detect -> quad -> snap -> aspect -> pose -> walls -> façade model -> export.
 
-The documented Python API for one photo (the same data as ``fenestra reconstruct``'s windows.json)::
+The documented Python API for one photo (the same data as ``fenestra reconstruct``'s windows.json),
+also importable from the package itself (``from fenestra import reconstruct_photo``)::
 
-    from fenestra.pipeline import reconstruct_photo, PhotoOptions, Known
+    from fenestra import reconstruct_photo, PhotoOptions, Known
 
     doc = reconstruct_photo("street.jpg")                      # nothing written; a dict
     doc = reconstruct_photo("street.jpg", out="out/street",     # ... and the files
@@ -11,13 +12,20 @@ The documented Python API for one photo (the same data as ``fenestra reconstruct
     doc["walls"]           # one entry per façade plane: members, scale and its source ("assumed"?)
     doc["windows"]         # one per detection: quads, aspect, R, t, size, flags, failure, exported
 
-See :func:`pipeline.photo.reconstruct_photo` for every argument. The names are loaded on first use
-(importing a submodule of pipeline stays light). The lower-level stages: pipeline.reconstruct
-(reconstruct, reconstruct_from_quads), pipeline.export (write_outputs).
+Several methods on one photo, typed, without files (what the bench does)::
+
+    from fenestra import PhotoSession
+    from fenestra.methods import Method
+    session = PhotoSession(image_rgb)                           # K-free; camera=UserCamera(K, how) for a known K
+    rec = session.run(Method("default", "refine", "wall+lines"))
+    rec.windows, rec.resolved.source, rec.model.walls, rec.exported
+
+See :func:`fenestra.pipeline.photo.reconstruct_photo` and :mod:`fenestra.pipeline.session`. The
+names are loaded on first use (importing a submodule of the pipeline stays light).
 """
 from __future__ import annotations
 
-__all__ = ["Known", "PhotoOptions", "reconstruct_photo"]
+__all__ = ["Known", "PhotoOptions", "PhotoSession", "UserCamera", "reconstruct_photo"]
 
 
 def __getattr__(name: str):
@@ -25,8 +33,12 @@ def __getattr__(name: str):
         import fenestra.pipeline.photo as photo  # noqa: PLC0415
 
         return getattr(photo, name)
+    if name in ("PhotoSession", "UserCamera"):
+        import fenestra.pipeline.session as session  # noqa: PLC0415
+
+        return getattr(session, name)
     if name == "Known":
         from fenestra.pipeline.facade_model import Known  # noqa: PLC0415
 
         return Known
-    raise AttributeError(f"module 'pipeline' has no attribute {name!r}")
+    raise AttributeError(f"module 'fenestra.pipeline' has no attribute {name!r}")
