@@ -13,7 +13,7 @@ Cases (inputs generated into --out, each run through the CLI as a user would):
                  #37: <= 2 GB, <= 60 s; inpainting and the texture run at a capped size);
                  photo-12000x9000-masks: the same photo with its instance map (--masks) instead.
 Prints one line per case: exit code, peak RSS (GB), wall time (s); the target is <= 2 GB.
-Not a test: timings depend on the machine (tests/test_faults.py checks the behaviour).
+Not a test: timings depend on the machine (the fault suite, tests/faults/, checks the behaviour).
 """
 from __future__ import annotations
 
