@@ -179,7 +179,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
         image = undistort_photo(image, camera)  # masks are taken to be in this frame
     instances = None if masks is None else read_instances(Path(masks), size, "--masks instance map")
     session = PhotoSession(image, camera=None if camera is None else UserCamera(camera.K, how), photo=photo,
-                           instances=instances)
+                           instances=instances, detector_options={"oracle": {"sparse": True}})  # --masks: crops
     rec = session.run(method_of(options, masks is not None), options.known, options.export_all, options.substitute)
     del session  # export needs no gray copy: a 100 Mpx photo's are 0.5 GB
     doc = reconstruction_json(rec, size, warnings + intrinsics_warnings(rec.K, size), options.export)

@@ -150,12 +150,12 @@ class PhotoSession:
             from fenestra.pipeline.detectors import detect, detector_entry  # noqa: PLC0415
 
             t0 = time.process_time()
+            opts = dict(self.detector_options.get(detector, {}))
             if detector_entry(detector).needs_instances:
                 if self.instances is None:
                     raise PipelineError(f"detector {detector!r} needs an instance map (--masks); none was given")
-                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, instances=self.instances)
+                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, instances=self.instances, **opts)
             else:
-                opts = dict(self.detector_options.get(detector, {}))
                 if self.max_side:
                     opts["max_side"] = self.max_side
                 dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, **opts)
@@ -220,15 +220,20 @@ class PhotoSession:
         k = (method.detector, method.snapper, method.pose, method.quad_source)
         if k not in self._resolved:
             t0 = time.process_time()
-            cfg = self.config(method)
-            W, H = self.size
-            per = self._per_window_results(method.detector, None,
-                                           replace(cfg, pose=POSES[cfg.pose].per_window_pose,
-                                                   fallback_focal_px=float(max(H, W))))
-            quads = np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
-            self._resolved[k] = resolve_K(self.photo, quads, self.size, POSES[cfg.pose].wall, self.segments)
+            quads = self.kfree_quads(method)
+            self._resolved[k] = resolve_K(self.photo, quads, self.size, POSES[method.pose].wall, self.segments)
             self._tick("focal", t0)
         return self._resolved[k]
+
+    def kfree_quads(self, method: Method) -> np.ndarray:
+        """The snapped quads (N, 4, 2) px the focal chain sees for ``method`` with K withheld: the
+        method's per-window fit with no K (a focal length of the long side as its fallback)."""
+        cfg = self.config(method)
+        W, H = self.size
+        per = self._per_window_results(method.detector, None,
+                                       replace(cfg, pose=POSES[cfg.pose].per_window_pose,
+                                               fallback_focal_px=float(max(H, W))))
+        return np.array([r.quad_snapped for r in per if r.quad_snapped is not None]).reshape(-1, 4, 2)
 
     def geometry(self, method: Method, height_m: float = 1.0) -> Geometry:
         """The method's results before the façade model (cached): K resolved, then every detection

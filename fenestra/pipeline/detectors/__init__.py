@@ -34,7 +34,8 @@ from fenestra.conventions import LIMITS
 from fenestra.errors import FenestraError
 from fenestra.registry import Registry
 from fenestra.pipeline.detectors.checkpoint import check_device, read_checkpoint
-from fenestra.pipeline.detectors.oracle import DegradeConfig, degraded_detections, oracle_detections
+from fenestra.pipeline.detectors.oracle import (DegradeConfig, degraded_detections, detections_from_instance_map,
+                                                oracle_detections)
 from fenestra.pipeline.types import Detection
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
@@ -54,8 +55,15 @@ def set_cpu_threads(n: int | None = None) -> None:
     torch.set_num_threads(n or (int(env) if env.isdigit() and int(env) > 0 else max(1, min(4, os.cpu_count() or 1))))
 
 
-def _oracle(**_: object) -> Detector:
+def _oracle(sparse: bool = False, **_: object) -> Detector:
+    """The instance map's windows as detections: full (H, W) masks (the bench's oracle rows), or
+    with ``sparse`` one bounding-box crop per id (a user's ``--masks``: memory O(H W) once)."""
+    if not isinstance(sparse, bool):
+        raise ValueError(f"sparse must be a bool, got {sparse!r}")
+
     def run(image: np.ndarray, instances: np.ndarray | None = None) -> list[Detection]:
+        if sparse:
+            return detections_from_instance_map(check_instances(instances, image.shape))
         return oracle_detections(check_instances(instances, image.shape))
     return run
 

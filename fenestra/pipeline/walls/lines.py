@@ -31,6 +31,9 @@ from fenestra.pipeline.walls.settings import WALL_FIT, WallParams
 from fenestra.pipeline.walls.vanishing import (WallSides, WallVP, angles_to_vp, cross3, fit_vps, homog, plane_normals, rays,
                                       side_angles_to_vp, side_thresholds_deg, unit_normals)
 
+MAX_HYPOTHESES = 2048  # per-segment vanishing-point hypotheses of one consensus (the longest segments')
+CONSENSUS_CELLS = 4_000_000  # hypotheses x candidate segments scored at once (bounded memory)
+
 
 def photo_segments(segment_cache: SegmentCache | None, params: WallParams,
                    image_shape: tuple[int, int]) -> "FacadeSegments | None":
@@ -162,7 +165,10 @@ def _consensus(fs: "FacadeSegments", idx: np.ndarray, d0: np.ndarray, K: np.ndar
     if not len(cand):
         return np.zeros(len(idx), dtype=bool)
     n = fs.normals(K, idx[cand])
-    hyps = [d0[None] - (n @ d0)[:, None] * n]
+    # one hypothesis per candidate (the prior pulled onto its line), of the MAX_HYPOTHESES longest
+    # when there are more (a brick wall gives 10^5 segments), kept in candidate order
+    own = np.arange(len(cand)) if len(cand) <= MAX_HYPOTHESES else np.sort(np.argsort(-length[cand])[:MAX_HYPOTHESES])
+    hyps = [d0[None] - (n[own] @ d0)[:, None] * n[own]]
     top = np.argsort(-length[cand])[:max_pairs_of]
     if len(top) > 1:
         i, j = np.array(list(combinations(top, 2))).T
@@ -170,8 +176,14 @@ def _consensus(fs: "FacadeSegments", idx: np.ndarray, d0: np.ndarray, K: np.ndar
     H = np.concatenate(hyps)
     H = H[np.linalg.norm(H, axis=1) > 1e-12]
     thr = fs.thresholds(noise_px, tight_deg)[idx[cand]]
-    inl = angles_to_vp(mid[cand], e[cand], length[cand], H @ K.T) <= thr  # (H, C)
-    best = inl[int(np.argmax(inl @ length[cand]))]
+
+    def inliers(h: np.ndarray) -> np.ndarray:  # (h, C) bool
+        return angles_to_vp(mid[cand], e[cand], length[cand], h @ K.T) <= thr
+
+    # scored in chunks: memory O(CHUNK x C), never (H x C)
+    step = max(1, CONSENSUS_CELLS // max(len(cand), 1))
+    score = np.concatenate([inliers(H[s:s + step]) @ length[cand] for s in range(0, len(H), step)])
+    best = inliers(H[int(np.argmax(score))][None])[0]
     out = np.zeros(len(idx), dtype=bool)
     out[cand[best]] = True
     return out
