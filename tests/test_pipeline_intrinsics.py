@@ -222,3 +222,29 @@ def test_exif_outranks_vanishing_points_and_a_disagreement_is_reported(tmp_path)
     vp = next(c for c in ks["candidates"] if c["source"] == "vanishing points")
     assert vp["focal_px"] == pytest.approx(700.0, rel=0.03)
     assert any("disagree" in w and "498" in w and f"{vp['focal_px']:.0f}" in w for w in doc["warnings"])
+
+
+def test_vanishing_point_rule_is_the_calibrated_interval_against_the_priors():
+    """A vanishing-point fit f +- sd is used with the interval f +- VP_SD_MULTIPLIER sd (calibrated:
+    tools/focal_calibration.py) when that interval is narrower than the prior's, else refused with
+    the reason; the fixed +-15 % gate is gone (issue 35: 463 +- 84 px was refused on a 640 px view)."""
+    from fenestra.pipeline.intrinsics import (PRIOR_FOV_RANGE_DEG, VP_SD_MULTIPLIER, choose_focal,  # noqa: PLC0415
+                                              focal_from_fov, vanishing_estimate, vp_max_sd)
+
+    assert 1.645 < VP_SD_MULTIPLIER < 1.645 * 3  # measured: wider than the fit's own normal 90 %, narrower than x3
+    lo, hi = (focal_from_fov(a, SIZE) for a in PRIOR_FOV_RANGE_DEG[::-1])  # the prior's interval: 320-879 px
+    bound = (hi - lo) / (2 * VP_SD_MULTIPLIER)
+    assert vp_max_sd(SIZE) == pytest.approx(bound)
+    e = vanishing_estimate(463.0, 84.0, SIZE)  # 18 % relative sd: vaguer than +-15 %, yet narrower than the prior
+    assert not isinstance(e, str) and e.source == "vanishing points"
+    assert e.interval_px == pytest.approx((463.0 - VP_SD_MULTIPLIER * 84.0, 463.0 + VP_SD_MULTIPLIER * 84.0))
+    assert e.interval_px[1] - e.interval_px[0] < hi - lo
+    assert choose_focal([e], ["vanishing points"], SIZE).source == "vanishing points"
+    assert not isinstance(vanishing_estimate(463.0, 0.99 * bound, SIZE), str)
+    refused = vanishing_estimate(463.0, 1.01 * bound, SIZE)
+    assert isinstance(refused, str) and "prior" in refused
+    assert isinstance(vanishing_estimate(487.0, 135.0, SIZE), str)  # issue 35's other example: wider than the prior
+    r = choose_focal([refused], ["vanishing points"], SIZE)
+    assert r.source == "prior" and r.unavailable["vanishing points"] == refused
+    # the bound scales with the photo: twice the pixels, twice the sd allowed
+    assert vp_max_sd((1280, 960)) == pytest.approx(2 * bound)
