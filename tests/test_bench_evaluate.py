@@ -179,7 +179,17 @@ def test_rows_equal_those_of_the_former_render_evaluator(view_dir):
             if r["K_source"] == "prior":  # a 65 deg field of view along the long side, as DESIGN.md states
                 assert r["K_focal_px"] == pytest.approx(max(W, H) / 2 / math.tan(math.radians(65 / 2)))
             assert not {k for k in bad if k.startswith(("corner_err_px_mask", "corner_err_px_snap", "iou_2d_mask"))}
-            assert not bad or {"focal_est_px", "focal_err_rel"} <= set(bad)
+            if r["K_source"] == "vanishing points":  # the chain's focal length, then a fit with it fixed: where
+                # the free-focal joint fit landed, to float noise (the same vanishing geometry)
+                # the error bars now come from a fit with K fixed (narrower: the focal length's own
+                # uncertainty is not in them), so the interval columns may change
+                intervals = {"aspect_ci90_rel", "rot_ci90_deg", "aspect_in90", "rot_in90", "trans_in90"}
+                focal = {"focal_est_px", "focal_err_rel"}  # the photo's K: now on every window, one the fit left out too
+                far = {k: v for k, v in bad.items() if k not in intervals and not (k in focal and v[1] is None) and not (
+                    v[1] is not None and float(v[0]) == pytest.approx(v[1], rel=1e-6, abs=1e-9))}
+                assert not far, far
+            else:
+                assert not bad or {"focal_est_px", "focal_err_rel"} <= set(bad)
             continue
         assert r["K_source"] == "K" and r["K_focal_px"] == pytest.approx(g_focal(view_dir))
         if r["status"] == "ok" and g["wall_id"] is None:  # a per-window method: now on the façade model's wall
