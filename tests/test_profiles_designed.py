@@ -31,7 +31,8 @@ def test_default_profile_answers_the_four_questions_and_nothing_else():
                 | {Method(DEFAULTS.detector, DEFAULTS.snapper, p) for p in POSE_LIST}    # which pose
                 | {Method(d, DEFAULTS.snapper, DEFAULTS.pose) for d in dets}            # which detector
                 | {PAPER} | {Method(d, PAPER.snapper, PAPER.pose) for d in dets}        # the paper's
-                | {Method(DEFAULTS.detector, DEFAULTS.snapper, DEFAULTS.pose, withhold_K=True)})  # the CLI without K
+                | {Method(DEFAULTS.detector, DEFAULTS.snapper, DEFAULTS.pose, withhold_K=True)}  # the CLI without K
+                | {Method("oracle", "none", DEFAULTS.pose)})                                      # the exact-mask floor
     got = planned_methods(load_profile("default").methods)
     assert len(got) == len(set(got)) and set(got) == expected
     assert len(expected) < 25 and DEFAULTS in got and PAPER in got

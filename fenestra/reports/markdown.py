@@ -179,9 +179,11 @@ def _house_figures(rows: pd.DataFrame) -> dict:
 def _per_house(df: pd.DataFrame, detector: str, snapper: str, pose: str) -> list[dict]:
     """Per house, then the unseen and the trained-on houses together, the method
     detector/snapper/pose (:func:`_house_figures`), beside the exact masks' corner median (``oracle``
-    without snapping, the same pose) where the run has them."""
+    without snapping, the same pose, else the run's first: the snapped corners do not depend on the
+    pose) where the run has them."""
     g = df[(df["detector"] == detector) & (df["snapper"] == snapper) & (df["pose"] == pose)]
-    exact = df[(df["detector"] == "oracle") & (df["snapper"] == "none") & (df["pose"] == pose)]
+    exact = df[(df["detector"] == "oracle") & (df["snapper"] == "none")]
+    exact = exact[exact["pose"] == (pose if (exact["pose"] == pose).any() else exact["pose"].iloc[0] if len(exact) else pose)]
     trained = set(TRAINED_ON.get(detector, ()))
     groups = [(h, h in trained, False, rows) for h, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])]
     groups += [(label, flag, True, g[g["house"].isin(trained) == flag])
@@ -308,8 +310,11 @@ def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
                                   "spearman": _r(r["spearman"])}
     meta = summary.get("metadata", {})
     cli = f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
-    bim = {m: bim_figures(results, m) for m in (cli, cli + NO_K_SUFFIX, *sorted(results))
-           if (bim_figures(results, m) or {}).get("width_err_m", {}).get("n")}
+    # the photo counterpart of the BIM figures: the CLI's method, else the first method (the CLI's
+    # first) that reconstructed a window of known size
+    sized = [m for m in (cli, cli + NO_K_SUFFIX, *sorted(results))
+             if (bim_figures(results, m) or {}).get("width_err_m", {}).get("n")]
+    bim = {m: bim_figures(results, m) for m in sized[:1]}
     det_ap = {d: {k: _r(v.get(k)) for k in ("bbox_AP", "bbox_AP50", "segm_AP", "segm_AP50")} | {"n_gt": v.get("n_gt")}
               for d, v in sorted((summary.get("detection") or {}).items())}
     return {"provenance": provenance(real_dir, summary), "metric": metric, "snap": snap if metric else {},
@@ -462,7 +467,8 @@ def _bim_clause(b: dict, storey: bool = True) -> str:
     if storey and b.get("width_err_m_storey") and b["width_err_m_storey"].get("n"):
         used = 1.0 - (b.get("assumed_rate_storey") or 0.0)
         text += (f"; with the house's true storey height given (`--known-storey`) {err('_storey')} (the storey "
-                 f"height set the scale of {_pct(used, 0)} of them; the others' walls show fewer than two window rows)")
+                 f"height set the scale of {_pct(used, 0)} of them; the others' walls show no two window rows a storey "
+                 "apart, and keep the assumed height)")
     return text
 
 
