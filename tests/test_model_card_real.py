@@ -79,13 +79,16 @@ def test_readme_detector_line_quotes_its_sources():
             {"house": "procedural:0", "trained": False, "together": False, "detection_rate": 0.98},
             {"house": "unseen houses", "trained": False, "together": True, "detection_rate": 0.991,
              "all_corners_close": 0.834, "snap_median": 0.7961, "exact_snap_median": 0.1251, "aspect_p90": 0.1144}]
-    summary = {"synthetic": {"per_house": {"default": {"snapper": "refine", "pose": "wall+lines", "rows": rows}}}}
+    summary = {"synthetic": {"per_house": {"default": {"snapper": "refine", "pose": "wall+lines", "rows": rows}},
+                             "provenance": {"seed": 3, "look_per": "view"}}}
     results = [("spb train, validation part", _result("default", 112, 944, 0.512, 0.827, 1393, 28)),
                ("spb test set", _result("default", 10, 101, 0.536, 0.877, 133, 4)),
                ("spb test set", _result("winnet", 10, 101, 0.22, 0.447, 459, 91))]
     text = model_card_real.detector_line(results, summary, "default")
     assert ("(`samplehouse4`, `procedural:0`; the procedural ones from the generator of its training houses; "
-            "`make bench`, one seed: one random look per house)") in text
+            "`make bench`, seed 3: a look drawn per view)") in text
+    one_look = {**summary, "synthetic": {**summary["synthetic"], "provenance": {"seed": 0, "look_per": "set"}}}
+    assert "`make bench`, seed 0: one random look per house)" in model_card_real.detector_line(results, one_look, "default")
     assert "photos its weights never trained on" in text and "training-set" not in text
     assert "finds 99 % of the evaluable windows, with all four corners within 5 px for 83 %" in text
     assert "after `refine` snapping (corner error median 0.80 px; exact masks 0.13 px)" in text

@@ -95,11 +95,13 @@ def detector_line(results: list[tuple[str, dict]], summary: dict, detector: str)
         return f"bbox AP50 {100 * r['bbox']['AP50']:.1f}, AP {100 * r['bbox']['AP']:.1f}"
 
     unseen_names = [r["house"] for r in ph["rows"] if not r["trained"] and not r.get("together")]
+    pv = summary["synthetic"].get("provenance", {})
+    looks = ("a look drawn per view" if pv.get("look_per") == "view" else "one random look per house")
     houses = ", ".join(f"`{h}`" for h in unseen_names)
     if any(h.startswith("procedural") for h in unseen_names):
         houses += "; the procedural ones from the generator of its training houses"
     text = (f"The default detector `{detector}` ([model card](fenestra/pipeline/models/README.md)), on renders of houses it "
-            f"never trained on ({houses}; `make bench`, one seed: one random look per house): it finds {100 * unseen['detection_rate']:.0f} % of the "
+            f"never trained on ({houses}; `make bench`, seed {pv.get('seed')}: {looks}): it finds {100 * unseen['detection_rate']:.0f} % of the "
             f"evaluable windows, with all four corners within 5 px for {100 * unseen['all_corners_close']:.0f} % of "
             f"them after `{ph['snapper']}` snapping (corner error median {unseen['snap_median']:.2f} px; exact masks "
             f"{unseen['exact_snap_median']:.2f} px) and an aspect-ratio error p90 of {100 * unseen['aspect_p90']:.1f} % "

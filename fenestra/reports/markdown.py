@@ -112,6 +112,8 @@ def provenance(run_dir: Path, summary: dict) -> dict:
             "n_methods": len(meta.get("methods") or []) or None,
             "houses": sorted((meta.get("datasets") or {}).keys()),
             "renderer": (cfg.get("render") or {}).get("renderer"),
+            # "view": each view drew its own look (walls, frames, light); "set": one look per house
+            "look_per": (((cfg.get("render") or {}).get("options") or {}).get("settings") or {}).get("look_per", "set"),
             "description": cfg.get("description")}
 
 
