@@ -253,8 +253,10 @@ def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dic
     ``exported`` only if its model was written (else False)."""
     from fenestra.pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
 
+    from fenestra.pipeline.session import kept_out  # noqa: PLC0415
+
     model, results = rec.model, list(rec.windows)
-    exclude = {} if options.export_all else {k: "implausible: " + "; ".join(v) for k, v in model.flags.items()}
+    exclude = kept_out(model, options.export_all)
     report = {"files": {}, "exported": [], "skipped": [], "failure": None}
     if options.export:
         info = {w["index"]: w for w in doc["windows"]}

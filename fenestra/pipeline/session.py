@@ -262,13 +262,18 @@ class PhotoSession:
 
         g = self.geometry(method, height_m)
         results, model = facade_model(list(g.results), known)
-        flagged = {} if export_all else {k: "implausible: " + "; ".join(v) for k, v in model.flags.items()}
-        _, skipped = split_results(results, style or DEFAULT_STYLE, flagged)
+        _, skipped = split_results(results, style or DEFAULT_STYLE, kept_out(model, export_all))
         return Reconstruction(method, tuple(self.detections(method.detector)), tuple(results), g.resolved, model,
                               known, g.envelope, g.failure, {s["index"]: s["reason"] for s in skipped})
 
     def _tick(self, stage: str, t0: float) -> None:
         self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.process_time() - t0
+
+
+def kept_out(model: FacadeModel, export_all: bool = False) -> dict[int, str]:
+    """{window index: reason} of the implausible windows the model leaves out (none with
+    ``export_all``): the one rule both the export decision and the written files follow."""
+    return {} if export_all else {k: "implausible: " + "; ".join(v) for k, v in model.flags.items()}
 
 
 def focal_envelope(results: list, K: np.ndarray, interval_px: tuple[float, float]) -> dict[int, tuple[float, float]]:
@@ -300,4 +305,4 @@ def focal_envelope(results: list, K: np.ndarray, interval_px: tuple[float, float
     return out
 
 
-__all__ = ["CANDIDATE_SCORE_MIN", "Geometry", "focal_envelope", "PhotoSession", "Reconstruction", "SCORE_MIN", "UserCamera"]
+__all__ = ["CANDIDATE_SCORE_MIN", "Geometry", "focal_envelope", "kept_out", "PhotoSession", "Reconstruction", "SCORE_MIN", "UserCamera"]

@@ -276,7 +276,7 @@ def bim_figures(results: dict, method: str) -> dict | None:
     b = results.get(method, {}).get("bim")
     if not b:
         return None
-    out = {"n": b["n"], "exported_rate": _r(b["exported_rate"]),
+    out = {"method": method, "n": b["n"], "exported_rate": _r(b["exported_rate"]),
            "K_source": {k: _r(v) for k, v in b["K_source"].items()},
            "assumed_rate": _r(b.get("assumed_rate")), "assumed_rate_storey": _r(b.get("assumed_rate_storey"))}
     for c in METRIC_ERRORS:
@@ -314,9 +314,9 @@ def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
     cli = f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
     # the photo counterpart of the BIM figures: the CLI's method, else the first method (the CLI's
     # first) that reconstructed a window of known size
-    sized = [m for m in (cli, cli + NO_K_SUFFIX, *sorted(results))
-             if (bim_figures(results, m) or {}).get("width_err_m", {}).get("n")]
-    bim = {m: bim_figures(results, m) for m in sized[:1]}
+    figures = (bim_figures(results, m) for m in (cli, cli + NO_K_SUFFIX, *sorted(results)))
+    first = next((b for b in figures if (b or {}).get("width_err_m", {}).get("n")), None)
+    bim = {} if first is None else {first["method"]: first}
     det_ap = {d: {k: _r(v.get(k)) for k in ("bbox_AP", "bbox_AP50", "segm_AP", "segm_AP50")} | {"n_gt": v.get("n_gt")}
               for d, v in sorted((summary.get("detection") or {}).items())}
     return {"provenance": provenance(real_dir, summary), "metric": metric, "snap": snap if metric else {},
