@@ -37,7 +37,8 @@ for house in fzk-haus duplex jasmin-sun niedriha; do
     [ $((c % 2)) -eq 0 ] && extra+=(--sensor)
     [ "$c" -eq 3 ] && extra+=(--k1 0.15)
     [ "$c" -eq 5 ] && extra+=(--no-shadows)
-    render "$house" 25 "$s" pyrender "$ROOT/train" "${extra[@]}"
+    [ $((c % 3)) -eq 0 ] && extra+=(--look wide)
+    render "$house" 25 "$s" pyrender "$ROOT/train" --look-per view "${extra[@]}"
   done
   render "$house" 20 $((2000 + h)) mitsuba "$ROOT/train" --spp 16
 done
@@ -49,8 +50,8 @@ for i in 1 2 3 4 5 6 7 8; do
   ifc="$ROOT/procedural/house-$s.ifc"
   [ -f "$ifc" ] || $PY -m fenestra scenes make "$ifc" --seed $s --storeys $((1 + i % 3)) \
       --windows-per-wall $((1 + (i / 2) % 3)) --rotation-deg $((i * 17))
-  render "$ifc" 20 $((3000 + s)) pyrender "$ROOT/train"
-  render "$ifc" 20 $((4000 + s)) pyrender "$ROOT/train" --sensor
+  render "$ifc" 20 $((3000 + s)) pyrender "$ROOT/train" --look-per view
+  render "$ifc" 20 $((4000 + s)) pyrender "$ROOT/train" --look-per view --sensor
 done
 
 # Varied procedural houses (added for the second default model): strip windows of extreme aspect
@@ -61,7 +62,7 @@ done
 $PY - "$ROOT/procedural" <<'PYEOF'
 import sys
 from pathlib import Path
-from scenes.generate import HouseSpec, make_house
+from fenestra.scenes.generate import HouseSpec, make_house
 root = Path(sys.argv[1])
 STYLES = {  # width_range, height_range (m), windows per wall, storey height, wall thickness, reveal
     "strip": ((1.4, 3.6), (0.3, 0.7), 2, 2.6, 0.3, 0.1),
@@ -109,14 +110,14 @@ for seed in list(range(131, 147)) + list(range(205, 209)):
 PYEOF
 for s in $(seq 111 126); do
   ifc="$ROOT/procedural/varied-$s.ifc"
-  render "$ifc" 20 $((5000 + s)) pyrender "$ROOT/train" --sensor --k1 0.1
-  render "$ifc" 20 $((6000 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
+  render "$ifc" 20 $((5000 + s)) pyrender "$ROOT/train" --look-per view --sensor --k1 0.1
+  render "$ifc" 20 $((6000 + s)) pyrender "$ROOT/train" --look-per view --distance-max 22 --azimuth-max 70 --street-fraction 0.5
   if [ $((s % 2)) -eq 0 ]; then render "$ifc" 8 $((7000 + s)) mitsuba "$ROOT/train" --spp 16; fi
 done
 for s in $(seq 131 146); do
   ifc="$ROOT/procedural/facade-$s.ifc"
-  render "$ifc" 20 $((5500 + s)) pyrender "$ROOT/train" --sensor
-  render "$ifc" 20 $((6500 + s)) pyrender "$ROOT/train" --distance-max 22 --azimuth-max 70 --street-fraction 0.5
+  render "$ifc" 20 $((5500 + s)) pyrender "$ROOT/train" --look-per view --sensor
+  render "$ifc" 20 $((6500 + s)) pyrender "$ROOT/train" --look-per view --distance-max 22 --azimuth-max 70 --street-fraction 0.5
   if [ $((s % 2)) -eq 1 ]; then render "$ifc" 8 $((7500 + s)) mitsuba "$ROOT/train" --spp 16; fi
 done
 for s in 205 206 207 208; do  # validation split, facade features

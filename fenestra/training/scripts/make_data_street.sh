@@ -20,7 +20,7 @@ $PY - "$ROOT/procedural" <<'PYEOF'
 import sys
 from dataclasses import replace
 from pathlib import Path
-from scenes.generate import HouseSpec, make_house
+from fenestra.scenes.generate import HouseSpec, make_house
 root = Path(sys.argv[1])
 FOOTPRINTS = [((0, 0), (18, 0), (18, 9), (0, 9)), ((0, 0), (12, 0), (12, 10), (0, 10)),
               ((0, 0), (24, 0), (24, 8), (0, 8)), ((0, 0), (14, 0), (16, 5), (14, 10), (0, 10))]
@@ -54,8 +54,8 @@ render() {  # scene views seed renderer root [extra options]
 }
 for s in $(seq 151 170); do
   ifc="$ROOT/procedural/street-$s.ifc"
-  render "$ifc" 20 $((10000 + s)) pyrender "$ROOT/train-street" --street-fraction 0.7
-  render "$ifc" 20 $((10500 + s)) pyrender "$ROOT/train-street" --sensor --distance-max 22 --azimuth-max 70 --street-fraction 0.5
+  render "$ifc" 20 $((10000 + s)) pyrender "$ROOT/train-street" --look-per view --street-fraction 0.7
+  render "$ifc" 20 $((10500 + s)) pyrender "$ROOT/train-street" --look-per view --sensor --distance-max 22 --azimuth-max 70 --street-fraction 0.5
   if [ $((s % 4)) -eq 0 ]; then render "$ifc" 8 $((11000 + s)) mitsuba "$ROOT/train-street" --spp 16; fi
 done
 for s in 213 214 215 216; do  # validation split
