@@ -14,8 +14,9 @@ from fenestra.scenes.loader import load_scene
 from fenestra.scenes.registry import BUNDLED
 
 EXPECTED_WINDOWS = {"fzk-haus": 11, "duplex": 22, "samplehouse4": 4, "jasmin-sun": 12,
-                    "niedriha": 16}
-EXPECTED_SKIPPED = {"fzk-haus": 0, "duplex": 2, "samplehouse4": 0, "jasmin-sun": 0, "niedriha": 0}
+                    "niedriha": 16, "office-a": 69}
+EXPECTED_SKIPPED = {"fzk-haus": 0, "duplex": 2, "samplehouse4": 0, "jasmin-sun": 0, "niedriha": 0,
+                    "office-a": 0}
 
 
 @pytest.fixture(scope="module", params=list(BUNDLED))

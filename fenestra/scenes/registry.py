@@ -21,6 +21,7 @@ BUNDLED: dict[str, Path] = {
     "samplehouse4": IFC_DIR / "SampleHouse4.ifc",
     "jasmin-sun": IFC_DIR / "AC90R1-Jasmin-Sun-105-2x3.ifc",
     "niedriha": IFC_DIR / "AC90R1-niedriha-V2-2x3.ifc",
+    "office-a": IFC_DIR / "Office_A_20110811.ifc",  # a Revit office: a held-out family, never trained on
 }
 
 
