@@ -143,8 +143,8 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     """Reconstruct the windows of one photo; return the windows.json data (a dict).
 
     photo: any image file OpenCV reads (EXIF orientation applied). out: a folder to write
-    windows.json, overlay.png and (options.export) model.ifc, model.obj/.mtl, model.glb, texture.png,
-    export.json into (written whole or not at all: pipeline.outdir; ``force`` replaces a non-empty
+    windows.json, overlay.png, index.html (a page showing them: pipeline.export.viewer) and
+    (options.export) model.ifc, model.obj/.mtl, model.glb, texture.png, export.json into (written whole or not at all: pipeline.outdir; ``force`` replaces a non-empty
     folder that is not an output), or None to write nothing. K_json / fx, fy, cx, cy: the user's
     intrinsics (at most one of K_json and fx); without them the focal chain of
     pipeline.intrinsics.resolve_K decides. masks: an instance-map PNG (16-bit ids, 0 = none)
@@ -246,12 +246,15 @@ def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], e
 
 
 def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dict) -> dict:
-    """The overlay always, then (options.export) the models of a pipeline.session.Reconstruction;
+    """The overlay always, then (options.export) the models of a pipeline.session.Reconstruction,
+    then index.html (pipeline.export.viewer: the overlay, the GLB in 3D or why there is none, the
+    window table);
     returns {"files", "exported", "skipped", "failure"}: an export that fails is recorded, not
     raised (windows.json is still written by the caller). The windows the reconstruction decided
     not to export (``rec.not_exported``) stay out; with options.export each window of ``doc`` keeps
     ``exported`` only if its model was written (else False)."""
     from fenestra.pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
+    from fenestra.pipeline.export.viewer import write_viewer  # noqa: PLC0415
 
     from fenestra.pipeline.session import kept_out  # noqa: PLC0415
 
@@ -278,6 +281,7 @@ def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dic
     if options.export:  # what was written (the decision, unless the export failed)
         for w in doc["windows"]:
             w["exported"] = w["index"] in report["exported"]
+    report["files"]["viewer"] = write_viewer(out, {**doc, "export": report}, report["files"]).name  # index.html
     return report
 
 
