@@ -144,7 +144,8 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
 
     photo: any image file OpenCV reads (EXIF orientation applied). out: a folder to write
     windows.json, overlay.png, index.html (a page showing them: pipeline.export.viewer) and
-    (options.export) model.ifc, model.obj/.mtl, model.glb, texture.png, export.json into (written whole or not at all: pipeline.outdir; ``force`` replaces a non-empty
+    (options.export) model.ifc, model.obj/.mtl, model.glb, texture.png, export.json into (written
+    whole or not at all: pipeline.outdir; ``force`` replaces a non-empty
     folder that is not an output), or None to write nothing. K_json / fx, fy, cx, cy: the user's
     intrinsics (at most one of K_json and fx); without them the focal chain of
     pipeline.intrinsics.resolve_K decides. masks: an instance-map PNG (16-bit ids, 0 = none)
