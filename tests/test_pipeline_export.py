@@ -41,6 +41,17 @@ def export_to_camera(manifest: dict) -> np.ndarray:
     return np.asarray(manifest["world_frame"]["camera_to_export"], dtype=np.float64).T
 
 
+def export_offset(manifest: dict) -> np.ndarray:
+    """The export world's origin shift (3,) m as export.json states it: X_E = M @ X_C + offset
+    (the ground plane at z = 0; the camera at ``offset``)."""
+    return np.asarray(manifest["world_frame"]["offset_m"], dtype=np.float64)
+
+
+def camera_points(manifest: dict, X: np.ndarray) -> np.ndarray:
+    """Export-world points (N, 3) m -> camera frame (N, 3) m, by export.json's world_frame."""
+    return (np.asarray(X, dtype=np.float64).reshape(-1, 3) - export_offset(manifest)) @ export_to_camera(manifest).T
+
+
 def pinhole(X_cam: np.ndarray, K: np.ndarray = K) -> np.ndarray:
     """Camera-frame points (N, 3) -> pixels (N, 2), this test's own projection."""
     x = np.asarray(X_cam, dtype=np.float64) @ K.T
@@ -165,24 +176,23 @@ def test_ifc_is_schema_valid(ifc):
     assert logger.statements == []
 
 
-def _window_corners_px(window, E2C: np.ndarray) -> np.ndarray:
+def _window_corners_px(window, manifest: dict) -> np.ndarray:
     M = ifcopenshell.util.placement.get_local_placement(window.ObjectPlacement)
     w, h = window.OverallWidth, window.OverallHeight
     local = np.array([[0, h, 0, 1], [w, h, 0, 1], [w, 0, 0, 1], [0, 0, 0, 1]], dtype=np.float64)
     world = (local @ M.T)[:, :3]
-    return pinhole(world @ E2C.T)
+    return pinhole(camera_points(manifest, world))
 
 
 def test_ifc_window_placement_and_size_match_pose(ifc, outputs):
-    E2C = export_to_camera(outputs[1])
     by_name = {wnd.Name.split()[1]: wnd for wnd in ifc.by_type("IfcWindow")}
     for i, height_m in ((0, 1.0), (1, 1.3)):
         wnd = by_name[str(i)]
         assert wnd.OverallHeight == pytest.approx(height_m, abs=1e-9)
         assert wnd.OverallWidth / wnd.OverallHeight == pytest.approx(VOIDS[i][2] / VOIDS[i][3], rel=1e-9)
-        assert np.abs(_window_corners_px(wnd, E2C) - gt_quad(i)).max() < 0.5
+        assert np.abs(_window_corners_px(wnd, outputs[1]) - gt_quad(i)).max() < 0.5
         # Exact in practice, not just within the 0.5 px requirement.
-        assert np.abs(_window_corners_px(wnd, E2C) - gt_quad(i)).max() < 1e-6
+        assert np.abs(_window_corners_px(wnd, outputs[1]) - gt_quad(i)).max() < 1e-6
 
 
 def _iterated_meshes(ifc, ifc_class):
@@ -197,9 +207,8 @@ def _iterated_meshes(ifc, ifc_class):
 
 
 def test_ifc_window_rerendered_covers_void(ifc, outputs):
-    E2C = export_to_camera(outputs[1])
     for name, (V, F) in _iterated_meshes(ifc, "IfcWindow").items():
-        px = pinhole(V @ E2C.T)
+        px = pinhole(camera_points(outputs[1], V))
         render = np.zeros((IMG_H, IMG_W), dtype=np.uint8)
         for tri in F:
             cv2.fillPoly(render, [np.round(px[tri] * 16).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
@@ -210,17 +219,19 @@ def test_ifc_window_rerendered_covers_void(ifc, outputs):
 
 def test_ifc_wall_has_void_cut_and_photo_texture(ifc, outputs):
     paths, manifest = outputs
-    # The iterated wall is the holed fragment: void + 1 m margin, 0.30 m thick, minus the void box.
+    # The iterated wall is the holed fragment: void + 1 m margin, 0.30 m thick behind the 0.01 m photo
+    # cladding (an IfcCovering), minus the void box.
     for name, (V, F) in _iterated_meshes(ifc, "IfcWall").items():
         i = int(name)
         k = (1.0 if i == 0 else 1.3) / VOIDS[i][3]
         x0, y0, w, h = VOIDS[i]
-        cam = V @ export_to_camera(manifest).T
+        cam = camera_points(manifest, V)
         facade = ((cam / k - T_F) @ R_F)  # back to the true facade frame (R_F orthonormal)
         assert facade[:, 0].min() == pytest.approx(x0 - 1.0 / k, abs=1e-6)
-        assert facade[:, 2].min() == pytest.approx(-0.30 / k, abs=1e-6)
+        assert facade[:, 2].min() == pytest.approx(-0.31 / k, abs=1e-6)
+        assert facade[:, 2].max() == pytest.approx(-0.01 / k, abs=1e-6)
         tri_area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-        front = np.all(np.abs(facade[F][:, :, 2]) < 1e-6, axis=1)
+        front = np.all(np.abs(facade[F][:, :, 2] + 0.01 / k) < 1e-6, axis=1)
         assert tri_area[front].sum() == pytest.approx((w + 2 / k) * (h + 2 / k) * k * k - w * h * k * k, rel=1e-6)
     styles = ifc.by_type("IfcSurfaceStyleWithTextures")
     assert len(styles) == 1 and styles[0].Textures[0].URLReference == "texture.png"
@@ -237,7 +248,7 @@ def test_ifc_texture_coordinates_reproduce_projection(ifc, outputs):
     checked = 0
     for m in maps:
         faceset = m.MappedTo
-        wall = next(p for p in ifc.by_type("IfcWall")
+        wall = next(p for p in ifc.by_type("IfcCovering")  # the photo cladding carries the texture
                     if faceset in p.Representation.Representations[0].Items)
         M = ifcopenshell.util.placement.get_local_placement(wall.ObjectPlacement)
         local = np.asarray(faceset.Coordinates.CoordList)
@@ -249,7 +260,7 @@ def test_ifc_texture_coordinates_reproduce_projection(ifc, outputs):
                 if abs(p[2]) > 1e-9:
                     continue  # only the exterior face is seen in the photo
                 world = M[:3, :3] @ p + M[:3, 3]
-                expected = pinhole((world @ export_to_camera(manifest).T)[None])[0]
+                expected = pinhole(camera_points(manifest, world))[0]
                 s, t = uv[b - 1]
                 got = np.array([s * tex["width"] - 0.5 - tex["pad_left"],
                                 (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
@@ -296,14 +307,14 @@ def test_a_huge_photo_is_inpainted_and_textured_at_the_capped_size(tmp_path, pho
     manifest = json.loads(paths["manifest"].read_text())
     checked = 0
     for m in ifc_model.by_type("IfcIndexedTriangleTextureMap"):
-        wall = next(p for p in ifc_model.by_type("IfcWall") if m.MappedTo in p.Representation.Representations[0].Items)
+        wall = next(p for p in ifc_model.by_type("IfcCovering") if m.MappedTo in p.Representation.Representations[0].Items)
         M = ifcopenshell.util.placement.get_local_placement(wall.ObjectPlacement)
         local, uv = np.asarray(m.MappedTo.Coordinates.CoordList), np.asarray(m.TexCoords.TexCoordsList)
         for tri_xyz, tri_uv in zip(m.MappedTo.CoordIndex, m.TexCoordIndex):
             for a, b in zip(tri_xyz, tri_uv):
                 if abs(local[a - 1][2]) > 1e-9:
                     continue
-                u, v = pinhole(((M[:3, :3] @ local[a - 1] + M[:3, 3]) @ export_to_camera(manifest).T)[None])[0]
+                u, v = pinhole(camera_points(manifest, M[:3, :3] @ local[a - 1] + M[:3, 3]))[0]
                 s, t = uv[b - 1]
                 got = np.array([s * tex["width"] - 0.5 - tex["pad_left"], (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
                 assert np.abs(got - [(u + 0.5) * sx - 0.5, (v + 0.5) * sy - 0.5]).max() < 1e-3
@@ -345,14 +356,15 @@ def test_obj_and_glb_reload_with_trimesh(outputs):
         lo, hi = np.min([m.bounds[0] for m in meshes], axis=0), np.max([m.bounds[1] for m in meshes], axis=0)
         assert np.all(np.isfinite(lo)) and np.all(hi - lo < 20.0)
     assert counts["obj"] == counts["glb"]
-    # Each GLB wall is a closed solid: (outline - void) x 0.30 m, at the scale its pose was solved with.
+    # Each GLB wall is a closed solid: (outline - void) x 0.31 m (0.30 m wall + 0.01 m photo cladding), at
+    # the scale its pose was solved with.
     scene = trimesh.load(str(paths["glb"]), force="scene")
     for i, height_m in ((0, 1.0), (1, 1.3)):
         wall = scene.geometry[f"wall_{i}"]
         k = height_m / VOIDS[i][3]
         w, h = VOIDS[i][2] * k, VOIDS[i][3] * k
         assert wall.is_watertight
-        assert wall.volume == pytest.approx(((w + 2) * (h + 2) - w * h) * 0.30, rel=1e-6)
+        assert wall.volume == pytest.approx(((w + 2) * (h + 2) - w * h) * 0.31, rel=1e-6)
 
 
 def test_glb_and_obj_agree_on_wall_uvs(outputs):
@@ -379,7 +391,7 @@ def test_obj_wall_uvs_reproduce_projection(outputs):
              for c in line.split()[1:]}
     errs = []
     for vi, ti in pairs:
-        cam = export_to_camera(manifest) @ V[vi - 1]
+        cam = camera_points(manifest, V[vi - 1])[0]
         expected = pinhole(cam[None])[0]
         s, t = VT[ti - 1]
         got = np.array([s * tex["width"] - 0.5 - tex["pad_left"], (1 - t) * tex["height"] - 0.5 - tex["pad_top"]])
@@ -525,7 +537,7 @@ def test_texture_is_padded_when_the_wall_leaves_the_photo(tmp_path, photo):
              for c in line.split()[1:]}
     corners = []
     for vi, ti in pairs:
-        cam = export_to_camera(manifest) @ V[vi - 1]
+        cam = camera_points(manifest, V[vi - 1])[0]
         facade = (cam - T_F) @ R_F
         if abs(facade[2]) > 1e-5:
             continue
@@ -559,6 +571,7 @@ def test_glb_rerendered_from_the_photo_camera_reproduces_the_photo(outputs):
     pose = np.eye(4)
     # camera frame axes in the GLB's (y-up) world, GL style
     pose[:3, :3] = Z_TO_Y_UP @ export_to_camera(manifest).T @ CV_TO_GL
+    pose[:3, 3] = Z_TO_Y_UP @ export_offset(manifest)  # the camera stands above the export origin
     scene.add(camera, pose=pose)
     renderer = pyrender.OffscreenRenderer(IMG_W, IMG_H)
     try:
@@ -757,7 +770,7 @@ def test_a_tilted_camera_gives_vertical_walls(tmp_path):
     f = ifcopenshell.open(str(paths["ifc"]))
     for wall in f.by_type("IfcWall"):
         M = ifcopenshell.util.placement.get_local_placement(wall.ObjectPlacement)
-        lean = np.degrees(np.arccos(np.clip(M[2, 1], -1, 1)))  # the wall frame's y (up) against world z
+        lean = np.degrees(np.arccos(np.clip(M[2, 2], -1, 1)))  # the wall placement's z (its up) against world z
         assert lean < 1.0, (wall.Name, lean)
     level = write_outputs(tmp_path / "level", photo, Kt, results, walls=walls, gravity=False)
     meshes = trimesh.load(str(level["glb"]), force="scene").dump(concatenate=False)

@@ -19,8 +19,9 @@ from fenestra.checks import check_image, check_K
 from fenestra.errors import PipelineError
 from fenestra.files import write_image
 from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, window_mesh
-from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, camera_to_world, gravity_up, place,
-                                               texture_layout, union_layout, upright, wall_groups, wall_margin_m)
+from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, camera_to_world, gravity_up, grounded, place,
+                                               storey_levels, texture_layout, union_layout, upright, wall_groups,
+                                               wall_margin_m)
 from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
 from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
@@ -91,7 +92,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                   substitute: str | WindowStyle | None = None, exclude: dict[int, str] | None = None,
                   walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
                   wall_properties: dict[int, dict] | None = None, overlay: bool = True,
-                  gravity: Gravity | np.ndarray | bool = True, max_px: int = EXPORT_MAX_PX) -> dict[str, Path]:
+                  gravity: Gravity | np.ndarray | bool = True, max_px: int = EXPORT_MAX_PX,
+                  gps: tuple | None = None) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
     image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
@@ -105,7 +107,12 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     wall_properties: {wall id: {name: value}}, that of each fitted wall; gravity: the export world's
     vertical (pipeline.export.geometry): True estimates it from the exported windows' wall up axes
     (:func:`~pipeline.export.geometry.gravity_up`, with ``walls``), a (3,) up vector in the camera
-    frame or a Gravity gives it, False keeps the camera-level frame (CAMERA_TO_EXPORT).
+    frame or a Gravity gives it, False keeps the camera-level frame (CAMERA_TO_EXPORT). The world's
+    origin is then moved down to the ground (geometry.storey_levels / grounded: z = 0 lies
+    SILL_HEIGHT_M below the lowest row of sills; model.ifc's storeys are the rows), the same for
+    model.ifc, model.obj and model.glb; export.json's ``world_frame.offset`` and ``storeys`` say so.
+    gps: (latitude deg, longitude deg[, elevation m]) of the camera: model.ifc's site reference and
+    map conversion (pipeline.export.ifc.write_ifc).
     Bounded cost: when the padded texture would exceed ``max_px`` (EXPORT_MAX_PX) along its longer
     side, the photo is inpainted and textured at the reduced size that fits (inpaint.capped_size;
     export.json's ``texture``: ``photo_width``/``photo_height``, the size the texture's photo
@@ -122,6 +129,9 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     placed, skipped = split_results(list(results), style, exclude)
     gravity = export_gravity(placed, walls, gravity)
     placed = upright(placed, gravity)
+    levels = storey_levels(placed)
+    ground_z = levels.ground_z_m
+    placed, levels = grounded(placed, levels)  # storey 0 at z = 0
     timings: dict[str, float] = {}
 
     def _timed(name, fn, *args, **kw):
@@ -150,7 +160,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     else:
         paths["texture"] = write_image(out / "texture.png", texture)
     ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K_tex, placed, layout, "texture.png", style,
-                 walls=walls, properties=properties, wall_properties=wall_properties)
+                 walls=walls, properties=properties, wall_properties=wall_properties, levels=levels, gps=gps)
     paths["ifc"] = out / "model.ifc"
     parts = model_parts(K_tex, placed, layout, style, walls=walls)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
@@ -168,9 +178,15 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     manifest = {
         "style": style.name,
         "world_frame": {"camera_to_export": camera_to_world(gravity.up).tolist(), "gravity": gravity.to_json(),
+                        "offset_m": [0.0, 0.0, -ground_z],
                         "glb_root": "model.glb's root node turns this z-up world y-up (x, y, z) -> (x, z, -y)",
-                        "note": "export world = OpenCV camera frame turned upright (z = gravity's up); camera at "
-                                "the origin, its heading along +y"},
+                        "note": "export world X_E = camera_to_export @ X_C + offset_m: the OpenCV camera frame "
+                                "turned upright (z = gravity's up), the ground plane at z = 0, the camera above "
+                                "the origin, its heading along +y; the same in model.ifc, model.obj and model.glb"},
+        "storeys": {"sill_height_m": levels.sill_height_m, "row_tolerance_m": levels.tol_m,
+                    "rows": [{"name": f"Storey {r}", "elevation_m": e, "sill_m": s,
+                              "windows": sorted(i for i, row in levels.row_of.items() if row == r)}
+                             for r, (e, s) in enumerate(zip(levels.elevations_m, levels.sills_m))]},
         "texture": {"file": "texture.png", "pad_left": layout.pad_left, "pad_top": layout.pad_top,
                     "pad_right": layout.pad_right, "pad_bottom": layout.pad_bottom,
                     "width": layout.width, "height": layout.height, "photo_width": size[0], "photo_height": size[1],

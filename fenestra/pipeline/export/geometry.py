@@ -5,14 +5,24 @@ Frames
                        the facade; the void is [0, w] x [0, h] at z = 0 (see pipeline.types).
     camera frame  (C)  OpenCV: x right, y down, z forward. ``X_C = R @ X_W + t`` (WindowResult R, t).
     export world  (E)  the frame of model.ifc / model.obj / model.glb: upright, z up (gravity, as
-                       the walls' fitted up axes give it: :func:`gravity_up`), camera at the origin,
-                       its optical axis's horizontal heading along +y:
-                           X_E = M @ X_C,  M = :func:`camera_to_world` (up); PlacedWindow.world.
-                       For a level camera (up = -y_C) M is CAMERA_TO_EXPORT: x_E = x_C, y_E = z_C,
-                       z_E = -y_C; without a usable gravity estimate the export falls back to it.
+                       the walls' fitted up axes give it: :func:`gravity_up`), the optical axis's
+                       horizontal heading along +y, the ground plane at z = 0 and the camera above
+                       the origin:
+                           X_E = M @ X_C + o,  M = :func:`camera_to_world` (up), o = (0, 0, -ground_z)
+                       (PlacedWindow.world and .offset). For a level camera (up = -y_C) M is
+                       CAMERA_TO_EXPORT: x_E = x_C, y_E = z_C, z_E = -y_C; without a usable gravity
+                       estimate the export falls back to it. The ground (:func:`storey_rows`,
+                       :func:`storey_levels`, :func:`grounded`) lies SILL_HEIGHT_M (at most the
+                       typical window height) below the lowest row of windows' sill, so the camera
+                       stands at (0, 0, -ground_z); o = 0 before :func:`grounded` (the camera at the origin).
                        Units: metres, at the scale the pose was solved with (the window is
                        ``height_m`` tall). model.glb holds the same coordinates under a root node
                        that turns them y-up, as glTF requires (:data:`Z_UP_TO_Y_UP`).
+
+Storeys
+    Windows are grouped into rows by their sill height in the export world (:func:`storey_rows`):
+    sills within STOREY_TOL_FRACTION of the typical (median) window height are one row. Each row
+    is one storey of model.ifc; a storey's elevation is its row's sill minus the sill offset.
 
 Texture
     The texture is the inpainted photo, padded by replication so that every wall vertex projects
@@ -44,6 +54,14 @@ WALL_THICKNESS_M = 0.30
 WALL_CELL_FRACTION = 0.05  # facade grid cell, as a fraction of the camera distance
 WALL_MAX_CELLS = 64  # ... but at most this many cells along the wall's longer side
 MAX_PAD_FRACTION = 1.0  # texture padding per side, at most this fraction of the photo size
+# The photo cladding: model.ifc's IfcCovering, this thick, in front of the wall's solid (its outer
+# face is the photographed plane, the wall frame's z = 0); the OBJ/GLB slab is their envelope.
+COVERING_THICKNESS_M = 0.01
+# A typical sill height above its storey's floor: the ground plane (z = 0) lies this far below the
+# lowest row of windows' sill, and each storey's floor this far below its row's sill. At most the
+# typical window height (a 1:25 model's ground is not 0.9 m below its 9 cm windows).
+SILL_HEIGHT_M = 0.9
+STOREY_TOL_FRACTION = 0.5  # sills within this fraction of the median window height are one row
 
 
 @dataclass(frozen=True)
@@ -56,6 +74,7 @@ class PlacedWindow:
     R: np.ndarray  # (3, 3) window -> camera
     t: np.ndarray  # (3,) m
     world: np.ndarray = field(default_factory=CAMERA_TO_EXPORT.copy)  # (3, 3) camera -> export world
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) m, X_E = world @ X_C + offset
 
     def to_camera(self, X: np.ndarray) -> np.ndarray:
         """Window-frame points (N, 3) m -> camera frame (N, 3) m."""
@@ -63,13 +82,13 @@ class PlacedWindow:
 
     def to_export(self, X: np.ndarray) -> np.ndarray:
         """Window-frame points (N, 3) m -> export world (N, 3) m."""
-        return self.to_camera(X) @ self.world.T
+        return self.to_camera(X) @ self.world.T + self.offset
 
     def export_matrix(self) -> np.ndarray:
         """4x4 homogeneous window-frame -> export-world transform (the IFC object placement)."""
         T = np.eye(4)
         T[:3, :3] = self.world @ self.R
-        T[:3, 3] = self.world @ self.t
+        T[:3, 3] = self.world @ self.t + self.offset
         return T
 
     def void_corners(self) -> np.ndarray:
@@ -286,8 +305,8 @@ def wall_placement(wall_id: int, members: list[PlacedWindow]) -> PlacedWindow:
     ref = members[0]
     pts = np.concatenate([(m.to_camera(m.void_corners()) - ref.t) @ ref.R for m in members])  # (4n, 3) ref frame
     (x0, y0), (x1, y1) = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
-    return PlacedWindow(int(wall_id), float(x1 - x0), float(y1 - y0), ref.R, ref.t + ref.R @ np.array([x0, y0, 0.0]),
-                        ref.world)
+    return replace(ref, index=int(wall_id), width_m=float(x1 - x0), height_m=float(y1 - y0),
+                   t=ref.t + ref.R @ np.array([x0, y0, 0.0]))
 
 
 def wall_groups(placed: list[PlacedWindow], walls: dict[int, int] | None) -> list[tuple[PlacedWindow, list[PlacedWindow]]]:
@@ -387,6 +406,93 @@ def camera_to_world(up: np.ndarray | None) -> np.ndarray:
 
 
 def upright(placed: list[PlacedWindow], gravity: Gravity) -> list[PlacedWindow]:
-    """``placed`` in the export world of ``gravity`` (:func:`camera_to_world`)."""
+    """``placed`` in the export world of ``gravity`` (:func:`camera_to_world`), camera at the origin."""
     M = camera_to_world(gravity.up)
-    return [replace(pw, world=M) for pw in placed]
+    return [replace(pw, world=M, offset=np.zeros(3)) for pw in placed]
+
+
+def sill_z(pw: PlacedWindow) -> float:
+    """The export-world height (m) of ``pw``'s sill: the mean z of its void's bottom corners."""
+    return float(pw.to_export(pw.void_corners()[2:])[:, 2].mean())
+
+
+def storey_rows(sills: np.ndarray, heights: np.ndarray, tol_fraction: float = STOREY_TOL_FRACTION) -> np.ndarray:
+    """The storey row of each window, (N,) int, 0 = the lowest.
+
+    sills (N,) m: the windows' sill heights in the upright export world (:func:`sill_z`);
+    heights (N,) m: their void heights. tol = tol_fraction * median(heights): taken by rising sill,
+    a window joins the current row when its sill is at most tol above the row's lowest sill, and
+    starts the next row otherwise (so one row spans at most tol; rows are numbered bottom-up).
+    ValueError naming the bad value for mismatched shapes, non-finite sills, non-positive heights
+    or tol_fraction.
+    """
+    sills = np.asarray(sills, dtype=np.float64)
+    heights = np.asarray(heights, dtype=np.float64)
+    if sills.ndim != 1 or heights.shape != sills.shape:
+        raise ValueError(f"sills and heights must be (N,) arrays of one length, got shapes {sills.shape} and {heights.shape}")
+    if not np.all(np.isfinite(sills)):
+        raise ValueError(f"sills must be finite, got {sills.tolist()}")
+    if not np.all(np.isfinite(heights) & (heights > 0)):
+        raise ValueError(f"heights must be finite and positive, got {heights.tolist()}")
+    if not (np.isfinite(tol_fraction) and tol_fraction > 0):
+        raise ValueError(f"tol_fraction must be finite and positive, got {tol_fraction!r}")
+    rows = np.zeros(len(sills), dtype=np.int64)
+    if len(sills) == 0:
+        return rows
+    tol = float(tol_fraction) * float(np.median(heights))
+    row, base = 0, None
+    for i in np.argsort(sills, kind="stable"):
+        if base is None:
+            base = sills[i]
+        elif sills[i] - base > tol:
+            row, base = row + 1, sills[i]
+        rows[i] = row
+    return rows
+
+
+@dataclass(frozen=True)
+class StoreyLevels:
+    """The storey rows of the placed windows: ``row_of`` {window index: row (0 = lowest)}; ``sills_m``
+    each row's sill (median of its windows' :func:`sill_z`, export world, m); ``sill_height_m`` the
+    offset from a storey's floor to its row's sill (SILL_HEIGHT_M, at most the median window height);
+    ``tol_m`` the row tolerance used (:func:`storey_rows`)."""
+
+    row_of: dict
+    sills_m: tuple
+    sill_height_m: float
+    tol_m: float
+
+    @property
+    def elevations_m(self) -> tuple:
+        """Each storey's floor height (m, export world): its row's sill minus ``sill_height_m``."""
+        return tuple(s - self.sill_height_m for s in self.sills_m)
+
+    @property
+    def ground_z_m(self) -> float:
+        """The ground plane's height in the world the levels were taken in (0 once :func:`grounded`)."""
+        return self.elevations_m[0] if self.sills_m else 0.0
+
+
+def storey_levels(placed: list[PlacedWindow], sill_height_m: float = SILL_HEIGHT_M,
+                  tol_fraction: float = STOREY_TOL_FRACTION) -> StoreyLevels:
+    """The storey rows (:func:`storey_rows`) and levels of ``placed`` in their export world."""
+    if not (np.isfinite(sill_height_m) and sill_height_m >= 0):
+        raise ValueError(f"sill_height_m must be finite and non-negative, got {sill_height_m!r}")
+    if not placed:
+        return StoreyLevels({}, (), float(sill_height_m), 0.0)
+    sills = np.array([sill_z(pw) for pw in placed])
+    heights = np.array([pw.height_m for pw in placed])
+    rows = storey_rows(sills, heights, tol_fraction)
+    typical = float(np.median(heights))
+    row_sills = tuple(float(np.median(sills[rows == r])) for r in range(int(rows.max()) + 1))
+    return StoreyLevels({pw.index: int(r) for pw, r in zip(placed, rows)}, row_sills,
+                        float(min(sill_height_m, typical)), float(tol_fraction) * typical)
+
+
+def grounded(placed: list[PlacedWindow], levels: StoreyLevels) -> tuple[list[PlacedWindow], StoreyLevels]:
+    """(``placed``, ``levels``) with the export world's origin moved down onto ``levels``' ground
+    plane: z = 0 there, storey 0's elevation 0, the rows unchanged."""
+    dz = levels.ground_z_m
+    shift = np.array([0.0, 0.0, -dz])
+    return ([replace(pw, offset=pw.offset + shift) for pw in placed],
+            replace(levels, sills_m=tuple(s - dz for s in levels.sills_m)))

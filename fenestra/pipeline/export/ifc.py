@@ -1,21 +1,55 @@
-"""IFC4 export: per fitted wall one photo-textured IfcWall, per window its opening and an IfcWindow.
+"""IFC4 export: a façade model a BIM user can edit, in storeys, with the photo as its walls' cladding.
 
-World frame and units: see fenestra/pipeline/export/geometry.py (metres; camera at the origin, z up,
-looking along +y). Per fitted wall (``walls``; else per window) the file holds
+World frame and units: see fenestra/pipeline/export/geometry.py (metres, z up, the ground plane at
+z = 0, the camera above the origin looking along +y). The file holds
 
-    IfcWall            closed, gridded IfcTriangulatedFaceSet slab (its voids' extent + margin, 0.30 m thick) with an
-                       IfcIndexedTriangleTextureMap into texture.png (IfcImageTexture, relative URL),
-                       styled by an IfcSurfaceStyle with IfcSurfaceStyleWithTextures
-    IfcOpeningElement  the void box, voiding the wall (IfcRelVoidsElement)
+    IfcProject / IfcSite / IfcBuilding   the building carries Fenestra_Ground (SillHeightAssumed: the
+                       ground plane lies this far below the lowest row of sills, geometry.SILL_HEIGHT_M
+                       at most the typical window height; StoreyRowTolerance; the rule in words);
+                       with ``gps`` the site's RefLatitude/RefLongitude/RefElevation (the camera's
+                       position, which is the world's origin on the ground) and an IfcMapConversion
+                       to the UTM zone's IfcProjectedCRS (EPSG 326xx / 327xx)
+    IfcBuildingStorey  one per row of windows ("Storey 0", "Storey 1", ... from the bottom;
+                       geometry.storey_rows), Elevation = its row's sill - SillHeightAssumed, placed
+                       at (0, 0, Elevation) in the building; Fenestra_Storey (its sill height, windows)
+    IfcWall            per fitted wall (``walls``; else per window), contained in the lowest storey
+                       its windows are in: a standard wall a BIM tool edits as one: placement on
+                       its bottom-left exterior corner (x along the wall, z its up axis), Axis
+                       (IfcPolyline along x) and Body = IfcExtrudedAreaSolid of an
+                       IfcRectangleProfileDef footprint (length x thickness) extruded up by its
+                       height; IfcWallType "Photographed wall" with an IfcMaterialLayerSet (one
+                       "Wall" layer, WALL_THICKNESS_M) -> IfcMaterialLayerSetUsage on the wall;
+                       Qto_WallBaseQuantities (Length, Height, Width, GrossSideArea, NetSideArea =
+                       gross - the openings' union, GrossVolume, NetVolume); Fenestra_Wall when given
+    IfcCovering        CLADDING "Photo façade <wall>", COVERING_THICKNESS_M thick in front of the
+                       wall (its outer face is the photographed plane), related to its wall by
+                       IfcRelCoversBldgElements, in the wall's storey: the closed, gridded
+                       IfcTriangulatedFaceSet with the windows' voids cut out, carrying the
+                       IfcIndexedTriangleTextureMap into texture.png (IfcImageTexture, relative URL)
+                       and an IfcSurfaceStyle with IfcSurfaceStyleWithTextures. Why a covering: a
+                       texture map needs a tessellated item, an editable wall an extrusion; the
+                       photo is the façade's finish, which is what IFC's cladding covering is.
+    IfcOpeningElement  per window: IfcExtrudedAreaSolid of the void's rectangle through covering and
+                       wall (+ OPENING_OVERSHOOT_M each side), voiding the wall (IfcRelVoidsElement);
+                       placed relative to the wall, and not in a storey itself (IFC4: an opening is
+                       never spatially contained; it belongs to its window's storey through the
+                       window it holds)
     IfcWindow          OverallWidth/OverallHeight = void size, frame + glass body from the
                        catalogue (scaled down to fit a small void), filling the opening
-                       (IfcRelFillsElement); Pset_WindowCommon (IsExternal) and Fenestra_Window
-                       (confidence, aspect interval, K source, scale source, ...) when given
+                       (IfcRelFillsElement), contained in its row's storey; typed by an
+                       IfcWindowType per (catalogue style, size class: :func:`size_class`) with an
+                       IfcMaterialConstituentSet (Framing: IfcMaterial "Frame", Glazing:
+                       IfcMaterial "Glass", each styled in the style's colours);
+                       Qto_WindowBaseQuantities (Width, Height, Area); Pset_WindowCommon
+                       (IsExternal) and Fenestra_Window (confidence, aspect interval, K source,
+                       scale source, ...) when given
 
-all placed by the window-frame -> world matrix, inside project / site / building / storey.
+Every element is placed by the window-frame -> world matrix (geometry.PlacedWindow.export_matrix),
+relative to its container (storey, wall or opening), so moving a storey moves its contents.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import ifcopenshell
@@ -23,20 +57,52 @@ import ifcopenshell.api.aggregate
 import ifcopenshell.api.context
 import ifcopenshell.api.feature
 import ifcopenshell.api.geometry
+import ifcopenshell.api.material
 import ifcopenshell.api.project
 import ifcopenshell.api.pset
 import ifcopenshell.api.root
 import ifcopenshell.api.spatial
 import ifcopenshell.api.style
+import ifcopenshell.api.type
 import ifcopenshell.api.unit
+import ifcopenshell.guid
+import ifcopenshell.util.geolocation
 import numpy as np
 
-from fenestra.pipeline.catalogue import WindowStyle, box_mesh, get_style, window_mesh
-from fenestra.pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow, TextureLayout,
-                                      facade_pixels, hole_in, void_hole, wall_groups, wall_margin_m,
-                                      wall_mesh)
+from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
+from fenestra.pipeline.export.geometry import (COVERING_THICKNESS_M, WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow,
+                                               StoreyLevels, TextureLayout, facade_pixels, hole_in, storey_levels,
+                                               void_hole, wall_groups, wall_margin_m, wall_mesh, wall_outline)
 
-OPENING_OVERSHOOT_M = 0.01  # the opening box pokes out of both wall faces (clean booleans)
+OPENING_OVERSHOOT_M = 0.01  # the opening box pokes out of both faces (covering's and wall's: clean booleans)
+# Window types by void area (m², at the model's scale): (name, upper bound), the first bound above the area wins.
+WINDOW_SIZE_CLASSES = (("small", 1.0), ("medium", 2.5), ("large", math.inf))
+# The wall's local frame in the window frame of its placement (x along, y up, z outward): x stays,
+# the local y points into the wall (-z), the local z up (y): the extrusion axis of a standard wall.
+_WALL_AXES = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def size_class(area_m2: float) -> str:
+    """The size class ("small", "medium", "large") of a window of void area ``area_m2`` (m²):
+    WINDOW_SIZE_CLASSES' first class whose upper bound exceeds it. ValueError for a non-positive
+    or non-finite area."""
+    if not (np.isfinite(area_m2) and area_m2 > 0):
+        raise ValueError(f"window area must be finite and positive, got {area_m2!r}")
+    return next(name for name, upper in WINDOW_SIZE_CLASSES if area_m2 < upper)
+
+
+def union_area(rects) -> float:
+    """Area (m²) of the union of axis-aligned rectangles (x0, y0, x1, y1) m, (N, 4): overlapping
+    openings are not subtracted twice from a wall's side area."""
+    r = np.asarray(list(rects), dtype=np.float64).reshape(-1, 4)
+    if len(r) == 0:
+        return 0.0
+    xs, ys = np.unique(r[:, [0, 2]]), np.unique(r[:, [1, 3]])
+    cx, cy = (xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2
+    inside = np.zeros((len(cx), len(cy)), dtype=bool)
+    for x0, y0, x1, y1 in r:
+        inside |= ((cx > x0) & (cx < x1))[:, None] & ((cy > y0) & (cy < y1))[None, :]
+    return float((np.diff(xs)[:, None] * np.diff(ys)[None, :])[inside].sum())
 
 
 def _faceset(f: ifcopenshell.file, vertices: np.ndarray, faces: np.ndarray):
@@ -46,36 +112,21 @@ def _faceset(f: ifcopenshell.file, vertices: np.ndarray, faces: np.ndarray):
     return f.createIfcTriangulatedFaceSet(pts, None, True, idx, None)
 
 
+def _rectangle_solid(f, x0: float, y0: float, x1: float, y1: float, z0: float, direction, depth: float):
+    """IfcExtrudedAreaSolid: the rectangle [x0, x1] x [y0, y1] (IfcRectangleProfileDef) in the plane
+    z = z0, extruded along ``direction`` (a unit (3,)) by ``depth`` m."""
+    centre = f.createIfcAxis2Placement2D(f.createIfcCartesianPoint(((x0 + x1) / 2, (y0 + y1) / 2)), None)
+    profile = f.createIfcRectangleProfileDef("AREA", None, centre, float(x1 - x0), float(y1 - y0))
+    position = f.createIfcAxis2Placement3D(f.createIfcCartesianPoint((0.0, 0.0, float(z0))), None, None)
+    return f.createIfcExtrudedAreaSolid(profile, position, f.createIfcDirection(tuple(map(float, direction))),
+                                        float(depth))
+
+
 def _colour_style(f: ifcopenshell.file, name: str, rgb, transparency: float = 0.0):
     colour = f.createIfcColourRgb(None, *map(float, rgb))
     rendering = f.createIfcSurfaceStyleRendering(colour, float(transparency), None, None, None, None,
                                                  None, None, "NOTDEFINED")
     return f.createIfcSurfaceStyle(name, "BOTH", [rendering])
-
-
-def _body(f, context, items):
-    return f.createIfcShapeRepresentation(context, "Body", "Tessellation", items)
-
-
-def _new_file(name: str):
-    """An IFC4 file with project (metres), site, building, storey; returns (file, body context, storey)."""
-    f = ifcopenshell.api.project.create_file(version="IFC4")
-    project = ifcopenshell.api.root.create_entity(f, ifc_class="IfcProject", name=name)
-    units = [ifcopenshell.api.unit.add_si_unit(f, unit_type=u) for u in ("LENGTHUNIT", "AREAUNIT", "VOLUMEUNIT")]
-    units.append(ifcopenshell.api.unit.add_si_unit(f, unit_type="PLANEANGLEUNIT"))
-    ifcopenshell.api.unit.assign_unit(f, units=units)
-    model = ifcopenshell.api.context.add_context(f, context_type="Model")
-    body = ifcopenshell.api.context.add_context(f, context_type="Model", context_identifier="Body",
-                                                target_view="MODEL_VIEW", parent=model)
-    site = ifcopenshell.api.root.create_entity(f, ifc_class="IfcSite", name="Site")
-    building = ifcopenshell.api.root.create_entity(f, ifc_class="IfcBuilding", name="Photographed building")
-    storey = ifcopenshell.api.root.create_entity(f, ifc_class="IfcBuildingStorey", name="Facade")
-    ifcopenshell.api.aggregate.assign_object(f, products=[site], relating_object=project)
-    ifcopenshell.api.aggregate.assign_object(f, products=[building], relating_object=site)
-    ifcopenshell.api.aggregate.assign_object(f, products=[storey], relating_object=building)
-    for spatial in (site, building, storey):
-        ifcopenshell.api.geometry.edit_object_placement(f, product=spatial, matrix=np.eye(4))
-    return f, body, storey
 
 
 def _add_pset(f: ifcopenshell.file, product, name: str, values: dict) -> None:
@@ -86,89 +137,290 @@ def _add_pset(f: ifcopenshell.file, product, name: str, values: dict) -> None:
         ifcopenshell.api.pset.edit_pset(f, pset=pset, properties=values)
 
 
-def _textured_wall(f, body, storey, K, wall_pw: PlacedWindow, voids: list, name: str, layout: TextureLayout,
-                   texture, wall_style, margin_m: float, thickness_m: float):
-    """One IfcWall: a closed gridded slab (wall_pw's rectangle + margin_m, its windows' ``voids``
-    on grid lines for the openings' booleans) textured from the photo."""
-    V, F = wall_mesh(wall_pw, voids, False, margin_m, thickness_m)
-    wall_items = _faceset(f, V, F)
+def _add_qto(f: ifcopenshell.file, product, name: str, values: dict) -> None:
+    """A quantity set (IfcElementQuantity) on ``product``: {name: float} in project units (m, m², m³)."""
+    qto = ifcopenshell.api.pset.add_qto(f, product=product, name=name)
+    ifcopenshell.api.pset.edit_qto(f, qto=qto, properties={k: float(v) for k, v in values.items()})
+
+
+def _storeys(f, building, levels: StoreyLevels) -> list:
+    """One IfcBuildingStorey per row of ``levels`` (one at 0 m when there is none), bottom-up."""
+    elevations = levels.elevations_m or (0.0,)
+    storeys = []
+    for r, elevation in enumerate(elevations):
+        storey = ifcopenshell.api.root.create_entity(f, ifc_class="IfcBuildingStorey", name=f"Storey {r}")
+        storey.Elevation = float(elevation)
+        ifcopenshell.api.aggregate.assign_object(f, products=[storey], relating_object=building)
+        T = np.eye(4)
+        T[2, 3] = elevation
+        ifcopenshell.api.geometry.edit_object_placement(f, product=storey, matrix=T)
+        if levels.sills_m:
+            _add_pset(f, storey, "Fenestra_Storey", {
+                "SillHeight": levels.sills_m[r],
+                "Windows": sum(row == r for row in levels.row_of.values())})
+        storeys.append(storey)
+    return storeys
+
+
+def _new_file(name: str, levels: StoreyLevels, gps=None):
+    """An IFC4 file with project (metres), site, building and the storeys of ``levels``; returns
+    (file, {"body", "axis"} contexts, [storey per row])."""
+    f = ifcopenshell.api.project.create_file(version="IFC4")
+    project = ifcopenshell.api.root.create_entity(f, ifc_class="IfcProject", name=name)
+    units = [ifcopenshell.api.unit.add_si_unit(f, unit_type=u) for u in ("LENGTHUNIT", "AREAUNIT", "VOLUMEUNIT")]
+    units.append(ifcopenshell.api.unit.add_si_unit(f, unit_type="PLANEANGLEUNIT"))
+    ifcopenshell.api.unit.assign_unit(f, units=units)
+    model = ifcopenshell.api.context.add_context(f, context_type="Model")
+    contexts = {
+        "body": ifcopenshell.api.context.add_context(f, context_type="Model", context_identifier="Body",
+                                                     target_view="MODEL_VIEW", parent=model),
+        "axis": ifcopenshell.api.context.add_context(f, context_type="Model", context_identifier="Axis",
+                                                     target_view="GRAPH_VIEW", parent=model)}
+    site = ifcopenshell.api.root.create_entity(f, ifc_class="IfcSite", name="Site")
+    building = ifcopenshell.api.root.create_entity(f, ifc_class="IfcBuilding", name="Photographed building")
+    ifcopenshell.api.aggregate.assign_object(f, products=[site], relating_object=project)
+    ifcopenshell.api.aggregate.assign_object(f, products=[building], relating_object=site)
+    for spatial in (site, building):
+        ifcopenshell.api.geometry.edit_object_placement(f, product=spatial, matrix=np.eye(4))
+    _add_pset(f, building, "Fenestra_Ground", {
+        "SillHeightAssumed": levels.sill_height_m, "StoreyRowTolerance": levels.tol_m,
+        "GroundPlane": "z = 0 lies SillHeightAssumed below the lowest row of window sills; each storey's "
+                       "Elevation is its row's sill minus SillHeightAssumed"})
+    if gps is not None:
+        _georeference(f, site, model, gps)
+    return f, contexts, _storeys(f, building, levels)
+
+
+def _check_gps(gps) -> tuple[float, float, float]:
+    """(latitude deg, longitude deg, elevation m) from a (lat, lon) or (lat, lon, elevation) tuple;
+    ValueError naming it when out of range."""
+    try:
+        values = [float(v) for v in gps]
+    except (TypeError, ValueError):
+        values = []
+    if len(values) not in (2, 3) or not all(np.isfinite(values)) or abs(values[0]) > 90 or abs(values[1]) > 180:
+        raise ValueError(f"gps must be (latitude deg, longitude deg[, elevation m]) within +-90 / +-180, got {gps!r}")
+    return values[0], values[1], values[2] if len(values) == 3 else 0.0
+
+
+def utm(lat_deg: float, lon_deg: float) -> tuple[int, float, float]:
+    """(EPSG code, easting m, northing m) of a WGS84 point in its UTM zone (EPSG 326zz north,
+    327zz south): Krüger's series to the third order (mm-level within the zone)."""
+    a, f_ = 6378137.0, 1 / 298.257223563
+    zone = int((lon_deg + 180.0) // 6.0) % 60 + 1
+    lon0 = math.radians(-183.0 + 6.0 * zone)
+    n = f_ / (2 - f_)
+    A = a / (1 + n) * (1 + n ** 2 / 4 + n ** 4 / 64)
+    alpha = (n / 2 - 2 * n ** 2 / 3 + 5 * n ** 3 / 16, 13 * n ** 2 / 48 - 3 * n ** 3 / 5, 61 * n ** 3 / 240)
+    phi, lam = math.radians(lat_deg), math.radians(lon_deg) - lon0
+    e = 2 * math.sqrt(n) / (1 + n)
+    t = math.sinh(math.atanh(math.sin(phi)) - e * math.atanh(e * math.sin(phi)))
+    xi, eta = math.atan2(t, math.cos(lam)), math.atanh(math.sin(lam) / math.sqrt(1 + t * t))
+    E = eta + sum(al * math.cos(2 * j * xi) * math.sinh(2 * j * eta) for j, al in enumerate(alpha, 1))
+    N = xi + sum(al * math.sin(2 * j * xi) * math.cosh(2 * j * eta) for j, al in enumerate(alpha, 1))
+    k0 = 0.9996
+    return (32600 if lat_deg >= 0 else 32700) + zone, 500000.0 + k0 * A * E, \
+        k0 * A * N + (0.0 if lat_deg >= 0 else 10000000.0)
+
+
+def _georeference(f, site, model_context, gps) -> None:
+    """The site's RefLatitude/RefLongitude/RefElevation and an IfcMapConversion of the model's
+    origin to its UTM coordinates (no rotation: the photo gives no compass heading, so the model's
+    +y, the camera's heading, is taken as grid north; XAxisAbscissa 1, XAxisOrdinate 0)."""
+    lat, lon, elevation = _check_gps(gps)
+    site.RefLatitude = ifcopenshell.util.geolocation.dd2dms(lat, use_us=True)
+    site.RefLongitude = ifcopenshell.util.geolocation.dd2dms(lon, use_us=True)
+    site.RefElevation = float(elevation)
+    epsg, easting, northing = utm(lat, lon)
+    zone = f"{epsg % 100}{'N' if lat >= 0 else 'S'}"
+    crs = f.createIfcProjectedCRS(f"EPSG:{epsg}", f"WGS 84 / UTM zone {zone}", "WGS84", None, "UTM", zone, None)
+    f.createIfcMapConversion(model_context, crs, easting, northing, float(elevation), 1.0, 0.0, None)
+
+
+def _photo_covering(f, body, storey, K, wall, wall_pw: PlacedWindow, voids: list, layout: TextureLayout, texture,
+                    wall_style, margin_m: float):
+    """The IfcCovering (CLADDING) "Photo façade" of ``wall``: a closed, gridded slab from the
+    photographed plane (z = 0 of wall_pw's frame) to z = -COVERING_THICKNESS_M, the ``voids``
+    (wall_pw's frame) cut out, textured from the photo; IfcRelCoversBldgElements to ``wall``."""
+    V, F = wall_mesh(wall_pw, voids, True, margin_m, COVERING_THICKNESS_M)
+    items = _faceset(f, V, F)
     uv = layout.uv(facade_pixels(K, wall_pw, V[:, :2]))
     tex_vertices = f.createIfcTextureVertexList([tuple(map(float, p)) for p in uv])
-    f.createIfcIndexedTriangleTextureMap([texture], wall_items, tex_vertices,
+    f.createIfcIndexedTriangleTextureMap([texture], items, tex_vertices,
                                          [tuple(int(i) + 1 for i in tri) for tri in F])
-    ifcopenshell.api.style.assign_item_style(f, item=wall_items, style=wall_style)
+    ifcopenshell.api.style.assign_item_style(f, item=items, style=wall_style)
+    covering = ifcopenshell.api.root.create_entity(f, ifc_class="IfcCovering", predefined_type="CLADDING",
+                                                   name=f"Photo façade {wall.Name}")
+    ifcopenshell.api.spatial.assign_container(f, products=[covering], relating_structure=storey)
+    ifcopenshell.api.geometry.edit_object_placement(f, product=covering, matrix=wall_pw.export_matrix())
+    rep = f.createIfcShapeRepresentation(body, "Body", "Tessellation", [items])
+    ifcopenshell.api.geometry.assign_representation(f, product=covering, representation=rep)
+    f.createIfcRelCoversBldgElements(ifcopenshell.guid.new(), None, None, None, wall, [covering])
+    return covering
+
+
+def wall_box(wall_pw: PlacedWindow, margin_m: float) -> tuple[np.ndarray, float, float]:
+    """A wall's standard-case frame and size: (4x4 placement in the export world, length m, height m).
+    The placement's origin is the wall outline's bottom-left corner (wall_pw's frame, ``margin_m``
+    beyond it) on the wall solid's exterior face (COVERING_THICKNESS_M behind the photographed
+    plane); its x runs along the wall, its y into it (the layer direction), its z up the wall."""
+    outline = wall_outline(wall_pw, margin_m)
+    (x0, y0), (x1, y1) = outline[0], outline[2]
+    local = np.eye(4)
+    local[:3, :3] = _WALL_AXES
+    local[:3, 3] = (x0, y0, -COVERING_THICKNESS_M)
+    return wall_pw.export_matrix() @ local, float(x1 - x0), float(y1 - y0)
+
+
+def _wall(f, contexts, storey, wall_pw: PlacedWindow, voids: list, name: str, wall_type, margin_m: float,
+          thickness_m: float):
+    """One IfcWall (see the module docstring): footprint length x thickness extruded up by its
+    height, typed ``wall_type`` (its layer set's usage), Axis + Body, Qto_WallBaseQuantities
+    (``voids``: its openings' rectangles in wall_pw's frame)."""
+    T, length, height = wall_box(wall_pw, margin_m)
     wall = ifcopenshell.api.root.create_entity(f, ifc_class="IfcWall", name=name)
     ifcopenshell.api.spatial.assign_container(f, products=[wall], relating_structure=storey)
-    ifcopenshell.api.geometry.edit_object_placement(f, product=wall, matrix=wall_pw.export_matrix())
-    ifcopenshell.api.geometry.assign_representation(f, product=wall, representation=_body(f, body, [wall_items]))
+    ifcopenshell.api.geometry.edit_object_placement(f, product=wall, matrix=T)
+    ifcopenshell.api.type.assign_type(f, related_objects=[wall], relating_type=wall_type)
+    axis = f.createIfcPolyline([f.createIfcCartesianPoint((0.0, 0.0)), f.createIfcCartesianPoint((length, 0.0))])
+    ifcopenshell.api.geometry.assign_representation(
+        f, product=wall, representation=f.createIfcShapeRepresentation(contexts["axis"], "Axis", "Curve2D", [axis]))
+    solid = _rectangle_solid(f, 0.0, 0.0, length, thickness_m, 0.0, (0.0, 0.0, 1.0), height)
+    ifcopenshell.api.geometry.assign_representation(
+        f, product=wall, representation=f.createIfcShapeRepresentation(contexts["body"], "Body", "SweptSolid", [solid]))
+    gross, opened = length * height, union_area(voids)
+    _add_qto(f, wall, "Qto_WallBaseQuantities", {
+        "Length": length, "Height": height, "Width": thickness_m, "GrossSideArea": gross,
+        "NetSideArea": gross - opened, "GrossVolume": gross * thickness_m, "NetVolume": (gross - opened) * thickness_m})
     return wall
+
+
+class _Library:
+    """The file's shared definitions: materials, styles, the wall type and the window types (made
+    on first use, one per (style, size class))."""
+
+    def __init__(self, f, body, style: WindowStyle, texture_file: str, thickness_m: float):
+        self.f, self.style = f, style
+        self.texture = f.createIfcImageTexture(False, False, "DIFFUSE", None, None, str(texture_file))
+        self.wall_style = f.createIfcSurfaceStyle(
+            "Photo texture", "BOTH",
+            [f.createIfcSurfaceStyleShading(f.createIfcColourRgb(None, 0.8, 0.8, 0.8), 0.0),
+             f.createIfcSurfaceStyleWithTextures([self.texture])])
+        self.frame_style = _colour_style(f, f"{style.name} frame", style.frame_rgb)
+        self.glass_style = _colour_style(f, f"{style.name} glass", style.glass_rgb, 1.0 - style.glass_alpha)
+        mat = ifcopenshell.api.material
+        self.frame = mat.add_material(f, name="Frame", description=f"window frame ({style.name})")
+        self.glass = mat.add_material(f, name="Glass", category="glass")
+        for material, s in ((self.frame, self.frame_style), (self.glass, self.glass_style)):
+            ifcopenshell.api.style.assign_material_style(f, material=material, style=s, context=body)
+        wall_material = mat.add_material(f, name="Wall", description="the photographed wall (material unknown)")
+        layers = mat.add_material_set(f, name=f"Wall {thickness_m * 1000:.0f} mm", set_type="IfcMaterialLayerSet")
+        layer = mat.add_layer(f, layer_set=layers, material=wall_material)
+        mat.edit_layer(f, layer=layer, attributes={"LayerThickness": float(thickness_m)})
+        self.wall_type = ifcopenshell.api.root.create_entity(f, ifc_class="IfcWallType", predefined_type="STANDARD",
+                                                             name=f"Photographed wall {thickness_m * 1000:.0f} mm")
+        mat.assign_material(f, products=[self.wall_type], type="IfcMaterialLayerSet", material=layers)
+        self.window_types: dict[str, object] = {}
+
+    def window_type(self, area_m2: float):
+        """The IfcWindowType of this style for a void of ``area_m2`` (m²): "<style> <size class>"."""
+        cls = size_class(area_m2)
+        if cls not in self.window_types:
+            f, mat = self.f, ifcopenshell.api.material
+            wtype = ifcopenshell.api.root.create_entity(f, ifc_class="IfcWindowType", predefined_type="WINDOW",
+                                                        name=f"{self.style.name} {cls}")
+            wtype.PartitioningType = "NOTDEFINED"
+            constituents = mat.add_material_set(f, name=f"Window {self.style.name}",
+                                                set_type="IfcMaterialConstituentSet")
+            mat.add_constituent(f, constituent_set=constituents, material=self.frame, name="Framing")
+            mat.add_constituent(f, constituent_set=constituents, material=self.glass, name="Glazing")
+            mat.assign_material(f, products=[wtype], type="IfcMaterialConstituentSet", material=constituents)
+            bounds = dict(WINDOW_SIZE_CLASSES)
+            lower = max([0.0] + [b for _, b in WINDOW_SIZE_CLASSES if b < bounds[cls]])
+            _add_pset(f, wtype, "Fenestra_WindowType", {
+                "Style": self.style.name, "SizeClass": cls,
+                "AreaRange": f"{lower:g} to {bounds[cls]:g} m2 (void area at the model's scale)"})
+            self.window_types[cls] = wtype
+        return self.window_types[cls]
 
 
 def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layout: TextureLayout,
               texture_file: str = "texture.png", style: str | WindowStyle = "casement-white",
               margin_m: float = WALL_MARGIN_M, thickness_m: float = WALL_THICKNESS_M,
               walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
-              wall_properties: dict[int, dict] | None = None) -> dict[int, dict]:
-    """Write model.ifc for the placed windows; return {window index: {"wall", "opening", "window": GlobalId}}.
+              wall_properties: dict[int, dict] | None = None, levels: StoreyLevels | None = None,
+              gps: tuple | None = None) -> dict[int, dict]:
+    """Write model.ifc for the placed windows; return {window index: {"wall", "covering", "opening",
+    "window": GlobalId, "storey": name, "window_type": name}}.
 
+    ``placed`` in the export world the OBJ/GLB use (geometry.grounded: ground at z = 0).
     ``texture_file`` is the texture's path relative to the IFC file (written by the caller).
     walls: {window index: wall id}: one IfcWall per wall id spanning its windows (margin: see
     geometry.wall_margin_m), each window's opening voiding it; None (or a window without an id):
     a wall fragment per window. properties: {window index: {name: value}}, written as the
     window's property set "Fenestra_Window" (with Pset_WindowCommon IsExternal); wall_properties:
-    {wall id: {name: value}} as "Fenestra_Wall".
+    {wall id: {name: value}} as "Fenestra_Wall". levels: the storey rows (default
+    geometry.storey_levels of ``placed``). gps: (latitude deg, longitude deg[, elevation m]) of the
+    camera (the world's origin): the site's reference and an IfcMapConversion (see _georeference).
     """
     style = get_style(style)
-    f, body, storey = _new_file("Fenestra reconstruction")
-    texture = f.createIfcImageTexture(False, False, "DIFFUSE", None, None, str(texture_file))
-    wall_style = f.createIfcSurfaceStyle(
-        "Photo texture", "BOTH",
-        [f.createIfcSurfaceStyleShading(f.createIfcColourRgb(None, 0.8, 0.8, 0.8), 0.0),
-         f.createIfcSurfaceStyleWithTextures([texture])])
-    frame_style = _colour_style(f, f"{style.name} frame", style.frame_rgb)
-    glass_style = _colour_style(f, f"{style.name} glass", style.glass_rgb, 1.0 - style.glass_alpha)
-
+    if gps is not None:
+        _check_gps(gps)
+    levels = storey_levels(placed) if levels is None else levels
+    f, contexts, storeys = _new_file("Fenestra reconstruction", levels, gps)
+    lib = _Library(f, contexts["body"], style, texture_file, thickness_m)
     ids: dict[int, dict] = {}
     for wall_pw, members in wall_groups(placed, walls):
         own = len(members) == 1 and wall_pw is members[0]
         voids = [void_hole(wall_pw)] if own else [hole_in(wall_pw, pw) for pw in members]
-        wall = _textured_wall(f, body, storey, K, wall_pw, voids, f"Wall {wall_pw.index}", layout, texture, wall_style,
-                              margin_m if own else wall_margin_m(members, margin_m), thickness_m)
+        margin = margin_m if own else wall_margin_m(members, margin_m)
+        storey = storeys[min(levels.row_of.get(pw.index, 0) for pw in members)]
+        wall = _wall(f, contexts, storey, wall_pw, voids, f"Wall {wall_pw.index}", lib.wall_type, margin, thickness_m)
+        covering = _photo_covering(f, contexts["body"], storey, K, wall, wall_pw, voids, layout, lib.texture,
+                                   lib.wall_style, margin)
         if not own and wall_properties and wall_pw.index in wall_properties:
             _add_pset(f, wall, "Fenestra_Wall", wall_properties[wall_pw.index])
         for pw in members:
-            ids[pw.index] = _window_in_wall(f, body, storey, wall, pw, style, frame_style, glass_style, thickness_m,
-                                            (properties or {}).get(pw.index))
+            ids[pw.index] = {"wall": wall.GlobalId, "covering": covering.GlobalId,
+                             **_window_in_wall(f, contexts["body"], storeys[levels.row_of.get(pw.index, 0)], wall, pw,
+                                               lib, thickness_m, (properties or {}).get(pw.index))}
     f.write(str(path))
     return ids
 
 
-def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, style: WindowStyle, frame_style, glass_style,
-                    thickness_m: float, props: dict | None) -> dict:
+def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, lib: _Library, thickness_m: float,
+                    props: dict | None) -> dict:
     """The opening voiding ``wall`` (IfcRelVoidsElement) and the IfcWindow filling it
-    (IfcRelFillsElement), catalogue frame + glass (scaled to fit a small void), with its psets."""
+    (IfcRelFillsElement) in ``storey``, catalogue frame + glass (scaled to fit a small void),
+    typed by size class, with its quantities and psets."""
     T = pw.export_matrix()
     e = OPENING_OVERSHOOT_M
-    OV, OF = box_mesh([0.0, 0.0, -thickness_m - e], [pw.width_m, pw.height_m, e])
     opening = ifcopenshell.api.root.create_entity(f, ifc_class="IfcOpeningElement", name=f"Void {pw.index}")
     ifcopenshell.api.feature.add_feature(f, feature=opening, element=wall)
     ifcopenshell.api.geometry.edit_object_placement(f, product=opening, matrix=T)
-    ifcopenshell.api.geometry.assign_representation(f, product=opening,
-                                                    representation=_body(f, body, [_faceset(f, OV, OF)]))
-    mesh = window_mesh(style, pw.width_m, pw.height_m)
+    box = _rectangle_solid(f, 0.0, 0.0, pw.width_m, pw.height_m, e, (0.0, 0.0, -1.0),
+                           COVERING_THICKNESS_M + thickness_m + 2 * e)
+    ifcopenshell.api.geometry.assign_representation(
+        f, product=opening, representation=f.createIfcShapeRepresentation(body, "Body", "SweptSolid", [box]))
+    mesh = window_mesh(lib.style, pw.width_m, pw.height_m)
     items = []
-    for part, part_style in (("frame", frame_style), ("glass", glass_style)):
+    for part, part_style in (("frame", lib.frame_style), ("glass", lib.glass_style)):
         item = _faceset(f, *mesh.select(part))
         ifcopenshell.api.style.assign_item_style(f, item=item, style=part_style)
         items.append(item)
     window = ifcopenshell.api.root.create_entity(f, ifc_class="IfcWindow", predefined_type="WINDOW",
-                                                 name=f"Window {pw.index} ({style.name})")
+                                                 name=f"Window {pw.index} ({lib.style.name})")
     window.OverallWidth, window.OverallHeight = float(pw.width_m), float(pw.height_m)
     ifcopenshell.api.feature.add_filling(f, opening=opening, element=window)
     ifcopenshell.api.spatial.assign_container(f, products=[window], relating_structure=storey)
     ifcopenshell.api.geometry.edit_object_placement(f, product=window, matrix=T)
-    ifcopenshell.api.geometry.assign_representation(f, product=window, representation=_body(f, body, items))
+    ifcopenshell.api.geometry.assign_representation(
+        f, product=window, representation=f.createIfcShapeRepresentation(body, "Body", "Tessellation", items))
+    wtype = lib.window_type(pw.width_m * pw.height_m)
+    ifcopenshell.api.type.assign_type(f, related_objects=[window], relating_type=wtype)
+    _add_qto(f, window, "Qto_WindowBaseQuantities",
+             {"Width": pw.width_m, "Height": pw.height_m, "Area": pw.width_m * pw.height_m})
     if props is not None:
         _add_pset(f, window, "Pset_WindowCommon", {"IsExternal": True})
         _add_pset(f, window, "Fenestra_Window", props)
-    return {"wall": wall.GlobalId, "opening": opening.GlobalId, "window": window.GlobalId}
+    return {"opening": opening.GlobalId, "window": window.GlobalId, "storey": storey.Name, "window_type": wtype.Name}

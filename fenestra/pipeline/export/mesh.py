@@ -1,9 +1,12 @@
 """OBJ + MTL and GLB export of the same model as model.ifc (few IFC viewers show textures).
 
 Per fitted wall: one slab with every window's void cut out (photo-textured, UVs as in the IFC; a
-window without a wall: a fragment of its own), and per window the catalogue window's frame and glass. Coordinates in the export world of
-fenestra/pipeline/export/geometry.py (metres, z up: upright, camera at the origin); model.glb holds them
-under a root node that turns them y-up (glTF's convention).
+window without a wall: a fragment of its own), and per window the catalogue window's frame and glass.
+The slab is model.ifc's wall envelope: its photo cladding (IfcCovering, COVERING_THICKNESS_M, outer
+face on the photographed plane) and wall solid (WALL_THICKNESS_M) behind it, as one.
+Coordinates in the export world of fenestra/pipeline/export/geometry.py (metres, z up: upright, the
+ground at z = 0, the camera above the origin), the very coordinates of model.ifc's placements; model.glb
+holds them under a root node that turns them y-up (glTF's convention).
 """
 from __future__ import annotations
 
@@ -15,9 +18,9 @@ import cv2
 import numpy as np
 
 from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
-from fenestra.pipeline.export.geometry import (WALL_MARGIN_M, WALL_THICKNESS_M, Z_UP_TO_Y_UP, PlacedWindow,
-                                               TextureLayout, facade_pixels, hole_in, void_hole, wall_groups,
-                                               wall_margin_m, wall_mesh)
+from fenestra.pipeline.export.geometry import (COVERING_THICKNESS_M, WALL_MARGIN_M, WALL_THICKNESS_M, Z_UP_TO_Y_UP,
+                                               PlacedWindow, TextureLayout, facade_pixels, hole_in, void_hole,
+                                               wall_groups, wall_margin_m, wall_mesh)
 
 
 # A GLB's texture is at most this many px along its longer side: glTF viewers (WebGL) commonly
@@ -42,13 +45,15 @@ def model_parts(K: np.ndarray, placed: list[PlacedWindow], layout: TextureLayout
                 thickness_m: float = WALL_THICKNESS_M, walls: dict[int, int] | None = None) -> list[MeshPart]:
     """Wall, frame and glass parts, in the export world: one wall per fitted wall of ``walls``
     ({window index: wall id}, as model.ifc's IfcWalls: ``wall_w<id>``) with a hole per window, and a
-    wall fragment of its own (``wall_<index>``) for a window without one; each window's frame and glass."""
+    wall fragment of its own (``wall_<index>``) for a window without one; each window's frame and glass.
+    A wall slab is thickness_m + COVERING_THICKNESS_M thick (model.ifc's wall and photo cladding)."""
     style = get_style(style)
     parts = []
     for wall_pw, members in wall_groups(placed, walls):
         own = len(members) == 1 and wall_pw is members[0]
         holes = [void_hole(wall_pw)] if own else [hole_in(wall_pw, pw) for pw in members]
-        V, F = wall_mesh(wall_pw, holes, True, margin_m if own else wall_margin_m(members, margin_m), thickness_m)
+        V, F = wall_mesh(wall_pw, holes, True, margin_m if own else wall_margin_m(members, margin_m),
+                         thickness_m + COVERING_THICKNESS_M)
         uv = layout.uv(facade_pixels(K, wall_pw, V[:, :2]))
         parts.append(MeshPart(f"wall_{wall_pw.index}" if own else f"wall_w{wall_pw.index}", "photo",
                               wall_pw.to_export(V), F, uv))
@@ -77,7 +82,8 @@ def write_obj(obj_path: str | Path, parts: list[MeshPart], style: str | WindowSt
     obj_path = Path(obj_path)
     mtl_path = obj_path.with_suffix(".mtl")
     mtl_path.write_text(_materials(get_style(style), texture_file))
-    lines = ["# Fenestra reconstruction: metres, z up (upright), camera at the origin looking along +y",
+    lines = ["# Fenestra reconstruction: metres, z up (upright), ground at z = 0, camera above the origin looking "
+             "along +y (model.ifc's coordinates)",
              f"mtllib {mtl_path.name}"]
     v_off = vt_off = 0
     for p in parts:
