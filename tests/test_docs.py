@@ -157,8 +157,8 @@ def test_generated_figures_are_the_tables_medians(run, tmp_path):
         assert r["median"] == pytest.approx(_median(df, snapper=r["snapper"]), rel=1e-3)
     houses = {r["house"]: r for r in doc["synthetic"]["per_house"][DEFAULTS.detector]["rows"]}
     assert houses["fzk-haus"]["trained"] and not houses["samplehouse4"]["trained"]
-    assert houses["unseen houses"]["together"] and not houses["samplehouse4"]["together"]
-    for h, real in (("fzk-haus", "fzk-haus"), ("samplehouse4", "samplehouse4"), ("unseen houses", "samplehouse4"),
+    assert houses["held-out families"]["together"] and not houses["samplehouse4"]["together"]
+    for h, real in (("fzk-haus", "fzk-haus"), ("samplehouse4", "samplehouse4"), ("held-out families", "samplehouse4"),
                     ("trained-on houses", "fzk-haus")):
         r = houses[h]
         assert r["snap_median"] == pytest.approx(_median(df, snapper="good", house=real), rel=1e-3)
@@ -230,13 +230,13 @@ def test_why_the_cli_keeps_its_default_follows_the_numbers(p_value, default_p90,
     assert md._why_default(None, rec, d) == ""
 
 
-def test_readme_detector_line_is_the_summary_s_unseen_houses():
+def test_readme_detector_line_is_the_summary_s_held_out_families():
     """The README's detector block (tools/model_card_real.py --readme) quotes the committed
-    summary's unseen-house row of the CLI default detector, and names the real-photo sets."""
+    summary's held-out-families row of the CLI default detector, and names the real-photo sets."""
     text = md.block((ROOT / "README.md").read_text(), "detector")
     doc = json.loads(PATHS.summary.read_text())
     rows = {r["house"]: r for r in doc["synthetic"]["per_house"][DEFAULTS.detector]["rows"]}
-    unseen = rows["unseen houses"]
+    unseen = rows[md.ROLE_GROUPS["held out"]]
     assert f"corner error median {unseen['snap_median']:.2f} px" in text
     assert f"within 5 px for {100 * unseen['all_corners_close']:.0f} %" in text
     assert "validation photos" in text and "test photos" in text and "tools/model_card_real.py" in text

@@ -35,10 +35,19 @@ def test_table_per_house_from_results_tables():
             ev = rows[rows["evaluable"]]
             truth[seed, house] = ((ev["status"] != "missed").mean(), np.median(ev["corner_err_px_snap"].dropna()))
     lines = seed_spread.table(per_seed, "default")
-    assert lines[0].startswith("| house | trained on | evaluable windows (per seed) | detected |")
-    rows = {ln.split("|")[1].strip(): [c.strip() for c in ln.strip("|").split("|")] for ln in lines[2:]}
-    assert set(rows) == {"duplex", "samplehouse4"} and rows["duplex"][1] == "**yes**" and rows["samplehouse4"][1] == "no"
-    for house, cells in rows.items():
+    assert lines[0].startswith("| house | to the detector | evaluable windows (per seed) | detected |")
+    rows = {ln.split("|")[1].strip().strip("*"): [c.strip() for c in ln.strip("|").split("|")] for ln in lines[2:]}
+    assert set(rows) == {"duplex", "samplehouse4", "held-out families", "trained-on houses"}
+    assert rows["duplex"][1] == "trained on" and rows["samplehouse4"][1] == "**held out**"
+    for label, house in (("held-out families", "samplehouse4"), ("trained-on houses", "duplex")):
+        assert rows[label][2:] == rows[house][2:]  # one house of each role: the pooled row is that house's
+    doc = seed_spread.spread_json(per_seed, "default", {"method": "default/refine/wall+lines"})
+    assert doc["seeds"] == [0, 1] and doc["houses"]["samplehouse4"]["role"] == "held out"
+    rate = doc["houses"]["held-out families"]["figures"]["detection_rate"]
+    truth_rates = [truth[s, "samplehouse4"][0] for s in (0, 1)]
+    assert np.allclose(rate["seeds"], truth_rates, atol=1e-3) and rate["min"] == min(rate["seeds"])
+    for house in ("duplex", "samplehouse4"):
+        cells = rows[house]
         rates = [truth[s, house][0] for s in (0, 1)]
         assert rates[1] < rates[0]  # the second seed misses more: the range is not one value
         assert cells[3] == seed_spread.cell(rates, 100, " %", 0), (house, cells[3], rates)

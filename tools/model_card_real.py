@@ -21,8 +21,9 @@ they trained on (``meta["real_photos"]``, written by training since the cleaning
 evaluated photos among them (by name or by the file's sha256). Otherwise it is a training-set figure.
 
 ``--readme`` also writes the README's ``detector`` block: the CLI's default detector on the photos
-above beside its figures on the rendered houses it never saw and on ``duplex``'s adjacent windows,
-read from the generated docs/results/summary.json (``make docs``: run that first).
+above beside its figures on the rendered building families it never saw, read from the generated
+docs/results/summary.json (``make docs``: run that first) and, over seeds with their spread, from
+docs/results/seed_spread.json (``tools/seed_spread.py --json``).
 """
 from __future__ import annotations
 
@@ -82,35 +83,61 @@ def table(results: list[tuple[str, dict]]) -> list[str]:
             "|---|---|---|---|---|---|---|---|---|"] + [row(d, r) for d, r in results]
 
 
-def detector_line(results: list[tuple[str, dict]], summary: dict, detector: str) -> str:
-    """The README's sentence on ``detector``: renders of unseen houses (the per-house rows of
-    summary.json's synthetic part: its recommended snapper and pose), duplex, and the real photos."""
+def spread_text(spread: dict | None, detector: str) -> str:
+    """The README's seed-spread clause: the held-out families' figures over the seeds of
+    docs/results/seed_spread.json (tools/seed_spread.py --json), median [min–max]; "" without one."""
+    from fenestra.reports.markdown import ROLE_GROUPS  # noqa: PLC0415
+
+    label = ROLE_GROUPS["held out"]
+    group = ((spread or {}).get("houses") or {}).get(label)
+    if group is None or not str(spread.get("method", "")).startswith(detector + "/"):
+        return ""
+    f = group["figures"]
+
+    def mm(key: str, scale: float, unit: str, dec: int) -> str:
+        v = f.get(key) or {}
+        if "median" not in v:
+            return "-"
+        return f"{scale * v['median']:.{dec}f}{unit} [{scale * v['min']:.{dec}f}–{scale * v['max']:.{dec}f}]"
+
+    houses = ", ".join(f"`{h}`" for h, v in spread["houses"].items() if v["role"] == "held out" and h != label)
+    return (f" Over seeds {', '.join(map(str, spread['seeds']))} ({houses}; {spread['views_per_house']} views per house and "
+            f"seed, a look drawn per {spread['look_per']}; `{spread['command']}`), median [min–max] over the seeds: found "
+            f"{mm('detection_rate', 100, ' %', 0)}, quads {mm('quad_rate', 100, ' %', 0)}, all four corners within 5 px "
+            f"{mm('all_corners_close', 100, ' %', 0)}, corner median {mm('snap_median', 1, ' px', 2)}, rotation median "
+            f"{mm('rot_median', 1, '°', 2)}.")
+
+
+def detector_line(results: list[tuple[str, dict]], summary: dict, detector: str, spread: dict | None = None) -> str:
+    """The README's sentence on ``detector``: renders of the building families it never saw (the
+    "held-out families" row of summary.json's synthetic per-house part, its recommended snapper and
+    pose; with ``spread``, docs/results/seed_spread.json, the same over seeds with min–max), and
+    the real photos. Same-generator and trained-on houses are not quoted (issue #36)."""
     ph = summary["synthetic"]["per_house"][detector]
+    from fenestra.reports.markdown import ROLE_GROUPS  # noqa: PLC0415
+
     rows = {r["house"]: r for r in ph["rows"]}
-    unseen, duplex = rows["unseen houses"], rows.get("duplex")
+    held = rows[ROLE_GROUPS["held out"]]
     real = {data: r for data, r in results if r["detector"] == detector}
-    val, test = (next(r for d, r in real.items() if d.startswith(k)) for k in ("spb train", "spb test"))
+    val, test = (next(r for d, r in real.items() if d.startswith(k)) for k in ("spb train, validation part", "spb test"))
 
     def ap(r: dict) -> str:
         return f"bbox AP50 {100 * r['bbox']['AP50']:.1f}, AP {100 * r['bbox']['AP']:.1f}"
 
-    unseen_names = [r["house"] for r in ph["rows"] if not r["trained"] and not r.get("together")]
+    held_names = [r["house"] for r in ph["rows"] if r.get("role") == "held out" and not r.get("together")]
     pv = summary["synthetic"].get("provenance", {})
     looks = ("a look drawn per view" if pv.get("look_per") == "view" else "one random look per house")
-    houses = ", ".join(f"`{h}`" for h in unseen_names)
-    if any(h.startswith("procedural") for h in unseen_names):
-        houses += "; the procedural ones from the generator of its training houses"
-    text = (f"The default detector `{detector}` ([model card](fenestra/pipeline/models/README.md)), on renders of houses it "
-            f"never trained on ({houses}; `make bench`, seed {pv.get('seed')}: {looks}): it finds {100 * unseen['detection_rate']:.0f} % of the "
-            f"evaluable windows, with all four corners within 5 px for {100 * unseen['all_corners_close']:.0f} % of "
-            f"them after `{ph['snapper']}` snapping (corner error median {unseen['snap_median']:.2f} px; exact masks "
-            f"{unseen['exact_snap_median']:.2f} px) and an aspect-ratio error p90 of {100 * unseen['aspect_p90']:.1f} % "
-            f"under `{ph['pose']}`")
-    if duplex is not None:
-        text += (f"; on `duplex`, whose windows stand a few px apart, it finds {100 * duplex['detection_rate']:.0f} % "
-                 f"of them")
+    houses = ", ".join(f"`{h}`" for h in held_names)
+    text = (f"The default detector `{detector}` ([model card](fenestra/pipeline/models/README.md)), on renders of building "
+            f"families it never saw ({houses}: neither they nor their generator trained it; `make bench`, seed "
+            f"{pv.get('seed')}: {looks}): it finds {100 * held['detection_rate']:.0f} % of the "
+            f"evaluable windows, with all four corners within 5 px for {100 * held['all_corners_close']:.0f} % of "
+            f"them after `{ph['snapper']}` snapping (corner error median {held['snap_median']:.2f} px; exact masks "
+            f"{held['exact_snap_median']:.2f} px) and an aspect-ratio error p90 of {100 * held['aspect_p90']:.1f} % "
+            f"under `{ph['pose']}`.")
+    text += spread_text(spread, detector)
     share = test["hard_negatives"]
-    text += (f" (over seeds, with a look drawn per view: docs/experiments.md, \"Seed spread\"). On real street photos "
+    text += (f" On real street photos "
              f"(St Petersburg, window boxes): {ap(val)} on the {val['n_images']} validation photos, {ap(test)} on the "
              f"{test['n_images']} test photos, where {100 * share['hard_negative_share']:.1f} % of its detections lie on a "
              f"door or signboard")
@@ -148,6 +175,8 @@ def main() -> None:
     ap.add_argument("--block", default="real-photos")
     ap.add_argument("--readme", type=Path, default=None, help="also write this README's `detector` block")
     ap.add_argument("--summary", type=Path, default=ROOT / "docs" / "results" / "summary.json")
+    ap.add_argument("--spread", type=Path, default=ROOT / "docs" / "results" / "seed_spread.json",
+                    help="tools/seed_spread.py --json output: the held-out families over seeds")
     a = ap.parse_args()
     missing = [a.spb / sub / "images" for sub, _ in SETS.values() if not (a.spb / sub / "images").is_dir()]
     if missing:
@@ -171,7 +200,8 @@ def main() -> None:
         from fenestra.conventions import DEFAULTS  # noqa: PLC0415
         from fenestra.reports.markdown import write_block  # noqa: PLC0415
 
-        line = detector_line(results, json.loads(a.summary.read_text()), DEFAULTS.detector)
+        spread = json.loads(a.spread.read_text()) if a.spread.is_file() else None
+        line = detector_line(results, json.loads(a.summary.read_text()), DEFAULTS.detector, spread)
         print(line)
         write_block(a.readme, "detector", f"<!-- `python tools/model_card_real.py {' '.join(sys.argv[1:])}` -->\n"
                     + line + "\n")

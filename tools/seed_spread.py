@@ -11,7 +11,9 @@ results docs do (fenestra.reports.markdown: evaluable windows, detection rate, q
 corners within 5 px, snapped corner median, rotation median, aspect-ratio error p90), and writes
 one Markdown table: each figure's median over the seeds and its min-max, then the seeds' values
 one by one, so a reader sees the spread instead of one lucky or unlucky draw (issue #36). The
-houses the detector trained on are flagged (fenestra.reports.markdown.TRAINED_ON).
+houses are labelled by what they are to the detector (fenestra.reports.markdown.house_role: held out,
+same generator, trained on) and each role's houses are also pooled ("held-out families", ...). With
+``--json`` the spread is also written as JSON (what the README's detector line quotes).
 """
 from __future__ import annotations
 
@@ -49,30 +51,65 @@ def cell(values: list, scale: float, unit: str, decimals: int) -> str:
 
 
 def house_figures(df, method: str) -> dict[str, dict]:
-    """house -> the figures of ``method`` (detector/snapper/pose) on that house's rows."""
-    from fenestra.reports.markdown import _house_figures  # noqa: PLC0415
+    """house -> the figures of ``method`` (detector/snapper/pose) on that house's rows, then the
+    houses of each role together (fenestra.reports.markdown.ROLE_GROUPS: "held-out families",
+    "same generator", "trained-on houses"; a group only where the run has such a house)."""
+    from fenestra.reports.markdown import ROLE_GROUPS, _house_figures, house_role  # noqa: PLC0415
 
     det, snap, pose = method.split("/")
     g = df[(df["detector"] == det) & (df["snapper"] == snap) & (df["pose"] == pose)]
-    return {house: _house_figures(rows) for house, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])}
+    out = {house: _house_figures(rows) for house, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])}
+    roles = g["house"].map(lambda h: house_role(det, h))
+    for role, label in ROLE_GROUPS.items():
+        if (roles == role).any():
+            out[label] = _house_figures(g[roles == role])
+    return out
+
+
+def role_of(detector: str, house: str) -> str:
+    """The role of a house row (fenestra.reports.markdown.ROLES), or of a group row by its label."""
+    from fenestra.reports.markdown import ROLE_GROUPS, house_role  # noqa: PLC0415
+
+    groups = {label: role for role, label in ROLE_GROUPS.items()}
+    return groups.get(house) or house_role(detector, house)
 
 
 def table(per_seed: dict[int, dict[str, dict]], detector: str) -> list[str]:
     """The Markdown table of {seed: {house: figures}}: per house, each figure's median over the
-    seeds, [min-max], (the seeds' values in seed order)."""
-    from fenestra.reports.markdown import TRAINED_ON  # noqa: PLC0415
+    seeds, [min-max], (the seeds' values in seed order); the role groups (bold) last."""
+    from fenestra.reports.markdown import ROLE_GROUPS  # noqa: PLC0415
 
     seeds = sorted(per_seed)
-    houses = sorted({h for figs in per_seed.values() for h in figs})
-    trained = set(TRAINED_ON.get(detector, ()))
-    head = ["house", "trained on", "evaluable windows (per seed)"] + [title for _, title, *_ in FIGURES]
+    names = {h for figs in per_seed.values() for h in figs}
+    houses = sorted(names - set(ROLE_GROUPS.values())) + [g for g in ROLE_GROUPS.values() if g in names]
+    head = ["house", "to the detector", "evaluable windows (per seed)"] + [title for _, title, *_ in FIGURES]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for h in houses:
         rows = [per_seed[s].get(h) or {} for s in seeds]
         n = ", ".join(str(r.get("n_evaluable", 0)) for r in rows)
         cells = [cell([r.get(k) for r in rows], scale, unit, dec) for k, _, scale, unit, dec in FIGURES]
-        lines.append(f"| {h} | {'**yes**' if h in trained else 'no'} | {n} | " + " | ".join(cells) + " |")
+        role = role_of(detector, h)
+        name = f"**{h}**" if h in ROLE_GROUPS.values() else h
+        lines.append(f"| {name} | {'**held out**' if role == 'held out' else role} | {n} | " + " | ".join(cells) + " |")
     return lines
+
+
+def spread_json(per_seed: dict[int, dict[str, dict]], detector: str, meta: dict) -> dict:
+    """The machine-readable spread (docs/results/seed_spread.json, read by tools/model_card_real.py for
+    the README's detector line): meta, then per house or group its role and, per figure of FIGURES,
+    the seeds' values (seed order), their median, min and max."""
+    seeds = sorted(per_seed)
+    names = sorted({h for figs in per_seed.values() for h in figs})
+    houses = {}
+    for h in names:
+        rows = [per_seed[s].get(h) or {} for s in seeds]
+        figs = {}
+        for k, *_ in FIGURES + (("n_evaluable",),):
+            values = [rows[i].get(k) for i in range(len(seeds))]
+            sp = spread(values)
+            figs[k] = {"seeds": values, **({"median": sp[0], "min": sp[1], "max": sp[2]} if sp else {})}
+        houses[h] = {"role": role_of(detector, h), "figures": figs}
+    return {**meta, "seeds": seeds, "houses": houses}
 
 
 def run_seed(profile, seed: int, views: int | None, out_root: Path):
@@ -98,6 +135,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench" / "seed-spread")
     ap.add_argument("--doc", type=Path, default=None)
     ap.add_argument("--block", default="seed-spread")
+    ap.add_argument("--json", type=Path, default=None, help="also write the spread as JSON (e.g. docs/results/seed_spread.json)")
     a = ap.parse_args()
     seeds = [int(s) for s in a.seeds.split(",")]
     if len(seeds) < 2 or len(set(seeds)) != len(seeds) or min(seeds) < 0:
@@ -117,6 +155,13 @@ def main() -> None:
              "are shares of the evaluable windows (a missed window counts as neither).", ""]
     text = "\n".join(lines + table(per_seed, method.split("/")[0])) + "\n"
     print(text)
+    if a.json is not None:
+        from fenestra.files import write_json  # noqa: PLC0415
+
+        meta = {"command": f"python tools/seed_spread.py {' '.join(sys.argv[1:])}", "method": method,
+                "profile": profile.name, "views_per_house": views, "look_per": look,
+                "size": [profile.render.width, profile.render.height], "renderer": profile.render.renderer}
+        write_json(a.json, spread_json(per_seed, method.split("/")[0], meta))
     if a.doc is not None:
         from fenestra.reports.markdown import write_block  # noqa: PLC0415
 
