@@ -90,7 +90,9 @@ def folders(tmp_path_factory) -> dict[str, Path]:
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    b = Browser(find_browser(), tmp_path_factory.mktemp("chromium-profile"), PAGE_STATE)
+    # 1280 x 800: the page is taller than the window (a scroll bar takes width from the 3D view as it loads)
+    b = Browser(find_browser(), tmp_path_factory.mktemp("chromium-profile"), PAGE_STATE,
+                viewport={"width": 1280, "height": 800})
     yield b
     b.close()
 

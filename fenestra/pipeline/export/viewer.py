@@ -119,9 +119,9 @@ h1{font-size:20px;margin:0 0 4px} .meta{margin:0 0 12px;color:#444}
 .panels{display:grid;grid-template-columns:1fr 1fr;gap:12px;align-items:start}
 figure{margin:0;background:#fff;border:1px solid #ccc;padding:6px}
 figcaption{font-size:12px;color:#555;margin-top:4px}
-#overlay{max-width:100%;max-height:560px;display:block;margin:auto}
-#view{width:100%;height:560px;position:relative;background:#eee}
-#view canvas{display:block}
+#overlay{max-width:100%;max-height:520px;display:block;margin:auto}
+#view{width:100%;height:520px;position:relative;background:#eee}
+#view canvas{display:block;width:100%;height:100%}
 .note{padding:12px;background:#fff3cd;border:1px solid #e0c060}
 table{border-collapse:collapse;margin-top:14px;background:#fff;font-size:13px}
 th,td{border:1px solid #ccc;padding:3px 6px;text-align:left;vertical-align:top}
@@ -139,7 +139,9 @@ SCRIPT = """
     note.textContent = "The 3D model could not be shown: " + why;
     note.hidden = false;
   };
-  window.addEventListener("error", e => { if (body.dataset.model === "loading") fail(e.message); });
+  window.addEventListener("error", e => {  // (a ResizeObserver notice is no failure)
+    if (body.dataset.model === "loading" && !/ResizeObserver/.test(e.message || "")) fail(e.message);
+  });
   try {
     const T = FenestraThree, box = document.getElementById("view");
     const renderer = new T.WebGLRenderer({antialias: true, preserveDrawingBuffer: true});
@@ -156,13 +158,13 @@ SCRIPT = """
     const draw = () => renderer.render(scene, camera);
     const resize = () => {
       const w = Math.max(1, box.clientWidth), h = Math.max(1, box.clientHeight);
-      renderer.setSize(w, h);
+      renderer.setSize(w, h, false);  // the canvas's CSS size is the box's (100 %): no resize feedback
       camera.aspect = w / h;
       camera.updateProjectionMatrix();
       draw();
     };
     controls.addEventListener("change", draw);
-    new ResizeObserver(resize).observe(box);
+    new ResizeObserver(() => requestAnimationFrame(resize)).observe(box);
     const text = atob(src.textContent.trim()), bytes = new Uint8Array(text.length);
     for (let i = 0; i < text.length; i++) bytes[i] = text.charCodeAt(i);
     new T.GLTFLoader().parse(bytes.buffer, "", gltf => {
@@ -218,9 +220,9 @@ def viewer_html(doc: dict, files: dict[str, str], glb: bytes | None = None, glb_
     meta = []
     if ks:
         lo, hi = ks.get("interval_px") or (None, None)
-        meta.append(f"K: {_e(ks.get('source'))}, f = {_num(ks.get('focal_px'), '.0f')} px "
-                    f"[{_num(lo, '.0f')}, {_num(hi, '.0f')}]" + (f" ({_e(ks['detail'])})" if ks.get("detail") else ""))
-    meta.append("scale: " + (_e("; ".join(scale.get("sources") or [])) or "none")
+        meta.append(f"K source: {_e(ks.get('source'))}" + (f" ({_e(ks['detail'])})" if ks.get("detail") else "")
+                    + f", f = {_num(ks.get('focal_px'), '.0f')} px [{_num(lo, '.0f')}, {_num(hi, '.0f')}]")
+    meta.append("scale source: " + (_e("; ".join(scale.get("sources") or [])) or "none")
                 + (" (assumed)" if scale.get("assumed") else ""))
     size = doc.get("image_size")
     if size:
