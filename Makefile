@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke real report docs docs-check gate train train-winnet timing compare clean
+.PHONY: help setup sysdeps test test-all bench smoke real heldout-gate report docs docs-check gate train train-winnet timing compare clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -50,9 +50,15 @@ real:  ## real-photo profile (bundled curtain-wall photos, ../shared/real when p
 	SIM=$$( [ -f out/bench/smoke/summary.json ] && echo "--sim out/bench/smoke" ); \
 	$(PY) -m fenestra bench --profile real --out out/bench/real $$SIM
 
-gate: smoke real  ## smoke and real profiles, then the accuracy gates
+HELDOUT_SEEDS = 0 1 2
+heldout-gate:  ## the learned detector on held-out building families, once per seed (what make gate checks at its worst seed)
+	for s in $(HELDOUT_SEEDS); do \
+	  $(PY) -m fenestra bench --profile heldout-gate --seed $$s --out out/bench/heldout-gate-s$$s --no-report || exit 1; done
+
+gate: smoke real heldout-gate  ## smoke, real and held-out-family profiles, then the accuracy gates (held out: every seed must pass)
 	$(PY) -m fenestra gate out/bench/smoke
 	$(PY) -m fenestra gate out/bench/real
+	$(PY) -m fenestra gate $(foreach s,$(HELDOUT_SEEDS),out/bench/heldout-gate-s$(s))
 
 timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s), written into docs/performance.md
 	$(PY) tools/timing.py --json out/timing.json --markdown docs/performance.md

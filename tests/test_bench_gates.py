@@ -188,3 +188,20 @@ def test_cli_bench_smoke_then_gate(tmp_path):
     r = subprocess.run([sys.executable, "-m", "fenestra", "gate", str(out)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
+
+
+def test_gates_suggested_from_several_runs_take_the_worst(run_dir, tmp_path):
+    """Several runs (seeds) suggest bounds from the worst run: a run twice as bad passes the gates of
+    both runs and breaks those of the good run alone."""
+    good = results.summarize(results.load_results(run_dir))
+    worse_df = results.load_results(run_dir)
+    worse_df["corner_err_px_snap"] *= 2.0
+    worse = results.summarize(worse_df)
+    one, both = tmp_path / "one.toml", tmp_path / "both.toml"
+    one.write_text(gates.suggest_gates(good, "synthetic", margin=0.0))
+    both.write_text(gates.suggest_gates([good, worse], "synthetic", margin=0.0))
+    assert "(2 runs, the worst sets each bound)" in both.read_text()
+    assert gates.check_results(worse, "synthetic", gates.load_gates(both)) == []
+    assert gates.check_results(good, "synthetic", gates.load_gates(both)) == []
+    broken = gates.check_results(worse, "synthetic", gates.load_gates(one))
+    assert any(v.metric == "corner_err_px_snap.median" for v in broken)

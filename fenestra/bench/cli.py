@@ -10,6 +10,7 @@ to :func:`register`, and ``fenestra bench`` calls it on the finished run folder.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable
@@ -65,7 +66,9 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
               real: Path = typer.Option(None, "--real", help="synthetic profiles: a real-photo run folder (fenestra bench "
                                                              "--profile real) for the report's photo column"),
               force: bool = typer.Option(False, "--force", help="replace a --out folder holding another run or other files"),
-              csv: bool = typer.Option(False, "--csv", help="also write results.csv (results.parquet is the results table)")) -> None:
+              csv: bool = typer.Option(False, "--csv", help="also write results.csv (results.parquet is the results table)"),
+              seed: int = typer.Option(None, "--seed", help="synthetic profiles: replace the profile's seed (cameras, "
+                                                            "looks, sensor noise; another run folder)")) -> None:
         """Render (cached), reconstruct with every strategy, measure, summarise, report."""
         from fenestra.bench.executors import get_executor  # noqa: PLC0415
         from fenestra.bench.profiles import load_profile  # noqa: PLC0415
@@ -84,6 +87,8 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         if is_real_profile(profile):
             from fenestra.bench.real.profile import load_real_profile, with_user_data  # noqa: PLC0415
 
+            if seed is not None:
+                raise ValueError(f"--seed needs a synthetic profile (a real run has no cameras to draw), got profile {profile!r}")
             if real is not None:
                 raise ValueError(f"--real needs a synthetic profile (a real run's report takes its --sim run), "
                                  f"got profile {profile!r}")
@@ -101,7 +106,12 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                 raise ValueError(f"--real {real}: not a real-photo run (fenestra bench --profile real makes one)")
             # the report in its own process: its memory and the evaluation's never add up (#26)
             report = None if no_report else functools.partial(report_apart, functools.partial(write_report, real_dir=real))
-            info = run_benchmark(load_profile(profile), out_dir=out, workers=workers or None,
+            p = load_profile(profile)
+            if seed is not None:
+                if seed < 0:
+                    raise ValueError(f"--seed must be >= 0, got {seed}")
+                p = dataclasses.replace(p, seed=seed)
+            info = run_benchmark(p, out_dir=out, workers=workers or None,
                                  report=report, executor=executor, executor_options=opts, force=force, csv=csv, inputs=inputs)
         summary = load_summary(info.run_dir)
         typer.echo(f"wall time {info.wall_time_s:.1f} s for {info.n_views} views, {info.n_rows} rows")
@@ -120,31 +130,38 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
     return bench
 
 
-def gate(run_dir: Path = typer.Argument(..., help="a run folder with results.parquet and summary.json"),
+def gate(run_dirs: list[Path] = typer.Argument(..., help="run folders (results.parquet, summary.json) of one profile: "
+                                                           "several (e.g. seeds) are gated at their pessimistic end"),
          gates: Path = typer.Option(None, "--gates", help="gates TOML (default fenestra/bench/gates.toml)"),
          profile: str = typer.Option(None, "--profile", help="check against this profile's gates"),
-         suggest: bool = typer.Option(False, "--suggest", help="print gates.toml text from this run's numbers instead"),
+         suggest: bool = typer.Option(False, "--suggest", help="print gates.toml text from these runs' numbers instead"),
          margin: float = typer.Option(0.5, "--margin", help="with --suggest: relative margin on ceilings")) -> None:
-    """Check a run against accuracy gates; exit 1 naming each violated metric, value and bound."""
-    from fenestra.bench.gates import DEFAULT_GATES, check, suggest_gates  # noqa: PLC0415
+    """Check runs against accuracy gates; exit 1 naming each violated metric, value and bound. With
+    several runs (one profile, e.g. seeds 0, 1, 2: ``fenestra bench --seed``) every run must pass:
+    the worst run decides, and --suggest bounds from the worst."""
+    from fenestra.bench.gates import DEFAULT_GATES, check, run_profile, suggest_gates  # noqa: PLC0415
     from fenestra.bench.manifest import load_verified_results, require_complete  # noqa: PLC0415
-    from fenestra.bench.results import load_summary, summarize  # noqa: PLC0415
+    from fenestra.bench.results import summarize  # noqa: PLC0415
 
+    names = {run_profile(d) for d in run_dirs}
+    if profile is None and len(names) > 1:
+        raise ValueError(f"runs of different profiles {sorted(map(str, names))}: gate them one profile at a time")
     if suggest:
         if not (math.isfinite(margin) and margin >= 0):
             raise ValueError(f"--margin must be a finite number >= 0, got {margin}")
-        require_complete(run_dir)
-        name = profile or load_summary(run_dir)["metadata"].get("profile")
-        typer.echo(suggest_gates(summarize(load_verified_results(run_dir)), name, margin), nl=False)
+        for d in run_dirs:
+            require_complete(d)
+        name = profile or names.pop()
+        typer.echo(suggest_gates([summarize(load_verified_results(d)) for d in run_dirs], name, margin), nl=False)
         return
 
-    violations = check(run_dir, gates or DEFAULT_GATES, profile=profile)
+    violations = [(d, v) for d in run_dirs for v in check(d, gates or DEFAULT_GATES, profile=profile)]
     if violations:
-        for v in violations:
-            typer.echo(f"GATE FAILED {v}", err=True)
+        for d, v in violations:
+            typer.echo(f"GATE FAILED {v}" + (f" (run {d})" if len(run_dirs) > 1 else ""), err=True)
         typer.echo(f"{len(violations)} gate violation(s)", err=True)
         raise typer.Exit(1)
-    typer.echo("all gates passed")
+    typer.echo("all gates passed" + (f" on each of {len(run_dirs)} runs" if len(run_dirs) > 1 else ""))
 
 
 def _options(items: list[str]) -> dict:

@@ -196,25 +196,34 @@ def _bound(kind: str, values: list[float], margin: float, slack: float, rate: bo
     return max(min(vals) - slack, 0.0)
 
 
-def suggest_gates(results: dict, profile: str, margin: float = 0.5) -> str:
-    """gates.toml text from a run's results: per detector ("det/*/*", worst snapper) and per
-    detector x snapper ("det/snapper/*", worst pose), measured values and margin in comments."""
-    groups: dict[str, list[str]] = {}
-    for m, method in read_methods(results).items():
-        groups.setdefault(f"{method.detector}/*/*", []).append(m)
-        groups.setdefault(f"{method.detector}/{method.snapper}/*", []).append(m)
-    lines = [f"# Accuracy gates, suggested from measured {profile!r} numbers with margin {margin:.0%}:",
+def run_profile(run_dir: str | Path) -> str | None:
+    """The profile name a run folder's summary.json records."""
+    return load_summary(run_dir)["metadata"].get("profile")
+
+
+def suggest_gates(runs: dict | list[dict], profile: str, margin: float = 0.5) -> str:
+    """gates.toml text from the results of one run or of several (e.g. seeds: the worst run sets
+    each bound): per detector ("det/*/*", worst snapper) and per detector x snapper
+    ("det/snapper/*", worst pose), measured values and margin in comments."""
+    runs = [runs] if isinstance(runs, dict) else list(runs)
+    groups: dict[str, list[tuple[int, str]]] = {}
+    for i, results in enumerate(runs):
+        for m, method in read_methods(results).items():
+            groups.setdefault(f"{method.detector}/*/*", []).append((i, m))
+            groups.setdefault(f"{method.detector}/{method.snapper}/*", []).append((i, m))
+    lines = [f"# Accuracy gates, suggested from measured {profile!r} numbers"
+             + (f" ({len(runs)} runs, the worst sets each bound)" if len(runs) > 1 else "") + f" with margin {margin:.0%}:",
              "# error ceilings = worst measured * (1 + margin) + slack; rate ceilings = worst + slack;",
              "# floors = worst measured - slack (slacks: fenestra/bench/gates.py GROUP_METRICS, METHOD_METRICS).",
              "# 'det/*/*' bounds every snapper of a detector (so a new or broken snapper is gated too)."]
     for pattern, methods in sorted(groups.items(), key=lambda kv: (kv[0].count("*") != 2, kv[0])):
         for metric, kind, slack in (GROUP_METRICS if pattern.endswith("/*/*") else METHOD_METRICS):
-            vals = [metric_value(results[m], metric) for m in methods]
+            vals = [metric_value(runs[i][m], metric) for i, m in methods]
             b = _bound(kind, vals, margin, slack, rate=metric.endswith("rate") or ".recall." in metric)
             if b is None:
                 continue
             fin = [v for v in vals if v is not None and math.isfinite(v)]
-            lines += ["", "[[gate]]", f"# measured over {len(methods)} method(s): "
+            lines += ["", "[[gate]]", f"# measured over {len({m for _, m in methods})} method(s): "
                       f"{min(fin):.4g} .. {max(fin):.4g}",
                       f'profile = "{profile}"', f'method = "{pattern}"', f'metric = "{metric}"',
                       f"{kind} = {b:.4g}"]
