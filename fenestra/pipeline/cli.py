@@ -312,7 +312,8 @@ def register(app: typer.Typer) -> None:
                                                  help="the largest photo read, pixels, checked before decoding "
                                                       f"(default {LIMITS.max_image_pixels:_})"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
-        force: bool = typer.Option(False, "--force", help="replace a non-empty --out folder that holds no reconstruct output"),
+        force: bool = typer.Option(False, "--force", help="write into a non-empty --out folder that holds no "
+                                                         "reconstruct output (its files stay: none is replaced)"),
         quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
                                         help=f"quad from: {', '.join(QUAD_SOURCES)} (corners: the detector's corner head, "
                                              "the mask fit where it has none; mask+corners: the mask fit, the "
