@@ -44,8 +44,11 @@ def test_no_lab_scripts_or_fixtures(wheel_names):
 
 
 def test_the_wheel_carries_the_data_the_package_reads(wheel_names):
-    """The bundled houses, the shipped weights, the profiles and the gates travel with the code."""
+    """The bundled houses, the shipped weights, the profiles, the gates and the viewer's vendored
+    three.js (with its licence) travel with the code."""
     names = set(wheel_names)
     assert any(n.startswith("fenestra/scenes/ifc/") and n.endswith(".ifc") for n in names)
     assert {"fenestra/pipeline/models/default.pt", "fenestra/bench/gates.toml",
             "fenestra/bench/profiles/default.toml"} <= names
+    vendor = "fenestra/pipeline/export/vendor/"
+    assert {vendor + f for f in ("three-viewer.min.js", "LICENSE", "VERSION", "README.md")} <= names
