@@ -141,6 +141,7 @@ def test_size_class_and_union_area():
     assert union_area([]) == 0.0
     assert union_area([(0, 0, 2, 1), (1, 0, 3, 1)]) == pytest.approx(3.0)  # overlap counted once
     assert union_area([(0, 0, 1, 1), (5, 5, 6, 7)]) == pytest.approx(3.0)
+    assert union_area([(0, 0, 2, 2), (0.5, 0.5, 1, 1), (2, 0, 3, 1)]) == pytest.approx(5.0)  # inside, touching
 
 
 def test_utm_matches_an_independent_series():

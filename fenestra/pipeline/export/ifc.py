@@ -93,16 +93,19 @@ def size_class(area_m2: float) -> str:
 
 def union_area(rects) -> float:
     """Area (m²) of the union of axis-aligned rectangles (x0, y0, x1, y1) m, (N, 4): overlapping
-    openings are not subtracted twice from a wall's side area."""
+    openings are not subtracted twice from a wall's side area. O(N²) on the grid of their edges
+    (a 2-D difference array, cumulated: each cell's cover count)."""
     r = np.asarray(list(rects), dtype=np.float64).reshape(-1, 4)
     if len(r) == 0:
         return 0.0
     xs, ys = np.unique(r[:, [0, 2]]), np.unique(r[:, [1, 3]])
-    cx, cy = (xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2
-    inside = np.zeros((len(cx), len(cy)), dtype=bool)
-    for x0, y0, x1, y1 in r:
-        inside |= ((cx > x0) & (cx < x1))[:, None] & ((cy > y0) & (cy < y1))[None, :]
-    return float((np.diff(xs)[:, None] * np.diff(ys)[None, :])[inside].sum())
+    i0, i1 = np.searchsorted(xs, r[:, 0]), np.searchsorted(xs, r[:, 2])
+    j0, j1 = np.searchsorted(ys, r[:, 1]), np.searchsorted(ys, r[:, 3])
+    count = np.zeros((len(xs), len(ys)), dtype=np.int64)
+    for di, dj, sign in ((i0, j0, 1), (i1, j0, -1), (i0, j1, -1), (i1, j1, 1)):
+        np.add.at(count, (di, dj), sign)
+    covered = count.cumsum(axis=0).cumsum(axis=1)[:-1, :-1] > 0
+    return float((np.diff(xs)[:, None] * np.diff(ys)[None, :])[covered].sum())
 
 
 def _faceset(f: ifcopenshell.file, vertices: np.ndarray, faces: np.ndarray):
