@@ -59,6 +59,11 @@ PYRENDER_PIXEL_OFFSET = 0.5
 DEFAULTS = Method(detector="default", snapper="refine", pose="wall+lines")
 # The paper's method (Mask R-CNN, Harris snapping, per-window iterative PnP): the reference in comparisons.
 PAPER = Method(detector="maskrcnn", snapper="harris", pose="lm")
+# Window classes the figures single out (issue #36): thin, aspect (width / height) >= THIN_ASPECT or
+# <= 1 / THIN_ASPECT; oblique, seen at an incidence (angle between the view ray and the window's
+# normal, degrees) in OBLIQUE_INCIDENCE_DEG = [low, high).
+THIN_ASPECT = 3.0
+OBLIQUE_INCIDENCE_DEG = (60.0, 80.0)
 
 
 def make_K(fx: float, fy: float | None = None, cx: float = 0.0, cy: float = 0.0) -> np.ndarray:

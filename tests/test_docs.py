@@ -316,3 +316,22 @@ def test_docs_without_a_real_run_keep_the_committed_real_figures(tmp_path):
     assert doc["real"]["kept"] and doc["real"]["provenance"] == committed["real"]["provenance"]
     text = paths.markdown.read_text()
     assert "Kept from an earlier real-photo run" in text and "No real-photo run was given" not in text
+
+
+def test_house_figures_count_thin_and_oblique_windows_by_hand():
+    """The quad shares among thin (aspect >= 3 or <= 1/3) and oblique (60-80 deg) windows: counted
+    here from the rows' ground-truth aspect, incidence and snapped error, independently."""
+    df = synthetic_results(n_windows=90, seed=3)
+    df = df[df["snapper"] == df["snapper"].iloc[0]].copy()
+    n = len(df)
+    df["gt_aspect"] = np.where(np.arange(n) % 3 == 0, 4.0, np.where(np.arange(n) % 3 == 1, 0.2, 1.1))
+    df["incidence_deg"] = np.where(np.arange(n) % 2 == 0, 70.0, 20.0)
+    df.loc[df.index[::5], "corner_err_px_snap"] = np.nan  # every 5th row: no quad
+    figs = md._house_figures(df)
+    ev = df[df["evaluable"].astype(bool)]
+    thin = ev[(ev["gt_aspect"] >= 3) | (ev["gt_aspect"] <= 1 / 3)]
+    obl = ev[(ev["incidence_deg"] >= 60) & (ev["incidence_deg"] < 80)]
+    assert figs["n_thin"] == len(thin) and figs["n_oblique"] == len(obl) and 0 < len(thin) < len(ev)
+    assert figs["thin_quad_rate"] == pytest.approx(thin["corner_err_px_snap"].notna().mean(), abs=1e-3)
+    assert figs["oblique_quad_rate"] == pytest.approx(obl["corner_err_px_snap"].notna().mean(), abs=1e-3)
+    assert figs["thin_quad_rate"] < 1.0

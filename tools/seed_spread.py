@@ -29,7 +29,9 @@ sys.path.insert(0, str(ROOT))
 FIGURES = (("detection_rate", "detected", 100, " %", 0), ("quad_rate", "quads", 100, " %", 0),
            ("all_corners_close", "all corners within 5 px", 100, " %", 0),
            ("snap_median", "corner median", 1, " px", 2), ("rot_median", "rotation median", 1, "°", 2),
-           ("aspect_p90", "aspect p90", 100, " %", 1))
+           ("aspect_p90", "aspect p90", 100, " %", 1),
+           ("thin_quad_rate", "quads, thin windows", 100, " %", 0),
+           ("oblique_quad_rate", "quads at {:g}–{:g}° incidence", 100, " %", 0))
 
 
 def spread(values: list) -> tuple[float, float, float] | None:
@@ -82,7 +84,10 @@ def table(per_seed: dict[int, dict[str, dict]], detector: str) -> list[str]:
     seeds = sorted(per_seed)
     names = {h for figs in per_seed.values() for h in figs}
     houses = sorted(names - set(ROLE_GROUPS.values())) + [g for g in ROLE_GROUPS.values() if g in names]
-    head = ["house", "to the detector", "evaluable windows (per seed)"] + [title for _, title, *_ in FIGURES]
+    from fenestra.conventions import OBLIQUE_INCIDENCE_DEG  # noqa: PLC0415
+
+    head = ["house", "to the detector", "evaluable windows (per seed)"] + [title.format(*OBLIQUE_INCIDENCE_DEG)
+                                                                          for _, title, *_ in FIGURES]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for h in houses:
         rows = [per_seed[s].get(h) or {} for s in seeds]
@@ -104,7 +109,7 @@ def spread_json(per_seed: dict[int, dict[str, dict]], detector: str, meta: dict)
     for h in names:
         rows = [per_seed[s].get(h) or {} for s in seeds]
         figs = {}
-        for k, *_ in FIGURES + (("n_evaluable",),):
+        for k, *_ in FIGURES + (("n_evaluable",), ("n_thin",), ("n_oblique",)):
             values = [rows[i].get(k) for i in range(len(seeds))]
             sp = spread(values)
             figs[k] = {"seeds": values, **({"median": sp[0], "min": sp[1], "max": sp[2]} if sp else {})}

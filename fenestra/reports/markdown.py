@@ -33,7 +33,7 @@ from fenestra.bench.manifest import load_verified_results
 from fenestra.bench.paired import paired_comparison
 from fenestra.bench.real.simreal import method_medians, ranking
 from fenestra.bench.results import METRIC_ERRORS, summarize, summarize_method
-from fenestra.conventions import DEFAULTS, PAPER
+from fenestra.conventions import DEFAULTS, OBLIQUE_INCIDENCE_DEG, PAPER, THIN_ASPECT
 from fenestra.methods import NO_K_SUFFIX
 from fenestra.tolerances import TOL
 from fenestra.pipeline.detectors import DETECTORS
@@ -180,15 +180,22 @@ def _detection(df: pd.DataFrame, results: dict, summary: dict) -> dict[str, dict
 
 def _house_figures(rows: pd.DataFrame) -> dict:
     """Figures of one method's rows (one house, or several): evaluable windows, detection rate, the
-    share with a quad, the share with all four corners within TOL.all_corners_px (of the evaluable
+    share with a quad (also among the thin and the oblique ones: conventions.THIN_ASPECT,
+    OBLIQUE_INCIDENCE_DEG), the share with all four corners within TOL.all_corners_px (of the evaluable
     windows: a missed window counts as not), corner, rotation and aspect-ratio medians / p90."""
     s = summarize_method(rows)
     ev = rows[rows["evaluable"].astype(bool)]
     n = len(ev)
     quad = ev["corner_err_px_snap"].notna().to_numpy()
     close = (ev["corner_err_px_snap_max"].to_numpy(float) <= TOL.all_corners_px)
+    aspect, incidence = ev["gt_aspect"].to_numpy(float), ev["incidence_deg"].to_numpy(float)
+    thin = (aspect >= THIN_ASPECT) | (aspect <= 1.0 / THIN_ASPECT)
+    lo, hi = OBLIQUE_INCIDENCE_DEG
+    oblique = (incidence >= lo) & (incidence < hi)
     return {"n_evaluable": s["n_evaluable"], "detection_rate": _r(s["detection_rate"]),
             "quad_rate": _r(quad.mean()) if n else None, "all_corners_close": _r(close.mean()) if n else None,
+            "n_thin": int(thin.sum()), "thin_quad_rate": _r(quad[thin].mean()) if thin.any() else None,
+            "n_oblique": int(oblique.sum()), "oblique_quad_rate": _r(quad[oblique].mean()) if oblique.any() else None,
             "snap_median": _r(s["corner_err_px_snap"]["median"]),
             "rot_median": _r(s["rot_err_deg"]["median"]),
             "aspect_p90": _r(s["aspect_err_rel"]["p90"])}
