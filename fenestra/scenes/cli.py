@@ -3,6 +3,7 @@
     fenestra scenes list                       bundled houses: schema, windows, skipped
     fenestra scenes show NAME_OR_PATH [--json] every window's ground truth, skipped windows + reasons
     fenestra scenes make OUT.ifc [--seed S] [--footprint "x,y;x,y;..."] [--storeys N] ...
+    fenestra scenes author OUT_DIR             the hand-authored held-out houses (scenes/authored.py)
 """
 from __future__ import annotations
 
@@ -138,6 +139,16 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
         typer.echo(f"wrote {out}: {len(house.windows)} windows, {len(house.doors)} glazed doors, "
                    f"{len(house.curtain_walls)} curtain-wall bays, {len(spec.footprint)} walls "
                    f"x {spec.storeys} storeys")
+
+
+@scenes_app.command("author")
+def author_cmd(out_dir: Path = typer.Argument(..., help="folder for the .ifc files (created)")) -> None:
+    """Write the hand-authored held-out houses (authored-terrace, authored-studio) into OUT_DIR;
+    `fenestra scenes author fenestra/scenes/ifc` regenerates the bundled copies."""
+    from fenestra.scenes.authored import AUTHORED, author_all
+
+    for name, windows in author_all(out_dir).items():
+        typer.echo(f"wrote {out_dir / AUTHORED[name][0]}: {name}, {len(windows)} windows")
 
 
 def register(app: typer.Typer) -> None:

@@ -22,6 +22,9 @@ BUNDLED: dict[str, Path] = {
     "jasmin-sun": IFC_DIR / "AC90R1-Jasmin-Sun-105-2x3.ifc",
     "niedriha": IFC_DIR / "AC90R1-niedriha-V2-2x3.ifc",
     "office-a": IFC_DIR / "Office_A_20110811.ifc",  # a Revit office: a held-out family, never trained on
+    # hand-authored here (fenestra/scenes/authored.py, `fenestra scenes author`): held-out families
+    "authored-terrace": IFC_DIR / "authored-terrace.ifc",
+    "authored-studio": IFC_DIR / "authored-studio.ifc",
 }
 
 
