@@ -199,3 +199,12 @@ def test_the_vendored_three_js_is_the_pinned_one():
     assert (vendor / "VERSION").read_text().splitlines()[0] == "three 0.187.0"
     assert viewer.three_bundle().startswith("/*! three.js r187 (npm three@0.187.0)")
     assert "MIT License" in (vendor / "LICENSE").read_text() and "three.js authors" in (vendor / "LICENSE").read_text()
+
+
+def test_a_glb_over_the_limit_is_linked_not_embedded(folders, tmp_path):
+    for f in ("overlay.png", "model.glb", "windows.json"):
+        shutil.copy(folders["model"] / f, tmp_path / f)
+    doc = json.loads((tmp_path / "windows.json").read_text())
+    page = viewer.write_viewer(tmp_path, doc, doc["export"]["files"], max_glb_bytes=1000).read_text()
+    assert "fenestra-glb" not in page and 'data-model="none"' in page
+    assert "is larger than this page embeds" in page and '<a href="model.glb">' in page

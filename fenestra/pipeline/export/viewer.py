@@ -214,6 +214,15 @@ def viewer_html(doc: dict, files: dict[str, str], glb: bytes | None = None, glb_
     ...: windows.json's ``export.files``), ``glb`` the bytes of model.glb to embed (None: no 3D
     view; ``glb_note`` then says why, else :func:`no_model_reason`). Pure: reads nothing but the
     vendored three.js bundle (when a GLB is embedded)."""
+    before, data, after = viewer_parts(doc, files, glb, glb_note)
+    return before + data.decode("ascii") + after
+
+
+def viewer_parts(doc: dict, files: dict[str, str], glb: bytes | None = None,
+                 glb_note: str | None = None) -> tuple[str, bytes, str]:
+    """:func:`viewer_html` in three parts, (the page up to the GLB, the GLB in base64 (ASCII
+    bytes; empty without a GLB), the rest), so that a writer holds one base64 copy of the GLB, not
+    three (the bytes, a str of them, the page's str)."""
     photo = Path(str(doc.get("photo") or "photo")).name
     ks = doc.get("K_source") or {}
     scale = doc.get("scale") or {}
@@ -256,24 +265,26 @@ def viewer_html(doc: dict, files: dict[str, str], glb: bytes | None = None, glb_
     names = ["windows.json", *sorted({v for k, v in files.items() if v and v != PAGE})]
     links = " ".join(f'<a href="{_e(f)}">{_e(f)}</a>' for f in dict.fromkeys(names))
 
-    scripts = ""
+    glb_open, data, scripts = "", b"", ""
     if glb is not None:
-        scripts = (f'<script id="fenestra-glb" type="application/octet-stream">{base64.b64encode(glb).decode()}'
-                   f"</script>\n<script>{three_bundle()}</script>\n<script>{SCRIPT}</script>")
-    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-            f'<meta name="viewport" content="width=device-width, initial-scale=1">'
-            f"<title>Fenestra: {_e(photo)}</title><style>{STYLE}</style></head>\n"
-            f'<body data-model="{state}"><h1>Fenestra: {_e(photo)}</h1>'
-            f'<p class="meta">{" &middot; ".join(meta)}</p>'
-            + (f"<ul>{''.join(warnings)}</ul>" if warnings else "")
-            + f'<div class="panels">{left}{right}</div>\n{table}\n<p>Files: {links}</p>\n{scripts}\n</body></html>\n')
+        glb_open = '<script id="fenestra-glb" type="application/octet-stream">'
+        data = base64.b64encode(glb)
+        scripts = f"</script>\n<script>{three_bundle()}</script>\n<script>{SCRIPT}</script>"
+    before = (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+              f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+              f"<title>Fenestra: {_e(photo)}</title><style>{STYLE}</style></head>\n"
+              f'<body data-model="{state}"><h1>Fenestra: {_e(photo)}</h1>'
+              f'<p class="meta">{" &middot; ".join(meta)}</p>'
+              + (f"<ul>{''.join(warnings)}</ul>" if warnings else "")
+              + f'<div class="panels">{left}{right}</div>\n{table}\n<p>Files: {links}</p>\n{glb_open}')
+    return before, data, f"{scripts}\n</body></html>\n"
 
 
 def write_viewer(out: str | Path, doc: dict, files: dict[str, str], max_glb_bytes: int = VIEWER_MAX_GLB_BYTES) -> Path:
-    """Write ``out``/index.html (atomically: fenestra.files.write_text) for the folder's files
+    """Write ``out``/index.html (atomically: fenestra.files.write_atomic; the GLB's base64 held once) for the folder's files
     (``files``: {kind: name}, as :func:`viewer_html`); model.glb is read from ``out`` and embedded
     when it is at most ``max_glb_bytes``, else linked with a note. Returns the path."""
-    from fenestra.files import write_text  # noqa: PLC0415
+    from fenestra.files import write_atomic  # noqa: PLC0415
 
     out = Path(out)
     glb, note = None, None
@@ -285,7 +296,16 @@ def write_viewer(out: str | Path, doc: dict, files: dict[str, str], max_glb_byte
         else:
             note = (f"{files['glb']} ({n / 2**20:.0f} MiB) is larger than this page embeds "
                     f"({max_glb_bytes / 2**20:.0f} MiB): open it in a glTF viewer.")
-    return write_text(out / PAGE, viewer_html(doc, files, glb, note))
+    parts = viewer_parts(doc, files, glb, note)
+    del glb
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:
+            f.write(parts[0].encode("utf-8"))
+            f.write(parts[1])
+            f.write(parts[2].encode("utf-8"))
+
+    return write_atomic(out / PAGE, write)
 
 
-__all__ = ["viewer_html", "write_viewer", "no_model_reason", "window_rows", "VIEWER_MAX_GLB_BYTES", "PAGE"]
+__all__ = ["viewer_html", "viewer_parts", "write_viewer", "no_model_reason", "window_rows", "VIEWER_MAX_GLB_BYTES", "PAGE"]
