@@ -53,7 +53,7 @@ real:  ## real-photo profile (bundled curtain-wall photos, ../shared/real when p
 HELDOUT_SEEDS = 0 1 2
 heldout-gate:  ## the learned detector on held-out building families, once per seed (what make gate checks at its worst seed)
 	for s in $(HELDOUT_SEEDS); do \
-	  $(PY) -m fenestra bench --profile heldout-gate --seed $$s --out out/bench/heldout-gate-s$$s --no-report || exit 1; done
+	  $(PY) -m fenestra bench --profile heldout-gate --seed $$s --out out/bench/heldout-gate-s$$s --no-report --force || exit 1; done
 
 gate: smoke real heldout-gate  ## smoke, real and held-out-family profiles, then the accuracy gates (held out: every seed must pass)
 	$(PY) -m fenestra gate out/bench/smoke

@@ -14,9 +14,10 @@ from fenestra.scenes.loader import load_scene
 from fenestra.scenes.registry import BUNDLED
 
 EXPECTED_WINDOWS = {"fzk-haus": 11, "duplex": 22, "samplehouse4": 4, "jasmin-sun": 12,
-                    "niedriha": 16, "office-a": 69}
+                    "niedriha": 16, "office-a": 69,
+                    "authored-terrace": 33, "authored-studio": 27}
 EXPECTED_SKIPPED = {"fzk-haus": 0, "duplex": 2, "samplehouse4": 0, "jasmin-sun": 0, "niedriha": 0,
-                    "office-a": 0}
+                    "office-a": 0, "authored-terrace": 0, "authored-studio": 0}
 
 
 @pytest.fixture(scope="module", params=list(BUNDLED))

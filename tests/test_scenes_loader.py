@@ -60,7 +60,8 @@ def test_holes_are_cut_in_host_walls():
 
 
 def test_list_scenes():
-    assert list_scenes() == ["fzk-haus", "duplex", "samplehouse4", "jasmin-sun", "niedriha", "office-a"]
+    assert list_scenes() == ["fzk-haus", "duplex", "samplehouse4", "jasmin-sun", "niedriha", "office-a",
+                             "authored-terrace", "authored-studio"]
 
 
 def test_cache_key_is_derived_from_the_loader_code(tmp_path):
