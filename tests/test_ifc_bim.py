@@ -225,7 +225,8 @@ def test_walls_are_extrusions_voided_by_extruded_openings(model):
         assert set(reps) == {"Axis", "Body"} and reps["Body"].RepresentationType == "SweptSolid"
         (solid,) = reps["Body"].Items
         assert solid.is_a("IfcExtrudedAreaSolid") and solid.SweptArea.is_a("IfcRectangleProfileDef")
-        assert solid.SweptArea.YDim == pytest.approx(0.30) and tuple(solid.ExtrudedDirection.DirectionRatios) == (0, 0, 1)
+        assert solid.SweptArea.YDim == pytest.approx(0.30)
+        assert tuple(solid.ExtrudedDirection.DirectionRatios) == (0, 0, 1)
         M = _abs_placement(wall)
         assert M[2, 2] == pytest.approx(1.0, abs=1e-9)  # extruded straight up
         openings = [rel.RelatedOpeningElement for rel in wall.HasOpenings]
@@ -325,7 +326,8 @@ def test_the_wall_tessellates_with_its_holes(model):
         assert _tri_area(V, F)[front].sum() == pytest.approx(expected[wall.Name]["NetSideArea"], rel=1e-6)
         centroids = V[F[front]].mean(axis=1)
         for x0, y0, w, h in VOIDS:
-            inside = (centroids[:, 0] > x0) & (centroids[:, 0] < x0 + w) & (centroids[:, 1] > y0) & (centroids[:, 1] < y0 + h)
+            inside = ((centroids[:, 0] > x0) & (centroids[:, 0] < x0 + w)
+                      & (centroids[:, 1] > y0) & (centroids[:, 1] < y0 + h))
             assert not inside.any()
 
 

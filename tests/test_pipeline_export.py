@@ -307,7 +307,8 @@ def test_a_huge_photo_is_inpainted_and_textured_at_the_capped_size(tmp_path, pho
     manifest = json.loads(paths["manifest"].read_text())
     checked = 0
     for m in ifc_model.by_type("IfcIndexedTriangleTextureMap"):
-        wall = next(p for p in ifc_model.by_type("IfcCovering") if m.MappedTo in p.Representation.Representations[0].Items)
+        wall = next(p for p in ifc_model.by_type("IfcCovering")  # the photo cladding carries the texture
+                    if m.MappedTo in p.Representation.Representations[0].Items)
         M = ifcopenshell.util.placement.get_local_placement(wall.ObjectPlacement)
         local, uv = np.asarray(m.MappedTo.Coordinates.CoordList), np.asarray(m.TexCoords.TexCoordsList)
         for tri_xyz, tri_uv in zip(m.MappedTo.CoordIndex, m.TexCoordIndex):

@@ -4,7 +4,9 @@
     paths = write_outputs("out/photo1", image, K, results, substitute="sash-cross")
     # {"ifc", "texture", "obj", "mtl", "glb", "overlay", "inpainted", "manifest"[, "substituted"]}
 
-Frames, units and texture conventions: fenestra/pipeline/export/geometry.py.
+Frames, units, the ground plane, storey rows and texture conventions: fenestra/pipeline/export/geometry.py;
+what model.ifc holds (storeys, editable walls, the photo cladding, types, quantities):
+fenestra/pipeline/export/ifc.py.
 """
 from __future__ import annotations
 

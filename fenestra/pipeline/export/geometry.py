@@ -429,7 +429,8 @@ def storey_rows(sills: np.ndarray, heights: np.ndarray, tol_fraction: float = ST
     sills = np.asarray(sills, dtype=np.float64)
     heights = np.asarray(heights, dtype=np.float64)
     if sills.ndim != 1 or heights.shape != sills.shape:
-        raise ValueError(f"sills and heights must be (N,) arrays of one length, got shapes {sills.shape} and {heights.shape}")
+        raise ValueError(f"sills and heights must be (N,) arrays of one length, got shapes {sills.shape} and "
+                         f"{heights.shape}")
     if not np.all(np.isfinite(sills)):
         raise ValueError(f"sills must be finite, got {sills.tolist()}")
     if not np.all(np.isfinite(heights) & (heights > 0)):

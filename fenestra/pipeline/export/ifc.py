@@ -17,8 +17,11 @@ z = 0, the camera above the origin looking along +y). The file holds
                        its bottom-left exterior corner (x along the wall, z its up axis), Axis
                        (IfcPolyline along x) and Body = IfcExtrudedAreaSolid of an
                        IfcRectangleProfileDef footprint (length x thickness) extruded up by its
-                       height; IfcWallType "Photographed wall" with an IfcMaterialLayerSet (one
-                       "Wall" layer, WALL_THICKNESS_M) -> IfcMaterialLayerSetUsage on the wall;
+                       height (not the façade rectangle extruded through the thickness: a wall's
+                       IfcMaterialLayerSetUsage lays its layers along the footprint's y, AXIS2, the
+                       form BIM tools take as a parametric wall); IfcWallType "Photographed wall"
+                       with an IfcMaterialLayerSet (one "Wall" layer, WALL_THICKNESS_M) ->
+                       IfcMaterialLayerSetUsage on the wall;
                        Qto_WallBaseQuantities (Length, Height, Width, GrossSideArea, NetSideArea =
                        gross - the openings' union, GrossVolume, NetVolume); Fenestra_Wall when given
     IfcCovering        CLADDING "Photo façade <wall>", COVERING_THICKNESS_M thick in front of the
