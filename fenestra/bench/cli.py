@@ -139,23 +139,31 @@ def gate(run_dirs: list[Path] = typer.Argument(..., help="run folders (results.p
     """Check runs against accuracy gates; exit 1 naming each violated metric, value and bound. With
     several runs (one profile, e.g. seeds 0, 1, 2: ``fenestra bench --seed``) every run must pass:
     the worst run decides, and --suggest bounds from the worst."""
-    from fenestra.bench.gates import DEFAULT_GATES, check, run_profile, suggest_gates  # noqa: PLC0415
+    from fenestra.bench.gates import DEFAULT_GATES, check, load_gates, run_profile, suggest_gates  # noqa: PLC0415
     from fenestra.bench.manifest import load_verified_results, require_complete  # noqa: PLC0415
     from fenestra.bench.results import summarize  # noqa: PLC0415
 
-    names = {run_profile(d) for d in run_dirs}
-    if profile is None and len(names) > 1:
-        raise ValueError(f"runs of different profiles {sorted(map(str, names))}: gate them one profile at a time")
+    def one_profile() -> str | None:
+        """The runs' profile (refusing runs of several), or --profile."""
+        if profile is not None or len(run_dirs) == 1:
+            return profile
+        names = {run_profile(d) for d in run_dirs}
+        if len(names) > 1:
+            raise ValueError(f"runs of different profiles {sorted(map(str, names))}: gate them one profile at a time")
+        return names.pop()
+
     if suggest:
         if not (math.isfinite(margin) and margin >= 0):
             raise ValueError(f"--margin must be a finite number >= 0, got {margin}")
         for d in run_dirs:
             require_complete(d)
-        name = profile or names.pop()
+        name = one_profile() or run_profile(run_dirs[0])
         typer.echo(suggest_gates([summarize(load_verified_results(d)) for d in run_dirs], name, margin), nl=False)
         return
 
-    violations = [(d, v) for d in run_dirs for v in check(d, gates or DEFAULT_GATES, profile=profile)]
+    bounds = load_gates(gates or DEFAULT_GATES)  # a bad gates file is named before any run is read
+    name = one_profile()
+    violations = [(d, v) for d in run_dirs for v in check(d, bounds, profile=name)]
     if violations:
         for d, v in violations:
             typer.echo(f"GATE FAILED {v}" + (f" (run {d})" if len(run_dirs) > 1 else ""), err=True)

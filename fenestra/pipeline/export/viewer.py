@@ -301,9 +301,10 @@ def write_viewer(out: str | Path, doc: dict, files: dict[str, str], max_glb_byte
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f:
-            f.write(parts[0].encode("utf-8"))
+            # a file name that is not UTF-8 (surrogate-escaped) shows as U+FFFD / "?", never fails the page
+            f.write(parts[0].encode("utf-8", "replace"))
             f.write(parts[1])
-            f.write(parts[2].encode("utf-8"))
+            f.write(parts[2].encode("utf-8", "replace"))
 
     return write_atomic(out / PAGE, write)
 
