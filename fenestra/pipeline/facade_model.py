@@ -75,7 +75,9 @@ class Known:
 class WallModel:
     """One façade plane: id, members (window indices), normal (3,) camera frame (the window z axis,
     outward), distance_m (of the plane from the camera), scale_source (how its size was set),
-    assumed (True when from the default), merged_from (the wall fit's wall ids it joins)."""
+    assumed (True when from the default), merged_from (the wall fit's wall ids it joins),
+    partial (the windows cut by the photo's border placed on it afterwards: :func:`place_partials`;
+    they set none of the above)."""
 
     id: int
     members: tuple[int, ...]
@@ -84,11 +86,17 @@ class WallModel:
     scale_source: str
     assumed: bool
     merged_from: tuple[int, ...]
+    partial: tuple[int, ...] = ()
+
+    @property
+    def windows(self) -> tuple[int, ...]:
+        """Every window on the wall: its members, then its partial windows."""
+        return (*self.members, *self.partial)
 
     def to_json(self) -> dict:
         return {"id": self.id, "members": list(self.members), "normal": self.normal.tolist(),
                 "distance_m": self.distance_m, "scale_source": self.scale_source, "assumed": self.assumed,
-                "merged_from": list(self.merged_from)}
+                "merged_from": list(self.merged_from), "partial": list(self.partial)}
 
 
 @dataclass(frozen=True)
@@ -99,7 +107,8 @@ class FacadeModel:
     flags: dict
 
     def wall_of(self, index: int) -> WallModel | None:
-        return next((w for w in self.walls if index in w.members), None)
+        """The wall window ``index`` is on (a member or a partial window), or None."""
+        return next((w for w in self.walls if index in w.windows), None)
 
 
 def _posed(r: WindowResult) -> bool:
@@ -287,3 +296,172 @@ def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[l
     for k in flags:
         out[k] = replace(out[k], uncertainty=_widened(out[k].uncertainty))
     return out, FacadeModel(walls, flags)
+
+
+# ---------------------------------------------------------------- windows cut by the photo's border (issue 35)
+#
+# A window whose mask reaches the photo's edge has no corners of its own there: its quad, pose and
+# size as a whole window are unknown (the quad stage's ``touches_border``). Its visible part is
+# still a window of the model: the quad of the visible part (pipeline.reconstruct.visible_quads)
+# is placed on a wall the whole windows made, after that wall's pose, scale and statistics are
+# set, so it never biases them. Its corners' rays meet the wall's plane; the rectangle around
+# those points in the wall's axes is its visible extent.
+
+PARTIAL_VP_DEG = 5.0  # a partial window's own sides point at its wall's vanishing points within this (not snapped)
+EDGE_TOL_PX = 1.0  # a quad side with both ends within this of one image edge line is that edge (a cut side)
+
+
+def own_sides(quad: np.ndarray, image_size: tuple[int, int], tol_px: float = EDGE_TOL_PX) -> tuple[int, ...]:
+    """The sides of a visible quad (4, 2) px (TL TR BR BL; side k runs from corner k to corner
+    k + 1: 0 top, 1 right, 2 bottom, 3 left) that are the window's own: not along an image edge
+    (the lines x = -0.5, x = W - 0.5, y = -0.5, y = H - 0.5 of a (W, H) image, both ends within
+    ``tol_px``)."""
+    W, H = image_size
+    q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
+    near = np.abs(np.stack([q[:, 0] + 0.5, q[:, 0] - (W - 0.5), q[:, 1] + 0.5, q[:, 1] - (H - 0.5)], axis=1)) <= tol_px
+    return tuple(k for k in range(4) if not np.any(near[k] & near[(k + 1) % 4]))
+
+
+def side_misfit_deg(quad: np.ndarray, sides: tuple[int, ...], R: np.ndarray, K: np.ndarray,
+                    noise_px: float | None = None) -> float:
+    """How far (deg) the quad's (4, 2) px sides ``sides`` (:func:`own_sides` numbering) miss the
+    vanishing points of a wall with axes R (3, 3) (camera frame: the top and bottom sides run along
+    R[:, 0], the left and right ones along R[:, 1]) beyond the angle ``noise_px`` (default: the
+    wall fit's corner noise) makes on each side's length: the largest over the sides, -inf for none."""
+    from fenestra.pipeline.walls.settings import WALL_FIT  # noqa: PLC0415
+    from fenestra.pipeline.walls.vanishing import side_angles_to_vp  # noqa: PLC0415
+
+    noise = WALL_FIT.corner_noise_px if noise_px is None else noise_px
+    q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
+    worst = -np.inf
+    for k in sides:
+        seg = np.array([[q[k], q[(k + 1) % 4]]])
+        vp = np.asarray(K, dtype=np.float64) @ np.asarray(R, dtype=np.float64)[:, 0 if k in (0, 2) else 1]
+        allow = np.degrees(np.arctan2(2.0 * noise, max(float(np.linalg.norm(seg[0, 1] - seg[0, 0])), 1e-9)))
+        worst = max(worst, float(side_angles_to_vp(seg, vp)[0]) - allow)
+    return worst
+
+
+def plane_points(px: np.ndarray, K: np.ndarray, normal: np.ndarray, distance_m: float) -> np.ndarray | None:
+    """Where the rays of pixels px (N, 2) meet the plane normal . X = -distance_m (camera frame;
+    normal (3,) unit, pointing to the camera's side): (N, 3) m, or None when a ray misses it in
+    front of the camera (parallel to it, or meeting it behind)."""
+    p = np.asarray(px, dtype=np.float64).reshape(-1, 2)
+    rays = np.column_stack([p, np.ones(len(p))]) @ np.linalg.inv(np.asarray(K, dtype=np.float64)).T
+    den = rays @ np.asarray(normal, dtype=np.float64)
+    if np.any(den >= -1e-12):
+        return None
+    return rays * (-float(distance_m) / den)[:, None]
+
+
+def visible_extent(quad: np.ndarray, K: np.ndarray, R: np.ndarray, distance_m: float
+                   ) -> tuple[np.ndarray, float, float] | None:
+    """The visible extent of a quad (4, 2) px on the wall plane R[:, 2] . X = -distance_m (camera
+    frame, m): the rectangle, in the wall's axes (R[:, 0] along, R[:, 1] up), around the points
+    where the corners' rays meet the plane. Returns (t (3,): its bottom-left corner, camera frame
+    m; width m; height m), or None when a ray misses the plane (:func:`plane_points`)."""
+    R = np.asarray(R, dtype=np.float64)
+    X = plane_points(quad, K, R[:, 2], distance_m)
+    if X is None:
+        return None
+    a, b = X @ R[:, 0], X @ R[:, 1]  # coordinates along and up the wall (its foot -distance_m R[:, 2] is at 0, 0)
+    t = -float(distance_m) * R[:, 2] + a.min() * R[:, 0] + b.min() * R[:, 1]
+    return t, float(np.ptp(a)), float(np.ptp(b))
+
+
+def partial_wall(quad: np.ndarray, image_size: tuple[int, int], results: list[WindowResult], walls: list[WallModel],
+                 K: np.ndarray) -> WallModel | str:
+    """The wall a visible quad (4, 2) px belongs on, or a one-line reason why none: of the walls
+    whose vanishing points its own sides (:func:`own_sides`) point at within PARTIAL_VP_DEG
+    (:func:`side_misfit_deg`, a wall's axes: its first member's R), the nearest in the image (to
+    the convex hull of its members' snapped quads)."""
+    from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415
+
+    if not walls:
+        return "no wall of whole windows in the photo to place it on"
+    sides = own_sides(quad, image_size)
+    if not sides:
+        return "none of its sides is its own (all along the photo's edges)"
+    misfit = [side_misfit_deg(quad, sides, results[w.members[0]].R, K) for w in walls]
+    fits = [w for w, m in zip(walls, misfit) if m <= PARTIAL_VP_DEG]
+    if not fits:
+        best = int(np.argmin(misfit))
+        return (f"its sides point at no wall's vanishing points (nearest: wall {walls[best].id}, "
+                f"{misfit[best]:.1f} deg beyond the noise > {PARTIAL_VP_DEG:g} deg)")
+    centre = np.asarray(quad, dtype=np.float64).reshape(4, 2).mean(axis=0)[None]
+    near = [float(hull_distance(centre, np.array([results[k].quad_snapped for k in w.members]))[0]) for w in fits]
+    return fits[int(np.argmax(near))]
+
+
+def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall: WallModel | str,
+                  R_wall: np.ndarray | None, K: np.ndarray) -> WindowResult:
+    """Window ``r`` (its whole-window failure in ``r.failure``) as a partial window with visible
+    quad (4, 2) px and ``cut`` sides: on ``wall`` (with axes R_wall (3, 3)), its visible extent
+    (:func:`visible_extent`) as its pose and size, its reprojected quad that rectangle's; or, for a
+    reason (a str) instead of a wall or a ray that misses the wall's plane, failed at stage
+    ``wall`` with that reason."""
+    from fenestra.conventions import project  # noqa: PLC0415
+    from fenestra.pipeline.types import Failure, Partial  # noqa: PLC0415
+
+    q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
+    part = Partial(tuple(cut), r.failure)
+    extent = None if isinstance(wall, str) else visible_extent(q, K, R_wall, wall.distance_m)
+    if extent is None:
+        why = wall if isinstance(wall, str) else f"a corner's ray misses wall {wall.id}'s plane"
+        return replace(r, quad_mask=q, quad_snapped=q, partial=part,
+                       failure=Failure("wall", f"partial window (cut by the photo's {', '.join(cut)} edge): {why}"))
+    t, w, h = extent
+    R = np.asarray(R_wall, dtype=np.float64)
+    rect = np.array([[0.0, h, 0.0], [w, h, 0.0], [w, 0.0, 0.0], [0.0, 0.0, 0.0]])  # TL TR BR BL, window frame
+    return replace(r, quad_mask=q, quad_snapped=q, aspect_ratio=w / h, aspect_case=None, focal_estimate_px=None,
+                   R=R, t=t, height_m=h, quad_reprojected=project(K, R, t, rect), failure=None, wall=wall.id,
+                   uncertainty=None, partial=part)
+
+
+def partial_flags(r: WindowResult, wall: WallModel, known: Known) -> list[str]:
+    """Why a placed partial window should not become a BIM window: only the absolute size limits
+    of its wall (:func:`size_limits`) on its visible extent (it is no window shape, and it is
+    compared with no median)."""
+    max_h, max_w, why_max = size_limits(known, wall.assumed)
+    h, w = float(r.height_m), float(r.aspect_ratio) * float(r.height_m)
+    return ([f"size: visible height {h:.3g} m above {max_h:.3g} m ({why_max})"] if h > max_h else []) + \
+           ([f"size: visible width {w:.3g} m above {max_w:.3g} m ({why_max})"] if w > max_w else [])
+
+
+def place_partials(results: list[WindowResult], model: FacadeModel, visible: dict, K: np.ndarray,
+                   image_size: tuple[int, int], known: Known = Known()) -> tuple[list[WindowResult], FacadeModel]:
+    """The windows cut by the photo's border placed on the façade model's walls, after them.
+
+    results, model: :func:`facade_model`'s (left as they are: a new list and model are returned);
+    visible: {window index: pipeline.quad.QuadResult of its visible part}
+    (pipeline.reconstruct.visible_quads); only windows that failed at the quad stage are placed
+    (a geometry that failed as a whole keeps its failure). K (3, 3) px: the K used; image_size
+    (W, H) px. A window whose visible part is a quadrilateral and has a wall
+    (:func:`partial_wall`) gets its visible extent there (:func:`place_partial`) and joins the
+    wall's ``partial`` windows, flagged only by :func:`partial_flags`; otherwise it fails with a
+    one-line reason (stage ``quad``: its visible part is no quadrilateral; ``wall``: no wall).
+    Either way its ``partial`` holds the cut sides. No wall's pose, scale, members or flags change.
+    """
+    from fenestra.pipeline.types import Failure, Partial  # noqa: PLC0415
+
+    out, flags = list(results), dict(model.flags)
+    placed: dict[int, list[int]] = {}
+    walls = [w for w in model.walls if w.members]
+    for k in sorted(visible):
+        r, qr = out[k], visible[k]
+        if r.failure is None or r.failure.stage != "quad" or not qr.cut:
+            continue
+        if qr.quad is None:
+            out[k] = replace(r, partial=Partial(tuple(qr.cut), r.failure),
+                             failure=Failure("quad", f"{r.failure.reason}; its visible part: {qr.failure}"))
+            continue
+        wall = partial_wall(qr.quad, image_size, out, walls, K)
+        R_wall = None if isinstance(wall, str) else out[wall.members[0]].R
+        out[k] = place_partial(r, qr.quad, qr.cut, wall, R_wall, K)
+        if out[k].failure is None:
+            placed.setdefault(wall.id, []).append(k)
+            why = partial_flags(out[k], wall, known)
+            if why:
+                flags[k] = why
+    new_walls = [replace(w, partial=tuple(placed.get(w.id, ()))) for w in model.walls]
+    return out, FacadeModel(new_walls, flags)

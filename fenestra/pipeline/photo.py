@@ -196,8 +196,8 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
 def aspect_interval(w: WindowResult, envelope: dict[int, tuple[float, float]]) -> list[float] | None:
     """A window's aspect interval: its fit's 90 % interval (widened when flagged) joined with its
     aspect ratios at the ends of the focal interval (pipeline.session.focal_envelope); None for a
-    failed window."""
-    if w.failure is not None or w.aspect_ratio is None:
+    failed window and for a partial one (its visible extent's w/h is not the window's)."""
+    if w.failure is not None or w.aspect_ratio is None or w.partial is not None:
         return None
     unc = w.uncertainty
     vals = [w.aspect_ratio, *(() if unc is None else (unc.aspect_lo, unc.aspect_hi)), *envelope.get(w.index, ())]
@@ -218,8 +218,9 @@ def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], e
     place): ``K``, ``K_source``, ``image_size``, ``config``, ``walls``, ``scale``, ``windows`` (per
     window its stage results plus ``plausible``, ``flags``, ``scale_source``, ``scale_assumed``,
     ``K_source``, ``aspect_interval``, ``confidence``, ``exported``: the export decision, None when
-    no model is made (``export`` False), ``not_exported``: why not), ``warnings`` (the photo's, the
-    focal chain's), ``geometry_failure``."""
+    no model is made (``export`` False), ``not_exported``: why not; ``partial`` and ``cut``: a
+    window cut by the photo's edges, its fields those of its visible part), ``warnings`` (the
+    photo's, the focal chain's), ``geometry_failure``."""
     from fenestra.pipeline.reconstruct import windows_to_json  # noqa: PLC0415
 
     model = rec.model
@@ -266,7 +267,7 @@ def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dic
         info = {w["index"]: w for w in doc["windows"]}
         try:
             paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=exclude,
-                                  walls={k: w.id for w in model.walls for k in w.members},
+                                  walls={k: w.id for w in model.walls for k in w.windows},
                                   properties={k: window_properties(info[k]) for k in info},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False)
         except (PipelineError, ValueError, OSError) as e:
@@ -310,13 +311,16 @@ def overlay_header(doc: dict) -> list[str]:
 def wall_properties(w) -> dict:
     """The Fenestra property set of one fitted wall (IFC)."""
     return {"ScaleSource": w.scale_source, "ScaleAssumed": bool(w.assumed), "DistanceM": float(w.distance_m),
-            "WindowCount": len(w.members)}
+            "WindowCount": len(w.windows)}
 
 
 def window_properties(w: dict) -> dict:
-    """The Fenestra property set of one window (IFC): confidence, aspect interval, K and scale sources."""
+    """The Fenestra property set of one window (IFC): confidence, aspect interval, K and scale
+    sources, and whether it is partial (cut by the photo's border: Partial, CutBy the edges, e.g.
+    "left" or "top, left"; its size is then its visible extent)."""
     lo, hi = w["aspect_interval"] or (None, None)
     return {"Confidence": float(w["confidence"]), "DetectionScore": float(w["score"]),
             "AspectRatio": w["aspect_ratio"], "AspectLow": lo, "AspectHigh": hi,
             "KSource": w["K_source"], "ScaleSource": w["scale_source"], "ScaleAssumed": w["scale_assumed"],
-            "Plausible": bool(w["plausible"]), "Flags": "; ".join(w["flags"]) or None}
+            "Plausible": bool(w["plausible"]), "Flags": "; ".join(w["flags"]) or None,
+            "Partial": bool(w["partial"]), "CutBy": ", ".join(w["cut"]) or None}

@@ -74,7 +74,9 @@ class QuadParams:
         component) are ignored (noise specks, as a network's masks have); larger ones make the
         mask fail with ``multiple_blobs`` (e.g. two windows in one mask).
     allow_border: if False, a mask touching the image border fails with ``touches_border``
-        (the window is cut by the image, its true corners are unknown).
+        (the window is cut by the image, its true corners are unknown); if True it is fitted like
+        any mask, the image edge one of its sides (the quad of the window's *visible* part), and
+        the edges it reaches are its result's ``cut`` (the session's partial windows).
     source: where the quad comes from: ``"mask"`` (:func:`mask_to_quad`), or ``"corners"``: the
         corners a detector with a corner head predicts (``Detection.corners``,
         :func:`corners_to_quad`), falling back to the mask fit for a detection without usable
@@ -116,13 +118,23 @@ class QuadResult:
         pointing out of the mask, in order top, right, bottom, left; None on failure.
     explained: fraction of outline points within ``inlier_px`` of a chosen line (0 if not fitted).
     failure: None, or ``"<code>: <detail>"`` with code in empty_mask, too_small, touches_border,
-        multiple_blobs, not_quadrilateral.
+        multiple_blobs, not_quadrilateral (:func:`failure_code`).
+    cut: the image edges the mask's blob reaches (of pipeline.types.CUT_SIDES, in that order; a
+        fit with ``allow_border`` only, else ()): the quad is then the *visible* part of the
+        window, its sides along those edges the image's edges.
     """
 
     quad: np.ndarray | None
     lines: np.ndarray | None
     explained: float
     failure: str | None
+    cut: tuple[str, ...] = ()
+
+
+def failure_code(reason: str | None) -> str | None:
+    """The code of a :class:`QuadResult` failure (``"touches_border"`` of
+    ``"touches_border: mask reaches ..."``), None for None."""
+    return None if reason is None else reason.split(":", 1)[0]
 
 
 def _fail(reason: str, explained: float = 0.0) -> QuadResult:
@@ -141,13 +153,21 @@ def check_mask(mask: np.ndarray, params: QuadParams = QuadParams()) -> tuple[np.
     margin where the image allows; on failure the crop is None. Raises ValueError for a mask that
     is not 2-D (a programming error, not a bad detection).
     """
+    m, origin, _, reason = _check_mask(mask, params)
+    return m, origin, reason
+
+
+def _check_mask(mask: np.ndarray, params: QuadParams) -> tuple[np.ndarray | None, tuple[int, int], tuple[str, ...],
+                                                              str | None]:
+    """:func:`check_mask`, with the image edges the blob reaches (pipeline.types.CUT_SIDES order)
+    as the third item."""
     mask = np.asarray(mask)
     if mask.ndim != 2:
         raise ValueError(f"mask must be 2-D (H, W), got shape {mask.shape}")
     full = (mask != 0).astype(np.uint8)
     x, y, w, h = cv2.boundingRect(full)
     if w == 0 or h == 0:
-        return None, (0, 0), "empty_mask: no foreground pixel"
+        return None, (0, 0), (), "empty_mask: no foreground pixel"
     H, W = full.shape
     x0, y0 = max(x - 1, 0), max(y - 1, 0)
     m = full[y0:min(y + h + 1, H), x0:min(x + w + 1, W)]
@@ -157,12 +177,12 @@ def check_mask(mask: np.ndarray, params: QuadParams = QuadParams()) -> tuple[np.
     big = np.flatnonzero(sizes > speck)
     if len(big) > 1:
         top = sorted(sizes[big].tolist(), reverse=True)[:4]
-        return None, (x0, y0), (f"multiple_blobs: {len(big)} components larger than "
-                                f"{speck:.0f} px (largest: {top} px)")
+        return None, (x0, y0), (), (f"multiple_blobs: {len(big)} components larger than "
+                                    f"{speck:.0f} px (largest: {top} px)")
     keep = 1 + int(np.argmax(sizes))
     area = int(sizes[keep - 1])
     if area < params.min_area_px:
-        return None, (x0, y0), f"too_small: {area} px < min_area_px={params.min_area_px}"
+        return None, (x0, y0), (), f"too_small: {area} px < min_area_px={params.min_area_px}"
     if len(sizes) > 1:
         m = (labels == keep).astype(np.uint8)
     bx, by, bw, bh = stats[keep, :4]
@@ -170,8 +190,8 @@ def check_mask(mask: np.ndarray, params: QuadParams = QuadParams()) -> tuple[np.
     sides = [name for name, touch in (("top", by == 0), ("bottom", by + bh == H), ("left", bx == 0),
                                       ("right", bx + bw == W)) if touch]
     if sides and not params.allow_border:
-        return None, (x0, y0), f"touches_border: mask reaches the image {', '.join(sides)} edge"
-    return m, (x0, y0), None
+        return None, (x0, y0), tuple(sides), f"touches_border: mask reaches the image {', '.join(sides)} edge"
+    return m, (x0, y0), tuple(sides), None
 
 
 def outline(m: np.ndarray) -> np.ndarray:
@@ -311,23 +331,27 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
     Returns a :class:`QuadResult`; failures are reported in ``failure``, never raised (except a
     mask that is not 2-D: ValueError).
     """
-    m, origin, reason = check_mask(mask, params)
+    m, origin, cut, reason = _check_mask(mask, params)
     if reason is not None:
         return _fail(reason)
+
+    def fail(reason: str, explained: float = 0.0) -> QuadResult:  # a failure of a visible part keeps its cut
+        return QuadResult(quad=None, lines=None, explained=explained, failure=reason, cut=cut)
+
     P = outline(m) + np.asarray(origin, dtype=np.float64)
     N = len(P)
     inlier_px = max(params.inlier_px, params.inlier_rel * float(np.sqrt(np.count_nonzero(m))))
     lines = _choose_lines(P, params, inlier_px)
     if lines is None:
-        return _fail("not_quadrilateral: fewer than four distinct lines on the outline")
+        return fail("not_quadrilateral: fewer than four distinct lines on the outline")
     lines, assign = _refit(P, lines, radius=inlier_px)
     counts = np.bincount(assign[assign >= 0], minlength=4)
     explained = float(counts.sum()) / N
     if explained < params.min_explained:
-        return _fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
+        return fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
                      f"< min_explained={params.min_explained:.0%}", explained)
     if counts.min() < 3:  # no line to speak of, whatever its length
-        return _fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
+        return fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
                      f"< min_side_frac={params.min_side_frac:.0%}", explained)
     # order the lines around the contour: circular mean of the outline index of their points
     ang = 2.0 * np.pi * np.arange(N) / N
@@ -342,20 +366,20 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
         lines[k, 2] += edge_offset_px(lines[k, :2])
     corners = np.array([intersect(lines[k], lines[(k + 1) % 4]) for k in range(4)])
     if not np.all(np.isfinite(corners)):
-        return _fail("not_quadrilateral: two neighbouring sides are parallel", explained)
+        return fail("not_quadrilateral: two neighbouring sides are parallel", explained)
     lines, corners = _refit_short_sides(P, lines, corners, _fit_windows(P, params)[0], inlier_px, params)
     reason = _side_support(corners, counts, N, params)
     if reason is not None:
-        return _fail(reason, explained)
+        return fail(reason, explained)
     # each corner must lie near the outline (a triangle's fourth 'side' puts a corner far away)
     size = np.sqrt(float(m.sum()))
     gap = np.min(np.linalg.norm(P[None] - corners[:, None], axis=2), axis=1)
     if gap.max() > max(4.0, 0.15 * size):
-        return _fail(f"not_quadrilateral: a corner lies {gap.max():.1f} px from the outline", explained)
+        return fail(f"not_quadrilateral: a corner lies {gap.max():.1f} px from the outline", explained)
     quad = order_corners(corners)
     if not _is_convex(quad):
-        return _fail("not_quadrilateral: the four lines give a non-convex quad", explained)
-    return QuadResult(quad=quad, lines=_lines_in_corner_order(lines, quad), explained=explained, failure=None)
+        return fail("not_quadrilateral: the four lines give a non-convex quad", explained)
+    return QuadResult(quad=quad, lines=_lines_in_corner_order(lines, quad), explained=explained, failure=None, cut=cut)
 
 
 def _refit_short_sides(P: np.ndarray, lines: np.ndarray, corners: np.ndarray, window: int,

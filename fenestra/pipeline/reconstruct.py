@@ -132,6 +132,21 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
     return fits
 
 
+def visible_quads(detections: list[Detection], fits: list[QuadFit], params: QuadParams,
+                  image_shape: tuple[int, int]) -> dict[int, QuadResult]:
+    """{detection index: the quad of its visible part} for every detection whose fit in ``fits``
+    (:func:`fit_quads` with ``params``) failed with ``touches_border``: the mask fitted again with
+    the image edge allowed as a side (``allow_border``, the mask as the source: predicted corners
+    of a cut window are guesses beyond the photo); its ``cut`` names the image edges, its
+    ``failure`` why even the visible part is no quadrilateral (a pentagon where an edge crosses a
+    corner). image_shape: (H, W). Pure; the session caches it per detector and quad parameters."""
+    from fenestra.pipeline.quad import failure_code  # noqa: PLC0415
+
+    border = replace(params, allow_border=True, source="mask")
+    return {i: fit_sparse(det, border, image_shape) for i, (det, fit) in enumerate(zip(detections, fits))
+            if fit.result is not None and failure_code(fit.result.failure) == "touches_border"}
+
+
 def corner_fallback(det: Detection, failed: QuadResult) -> QuadResult:
     """The detection's predicted corners as its quad where the mask fit ``failed`` to find a
     quadrilateral (``not_quadrilateral``: a ragged or notched learned mask) and they describe the
@@ -308,6 +323,7 @@ def window_to_dict(r: WindowResult) -> dict:
         "quad_reprojected": _list(r.quad_reprojected),
         "failure": None if r.failure is None else str(r.failure), "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
         "wall": r.wall, "uncertainty": None if r.uncertainty is None else r.uncertainty.to_json(),
+        "partial": r.partial is not None, "cut": [] if r.partial is None else list(r.partial.cut),
     }
 
 

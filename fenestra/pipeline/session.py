@@ -6,14 +6,24 @@
     rec.resolved         # the K used and where it came from (pipeline.intrinsics.ResolvedK)
     rec.model            # walls, their scales and the implausible windows (pipeline.facade_model)
     rec.exported         # {detection index: True/False}: what goes into the BIM model
+    rec.whole(i)         # window i as a whole window (a partial window: its whole-window failure)
 
 The CLI makes one session per photo and runs one method; the bench makes one per view and runs
 every method of its profile, then measures the rows. Both get the same answer for the same method,
 because both go through :meth:`PhotoSession.run`: the detector at the CLI's resolution
 (pipeline.detectors.detect), the quad fit, snapping, aspect ratio and pose, the focal chain when
 the method has no K (EXIF, vanishing points, prior: pipeline.intrinsics), the façade model (one
-plane and one scale per wall: pipeline.facade_model) and the export decision
-(pipeline.export.split_results).
+plane and one scale per wall: pipeline.facade_model), the windows cut by the photo's border placed
+on those walls afterwards (their visible part: pipeline.facade_model.place_partials) and the export
+decision (pipeline.export.split_results).
+
+Partial windows (issue 35). A detection whose mask reaches the photo's edge fails the quad stage
+(``touches_border``: its corners there are not in the photo), so it takes no part in the geometry,
+the focal chain or the façade model's walls, scales and statistics. Its visible part is then
+fitted with the image edge allowed as a side (pipeline.reconstruct.visible_quads: the mask fit with
+``allow_border``, the quad of what the photo shows, not snapped) and placed on the wall its sides
+point along, with that wall's pose and scale (its visible extent on the wall's plane); with no such
+wall it stays a recorded failure. ``WindowResult.partial`` says which edges cut it.
 
 The session owns what the methods on one photo share, each computed once: the gray image, its line
 segments (pipeline.segments.SegmentCache), the step memo (pipeline.memo.StepMemo), each detector's
@@ -31,13 +41,13 @@ import numpy as np
 
 from fenestra.errors import PipelineError
 from fenestra.methods import Method
-from fenestra.pipeline.facade_model import FacadeModel, Known, facade_model
+from fenestra.pipeline.facade_model import FacadeModel, Known, facade_model, place_partials
 from fenestra.pipeline.intrinsics import ResolvedK
 from fenestra.pipeline.memo import StepMemo
 from fenestra.pipeline.poses import POSES
 from fenestra.pipeline.quad import QuadParams
 from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct_from_quads,
-                                           to_gray)
+                                           to_gray, visible_quads)
 from fenestra.pipeline.segments import SegmentCache, to_uint8
 from fenestra.pipeline.types import Detection, Failure, WindowResult
 
@@ -75,7 +85,9 @@ class Reconstruction:
     pipeline.intrinsics.ResolvedK (``K``: the K used); model: pipeline.facade_model.FacadeModel;
     known: what set the scale; envelope: {index: (lo, hi)} aspect ratio at the ends of the focal
     interval; geometry_failure: Failure or None; not_exported: {index: reason} of every window that
-    stays out of the BIM model (failed, implausible unless export_all, unusable pose or size).
+    stays out of the BIM model (failed, implausible unless export_all, unusable pose or size);
+    unplaced: {index: the façade model's WindowResult} of the partial windows (``windows[i].partial``
+    set), before they were placed: their whole-window failure (:meth:`whole`).
     """
 
     method: Method
@@ -87,10 +99,18 @@ class Reconstruction:
     envelope: dict
     geometry_failure: Failure | None
     not_exported: dict
+    unplaced: dict = field(default_factory=dict)
 
     @property
     def K(self) -> np.ndarray:
         return self.resolved.K
+
+    def whole(self, index: int) -> WindowResult:
+        """Window ``index`` as a whole window: ``windows[index]``, or for a partial window (cut by
+        the photo's border) its result before its visible part was placed (failed at the quad
+        stage: its whole corners and size are not in the photo). What the bench measures a
+        window's geometry by; what is exported is ``windows[index]``."""
+        return self.unplaced.get(index, self.windows[index])
 
     @property
     def exported(self) -> dict[int, bool]:
@@ -182,6 +202,18 @@ class PhotoSession:
             self._tick("quad", t0)
         return self._quads[k]
 
+    def visible(self, detector: str, params: QuadParams) -> dict:
+        """{detection index: QuadResult of its visible part} of the detections cut by the photo's
+        border (pipeline.reconstruct.visible_quads of :meth:`quads`; cached per detector and quad
+        parameters)."""
+        k = ("visible", detector, params)
+        if k not in self._quads:
+            t0 = time.process_time()
+            self._quads[k] = visible_quads(self.detections(detector), self.quads(detector, params), params,
+                                           self.gray.shape)
+            self._tick("quad", t0)
+        return self._quads[k]
+
     def _per_window_results(self, detector: str, K: np.ndarray | None, cfg: ReconstructConfig) -> list:
         """reconstruct_from_quads with a per-window solver (``cfg.pose``), cached per detector, K,
         snapper, quad parameters and scale: the base every per-wall strategy starts from."""
@@ -256,15 +288,19 @@ class PhotoSession:
     def run(self, method: Method, known: Known = Known(), export_all: bool = False,
             style: str | None = None, height_m: float = 1.0) -> Reconstruction:
         """The method on this photo, as ``fenestra reconstruct`` runs it: geometry, façade model
-        with ``known``, and the export decision (flagged windows stay out unless export_all;
-        style: the catalogue window, None for the default)."""
+        with ``known``, the partial windows placed on its walls (pipeline.facade_model.place_partials),
+        and the export decision (flagged windows stay out unless export_all; style: the catalogue
+        window, None for the default)."""
         from fenestra.pipeline.export import DEFAULT_STYLE, split_results  # noqa: PLC0415
 
         g = self.geometry(method, height_m)
-        results, model = facade_model(list(g.results), known)
+        whole, model = facade_model(list(g.results), known)
+        visible = self.visible(method.detector, self.config(method, height_m).quad)
+        results, model = place_partials(whole, model, visible, g.resolved.K, self.size, known)
+        unplaced = {r.index: whole[r.index] for r in results if r.partial is not None}
         _, skipped = split_results(results, style or DEFAULT_STYLE, kept_out(model, export_all))
         return Reconstruction(method, tuple(self.detections(method.detector)), tuple(results), g.resolved, model,
-                              known, g.envelope, g.failure, {s["index"]: s["reason"] for s in skipped})
+                              known, g.envelope, g.failure, {s["index"]: s["reason"] for s in skipped}, unplaced)
 
     def _tick(self, stage: str, t0: float) -> None:
         self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.process_time() - t0

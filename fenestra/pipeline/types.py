@@ -56,6 +56,31 @@ class Failure:
         return f"{self.stage}: {self.reason}"
 
 
+CUT_SIDES = ("top", "bottom", "left", "right")  # the photo's edges that can cut a window
+
+
+@dataclass(frozen=True)
+class Partial:
+    """A window cut by the photo's border: only its visible part is in the photo.
+
+    cut: the photo's edges its mask reaches (one or more of :data:`CUT_SIDES`, in that order): the
+    window goes on beyond them, so its true corners and size there are unknown. whole_failure:
+    why the window as a whole has no geometry (the quad stage's ``touches_border``): what the bench
+    measures a window by, and what a partial window never feeds into its wall's pose, scale or
+    statistics (pipeline.facade_model.place_partials places it afterwards, its visible extent on
+    its wall's plane).
+    """
+
+    cut: tuple[str, ...]
+    whole_failure: Failure
+
+    def __post_init__(self) -> None:
+        if not self.cut or any(c not in CUT_SIDES for c in self.cut) or len(set(self.cut)) != len(self.cut):
+            raise ValueError(f"Partial.cut must be distinct sides of {CUT_SIDES}, at least one, got {self.cut!r}")
+        if list(self.cut) != sorted(self.cut, key=CUT_SIDES.index):
+            raise ValueError(f"Partial.cut must list its sides in the order of {CUT_SIDES}, got {self.cut!r}")
+
+
 @dataclass(frozen=True)
 class Detection:
     """One detected window void. mask: (H, W) bool; box: (4,) x0, y0, x1, y1 px; score in [0, 1].
@@ -122,6 +147,11 @@ class WindowResult:
     wall: index of the wall the window was grouped into (per-wall strategies, pipeline.walls),
     else None; uncertainty: its 90 % intervals (:class:`Uncertainty`, pipeline.walls.window_uncertainty),
     else None.
+    partial: None for a whole window; a :class:`Partial` for a window cut by the photo's border,
+    whose fields then describe its *visible* part: quad_mask = quad_snapped the visible quad (the
+    mask fit with the image edge as a side, not snapped), R its wall's axes, t, aspect_ratio and
+    height_m the visible extent on its wall's plane (pipeline.facade_model.place_partials), or a
+    ``failure`` (stage ``wall``) when it has no wall to be placed on.
     """
 
     index: int
@@ -140,6 +170,7 @@ class WindowResult:
     instance_id: int | None = None  # the detection's id in the input instance map, if any
     wall: int | None = None
     uncertainty: Uncertainty | None = None
+    partial: Partial | None = None
 
     @property
     def status(self) -> Status:

@@ -5,8 +5,11 @@ photo: with many windows its font shrinks, then its entries flow into more colum
 Colours (RGB, like the image): mask-fit quad yellow, snapped quad magenta, reprojected 3D window
 green (void outline at the facade and the frame's back outline, depth edges between), window axes
 x red, y green, z blue (length half the window height). Flagged (not exported) windows: orange
-quad; failed windows: red quad, or their detection box where no quad was found. Each window's
-number is drawn once where it is; its reason is in the panel.
+quad; failed windows: red quad, or their detection box where no quad was found. A partial window
+(cut by the photo's border: its visible part, ``WindowResult.partial``) has its visible quad drawn
+dashed, cyan when exported (orange or red like any flagged or failed window), and its panel line
+names the edges that cut it. Each window's number is drawn once where it is; its reason is in the
+panel.
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from fenestra.pipeline.types import WindowResult
 
 COLOURS = {"mask": (255, 220, 0), "snapped": (255, 0, 255), "reprojected": (0, 230, 0),
            "x": (255, 0, 0), "y": (0, 200, 0), "z": (0, 80, 255), "failed": (255, 40, 40),
-           "flagged": (255, 150, 0), "exported": (0, 230, 0)}
+           "flagged": (255, 150, 0), "exported": (0, 230, 0), "partial": (0, 220, 255)}
 _SHIFT = 4  # fractional bits for sub-pixel drawing
 
 
@@ -35,6 +38,16 @@ def _segment(img, a, b, colour, thick):
 
 def _poly(img, quad, colour, thick):
     cv2.polylines(img, [_pts(quad)], True, colour, thick, cv2.LINE_AA, _SHIFT)
+
+
+def _dashed(img, quad, colour, thick, dash_px: float):
+    """A closed quad (4, 2) px drawn dashed: dashes and gaps of ``dash_px`` along each side."""
+    q = np.asarray(quad, dtype=np.float64).reshape(-1, 2)
+    for a, b in zip(q, np.roll(q, -1, axis=0)):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / (2.0 * dash_px))))
+        for k in range(n):
+            s0, s1 = 2 * k / (2 * n), (2 * k + 1) / (2 * n)
+            _segment(img, a + s0 * (b - a), a + s1 * (b - a), colour, thick)
 
 
 def _text(img, s, at, colour, scale):
@@ -84,6 +97,9 @@ def _status(r: WindowResult, exclude: dict[int, str]) -> tuple[str, str]:
     placed = place(r)
     if isinstance(placed, str):
         return "failed", placed
+    if r.partial is not None:
+        return "exported", (f"partial, cut by the {', '.join(r.partial.cut)} edge: visible "
+                            f"{placed.width_m:.2f} x {placed.height_m:.2f} m")
     return "exported", f"{placed.width_m:.2f} x {placed.height_m:.2f} m, w/h {r.aspect_ratio:.3f}"
 
 
@@ -100,7 +116,8 @@ def _wrap(s: str, width: int) -> list[str]:
 
 MIN_PANEL_SCALE = 0.3  # the smallest panel font (cv2 Hershey scale) before the entries go into columns
 LEGEND = (("mask", "mask-fit quad"), ("snapped", "snapped quad"), ("reprojected", "exported window (3D)"),
-          ("flagged", "flagged: not exported"), ("failed", "failed"))
+          ("flagged", "flagged: not exported"), ("failed", "failed"),
+          ("partial", "partial (cut by the photo's edge): dashed"))
 
 
 def _metrics(width: int, scale: float) -> tuple[int, int, int]:
@@ -196,12 +213,16 @@ def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], 
     img[...] = image
     for r in results:
         kind, _ = _status(r, exclude)
-        if r.quad_mask is not None:
-            _poly(img, r.quad_mask, COLOURS["mask"], thick)
-        if r.quad_snapped is not None:
+        if r.partial is not None and r.quad_snapped is not None:  # its visible quad (the mask fit, not snapped)
+            _dashed(img, r.quad_snapped, COLOURS["partial" if kind == "exported" else kind], thick + 1, 6.0 * thick + 4.0)
+        elif r.quad_snapped is not None:
+            if r.quad_mask is not None:
+                _poly(img, r.quad_mask, COLOURS["mask"], thick)
             _poly(img, np.asarray(r.quad_snapped, dtype=np.float64), COLOURS["snapped"] if kind == "exported"
                   else COLOURS[kind], thick + (kind != "exported"))
-        elif r.quad_mask is None and r.index in boxes:
+        elif r.quad_mask is not None:
+            _poly(img, r.quad_mask, COLOURS["mask"], thick)
+        elif r.index in boxes:
             x0, y0, x1, y1 = boxes[r.index]
             _poly(img, np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64), COLOURS["failed"], thick)
         if kind == "exported":
