@@ -213,9 +213,12 @@ def test_visible_extent_recovers_wall_points_on_the_true_plane(scene):
     t_est, w, h = visible_extent(q, K, R, dist)
     assert w == pytest.approx(1.4, abs=1e-9) and h == pytest.approx(1.8, abs=1e-9)
     assert np.allclose(R.T @ (t_est - t), [-0.3, 0.4, 0.0], atol=1e-9)  # its bottom-left corner on the wall
-    assert own_sides(q, (W, H)) == (0, 1, 2, 3)
-    edge = np.array([[-0.5, 10.0], [50.0, 10.0], [50.0, 60.0], [-0.5, 60.0]])
-    assert own_sides(edge, (W, H)) == (0, 1, 2)  # the left side is the image's edge
+    assert own_sides(q, (), (W, H)) == (0, 1, 2, 3)
+    for x_bl in (-0.5, 1.5):  # the left side on the image's edge, or tilted off it by a learned mask's fit
+        edge = np.array([[-0.5, 10.0], [50.0, 10.0], [50.0, 60.0], [x_bl, 60.0]])
+        assert own_sides(edge, ("left",), (W, H)) == (0, 1, 2)
+    corner = np.array([[-0.5, -0.5], [50.0, -0.5], [50.0, 60.0], [-0.5, 60.0]])
+    assert own_sides(corner, ("top", "left"), (W, H)) == (1, 2)
 
 
 def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():

@@ -308,18 +308,20 @@ def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[l
 # those points in the wall's axes is its visible extent.
 
 PARTIAL_VP_DEG = 5.0  # a partial window's own sides point at its wall's vanishing points within this (not snapped)
-EDGE_TOL_PX = 1.0  # a quad side with both ends within this of one image edge line is that edge (a cut side)
 
 
-def own_sides(quad: np.ndarray, image_size: tuple[int, int], tol_px: float = EDGE_TOL_PX) -> tuple[int, ...]:
+def own_sides(quad: np.ndarray, cut: tuple[str, ...], image_size: tuple[int, int]) -> tuple[int, ...]:
     """The sides of a visible quad (4, 2) px (TL TR BR BL; side k runs from corner k to corner
-    k + 1: 0 top, 1 right, 2 bottom, 3 left) that are the window's own: not along an image edge
-    (the lines x = -0.5, x = W - 0.5, y = -0.5, y = H - 0.5 of a (W, H) image, both ends within
-    ``tol_px``)."""
+    k + 1: 0 top, 1 right, 2 bottom, 3 left) that are the window's own: all but, for each image
+    edge in ``cut`` (pipeline.types.CUT_SIDES names), the side whose ends lie nearest that edge's
+    line (x = -0.5, x = W - 0.5, y = -0.5 or y = H - 0.5 of a (W, H) image; a learned mask's fit
+    may tilt it a pixel or two off the edge)."""
     W, H = image_size
     q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
-    near = np.abs(np.stack([q[:, 0] + 0.5, q[:, 0] - (W - 0.5), q[:, 1] + 0.5, q[:, 1] - (H - 0.5)], axis=1)) <= tol_px
-    return tuple(k for k in range(4) if not np.any(near[k] & near[(k + 1) % 4]))
+    off = {"top": np.abs(q[:, 1] + 0.5), "bottom": np.abs(q[:, 1] - (H - 0.5)),
+           "left": np.abs(q[:, 0] + 0.5), "right": np.abs(q[:, 0] - (W - 0.5))}  # (4,) per corner
+    edge = {int(np.argmin(np.maximum(off[c], np.roll(off[c], -1)))) for c in cut}
+    return tuple(k for k in range(4) if k not in edge)
 
 
 def side_misfit_deg(quad: np.ndarray, sides: tuple[int, ...], R: np.ndarray, K: np.ndarray,
@@ -369,9 +371,10 @@ def visible_extent(quad: np.ndarray, K: np.ndarray, R: np.ndarray, distance_m: f
     return t, float(np.ptp(a)), float(np.ptp(b))
 
 
-def partial_wall(quad: np.ndarray, image_size: tuple[int, int], results: list[WindowResult], walls: list[WallModel],
-                 K: np.ndarray) -> WallModel | str:
-    """The wall a visible quad (4, 2) px belongs on, or a one-line reason why none: of the walls
+def partial_wall(quad: np.ndarray, cut: tuple[str, ...], image_size: tuple[int, int], results: list[WindowResult],
+                 walls: list[WallModel], K: np.ndarray) -> WallModel | str:
+    """The wall a visible quad (4, 2) px cut by the image edges ``cut`` belongs on, or a one-line
+    reason why none: of the walls
     whose vanishing points its own sides (:func:`own_sides`) point at within PARTIAL_VP_DEG
     (:func:`side_misfit_deg`, a wall's axes: its first member's R), the nearest in the image (to
     the convex hull of its members' snapped quads)."""
@@ -379,7 +382,7 @@ def partial_wall(quad: np.ndarray, image_size: tuple[int, int], results: list[Wi
 
     if not walls:
         return "no wall of whole windows in the photo to place it on"
-    sides = own_sides(quad, image_size)
+    sides = own_sides(quad, cut, image_size)
     if not sides:
         return "none of its sides is its own (all along the photo's edges)"
     misfit = [side_misfit_deg(quad, sides, results[w.members[0]].R, K) for w in walls]
@@ -455,7 +458,7 @@ def place_partials(results: list[WindowResult], model: FacadeModel, visible: dic
             out[k] = replace(r, partial=Partial(tuple(qr.cut), r.failure),
                              failure=Failure("quad", f"{r.failure.reason}; its visible part: {qr.failure}"))
             continue
-        wall = partial_wall(qr.quad, image_size, out, walls, K)
+        wall = partial_wall(qr.quad, qr.cut, image_size, out, walls, K)
         R_wall = None if isinstance(wall, str) else out[wall.members[0]].R
         out[k] = place_partial(r, qr.quad, qr.cut, wall, R_wall, K)
         if out[k].failure is None:

@@ -188,6 +188,19 @@ def _panel(height: int, width: int, results: list[WindowResult], exclude: dict[i
     return panel
 
 
+def _draw_quads(img, r: WindowResult, kind: str, boxes: dict[int, tuple], thick: int) -> None:
+    """A whole window's quads: mask fit (yellow), snapped (magenta, or its status colour), or its
+    detection box (a failed window without a quad)."""
+    if r.quad_mask is not None:
+        _poly(img, r.quad_mask, COLOURS["mask"], thick)
+    if r.quad_snapped is not None:
+        _poly(img, np.asarray(r.quad_snapped, dtype=np.float64), COLOURS["snapped"] if kind == "exported"
+              else COLOURS[kind], thick + (kind != "exported"))
+    elif r.quad_mask is None and r.index in boxes:
+        x0, y0, x1, y1 = boxes[r.index]
+        _poly(img, np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64), COLOURS["failed"], thick)
+
+
 def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], exclude: dict[int, str] | None = None,
                  boxes: dict[int, tuple] | None = None, header: list[str] | None = None) -> np.ndarray:
     """(H', W + panel, 3) uint8 RGB (H' >= H: taller when the panel needs it; the photo stays at the
@@ -213,20 +226,13 @@ def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], 
     img[...] = image
     for r in results:
         kind, _ = _status(r, exclude)
-        if r.partial is not None and r.quad_snapped is not None:  # its visible quad (the mask fit, not snapped)
-            _dashed(img, r.quad_snapped, COLOURS["partial" if kind == "exported" else kind], thick + 1, 6.0 * thick + 4.0)
-        elif r.quad_snapped is not None:
-            if r.quad_mask is not None:
-                _poly(img, r.quad_mask, COLOURS["mask"], thick)
-            _poly(img, np.asarray(r.quad_snapped, dtype=np.float64), COLOURS["snapped"] if kind == "exported"
-                  else COLOURS[kind], thick + (kind != "exported"))
-        elif r.quad_mask is not None:
-            _poly(img, r.quad_mask, COLOURS["mask"], thick)
-        elif r.index in boxes:
-            x0, y0, x1, y1 = boxes[r.index]
-            _poly(img, np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64), COLOURS["failed"], thick)
+        dashed = r.partial is not None and r.quad_snapped is not None  # its visible quad (the mask fit, not snapped)
+        if not dashed:
+            _draw_quads(img, r, kind, boxes, thick)
         if kind == "exported":
             _draw_3d(img, K, r, thick)
+        if dashed:  # over its reprojected 3D window, which runs along it
+            _dashed(img, r.quad_snapped, COLOURS["partial" if kind == "exported" else kind], thick + 1, 6.0 * thick + 4.0)
         anchor = next((np.asarray(q, dtype=np.float64).min(axis=0) for q in (r.quad_snapped, r.quad_mask)
                        if q is not None), np.asarray(boxes.get(r.index, (10.0, 30.0 + 20 * r.index))[:2], dtype=np.float64))
         _text(img, f"#{r.index}", anchor + [2, -4], COLOURS[kind], scale)
