@@ -167,7 +167,8 @@ def test_windows_json_the_ifc_pset_and_the_overlay_carry_the_flag(runs):
 
     out = runs["out"]
     saved = json.loads((out / "windows.json").read_text())
-    assert [(w["partial"], w["cut"]) for w in saved["windows"]] == [(w["partial"], w["cut"]) for w in runs["cut"]["windows"]]
+    flags = [(w["partial"], w["cut"]) for w in saved["windows"]]
+    assert flags == [(w["partial"], w["cut"]) for w in runs["cut"]["windows"]]
     partial = {w["index"] for w in saved["windows"] if w["partial"]}
     assert len(partial) == 2 and partial <= set(saved["export"]["exported"])
     f = ifcopenshell.open(str(out / "model.ifc"))

@@ -123,7 +123,8 @@ def measure(spb: Path, photos: list[Path], runs: Path, min_iou: float, classes: 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--spb", type=Path, default=SPB, help="a YOLO folder (images/, labels/): the spb_facades test photos")
+    ap.add_argument("--spb", type=Path, default=SPB,
+                    help="a YOLO folder (images/, labels/); default: the spb_facades test photos")
     ap.add_argument("--part", choices=("all", "val"), default="all",
                     help="every photo, or the validation part (every 5th by name) of a train folder")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "export-recall", help="where the run goes")

@@ -28,6 +28,12 @@ window size, WALL_RATIO times it), when it is taller than a known storey, when i
 wall's plane, or when it stands alone in a plane of its own while the façade has a wall of several
 windows (a right-angled side wall shows several). Flagged windows keep their geometry; their
 intervals widen by FLAG_WIDEN.
+
+Partial windows (issue 35). A window cut by the photo's border takes no part in the above: after
+the walls are set, :func:`place_partials` puts its visible part on the wall whose vanishing points
+its own sides point at (PARTIAL_VP_DEG; the nearest such wall in the image), with that wall's pose
+and scale, as the rectangle around its visible part on the wall's plane (:func:`visible_extent`);
+it is flagged only by the absolute size limits, and without such a wall it stays a failure.
 """
 from __future__ import annotations
 
@@ -35,8 +41,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fenestra.conventions import rotation_error_deg
-from fenestra.pipeline.types import Uncertainty, WindowResult
+from fenestra.conventions import project, rotation_error_deg
+from fenestra.pipeline.types import Failure, Partial, Uncertainty, WindowResult
 
 DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
 MERGE_DEG = 5.0  # walls whose rotations differ by less are one façade plane
@@ -374,10 +380,9 @@ def visible_extent(quad: np.ndarray, K: np.ndarray, R: np.ndarray, distance_m: f
 def partial_wall(quad: np.ndarray, cut: tuple[str, ...], image_size: tuple[int, int], results: list[WindowResult],
                  walls: list[WallModel], K: np.ndarray) -> WallModel | str:
     """The wall a visible quad (4, 2) px cut by the image edges ``cut`` belongs on, or a one-line
-    reason why none: of the walls
-    whose vanishing points its own sides (:func:`own_sides`) point at within PARTIAL_VP_DEG
-    (:func:`side_misfit_deg`, a wall's axes: its first member's R), the nearest in the image (to
-    the convex hull of its members' snapped quads)."""
+    reason why none: of the walls whose vanishing points its own sides (:func:`own_sides`) point at
+    within PARTIAL_VP_DEG (:func:`side_misfit_deg`; a wall's axes: its first member's R), the
+    nearest in the image (to the convex hull of its members' snapped quads)."""
     from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415
 
     if not walls:
@@ -403,9 +408,6 @@ def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall:
     (:func:`visible_extent`) as its pose and size, its reprojected quad that rectangle's; or, for a
     reason (a str) instead of a wall or a ray that misses the wall's plane, failed at stage
     ``wall`` with that reason."""
-    from fenestra.conventions import project  # noqa: PLC0415
-    from fenestra.pipeline.types import Failure, Partial  # noqa: PLC0415
-
     q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
     part = Partial(tuple(cut), r.failure)
     extent = None if isinstance(wall, str) else visible_extent(q, K, R_wall, wall.distance_m)
@@ -445,8 +447,6 @@ def place_partials(results: list[WindowResult], model: FacadeModel, visible: dic
     one-line reason (stage ``quad``: its visible part is no quadrilateral; ``wall``: no wall).
     Either way its ``partial`` holds the cut sides. No wall's pose, scale, members or flags change.
     """
-    from fenestra.pipeline.types import Failure, Partial  # noqa: PLC0415
-
     out, flags = list(results), dict(model.flags)
     placed: dict[int, list[int]] = {}
     walls = [w for w in model.walls if w.members]

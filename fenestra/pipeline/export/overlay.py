@@ -232,7 +232,8 @@ def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], 
         if kind == "exported":
             _draw_3d(img, K, r, thick)
         if dashed:  # over its reprojected 3D window, which runs along it
-            _dashed(img, r.quad_snapped, COLOURS["partial" if kind == "exported" else kind], thick + 1, 6.0 * thick + 4.0)
+            colour = COLOURS["partial" if kind == "exported" else kind]
+            _dashed(img, r.quad_snapped, colour, thick + 1, 6.0 * thick + 4.0)
         anchor = next((np.asarray(q, dtype=np.float64).min(axis=0) for q in (r.quad_snapped, r.quad_mask)
                        if q is not None), np.asarray(boxes.get(r.index, (10.0, 30.0 + 20 * r.index))[:2], dtype=np.float64))
         _text(img, f"#{r.index}", anchor + [2, -4], COLOURS[kind], scale)
