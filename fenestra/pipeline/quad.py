@@ -349,10 +349,10 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
     explained = float(counts.sum()) / N
     if explained < params.min_explained:
         return fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
-                     f"< min_explained={params.min_explained:.0%}", explained)
+                    f"< min_explained={params.min_explained:.0%}", explained)
     if counts.min() < 3:  # no line to speak of, whatever its length
         return fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
-                     f"< min_side_frac={params.min_side_frac:.0%}", explained)
+                    f"< min_side_frac={params.min_side_frac:.0%}", explained)
     # order the lines around the contour: circular mean of the outline index of their points
     ang = 2.0 * np.pi * np.arange(N) / N
     pos = [np.angle(np.exp(1j * ang[assign == k]).mean()) for k in range(4)]
