@@ -19,7 +19,7 @@ from fenestra.conventions import DEFAULTS
 from fenestra.reports.compare import CompareError, compare_runs
 from fenestra.tolerances import TOL
 from synthetic_results import synthetic_results
-from test_reports_browser import Browser, find_browser
+from test_reports_browser import PAGE_STATE, Browser, find_browser
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = DEFAULTS.label
@@ -160,7 +160,7 @@ def test_the_page_loads_in_chromium_with_its_figure(runs, tmp_path):
     paths, *_ = runs
     page = tmp_path / "compare.html"
     CliRunner().invoke(app, ["compare", str(paths["A"]), str(paths["B"]), "--html", str(page)])
-    b = Browser(find_browser(), tmp_path / "chromium-profile")
+    b = Browser(find_browser(), tmp_path / "chromium-profile", PAGE_STATE)
     try:
         state = b.open(page.as_uri())
     finally:
