@@ -9,6 +9,8 @@ the VOIDS table, never with the exporter's helpers.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import json
 import math
 
@@ -131,6 +133,20 @@ def test_the_sill_offset_is_at_most_the_typical_window_height():
         assert lv.sill_height_m == pytest.approx(expected)
         assert lv.row_of == {0: 0, 1: 0, 2: 1}
         assert lv.elevations_m[1] - lv.elevations_m[0] == pytest.approx(4.0 * h)
+
+
+def test_a_partial_window_joins_a_row_and_never_starts_one():
+    """A window cut at the photo's bottom edge has a false sill (the edge): counted as a whole
+    window it would start a third storey row; as a partial one it joins the row its visible part
+    lies in, and the rows' sills come from the whole windows alone."""
+    level = np.diag([1.0, -1.0, -1.0])  # export z = window y: sill_z = y below
+    whole = [PlacedWindow(i, 1.0, 1.5, level, np.array([2.0 * i, -y, 10.0])) for i, y in enumerate((0.0, 0.1, 3.2, 3.3))]
+    cut = PlacedWindow(9, 1.0, 0.7, level, np.array([9.0, -4.0, 10.0]), partial=True)  # visible 4.0-4.7 m
+    as_whole = storey_levels(whole + [dataclasses.replace(cut, partial=False)])
+    assert as_whole.row_of[9] == 2 and len(as_whole.sills_m) == 3
+    lv = storey_levels(whole + [cut])
+    assert lv.row_of == {0: 0, 1: 0, 2: 1, 3: 1, 9: 1}
+    assert lv.sills_m == pytest.approx((0.05, 3.25))
 
 
 def test_size_class_and_union_area():

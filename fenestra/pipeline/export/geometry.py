@@ -75,6 +75,7 @@ class PlacedWindow:
     t: np.ndarray  # (3,) m
     world: np.ndarray = field(default_factory=CAMERA_TO_EXPORT.copy)  # (3, 3) camera -> export world
     offset: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) m, X_E = world @ X_C + offset
+    partial: bool = False  # cut by the photo's border: its visible part only (never sets a storey row)
 
     def to_camera(self, X: np.ndarray) -> np.ndarray:
         """Window-frame points (N, 3) m -> camera frame (N, 3) m."""
@@ -120,7 +121,7 @@ def place(result: WindowResult) -> PlacedWindow | str:
     w = float(result.aspect_ratio) * h
     if not (np.isfinite(w) and np.isfinite(h) and w > 0 and h > 0):
         return f"bad window size w={w}, h={h} (aspect_ratio={result.aspect_ratio}, height_m={result.height_m})"
-    pw = PlacedWindow(int(result.index), w, h, R, t)
+    pw = PlacedWindow(int(result.index), w, h, R, t, partial=getattr(result, "partial", None) is not None)
     if np.any(pw.to_camera(pw.void_corners())[:, 2] <= 1e-6):
         return "void is not in front of the camera"
     return pw
@@ -481,13 +482,23 @@ def storey_levels(placed: list[PlacedWindow], sill_height_m: float = SILL_HEIGHT
         raise ValueError(f"sill_height_m must be finite and non-negative, got {sill_height_m!r}")
     if not placed:
         return StoreyLevels({}, (), float(sill_height_m), 0.0)
-    sills = np.array([sill_z(pw) for pw in placed])
-    heights = np.array([pw.height_m for pw in placed])
+    whole = [pw for pw in placed if not pw.partial] or list(placed)  # a cut window's sill may be the photo's edge
+    sills = np.array([sill_z(pw) for pw in whole])
+    heights = np.array([pw.height_m for pw in whole])
     rows = storey_rows(sills, heights, tol_fraction)
     typical = float(np.median(heights))
     row_sills = tuple(float(np.median(sills[rows == r])) for r in range(int(rows.max()) + 1))
-    return StoreyLevels({pw.index: int(r) for pw, r in zip(placed, rows)}, row_sills,
-                        float(min(sill_height_m, typical)), float(tol_fraction) * typical)
+    row_of = {pw.index: int(r) for pw, r in zip(whole, rows)}
+    row_of.update({pw.index: partial_row(pw, row_sills, typical) for pw in placed if pw.index not in row_of})
+    return StoreyLevels(row_of, row_sills, float(min(sill_height_m, typical)), float(tol_fraction) * typical)
+
+
+def partial_row(pw: PlacedWindow, row_sills: tuple, typical_m: float) -> int:
+    """The row of a partial window (cut by the photo's border, so its sill or top may be the
+    photo's edge): the row whose window band [sill, sill + typical_m] (m, export world) has its
+    middle nearest the visible part's middle."""
+    mid = sill_z(pw) + 0.5 * pw.height_m
+    return int(np.argmin([abs(mid - (s + 0.5 * typical_m)) for s in row_sills]))
 
 
 def grounded(placed: list[PlacedWindow], levels: StoreyLevels) -> tuple[list[PlacedWindow], StoreyLevels]:
