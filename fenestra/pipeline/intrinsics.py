@@ -139,6 +139,55 @@ def read_exif_tags(path: str | Path) -> dict:
     return tags
 
 
+GPS_IFD = 0x8825  # EXIF GPS sub-IFD: 1/2 LatitudeRef/Latitude, 3/4 LongitudeRef/Longitude, 5/6 AltitudeRef/Altitude
+
+
+def _dms(value) -> float | None:
+    """Degrees from an EXIF (degrees, minutes, seconds) triple of numbers or rationals; None if not one."""
+    if not isinstance(value, (tuple, list)) or len(value) != 3:
+        return None
+    parts = []
+    for v in value:
+        try:
+            x = float(v[0]) / float(v[1]) if isinstance(v, (tuple, list)) and len(v) == 2 else float(v)
+        except (TypeError, ValueError, ZeroDivisionError):
+            return None
+        if not (np.isfinite(x) and x >= 0):
+            return None
+        parts.append(x)
+    return parts[0] + parts[1] / 60.0 + parts[2] / 3600.0
+
+
+def gps_from_exif_tags(gps: dict) -> dict | None:
+    """{"latitude_deg", "longitude_deg", "altitude_m" (or None)} from an EXIF GPS IFD {tag: value}
+    (north and east positive, altitude below sea level negative), or None when the photo gives no
+    latitude and longitude, or ones outside [-90, 90] / [-180, 180] degrees."""
+    lat, lon = _dms(gps.get(2)), _dms(gps.get(4))
+    if lat is None or lon is None:
+        return None
+    lat = -lat if str(gps.get(1, "N")).upper().startswith("S") else lat
+    lon = -lon if str(gps.get(3, "E")).upper().startswith("W") else lon
+    if abs(lat) > 90.0 or abs(lon) > 180.0:
+        return None
+    alt = exif_number(gps.get(6)) if gps.get(6) not in (0, 0.0) else 0.0
+    if alt is not None and gps.get(5) in (1, b"\x01"):
+        alt = -alt
+    return {"latitude_deg": float(lat), "longitude_deg": float(lon), "altitude_m": None if alt is None else float(alt)}
+
+
+def gps_from_exif(path: str | Path) -> dict | None:
+    """The photo file's EXIF position (:func:`gps_from_exif_tags`), or None."""
+    from PIL import Image  # noqa: PLC0415
+
+    from fenestra.pipeline.io import pil_open  # noqa: PLC0415
+
+    try:
+        with pil_open(path) as im:
+            return gps_from_exif_tags(dict(im.getexif().get_ifd(GPS_IFD)))
+    except (OSError, ValueError, Image.DecompressionBombError):
+        return None
+
+
 def focal_from_exif(path: str | Path, image_size: tuple[int, int]) -> tuple[float, str] | None:
     """(focal px, how) from the photo file's EXIF, or None; PipelineError for one outside the
     physical range (:func:`focal_from_exif_tags`). Note: FocalPlaneXResolution refers to the

@@ -184,7 +184,9 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     rec = session.run(method_of(options, masks is not None), options.known, options.export_all, options.substitute)
     del session, instances  # export needs neither the gray copies nor the instance map (a 100 Mpx photo: 0.5 GB each)
     doc = reconstruction_json(rec, size, warnings + intrinsics_warnings(rec.K, size), options.export)
-    doc.update(photo=str(photo), undistorted=bool(camera is not None and camera.has_distortion),
+    from fenestra.pipeline.intrinsics import gps_from_exif  # noqa: PLC0415
+
+    doc.update(photo=str(photo), gps=gps_from_exif(photo), undistorted=bool(camera is not None and camera.has_distortion),
                distortion=None if camera is None or camera.distortion is None else camera.distortion.tolist())
     if out is not None:
         with staged_dir(Path(out), force, inputs) as tmp:
@@ -269,7 +271,8 @@ def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dic
             paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=exclude,
                                   walls={k: w.id for w in model.walls for k in w.windows},
                                   properties={k: window_properties(info[k]) for k in info},
-                                  wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False)
+                                  wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False,
+                                  gps=gps_tuple(doc.get("gps")))
         except (PipelineError, ValueError, OSError) as e:
             report["failure"] = f"{type(e).__name__}: {e}"
         else:
@@ -285,6 +288,14 @@ def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dic
             w["exported"] = w["index"] in report["exported"]
     report["files"]["viewer"] = write_viewer(out, {**doc, "export": report}, report["files"]).name  # index.html
     return report
+
+
+def gps_tuple(gps: dict | None) -> tuple | None:
+    """windows.json's ``gps`` (from the photo's EXIF) as export's (latitude deg, longitude deg[, altitude m])."""
+    if not gps:
+        return None
+    alt = gps.get("altitude_m")
+    return (gps["latitude_deg"], gps["longitude_deg"]) + (() if alt is None else (alt,))
 
 
 def detection_boxes(detections: list[Detection]) -> dict[int, tuple[int, int, int, int]]:
