@@ -139,7 +139,8 @@ def read_exif_tags(path: str | Path) -> dict:
     return tags
 
 
-GPS_IFD = 0x8825  # EXIF GPS sub-IFD: 1/2 LatitudeRef/Latitude, 3/4 LongitudeRef/Longitude, 5/6 AltitudeRef/Altitude
+GPS_IFD = 0x8825  # EXIF GPS sub-IFD: 1/2 LatitudeRef/Latitude, 3/4 LongitudeRef/Longitude, 5/6 AltitudeRef/Altitude,
+# 16/17 ImgDirectionRef ("T" true, "M" magnetic)/ImgDirection (the view's heading, deg clockwise)
 
 
 def _dms(value) -> float | None:
@@ -159,9 +160,10 @@ def _dms(value) -> float | None:
 
 
 def gps_from_exif_tags(gps: dict) -> dict | None:
-    """{"latitude_deg", "longitude_deg", "altitude_m" (or None)} from an EXIF GPS IFD {tag: value}
-    (north and east positive, altitude below sea level negative), or None when the photo gives no
-    latitude and longitude, or ones outside [-90, 90] / [-180, 180] degrees."""
+    """{"latitude_deg", "longitude_deg", "altitude_m", "heading_deg"} from an EXIF GPS IFD {tag:
+    value} (north and east positive, altitude below sea level negative; heading: GPSImgDirection
+    when its reference is true north, degrees clockwise; each None when absent), or None when the
+    photo gives no latitude and longitude, or ones outside [-90, 90] / [-180, 180] degrees."""
     lat, lon = _dms(gps.get(2)), _dms(gps.get(4))
     if lat is None or lon is None:
         return None
@@ -172,7 +174,10 @@ def gps_from_exif_tags(gps: dict) -> dict | None:
     alt = exif_number(gps.get(6)) if gps.get(6) not in (0, 0.0) else 0.0
     if alt is not None and gps.get(5) in (1, b"\x01"):
         alt = -alt
-    return {"latitude_deg": float(lat), "longitude_deg": float(lon), "altitude_m": None if alt is None else float(alt)}
+    heading = exif_number(gps.get(17)) if gps.get(17) not in (0, 0.0) else 0.0
+    true_north = str(gps.get(16, "")).upper().startswith("T")  # a magnetic heading ("M") needs the declination
+    return {"latitude_deg": float(lat), "longitude_deg": float(lon), "altitude_m": None if alt is None else float(alt),
+            "heading_deg": float(heading) % 360.0 if heading is not None and true_north else None}
 
 
 def gps_from_exif(path: str | Path) -> dict | None:

@@ -291,11 +291,12 @@ def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dic
 
 
 def gps_tuple(gps: dict | None) -> tuple | None:
-    """windows.json's ``gps`` (from the photo's EXIF) as export's (latitude deg, longitude deg[, altitude m])."""
+    """windows.json's ``gps`` (from the photo's EXIF) as export's (latitude deg, longitude deg,
+    altitude m[, heading deg]) (altitude 0 when unknown)."""
     if not gps:
         return None
-    alt = gps.get("altitude_m")
-    return (gps["latitude_deg"], gps["longitude_deg"]) + (() if alt is None else (alt,))
+    alt, heading = gps.get("altitude_m"), gps.get("heading_deg")
+    return (gps["latitude_deg"], gps["longitude_deg"], alt or 0.0) + (() if heading is None else (heading,))
 
 
 def detection_boxes(detections: list[Detection]) -> dict[int, tuple[int, int, int, int]]:

@@ -197,16 +197,27 @@ def _new_file(name: str, levels: StoreyLevels, gps=None):
     return f, contexts, _storeys(f, building, levels)
 
 
-def _check_gps(gps) -> tuple[float, float, float]:
-    """(latitude deg, longitude deg, elevation m) from a (lat, lon) or (lat, lon, elevation) tuple;
-    ValueError naming it when out of range."""
+def _check_gps(gps) -> tuple[float, float, float, float | None]:
+    """(latitude deg, longitude deg, elevation m, heading deg or None) from a (lat, lon),
+    (lat, lon, elevation) or (lat, lon, elevation, heading) tuple, heading the camera's view
+    direction in degrees clockwise from true north; ValueError naming it when out of range."""
     try:
         values = [float(v) for v in gps]
     except (TypeError, ValueError):
         values = []
-    if len(values) not in (2, 3) or not all(np.isfinite(values)) or abs(values[0]) > 90 or abs(values[1]) > 180:
-        raise ValueError(f"gps must be (latitude deg, longitude deg[, elevation m]) within +-90 / +-180, got {gps!r}")
-    return values[0], values[1], values[2] if len(values) == 3 else 0.0
+    if len(values) not in (2, 3, 4) or not all(np.isfinite(values)) or abs(values[0]) > 90 or abs(values[1]) > 180:
+        raise ValueError(f"gps must be (latitude deg, longitude deg[, elevation m[, heading deg]]) within +-90 / "
+                         f"+-180, got {gps!r}")
+    return (values[0], values[1], values[2] if len(values) > 2 else 0.0,
+            values[3] % 360.0 if len(values) > 3 else None)
+
+
+def grid_convergence_deg(lat_deg: float, lon_deg: float) -> float:
+    """UTM grid convergence (deg): the angle from true north to grid north at a WGS84 point, to
+    first order atan(tan(lon - lon0) sin(lat)) with lon0 its zone's central meridian."""
+    zone = int((lon_deg + 180.0) // 6.0) % 60 + 1
+    dlon = math.radians(lon_deg - (-183.0 + 6.0 * zone))
+    return math.degrees(math.atan(math.tan(dlon) * math.sin(math.radians(lat_deg))))
 
 
 def utm(lat_deg: float, lon_deg: float) -> tuple[int, float, float]:
@@ -231,16 +242,25 @@ def utm(lat_deg: float, lon_deg: float) -> tuple[int, float, float]:
 
 def _georeference(f, site, model_context, gps) -> None:
     """The site's RefLatitude/RefLongitude/RefElevation and an IfcMapConversion of the model's
-    origin to its UTM coordinates (no rotation: the photo gives no compass heading, so the model's
-    +y, the camera's heading, is taken as grid north; XAxisAbscissa 1, XAxisOrdinate 0)."""
-    lat, lon, elevation = _check_gps(gps)
+    origin to its UTM coordinates. The model's +y is the camera's heading: with a heading (degrees
+    clockwise from true north, e.g. EXIF GPSImgDirection) the context's TrueNorth is
+    (-sin h, cos h) and the map conversion's x axis is the model's x in grid coordinates (h less
+    the grid convergence, plus 90 degrees); without one, +y is taken as grid north (XAxisAbscissa
+    1, XAxisOrdinate 0) and no TrueNorth is written."""
+    lat, lon, elevation, heading = _check_gps(gps)
     site.RefLatitude = ifcopenshell.util.geolocation.dd2dms(lat, use_us=True)
     site.RefLongitude = ifcopenshell.util.geolocation.dd2dms(lon, use_us=True)
     site.RefElevation = float(elevation)
     epsg, easting, northing = utm(lat, lon)
     zone = f"{epsg % 100}{'N' if lat >= 0 else 'S'}"
     crs = f.createIfcProjectedCRS(f"EPSG:{epsg}", f"WGS 84 / UTM zone {zone}", "WGS84", None, "UTM", zone, None)
-    f.createIfcMapConversion(model_context, crs, easting, northing, float(elevation), 1.0, 0.0, None)
+    x_axis = (1.0, 0.0)
+    if heading is not None:
+        h = math.radians(heading)
+        model_context.TrueNorth = f.createIfcDirection((-math.sin(h), math.cos(h)))
+        g = math.radians(heading - grid_convergence_deg(lat, lon))  # the heading's grid bearing
+        x_axis = (math.cos(g), -math.sin(g))  # the model's x (heading + 90 deg) as (easting, northing)
+    f.createIfcMapConversion(model_context, crs, easting, northing, float(elevation), *x_axis, None)
 
 
 def _photo_covering(f, body, storey, K, wall, wall_pw: PlacedWindow, voids: list, layout: TextureLayout, texture,
