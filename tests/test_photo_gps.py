@@ -35,6 +35,8 @@ def test_gps_tags_by_hand():
     assert g["latitude_deg"] == pytest.approx(LAT, abs=1e-9) and g["longitude_deg"] == pytest.approx(LON, abs=1e-9)
     assert g["altitude_m"] == pytest.approx(-12.5) and g["heading_deg"] == pytest.approx(120.0)
     north = gps_from_exif_tags({1: "N", 2: ((52, 1), (30, 1), (0, 1)), 3: "E", 4: (13.0, 24.0, 0.0), 16: "M", 17: 30.0})
+    assert gps_from_exif_tags({**GPS, 6: 0, 17: 0.0})["altitude_m"] == 0.0  # sea level, due north: 0, not unknown
+    assert gps_from_exif_tags({**GPS, 17: 0.0})["heading_deg"] == 0.0
     assert north == {"latitude_deg": 52.5, "longitude_deg": 13.4, "altitude_m": None, "heading_deg": None}  # magnetic
     assert gps_from_exif_tags({}) is None
     assert gps_from_exif_tags({1: "N", 2: (95.0, 0.0, 0.0), 3: "E", 4: (1.0, 0.0, 0.0)}) is None  # no such latitude

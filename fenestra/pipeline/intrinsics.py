@@ -159,6 +159,16 @@ def _dms(value) -> float | None:
     return parts[0] + parts[1] / 60.0 + parts[2] / 3600.0
 
 
+def _exif_non_negative(value) -> float | None:
+    """:func:`exif_number`, with 0 allowed (an altitude at sea level, a heading due north)."""
+    try:
+        if value is not None and float(value) == 0.0:
+            return 0.0
+    except (TypeError, ValueError, ZeroDivisionError):
+        pass
+    return exif_number(value)
+
+
 def gps_from_exif_tags(gps: dict) -> dict | None:
     """{"latitude_deg", "longitude_deg", "altitude_m", "heading_deg"} from an EXIF GPS IFD {tag:
     value} (north and east positive, altitude below sea level negative; heading: GPSImgDirection
@@ -171,10 +181,10 @@ def gps_from_exif_tags(gps: dict) -> dict | None:
     lon = -lon if str(gps.get(3, "E")).upper().startswith("W") else lon
     if abs(lat) > 90.0 or abs(lon) > 180.0:
         return None
-    alt = exif_number(gps.get(6)) if gps.get(6) not in (0, 0.0) else 0.0
+    alt = _exif_non_negative(gps.get(6))
     if alt is not None and gps.get(5) in (1, b"\x01"):
         alt = -alt
-    heading = exif_number(gps.get(17)) if gps.get(17) not in (0, 0.0) else 0.0
+    heading = _exif_non_negative(gps.get(17))
     true_north = str(gps.get(16, "")).upper().startswith("T")  # a magnetic heading ("M") needs the declination
     return {"latitude_deg": float(lat), "longitude_deg": float(lon), "altitude_m": None if alt is None else float(alt),
             "heading_deg": float(heading) % 360.0 if heading is not None and true_north else None}
