@@ -130,7 +130,131 @@ def test_focal_spread_and_focal_error_hand_computed():
     assert pe.dataset_summary(prior)["focal_err_median"] is None  # the prior observes nothing
     assert pe.dataset_summary(prior)["focal_err_median_all"] == pytest.approx(0.5)
     met = {t["key"]: t["met"] for t in pe.check_targets(fig)}
-    assert met == {"output_share": True, "focal_spread_median": False, "walls_median": True, "focal_err_median": True}
+    assert met == {"output_share": True, "focal_spread_median": False, "walls_median": True, "focal_err_median": True,
+                   "export_recall": False, "n_exported_oversized": True, "walls_stable_share": True}  # 0 of 1 label, 0 walls each
+
+
+def _sized(box, w_m, h_m, wall=0, partial=False, exported=True, index=0) -> dict:
+    return {**_win(box, exported), "index": index, "width_m": w_m, "height_m": h_m, "wall": wall, "partial": partial}
+
+
+def test_export_recall_counts_labels_matched_partial_windows_included():
+    view = _view([[0, 0, 10, 10], [20, 0, 30, 10], [40, 0, 50, 10]])
+    doc = {"windows": [_sized([0, 0, 10, 10], 1, 1),                        # label 0
+                       _sized([1, 0, 11, 10], 1, 1),                        # label 0 again: counted once
+                       _sized([25, 0, 30, 10], 0.5, 1, partial=True),       # partial: IoU 50/100 with label 1
+                       _sized([40, 0, 50, 10], 1, 1, exported=False)]}      # label 2, not exported
+    labels = [w.bbox() for w in view.windows]
+    assert pe.labels_matched(doc, labels, 0.3) == 2 and pe.labels_matched(doc, labels, 0.6) == 1
+    assert pe.labels_matched(doc, [], 0.3) == 0 and pe.labels_matched({"windows": []}, labels, 0.3) == 0
+    row = pe.photo_row(view, pe.AS_IS, {**doc, "walls": []}, None, 1.0, 0.3, True)
+    assert (row["n_exported"], row["n_exported_match"], row["n_labels_matched"], row["n_exported_partial"]) == (3, 3, 2, 1)
+    fig = pe.dataset_summary(pd.DataFrame([row, {**row, "photo": "q", "n_labels_matched": 0, "n_labelled": 5}]))
+    assert fig["export_recall"] == pytest.approx(2 / 8) and fig["n_labels_matched"] == 2
+    assert fig["export_precision"] == 1.0
+
+
+def test_oversized_and_taller_than_count_exported_windows_only():
+    doc = {"windows": [_sized([0, 0, 1, 1], 4.0, 1.0),              # exactly 4 m: not over
+                       _sized([0, 0, 1, 1], 4.01, 1.0),             # wide
+                       _sized([0, 0, 1, 1], 1.0, 5.0),              # tall
+                       _sized([0, 0, 1, 1], 1.0, 3.3),              # taller than a 3.2 m storey
+                       _sized([0, 0, 1, 1], 9.0, 9.0, exported=False),
+                       _sized([0, 0, 1, 1], None, 4.5),             # no width: its height counts
+                       _sized([0, 0, 1, 1], None, None)]}           # no size (failed): not counted
+    assert pe.MAX_WINDOW_M == 4.0  # the pipeline's own flag limit (facade_model)
+    assert pe.oversized(doc) == 3 and pe.oversized(doc, 3.0) == 5
+    assert pe.taller_than(doc, 3.2) == 3 and pe.taller_than(doc, 5.0) == 0
+
+
+def _manifest(up, rows=()) -> dict:
+    from fenestra.pipeline.export.geometry import camera_to_world
+
+    return {"world_frame": {"camera_to_export": camera_to_world(None if up is None else np.asarray(up, float)).tolist()},
+            "storeys": {"rows": [{"windows": list(r)} for r in rows]}}
+
+
+def test_wall_tilts_against_the_exported_vertical_hand_computed():
+    t = math.radians(3.0)
+    doc = {"walls": [{"id": 0, "normal": [0.0, 0.0, -1.0]},                      # plumb facing the camera
+                     {"id": 1, "normal": [0.0, math.sin(t), -math.cos(t)]},      # leaning 3 deg
+                     {"id": 2, "normal": [1.0, 0.0, 0.0]}],                      # no exported window: not in the model
+           "windows": [_sized([0, 0, 1, 1], 1, 1, wall=0), _sized([0, 0, 1, 1], 1, 1, wall=1),
+                       _sized([0, 0, 1, 1], 1, 1, wall=2, exported=False)]}
+    up = pe.export_up(_manifest([0.0, -1.0, 0.0]))
+    assert np.allclose(up, [0, -1, 0])
+    assert pe.wall_tilts_deg(doc, up) == pytest.approx([0.0, 3.0])
+    assert np.allclose(pe.export_up(_manifest(None)), [0, -1, 0])  # the camera-level fallback: the camera's -y
+    # a camera pitched 10 deg up: the model's vertical leans in the camera frame, and so does a plumb wall's normal
+    p = math.radians(10.0)
+    up_p = [0.0, -math.cos(p), math.sin(p)]
+    assert np.allclose(pe.export_up(_manifest(up_p)), up_p)
+    pitched = {**doc, "walls": [{"id": 0, "normal": [0.0, -math.sin(p), -math.cos(p)]}]}
+    assert pe.wall_tilts_deg(pitched, up_p) == pytest.approx([0.0], abs=1e-9)
+    assert pe.wall_tilts_deg(pitched, [0.0, -1.0, 0.0]) == pytest.approx([10.0])
+    row = pe.photo_row(_view([[0, 0, 1, 1]]), pe.AS_IS, {**doc, "K_source": {}}, None, 1.0, 0.3, True,
+                       manifest=_manifest([0.0, -1.0, 0.0]))
+    row2 = {**row, "photo": "q", "wall_tilts_deg": [1.0]}
+    fig = pe.dataset_summary(pd.DataFrame([row, row2, {**row, "photo": "r", "wall_tilts_deg": None}]))
+    assert fig["wall_tilt_median_deg"] == pytest.approx(1.0) and fig["wall_tilt_n_walls"] == 3
+    assert fig["wall_tilt_max_deg"] == pytest.approx(3.0)
+
+
+def test_row_spreads_of_whole_exported_windows():
+    doc = {"windows": [_sized([0, 0, 1, 1], 1, 1.0, index=0), _sized([0, 0, 1, 1], 1, 1.1, index=1),
+                       _sized([0, 0, 1, 1], 1, 1.2, index=2),                  # row 0: (1.2 - 1.0) / 1.1
+                       _sized([0, 0, 1, 1], 1, 0.4, index=3, partial=True),    # partial: its visible part, left out
+                       _sized([0, 0, 1, 1], 1, 1.5, index=4),
+                       _sized([0, 0, 1, 1], 1, 1.5, index=5),                  # row 1: 0
+                       _sized([0, 0, 1, 1], 1, 2.0, index=6),                  # row 2: alone, no spread
+                       _sized([0, 0, 1, 1], 1, 9.0, index=7, exported=False)]}
+    mf = _manifest(None, rows=[(0, 1, 2, 3), (4, 5, 7), (6,)])
+    assert pe.row_spreads(doc, mf) == pytest.approx([0.2 / 1.1, 0.0])
+    assert pe.row_spreads(doc, {"storeys": {"rows": []}}) == []
+
+
+def test_walls_stable_share_hand_computed():
+    rows = []
+    for photo, counts in (("a", {"as_is": 1, "gray": 1, "crop": 1}),      # stable
+                          ("b", {"as_is": 2, "gray": 2, "crop": 1}),      # crop differs
+                          ("c", {"as_is": 1, "gray": math.nan}),          # a failed run: not the same
+                          ("d", {"as_is": 3, "known_storey": 2}),         # no image transform: not counted
+                          ("e", {"as_is": 2, "mirror": 2})):              # stable
+        rows += [{"dataset": "d", "photo": photo, "transform": t, "n_walls": n} for t, n in counts.items()]
+    assert pe.walls_stable_share(pd.DataFrame(rows)) == (pytest.approx(2 / 4), 4)
+    assert pe.walls_stable_share(pd.DataFrame([rows[0]])) == (None, 0)  # as is only
+
+
+def test_known_storey_rows_give_the_storey_figures_not_a_focal_spread(tmp_path):
+    view = _view([[0, 0, 10, 10]])
+    ks = {"source": "vanishing points", "focal_px": 1000.0, "interval_px": [900.0, 1100.0]}
+    doc = {"K_source": ks, "walls": [{"id": 0, "normal": [0.0, 0.0, -1.0]}],
+           "windows": [_sized([0, 0, 10, 10], 1.0, 3.5, index=0), _sized([0, 0, 10, 10], 1.0, 1.5, index=1),
+                       _sized([0, 0, 10, 10], 1.0, 1.6, index=2)]}
+    mf = _manifest(None, rows=[(1, 2)])
+    rows = [pe.photo_row(view, pe.AS_IS, doc, None, 1.0, 0.3, True, manifest=mf),
+            pe.photo_row(view, pe.KNOWN_STOREY, {**doc, "K_source": {**ks, "focal_px": 1200.0}}, None, 1.0, 0.3, True,
+                         manifest=mf, known_storey_m=3.2)]
+    assert rows[0]["n_taller_than_storey"] != rows[0]["n_taller_than_storey"]  # NaN: no storey known as is
+    assert rows[1]["n_taller_than_storey"] == 1 and rows[1]["n_exported"] == 3
+    fig = pe.dataset_summary(pd.DataFrame(rows))
+    assert fig["known_storey_taller"] == 1 and fig["known_storey_m"] == 3.2 and fig["known_storey_n_photos"] == 1
+    assert fig["known_storey_row_spread_median"] == pytest.approx(0.1 / 1.55) and fig["known_storey_n_rows"] == 1
+    assert fig["n_photos"] == 1 and fig["n_exported"] == 3  # the as-is figures from the as-is row only
+    assert fig["focal_spread_by_transform"] == {} and fig["focal_spread_median"] is None
+    assert fig["walls_stable_share"] is None
+    met = {t["key"]: t["met"] for t in pe.check_targets(fig)}
+    assert met["known_storey_taller"] is False and met["known_storey_row_spread_median"] is False
+    assert met["n_exported_oversized"] is True and met["wall_tilt_median_deg"] is True
+    spec = pe.KfreeSpec(datasets=("d", "e"), known_storey_datasets=("d",), transform_datasets=("e",),
+                        transforms=("gray",), known_storey_m=3.0)
+    tasks = pe.kfree_tasks(spec, [view, LabelledView(dataset="e", name="q", image=view.image, windows=())], tmp_path)
+    assert [(t.view.dataset, t.transform) for t in tasks] == [("d", "as_is"), ("d", "known_storey"), ("e", "as_is"), ("e", "gray")]
+    assert [t.known_storey_m for t in tasks][1] == 3.0 and all(math.isnan(tasks[i].known_storey_m) for i in (0, 2, 3))
+    with pytest.raises(ValueError, match="known_storey_datasets"):
+        pe.KfreeSpec(datasets=("d",), known_storey_datasets=("x",))
+    with pytest.raises(ValueError, match="known_storey_m"):
+        pe.KfreeSpec(datasets=("d",), known_storey_m=0.0)
 
 
 def test_failed_run_counts_as_no_output():
@@ -171,15 +295,23 @@ def test_bench_real_reaches_the_kfree_block(tmp_path):
     prof = real_profile_from_dict({
         "name": "t", "kind": "real", "methods": {"detectors": ["oracle"], "snappers": ["none"], "pose_solvers": ["lm"]},
         "datasets": [{"name": "boxes", "format": "yolo", "path": str(ds)}],
-        "kfree": {"datasets": ["boxes"], "transform_datasets": ["boxes"], "transforms": ["mirror", "crop"]}})
+        "kfree": {"datasets": ["boxes"], "transform_datasets": ["boxes"], "transforms": ["mirror", "crop"],
+                  "known_storey_datasets": ["boxes"], "known_storey_m": 3.0}})
     info = run_benchmark(prof, out_dir=tmp_path / "run", progress=False, report=False)
     summary = json.loads((info.run_dir / "summary.json").read_text())
     block = summary["kfree"]
     df = pd.read_parquet(info.run_dir / pe.KFREE_PARQUET)
-    assert sorted(df["transform"]) == ["as_is", "crop", "mirror"] and "kfree" in info.stage_time_s
+    assert sorted(df["transform"]) == ["as_is", "crop", "known_storey", "mirror"] and "kfree" in info.stage_time_s
+    exported = df.set_index("transform")
+    for t in ("as_is", "known_storey"):  # exported: export.json was read (a list, maybe empty), not None
+        assert exported.loc[t, "wall_tilts_deg"] is not None and exported.loc[t, "row_spreads"] is not None
+    assert exported.loc["mirror", "wall_tilts_deg"] is None and exported.loc["known_storey", "known_storey_m"] == 3.0
     d = block["datasets"]["boxes"]
     assert d["n_photos"] == 1 and d["output_share"] == 1.0 and d["n_labelled"] == 1
     assert d["K_sources"] == {"prior": 1}  # noise: no vanishing point, no EXIF
+    assert d["known_storey_n_photos"] == 1 and d["known_storey_m"] == 3.0 and d["walls_stable_n_photos"] == 1
+    assert {"export_recall", "n_exported_oversized", "walls_stable_share"} <= {t["key"] for t in d["targets"]}
+    assert d["focal_spread_by_transform"].keys() == {"mirror", "crop"}  # the known storey is no transform
     # the prior is a field of view of the frame: mirrored the same focal length, cropped 144 / 160 of it
     assert d["focal_spread_by_transform"]["mirror"] == 0.0
     assert d["focal_spread_by_transform"]["crop"] == pytest.approx(1 - 144 / 160, abs=1e-9)
@@ -189,6 +321,7 @@ def test_bench_real_reaches_the_kfree_block(tmp_path):
     assert ["boxes", "photos with an output", 1.0, ">= 1", "yes"] in table[2]
     md = "\n".join(_kfree_section(collect_kfree(block)))
     assert "focal spread under the transforms" in md and "`boxes`" in md
+    assert "labelled windows exported (partial windows included)" in md and "`--known-storey 3`" in md
     assert math.isclose(collect_kfree(block)["datasets"]["boxes"]["focal_spread_median"], 0.1, rel_tol=1e-3)
 
 

@@ -480,12 +480,15 @@ def headline_table(results: dict) -> list[dict]:
 
 KFREE_PARQUET = "kfree.parquet"  # one row per photo per transform: dataset, photo, transform, focal_px, ...
 AS_IS = "as_is"  # the transform name of the photo as given
+# the "transform" of the photo as given, run with a known storey height (bench.photo_eval): not a
+# transform of the image, so not in the focal spread
+KNOWN_STOREY = "known_storey"
 
 
 def focal_spreads(df: pd.DataFrame) -> pd.DataFrame:
     """Per photo and transform: |f_t / f_as_is - 1| (rows of transforms with a focal length and an
-    as-is focal length); columns dataset, photo, transform, rel."""
+    as-is focal length; not the KNOWN_STOREY runs); columns dataset, photo, transform, rel."""
     base = df[df["transform"] == AS_IS].set_index(["dataset", "photo"]).focal_px
-    t = df[df["transform"] != AS_IS].copy()
+    t = df[~df["transform"].isin((AS_IS, KNOWN_STOREY))].copy()
     t["rel"] = [abs(f / base.get((d, p), math.nan) - 1) for d, p, f in zip(t.dataset, t.photo, t.focal_px)]
     return t[["dataset", "photo", "transform", "rel"]].dropna(subset=["rel"])

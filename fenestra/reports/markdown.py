@@ -38,6 +38,7 @@ from fenestra.methods import NO_K_SUFFIX
 from fenestra.tolerances import TOL
 from fenestra.pipeline.detectors import DETECTORS
 from fenestra.reports.lead import FEW_WINDOWS, PHOTO_METRICS, SIGNIFICANT_P, SIM_METRIC, ranks
+from fenestra.reports.kfree import KFREE_NOTES, counts
 from fenestra.reports.plots import main_pose
 
 FORMAT = 1
@@ -346,9 +347,21 @@ def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
             "kfree": collect_kfree(summary.get("kfree"))}
 
 
+# (the figures with a target are in "targets" only: docs/results/summary.json stays small)
 KFREE_FIGURES = ("n_photos", "output_share", "export_precision", "n_exported", "n_labelled", "windows_per_label",
                  "walls_median", "focal_spread_median", "focal_err_median", "focal_err_n_observed",
-                 "focal_err_median_all", "K_sources", "detections", "focal_spread_by_transform", "targets")
+                 "focal_err_median_all", "K_sources", "detections", "focal_spread_by_transform", "targets",
+                 "n_labels_matched", "n_exported_partial", "walls_stable_n_photos", "wall_tilt_max_deg",
+                 "wall_tilt_n_walls", "known_storey_m", "known_storey_n_photos", "known_storey_n_exported",
+                 "known_storey_n_rows")
+TARGET_FIELDS = ("key", "target", "value", "met")  # a target's words come from bench.photo_eval.TARGETS
+
+
+def target_words(t: dict) -> str:
+    """A K-free target's words: bench.photo_eval.TARGETS' for its key (an older summary's own words)."""
+    from fenestra.bench.photo_eval import TARGETS  # noqa: PLC0415
+
+    return next((w for k, _, _, w in TARGETS if k == t["key"]), t.get("words") or t["key"])
 
 
 def collect_kfree(block: dict | None) -> dict | None:
@@ -363,8 +376,13 @@ def collect_kfree(block: dict | None) -> dict | None:
             return [rnd(x) for x in v]
         return _r(v) if isinstance(v, float) else v
 
+    def fig(d: dict, k: str):
+        if k == "targets":
+            return [{f: rnd(t[f]) for f in TARGET_FIELDS} for t in d.get(k) or []]
+        return rnd(d.get(k))
+
     return {"spec": block["spec"], "wall_time_s": _r(block["wall_time_s"]), "n_runs": block["n_runs"],
-            "datasets": {n: {k: rnd(d.get(k)) for k in KFREE_FIGURES} for n, d in block["datasets"].items()}}
+            "datasets": {n: {k: fig(d, k) for k in KFREE_FIGURES} for n, d in block["datasets"].items()}}
 
 
 def _is_real_run(run_dir: Path) -> bool:
@@ -738,16 +756,18 @@ def _kfree_section(kf: dict | None) -> list[str]:
            f"({kf['n_runs']} runs, {kf['wall_time_s']:.0f} s); {', '.join(f'`{d}`' for d in spec['transform_datasets'])} "
            f"also under {', '.join(spec['transforms'])}. An exported window matches a label at box IoU >= "
            f"{spec['match_iou']:g}; focal spread: per photo the largest relative change of f under the transforms; "
-           "focal error: against the calibration, where f was observed (not the stated prior). The stated prior is a field of view of the frame, so a 10 % crop moves a prior focal length by 10 % by construction (without EXIF a crop cannot be told from a wider lens).", ""]
-    rows = [[f"`{n}`", t["words"], f"{t['value']:.3g}", t["target"], "yes" if t["met"] else "**no**"]
+           "focal error: against the calibration, where f was observed (not the stated prior). The stated prior is a field of view of the frame, so a 10 % crop moves a prior focal length by 10 % by construction (without EXIF a crop cannot be told from a wider lens). "
+           + KFREE_NOTES + (f" Run with the known storey: {', '.join(f'`{d}`' for d in spec['known_storey_datasets'])} as is with "
+                            f"`--known-storey {spec['known_storey_m']:g}`." if spec.get("known_storey_datasets") else ""), ""]
+    rows = [[f"`{n}`", target_words(t), f"{t['value']:.3g}", t["target"], "yes" if t["met"] else "**no**"]
             for n, d in kf["datasets"].items() for t in d["targets"]]
     out += _table(["dataset", "figure", "value", "target", "met"], rows) + [""]
     rows = [[f"`{n}`", ", ".join(d["detections"] or []), str(d["n_photos"]), ", ".join(f"{k} {v}" for k, v in d["K_sources"].items()),
-             f"{d['n_exported']} / {d['n_labelled']}",
+             *counts(d).values(),
              ", ".join(f"{k} {v:.3f}" for k, v in d["focal_spread_by_transform"].items()) or "-",
              "-" if d["focal_err_median_all"] is None else f"{d['focal_err_median_all']:.3f}"]
             for n, d in kf["datasets"].items()]
-    return out + _table(["dataset", "detections", "photos", "K sources", "exported / labelled windows",
+    return out + _table(["dataset", "detections", "photos", "K sources", *counts({}),
                          "focal spread per transform (median)", "focal error, all photos (median)"], rows) + [""]
 
 
