@@ -30,6 +30,7 @@ import pandas as pd
 
 from fenestra.bench.metrics import error_stats, recall_at
 from fenestra.files import REPO_ROOT, write_atomic, write_text
+from fenestra.pipeline.facade_model import MAX_WINDOW_M
 from fenestra.tolerances import TOL
 
 RESULTS_PARQUET = "results.parquet"
@@ -483,6 +484,24 @@ AS_IS = "as_is"  # the transform name of the photo as given
 # the "transform" of the photo as given, run with a known storey height (bench.photo_eval): not a
 # transform of the image, so not in the focal spread
 KNOWN_STOREY = "known_storey"
+
+
+# issue 35's targets of the K-free block: (summary key, comparison, value, words)
+KFREE_TARGETS: tuple[tuple[str, str, float, str], ...] = (
+    ("output_share", ">=", 1.0, "photos with an output"),
+    ("export_precision", ">=", 0.95, "exported windows that are labelled windows"),
+    ("export_recall", ">=", 0.8, "labelled windows exported (partial windows included)"),
+    ("n_exported_oversized", "<=", 0, f"exported windows over {MAX_WINDOW_M:g} m wide or tall (no --known-*)"),
+    ("focal_spread_median", "<=", 0.03, "focal spread under the transforms (median over photos)"),
+    ("walls_median", "<=", 2.0, "walls per photo (median)"),
+    ("walls_stable_share", ">=", 0.8, "photos with the same wall count under every transform"),
+    ("wall_tilt_median_deg", "<=", 2.0, "wall tilt from the model's vertical, deg (median over walls; "
+                                        "self-consistency: that vertical is the walls' own)"),
+    ("known_storey_taller", "<=", 0, "exported windows taller than the known storey (--known-storey)"),
+    ("known_storey_row_spread_median", "<=", 0.05, "window height spread within a row, --known-storey "
+                                                   "(median over rows)"),
+    ("focal_err_median", "<=", 0.03, "focal error vs calibration, K withheld (median where observed)"),
+)
 
 
 def focal_spreads(df: pd.DataFrame) -> pd.DataFrame:

@@ -32,7 +32,7 @@ from fenestra.files import REPO_ROOT
 from fenestra.bench.manifest import load_verified_results
 from fenestra.bench.paired import paired_comparison
 from fenestra.bench.real.simreal import method_medians, ranking
-from fenestra.bench.results import METRIC_ERRORS, summarize, summarize_method
+from fenestra.bench.results import KFREE_TARGETS, METRIC_ERRORS, summarize, summarize_method
 from fenestra.conventions import DEFAULTS, OBLIQUE_INCIDENCE_DEG, PAPER, THIN_ASPECT
 from fenestra.methods import NO_K_SUFFIX
 from fenestra.tolerances import TOL
@@ -354,14 +354,12 @@ KFREE_FIGURES = ("n_photos", "output_share", "export_precision", "n_exported", "
                  "n_labels_matched", "n_exported_partial", "walls_stable_n_photos", "wall_tilt_max_deg",
                  "wall_tilt_n_walls", "known_storey_m", "known_storey_n_photos", "known_storey_n_exported",
                  "known_storey_n_rows")
-TARGET_FIELDS = ("key", "target", "value", "met")  # a target's words come from bench.photo_eval.TARGETS
+TARGET_FIELDS = ("key", "target", "value", "met")  # a target's words come from bench.results.KFREE_TARGETS
 
 
 def target_words(t: dict) -> str:
-    """A K-free target's words: bench.photo_eval.TARGETS' for its key (an older summary's own words)."""
-    from fenestra.bench.photo_eval import TARGETS  # noqa: PLC0415
-
-    return next((w for k, _, _, w in TARGETS if k == t["key"]), t.get("words") or t["key"])
+    """A K-free target's words: bench.results.KFREE_TARGETS' for its key (an older summary's own words)."""
+    return next((w for k, _, _, w in KFREE_TARGETS if k == t["key"]), t.get("words") or t["key"])
 
 
 def collect_kfree(block: dict | None) -> dict | None:
