@@ -85,9 +85,9 @@ def test_every_transform_is_registered_and_pure():
 
 # ---------------------------------------------------------------- figures against hand-built truth
 
-def _view(boxes, K=None) -> LabelledView:
-    return LabelledView(dataset="d", name="p", image=_image(40, 50),
-                        windows=tuple(LabelledWindow(id=f"p:{i}", box=np.array(b, float)) for i, b in enumerate(boxes)),
+def _view(boxes, K=None, name="p") -> LabelledView:
+    return LabelledView(dataset="d", name=name, image=_image(40, 50),
+                        windows=tuple(LabelledWindow(id=f"{name}:{i}", box=np.array(b, float)) for i, b in enumerate(boxes)),
                         K=K)
 
 
@@ -124,14 +124,31 @@ def test_focal_spread_and_focal_error_hand_computed():
             for t, f in ((pe.AS_IS, 1020.0), ("gray", 1020.0 * 1.01), ("crop", 1020.0 * 0.95))]
     fig = pe.dataset_summary(pd.DataFrame(rows))
     assert fig["focal_spread_median"] == pytest.approx(0.05)
+    assert fig["focal_spread_observed_median"] == pytest.approx(0.05) and fig["focal_spread_n_observed"] == 1
     assert fig["focal_spread_by_transform"] == pytest.approx({"crop": 0.05, "gray": 0.01})
     assert fig["focal_err_median"] == pytest.approx(0.02) and fig["focal_err_n_observed"] == 1
     prior = pd.DataFrame([pe.photo_row(view, pe.AS_IS, doc(1500.0, "prior"), None, 1.0, 0.3, True)])
     assert pe.dataset_summary(prior)["focal_err_median"] is None  # the prior observes nothing
     assert pe.dataset_summary(prior)["focal_err_median_all"] == pytest.approx(0.5)
     met = {t["key"]: t["met"] for t in pe.check_targets(fig)}
-    assert met == {"output_share": True, "focal_spread_median": False, "walls_median": True, "focal_err_median": True,
+    assert met == {"output_share": True, "focal_spread_observed_median": False, "walls_median": True, "focal_err_median": True,
                    "export_recall": False, "n_exported_oversized": True, "walls_stable_share": True}  # 0 of 1 label, 0 walls each
+
+
+def test_focal_spread_target_counts_only_photos_the_vanishing_points_observed():
+    """A prior photo's crop moves f by the crop by construction: in the all-photo figure, not the target's."""
+    def rows(name, source, f, f_crop):
+        v = _view([[0, 0, 10, 10]], name=name)
+        return [pe.photo_row(v, t, {"K_source": {"source": source, "focal_px": x, "interval_px": [x, x]},
+                                    "walls": [], "windows": []}, None, 1.0, 0.3, True)
+                for t, x in ((pe.AS_IS, f), ("crop", f_crop))]
+
+    df = pd.DataFrame(rows("a", "prior", 1000.0, 900.0) + rows("b", "vanishing points", 800.0, 808.0)
+                      + rows("c", "prior", 500.0, 450.0))
+    fig = pe.dataset_summary(df)
+    assert fig["focal_spread_median"] == pytest.approx(0.1)  # 0.1, 0.01, 0.1
+    assert fig["focal_spread_observed_median"] == pytest.approx(0.01) and fig["focal_spread_n_observed"] == 1
+    assert {t["key"]: t["met"] for t in pe.check_targets(fig)}["focal_spread_observed_median"] is True
 
 
 def _sized(box, w_m, h_m, wall=0, partial=False, exported=True, index=0) -> dict:
@@ -320,7 +337,8 @@ def test_bench_real_reaches_the_kfree_block(tmp_path):
     table = next(sec for sec in sections if sec[0] == "table" and sec[1][:2] == ["dataset", "figure"])
     assert ["boxes", "photos with an output", 1.0, ">= 1", "yes"] in table[2]
     md = "\n".join(_kfree_section(collect_kfree(block)))
-    assert "focal spread under the transforms" in md and "`boxes`" in md
+    assert "crop 0.100, mirror 0.000" in md and "`boxes`" in md  # spread shown; no target: the prior observes nothing
+    assert "focal_spread_observed_median" not in {t["key"] for t in d["targets"]}
     assert "labelled windows exported (partial windows included)" in md and "`--known-storey 3`" in md
     assert math.isclose(collect_kfree(block)["datasets"]["boxes"]["focal_spread_median"], 0.1, rel_tol=1e-3)
 

@@ -511,6 +511,8 @@ def dataset_summary(df: pd.DataFrame) -> dict:
         "known_storey_row_spread_median": _med(rows), "known_storey_n_rows": len(rows),
         "K_sources": {str(k): int(v) for k, v in a.K_source.value_counts().sort_index().items()},
         "focal_spread_median": _med(per_photo) if len(per_photo) else None,
+        "focal_spread_observed_median": _med(per_photo[per_photo.index.isin(observed.photo)]) if len(per_photo) else None,
+        "focal_spread_n_observed": int(per_photo.index.isin(observed.photo).sum()),
         "focal_spread_by_transform": {t: _med(g.rel) for t, g in spread.groupby("transform")},
         "focal_err_median": _med(observed.focal_err_rel) if a.focal_true_px.notna().any() else None,
         "focal_err_n_observed": int(observed.focal_err_rel.notna().sum()),

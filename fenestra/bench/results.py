@@ -492,7 +492,8 @@ KFREE_TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("export_precision", ">=", 0.95, "exported windows that are labelled windows"),
     ("export_recall", ">=", 0.8, "labelled windows exported (partial windows included)"),
     ("n_exported_oversized", "<=", 0, f"exported windows over {MAX_WINDOW_M:g} m wide or tall (no --known-*)"),
-    ("focal_spread_median", "<=", 0.03, "focal spread under the transforms (median over photos)"),
+    ("focal_spread_observed_median", "<=", 0.03, "focal spread under the transforms, photos whose focal length the "
+                                                 "vanishing points observed (median)"),
     ("walls_median", "<=", 2.0, "walls per photo (median)"),
     ("walls_stable_share", ">=", 0.8, "photos with the same wall count under every transform"),
     ("wall_tilt_median_deg", "<=", 2.0, "wall tilt from the model's vertical, deg (median over walls; "

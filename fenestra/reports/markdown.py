@@ -349,7 +349,7 @@ def collect_real(real_dir: Path, sim_dir: Path | None) -> dict:
 
 # (the figures with a target are in "targets" only: docs/results/summary.json stays small)
 KFREE_FIGURES = ("n_photos", "output_share", "export_precision", "n_exported", "n_labelled", "windows_per_label",
-                 "walls_median", "focal_spread_median", "focal_err_median", "focal_err_n_observed",
+                 "walls_median", "focal_spread_median", "focal_spread_n_observed", "focal_err_median", "focal_err_n_observed",
                  "focal_err_median_all", "K_sources", "detections", "focal_spread_by_transform", "targets",
                  "n_labels_matched", "n_exported_partial", "walls_stable_n_photos", "wall_tilt_max_deg",
                  "wall_tilt_n_walls", "known_storey_m", "known_storey_n_photos", "known_storey_n_exported",
