@@ -41,3 +41,29 @@ def test_block_holds_the_run_figures_and_replaces_only_its_markers(tmp_path):
     log = tmp_path / "time.log"
     log.write_text("\tMaximum resident set size (kbytes): 2097152\n")
     assert timing.from_run(run, log)["run"]["peak_rss_mb"] == {"any_process (time -v)": 2048.0}
+
+
+def test_fresh_clone_row_and_agreement_with_the_cold_run(tmp_path):
+    fig = timing.from_run(_run(tmp_path))["run"]
+    doc = {"profile": "default", "cpus": 2, "cold": {**fig, "wall_s": 200.0}, "fresh_clone": {**fig, "wall_s": 226.0}}
+    assert timing.agreement(doc) == {"ratio": 1.13, "within": True, "limit": 0.15}
+    block = timing.markdown(doc, "python tools/timing.py --fresh-clone c")
+    assert "| `git clone`, `make setup`, then `/usr/bin/time make bench` | abcdef0 | 480 | 2 | 9000 | **226 s** |" in block
+    assert "1.13 x the wall time (within the +-15 %" in block
+    doc["fresh_clone"]["wall_s"] = 240.0  # 1.20: outside
+    assert not timing.agreement(doc)["within"] and "**outside**" in timing.markdown(doc, "c")
+    assert timing.agreement({"cold": fig}) is None
+
+
+def test_fresh_clone_must_be_a_clean_clone_of_head(tmp_path):
+    import subprocess
+
+    import pytest
+
+    other = tmp_path / "other"
+    subprocess.run(["git", "init", "-q", str(other)], check=True)
+    (other / "a").write_text("x")
+    subprocess.run(["git", "-C", str(other), "add", "a"], check=True)
+    subprocess.run(["git", "-C", str(other), "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "a"], check=True)
+    with pytest.raises(SystemExit, match=r"--fresh-clone .*other is at [0-9a-f]{7}, this checkout at"):
+        timing.check_clone(other)

@@ -13,6 +13,11 @@ per-view and per-window stage milliseconds, the machine's load average before an
 With ``--ray``, the cached-render run again on a local Ray cluster (a third run, its own folder).
 Each run also records its artefacts' sizes and its peak memory (summary.json ``peak_rss_mb``).
 
+``--fresh-clone DIR`` also measures what a new user meets: DIR is a ``git clone`` of this
+checkout's HEAD on which ``make setup`` ran (the tool refuses another commit or a dirty clone);
+``/usr/bin/time -v make bench`` runs there with the caches outside a checkout fresh in DIR/cache,
+and the block compares its wall time with the cold run's (agreement within FRESH_CLONE_AGREEMENT).
+
 ``--markdown docs/performance.md`` writes the figures as a Markdown block between the markers
 ``<!-- timing:begin -->`` and ``<!-- timing:end -->`` of that file (the docs' speed figures come
 from this command, never typed). ``--from-json out/timing.json`` takes the figures of an earlier
@@ -27,6 +32,7 @@ import dataclasses
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -105,8 +111,68 @@ def time_log_rss_mb(text: str) -> float | None:
     return None if m is None else int(m.group(1)) / 1024.0
 
 
+FRESH_CLONE_AGREEMENT = 0.15  # issue 34: a fresh clone's `make bench` and `make timing`'s cold run agree within 15 %
+
+
+def _git(clone: Path, *args: str) -> str:
+    return subprocess.run(["git", "-C", str(clone), *args], capture_output=True, text=True, check=True).stdout.strip()
+
+
+def check_clone(clone: Path) -> str:
+    """The clone's commit; SystemExit when it is not a clean clone of this checkout's HEAD with a
+    set-up virtual environment (``make setup``)."""
+    head, theirs = _git(ROOT, "rev-parse", "HEAD"), _git(clone, "rev-parse", "HEAD")
+    if theirs != head:
+        raise SystemExit(f"error: --fresh-clone {clone} is at {theirs[:7]}, this checkout at {head[:7]}: "
+                         f"`git -C {clone} fetch {ROOT} && git -C {clone} checkout {head[:7]}`")
+    if _git(clone, "status", "--porcelain", "--untracked-files=no"):
+        raise SystemExit(f"error: --fresh-clone {clone} has local changes: a fresh clone has none")
+    if not (clone / ".venv" / "bin" / "python").is_file():
+        raise SystemExit(f"error: --fresh-clone {clone} has no .venv: run `make -C {clone} setup` first")
+    return head
+
+
+def fresh_clone_bench(clone: Path) -> dict:
+    """``/usr/bin/time -v make bench`` in a fresh clone (see the module docstring): its wall
+    seconds as the user's shell sees them, peak RSS of any process (time -v), and the figures of
+    the run folder it wrote (the newest out/bench/default*). Earlier runs in the clone are
+    removed first (the clone is the tool's scratch folder: fenestra wrote them)."""
+    commit = check_clone(clone)
+    for old in (clone / "out").glob("bench/default*"):
+        shutil.rmtree(old)
+    shutil.rmtree(clone / "out" / "renders", ignore_errors=True)
+    shutil.rmtree(clone / "cache", ignore_errors=True)
+    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
+    env.update({"MPLBACKEND": "Agg", "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"),
+                **fresh_caches(clone)})
+    log = clone / "time-v.log"
+    t0 = time.perf_counter()
+    r = subprocess.run(["/usr/bin/time", "-v", "-o", str(log), "make", "bench"], cwd=clone, env=env,
+                       capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if r.returncode != 0:
+        raise RuntimeError(f"make bench in {clone} failed ({r.returncode}): {r.stderr[-2000:]}")
+    run = max((clone / "out" / "bench").glob("default*"), key=lambda p: p.stat().st_mtime)
+    fig = run_figures(run, wall)
+    rss = time_log_rss_mb(log.read_text())
+    if rss is not None:
+        fig["peak_rss_mb"] = {"any_process (time -v)": rss}
+    return {**fig, "commit": commit, "make_bench_wall_s": wall}
+
+
+def agreement(doc: dict) -> dict | None:
+    """The fresh clone's `make bench` wall time over the cold run's, and whether they agree
+    within FRESH_CLONE_AGREEMENT (None without both)."""
+    a, b = doc.get("fresh_clone"), doc.get("cold")
+    if not a or not b:
+        return None
+    ratio = a["wall_s"] / b["wall_s"]
+    return {"ratio": ratio, "within": bool(abs(ratio - 1) <= FRESH_CLONE_AGREEMENT), "limit": FRESH_CLONE_AGREEMENT}
+
+
 BEGIN, END = "<!-- timing:begin -->", "<!-- timing:end -->"
-RUN_LABELS = {"cold": "fresh clone, renders included", "cached_renders": "cached renders",
+RUN_LABELS = {"fresh_clone": "`git clone`, `make setup`, then `/usr/bin/time make bench`",
+              "cold": "`make timing`: fresh folder and caches, renders included", "cached_renders": "cached renders",
               "ray_cached_renders": "cached renders, `--executor ray` (local cluster)", "run": "one run"}
 
 
@@ -135,6 +201,11 @@ def markdown(doc: dict, command: str) -> str:
                      f"{r['n_rows']} | **{_s(r['wall_s'])}** | {_s(st.get('render'))} | {_s(st.get('evaluate_wall'))} | "
                      f"{_s(st.get('summarize'))} | {_s(st.get('report'))} | "
                      f"{f'{peak / 1024:.2f} GB' if peak else '-'} | {art.get('total', 0):.1f} MB |")
+    agree = agreement(doc)
+    if agree:
+        lines += ["", f"A fresh clone's `make bench` against `make timing`'s cold run: {agree['ratio']:.2f} x the wall "
+                      f"time ({'within' if agree['within'] else '**outside**'} the +-{100 * agree['limit']:.0f} % "
+                      "the two must agree by)."]
     for key, label in RUN_LABELS.items():
         r = doc.get(key)
         if r and r.get("cpu_s"):
@@ -248,13 +319,21 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--from-json", type=Path, default=None, help="take the figures of this earlier --json output")
     ap.add_argument("--from-run", type=Path, default=None, help="take the figures of this finished bench run folder")
     ap.add_argument("--time-log", type=Path, default=None, help="with --from-run: that run's /usr/bin/time -v output")
+    ap.add_argument("--fresh-clone", type=Path, default=None,
+                    help="also run `/usr/bin/time -v make bench` in this clean `git clone` of HEAD (after `make setup`)")
     a = ap.parse_args(argv)
+    if a.fresh_clone is not None:
+        check_clone(a.fresh_clone.resolve())  # refuse before measuring for minutes
     if a.from_json is not None:
         out = json.loads(a.from_json.read_text())
     elif a.from_run is not None:
         out = from_run(a.from_run, a.time_log)
     else:
         out = measure(a)
+    if a.fresh_clone is not None:
+        out["fresh_clone"] = fresh_clone_bench(a.fresh_clone.resolve())
+        out["fresh_clone_agreement"] = agreement(out)
+        out["load_after"] = os.getloadavg()
     text = json.dumps(out, indent=1)
     print(text)
     if a.json:
