@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke real heldout-gate report docs docs-check gate train train-winnet timing compare clean
+.PHONY: help setup sysdeps test test-all bench smoke real heldout-gate report docs docs-check gate train train-winnet timing photo-speed compare clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -62,6 +62,9 @@ gate: smoke real heldout-gate  ## smoke, real and held-out-family profiles, then
 
 timing:  ## where make bench's time goes, measured as a fresh clone would (cold, then cached renders; render views/s), written into docs/performance.md
 	$(PY) tools/timing.py --json out/timing.json --markdown docs/performance.md
+
+photo-speed:  ## CPU seconds of `fenestra reconstruct PHOTO` on 12-megapixel inputs (bundled curtain-wall photos, ../shared/real spb test photos when present) against issue 35's targets (median <= 10, max <= 30), written into docs/performance.md
+	$(PY) tools/photo_speed.py --json docs/results/photo_speed.json --doc docs/performance.md --block photo-speed
 
 compare:  ## compare two bench runs of one profile window by window: make compare A=out/bench/before B=out/bench/after (exit 1 on a significant regression of the CLI's method; page in B)
 	@test -n "$(A)" -a -n "$(B)" || { echo "error: give two run folders: make compare A=RUN_A B=RUN_B"; exit 2; }

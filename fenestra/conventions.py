@@ -149,6 +149,21 @@ class InputLimits:
         an error naming the count (each window costs ~10 ms and its share of the IFC export).
     detector_max_side_px: learned detectors see the photo resized so its long side is at most
         this (INTER_AREA); their masks and boxes are mapped back to full resolution.
+    lsd_max_pixels: a photo's whole-image line segments (pipeline.segments.whole_image_segments)
+        are found on a copy of at most this many pixels (INTER_AREA), mapped back to full
+        resolution (LSD on 12 Mpx: ~1 CPU-s; on 4 Mpx: ~0.3; every bundled photo and render is
+        smaller, so theirs are unchanged; issue 35).
+    max_facade_segments: the walls' façade lines (pipeline.walls.lines.photo_segments) keep at
+        most this many of the photo's segments, the longest (their vanishing-point consensus costs
+        segments x hypotheses: 3000 segments of a 12 Mpx photo took 5.6 CPU-s; the real test photos
+        and the street photos of spb_facades/train have at most ~1000 at least 20 px long, issue 35).
+    inpaint_max_side_px: the export's void inpainting (Telea, pipeline.export.inpaint) works on a
+        copy of the texture with its long side at most this; the fill, upsampled, replaces only the
+        void pixels of the full-size texture (Telea's cost grows with the void pixels: 7 CPU-s at
+        3851 x 3116 px; issue 35).
+    glb_png_compress_level: zlib level of model.glb's PNG texture (pipeline.export.mesh.png_image:
+        lossless either way; 1 encodes a 12 Mpx texture in ~0.6 CPU-s, the default 6 in ~2.4 s, for
+        a ~25 % larger file; issue 35).
     fov_min_deg / fov_max_deg: a horizontal or vertical field of view outside this range
         (from K and the photo size) is reported as a warning: the focal length is probably wrong.
     max_json_bytes: a JSON input (annotations.json, K.json) larger than this is refused before it
@@ -167,6 +182,10 @@ class InputLimits:
 
     max_windows_per_photo: int = 1000
     detector_max_side_px: int = 1024
+    lsd_max_pixels: int = 4_000_000
+    max_facade_segments: int = 1500
+    inpaint_max_side_px: int = 1024
+    glb_png_compress_level: int = 1
     fov_min_deg: float = 1.0
     fov_max_deg: float = 170.0
     max_json_bytes: int = 64 * 2**20

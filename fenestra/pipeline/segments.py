@@ -21,6 +21,8 @@ from typing import TypeVar
 import cv2
 import numpy as np
 
+from fenestra.conventions import LIMITS
+
 
 def check_gray(gray: np.ndarray) -> np.ndarray:
     """A gray image (H, W), uint8 or float, as an array; ValueError naming another shape or dtype."""
@@ -60,23 +62,33 @@ def detect_segments(gray: np.ndarray, scale: float, box: tuple[int, int, int, in
     return seg if box is None else seg + [x0, y0]
 
 
-MAX_LSD_PIXELS = 16_000_000  # a larger photo's whole-image segments are found on a copy of this size
-
-
-def whole_image_segments(gray: np.ndarray, scale: float, max_pixels: int = MAX_LSD_PIXELS) -> np.ndarray:
+def whole_image_segments(gray: np.ndarray, scale: float, max_pixels: int | None = None) -> np.ndarray:
     """:func:`detect_segments` of a whole image (H, W) at ``scale``; an image of more than
-    ``max_pixels`` pixels is first resized (INTER_AREA) to that many and its segments mapped back
-    (``(p + 0.5) / f - 0.5``), so LSD's memory (its double-precision copy and gradients) and time
-    stay bounded on any photo. Images up to ``max_pixels`` (every render, a 16 Mpx photo) are
-    searched as they are."""
+    ``max_pixels`` pixels (None: LIMITS.lsd_max_pixels) is first resized (INTER_AREA) to that many
+    and its segments mapped back (``(p + 0.5) / f - 0.5``), so LSD's memory (its double-precision
+    copy and gradients) and time stay bounded on any photo. Images up to ``max_pixels`` (every
+    render, every bundled photo) are searched as they are."""
     g = check_gray(gray)
     H, W = g.shape
+    max_pixels = LIMITS.lsd_max_pixels if max_pixels is None else int(max_pixels)
     if H * W <= max_pixels:
         return detect_segments(g, scale)
     f = float(np.sqrt(max_pixels / (H * W)))
     small = cv2.resize(to_uint8(g), (max(1, round(W * f)), max(1, round(H * f))), interpolation=cv2.INTER_AREA)
     fx, fy = small.shape[1] / W, small.shape[0] / H
     return (detect_segments(small, scale) + 0.5) / [fx, fy] - 0.5
+
+
+def longest_segments(segments: np.ndarray, n: int) -> np.ndarray:
+    """The ``n`` longest of segments (M, 2, 2) px, in their given order (all of them when M <= n;
+    ties in length at the cut: the earlier ones). ValueError for n < 0."""
+    if n < 0:
+        raise ValueError(f"n must be >= 0, got {n}")
+    s = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
+    if len(s) <= n:
+        return s
+    length = np.linalg.norm(s[:, 1] - s[:, 0], axis=1)
+    return s[np.sort(np.argsort(-length, kind="stable")[:n])]
 
 
 T = TypeVar("T")

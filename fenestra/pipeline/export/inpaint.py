@@ -5,6 +5,7 @@ import cv2
 import numpy as np
 
 from fenestra.checks import check_image
+from fenestra.conventions import LIMITS
 from fenestra.pipeline.types import WindowResult
 
 
@@ -62,7 +63,8 @@ def inpaint_voids(image: np.ndarray, results: list[WindowResult], dilate_px: int
     ``size`` (W', H'): inpaint the photo resized to that size (INTER_AREA; the quads mapped with
     :func:`scaled_K`'s convention; ``dilate_px`` and ``radius_px`` in its pixels), so that a huge
     photo costs what its export needs (:func:`capped_size`), not what its pixels would; the
-    returned image and mask have that size. None: the photo's size.
+    returned image and mask have that size. None: the photo's size. The fill itself is computed
+    at most LIMITS.inpaint_max_side_px along the long side (:func:`inpaint_bounded`).
     """
     image = check_image(image)
     quads = [q for q in (result_quad(r) for r in results) if q is not None]
@@ -74,4 +76,26 @@ def inpaint_voids(image: np.ndarray, results: list[WindowResult], dilate_px: int
     mask = void_mask(image.shape, quads, dilate_px)
     if not mask.any():
         return image.copy(), mask
-    return cv2.inpaint(image, mask, float(radius_px), cv2.INPAINT_TELEA), mask
+    return inpaint_bounded(image, mask, radius_px, LIMITS.inpaint_max_side_px), mask
+
+
+def inpaint_bounded(image: np.ndarray, mask: np.ndarray, radius_px: float, max_side_px: int) -> np.ndarray:
+    """Telea inpainting of image (H, W, 3) uint8 where mask (H, W) uint8 is non-zero, computed on a
+    copy with its long side at most ``max_side_px`` (INTER_AREA; a small pixel touching the mask is
+    filled; radius_px in its pixels), the fill upsampled (bilinear) into the masked pixels only:
+    the pixels outside the mask are the image's, unchanged. An image that already fits is
+    inpainted as it is (cv2.inpaint). Cost: Telea's grows with the masked pixels, so a 12 Mpx
+    texture's voids cost what a 1 Mpx one's do."""
+    H, W = mask.shape[:2]
+    k = max_side_px / max(H, W)
+    if k >= 1.0:
+        return cv2.inpaint(image, mask, float(radius_px), cv2.INPAINT_TELEA)
+    size = (max(1, round(W * k)), max(1, round(H * k)))
+    small = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    small_mask = (cv2.resize(mask, size, interpolation=cv2.INTER_AREA) > 0).astype(np.uint8) * 255
+    fill = cv2.resize(cv2.inpaint(small, small_mask, float(radius_px), cv2.INPAINT_TELEA), (W, H),
+                      interpolation=cv2.INTER_LINEAR)
+    out = image.copy()
+    inside = mask > 0
+    out[inside] = fill[inside]
+    return out

@@ -25,7 +25,8 @@ import cv2
 import numpy as np
 
 from fenestra.checks import check_K
-from fenestra.pipeline.segments import SegmentCache
+from fenestra.conventions import LIMITS
+from fenestra.pipeline.segments import SegmentCache, longest_segments
 from fenestra.pipeline.walls.fit import WallFit, left_jacobian
 from fenestra.pipeline.walls.settings import WALL_FIT, WallParams
 from fenestra.pipeline.walls.vanishing import (WallSides, WallVP, angles_to_vp, cross3, fit_vps, homog, plane_normals, rays,
@@ -39,7 +40,8 @@ def photo_segments(segment_cache: SegmentCache | None, params: WallParams,
                    image_shape: tuple[int, int]) -> "FacadeSegments | None":
     """The façade segments (M, 2, 2) px a strategy uses when params.lines (else None): those of
     the photo, from its segment cache (pipeline.segments.SegmentCache; LSD at WALL_FIT.lsd_scale),
-    at least params.line_min_px long, as the photo's :class:`FacadeSegments` (one per photo and
+    at least params.line_min_px long, the LIMITS.max_facade_segments longest of them (bounded
+    consensus time), as the photo's :class:`FacadeSegments` (one per photo and
     length, kept by the cache: what the walls' line work derives from them is done once per
     photo). ValueError when they are needed and there is no cache, or the cache's photo is not
     (H, W) = image_shape."""
@@ -51,9 +53,9 @@ def photo_segments(segment_cache: SegmentCache | None, params: WallParams,
     if tuple(segment_cache.shape) != tuple(image_shape):
         raise ValueError(f"the segment cache's photo is {tuple(segment_cache.shape)}, "
                          f"the windows' image {tuple(image_shape)}")
-    key = ("facade", float(WALL_FIT.lsd_scale), float(params.line_min_px))
-    return segment_cache.derived(key, lambda: FacadeSegments(
-        segment_cache.segments(WALL_FIT.lsd_scale, params.line_min_px)))
+    key = ("facade", float(WALL_FIT.lsd_scale), float(params.line_min_px), LIMITS.max_facade_segments)
+    return segment_cache.derived(key, lambda: FacadeSegments(longest_segments(
+        segment_cache.segments(WALL_FIT.lsd_scale, params.line_min_px), LIMITS.max_facade_segments)))
 
 
 class FacadeSegments:
