@@ -221,14 +221,23 @@ def wall_mesh(pw: PlacedWindow, voids=(), cut: bool = True, margin_m: float = WA
             below, above = is_solid(i, j - 1), is_solid(i, j)
             if below != above:
                 side((i, j), (i + 1, j), (0, 1, 0) if below else (0, -1, 0))
-    faces = []
-    for (a, b, c, d), n in quads:
-        for tri in ((a, b, c), (a, c, d)):
-            normal = np.cross(V[tri[1]] - V[tri[0]], V[tri[2]] - V[tri[0]])
-            faces.append(tri if normal @ np.asarray(n, dtype=np.float64) > 0 else tri[::-1])
-    F = np.array(faces, dtype=np.int64)
+    F = _outward(V, quads)
     used, inverse = np.unique(F, return_inverse=True)
     return V[used], inverse.reshape(-1, 3)
+
+
+def _outward(V: np.ndarray, quads: list) -> np.ndarray:
+    """Triangles (2Q, 3) of quads [(4 vertex ids into V (N, 3) m, outward normal (3,))]: each quad
+    (a, b, c, d) as (a, b, c), (a, c, d), reversed where its winding's normal points against the
+    outward one (all triangles' normals in one vectorised cross product)."""
+    if not quads:
+        return np.zeros((0, 3), dtype=np.int64)
+    ids = np.array([q for q, _ in quads], dtype=np.int64)
+    outward = np.repeat(np.array([n for _, n in quads], dtype=np.float64), 2, axis=0)
+    T = np.stack([ids[:, [0, 1, 2]], ids[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
+    normal = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    keep = np.einsum("ij,ij->i", normal, outward) > 0
+    return np.where(keep[:, None], T, T[:, ::-1])
 
 
 @dataclass(frozen=True)
