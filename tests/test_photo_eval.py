@@ -91,9 +91,10 @@ def _view(boxes, K=None, name="p") -> LabelledView:
                         K=K)
 
 
-def _win(box, exported=True) -> dict:
+def _win(box, exported=True, wall=0) -> dict:
     x0, y0, x1, y1 = box
-    return {"quad_snapped": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], "exported": exported, "plausible": exported}
+    return {"quad_snapped": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], "exported": exported, "plausible": exported,
+            "wall": wall, "not_exported": None if exported else "flagged: w/h outside 0.2-4", "failure": None}
 
 
 def test_export_precision_against_hand_built_boxes():
@@ -108,9 +109,20 @@ def test_export_precision_against_hand_built_boxes():
     assert pe.exported_matches(doc, [w.bbox() for w in view.windows], 0.5) == (4, 1)
     row = pe.photo_row(view, pe.AS_IS, doc, None, 1.0, 0.3, True)
     assert (row["n_exported"], row["n_exported_match"], row["n_labelled"], row["n_walls"]) == (4, 2, 2, 1)
+    assert row["n_walls_fitted"] == 1
     fig = pe.dataset_summary(pd.DataFrame([row]))
     assert fig["export_precision"] == 0.5 and fig["windows_per_label"] == 2.0 and fig["output_share"] == 1.0
     assert fig["focal_err_median"] is None  # no calibration
+
+
+def test_model_walls_are_the_walls_of_exported_windows():
+    """Three fitted walls; wall 2 holds only a flagged window, wall 3 a failed one: two in the model."""
+    failed = {**_win([0, 0, 1, 1], wall=3), "failure": "quad: not_quadrilateral"}
+    doc = {"walls": [{}, {}, {}, {}], "windows": [_win([0, 0, 1, 1], wall=0), _win([2, 0, 3, 1], wall=1),
+                                                   _win([4, 0, 5, 1], wall=1), _win([6, 0, 7, 1], False, wall=2),
+                                                   failed, {**_win([8, 0, 9, 1]), "wall": None}]}
+    assert pe.model_walls(doc) == 2
+    assert pe.model_walls({"walls": [{}], "windows": []}) == 0
 
 
 def test_focal_spread_and_focal_error_hand_computed():

@@ -25,8 +25,9 @@ Per photo and transform one row of ``kfree.parquet`` (:func:`photo_row`); the su
 - oversized: exported windows wider or taller than facade_model.MAX_WINDOW_M (4 m, the limit the
   pipeline flags by when no ``--known-*`` says otherwise; windows.json ``width_m`` / ``height_m``,
   a partial window's its visible extent), counted on the runs without ``--known-*`` (:func:`oversized`);
-- walls per photo (median), and the share of photos with transforms whose wall count is the same
-  under every transform as as is (:func:`walls_stable_share`);
+- walls per photo (median; the walls of the model, those holding a window it exports:
+  :func:`model_walls`; ``n_walls_fitted`` counts every fitted wall), and the share of photos with
+  transforms whose wall count is the same under every transform as as is (:func:`walls_stable_share`);
 - wall tilt: per wall of the model (a wall with an exported window) the angle in degrees between
   its plane and the vertical of the exported model (export.json ``world_frame``: the walls' agreeing
   up axes, i.e. their vertical vanishing directions, which also set the upright rotation;
@@ -304,7 +305,17 @@ def photo_row(view: LabelledView, transform: str, doc: dict | None, error: str |
             "n_taller_than_storey": taller_than(doc, known_storey_m) if export and known_storey_m == known_storey_m else nan,
             "wall_tilts_deg": None if mf is None else wall_tilts_deg(doc, export_up(mf)),
             "row_spreads": None if mf is None else row_spreads(doc, mf),
-            "n_walls": len((doc or {}).get("walls") or []) if doc is not None else nan}
+            "n_walls": model_walls(doc) if doc is not None else nan,
+            "n_walls_fitted": len((doc or {}).get("walls") or []) if doc is not None else nan}
+
+
+def model_walls(doc: dict) -> int:
+    """The walls of the façade model a user gets: distinct ``wall`` ids of the windows the model
+    exports (windows.json ``not_exported`` None and no failure; the export decision, made whether
+    or not files are written). A wall fitted to flagged windows only (a lone window whose plane is
+    nonsense, a shop sign) is no wall of the model (model.ifc holds none for it)."""
+    return len({w["wall"] for w in doc.get("windows") or []
+                if w.get("wall") is not None and w.get("not_exported") is None and w.get("failure") is None})
 
 
 def write_masks(view: LabelledView, path: Path) -> Path | None:
