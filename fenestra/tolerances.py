@@ -40,6 +40,10 @@ class Tolerances:
     # with corners rounded up to a third of its short side against its straight-sided truth
     thin_quad_exact_px: float = 0.5
     thin_quad_rounded_px: float = 1.5
+    # row regularization (issue 35, pipeline.row_lines; its own agreement threshold, ROW_AGREE_FRACTION,
+    # lives beside it): the exported whole windows of one export.json storey row that agreed with
+    # their row's sill and head lines have heights within this share of their median (the issue's target)
+    row_height_spread_rel: float = 0.05
 
 
 TOL = Tolerances()

@@ -46,9 +46,11 @@ def test_street_photo_without_K_always_gives_an_output(tmp_path):
     assert saved["K_source"]["interval_px"][0] <= doc["K"][0][0] <= saved["K_source"]["interval_px"][1]
     assert len(saved["windows"]) >= 5 and (tmp_path / "out" / "overlay.png").is_file()
     # each posed window's aspect interval holds its fit's 90 % interval (and the aspect ratios at the
-    # ends of the focal interval: on this near-frontal façade they fall inside it)
+    # ends of the focal interval: on this near-frontal façade they fall inside it), both about the
+    # measured aspect ratio (``measured`` where its row's sill and head lines regularized it)
     posed = [w for w in saved["windows"] if w["failure"] is None and w["uncertainty"]]
-    assert posed and all(w["aspect_interval"][0] <= w["uncertainty"]["aspect_lo"] <= w["aspect_ratio"]
+    assert posed and all(w["aspect_interval"][0] <= w["uncertainty"]["aspect_lo"]
+                         <= (w["measured"] or w)["aspect_ratio"]
                          <= w["uncertainty"]["aspect_hi"] <= w["aspect_interval"][1] for w in posed)
     keys = ["level", "sigma_px", "aspect_sd", "aspect_lo", "aspect_hi", "rot_deg", "trans_rel", "ill_conditioned"]
     assert all(list(w["uncertainty"]) == keys + ([] if w["plausible"] else ["widened"]) for w in posed)  # flagged: widened

@@ -34,6 +34,10 @@ the walls are set, :func:`place_partials` puts its visible part on the wall whos
 its own sides point at (PARTIAL_VP_DEG; the nearest such wall in the image), with that wall's pose
 and scale, as the rectangle around its visible part on the wall's plane (:func:`visible_extent`);
 it is flagged only by the absolute size limits, and without such a wall it stays a failure.
+
+Rows (issue 35). Last, pipeline.row_lines.regularize_rows gives the windows of each storey row of
+a wall that agree with the row's median sill and head lines exactly those lines (pipeline.session
+runs it after :func:`place_partials`; partial and flagged windows keep their own).
 """
 from __future__ import annotations
 

@@ -215,11 +215,27 @@ def confidence(w: WindowResult, flagged: bool) -> float:
     return w.score * (0.5 if ill else 1.0) * (0.25 if flagged else 1.0)
 
 
+def row_fields(r: WindowResult, measured: WindowResult | None, fit) -> dict:
+    """windows.json's row regularization fields of window ``r`` (pipeline.row_lines): ``regularized``
+    (its sill and head are its row's consensus), ``row`` (the RowFit of the row it voted in, or
+    None), ``height_measured_m`` (its height as measured; None without a pose) and ``measured``
+    (when regularized: the measured ``aspect_ratio``, ``height_m``, ``width_m``, ``t``,
+    ``quad_reprojected``; else None: the window's own fields are the measured ones)."""
+    m = measured if measured is not None else r
+    return {"regularized": measured is not None, "row": None if fit is None else fit.to_json(),
+            "height_measured_m": None if m.failure is not None or m.R is None else float(m.height_m),
+            "measured": None if measured is None else {
+                "aspect_ratio": float(m.aspect_ratio), "height_m": float(m.height_m),
+                "width_m": float(m.aspect_ratio) * float(m.height_m), "t": np.asarray(m.t).reshape(3).tolist(),
+                "quad_reprojected": None if m.quad_reprojected is None else np.asarray(m.quad_reprojected).tolist()}}
+
+
 def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], export: bool = True) -> dict:
     """windows.json's data of a pipeline.session.Reconstruction (a new dict; nothing changed in
     place): ``K``, ``K_source``, ``image_size``, ``config``, ``walls``, ``scale``, ``windows`` (per
     window its stage results plus ``plausible``, ``flags``, ``scale_source``, ``scale_assumed``,
-    ``K_source``, ``aspect_interval``, ``confidence``, ``exported``: the export decision, None when
+    ``K_source``, ``aspect_interval`` (of the measured window), ``confidence``, the row
+    regularization's fields (:func:`row_fields`), ``exported``: the export decision, None when
     no model is made (``export`` False), ``not_exported``: why not; ``partial`` and ``cut``: a
     window cut by the photo's edges, its fields those of its visible part), ``warnings`` (the
     photo's, the focal chain's), ``geometry_failure``."""
@@ -238,9 +254,10 @@ def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], e
                         "confidence": confidence(r, bool(flags)), "K_source": rec.resolved.source,
                         "exported": (r.index not in rec.not_exported) if export else None,
                         "not_exported": rec.not_exported.get(r.index),
-                        "aspect_interval": aspect_interval(r, rec.envelope),
+                        "aspect_interval": aspect_interval(rec.measured.get(r.index, r), rec.envelope),
                         "scale_source": None if wall is None else wall.scale_source,
-                        "scale_assumed": None if wall is None else wall.assumed})
+                        "scale_assumed": None if wall is None else wall.assumed,
+                        **row_fields(r, rec.measured.get(r.index), rec.rows.get(r.index))})
     return {**doc, "windows": windows, "walls": [w.to_json() for w in model.walls],
             "scale": {"assumed": bool(assumed), "assumed_walls": assumed,
                       "sources": sorted({w.scale_source for w in model.walls})},

@@ -48,6 +48,7 @@ from fenestra.pipeline.poses import POSES
 from fenestra.pipeline.quad import QuadParams
 from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct_from_quads,
                                            to_gray, visible_quads)
+from fenestra.pipeline.row_lines import regularize_rows
 from fenestra.pipeline.segments import SegmentCache, to_uint8
 from fenestra.pipeline.types import Detection, Failure, WindowResult
 
@@ -87,7 +88,9 @@ class Reconstruction:
     interval; geometry_failure: Failure or None; not_exported: {index: reason} of every window that
     stays out of the BIM model (failed, implausible unless export_all, unusable pose or size);
     unplaced: {index: the façade model's WindowResult} of the partial windows (``windows[i].partial``
-    set), before they were placed: their whole-window failure (:meth:`whole`).
+    set), before they were placed: their whole-window failure (:meth:`whole`); measured: {index:
+    WindowResult} of the windows whose row regularized them (pipeline.row_lines), as measured;
+    rows: {index: pipeline.row_lines.RowFit} of every window that voted in a row.
     """
 
     method: Method
@@ -100,6 +103,8 @@ class Reconstruction:
     geometry_failure: Failure | None
     not_exported: dict
     unplaced: dict = field(default_factory=dict)
+    measured: dict = field(default_factory=dict)
+    rows: dict = field(default_factory=dict)
 
     @property
     def K(self) -> np.ndarray:
@@ -108,9 +113,10 @@ class Reconstruction:
     def whole(self, index: int) -> WindowResult:
         """Window ``index`` as a whole window: ``windows[index]``, or for a partial window (cut by
         the photo's border) its result before its visible part was placed (failed at the quad
-        stage: its whole corners and size are not in the photo). What the bench measures a
+        stage: its whole corners and size are not in the photo), or for a window its row
+        regularized the window as measured (:attr:`measured`). What the bench measures a
         window's geometry by; what is exported is ``windows[index]``."""
-        return self.unplaced.get(index, self.windows[index])
+        return self.unplaced.get(index, self.measured.get(index, self.windows[index]))
 
     @property
     def exported(self) -> dict[int, bool]:
@@ -286,11 +292,12 @@ class PhotoSession:
         return self._geometry[k]
 
     def run(self, method: Method, known: Known = Known(), export_all: bool = False,
-            style: str | None = None, height_m: float = 1.0) -> Reconstruction:
+            style: str | None = None, height_m: float = 1.0, regularize: bool = True) -> Reconstruction:
         """The method on this photo, as ``fenestra reconstruct`` runs it: geometry, façade model
         with ``known``, the partial windows placed on its walls (pipeline.facade_model.place_partials),
-        and the export decision (flagged windows stay out unless export_all; style: the catalogue
-        window, None for the default)."""
+        the rows' sill and head lines regularized (pipeline.row_lines.regularize_rows; not with
+        ``regularize`` False) and the export decision (flagged windows stay out unless export_all;
+        style: the catalogue window, None for the default)."""
         from fenestra.pipeline.export import DEFAULT_STYLE, split_results  # noqa: PLC0415
 
         g = self.geometry(method, height_m)
@@ -298,9 +305,13 @@ class PhotoSession:
         visible = self.visible(method.detector, self.config(method, height_m).quad)
         results, model = place_partials(whole, model, visible, g.resolved.K, self.size, known)
         unplaced = {r.index: whole[r.index] for r in results if r.partial is not None}
+        final, rows = regularize_rows(results, model, g.resolved.K) if regularize else (results, {})
+        measured = {k: results[k] for k, fit in rows.items() if fit.regularized}
+        results = final
         _, skipped = split_results(results, style or DEFAULT_STYLE, kept_out(model, export_all))
         return Reconstruction(method, tuple(self.detections(method.detector)), tuple(results), g.resolved, model,
-                              known, g.envelope, g.failure, {s["index"]: s["reason"] for s in skipped}, unplaced)
+                              known, g.envelope, g.failure, {s["index"]: s["reason"] for s in skipped}, unplaced,
+                              measured, rows)
 
     def _tick(self, stage: str, t0: float) -> None:
         self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.process_time() - t0
