@@ -141,6 +141,32 @@ def rotation_error_deg(R_est: np.ndarray, R_gt: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
 
 
+def vote_axis(axes: np.ndarray, weights: np.ndarray, agree_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """(axis (3,), inliers (G,) bool): of unit axes (G, 3) with weights (G,) (e.g. walls' up axes,
+    weighted by their windows), the one the most weight agrees with within agree_deg (ties: the
+    first), refined as the weighted mean of the axes that agree with it."""
+    a = np.asarray(axes, dtype=np.float64).reshape(-1, 3)
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    if not len(a) or len(a) != len(w):
+        raise ValueError(f"vote_axis needs as many weights as axes (>= 1), got {len(a)} axes and {len(w)} weights")
+    agree = a @ a.T >= np.cos(np.radians(agree_deg))  # (G, G)
+    inliers = agree[int(np.argmax(agree @ w))]
+    axis = (w[inliers, None] * a[inliers]).sum(axis=0)
+    return axis / np.linalg.norm(axis), inliers
+
+
+def heading_difference_deg(n_a: np.ndarray, n_b: np.ndarray, up: np.ndarray) -> float:
+    """Angle (deg, 0-180) between two plane normals (3,) seen from above: their components
+    perpendicular to the unit ``up`` (3,), so a difference of tilt (a wall's noisy vertical) does
+    not count; 180 when either normal is along ``up`` (a horizontal plane has no heading)."""
+    u = np.asarray(up, dtype=np.float64)
+    h = [np.asarray(n, dtype=np.float64) - (np.asarray(n, dtype=np.float64) @ u) * u for n in (n_a, n_b)]
+    norms = [float(np.linalg.norm(x)) for x in h]
+    if min(norms) < 1e-9:
+        return 180.0
+    return float(np.degrees(np.arccos(np.clip(h[0] @ h[1] / (norms[0] * norms[1]), -1.0, 1.0))))
+
+
 @dataclass(frozen=True)
 class InputLimits:
     """Bounds on one photo's input, so memory and time stay bounded (pipeline/, issue 16).

@@ -13,7 +13,10 @@ camera centre: the reprojection does not change), and the plane's distance is se
 from what the user knows (:class:`Known`), else from DEFAULT_WINDOW_HEIGHT_M, flagged "assumed".
 
 Walls. Walls whose rotations agree within MERGE_DEG (the same vanishing points; LONE_TOL_DEG for a
-one-window wall) are merged into one wall: one façade plane.
+one-window wall) are merged into one wall: one façade plane. So are walls that both stand within
+UPRIGHT_DEG of the façade's vertical (the up axis most walls agree with) and whose headings about
+it agree within those tolerances: walls are vertical, and a wall's own vertical vanishing point is
+noisy (on street photos two fits of one façade differ by 5-13 deg of tilt, under 2 deg of heading).
 
 Robust statistics (issue 35). A wall's scale and the medians its windows are compared with come
 from its *typical* windows (:func:`typical_members`): those of a plausible window shape
@@ -45,7 +48,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fenestra.conventions import project, rotation_error_deg
+from fenestra.conventions import heading_difference_deg, project, rotation_error_deg, vote_axis
 from fenestra.pipeline.types import Failure, Partial, Uncertainty, WindowResult
 
 DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
@@ -53,6 +56,8 @@ MERGE_DEG = 5.0  # walls whose rotations differ by less are one façade plane
 ASPECT_RANGE = (0.2, 4.0)  # w/h of any window: 99.8 % of the 4552 labelled window boxes of spb_facades/train
 WALL_RATIO = 2.5  # a window's w/h or height more than this factor off its wall's median
 LONE_TOL_DEG = 10.0  # a one-window wall within this of a larger wall joins it (one quad's rotation is noisier)
+UP_AGREE_DEG = 5.0  # walls' up axes within this vote for one façade vertical (as export.geometry's gravity)
+UPRIGHT_DEG = 15.0  # a wall whose up axis is within this of the façade's vertical is compared by heading only
 FLAG_WIDEN = 3.0  # a flagged window's 90 % intervals are this many times wider
 # a window's height as a share of the storey's: rows whose pitch implies more or less are not storeys
 # (two rows of one storey, a basement row, dormers), and the known storey height is not used on them
@@ -131,24 +136,52 @@ def _centre(r: WindowResult) -> np.ndarray:
     return np.asarray(r.t, dtype=np.float64).reshape(3) + np.asarray(r.R) @ np.array([r.aspect_ratio * h / 2, h / 2, 0.0])
 
 
+def facade_up(starts: list[list[int]], results: list[WindowResult]) -> np.ndarray | None:
+    """The façade's vertical (3,) camera frame: the up axis (R[:, 1]) most windows' walls agree
+    with within UP_AGREE_DEG (conventions.vote_axis; each start group votes with its first
+    member's axis, weighted by its windows); None without a posed window."""
+    if not starts:
+        return None
+    ups = np.array([np.asarray(results[m[0]].R, dtype=np.float64)[:, 1] for m in starts])
+    return vote_axis(ups, np.array([len(m) for m in starts], dtype=np.float64), UP_AGREE_DEG)[0]
+
+
+def same_plane(R_a: np.ndarray, R_b: np.ndarray, up: np.ndarray | None, tol_deg: float,
+               upright_deg: float = UPRIGHT_DEG) -> bool:
+    """Two walls' rotations (3, 3) face one façade plane: they agree within tol_deg, or both stand
+    within upright_deg of the façade's vertical ``up`` (3,) and their normals' headings about it
+    (conventions.heading_difference_deg) agree within tol_deg. Walls are vertical, so a difference
+    in tilt alone is the noise of each wall's own vertical vanishing point, not two planes."""
+    if rotation_error_deg(R_a, R_b) <= tol_deg:
+        return True
+    if up is None:
+        return False
+    upright = all(np.degrees(np.arccos(np.clip(np.asarray(R)[:, 1] @ up, -1.0, 1.0))) <= upright_deg
+                  for R in (R_a, R_b))
+    return upright and heading_difference_deg(np.asarray(R_a)[:, 2], np.asarray(R_b)[:, 2], up) <= tol_deg
+
+
 def merge_groups(results: list[WindowResult], tol_deg: float = MERGE_DEG,
                  lone_tol_deg: float = LONE_TOL_DEG) -> list[tuple[tuple[int, ...], tuple]]:
     """Posed windows grouped into façade planes: [(members, merged wall-fit ids)], largest first.
 
     Windows of one wall fit start together; a window without a wall (a per-window strategy) is its
-    own start. Groups whose rotations (their largest member's) agree within tol_deg merge; a
+    own start. Groups that face one plane (:func:`same_plane`: rotations, or headings about the
+    façade's vertical, :func:`facade_up`, of their largest member) within tol_deg merge; a
     one-window group (its rotation from one quad: noisier) within lone_tol_deg.
     """
     starts: dict = {}
     for k, r in enumerate(results):
         if _posed(r):
             starts.setdefault(("wall", r.wall) if r.wall is not None else ("window", k), []).append(k)
+    ordered = sorted(starts.items(), key=lambda kv: -len(kv[1]))
+    up = facade_up([m for _, m in ordered], results)
     groups: list[tuple[list[int], list, np.ndarray]] = []
-    for key, members in sorted(starts.items(), key=lambda kv: -len(kv[1])):
+    for key, members in ordered:
         R = np.asarray(results[members[0]].R)
         tol = lone_tol_deg if len(members) == 1 else tol_deg
         for g in groups:
-            if rotation_error_deg(g[2], R) <= tol:
+            if same_plane(g[2], R, up, tol):
                 g[0].extend(members)
                 g[1].append(key[1] if key[0] == "wall" else None)
                 break

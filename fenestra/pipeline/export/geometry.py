@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 
 from fenestra.checks import check_K, check_rotation
-from fenestra.conventions import project
+from fenestra.conventions import project, vote_axis
 from fenestra.pipeline.types import WindowResult
 
 # Camera frame (OpenCV) -> export world of a level camera (z up, camera looking along +y); a proper rotation.
@@ -383,13 +383,8 @@ def gravity_up(placed: list[PlacedWindow], walls: dict[int, int] | None = None,
         u = np.sum(members, axis=0)
         ups.append(u / np.linalg.norm(u))
         weights.append(len(members))
-    ups, weights = np.array(ups), np.array(weights, dtype=np.float64)
-    agree = ups @ ups.T >= np.cos(np.radians(agree_deg))  # (G, G)
-    support = agree @ weights
-    best = int(np.argmax(support))
-    inl = agree[best]
-    up = (weights[inl, None] * ups[inl]).sum(axis=0)
-    up /= np.linalg.norm(up)
+    weights = np.array(weights, dtype=np.float64)
+    up, inl = vote_axis(np.array(ups), weights, agree_deg)
     n = int(weights[inl].sum())
     g = Gravity(up, f"walls' up axes ({n} of {int(weights.sum())} windows agree within {agree_deg:g} deg)", n)
     if g.tilt_deg > max_tilt_deg:
