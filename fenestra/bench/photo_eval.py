@@ -62,6 +62,7 @@ from fenestra.bench.metrics import box_iou_matrix
 from fenestra.bench.results import AS_IS, KFREE_PARQUET, KFREE_TARGETS, KNOWN_STOREY, focal_spreads
 from fenestra.bench.views import LabelledView
 from fenestra.pipeline.facade_model import MAX_WINDOW_M, Known
+from fenestra.pipeline.photo import model_walls
 
 CROP_PER_SIDE = 0.05  # 10 % of each dimension, centred (the principal point stays at the centre)
 JPEG_QUALITY = 80  # the "re-saved JPEG" transform
@@ -308,14 +309,6 @@ def photo_row(view: LabelledView, transform: str, doc: dict | None, error: str |
             "n_walls": model_walls(doc) if doc is not None else nan,
             "n_walls_fitted": len((doc or {}).get("walls") or []) if doc is not None else nan}
 
-
-def model_walls(doc: dict) -> int:
-    """The walls of the façade model a user gets: distinct ``wall`` ids of the windows the model
-    exports (windows.json ``not_exported`` None and no failure; the export decision, made whether
-    or not files are written). A wall fitted to flagged windows only (a lone window whose plane is
-    nonsense, a shop sign) is no wall of the model (model.ifc holds none for it)."""
-    return len({w["wall"] for w in doc.get("windows") or []
-                if w.get("wall") is not None and w.get("not_exported") is None and w.get("failure") is None})
 
 
 def write_masks(view: LabelledView, path: Path) -> Path | None:

@@ -28,7 +28,7 @@ from typer.core import TyperCommand
 from fenestra.conventions import DEFAULTS, LIMITS
 from fenestra.errors import PipelineError
 from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, Known
-from fenestra.pipeline.photo import PhotoOptions, reconstruct_photo
+from fenestra.pipeline.photo import PhotoOptions, model_walls, reconstruct_photo
 from fenestra.pipeline.quad import QUAD_SOURCES
 from fenestra.pipeline.reconstruct import POSES
 from fenestra.pipeline.snappers import SNAPPERS
@@ -145,7 +145,7 @@ def summary_row(photo: Path, doc: dict | None, error: str | None, seconds: float
     W, H = doc.get("image_size") or (None, None)
     return {"photo": str(photo), "error": None, **size, "width_px": W, "height_px": H,
             "K_source": doc["K_source"]["source"],
-            "focal_px": round(doc["K_source"]["focal_px"], 1), "walls": len(doc.get("walls", [])),
+            "focal_px": round(doc["K_source"]["focal_px"], 1), "walls": model_walls(doc),
             "detected": len(ws), "exported": sum(bool(w.get("exported")) for w in ws),
             "flagged": sum(bool(w.get("flags")) for w in ws), "failed": sum(w["failure"] is not None for w in ws),
             "scale_assumed": doc.get("scale", {}).get("assumed")}

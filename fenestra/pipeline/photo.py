@@ -266,6 +266,14 @@ def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], e
             "warnings": [*warnings, *rec.resolved.warnings]}
 
 
+def model_walls(doc: dict) -> int:
+    """The walls of the façade model a user gets: distinct ``wall`` ids of the windows the model
+    exports (windows.json ``not_exported`` None and no failure; the export decision, made whether
+    or not files are written). A wall fitted to flagged windows only (a lone window whose plane is
+    nonsense, a shop sign) is no wall of the model (model.ifc holds none for it)."""
+    return len({w["wall"] for w in doc.get("windows") or []
+                if w.get("wall") is not None and w.get("not_exported") is None and w.get("failure") is None})
+
 def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dict) -> dict:
     """The overlay always, then (options.export) the models of a pipeline.session.Reconstruction,
     then index.html (pipeline.export.viewer: the overlay, the GLB in 3D or why there is none, the
