@@ -366,3 +366,31 @@ def test_ifc_obj_and_glb_share_one_world(model):
         for c in corners:
             assert np.linalg.norm(V_obj - c, axis=1).min() < 2e-6, (i, c)
             assert np.linalg.norm(V_glb - c, axis=1).min() < 1e-5, (i, c)
+
+
+def test_a_stated_wall_thickness_reaches_the_ifc_the_meshes_and_the_manifest(tmp_path):
+    """--wall-thickness 0.12: the layer, the extrusion, the quantities, export.json and the OBJ slab
+    (its depth along the wall's normal: 0.12 m of wall + COVERING_THICKNESS_M of cladding)."""
+    from fenestra.pipeline.export.geometry import COVERING_THICKNESS_M
+
+    photo = np.random.default_rng(0).integers(60, 200, (IMG_H, IMG_W, 3), dtype=np.uint8)
+    paths = write_outputs(tmp_path, photo, K, window_results(), walls=WALLS, thickness_m=0.12)
+    assert json.loads(paths["manifest"].read_text())["wall_thickness_m"] == 0.12
+    ifc = ifcopenshell.open(str(paths["ifc"]))
+    for wall in ifc.by_type("IfcWall"):
+        (solid,) = {r.RepresentationIdentifier: r for r in wall.Representation.Representations}["Body"].Items
+        assert solid.SweptArea.YDim == pytest.approx(0.12)
+        layers = ifcopenshell.util.element.get_material(wall).ForLayerSet.MaterialLayers
+        assert [la.LayerThickness for la in layers] == [pytest.approx(0.12)]
+        assert ifcopenshell.util.element.get_psets(wall)["Qto_WallBaseQuantities"]["Width"] == pytest.approx(0.12)
+    manifest = json.loads(paths["manifest"].read_text())
+    lines = paths["obj"].read_text().splitlines()
+    start = next(i for i, s in enumerate(lines) if s.startswith("o wall_w7"))
+    verts = []
+    for s in lines[start + 1:]:
+        if s.startswith("o "):
+            break
+        if s.startswith("v "):
+            verts.append([float(x) for x in s.split()[1:4]])
+    depth = facade_points(manifest, np.array(verts))[:, 2]  # the true façade frame: z along the wall's normal
+    assert np.ptp(depth) == pytest.approx(0.12 + COVERING_THICKNESS_M, abs=1e-6)

@@ -28,7 +28,8 @@ from typer.core import TyperCommand
 from fenestra.conventions import DEFAULTS, LIMITS
 from fenestra.errors import PipelineError
 from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, Known
-from fenestra.pipeline.photo import PhotoOptions, model_walls, reconstruct_photo
+from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
+from fenestra.pipeline.photo import WALL_THICKNESS_RANGE_M, PhotoOptions, model_walls, reconstruct_photo
 from fenestra.pipeline.quad import QUAD_SOURCES
 from fenestra.pipeline.reconstruct import POSES
 from fenestra.pipeline.snappers import SNAPPERS
@@ -40,15 +41,18 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                     pose: str = DEFAULTS.pose, height: Optional[float] = None, width: Optional[float] = None,
                     substitute: Optional[str] = None, export: bool = True, force: bool = False,
                     quad_source: str = DEFAULTS.quad_source, storey: Optional[float] = None,
-                    export_all: bool = False, max_pixels: Optional[int] = None) -> dict:
+                    export_all: bool = False, max_pixels: Optional[int] = None,
+                    wall_thickness: float = WALL_THICKNESS_M) -> dict:
     """The `reconstruct` command on one photo as a function: pipeline.photo.reconstruct_photo
     writing into ``out``; returns the windows.json dict it wrote. height / width / storey: the
     known window height / window width / storey height, m (at most one; none: assumed);
-    max_pixels: the largest photo read (None: fenestra.conventions.LIMITS.max_image_pixels)."""
+    max_pixels: the largest photo read (None: fenestra.conventions.LIMITS.max_image_pixels);
+    wall_thickness: the exported walls' thickness, m (WALL_THICKNESS_RANGE_M)."""
     check_style(substitute)
+    check_wall_thickness(wall_thickness)
     options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source,
                            known=known_sizes(width, height, storey), substitute=substitute, export=export,
-                           export_all=export_all, max_pixels=max_pixels)
+                           export_all=export_all, max_pixels=max_pixels, wall_thickness_m=wall_thickness)
     return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
                              force=force)
 
@@ -69,6 +73,13 @@ def known_sizes(width: Optional[float], height: Optional[float], storey: Optiona
         return Known(window_width_m=width, window_height_m=height, storey_m=storey)
     except ValueError as e:
         raise PipelineError(f"--known-width/--known-height/--known-storey: {e}") from e
+
+
+def check_wall_thickness(m: float) -> None:
+    """PipelineError naming --wall-thickness when m (metres) is outside WALL_THICKNESS_RANGE_M."""
+    lo, hi = WALL_THICKNESS_RANGE_M
+    if not (isinstance(m, (int, float)) and lo <= m <= hi):
+        raise PipelineError(f"--wall-thickness {m!r} m is outside the physical range [{lo:g}, {hi:g}] m")
 
 
 def check_style(style: Optional[str]) -> None:
@@ -312,6 +323,9 @@ def register(app: typer.Typer) -> None:
                                                  help="the largest photo read, pixels, checked before decoding "
                                                       f"(default {LIMITS.max_image_pixels:_})"),
         substitute: Optional[str] = typer.Option(None, "--substitute", help="catalogue window style to swap in"),
+        wall_thickness: float = typer.Option(WALL_THICKNESS_M, "--wall-thickness",
+                                             help="the exported walls' thickness, m (IFC layer, OBJ/GLB slabs; "
+                                                  "not measured: a photo shows no wall's depth)"),
         force: bool = typer.Option(False, "--force", help="write into a non-empty --out folder that holds no "
                                                          "reconstruct output (its files stay: none is replaced)"),
         quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
@@ -333,13 +347,15 @@ def register(app: typer.Typer) -> None:
         if quad_source not in QUAD_SOURCES:
             raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
         check_style(substitute)  # option mistakes: refused before any photo is read
+        check_wall_thickness(wall_thickness)
         known_sizes(width, height, storey)
         paths = expand_photos(photos)
         if masks is not None and len(paths) > 1:
             raise PipelineError(f"--masks describes one photo; {len(paths)} photos given")
         kw = dict(K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, detector=detector, snapper=snapper,
                   pose=pose, height=height, width=width, substitute=substitute, force=force,
-                  quad_source=quad_source, storey=storey, export_all=export_all, max_pixels=max_pixels)
+                  quad_source=quad_source, storey=storey, export_all=export_all, max_pixels=max_pixels,
+                  wall_thickness=wall_thickness)
         if len(paths) == 1:
             doc = run_reconstruct(paths[0], out, **kw)
             typer.echo(format_table(doc))

@@ -21,11 +21,15 @@ import numpy as np
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
 from fenestra.methods import Method
+from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
 from fenestra.pipeline.facade_model import Known
 from fenestra.pipeline.quad import QuadParams
 from fenestra.pipeline.reconstruct import ReconstructConfig
 from fenestra.pipeline.session import focal_envelope  # noqa: F401  (re-exported)
 from fenestra.pipeline.types import Detection, WindowResult
+
+
+WALL_THICKNESS_RANGE_M = (0.01, 2.0)  # a curtain wall's 1 cm to a 2 m fortress wall: outside, a typo or a unit mistake
 
 
 @dataclass(frozen=True)
@@ -35,7 +39,8 @@ class PhotoOptions:
     pipeline.facade_model.Known; nothing known: an assumed window height, flagged), export_all
     (export the implausible windows too), substitute (catalogue style or None), export (write
     model.ifc/obj/glb besides windows.json and the overlay), max_pixels (the largest photo read,
-    checked before decoding; None: fenestra.conventions.LIMITS.max_image_pixels)."""
+    checked before decoding; None: fenestra.conventions.LIMITS.max_image_pixels), wall_thickness_m
+    (the exported walls' thickness, m; a photo shows no wall's depth)."""
 
     detector: str = DEFAULTS.detector
     snapper: str = DEFAULTS.snapper
@@ -46,6 +51,7 @@ class PhotoOptions:
     substitute: str | None = None
     export: bool = True
     max_pixels: int | None = None  # a larger photo is refused before decoding (None: LIMITS.max_image_pixels)
+    wall_thickness_m: float = WALL_THICKNESS_M  # the exported walls' thickness (not measured: stated)
 
     def config(self) -> ReconstructConfig:
         return ReconstructConfig(snapper=self.snapper, pose=self.pose, quad=QuadParams(source=self.quad_source))
@@ -134,6 +140,9 @@ def check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force) -
     mp = options.max_pixels
     if mp is not None and (isinstance(mp, bool) or not isinstance(mp, numbers.Integral) or mp <= 0):
         raise bad("options.max_pixels", "must be a positive int or None", mp)
+    wt, (lo, hi) = options.wall_thickness_m, WALL_THICKNESS_RANGE_M
+    if isinstance(wt, bool) or not isinstance(wt, numbers.Real) or not lo <= wt <= hi:
+        raise bad("options.wall_thickness_m", f"must be a number of metres in {lo:g}-{hi:g}", wt)
 
 
 def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_json: str | Path | None = None,
@@ -274,6 +283,7 @@ def model_walls(doc: dict) -> int:
     return len({w["wall"] for w in doc.get("windows") or []
                 if w.get("wall") is not None and w.get("not_exported") is None and w.get("failure") is None})
 
+
 def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dict) -> dict:
     """The overlay always, then (options.export) the models of a pipeline.session.Reconstruction,
     then index.html (pipeline.export.viewer: the overlay, the GLB in 3D or why there is none, the
@@ -297,7 +307,7 @@ def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dic
                                   walls={k: w.id for w in model.walls for k in w.windows},
                                   properties={k: window_properties(info[k]) for k in info},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False,
-                                  gps=gps_tuple(doc.get("gps")))
+                                  gps=gps_tuple(doc.get("gps")), thickness_m=options.wall_thickness_m)
         except (PipelineError, ValueError, OSError) as e:
             report["failure"] = f"{type(e).__name__}: {e}"
         else:

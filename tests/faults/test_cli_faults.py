@@ -172,6 +172,8 @@ FAULTS = [
      ["--known-height 1e+300 m is outside the physical range [0.01, 30] m"]),
     ("--known-storey 0.2", lambda d: [*_reconstruct("o")(d), "--known-storey", "0.2"],
      ["--known-storey 0.2 m is outside the physical range [1, 50] m"]),
+    ("--wall-thickness 30 (cm, not m)", lambda d: [*_reconstruct("o")(d), "--wall-thickness", "30"],
+     ["--wall-thickness 30.0 m is outside the physical range [0.01, 2] m"]),
     ("--substitute nosuch", lambda d: [*_reconstruct("o")(d), "--substitute", "nosuch"],
      ["--substitute: unknown window style 'nosuch'; choose one of"]),
     ("gate --suggest --margin nan", lambda d: [*run_with_status("complete")(d), "--suggest", "--margin", "nan"],
@@ -340,6 +342,8 @@ API_FAULTS = [
     ("export_all a string", dict(options="export_all='no'"), ["options.export_all must be True or False"]),
     ("max_pixels a string", dict(options="max_pixels='x'"), ["options.max_pixels must be a positive int or None"]),
     ("max_pixels 0", dict(options="max_pixels=0"), ["options.max_pixels must be a positive int or None, got 0"]),
+    ("wall thickness 30 (cm, not m)", dict(options="wall_thickness_m=30.0"),
+     ["options.wall_thickness_m must be a number of metres in 0.01-2, got 30.0"]),
 ]
 
 

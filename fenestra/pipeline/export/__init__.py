@@ -23,7 +23,7 @@ from fenestra.files import write_image
 from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, window_mesh
 from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, camera_to_world, gravity_up, grounded, place,
                                                storey_levels, texture_layout, union_layout, upright, wall_groups,
-                                               wall_margin_m)
+                                               wall_margin_m, WALL_THICKNESS_M)
 from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
 from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
@@ -95,7 +95,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                   walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
                   wall_properties: dict[int, dict] | None = None, overlay: bool = True,
                   gravity: Gravity | np.ndarray | bool = True, max_px: int = EXPORT_MAX_PX,
-                  gps: tuple | None = None) -> dict[str, Path]:
+                  gps: tuple | None = None, thickness_m: float = WALL_THICKNESS_M) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
     image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
@@ -114,7 +114,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     SILL_HEIGHT_M below the lowest row of sills; model.ifc's storeys are the rows), the same for
     model.ifc, model.obj and model.glb; export.json's ``world_frame.offset`` and ``storeys`` say so.
     gps: (latitude deg, longitude deg[, elevation m]) of the camera: model.ifc's site reference and
-    map conversion (pipeline.export.ifc.write_ifc).
+    map conversion (pipeline.export.ifc.write_ifc). thickness_m: the walls' thickness, m (model.ifc's
+    layer and extrusion, the OBJ/GLB slabs; export.json ``wall_thickness_m``).
     Bounded cost: when the padded texture would exceed ``max_px`` (EXPORT_MAX_PX) along its longer
     side, the photo is inpainted and textured at the reduced size that fits (inpaint.capped_size;
     export.json's ``texture``: ``photo_width``/``photo_height``, the size the texture's photo
@@ -162,9 +163,10 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     else:
         paths["texture"] = write_image(out / "texture.png", texture)
     ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K_tex, placed, layout, "texture.png", style,
-                 walls=walls, properties=properties, wall_properties=wall_properties, levels=levels, gps=gps)
+                 walls=walls, properties=properties, wall_properties=wall_properties, levels=levels, gps=gps,
+                 thickness_m=thickness_m)
     paths["ifc"] = out / "model.ifc"
-    parts = model_parts(K_tex, placed, layout, style, walls=walls)
+    parts = model_parts(K_tex, placed, layout, style, walls=walls, thickness_m=thickness_m)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
     if parts:  # glTF cannot hold an empty scene: no GLB when no window could be exported
         paths["glb"] = _timed("glb_ms", write_glb, out / "model.glb", parts, texture, style)
@@ -179,6 +181,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     timings["total_ms"] = 1000.0 * (time.perf_counter() - t_start)
     manifest = {
         "style": style.name,
+        "wall_thickness_m": float(thickness_m),
         "world_frame": {"camera_to_export": camera_to_world(gravity.up).tolist(), "gravity": gravity.to_json(),
                         "offset_m": [0.0, 0.0, -ground_z],
                         "glb_root": "model.glb's root node turns this z-up world y-up (x, y, z) -> (x, z, -y)",
