@@ -248,3 +248,73 @@ def test_vanishing_point_rule_is_the_calibrated_interval_against_the_priors():
     assert r.source == "prior" and r.unavailable["vanishing points"] == refused
     # the bound scales with the photo: twice the pixels, twice the sd allowed
     assert vp_max_sd((1280, 960)) == pytest.approx(2 * bound)
+
+
+def _corner_quads(f_px):
+    """12 window quads (12, 4, 2) px of a house corner seen by a pinhole camera of focal length
+    f_px on a 640 x 480 image (principal point at the centre): two walls at right angles, 3 x 2
+    windows of 0.8 x 1.2 m each, the camera looking up at them (finite vanishing points)."""
+    K = make_K(f_px, f_px, 319.5, 239.5)
+    R, t = look_at(np.array([6.0, -6.0, -1.0]), np.array([1.5, 1.0, 3.0]))
+    up, quads = np.array([0.0, 0.0, 1.0]), []
+    for origin, ex in (([0.0, 0.0, 0.0], [1.0, 0.0, 0.0]), ([3.5, 0.0, 0.0], [0.0, 1.0, 0.0])):
+        ex = np.asarray(ex)
+        for x0 in (0.3, 1.3, 2.3):
+            for z0 in (1.0, 3.5):
+                bl = np.asarray(origin) + x0 * ex + z0 * up
+                quads.append(project(K, R, t, np.array([bl + 1.2 * up, bl + 0.8 * ex + 1.2 * up, bl + 0.8 * ex, bl])))
+    return np.array(quads)
+
+
+def test_vanishing_point_halves_of_one_camera_agree():
+    """Issue 35: the windows are split into two disjoint halves by position and each is fitted alone;
+    windows seen by one camera (f = 700 px) give 700 px from both: the answer stands, and says so."""
+    from fenestra.pipeline.intrinsics import VP_SPLIT_MIN_QUADS, evidence_halves, vanishing_focal  # noqa: PLC0415
+
+    q = _corner_quads(700.0)
+    a, b = evidence_halves(q)
+    assert len(a) == len(b) == 6 and sorted(np.concatenate([a, b]).tolist()) == list(range(12))
+    perm = np.random.default_rng(0).permutation(12)  # the same windows in another order: the same halves
+    assert sorted(perm[evidence_halves(q[perm])[0]].tolist()) == a.tolist()
+    assert 2 * VP_SPLIT_MIN_QUADS <= 12
+    e = vanishing_focal(q, SIZE)
+    assert e.source == "vanishing points" and e.focal_px == pytest.approx(700.0, rel=1e-3)
+    assert "stable: halves give 700 px and 700 px" in e.detail
+
+
+def test_unstable_vanishing_points_fall_back_to_the_prior_and_say_so():
+    """One half of the windows replaced by windows of a camera with f = 1300 px (moved back onto the
+    first ones' centres, so the split by position is unchanged): the whole still fits a focal length
+    with a narrow interval, but the halves' 90 % intervals are disjoint, so the chain uses the prior
+    and K_source.unavailable says why with both halves' values. A half that shows no vanishing point
+    (fronto-parallel rectangles) while the whole does is unstable too; below 2 x VP_SPLIT_MIN_QUADS
+    windows the check does not run."""
+    from fenestra.pipeline.intrinsics import (VP_SD_MULTIPLIER, VP_SPLIT_MIN_QUADS, evidence_halves,  # noqa: PLC0415
+                                              vanishing_fit, vanishing_focal, vanishing_stability)
+
+    q = _corner_quads(700.0)
+    halves = evidence_halves(q)
+    other = _corner_quads(1300.0)
+    centres = q.mean(axis=1, keepdims=True)
+    mixed = q.copy()
+    mixed[halves[1]] = (other - other.mean(axis=1, keepdims=True) + centres)[halves[1]]
+    assert [h.tolist() for h in evidence_halves(mixed)] == [h.tolist() for h in halves]
+    (fa, sa), (fb, sb) = (vanishing_fit(mixed[h], SIZE) for h in halves)
+    assert fa == pytest.approx(700.0, rel=1e-3) and fb > 800.0 and fb - fa > VP_SD_MULTIPLIER * (sa + sb)
+    whole = vanishing_focal(mixed, SIZE, check_stability=False)  # the chain before the check: an answer
+    assert whole.source == "vanishing points" and whole.interval_px[1] - whole.interval_px[0] < 0.3 * whole.focal_px
+    said = vanishing_focal(mixed, SIZE)
+    assert isinstance(said, str) and said.startswith(f"unstable: halves give 700 px and {fb:.0f} px")
+    r = resolve_K(None, mixed, SIZE)
+    assert r.source == "prior" and r.to_json()["unavailable"]["vanishing points"] == said
+    assert [c["source"] for c in r.to_json()["candidates"]] == ["prior"]
+    # a half with no vanishing point at all: 40 x 60 px upright rectangles at the same centres
+    flat = q.copy()
+    box = np.array([[-20.0, -30.0], [20.0, -30.0], [20.0, 30.0], [-20.0, 30.0]])
+    flat[halves[1]] = centres[halves[1]] + box
+    assert not isinstance(vanishing_fit(flat, SIZE), str) and isinstance(vanishing_fit(flat[halves[1]], SIZE), str)
+    said = vanishing_focal(flat, SIZE)
+    assert isinstance(said, str) and said.startswith("unstable: halves give 700 px and no focal length")
+    # too few windows to split: not tested
+    few = mixed[: 2 * VP_SPLIT_MIN_QUADS - 1]
+    assert vanishing_stability(few, SIZE, (700.0, 10.0)) == (True, "")

@@ -3,6 +3,7 @@
     PYOPENGL_PLATFORM=egl nice .venv/bin/python tools/focal_calibration.py \
         [--seeds 100-105] [--views 24] [--hfov 30 95] [--out out/focal-calibration/calibration.csv]
     .venv/bin/python tools/focal_calibration.py --summary out/focal-calibration/calibration.csv
+    .venv/bin/python tools/focal_calibration.py --kfree out/bench/real/kfree.parquet   # real photos' focal table
 
 Renders (or reuses, under out/renders) ``--views`` views of each procedural house of ``--seeds``
 (fenestra.renders.dataset.render_dataset; dataset seed ``--dataset-seed``), with a horizontal
@@ -22,8 +23,12 @@ prior's focal length, and seconds. Written as CSV (``--out``; a .parquet name wr
 The summary (printed after a run, or alone with ``--summary FILE``): the empirical quantiles of
 z = |f - f_true| / sd over the views with a fit (the ``--level`` quantile is the interval
 multiplier whose stated interval covers the truth that often), its coverage by sd bin, and for
-each acceptance rule (the one before, a x3 inflation with a +-15 % gate; the one in use,
-fenestra.pipeline.intrinsics.vanishing_estimate: the calibrated interval narrower than the prior's) how many views take the vanishing points and the focal errors of what they take.
+each acceptance rule (the one before, a x3 inflation with a +-15 % gate; the calibrated interval
+narrower than the prior's, fenestra.pipeline.intrinsics.vanishing_estimate; and that with the
+stability check, intrinsics.vanishing_stability: the halves of the windows fitted alone agree) how
+many views take the vanishing points and the focal errors of what they take. Each row also records
+the stability check's verdict (``stable``; empty without a fit), the halves' answers (``halves``;
+empty when a half has fewer than VP_SPLIT_MIN_QUADS windows: not tested) and its CPU seconds.
 """
 from __future__ import annotations
 
@@ -49,13 +54,15 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def calibration_rows(seeds: list[int], views: int, hfov: tuple[float, float], dataset_seed: int,
-                     renders_dir: str, progress: bool = True) -> list[dict]:
-    """One row per rendered view (see the module docstring)."""
+                     renders_dir: str, progress: bool = True, min_quads: int | None = None) -> list[dict]:
+    """One row per rendered view (see the module docstring); min_quads: the stability check's
+    windows per half (None: intrinsics.VP_SPLIT_MIN_QUADS)."""
     import numpy as np  # noqa: PLC0415
 
     from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
     from fenestra.conventions import DEFAULTS  # noqa: PLC0415
-    from fenestra.pipeline.intrinsics import fov_from_focal, prior_focal, vanishing_fit  # noqa: PLC0415
+    from fenestra.pipeline.intrinsics import (VP_SPLIT_MIN_QUADS, fov_from_focal, prior_focal,  # noqa: PLC0415
+                                              vanishing_fit, vanishing_stability)
     from fenestra.pipeline.poses import POSES  # noqa: PLC0415
     from fenestra.pipeline.session import PhotoSession  # noqa: PLC0415
     from fenestra.rendered_view import read_view  # noqa: PLC0415
@@ -76,11 +83,18 @@ def calibration_rows(seeds: list[int], views: int, hfov: tuple[float, float], da
             fit = vanishing_fit(quads, session.size, wall, session.segments)
             f_true = float(view.meta["K"][0][0])
             f, sd, reason = (fit[0], fit[1], "") if isinstance(fit, tuple) else (np.nan, np.nan, fit)
+            seconds = time.process_time() - t0
+            t1 = time.process_time()
+            stable, halves = vanishing_stability(quads, session.size, fit, wall, session.segments,
+                                                 VP_SPLIT_MIN_QUADS if min_quads is None else min_quads) \
+                if isinstance(fit, tuple) else (None, "")
+            check_s = time.process_time() - t1
             rows.append({"house": f"procedural:{seed}", "view": i, "mode": view.meta.get("mode"),
                          "f_true": f_true, "fov_true_deg": fov_from_focal(f_true, session.size),
                          "n_quads": int(len(quads)), "f": float(f), "sd": float(sd), "reason": reason,
                          "f_prior": prior_focal(session.size).focal_px, "width": session.size[0],
-                         "height": session.size[1], "seconds": time.process_time() - t0})
+                         "height": session.size[1], "seconds": seconds, "stable": stable, "halves": halves,
+                         "check_seconds": check_s})
             if progress:
                 r = rows[-1]
                 print(f"  {r['house']} view {i:2d}: fov {r['fov_true_deg']:5.1f} deg, {r['n_quads']:2d} quads, "
@@ -132,17 +146,68 @@ def summarize(df, level: float = 0.90) -> str:
              lambda r: OLD_Z90 * OLD_INFLATION * r["sd"] <= OLD_GATE * r["f"],
              f"in use: {I.VP_SD_MULTIPLIER:g} sd interval narrower than the prior's (intrinsics.vanishing_estimate)":
              lambda r: not isinstance(I.vanishing_estimate(r["f"], r["sd"], (int(r["width"]), int(r["height"]))), str)}
+    if "stable" in fit:  # tables from before the stability check (issue 35) lack it
+        used = list(rules.values())[-1]
+        rules["with the stability check (the halves of the windows agree; intrinsics.vanishing_stability)"] = \
+            lambda r: used(r) and str(r["stable"]) == "True"
+        taken = fit[fit.apply(used, axis=1)]
+        tested = taken[taken["halves"].fillna("").astype(str) != ""]
+        unstable = taken[taken["stable"].astype(str) == "False"]
+        lines.append(f"stability check on the {len(taken)} views the rule in use takes: tested on {len(tested)} "
+                     f"(each half has enough windows), unstable {len(unstable)} (their focal error: "
+                     f"{', '.join(f'{100 * e:.1f} %' for e in sorted(unstable['err'])) or '-'}, the prior's: "
+                     f"{', '.join(f'{100 * e:.1f} %' for e in sorted(df.loc[unstable.index, 'prior_err'])) or '-'};"
+                     f" inside f +- {I.VP_SD_MULTIPLIER:g} sd: {int((unstable['z'] <= I.VP_SD_MULTIPLIER).sum())});"
+                     f" its CPU s per tested view median "
+                     f"{tested['check_seconds'].median() if len(tested) else float('nan'):.2f}, max "
+                     f"{tested['check_seconds'].max() if len(tested) else float('nan'):.2f}")
     for name, rule in rules.items():
         take = fit[fit.apply(rule, axis=1)] if len(fit) else fit
         chosen = np.concatenate([take["err"].to_numpy(),
                                  df.loc[~df.index.isin(take.index), "prior_err"].to_numpy()])
         cover = np.mean(take["z"] <= k) if len(take) else np.nan
+        cover_in_use = np.mean(take["z"] <= I.VP_SD_MULTIPLIER) if len(take) else np.nan
         lines.append(f"{name}: vanishing points on {len(take)} of {len(df)} views ({100 * len(take) / len(df):.0f} %),"
                      f" their focal error median {100 * take['err'].median():.1f} % p90 "
-                     f"{100 * take['err'].quantile(0.9):.1f} % (coverage of f +- {k:.2f} sd {100 * cover:.0f} %);"
+                     f"{100 * take['err'].quantile(0.9):.1f} % (coverage of f +- {k:.2f} sd {100 * cover:.0f} %,"
+                     f" of the interval in use, f +- {I.VP_SD_MULTIPLIER:g} sd, {100 * cover_in_use:.0f} %);"
                      f" the prior on those views: median {100 * df.loc[take.index, 'prior_err'].median():.1f} %;"
                      f" chosen focal error over all views median {100 * np.median(chosen):.1f} % "
                      f"p90 {100 * np.quantile(chosen, 0.9):.1f} %")
+    return "\n".join(lines)
+
+
+def kfree_focal_table(df) -> str:
+    """The focal figures of a kfree.parquet table (fenestra.bench.photo_eval, rows of one dataset's
+    photos as is and under image transforms): the as-is K sources, the spreads of
+    photo_eval.dataset_summary, the transform runs whose 90 % interval is disjoint from the as-is
+    run's (a confident contradiction), and per photo its spread (the largest |f / f_as_is - 1| of its
+    transform runs) and each run's focal length [interval] px and source (VP: vanishing points)."""
+    import numpy as np  # noqa: PLC0415
+
+    from fenestra.bench.photo_eval import dataset_summary  # noqa: PLC0415
+
+    df = df[df["transform"].isin(("as_is", "gray", "jpeg", "mirror", "crop"))]
+    d = dataset_summary(df)
+    base = df[df["transform"] == "as_is"].set_index("photo")
+    t = df[df["transform"] != "as_is"]
+    contra = [(p, tr) for p, tr, lo, hi in zip(t["photo"], t["transform"], t["focal_lo_px"], t["focal_hi_px"])
+              if hi < base.focal_lo_px[p] or lo > base.focal_hi_px[p]]
+    vp = df[df["K_source"] == "vanishing points"]
+    spread = d["focal_spread_observed_median"]
+    observed = "None" if spread is None else f"{spread:.3f}"
+    lines = [f"as is: {d['K_sources']}; vanishing points on {len(vp)} of {len(df)} runs; focal_spread_observed_median "
+             f"{observed} (focal_spread_n_observed {d['focal_spread_n_observed']}), "
+             f"focal_spread_median (all photos) {d['focal_spread_median']:.3f}; transform runs whose interval is "
+             f"disjoint from the as-is run's: {len(contra)} of {len(t)} ({', '.join(f'{p} {tr}' for p, tr in contra)})"]
+    short = {"vanishing points": "VP"}
+    for photo, g in df.groupby("photo", sort=True):
+        g = g.set_index("transform")
+        spread = max((abs(g.focal_px[tr] / g.focal_px["as_is"] - 1) for tr in g.index if tr != "as_is"), default=np.nan)
+        lines.append(f"  {photo:8s} spread {spread:5.3f}: " + "  ".join(
+            f"{tr} {g.focal_px[tr]:.0f} [{g.focal_lo_px[tr]:.0f}-{g.focal_hi_px[tr]:.0f}] "
+            f"{short.get(g.K_source[tr], g.K_source[tr])}" for tr in ("as_is", "gray", "jpeg", "mirror", "crop")
+            if tr in g.index and np.isfinite(g.focal_px[tr])))
     return "\n".join(lines)
 
 
@@ -161,16 +226,28 @@ def main(argv: list[str] | None = None) -> int:
                     help="the table written (.csv or .parquet; default out/focal-calibration/calibration.csv)")
     ap.add_argument("--level", type=float, default=0.90, help="the interval's coverage to calibrate (default 0.90)")
     ap.add_argument("--summary", metavar="FILE", help="only summarize an existing table")
+    ap.add_argument("--min-quads", type=int, default=None,
+                    help="the stability check's windows per half (default: intrinsics.VP_SPLIT_MIN_QUADS)")
+    ap.add_argument("--kfree", metavar="PARQUET", nargs="+",
+                    help="only print the focal figures of kfree.parquet tables (one dataset's photos as is and "
+                         "under transforms; e.g. out/bench/real/kfree.parquet, spb_facades rows): the stability "
+                         "of the focal chain on real photos (issue 35)")
     a = ap.parse_args(argv)
     import pandas as pd  # noqa: PLC0415
 
+    if a.kfree:
+        for name in a.kfree:
+            df = pd.read_parquet(name)
+            for dataset, g in df[df["transform"] == "gray"].groupby("dataset"):  # datasets run under transforms
+                print(f"{name} ({dataset}):\n{kfree_focal_table(df[df['dataset'] == dataset])}")
+        return 0
     if a.summary:
         path = Path(a.summary)
         df = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path, keep_default_na=False,
                                                                                  na_values=["", "nan", "NaN"])
     else:
         df = pd.DataFrame(calibration_rows(parse_seeds(a.seeds), a.views, tuple(a.hfov), a.dataset_seed,
-                                           a.renders_dir))
+                                           a.renders_dir, min_quads=a.min_quads))
         out = Path(a.out)
         out.parent.mkdir(parents=True, exist_ok=True)
         df.to_parquet(out) if out.suffix == ".parquet" else df.to_csv(out, index=False)

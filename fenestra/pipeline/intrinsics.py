@@ -19,7 +19,11 @@ overlap give a warning naming both values:
    (tools/focal_calibration.py). Not used when its field of view is outside PLAUSIBLE_FOV_DEG or that
    interval is no narrower than the prior's (:func:`vp_max_sd`). Bounded time: the fit stops as soon as
    f runs away, after a capped number of evaluations, or when its first pass is already several times
-   vaguer than that bound (pipeline.walls.fit_walls_focal).
+   vaguer than that bound (pipeline.walls.fit_walls_focal). Nor when it is unstable
+   (:func:`vanishing_stability`, issue 35): with at least 2 x VP_SPLIT_MIN_QUADS windows, the two halves
+   of the windows (by position) are fitted alone, and halves whose 90 % intervals are disjoint, or a
+   half without an answer, send the chain to the prior; ``unavailable`` then says "unstable: halves
+   give A px and B px ...".
 4. ``prior``: a typical phone camera, PRIOR_FOV_DEG horizontal field of view along the photo's long
    side, with the wide interval PRIOR_FOV_RANGE_DEG. Always available: the chain never fails.
 
@@ -29,7 +33,7 @@ K.json that ``--K`` reads.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -222,6 +226,18 @@ PLAUSIBLE_FOV_DEG = (30.0, 100.0)  # a vanishing-point focal length outside is n
 # normal 1.645 sd (4.93 sd: 94 % coverage there) and a +-15 % gate. The estimate is used when that interval
 # is narrower than the prior's (PRIOR_FOV_RANGE_DEG): a measured answer that says more than the assumption.
 VP_SD_MULTIPLIER = 2.69
+# Stability check of the vanishing-point focal length (issue 35: on real photos the answer moved by
+# 12-218 % under gray / JPEG / mirror / 10 % crop while its interval said +-3 %): the windows are split in
+# VP_SPLIT_PARTS disjoint halves (:func:`evidence_halves`), each fitted alone with the same façade segments;
+# when every half has at least VP_SPLIT_MIN_QUADS windows and the halves' calibrated 90 % intervals are
+# disjoint, or a half gives no focal length while the whole does, the answer is called unstable and the
+# prior is used (:func:`vanishing_stability`). Measured on renders and on the St Petersburg photos
+# (docs/experiments.md, "Vanishing points unstable under re-encoding").
+VP_SPLIT_PARTS = 2
+# 4 windows a half: with 3 the check called one calibration render unstable whose interval held the truth
+# (its focal error 15.9 %, the prior's 45.3 %); with 4 it changes no render answer there
+VP_SPLIT_MIN_QUADS = 4
+VP_STABILITY_CHECK = True  # the check in the CLI's chain (vanishing_focal's default; False: the chain before it)
 
 
 def focal_from_fov(fov_deg: float, image_size: tuple[int, int]) -> float:
@@ -327,16 +343,63 @@ def vanishing_estimate(f: float, sd: float, image_size: tuple[int, int], how: st
                          f"image centre; interval: 90 %, {VP_SD_MULTIPLIER:g} sd (calibrated on renders)")
 
 
+def evidence_halves(quads: np.ndarray, parts: int = VP_SPLIT_PARTS) -> list[np.ndarray]:
+    """``parts`` disjoint, deterministic index sets (each sorted, int) covering window quads (N, 4, 2)
+    px: the windows ordered by their centroid's x, then y (px), dealt out in turn (window k to part k
+    mod parts), so that every part spans the façade.
+    The same quads in any order give the same windows in each part."""
+    c = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2).mean(axis=1)
+    order = np.lexsort((c[:, 1], c[:, 0])) if len(c) else np.zeros(0, int)
+    return [np.sort(order[k::parts]) for k in range(parts)]
+
+
+def vanishing_stability(quads: np.ndarray, image_size: tuple[int, int], fit: tuple[float, float],
+                        wall: WallParams | None = None, segment_cache: SegmentCache | None = None,
+                        min_quads: int = VP_SPLIT_MIN_QUADS, parts: int = VP_SPLIT_PARTS) -> tuple[bool, str]:
+    """Whether the vanishing-point focal length ``fit`` (f, sd) px of window quads (N, 4, 2) px in a
+    (W, H) image stands when its evidence is split: each part of :func:`evidence_halves` is fitted
+    alone (:func:`vanishing_fit`, the same façade segments, the same early give-up as the whole).
+    Unstable when every part has at least ``min_quads`` windows and either two parts' calibrated 90 %
+    intervals (f +- VP_SD_MULTIPLIER sd) are disjoint, or a part gives no focal length while the whole
+    does (its answer then rests on some of the windows only). Fewer windows: not tested (stable).
+    Returns (stable, words: the parts' answers, e.g. "unstable: halves give 442 px and no focal length
+    (...)"; "" when not tested)."""
+    idx = evidence_halves(quads, parts)
+    if min(len(i) for i in idx) < min_quads:
+        return True, ""
+    give_up = vp_max_sd(image_size) / prior_focal(image_size).focal_px
+    fits = [vanishing_fit(np.asarray(quads)[i], image_size, wall, segment_cache, give_up_rel_sd=give_up) for i in idx]
+    said = [f"{f[0]:.0f} px" if isinstance(f, tuple) else f"no focal length ({f})" for f in fits]
+    words = ("halves give " if parts == 2 else f"{parts} parts give ") + " and ".join(said)
+    answered = [f for f in fits if isinstance(f, tuple)]
+    k = VP_SD_MULTIPLIER
+    disjoint = any(abs(a[0] - b[0]) > k * (a[1] + b[1]) for n, a in enumerate(answered) for b in answered[n + 1:])
+    if disjoint or len(answered) < len(fits):
+        why = "90 % intervals disjoint" if disjoint else "a half has no answer"
+        return False, (f"unstable: {words}, f = {fit[0]:.0f} +- {fit[1]:.1f} px from all {len(quads)} windows "
+                       f"({why}; split by position, issue 35); using the prior")
+    return True, words
+
+
 def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallParams | None = None,
-                    segment_cache: SegmentCache | None = None) -> FocalEstimate | str:
+                    segment_cache: SegmentCache | None = None,
+                    check_stability: bool | None = None) -> FocalEstimate | str:
     """The façade's vanishing-point focal length (:func:`vanishing_fit`) from snapped window quads
-    (N, 4, 2) px if :func:`vanishing_estimate` accepts it, or why there is none."""
+    (N, 4, 2) px if :func:`vanishing_estimate` accepts it and (check_stability; None: the module's
+    VP_STABILITY_CHECK, read at the call) the halves of its windows agree (:func:`vanishing_stability`),
+    or why there is none (str)."""
     fit = vanishing_fit(quads, image_size, wall, segment_cache,
                         give_up_rel_sd=vp_max_sd(image_size) / prior_focal(image_size).focal_px)
     if isinstance(fit, str):
         return fit
     lines = " and the facade line segments" if wall is not None and wall.lines else ""
-    return vanishing_estimate(*fit, image_size, f" from {len(quads)} window(s){lines}")
+    est = vanishing_estimate(*fit, image_size, f" from {len(quads)} window(s){lines}")
+    if isinstance(est, str) or not (VP_STABILITY_CHECK if check_stability is None else check_stability):
+        return est
+    stable, words = vanishing_stability(quads, image_size, fit, wall, segment_cache)
+    if not stable:
+        return words
+    return replace(est, detail=est.detail + (f"; stable: {words}" if words else ""))
 
 
 @dataclass(frozen=True)
