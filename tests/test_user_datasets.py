@@ -76,10 +76,12 @@ def test_bench_real_on_a_user_dataset_writes_a_report(fmt, panes, tmp_path):
     run = tmp_path / "run"
     assert (run / "report.html").is_file() and (run / "report.md").is_file()
     s = json.loads((run / "summary.json").read_text())
-    assert s["metadata"]["n_windows"] == {"mydata": n}
+    assert s["metadata"]["n_windows"] == {"mydata": n} and s["metadata"]["profile"] == "real-mydata"
     m = json.loads((run / "manifest.json").read_text())
     assert m["n_rows"] == n * len(s["metadata"]["methods"])
     if fmt == "labelmap":  # exact masks: the oracle finds every evaluable (whole) pane
         whole = sum(not p.partial for _, _, ps in panes for p in ps)
         assert s["results"]["oracle/none/lm"]["n_evaluable"] == whole
         assert s["results"]["oracle/none/lm"]["detection_rate"] == 1.0
+    r = cli("bench", "--profile", "smoke", "--data", tmp_path / "mydata", cwd=tmp_path)  # --data needs a real profile
+    assert r.returncode == 2 and "need a real profile" in r.stderr
