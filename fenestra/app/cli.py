@@ -81,6 +81,8 @@ def main() -> None:
             _interrupted()
         raise
     except Exception as e:  # noqa: BLE001  (the one place that turns a bug into one line)
+        if was_interrupted(e):
+            _interrupted()
         try:
             where = f"with the traceback in {crash_log(e, sys.argv)}"
         except OSError:
@@ -90,6 +92,23 @@ def main() -> None:
 
 
 INTERRUPTED = 130  # 128 + SIGINT
+
+
+def was_interrupted(e: BaseException) -> bool:
+    """Whether ``e`` is Ctrl-C in disguise: a KeyboardInterrupt in its chain (__cause__ /
+    __context__), or ctypes' ArgumentError for an interrupt that landed while a foreign call
+    (pyrender's EGL, OpenGL) converted its arguments, which ctypes reports unchained as
+    "argument N: KeyboardInterrupt: "."""
+    import ctypes  # noqa: PLC0415
+
+    seen = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, KeyboardInterrupt) or (isinstance(e, ctypes.ArgumentError)
+                                                and ": KeyboardInterrupt:" in str(e)):
+            return True
+        e = e.__cause__ or e.__context__
+    return False
 
 
 def _interrupted() -> None:

@@ -295,6 +295,34 @@ def test_ctrl_c_prints_interrupted(tmp_path):
     assert [ln for ln in err.splitlines() if ln.startswith("error: ")] == ["error: interrupted; partial outputs removed"]
 
 
+def test_ctrl_c_during_a_foreign_call_is_an_interrupt_not_a_bug():
+    """Ctrl-C landing while ctypes converts a foreign call's arguments (pyrender's EGL) surfaces as
+    ctypes.ArgumentError "argument 1: KeyboardInterrupt: ", unchained: the CLI must call it an
+    interrupt (seen once in test_ctrl_c_prints_interrupted: exit 3 "internal error")."""
+    import ctypes
+
+    from fenestra.app.cli import was_interrupted
+
+    class Interrupting:
+        @classmethod
+        def from_param(cls, obj):
+            raise KeyboardInterrupt
+
+    libc_abs = ctypes.CDLL(None).abs
+    libc_abs.argtypes = [Interrupting]
+    with pytest.raises(ctypes.ArgumentError) as info:
+        libc_abs(1)
+    assert was_interrupted(info.value)
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as inner:
+            raise RuntimeError("cleanup failed") from inner
+    except RuntimeError as chained:
+        assert was_interrupted(chained)
+    assert not was_interrupted(RuntimeError("a bug")) and not was_interrupted(ctypes.ArgumentError("argument 1: TypeError: x"))
+
+
 # ---------------------------------------------------------------- 11. EXIF focal lengths outside the physical range (issue 37: 8)
 
 def test_an_exif_focal_length_outside_the_physical_range_is_never_used(tmp_path):
