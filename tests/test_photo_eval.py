@@ -401,3 +401,12 @@ def test_kfree_in_two_processes_gives_the_rows_of_one(tmp_path):
     for df in (one, two):  # the error names the run's temporary folder
         df["error"] = df["error"].str.replace(r"fenestra-kfree-[^/]+/", "TMP/", regex=True)
     pd.testing.assert_frame_equal(one, two)
+
+
+def test_interval_coverage_against_a_calibration_by_hand():
+    """Three observed photos of known f = 1000 px: intervals [950, 1050] and [990, 1000] hold it
+    (the bound counts), [1010, 1100] does not: 2 of 3."""
+    rows = pd.DataFrame({"focal_true_px": [1000.0, 1000.0, 1000.0, math.nan],
+                         "focal_lo_px": [950.0, 990.0, 1010.0, 900.0], "focal_hi_px": [1050.0, 1000.0, 1100.0, 1100.0]})
+    assert pe.interval_coverage(rows) == {"focal_interval_coverage": pytest.approx(2 / 3), "focal_interval_n": 3}
+    assert pe.interval_coverage(rows.iloc[3:]) == {"focal_interval_coverage": None, "focal_interval_n": 0}

@@ -41,7 +41,8 @@ Per photo and transform one row of ``kfree.parquet`` (:func:`photo_row`); the su
 - focal spread: per photo the largest |f_t / f_as_is - 1| over the transforms; the median over
   photos (and per transform the median of |f_t / f_as_is - 1|);
 - focal error (views with a calibration K): |f / f_K - 1| of the untransformed photo, median over
-  the photos whose focal length was observed (source not the stated prior).
+  the photos whose focal length was observed (source not the stated prior); on those photos, the
+  share whose 90 % interval holds the calibrated focal length (:func:`interval_coverage`).
 """
 from __future__ import annotations
 
@@ -480,6 +481,15 @@ def _column(df: pd.DataFrame, name: str) -> pd.Series:
     return df[name] if name in df else pd.Series(math.nan, index=df.index, dtype=float)
 
 
+def interval_coverage(rows: pd.DataFrame) -> dict:
+    """{"focal_interval_coverage": share of ``rows`` with a calibrated focal length whose 90 %
+    interval [focal_lo_px, focal_hi_px] holds it (None without such a row), "focal_interval_n":
+    how many}: the issue's calibration check of the intervals on photos of known K."""
+    r = rows[rows.focal_true_px.notna() & rows.focal_lo_px.notna()]
+    inside = (r.focal_lo_px <= r.focal_true_px) & (r.focal_true_px <= r.focal_hi_px)
+    return {"focal_interval_coverage": float(inside.mean()) if len(r) else None, "focal_interval_n": int(len(r))}
+
+
 def dataset_summary(df: pd.DataFrame) -> dict:
     """The figures of one dataset's rows (see the module docstring); None where its labels or runs
     do not allow a figure."""
@@ -521,6 +531,7 @@ def dataset_summary(df: pd.DataFrame) -> dict:
         "focal_err_median": _med(observed.focal_err_rel) if a.focal_true_px.notna().any() else None,
         "focal_err_n_observed": int(observed.focal_err_rel.notna().sum()),
         "focal_err_median_all": _med(a.focal_err_rel),
+        **interval_coverage(observed),
         "seconds_per_run_median": _med(df.seconds), "seconds_total": float(df.seconds.sum()),
         "detections": sorted(set(df["detections"])) if "detections" in df else [],
     }

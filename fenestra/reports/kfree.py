@@ -36,6 +36,9 @@ def counts(d: dict) -> dict[str, str]:
         "walls with a tilt (largest, deg)": (f"{g('wall_tilt_n_walls')} ("
                                              + ("-" if g("wall_tilt_max_deg") is None else f"{g('wall_tilt_max_deg'):.2f}")
                                              + ")") if have("wall_tilt_n_walls") else "-",
+        "observed f: 90 % interval holds the calibration": (
+            f"{g('focal_interval_n')} photos, {100 * g('focal_interval_coverage'):.0f} %"
+            if have("focal_interval_n", "focal_interval_coverage") else "-"),
         "known storey: photos, exported, rows of >= 2": (
             f"{g('known_storey_m'):g} m: {g('known_storey_n_photos')}, {g('known_storey_n_exported')}, "
             f"{g('known_storey_n_rows')}" if g("known_storey_n_photos") else "-"),

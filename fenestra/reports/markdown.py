@@ -353,7 +353,7 @@ KFREE_FIGURES = ("n_photos", "output_share", "export_precision", "n_exported", "
                  "focal_err_median_all", "K_sources", "detections", "focal_spread_by_transform", "targets",
                  "n_labels_matched", "n_exported_partial", "walls_stable_n_photos", "wall_tilt_max_deg",
                  "wall_tilt_n_walls", "known_storey_m", "known_storey_n_photos", "known_storey_n_exported",
-                 "known_storey_n_rows")
+                 "known_storey_n_rows", "focal_interval_coverage", "focal_interval_n")
 TARGET_FIELDS = ("key", "target", "value", "met")  # a target's words come from bench.results.KFREE_TARGETS
 
 
