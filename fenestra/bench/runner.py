@@ -231,6 +231,19 @@ def report_apart(report: ReportWriter, run_dir: Path) -> None:
         raise FenestraError(f"report of {run_dir}: {error}")
 
 
+class Laps:
+    """Wall seconds between calls, recorded into ``stage_s`` as ``prefix + name``: ``lap("x")``
+    stores the time since the previous call (or since construction)."""
+
+    def __init__(self, stage_s: dict[str, float], prefix: str) -> None:
+        self.stage_s, self.prefix, self.t = stage_s, prefix, time.perf_counter()
+
+    def __call__(self, name: str) -> None:
+        now = time.perf_counter()
+        self.stage_s[self.prefix + name] = now - self.t
+        self.t = now
+
+
 def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) -> dict[str, dict]:
     """Per-view and per-window milliseconds of every CPU stage (``cpu.*``): regressions show there.
 
@@ -303,12 +316,17 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         if spool.n_rows == 0:
             raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
         n_rows = spool.n_rows
+        lap = Laps(stage_s, "summarize.")  # the summarize stage's parts (issue 34: summarize + report <= 10 s)
         spool.finish(run_dir, profile.name, csv=csv)
+        lap("table")
         manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
+        lap("manifest")
         det = detection_ap(outcomes, per_dataset=photos)
+        lap("detection_ap")
         pq_path = run_dir / res.RESULTS_PARQUET
         summary = res.summarize(pd.read_parquet(pq_path, columns=res.summary_columns(res.parquet_columns(pq_path))))
         res.add_export_precision(summary, outcomes)  # per detection, from the outcomes: not in the table
+        lap("statistics")
         stage_s["summarize"] = time.perf_counter() - t0
         wall = time.perf_counter() - t_start
         meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
