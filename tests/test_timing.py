@@ -67,3 +67,21 @@ def test_fresh_clone_must_be_a_clean_clone_of_head(tmp_path):
     subprocess.run(["git", "-C", str(other), "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "a"], check=True)
     with pytest.raises(SystemExit, match=r"--fresh-clone .*other is at [0-9a-f]{7}, this checkout at"):
         timing.check_clone(other)
+
+
+def test_a_clone_with_outputs_is_refused_and_left_alone(tmp_path):
+    """A clone of HEAD that already holds out/ (renders, runs) is no fresh clone: refused before
+    anything runs, and nothing in it is deleted."""
+    import subprocess
+
+    import pytest
+
+    clone = tmp_path / "clone"
+    subprocess.run(["git", "clone", "-q", str(timing.ROOT), str(clone)], check=True)
+    (clone / ".venv" / "bin").mkdir(parents=True)
+    (clone / ".venv" / "bin" / "python").write_text("")
+    (clone / "out" / "bench" / "mine").mkdir(parents=True)
+    (clone / "out" / "bench" / "mine" / "keep.txt").write_text("a user's file")
+    with pytest.raises(SystemExit, match="has an out/ folder"):
+        timing.check_clone(clone)
+    assert (clone / "out" / "bench" / "mine" / "keep.txt").read_text() == "a user's file"

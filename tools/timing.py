@@ -15,7 +15,8 @@ Each run also records its artefacts' sizes and its peak memory (summary.json ``p
 
 ``--fresh-clone DIR`` also measures what a new user meets: DIR is a ``git clone`` of this
 checkout's HEAD on which ``make setup`` ran (the tool refuses another commit or a dirty clone);
-``/usr/bin/time -v make bench`` runs there with the caches outside a checkout fresh in DIR/cache,
+``/usr/bin/time -v make bench`` runs there (it must have no out/ yet) with the caches outside a
+checkout fresh in a temporary folder,
 and the block compares its wall time with the cold run's (agreement within FRESH_CLONE_AGREEMENT).
 
 ``--markdown docs/performance.md`` writes the figures as a Markdown block between the markers
@@ -32,7 +33,6 @@ import dataclasses
 import json
 import os
 import platform
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -129,32 +129,34 @@ def check_clone(clone: Path) -> str:
         raise SystemExit(f"error: --fresh-clone {clone} has local changes: a fresh clone has none")
     if not (clone / ".venv" / "bin" / "python").is_file():
         raise SystemExit(f"error: --fresh-clone {clone} has no .venv: run `make -C {clone} setup` first")
+    if (clone / "out").exists():
+        raise SystemExit(f"error: --fresh-clone {clone} has an out/ folder (renders, runs): a fresh clone has none; "
+                         "clone again (nothing there is deleted)")
     return head
 
 
 def fresh_clone_bench(clone: Path) -> dict:
     """``/usr/bin/time -v make bench`` in a fresh clone (see the module docstring): its wall
     seconds as the user's shell sees them, peak RSS of any process (time -v), and the figures of
-    the run folder it wrote (the newest out/bench/default*). Earlier runs in the clone are
-    removed first (the clone is the tool's scratch folder: fenestra wrote them)."""
+    the run folder it wrote (out/bench/default*). The clone must have no out/ yet
+    (:func:`check_clone`); the caches and the time log go to a temporary folder, so nothing of the
+    clone is deleted or overwritten."""
     commit = check_clone(clone)
-    for old in (clone / "out").glob("bench/default*"):
-        shutil.rmtree(old)
-    shutil.rmtree(clone / "out" / "renders", ignore_errors=True)
-    shutil.rmtree(clone / "cache", ignore_errors=True)
-    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
-    env.update({"MPLBACKEND": "Agg", "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"),
-                **fresh_caches(clone)})
-    log = clone / "time-v.log"
-    t0 = time.perf_counter()
-    r = subprocess.run(["/usr/bin/time", "-v", "-o", str(log), "make", "bench"], cwd=clone, env=env,
-                       capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    if r.returncode != 0:
-        raise RuntimeError(f"make bench in {clone} failed ({r.returncode}): {r.stderr[-2000:]}")
+    with tempfile.TemporaryDirectory(prefix="fenestra-fresh-clone-") as tmp:
+        env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
+        env.update({"MPLBACKEND": "Agg", "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"),
+                    **fresh_caches(Path(tmp))})
+        log = Path(tmp) / "time-v.log"
+        t0 = time.perf_counter()
+        r = subprocess.run(["/usr/bin/time", "-v", "-o", str(log), "make", "bench"], cwd=clone, env=env,
+                           capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        if r.returncode != 0:
+            raise RuntimeError(f"make bench in {clone} failed ({r.returncode}): {r.stderr[-2000:]}")
+        log_text = log.read_text()
     run = max((clone / "out" / "bench").glob("default*"), key=lambda p: p.stat().st_mtime)
     fig = run_figures(run, wall)
-    rss = time_log_rss_mb(log.read_text())
+    rss = time_log_rss_mb(log_text)
     if rss is not None:
         fig["peak_rss_mb"] = {"any_process (time -v)": rss}
     return {**fig, "commit": commit, "make_bench_wall_s": wall}
