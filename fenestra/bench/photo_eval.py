@@ -13,7 +13,7 @@ function image -> Encoded (the bytes of a file and its suffix): :data:`TRANSFORM
 ``known_storey_m`` (transform KNOWN_STOREY).
 
 Per photo and transform one row of ``kfree.parquet`` (:func:`photo_row`); the summary block
-(:func:`summarize_kfree`) per dataset, with the issue's targets (:data:`TARGETS`) beside:
+(:func:`summarize_kfree`) per dataset, with the issue's targets (bench.results.KFREE_TARGETS) beside:
 
 - output: share of photos whose run returned a document and wrote windows.json;
 - export precision: exported windows whose snapped quad's bounding box has IoU >= ``match_iou``
@@ -70,7 +70,6 @@ JPEG_QUALITY = 80  # the "re-saved JPEG" transform
 EXIF_ORIENTATION_TAG = 0x0112
 UNOBSERVED_SOURCES = ("prior",)  # focal sources that observe nothing of the photo
 
-TARGETS = KFREE_TARGETS  # the issue's targets (bench.results, where the reports read them)
 
 
 # ---------------------------------------------------------------- transforms (pure)
@@ -540,7 +539,7 @@ def dataset_summary(df: pd.DataFrame) -> dict:
 def check_targets(figures: dict) -> list[dict]:
     """The targets this dataset's figures measure: key, words, target, value, met."""
     out = []
-    for key, op, target, words in TARGETS:
+    for key, op, target, words in KFREE_TARGETS:
         v = figures.get(key)
         if v is not None:
             out.append({"key": key, "words": words, "target": f"{op} {target:g}", "value": v,
