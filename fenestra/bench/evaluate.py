@@ -409,15 +409,15 @@ def bim_columns(rec, rec_storey, d: int, w: LabelledWindow, view: LabelledView) 
     where K was not given, the rows' ``focal_est_px`` and ``focal_err_rel`` are that of the K
     used), how its wall got its scale (``scale_source``), whether it is exported
     (``exported``: 1.0 or 0.0, NaN for a missed window, like the calibration columns) or why not
-    (``not_exported``), and its metric errors (:func:`metric_errors`)
-    with nothing known (the assumed scale) and, suffix ``_storey``, with the true storey height
+    (``not_exported``), and the metric errors (:func:`metric_errors`) of the window as exported
+    (rec.as_exported: its row's regularized sill and head, what a BIM user gets) with nothing known (the assumed scale) and, suffix ``_storey``, with the true storey height
     given (``rec_storey``; NaN without one)."""
-    res = rec.whole(d)  # a partial window (cut by the border) is exported, its size is not the window's: NaN
+    res = rec.as_exported(d)  # the shipped window; a partial one's size is not the window's: NaN
     out = {"K_source": rec.resolved.source, "K_focal_px": float(rec.K[0, 0]),
            "scale_source": rec.scale_source(d), "exported": float(d not in rec.not_exported),
            "not_exported": rec.not_exported.get(d, ""), **metric_errors(res, w, view, "")}
     if rec_storey is not None:
-        out.update(metric_errors(rec_storey.whole(d), w, view, "_storey"),
+        out.update(metric_errors(rec_storey.as_exported(d), w, view, "_storey"),
                    scale_source_storey=rec_storey.scale_source(d))
     if rec.resolved.source != "K" and view.K is not None:  # the focal chain's answer against the truth
         f_true = float(np.sqrt(view.K[0, 0] * view.K[1, 1]))

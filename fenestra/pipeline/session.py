@@ -115,8 +115,14 @@ class Reconstruction:
         the photo's border) its result before its visible part was placed (failed at the quad
         stage: its whole corners and size are not in the photo), or for a window its row
         regularized the window as measured (:attr:`measured`). What the bench measures a
-        window's geometry by; what is exported is ``windows[index]``."""
+        window's corners, aspect ratio and pose by; what is exported is :meth:`as_exported`."""
         return self.unplaced.get(index, self.measured.get(index, self.windows[index]))
+
+    def as_exported(self, index: int) -> WindowResult:
+        """Window ``index`` as the model exports it: ``windows[index]`` (its row's regularized sill
+        and head, pipeline.row_lines), or for a partial window its whole-window failure (its whole
+        size is not in the photo). What the bench's BIM errors (width, height, position) measure."""
+        return self.unplaced.get(index, self.windows[index])
 
     @property
     def exported(self) -> dict[int, bool]:
