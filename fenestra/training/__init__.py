@@ -3,6 +3,7 @@
     train.py       TrainConfig, train() (one loop for every architecture)     `fenestra train`
     recipes/       one training recipe per trainable detector (recipes/<arch>.py: RECIPE)
     augment.py     domain randomisation at training time
+    houses.py      the procedural training houses (varied, facade, street) every data script shares
     dataset.py     reading rendered dataset folders (views, instance maps, coco.json)
     evaluate.py    COCO bbox/segm AP of a detector on a dataset              `fenestra evaluate-detector`
     ship.py        checked copy of trained weights into fenestra/pipeline/models      `fenestra ship-weights`

@@ -56,58 +56,13 @@ done
 
 # Varied procedural houses (added for the second default model): strip windows of extreme aspect
 # ratio close under the ceiling slab, small windows, tall glazed openings, deep reveals, other
-# footprints, 2.5-3.2 m storeys. Written with scenes.generate.make_house (the `scenes make` CLI has
-# no width/height-range options). Seeds 111..126 train; seeds 201..204 are the VALIDATION split
-# (never trained on; used to choose models and thresholds instead of the held-out house).
-$PY - "$ROOT/procedural" <<'PYEOF'
-import sys
-from pathlib import Path
-from fenestra.scenes.generate import HouseSpec, make_house
-root = Path(sys.argv[1])
-STYLES = {  # width_range, height_range (m), windows per wall, storey height, wall thickness, reveal
-    "strip": ((1.4, 3.6), (0.3, 0.7), 2, 2.6, 0.3, 0.1),
-    "small": ((0.3, 0.7), (0.3, 0.8), 4, 3.0, 0.35, 0.15),
-    "tall":  ((0.5, 1.1), (1.5, 2.4), 3, 3.2, 0.3, 0.05),
-    "mixed": ((0.4, 2.6), (0.4, 1.9), 3, 2.8, 0.5, 0.3),
-}
-FOOTPRINTS = [((0, 0), (12, 0), (12, 8), (0, 8)),
-              ((0, 0), (16, 0), (16, 6), (0, 6)),
-              ((0, 0), (10, 0), (13, 4), (10, 8), (0, 8)),
-              ((0.0, 0.0), (9.0, 0.0), (11.5, 4.5), (7.0, 9.0), (-1.5, 6.5))]
-for seed in list(range(111, 127)) + list(range(201, 205)):
-    name = list(STYLES)[seed % 4]
-    wr, hr, n, sh, th, rev = STYLES[name]
-    spec = HouseSpec(seed=seed, footprint=FOOTPRINTS[(seed // 4) % 4], storeys=1 + seed % 3,
-                     storey_height=sh, wall_thickness=th, reveal_depth=rev, rotation_deg=(seed * 23) % 90,
-                     windows_per_wall=1 + (seed // 2) % n, width_range=wr, height_range=hr)
-    out = root / f"varied-{seed}.ifc"
-    if not out.exists():
-        h = make_house(spec, out)
-        print(f"{out}: {name}, {len(h.windows)} windows")
-# Facade-feature houses (third default model): the same styles plus roof overhangs with a dark
-# fascia band and eave shadow over the top windows, glazed doors and glazed curtain walls (IfcDoor /
-# IfcPlate: unlabelled glazing, i.e. negatives). Seeds 131..146 train, 205..208 validation.
-from dataclasses import replace
-for seed in list(range(131, 147)) + list(range(205, 209)):
-    name = list(STYLES)[seed % 4]
-    wr, hr, n, sh, th, rev = STYLES[name]
-    base = HouseSpec(seed=seed, footprint=FOOTPRINTS[(seed // 4) % 4], storeys=1 + seed % 2,
-                     storey_height=max(sh, 2.6), wall_thickness=th, reveal_depth=rev,
-                     rotation_deg=(seed * 31) % 90, windows_per_wall=1 + (seed // 2) % n,
-                     width_range=wr, height_range=hr,
-                     roof_overhang=(0.3, 0.5, 0.8, 1.1)[(seed // 3) % 4],
-                     fascia_height=(0.25, 0.4, 0.6)[seed % 3])
-    out = root / f"facade-{seed}.ifc"
-    if out.exists():
-        continue
-    for doors, cws in ((1 + seed % 2, seed % 2 == 0), (1, seed % 2 == 0), (1, False), (0, False)):
-        try:  # fewer doors / no curtain wall where the house has no suitable wall for them
-            h = make_house(replace(base, glazed_doors=doors, curtain_walls=int(cws)), out)
-            break
-        except ValueError as e:
-            print(f"{out.name}: {e}; trying fewer features")
-    print(f"{out}: {name}, {len(h.windows)} windows, {len(h.doors)} doors, {len(h.curtain_walls)} curtain-wall bays")
-PYEOF
+# footprints, 2.5-3.2 m storeys; seeds 111..126 train, 201..204 are the VALIDATION split (never
+# trained on; used to choose models and thresholds instead of the held-out house). Facade-feature
+# houses (third default model): the same styles plus roof overhangs, fascias, glazed doors and curtain
+# walls (unlabelled glazing: negatives); seeds 131..146 train, 205..208 validation.
+# The specs: fenestra/training/houses.py.
+$PY -m fenestra.training.houses varied "$ROOT/procedural"
+$PY -m fenestra.training.houses facade "$ROOT/procedural"
 for s in $(seq 111 126); do
   ifc="$ROOT/procedural/varied-$s.ifc"
   render "$ifc" 20 $((5000 + s)) pyrender "$ROOT/train" --look-per view --sensor --k1 0.1
