@@ -55,3 +55,31 @@ def test_table_per_house_from_results_tables():
         shown = [float(x) for x in cells[6].replace("*", " ").replace("[", " ").replace("]", " ").replace("–", " ")
                  .replace("(", " ").replace(")", " ").replace(",", " ").replace("px", " ").split()]
         assert np.allclose(shown, [np.median(med), min(med), max(med), *med], atol=0.011), (shown, med)
+
+
+def test_cached_run_is_reused_only_with_this_commit_and_these_weights(tmp_path):
+    """A run folder stands for a fresh run only when its summary names this commit and the sha256
+    of every shipped weights file (checked here against the files' own digests)."""
+    import hashlib
+    import json
+
+    from fenestra.bench.results import _commit
+
+    weights = {p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+               for p in sorted((ROOT / "fenestra" / "pipeline" / "models").glob("*.pt"))}
+    assert "default.pt" in weights and "refine.pt" in weights
+    run = tmp_path / "heldout-seeds-s0-abc"
+    assert not seed_spread.reusable(run)  # no folder
+    run.mkdir()
+    (run / "results.parquet").write_bytes(b"x")
+    for meta, ok in (({"commit": _commit(), "models": weights}, True),
+                     ({"commit": _commit(), "models": {**weights, "refine.pt": "0" * 64}}, False),
+                     ({"commit": "f" * 40, "models": weights}, False),
+                     ({"commit": _commit()}, False)):  # a run from before the digests were recorded
+        (run / "summary.json").write_text(json.dumps({"metadata": meta}))
+        assert seed_spread.reusable(run) == ok, meta
+    (run / "summary.json").write_text("{not json")
+    assert not seed_spread.reusable(run)
+    (run / "results.parquet").unlink()
+    (run / "summary.json").write_text(json.dumps({"metadata": {"commit": _commit(), "models": weights}}))
+    assert not seed_spread.reusable(run)

@@ -6,7 +6,7 @@
 Runs the bench profile (``fenestra bench --profile P``: renders and all) once per seed, the seed
 replacing the profile's (it draws the cameras and, with ``look_per = "view"``, every view's look),
 ``--views`` replacing its views per house, each run in ``out/bench/seed-spread/<profile>-s<seed>-<hash>``
-(cached renders and runs are reused). Per house and seed it takes the method's figures as the
+(cached renders are reused; a cached run only when made at this commit with these weights). Per house and seed it takes the method's figures as the
 results docs do (fenestra.reports.markdown: evaluable windows, detection rate, quads, all four
 corners within 5 px, snapped corner median, rotation median, aspect-ratio error p90), and writes
 one Markdown table: each figure's median over the seeds and its min-max, then the seeds' values
@@ -126,9 +126,24 @@ def run_seed(profile, seed: int, views: int | None, out_root: Path):
     if views is not None:
         p = dataclasses.replace(p, render=dataclasses.replace(p.render, views_per_house=views))
     run_dir = out_root / f"{p.name}-s{seed}-{p.config_hash()}"
-    if not (run_dir / "results.parquet").is_file():
-        run_benchmark(p, out_dir=run_dir, progress=False, report=None)
+    if not reusable(run_dir):
+        run_benchmark(p, out_dir=run_dir, progress=False, report=None, force=run_dir.exists())
     return load_results(run_dir)
+
+
+def reusable(run_dir: Path) -> bool:
+    """Whether a cached run may stand for a fresh one: complete, made at this commit with these
+    weights (summary.json's ``commit`` and ``models``; a run of other weights is stale)."""
+    import json  # noqa: PLC0415
+
+    from fenestra.bench.results import SUMMARY_JSON, _commit, model_digests  # noqa: PLC0415
+
+    try:
+        meta = json.loads((run_dir / SUMMARY_JSON).read_text())["metadata"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    return ((run_dir / "results.parquet").is_file() and meta.get("commit") == _commit()
+            and meta.get("models") == model_digests())
 
 
 def main() -> None:

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from fenestra.bench.metrics import error_stats, recall_at
-from fenestra.files import REPO_ROOT, write_atomic, write_text
+from fenestra.files import REPO_ROOT, file_sha256, write_atomic, write_text
 from fenestra.pipeline.facade_model import MAX_WINDOW_M
 from fenestra.tolerances import TOL
 
@@ -428,10 +428,18 @@ def versions() -> dict[str, str | None]:
     return out
 
 
+def model_digests() -> dict[str, str]:
+    """{file name: sha256} of the shipped weights (fenestra/pipeline/models/*.pt): which networks a
+    run used, also where the tree differs from its commit."""
+    from fenestra.pipeline.detectors import MODELS_DIR  # noqa: PLC0415 (cv2: only when a run is written)
+
+    return {p.name: file_sha256(p) for p in sorted(MODELS_DIR.glob("*.pt"))}
+
+
 def make_metadata(profile: dict, config_hash: str, seed: int, wall_time_s: float,
                   stage_time_s: dict[str, float], **extra) -> dict:
-    """The metadata block of summary.json."""
-    return {"commit": _commit(), "versions": versions(), "seed": seed,
+    """The metadata block of summary.json (``models``: :func:`model_digests`)."""
+    return {"commit": _commit(), "models": model_digests(), "versions": versions(), "seed": seed,
             "profile": profile.get("name"), "config": profile, "config_hash": config_hash,
             "wall_time_s": wall_time_s, "stage_time_s": stage_time_s, **extra}
 
