@@ -748,3 +748,30 @@ def test_vp_consensus_memory_is_bounded_on_a_brick_wall():
     tracemalloc.stop()
     assert keep[:60_000].mean() > 0.99 and keep[60_000:].mean() < 0.2
     assert peak < 400e6, f"{peak / 1e6:.0f} MB"
+
+
+def test_focal_of_a_level_camera_at_a_corner():
+    """A level camera (optical axis horizontal: every wall's verticals are parallel in the image, so
+    no wall alone gives f) at a house corner: the two walls' horizontal vanishing points at a right
+    angle give f (issue 35: two horizontal vanishing points where a corner shows)."""
+    R, t = look_at(np.array([8.0, -7.0, 2.3]), np.array([1.5, 1.0, 2.3]))
+    assert abs((R @ UP)[2]) < 1e-12  # level: the vertical vanishing point is at infinity
+    C = np.concatenate([wall_windows([0.0, 0.0, 0.0], EX_FRONT, FRONT), wall_windows([3.5, 0.0, 0.0], EX_SIDE, SIDE)])
+    quads = np.array([project(K, R, t, c) for c in C])
+    front_only = quads[:len(FRONT)]
+    with pytest.raises(vanishing.FacadeError, match="meet at a right angle"):
+        walls.focal_from_walls(front_only, SHAPE)  # one wall, level camera: unobservable
+    f, sd = walls.focal_from_walls(quads, SHAPE)
+    assert f == pytest.approx(820.0, rel=1e-6)
+    rng = np.random.default_rng(11)
+    f, sd = walls.focal_from_walls(quads + rng.normal(0.0, 0.3, quads.shape), SHAPE)
+    assert abs(f - 820.0) < 3 * sd and abs(f - 820.0) < 0.05 * 820.0
+
+
+def test_corner_focals_need_two_directions_at_a_right_angle():
+    K0 = walls.pseudo_K(SHAPE, 500.0)
+    R, _ = look_at(np.array([8.0, -7.0, 2.3]), np.array([1.5, 1.0, 2.3]))
+    d_front, d_side = R @ EX_FRONT, R @ EX_SIDE
+    assert walls.corner_focals([d_front, d_side], K0) == [pytest.approx(500.0, rel=1e-9)]  # K0's own f: exact
+    assert walls.corner_focals([d_front, d_front], K0) == []  # one façade split in two: no corner
+    assert walls.corner_focals([d_front], K0) == []

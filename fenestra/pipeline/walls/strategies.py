@@ -26,6 +26,7 @@ intervals: ``aspect_lo/aspect_hi``, ``rot_deg`` (bound on the rotation error), `
 from __future__ import annotations
 
 from dataclasses import fields, replace
+from itertools import combinations
 
 import numpy as np
 
@@ -238,13 +239,31 @@ def check_focal_sd(fit: WallFit, max_rel_sd: float, when: str = "") -> float:
     return sd
 
 
+CORNER_MIN_WINDOWS = 2  # windows a wall needs to count in a corner (one window's horizontal is too vague)
+
+
+def corner_focals(d_hs: list[np.ndarray], K0: np.ndarray) -> list[float]:
+    """Focal lengths (px) of a building's corners: for each pair of walls whose horizontal vanishing
+    directions d_h (3,) (found under the pseudo-K0 (3, 3)) are seen at a right angle
+    (:func:`focal_from_vanishing` of the two: f^2 = -(v1 - p).(v2 - p) > 0), that f; pairs seen
+    nearly parallel (one façade split in two) or with a vanishing point at infinity give none."""
+    return [f for a, b in combinations(range(len(d_hs)), 2)
+            if (f := focal_from_vanishing(d_hs[a], d_hs[b], K0)) is not None]
+
+
 def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: float = 1.0,
                     params: WallParams = WallParams(), segments: np.ndarray | None = None,
                     sigmas: np.ndarray | None = None, memo: StepMemo | None = None,
                     give_up_rel_sd: float | None = None) -> Fit:
     """Unknown focal length: group quads (N, 4, 2) px of an (H, W) image into walls, start f at the
     median of the walls' vanishing-point estimates (:func:`focal_from_vanishing`), then fit
-    all walls jointly with one shared f (principal point at the image centre). segments: the
+    all walls jointly with one shared f (principal point at the image centre). Where no wall alone
+    gives f (a level camera: each wall's verticals parallel in the image), two walls of at least
+    CORNER_MIN_WINDOWS windows seen at a right angle do (a corner, :func:`corner_focals`): f starts
+    at their median and the fit ties the walls at right angles (WallParams.manhattan), which is what
+    constrains it. Only then: where a wall alone gives f, a corner is no check of it (f is computed
+    assuming the right angle, so any two walls tie at it; on non-rectangular footprints a retry at
+    the corner gave f off by 94 % and 139 %, issue 35). segments: the
     photo's façade line segments (M, 2, 2) px, which join the vanishing points and the fit, or None;
     sigmas (N,) px: each window's corner sigma, or None; memo: as for :func:`fit_walls`.
 
@@ -260,10 +279,23 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
     walls = _group_walls(q, K0, params, memo)
     vps = [(w.d_h, w.d_v) for w in walls] if segments is None else _wall_vps(q, K0, walls, params, segments, memo)[0]
     f0 = [f for d_h, d_v in vps if (f := focal_from_vanishing(d_h, d_v, K0)) is not None]
+    if not f0 and not params.manhattan:  # no wall alone (a level camera): a corner of the building?
+        f0 = corner_focals([d_h for (d_h, _), w in zip(vps, walls) if len(w.members) >= CORNER_MIN_WINDOWS], K0)
+        params = replace(params, manhattan=True)
     if not f0:
         raise FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
-                          f"two converging side pairs")
-    K1 = pseudo_K(image_shape, float(np.median(f0)))
+                          f"two converging side pairs, and no two walls of {CORNER_MIN_WINDOWS}+ windows "
+                          f"meet at a right angle")
+    return _focal_fit(q, image_shape, walls, float(np.median(f0)), height, params, segments, sigmas, memo,
+                      give_up_rel_sd)
+
+
+def _focal_fit(q: np.ndarray, image_shape: tuple[int, int], walls: list[WallVP], f_start: float, height: float,
+               params: WallParams, segments: np.ndarray | None, sigmas: np.ndarray | None, memo: StepMemo,
+               give_up_rel_sd: float | None) -> Fit:
+    """The joint fit of all walls with one free f started at f_start px (:func:`fit_walls_focal`);
+    FacadeError when it fails or its f is vaguer than WALL_FIT.focal_max_rel_sd."""
+    K1 = pseudo_K(image_shape, f_start)
     R0, group, Q, lines = _rotation_groups(q, K1, walls, params, segments, memo)
     bounds = tuple(float(r * max(image_shape)) for r in WALL_FIT.focal_range_rel)
     try:
