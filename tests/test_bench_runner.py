@@ -31,6 +31,8 @@ def run(tmp_path_factory):
     from fenestra.pipeline.snappers.none import NoneParams
 
     SNAPPERS.register(Snapper("shift5", _shift5, NoneParams, description="broken: 5 px off", test_median_px=5.0))
+    commits = iter(["a" * 40])  # HEAD as the run starts; any later read (a commit made during the run) differs
+    real_commit, results._commit = results._commit, lambda: next(commits, "b" * 40)
     try:
         root = tmp_path_factory.mktemp("bench")
         methods = (Method("oracle", "none", "lm"), Method("oracle", "linefit", "lm"),
@@ -39,7 +41,19 @@ def run(tmp_path_factory):
                              methods=methods, renders_dir=root / "renders", report=build_report)
     finally:
         SNAPPERS.unregister("shift5")
+        results._commit = real_commit
     return info
+
+
+def test_provenance_is_read_when_the_run_starts(run):
+    """summary.json names the commit the run started at and the sha256 of every shipped weights file."""
+    import hashlib
+    from pathlib import Path
+
+    meta = json.loads((run.run_dir / "summary.json").read_text())["metadata"]
+    assert meta["commit"] == "a" * 40
+    models = Path(results.__file__).resolve().parents[1] / "pipeline" / "models"
+    assert meta["models"] == {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(models.glob("*.pt"))}
 
 
 def test_every_gt_window_has_a_row_per_method(run):

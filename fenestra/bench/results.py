@@ -437,9 +437,12 @@ def model_digests() -> dict[str, str]:
 
 
 def make_metadata(profile: dict, config_hash: str, seed: int, wall_time_s: float,
-                  stage_time_s: dict[str, float], **extra) -> dict:
-    """The metadata block of summary.json (``models``: :func:`model_digests`)."""
-    return {"commit": _commit(), "models": model_digests(), "versions": versions(), "seed": seed,
+                  stage_time_s: dict[str, float], commit: str | None = None, models: dict | None = None,
+                  **extra) -> dict:
+    """The metadata block of summary.json. commit, models (:func:`model_digests`): the run's, read
+    when it started (None: read now)."""
+    return {"commit": _commit() if commit is None else commit,
+            "models": model_digests() if models is None else models, "versions": versions(), "seed": seed,
             "profile": profile.get("name"), "config": profile, "config_hash": config_hash,
             "wall_time_s": wall_time_s, "stage_time_s": stage_time_s, **extra}
 

@@ -287,6 +287,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     """
     t_start = time.perf_counter()
     load_before = os.getloadavg()
+    provenance = {"commit": res._commit(), "models": res.model_digests()}  # what the run starts with, not ends with
     photos = isinstance(profile, RealProfile)
     if sim_dir is not None and not photos:
         raise ValueError(f"sim_dir needs a real profile, got profile {profile.name!r}")
@@ -329,7 +330,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         lap("statistics")
         stage_s["summarize"] = time.perf_counter() - t0
         wall = time.perf_counter() - t_start
-        meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s,
+        meta = res.make_metadata(profile.to_dict(), profile.config_hash(), profile.seed, wall, stage_s, **provenance,
                                  n_views=len(outcomes), n_rows=n_rows,
                                  **per_unit_timings(stage_s, len(outcomes), n_rows // max(1, len(methods))),
                                  methods=[m.name for m in methods], skipped_detectors=skipped,
