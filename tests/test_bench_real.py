@@ -409,3 +409,13 @@ def test_coco_annotation_of_an_unknown_category_is_an_error_at_load(tmp_path):
     (tmp_path / "annotations.json").write_text(json.dumps(doc))
     (v,) = list(read_coco(tmp_path))
     assert [w.id for w in v.windows] == ["1"]
+
+
+def test_real_val_profile_never_reads_the_test_photos():
+    """real-val, the profile changes are chosen on, reads the validation part of the train folder
+    (every 5th photo, kfree only) and the bundled curtain wall, never the 10 test photos."""
+    p = load_real_profile("real-val")
+    assert {d.name for d in p.datasets} == {"curtainwall", "spb_val"}
+    val = next(d for d in p.datasets if d.name == "spb_val")
+    assert val.folder() == ROOT.parent / "shared" / "real" / "spb_facades" / "train"
+    assert p.kfree.datasets == p.kfree.transform_datasets == ("spb_val",) and p.kfree.max_photos == 30
