@@ -410,8 +410,9 @@ def bim_columns(rec, rec_storey, d: int, w: LabelledWindow, view: LabelledView) 
     used), how its wall got its scale (``scale_source``), whether it is exported
     (``exported``: 1.0 or 0.0, NaN for a missed window, like the calibration columns) or why not
     (``not_exported``), and the metric errors (:func:`metric_errors`) of the window as exported
-    (rec.as_exported: its row's regularized sill and head, what a BIM user gets) with nothing known (the assumed scale) and, suffix ``_storey``, with the true storey height
-    given (``rec_storey``; NaN without one)."""
+    (rec.as_exported: its row's regularized sill and head, what a BIM user gets) with nothing
+    known (the assumed scale) and, suffix ``_storey``, with the true storey height given
+    (``rec_storey``; NaN without one)."""
     res = rec.as_exported(d)  # the shipped window; a partial one's size is not the window's: NaN
     out = {"K_source": rec.resolved.source, "K_focal_px": float(rec.K[0, 0]),
            "scale_source": rec.scale_source(d), "exported": float(d not in rec.not_exported),

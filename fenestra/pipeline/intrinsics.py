@@ -17,8 +17,8 @@ overlap give a warning naming both values:
    segments (pipeline.walls.focal_from_walls); principal point at the image centre, square pixels.
    Where no wall alone shows converging verticals (a level camera), two walls seen at a right angle
    (a corner of the building: their two horizontal vanishing points) give it, the fit then tying
-   them at right angles (pipeline.walls.corner_focals). Interval (90 %): f +- VP_SD_MULTIPLIER x sd, the multiplier calibrated on renders with known K
-   (tools/focal_calibration.py). Not used when its field of view is outside PLAUSIBLE_FOV_DEG or that
+   them at right angles (pipeline.walls.corner_focals). Interval (90 %): f +- VP_SD_MULTIPLIER x sd,
+   the multiplier calibrated on renders with known K (tools/focal_calibration.py). Not used when its field of view is outside PLAUSIBLE_FOV_DEG or that
    interval is no narrower than the prior's (:func:`vp_max_sd`). Bounded time: the fit stops as soon as
    f runs away, after a capped number of evaluations, or when its first pass is already several times
    vaguer than that bound (pipeline.walls.fit_walls_focal). Nor when it is unstable

@@ -261,9 +261,8 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
     gives f (a level camera: each wall's verticals parallel in the image), two walls of at least
     CORNER_MIN_WINDOWS windows seen at a right angle do (a corner, :func:`corner_focals`): f starts
     at their median and the fit ties the walls at right angles (WallParams.manhattan), which is what
-    constrains it. Only then: where a wall alone gives f, a corner is no check of it (f is computed
-    assuming the right angle, so any two walls tie at it; on non-rectangular footprints a retry at
-    the corner gave f off by 94 % and 139 %, issue 35). segments: the
+    constrains it; only then, since f from a corner assumes the right angle it would check
+    (docs/DESIGN.md). segments: the
     photo's façade line segments (M, 2, 2) px, which join the vanishing points and the fit, or None;
     sigmas (N,) px: each window's corner sigma, or None; memo: as for :func:`fit_walls`.
 
@@ -279,23 +278,14 @@ def fit_walls_focal(quads: np.ndarray, image_shape: tuple[int, int], height: flo
     walls = _group_walls(q, K0, params, memo)
     vps = [(w.d_h, w.d_v) for w in walls] if segments is None else _wall_vps(q, K0, walls, params, segments, memo)[0]
     f0 = [f for d_h, d_v in vps if (f := focal_from_vanishing(d_h, d_v, K0)) is not None]
-    if not f0 and not params.manhattan:  # no wall alone (a level camera): a corner of the building?
+    if not f0:  # no wall alone (a level camera): a corner of the building?
         f0 = corner_focals([d_h for (d_h, _), w in zip(vps, walls) if len(w.members) >= CORNER_MIN_WINDOWS], K0)
         params = replace(params, manhattan=True)
     if not f0:
         raise FacadeError(f"focal length unobservable from {len(q)} window(s): no wall shows "
                           f"two converging side pairs, and no two walls of {CORNER_MIN_WINDOWS}+ windows "
                           f"meet at a right angle")
-    return _focal_fit(q, image_shape, walls, float(np.median(f0)), height, params, segments, sigmas, memo,
-                      give_up_rel_sd)
-
-
-def _focal_fit(q: np.ndarray, image_shape: tuple[int, int], walls: list[WallVP], f_start: float, height: float,
-               params: WallParams, segments: np.ndarray | None, sigmas: np.ndarray | None, memo: StepMemo,
-               give_up_rel_sd: float | None) -> Fit:
-    """The joint fit of all walls with one free f started at f_start px (:func:`fit_walls_focal`);
-    FacadeError when it fails or its f is vaguer than WALL_FIT.focal_max_rel_sd."""
-    K1 = pseudo_K(image_shape, f_start)
+    K1 = pseudo_K(image_shape, float(np.median(f0)))
     R0, group, Q, lines = _rotation_groups(q, K1, walls, params, segments, memo)
     bounds = tuple(float(r * max(image_shape)) for r in WALL_FIT.focal_range_rel)
     try:
