@@ -61,3 +61,17 @@ def test_data_scripts_write_the_houses_through_the_module():
         assert "HouseSpec(" not in text, name
         for f in families:
             assert f"-m fenestra.training.houses {f} " in text, (name, f)
+
+
+def test_a_missing_house_is_written_whole(tmp_path):
+    """The one missing house is generated (an IFC ifcopenshell opens, each window in an opening) and
+    no ``.part`` file is left beside it."""
+    import ifcopenshell
+
+    seeds = list(houses.TRAIN_SEEDS["varied"]) + list(houses.VALIDATION_SEEDS["varied"])
+    for s in seeds[1:]:
+        (tmp_path / f"varied-{s}.ifc").write_text("kept")
+    houses.write_family("varied", tmp_path)
+    f = ifcopenshell.open(str(tmp_path / f"varied-{seeds[0]}.ifc"))
+    assert len(f.by_type("IfcWindow")) > 0 and len(f.by_type("IfcOpeningElement")) >= len(f.by_type("IfcWindow"))
+    assert not list(tmp_path.glob("*.part"))

@@ -5,8 +5,9 @@
     python -m fenestra.training.houses street ROOT   # ROOT/street-<seed>.ifc (make_data_street.sh)
 
 Each family is a list of (file name, HouseSpec) drawn from the seed alone, so every script that
-names a house (the detector data, the refinement data) gets the same one. A file already there is
-kept (reruns reuse it). Seeds: varied 111..126 train, 201..204 validation; facade 131..146 train,
+names a house (the detector data: make_data.sh, make_data_street.sh) gets the same one. A file already there is
+kept (reruns reuse it); a new one is written under a ``.part`` name and renamed when whole.
+Seeds: varied 111..126 train, 201..204 validation; facade 131..146 train,
 205..208 validation; street 151..170 train, 213..216 validation. Never the bench's procedural seeds
 0, 1, 2 (docs/DESIGN.md Decisions: one procedural seed never trains a shipped detector).
 
@@ -102,14 +103,16 @@ def write_family(family: str, root: Path) -> list[Path]:
         if path.exists():
             continue
         specs = variants(family, seed)
+        part = path.with_name(path.name + ".part")  # written whole, then renamed: a rerun never keeps half a house
         for i, spec in enumerate(specs):
             try:
-                h = make_house(spec, path)
+                h = make_house(spec, part)
                 break
             except ValueError as e:
                 if i == len(specs) - 1:
                     raise
                 print(f"{path.name}: {e}; trying fewer features")
+        part.replace(path)
         print(f"{path}: {len(h.windows)} windows, {len(h.doors)} doors, {len(h.curtain_walls)} curtain-wall bays")
     return out
 
