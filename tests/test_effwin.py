@@ -17,21 +17,22 @@ from fenestra.training.augment import AugmentConfig, random_scale_crop
 from fenestra.training.train import load_config, train
 
 
-def test_pretrained_backbone_loads_from_the_installed_wheel_without_network(monkeypatch):
+@pytest.mark.parametrize("backbone", ["efficientnet-lite0", "efficientnet-lite2"])
+def test_pretrained_backbone_loads_from_the_installed_wheel_without_network(monkeypatch, backbone):
     """Every ImageNet tensor comes from the wheel's file, with sockets disabled."""
     def no_network(*a, **k):
         raise OSError("network access attempted")
     monkeypatch.setattr(socket.socket, "connect", no_network)
     monkeypatch.setattr(socket, "create_connection", no_network)
-    path = Path(pretrained_backbone_path())
-    assert path.is_file() and path.stat().st_size > 10_000_000
+    path = Path(pretrained_backbone_path(backbone))
+    assert path.is_file() and path.stat().st_size > 10_000_000 and path.name.startswith(backbone)
     state = torch.load(path, map_location="cpu", weights_only=True)
-    net = efficientnet_lite(pretrained=True)
+    net = efficientnet_lite(backbone, pretrained=True)
     own = net.state_dict()
     assert set(own) == set(state)
     assert all(torch.equal(own[k], state[k]) for k in state)
     # The detector's encoder holds the same tensors; its classifier head is gone.
-    model = EffWin(EffWinConfig(), pretrained=True)
+    model = EffWin(EffWinConfig(backbone), pretrained=True)
     assert torch.equal(model.stem[0].weight, state["_conv_stem.weight"])
     assert torch.equal(model.blocks[15]._project_conv.weight, state["_blocks.15._project_conv.weight"])
     assert not any(k.startswith("_fc") for k in model.state_dict())

@@ -1,6 +1,7 @@
 """tools/seed_spread.py: a learned detector's per-house figures over seeds, median and min-max."""
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -55,6 +56,9 @@ def test_table_per_house_from_results_tables():
         shown = [float(x) for x in cells[6].replace("*", " ").replace("[", " ").replace("]", " ").replace("–", " ")
                  .replace("(", " ").replace(")", " ").replace(",", " ").replace("px", " ").split()]
         assert np.allclose(shown, [np.median(med), min(med), max(med), *med], atol=0.011), (shown, med)
+    # the JSON gives the same table back (--from-json: a table of other weights, written later)
+    doc = json.loads(json.dumps(doc))
+    assert seed_spread.table(seed_spread.per_seed_from_json(doc), "default") == lines
 
 
 def test_cached_run_is_reused_only_with_this_commit_and_these_weights(tmp_path):

@@ -117,6 +117,12 @@ def spread_json(per_seed: dict[int, dict[str, dict]], detector: str, meta: dict)
     return {**meta, "seeds": seeds, "houses": houses}
 
 
+def per_seed_from_json(doc: dict) -> dict[int, dict[str, dict]]:
+    """The inverse of :func:`spread_json`: {seed: {house or group: {figure: value}}}."""
+    return {s: {h: {k: f["seeds"][i] for k, f in v["figures"].items()} for h, v in doc["houses"].items()}
+            for i, s in enumerate(doc["seeds"])}
+
+
 def run_seed(profile, seed: int, views: int | None, out_root: Path):
     """The results table of ``profile`` run with ``seed`` (and ``views`` per house)."""
     from fenestra.bench.results import load_results  # noqa: PLC0415
@@ -156,7 +162,27 @@ def main() -> None:
     ap.add_argument("--doc", type=Path, default=None)
     ap.add_argument("--block", default="seed-spread")
     ap.add_argument("--json", type=Path, default=None, help="also write the spread as JSON (e.g. docs/results/seed_spread.json)")
+    ap.add_argument("--from-json", type=Path, default=None,
+                    help="write the table from an earlier run's --json instead of running (other weights, say)")
     a = ap.parse_args()
+    if a.from_json is not None:
+        import json  # noqa: PLC0415
+
+        doc = json.loads(a.from_json.read_text())
+        w, h = doc["size"]
+        text = "\n".join([f"`{doc['command']}`: `{doc['method']}` on profile `{doc['profile']}`, {doc['views_per_house']} "
+                          f"views per house and seed ({w}x{h} {doc['renderer']}, look drawn per {doc['look_per']}), seeds "
+                          f"{', '.join(map(str, doc['seeds']))}; table written from that run's JSON by `python "
+                          f"tools/seed_spread.py {' '.join(sys.argv[1:])}`. Each cell: **median over the seeds** "
+                          "[min–max] (the seeds' values in order); quads and corners within 5 px are shares of the "
+                          "evaluable windows (a missed window counts as neither).", ""]
+                         + table(per_seed_from_json(doc), doc["method"].split("/")[0])) + "\n"
+        print(text)
+        if a.doc is not None:
+            from fenestra.reports.markdown import write_block  # noqa: PLC0415
+
+            write_block(a.doc, a.block, text)
+        return
     seeds = [int(s) for s in a.seeds.split(",")]
     if len(seeds) < 2 or len(set(seeds)) != len(seeds) or min(seeds) < 0:
         ap.error(f"--seeds needs at least 2 distinct seeds >= 0, got {a.seeds!r}")

