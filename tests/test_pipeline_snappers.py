@@ -90,3 +90,18 @@ def test_flat_image_keeps_corners(name):
     quad = np.array([[20.0, 20.0], [80.0, 22.0], [78.0, 70.0], [21.0, 68.0]])
     q, _ = snap(name, np.full((100, 100), 128, np.uint8), quad)
     assert np.allclose(q, quad)
+
+
+@pytest.mark.parametrize("name", sorted(SNAPPERS))
+def test_corner_far_outside_the_image_is_kept(name):
+    """A quad corner extrapolated beyond the border (a window cut by the frame, a slanted fit), 10 px
+    outside: snapped or kept, never an error (a bench run once died on it: harris took the maximum
+    of an empty search window)."""
+    sw = next(cases(1, 3, 2.0))
+    gray = sw[1]
+    quad = sw[2].copy()
+    quad[0] = (-10.0, quad[0][1])  # within the Harris crop's margin, beyond its search window
+    q, _ = snap(name, gray, quad)
+    assert q.shape == (4, 2) and np.isfinite(q).all()
+    if name in ("harris", "none"):
+        assert np.allclose(q[0], quad[0])

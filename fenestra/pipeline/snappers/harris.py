@@ -40,6 +40,8 @@ def harris_corners(g: np.ndarray, centre: np.ndarray, p: HarrisParams) -> np.nda
     resp = cv2.cornerHarris(np.ascontiguousarray(g[y0:y1, x0:x1]), p.block_size, p.ksize, p.k)
     ys, xs = np.mgrid[y0:y1, x0:x1]
     in_win = (np.abs(xs - cx) <= r) & (np.abs(ys - cy) <= r)
+    if not in_win.any():  # the corner lies more than r outside the image: nothing to snap to
+        return np.zeros((0, 2))
     peak = resp[in_win].max()
     if peak <= 0:
         return np.zeros((0, 2))
