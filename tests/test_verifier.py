@@ -28,7 +28,14 @@ from spb import SPB, needs_spb as spb_mark
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_spb = spb_mark(Path("train") / "labels")
-CHANNELS = {"bb32": 112, "bb64": 320, "dec32": 96, "dec16": 64, "dec8": 48}
+CHANNELS = {"bb32": 112, "bb64": 320, "dec32": 96, "dec16": 64, "dec8": 48}  # an EfficientNet-Lite0 EffWin's
+
+
+def shipped_channels() -> dict[str, int]:
+    """The shipped default network's feature channels (its backbone's: Lite2 since detector v6)."""
+    from fenestra.pipeline.detectors.effwin import model_from_checkpoint
+
+    return model_from_checkpoint(read_weights(DEFAULT_WEIGHTS)).feature_channels
 
 
 def test_logistic_fit_is_the_optimum_of_its_loss_and_deterministic():
@@ -115,7 +122,7 @@ def test_a_verifier_beside_another_network_is_refused(tmp_path):
 
 def test_shipped_default_has_a_checked_verifier_and_a_broken_one_names_the_file(tmp_path):
     ckpt = read_weights(DEFAULT_WEIGHTS)
-    head = head_from_dict(ckpt["verifier"], str(DEFAULT_WEIGHTS), CHANNELS)
+    head = head_from_dict(ckpt["verifier"], str(DEFAULT_WEIGHTS), shipped_channels())
     assert 0.0 < head.threshold < 1.0 and ckpt["verifier"]["meta"]["n_doors_signboards"] > 0
     broken = tmp_path / "broken.pt"
     torch.save({**ckpt, "verifier": {**ckpt["verifier"], "std": [-1.0] * len(head.std)}}, broken)
@@ -162,7 +169,8 @@ def test_head_trained_on_a_few_train_photos_tells_held_out_doors_from_windows():
     from fenestra.training.verifier import SPEC, collect, out_of_fold, train_head
 
     s = collect(DEFAULT_WEIGHTS, SPB / "train", max_photos=24)
-    assert set(np.unique(s.y)) == {0, 1} and s.X.shape[1] == 2 * (112 + 320) + 10
+    ch = shipped_channels()
+    assert set(np.unique(s.y)) == {0, 1} and s.X.shape[1] == 2 * (ch["bb32"] + ch["bb64"]) + 10
     held = s.photo >= np.unique(s.photo)[-6]
     fit = Samples(s.X[~held], s.y[~held], s.score[~held], s.photo[~held], 18)
     head = train_head(fit, SPEC, l2=100.0, keep_windows=0.95).head
