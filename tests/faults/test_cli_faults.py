@@ -284,8 +284,12 @@ def test_a_failed_bench_run_is_marked_failed(tmp_path):
 # ---------------------------------------------------------------- 10. Ctrl-C
 
 def test_ctrl_c_prints_interrupted(tmp_path):
+    """Ctrl-C during a render: exit 130 and one line. The child gets SIGINT's default disposition:
+    a test run started as a background job of a non-interactive shell (CI, nohup ... &) inherits
+    SIGINT ignored, and Python then keeps ignoring it (the render ran to the end: exit 0)."""
     p = subprocess.Popen([sys.executable, "-m", "fenestra", *RENDER_ARGS[:2], "400", *RENDER_ARGS[3:]], cwd=tmp_path,
-                         env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 120
     while not list(tmp_path.glob("out/renders/*/views/000001/view.json")) and time.time() < deadline:
         time.sleep(0.02)
