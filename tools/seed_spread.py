@@ -165,24 +165,29 @@ def main() -> None:
     ap.add_argument("--from-json", type=Path, default=None,
                     help="write the table from an earlier run's --json instead of running (other weights, say)")
     a = ap.parse_args()
+    command = f"python tools/seed_spread.py {' '.join(sys.argv[1:])}"
     if a.from_json is not None:
         import json  # noqa: PLC0415
 
-        doc = json.loads(a.from_json.read_text())
-        w, h = doc["size"]
-        text = "\n".join([f"`{doc['command']}`: `{doc['method']}` on profile `{doc['profile']}`, {doc['views_per_house']} "
-                          f"views per house and seed ({w}x{h} {doc['renderer']}, look drawn per {doc['look_per']}), seeds "
-                          f"{', '.join(map(str, doc['seeds']))}; table written from that run's JSON by `python "
-                          f"tools/seed_spread.py {' '.join(sys.argv[1:])}`. Each cell: **median over the seeds** "
-                          "[min–max] (the seeds' values in order); quads and corners within 5 px are shares of the "
-                          "evaluable windows (a missed window counts as neither).", ""]
-                         + table(per_seed_from_json(doc), doc["method"].split("/")[0])) + "\n"
-        print(text)
-        if a.doc is not None:
-            from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        meta = json.loads(a.from_json.read_text())
+        per_seed, source = per_seed_from_json(meta), command
+    else:
+        meta, per_seed = measure(ap, a, command)
+        source = None
+    text = block_text(meta, per_seed, source)
+    print(text)
+    if a.json is not None and a.from_json is None:
+        from fenestra.files import write_json  # noqa: PLC0415
 
-            write_block(a.doc, a.block, text)
-        return
+        write_json(a.json, spread_json(per_seed, meta["method"].split("/")[0], meta))
+    if a.doc is not None:
+        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+
+        write_block(a.doc, a.block, text)
+
+
+def measure(ap, a, command: str) -> tuple[dict, dict[int, dict[str, dict]]]:
+    """(the run's meta, {seed: house_figures}) of the profile run once per seed of ``a.seeds``."""
     seeds = [int(s) for s in a.seeds.split(",")]
     if len(seeds) < 2 or len(set(seeds)) != len(seeds) or min(seeds) < 0:
         ap.error(f"--seeds needs at least 2 distinct seeds >= 0, got {a.seeds!r}")
@@ -193,26 +198,24 @@ def main() -> None:
     profile = load_profile(a.profile)
     look = dict(dict(profile.render.options).get("settings", {})).get("look_per", "set")
     per_seed = {s: house_figures(run_seed(profile, s, a.views, a.out), method) for s in seeds}
-    views = a.views or profile.render.views_per_house
-    lines = [f"`python tools/seed_spread.py {' '.join(sys.argv[1:])}`: `{method}` on profile `{profile.name}`, "
-             f"{views} views per house and seed ({profile.render.width}x{profile.render.height} "
-             f"{profile.render.renderer}, look drawn per {look}), seeds {', '.join(map(str, seeds))}. Each cell: "
-             "**median over the seeds** [min–max] (the seeds' values in order); quads and corners within 5 px "
-             "are shares of the evaluable windows (a missed window counts as neither).", ""]
-    text = "\n".join(lines + table(per_seed, method.split("/")[0])) + "\n"
-    print(text)
-    if a.json is not None:
-        from fenestra.files import write_json  # noqa: PLC0415
+    meta = {"command": command, "method": method, "profile": profile.name,
+            "views_per_house": a.views or profile.render.views_per_house, "look_per": look,
+            "size": [profile.render.width, profile.render.height], "renderer": profile.render.renderer,
+            "seeds": seeds}
+    return meta, per_seed
 
-        meta = {"command": f"python tools/seed_spread.py {' '.join(sys.argv[1:])}", "method": method,
-                "profile": profile.name, "views_per_house": views, "look_per": look,
-                "size": [profile.render.width, profile.render.height], "renderer": profile.render.renderer}
-        write_json(a.json, spread_json(per_seed, method.split("/")[0], meta))
-    if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
 
-        write_block(a.doc, a.block, text)
-
+def block_text(meta: dict, per_seed: dict[int, dict[str, dict]], source: str | None = None) -> str:
+    """The Markdown block: the run's command and setting, then :func:`table`; ``source``: the command
+    that wrote it from the run's JSON, when it was not written by the run itself."""
+    w, h = meta["size"]
+    written = "." if source is None else f"; table written from that run's JSON by `{source}`."
+    head = (f"`{meta['command']}`: `{meta['method']}` on profile `{meta['profile']}`, {meta['views_per_house']} "
+            f"views per house and seed ({w}x{h} {meta['renderer']}, look drawn per {meta['look_per']}), seeds "
+            f"{', '.join(map(str, sorted(per_seed)))}{written} Each cell: **median over the seeds** [min–max] (the "
+            "seeds' values in order); quads and corners within 5 px are shares of the evaluable windows (a missed "
+            "window counts as neither).")
+    return "\n".join([head, ""] + table(per_seed, meta["method"].split("/")[0])) + "\n"
 
 if __name__ == "__main__":
     main()
