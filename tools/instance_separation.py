@@ -77,6 +77,7 @@ CUT_CANDIDATES = ("corner-cuts", "corner-cuts-ws", "corner-cuts-p0.3", "corner-c
                   "corner-cuts-p0.4", "corner-cuts-sv0.7", "corner-cuts-sv0.9", "corner-cuts-sv0.7-dip0.01",
                   "corner-cuts-sv0.7-dip0.02", "corner-cuts-sv0.9-p0.3", "corner-cuts-sv0.9-p0.25",
                   "corner-cuts-sv0.9-h0.5", "corner-cuts-sv0.9-h0.6", "corner-cuts-sv0.9-h0.75", "corner-cuts-sv0.9-h1",
+                  "corner-cuts-sv0.7-h0.75", "corner-cuts-sv0.8-h0.75", "corner-cuts-sv0.9-h0",
                   "corner-cuts-dip0.01", "corner-cuts-dip0.02", "corner-cuts-dip0.05", "corner-cuts-v0.3-dip0.02",
                   "corner-cuts-p0.3-dip0.02")
 
