@@ -51,11 +51,13 @@ N_MAPS = 6  # void, core, TL, TR, BR, BL
 # the nearest seed inside its own void blob, never a seed of another blob (docs/experiments.md,
 # "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse),
 # and void blobs are cut along the separators the corner heatmaps draw between neighbouring windows
-# (winnet.separator_cuts): kept only where void lies on both sides along 90 % of the separator
-# (not across a wall) and, for a horizontal one, the void above and below reaches 0.75 of its
-# length (a real window's transom, where the corner head fires too, is not cut). duplex missed
-# 62 % -> 5 % (fenestra/pipeline/models/README.md, "Per house"; tools/instance_separation.py).
-SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.9,
+# (winnet.separator_cuts): kept only where void lies on both sides along 70 % of the separator
+# (not across a wall; 90 % until detector v7, whose duplex merges left a frame's ends without void:
+# docs/experiments.md "Corner cuts at 70 %") and, for a horizontal one, the void above and below
+# reaches 0.75 of its length (a real window's transom, where the corner head fires too, is not
+# cut). duplex missed 62 % -> 5 % at their introduction (fenestra/pipeline/models/README.md, "Per
+# house"; tools/instance_separation.py).
+SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7,
                    "cut_min_height_frac": 0.75, "min_side_px": 4}  # min_side_px: a strip left between two
 # cuts (a mullion) is no window; a window under 4 network px across is not measurable (detector v3)
 POST_DEFAULTS = SEPARATING_POST
