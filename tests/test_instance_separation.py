@@ -270,3 +270,15 @@ def test_min_side_drops_a_strip_and_keeps_the_windows():
     assert widths == [3, 24, 24], widths
     dropped = instances_from_maps(void, core, PostConfig(**{**base.__dict__, "min_side_px": 4}))
     assert sorted(round(d.box[2] - d.box[0]) for d in dropped) == [24, 24]
+
+
+def test_the_separation_tool_names_the_houses_the_detector_trained_on(monkeypatch):
+    """tools/instance_separation.py marks a report row "trained on" from the data script's house loop
+    (fenestra/training/scripts/make_data.sh); it read a path from before the package move and
+    crashed on every --data report. The four bundled houses of the model card's "Trained on" table."""
+    import importlib
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parent.parent / "tools"))
+    tool = importlib.import_module("instance_separation")
+    assert set(tool.training_houses()) == {"fzk-haus", "duplex", "jasmin-sun", "niedriha"}
