@@ -19,8 +19,10 @@ from dataclasses import dataclass
 
 NO_K_SUFFIX = "+noK"  # the pose column of a K-withheld method: "wall+noK"
 # The quad source of a method that names none (the CLI's, fenestra.conventions.DEFAULTS): the mask
-# fit (``mask+corners`` answers more windows but spoils the per-wall fits: DESIGN.md, Decisions)
-DEFAULT_QUAD_SOURCE = "mask"
+# fit, and where it finds no quadrilateral four of more lines on the same mask that the detector's
+# corner head confirms (``mask+lines``; a detector without a corner head gets the mask fit alone).
+# ``mask+corners`` answers more windows but spoils the per-wall fits: DESIGN.md, Decisions.
+DEFAULT_QUAD_SOURCE = "mask+lines"
 
 
 @dataclass(frozen=True)

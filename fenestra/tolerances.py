@@ -40,6 +40,9 @@ class Tolerances:
     # with corners rounded up to a third of its short side against its straight-sided truth
     thin_quad_exact_px: float = 0.5
     thin_quad_rounded_px: float = 1.5
+    # quad source mask+lines (pipeline.quad.best_subset_quad): every corner of a window whose mask has
+    # one corner notched off (30 % of both sides meeting there), against the whole window's truth
+    notched_quad_px: float = 1.5
     # row regularization (issue 35, pipeline.row_lines; its own agreement threshold, ROW_AGREE_FRACTION,
     # lives beside it): the exported whole windows of one export.json storey row that agreed with
     # their row's sill and head lines have heights within this share of their median (the issue's target)

@@ -269,3 +269,81 @@ def test_two_thin_windows_in_one_mask_fail():
     m[100:170, 200:214] = True
     m[100:170, 230:244] = True
     assert mask_to_quad(m).failure.startswith("multiple_blobs")
+
+
+# --- quad source mask+lines: the best four of more lines where the greedy fit finds no quad ---------
+
+LINES = QuadParams(source="mask+lines")
+
+
+def notched(q, frac):
+    """The convex pentagon (5, 2) of quad q (4, 2) TL TR BR BL with its TR corner cut off at ``frac``
+    of both sides meeting there (a learned mask that left out a shadowed corner of the reveal)."""
+    tl, tr, br, bl = q
+    return np.array([tl, tr + frac * (tl - tr), tr + frac * (br - tr), br, bl])
+
+
+def test_mask_plus_lines_recovers_the_window_of_a_notched_mask():
+    """A mask with one corner notched off fails the greedy fit (a corner far from the outline); the
+    source mask+lines finds the window's four sides among more lines, confirmed by predicted
+    corners 1 px off (a corner head's noise), and its corners are the window's own (the notch's
+    edge is not taken as a side). Predicted corners 10 px off, or none, confirm nothing: the
+    greedy fit's failure stays. Ground truth: the projected window."""
+    rng = np.random.default_rng(0)
+    recovered = []
+    for sw in views(30, seed=11):
+        q = sw.corners_px
+        m = pixel_centre_mask(notched(q, 0.3), SHAPE)
+        assert mask_to_quad(m).failure.startswith("not_quadrilateral")
+        assert mask_to_quad(m, LINES).failure.startswith("not_quadrilateral")  # no hint
+        assert mask_to_quad(m, LINES, hint=q + [10.0, 0.0]).quad is None
+        r = mask_to_quad(m, LINES, hint=q + rng.normal(0.0, 1.0, (4, 2)))
+        if r.quad is not None:
+            recovered.append(corner_err(r, q))
+    assert len(recovered) >= 26 and max(recovered) < TOL.notched_quad_px, (len(recovered), max(recovered))
+
+
+def test_mask_plus_lines_reaches_the_quad_fit_through_a_detection():
+    """fit_quads hands a detection's predicted corners (full-image px) to the fit of its mask crop."""
+    from fenestra.pipeline.reconstruct import fit_quads
+    from fenestra.pipeline.types import Detection
+
+    sw = next(views(1, seed=13))
+    q = sw.corners_px
+    full = pixel_centre_mask(notched(q, 0.3), SHAPE)
+    ys, xs = np.nonzero(full)
+    x0, y0 = int(xs.min()), int(ys.min())
+    crop = full[y0:ys.max() + 1, x0:xs.max() + 1]
+    det = Detection(mask=crop, box=np.array([x0, y0, xs.max() + 1, ys.max() + 1]), score=0.9, corners=q,
+                    origin=(x0, y0))
+    assert fit_quads([det], QuadParams(), SHAPE)[0].result.quad is None
+    fit = fit_quads([det], LINES, SHAPE)[0].result
+    assert corner_err(fit, q) < TOL.notched_quad_px
+
+
+def test_mask_plus_lines_keeps_the_greedy_fit_where_it_succeeds():
+    for sw in views(5, seed=12):
+        m = pixel_centre_mask(sw.corners_px, SHAPE)
+        np.testing.assert_array_equal(mask_to_quad(m, LINES, hint=sw.corners_px).quad, mask_to_quad(m).quad)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: disc(SHAPE, (300, 200), 60),
+    lambda: cv2.fillPoly(np.zeros(SHAPE, np.uint8), [np.array([[100, 300], [400, 320], [250, 60]])], 1),
+    lambda: cv2.fillPoly(np.zeros(SHAPE, np.uint8), [np.array([[100, 100], [300, 100], [300, 160], [160, 160],
+                                                               [160, 300], [100, 300]])], 1),  # an L
+    lambda: cv2.ellipse(np.zeros(SHAPE, np.uint8), (320, 240), (20, 90), 17, 0, 360, 1, -1),
+])
+def test_mask_plus_lines_still_refuses_non_quadrilaterals(make):
+    """A disc, a triangle, an L and an ellipse have no four lines that the mask fills and covers,
+    even with predicted corners at their bounding box."""
+    m = make()
+    ys, xs = np.nonzero(m)
+    box = np.array([[xs.min(), ys.min()], [xs.max(), ys.min()], [xs.max(), ys.max()], [xs.min(), ys.max()]], float)
+    r = mask_to_quad(m, LINES, hint=box)
+    assert r.quad is None and r.failure.startswith("not_quadrilateral"), r.failure
+
+
+def test_subset_lines_below_four_is_refused():
+    with pytest.raises(ValueError, match="subset_lines"):
+        QuadParams(subset_lines=3)

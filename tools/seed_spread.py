@@ -58,8 +58,8 @@ def house_figures(df, method: str) -> dict[str, dict]:
     "same generator", "trained-on houses"; a group only where the run has such a house)."""
     from fenestra.reports.markdown import ROLE_GROUPS, _house_figures, house_role  # noqa: PLC0415
 
-    det, snap, pose = method.split("/")
-    g = df[(df["detector"] == det) & (df["snapper"] == snap) & (df["pose"] == pose)]
+    det = method.split("/")[0]
+    g = df[df["method"] == method]
     out = {house: _house_figures(rows) for house, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])}
     roles = g["house"].map(lambda h: house_role(det, h))
     for role, label in ROLE_GROUPS.items():
@@ -123,17 +123,22 @@ def per_seed_from_json(doc: dict) -> dict[int, dict[str, dict]]:
             for i, s in enumerate(doc["seeds"])}
 
 
-def run_seed(profile, seed: int, views: int | None, out_root: Path):
-    """The results table of ``profile`` run with ``seed`` (and ``views`` per house)."""
+def run_seed(profile, seed: int, views: int | None, out_root: Path, method: str | None = None):
+    """The results table of ``profile`` run with ``seed`` (and ``views`` per house); with
+    ``method`` (a label with a quad source, detector/snapper/pose/quad_source) that method alone
+    instead of the profile's, in a run folder of its own."""
     from fenestra.bench.results import load_results  # noqa: PLC0415
     from fenestra.bench.runner import run_benchmark  # noqa: PLC0415
+    from fenestra.methods import Method  # noqa: PLC0415
 
     p = dataclasses.replace(profile, seed=seed)
     if views is not None:
         p = dataclasses.replace(p, render=dataclasses.replace(p.render, views_per_house=views))
-    run_dir = out_root / f"{p.name}-s{seed}-{p.config_hash()}"
+    methods = None if method is None else (Method.from_label(method),)
+    suffix = "" if method is None else "-" + methods[0].quad_source.replace("+", "-")
+    run_dir = out_root / f"{p.name}-s{seed}-{p.config_hash()}{suffix}"
     if not reusable(run_dir):
-        run_benchmark(p, out_dir=run_dir, progress=False, report=None, force=run_dir.exists())
+        run_benchmark(p, out_dir=run_dir, progress=False, report=None, force=run_dir.exists(), methods=methods)
     return load_results(run_dir)
 
 
@@ -157,7 +162,8 @@ def main() -> None:
     ap.add_argument("--profile", default="heldout-seeds")
     ap.add_argument("--seeds", default="0,1,2", help="comma-separated seeds (at least 2)")
     ap.add_argument("--views", type=int, default=None, help="views per house (default: the profile's)")
-    ap.add_argument("--method", default=None, help="detector/snapper/pose (default: the CLI's, fenestra.conventions.DEFAULTS)")
+    ap.add_argument("--method", default=None, help="detector/snapper/pose[/quad_source] (default: the CLI's, fenestra.conventions.DEFAULTS; "
+                    "a quad source runs that method instead of the profile's)")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench" / "seed-spread")
     ap.add_argument("--doc", type=Path, default=None)
     ap.add_argument("--block", default="seed-spread")
@@ -197,7 +203,8 @@ def measure(ap, a, command: str) -> tuple[dict, dict[int, dict[str, dict]]]:
     method = a.method or f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
     profile = load_profile(a.profile)
     look = dict(dict(profile.render.options).get("settings", {})).get("look_per", "set")
-    per_seed = {s: house_figures(run_seed(profile, s, a.views, a.out), method) for s in seeds}
+    extra = method if len(method.split("/")) == 4 else None  # a quad source the profile cannot select
+    per_seed = {s: house_figures(run_seed(profile, s, a.views, a.out, extra), method) for s in seeds}
     meta = {"command": command, "method": method, "profile": profile.name,
             "views_per_house": a.views or profile.render.views_per_house, "look_per": look,
             "size": [profile.render.width, profile.render.height], "renderer": profile.render.renderer,

@@ -331,7 +331,8 @@ def register(app: typer.Typer) -> None:
         quad_source: str = typer.Option(DEFAULTS.quad_source, "--quad-source",
                                         help=f"quad from: {', '.join(QUAD_SOURCES)} (corners: the detector's corner head, "
                                              "the mask fit where it has none; mask+corners: the mask fit, the "
-                                             "corner head where the fit finds no quadrilateral)"),
+                                             "corner head where the fit finds no quadrilateral; mask+lines: the mask fit, the best four "
+                                             "of more lines on the mask's outline where it finds none)"),
     ) -> None:
         """Reconstruct the windows of photos: windows.json, overlay.png, IFC, OBJ, GLB per photo.
 

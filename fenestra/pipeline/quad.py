@@ -22,6 +22,15 @@ Steps (:func:`mask_to_quad`):
    the outline (a thin window's top and bottom), ``min_side_own`` of its own expected outline
    (its length in outline points) while being at least ``min_opposite_ratio`` x as long as the
    opposite side: a triangle with a clipped corner (a short side facing a long one) still fails.
+7. Quad source ``mask+lines``, for a detection with predicted corners: if that fails with
+   ``not_quadrilateral`` (a learned mask with one corner notched, where a shadowed reveal was left
+   out, or a bulge into a shadow beside the window, made the greedy choice take the notch's or
+   bulge's edge as a side), :func:`best_subset_quad` tries every four of the ``subset_lines``
+   best distinct lines. A quad passes if the mask fills at least ``subset_min_fill`` of it, at
+   most ``subset_max_outside`` of the mask lies outside it and every side is covered along
+   ``subset_min_cover`` of its length (a disc, a triangle or an L fails). The passing quad
+   nearest to the predicted corners is kept if it lies within a mean ``subset_hint_px`` of them:
+   the mask's lines give the geometry, the corner head confirms which lines are the window's.
 
 Pixel convention (``fenestra.conventions``): the centre of pixel (u, v) is at (u, v). A rasterised
 mask contains the pixels whose centres lie inside the polygon, so on a straight edge the border
@@ -31,13 +40,15 @@ column at a uniformly distributed fraction of a pixel above that pixel's centre.
 """
 from __future__ import annotations
 
+import dataclasses
+import itertools
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 
-QUAD_SOURCES = ("mask", "corners", "mask+corners")
+QUAD_SOURCES = ("mask", "corners", "mask+corners", "mask+lines")
 
 
 @dataclass(frozen=True)
@@ -77,12 +88,20 @@ class QuadParams:
         (the window is cut by the image, its true corners are unknown); if True it is fitted like
         any mask, the image edge one of its sides (the quad of the window's *visible* part), and
         the edges it reaches are its result's ``cut`` (the session's partial windows).
+    subset_lines, subset_min_fill, subset_max_outside, subset_min_cover: the fallback of step 7
+        (:func:`best_subset_quad`, source ``mask+lines``): lines considered, the least share of the
+        quad the mask must fill, the most share of the mask outside the quad, and the least share
+        of each side's length that outline points within ``inlier_px`` of it must cover;
+        subset_hint_px: with predicted corners (``hint``), the quad is kept only when its corners
+        lie within this mean distance of them (two cues that agree; a notch or bulge edge taken
+        as a side does not).
     source: where the quad comes from: ``"mask"`` (:func:`mask_to_quad`), or ``"corners"``: the
         corners a detector with a corner head predicts (``Detection.corners``,
         :func:`corners_to_quad`), falling back to the mask fit for a detection without usable
         corners; or ``"mask+corners"``: the mask fit, and the predicted corners (where they
-        describe the mask) for a mask the fit finds no quadrilateral in. QUAD_SOURCES lists the
-        choices.
+        describe the mask) for a mask the fit finds no quadrilateral in; or ``"mask+lines"``: the
+        mask fit, and where it finds no quadrilateral the best four of more lines on the same
+        outline (step 7). QUAD_SOURCES lists the choices.
     """
 
     window_pts: int = 100
@@ -103,10 +122,17 @@ class QuadParams:
     speck_rel: float = 0.05
     allow_border: bool = False
     source: str = "mask"
+    subset_lines: int = 7
+    subset_min_fill: float = 0.85
+    subset_max_outside: float = 0.08
+    subset_min_cover: float = 0.5
+    subset_hint_px: float = 3.0
 
     def __post_init__(self) -> None:
         if self.source not in QUAD_SOURCES:
             raise ValueError(f"quad source must be one of {QUAD_SOURCES}, got {self.source!r}")
+        if self.subset_lines < 4:
+            raise ValueError(f"subset_lines must be at least 4, got {self.subset_lines}")
 
 
 @dataclass(frozen=True)
@@ -275,8 +301,10 @@ def _fit_windows(P: np.ndarray, params: QuadParams) -> list[int]:
     return [window, int(max(5, min(window - 1, round(params.short_fit_frac * short))))]
 
 
-def _choose_lines(P: np.ndarray, params: QuadParams, inlier_px: float) -> np.ndarray | None:
-    """Greedy choice of four candidate lines; returns (4, 3) lines or None if fewer found."""
+def _choose_lines(P: np.ndarray, params: QuadParams, inlier_px: float, n: int = 4) -> np.ndarray | None:
+    """Greedy choice of ``n`` distinct candidate lines, best first; returns (k, 3) lines with
+    4 <= k <= n (fewer than n where no other line explains a remaining point), or None if fewer
+    than four are found."""
     N = len(P)
     step = max(1, N // params.max_candidates)
     cand = np.arange(0, N, step)
@@ -290,11 +318,11 @@ def _choose_lines(P: np.ndarray, params: QuadParams, inlier_px: float) -> np.nda
     allowed = np.ones(len(normals), dtype=bool)
     support = np.maximum(D.sum(axis=0), 1.0)
     chosen = []
-    for _ in range(4):
+    for _ in range(n):
         counts = np.where(allowed, remaining @ D, -1.0)
         best = int(np.argmax(counts))
         if counts[best] <= 0:
-            return None
+            return np.array(chosen) if len(chosen) >= 4 else None
         inl = D[:, best]
         chosen.append(np.array([*normals[best], offsets[best]]))
         remaining *= 1.0 - inl
@@ -325,8 +353,12 @@ def _refit(P: np.ndarray, lines: np.ndarray, radius: float, iters: int = 2) -> t
     return lines, assign
 
 
-def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadResult:
+def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams(), hint: np.ndarray | None = None) -> QuadResult:
     """Fit the window quadrilateral to a binary mask (H, W) (bool or 0/non-zero).
+
+    hint: (4, 2) px in the mask's coordinates, the detector's predicted corners, or None: step 7
+    (source ``mask+lines``) keeps the passing quad nearest to them, and only if they agree; it
+    runs only with a hint (a detector without a corner head keeps the greedy fit's failure).
 
     Returns a :class:`QuadResult`; failures are reported in ``failure``, never raised (except a
     mask that is not 2-D: ValueError).
@@ -334,24 +366,30 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
     m, origin, cut, reason = _check_mask(mask, params)
     if reason is not None:
         return _fail(reason)
-
-    def fail(reason: str, explained: float = 0.0) -> QuadResult:  # a failure of a visible part keeps its cut
-        return QuadResult(quad=None, lines=None, explained=explained, failure=reason, cut=cut)
-
     P = outline(m) + np.asarray(origin, dtype=np.float64)
-    N = len(P)
     inlier_px = max(params.inlier_px, params.inlier_rel * float(np.sqrt(np.count_nonzero(m))))
+    qr = _greedy_quad(P, m, params, inlier_px)
+    if params.source == "mask+lines" and hint is not None and failure_code(qr.failure) == "not_quadrilateral":
+        sub = best_subset_quad(P, m, np.asarray(origin, dtype=np.float64), params, inlier_px, hint)
+        if sub is not None:
+            return dataclasses.replace(sub, cut=cut)
+    return dataclasses.replace(qr, cut=cut)  # a failure of a visible part keeps its cut, too
+
+
+def _greedy_quad(P: np.ndarray, m: np.ndarray, params: QuadParams, inlier_px: float) -> QuadResult:
+    """Steps 3-6 of :func:`mask_to_quad` on the outline P (N, 2) px of the blob crop m (uint8 0/1)."""
+    N = len(P)
     lines = _choose_lines(P, params, inlier_px)
     if lines is None:
-        return fail("not_quadrilateral: fewer than four distinct lines on the outline")
+        return _fail("not_quadrilateral: fewer than four distinct lines on the outline")
     lines, assign = _refit(P, lines, radius=inlier_px)
     counts = np.bincount(assign[assign >= 0], minlength=4)
     explained = float(counts.sum()) / N
     if explained < params.min_explained:
-        return fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
+        return _fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
                     f"< min_explained={params.min_explained:.0%}", explained)
     if counts.min() < 3:  # no line to speak of, whatever its length
-        return fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
+        return _fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
                     f"< min_side_frac={params.min_side_frac:.0%}", explained)
     # order the lines around the contour: circular mean of the outline index of their points
     ang = 2.0 * np.pi * np.arange(N) / N
@@ -366,20 +404,96 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams()) -> QuadRes
         lines[k, 2] += edge_offset_px(lines[k, :2])
     corners = np.array([intersect(lines[k], lines[(k + 1) % 4]) for k in range(4)])
     if not np.all(np.isfinite(corners)):
-        return fail("not_quadrilateral: two neighbouring sides are parallel", explained)
+        return _fail("not_quadrilateral: two neighbouring sides are parallel", explained)
     lines, corners = _refit_short_sides(P, lines, corners, _fit_windows(P, params)[0], inlier_px, params)
     reason = _side_support(corners, counts, N, params)
     if reason is not None:
-        return fail(reason, explained)
+        return _fail(reason, explained)
     # each corner must lie near the outline (a triangle's fourth 'side' puts a corner far away)
     size = np.sqrt(float(m.sum()))
     gap = np.min(np.linalg.norm(P[None] - corners[:, None], axis=2), axis=1)
     if gap.max() > max(4.0, 0.15 * size):
-        return fail(f"not_quadrilateral: a corner lies {gap.max():.1f} px from the outline", explained)
+        return _fail(f"not_quadrilateral: a corner lies {gap.max():.1f} px from the outline", explained)
     quad = order_corners(corners)
     if not _is_convex(quad):
-        return fail("not_quadrilateral: the four lines give a non-convex quad", explained)
-    return QuadResult(quad=quad, lines=_lines_in_corner_order(lines, quad), explained=explained, failure=None, cut=cut)
+        return _fail("not_quadrilateral: the four lines give a non-convex quad", explained)
+    return QuadResult(quad=quad, lines=_lines_in_corner_order(lines, quad), explained=explained, failure=None)
+
+
+def best_subset_quad(P: np.ndarray, m: np.ndarray, origin: np.ndarray, params: QuadParams,
+                     inlier_px: float, hint: np.ndarray | None = None) -> QuadResult | None:
+    """Step 7 of :func:`mask_to_quad`: the best quad of any four of the ``subset_lines`` greedy
+    lines, or None where no four pass.
+
+    P (N, 2) px: the outline of the blob crop m (uint8 0/1, its pixel (0, 0) at ``origin`` (2,)
+    px). Each candidate is refitted to its own inliers (within ``inlier_px``), oriented outward and
+    shifted by the half-pixel edge offset. Four lines, sorted by their normals' angle, make a
+    quad when neighbours meet in a convex quad no farther than half the mask's size outside its
+    box. It passes when the mask fills ``subset_min_fill`` of it, leaves at most
+    ``subset_max_outside`` of its pixels outside it, and each side (as a segment) has outline
+    points within ``inlier_px`` along ``subset_min_cover`` of its Chebyshev length. The score is
+    the outline points so explained, or, with a ``hint`` (4, 2) px (predicted corners, any cyclic
+    order), minus the summed distance of the quad's corners to the hint's (both TL TR BR BL):
+    the mask's lines give the geometry, the corner head says which of them are the window's; the
+    nearest is kept only within a mean ``subset_hint_px`` of the hint. Ties keep the first.
+    """
+    if hint is not None:
+        hint = np.asarray(hint, dtype=np.float64)
+        if hint.shape != (4, 2) or not np.all(np.isfinite(hint)):
+            return None  # corners that cannot confirm anything
+        hint = order_corners(hint)
+    cand = _choose_lines(P, params, inlier_px, n=params.subset_lines)
+    if cand is None:
+        return None
+    centre = P.mean(axis=0)
+    lines = []
+    for line in cand:
+        pts = P[np.abs(P @ line[:2] - line[2]) < inlier_px]
+        line = fit_line(pts) if len(pts) >= 3 else line
+        line = -line if line[:2] @ centre > line[2] else line
+        lines.append(line + np.array([0.0, 0.0, edge_offset_px(line[:2])]))
+    lines = np.array(lines)
+    shift = np.array([edge_offset_px(n) for n in lines[:, :2]])
+    near = np.abs(P @ lines[:, :2].T - (lines[:, 2] - shift)) < inlier_px  # (N, L), unshifted lines
+    size = float(max(m.shape))
+    pad = int(np.ceil(size / 2.0))
+    mask = np.pad(m.astype(bool), pad)
+    n_mask = int(mask.sum())
+    best, best_score = None, -np.inf
+    for combo in itertools.combinations(range(len(lines)), 4):
+        idx = sorted(combo, key=lambda k: np.arctan2(lines[k, 1], lines[k, 0]))
+        ang = np.sort(np.arctan2(lines[idx, 1], lines[idx, 0]))
+        if np.diff(np.append(ang, ang[0] + 2 * np.pi)).max() >= np.pi:
+            continue  # the normals do not go round: no closed quad
+        quad = np.array([intersect(lines[idx[k]], lines[idx[(k + 1) % 4]]) for k in range(4)])
+        local = quad - origin + pad
+        if not np.all(np.isfinite(quad)) or local.min() < 0 or np.any(local.max(axis=0) >= mask.shape[::-1]) \
+                or not _is_convex(quad):
+            continue
+        area = np.zeros_like(mask, dtype=np.uint8)
+        cv2.fillConvexPoly(area, np.round(local * 16).astype(np.int32), 1, lineType=cv2.LINE_8, shift=4)
+        inside = int(np.count_nonzero(mask & (area > 0)))
+        if inside < params.subset_min_fill * max(int(area.sum()), 1) or \
+                n_mask - inside > params.subset_max_outside * n_mask:
+            continue
+        score, ok = 0, True
+        for k in range(4):  # side idx[k] runs from corner k-1 to corner k
+            a, b = quad[k - 1], quad[k]
+            d = b - a
+            t = (P - a) @ d / max(float(d @ d), 1e-12)
+            covered = int(np.count_nonzero(near[:, idx[k]] & (t >= 0.0) & (t <= 1.0)))
+            ok &= covered >= params.subset_min_cover * max(float(np.abs(d).max()), 1.0)
+            score += covered
+        explained = score
+        if hint is not None:
+            score = -float(np.linalg.norm(order_corners(quad) - hint, axis=1).sum())
+        if ok and score > best_score:
+            best, best_score, best_explained = (quad, lines[idx]), score, explained
+    if best is None or (hint is not None and -best_score > 4 * params.subset_hint_px):
+        return None
+    quad = order_corners(best[0])
+    return QuadResult(quad=quad, lines=_lines_in_corner_order(best[1], quad),
+                      explained=min(best_explained / len(P), 1.0), failure=None)
 
 
 def _refit_short_sides(P: np.ndarray, lines: np.ndarray, corners: np.ndarray, window: int,

@@ -125,7 +125,8 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
         if qr is not None and qr.quad is not None and not corners_agree_with_mask(qr.quad, det.mask, det.origin):
             qr = None  # predicted corners that do not describe the mask: fall back to the mask fit
         if qr is None or qr.quad is None:  # the mask fit: the source, or the fallback
-            qr = mask_to_quad(det.mask, params) if image_shape is None else fit_sparse(det, params, image_shape)
+            qr = mask_to_quad(det.mask, params, _hint(det, det.origin)) if image_shape is None \
+                else fit_sparse(det, params, image_shape)
         if params.source == "mask+corners" and qr.quad is None:
             qr = corner_fallback(det, qr)
         fits.append(QuadFit(qr, (time.perf_counter() - t0) * 1e3))
@@ -169,6 +170,12 @@ def mask_outside(det: Detection, image_shape: tuple[int, int]) -> str | None:
     return None
 
 
+def _hint(det: Detection, origin: tuple[int, int]) -> np.ndarray | None:
+    """The detection's predicted corners (4, 2) px moved to a mask whose pixel (0, 0) is at
+    ``origin`` in the image, or None: mask_to_quad's hint."""
+    return None if det.corners is None else np.asarray(det.corners, dtype=np.float64) - np.asarray(origin, dtype=np.float64)
+
+
 def fit_sparse(det: Detection, params: QuadParams, image_shape: tuple[int, int]) -> QuadResult:
     """mask_to_quad of a detection whose mask is a crop at ``det.origin`` of an (H, W) image.
 
@@ -179,11 +186,11 @@ def fit_sparse(det: Detection, params: QuadParams, image_shape: tuple[int, int])
     m, (x0, y0) = np.asarray(det.mask), det.origin
     (h, w), (H, W) = m.shape, image_shape
     if (x0, y0, w, h) == (0, 0, W, H):
-        return mask_to_quad(m, params)
+        return mask_to_quad(m, params, _hint(det, (0, 0)))
     px, py = max(x0 - 1, 0), max(y0 - 1, 0)
     padded = np.zeros((min(y0 + h + 1, H) - py, min(x0 + w + 1, W) - px), dtype=bool)
     padded[y0 - py:y0 - py + h, x0 - px:x0 - px + w] = m != 0
-    qr = mask_to_quad(padded, params)
+    qr = mask_to_quad(padded, params, _hint(det, (px, py)))
     if qr.quad is None:
         return qr
     o = np.array([px, py], dtype=np.float64)
