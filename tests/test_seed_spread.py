@@ -6,12 +6,15 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import seed_spread  # noqa: E402
 from synthetic_results import synthetic_results  # noqa: E402
+
+from fenestra.methods import DEFAULT_QUAD_SOURCE  # noqa: E402
 
 
 def test_cell_median_and_range_by_hand():
@@ -87,3 +90,18 @@ def test_cached_run_is_reused_only_with_this_commit_and_these_weights(tmp_path):
     (run / "results.parquet").unlink()
     (run / "summary.json").write_text(json.dumps({"metadata": {"commit": _commit(), "models": weights}}))
     assert not seed_spread.reusable(run)
+
+
+def test_a_method_with_a_quad_source_takes_its_own_rows():
+    """Two quad sources of one detector/snapper/pose in one table: a label naming the source takes
+    that source's rows only (the bench writes the default source's label without it); a 3-part
+    label, the rows of every source (a profile's run holds one)."""
+    df = synthetic_results(n_windows=40, seed=0, miss_rate=0.0)
+    df = df[df["snapper"] == "good"].assign(detector="default", snapper="refine", pose="wall+lines",
+                                            house="samplehouse4")
+    other = df.assign(method="default/refine/wall+lines/mask+corners", status="missed")
+    both = pd.concat([df.assign(method="default/refine/wall+lines"), other])
+    own = seed_spread.house_figures(both, "default/refine/wall+lines/mask+corners")["samplehouse4"]
+    assert own["detection_rate"] == 0.0
+    default = seed_spread.house_figures(both, f"default/refine/wall+lines/{DEFAULT_QUAD_SOURCE}")["samplehouse4"]
+    assert default["detection_rate"] == 1.0

@@ -53,13 +53,17 @@ def cell(values: list, scale: float, unit: str, decimals: int) -> str:
 
 
 def house_figures(df, method: str) -> dict[str, dict]:
-    """house -> the figures of ``method`` (detector/snapper/pose) on that house's rows, then the
+    """house -> the figures of ``method`` (detector/snapper/pose[/quad_source]) on that house's rows, then the
     houses of each role together (fenestra.reports.markdown.ROLE_GROUPS: "held-out families",
     "same generator", "trained-on houses"; a group only where the run has such a house)."""
+    from fenestra.methods import Method  # noqa: PLC0415
     from fenestra.reports.markdown import ROLE_GROUPS, _house_figures, house_role  # noqa: PLC0415
 
-    det = method.split("/")[0]
-    g = df[df["method"] == method]
+    m = Method.from_label(method)
+    det = m.detector
+    g = df[(df["detector"] == det) & (df["snapper"] == m.snapper) & (df["pose"] == m.pose_label)]
+    if len(method.split("/")) == 4:  # a quad source named: that method's rows (its label as the bench writes it)
+        g = g[g["method"] == m.label]
     out = {house: _house_figures(rows) for house, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])}
     roles = g["house"].map(lambda h: house_role(det, h))
     for role, label in ROLE_GROUPS.items():
