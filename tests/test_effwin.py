@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from fenestra.pipeline.detectors.effwin import (EffWin, EffWinConfig, corner_heatmaps, efficientnet_lite, instance_corners,
-                                       pretrained_backbone_path)
+from fenestra.pipeline.detectors.effwin import (MIRRORED_CHANNELS, EffWin, EffWinConfig, corner_heatmaps, efficientnet_lite,
+                                       instance_corners, mirror_mean, predict_maps, pretrained_backbone_path)
 from fenestra.pipeline.quad import corners_to_quad
 from toy_data import write_toy_dataset
 from fenestra.training.augment import AugmentConfig, random_scale_crop
@@ -61,6 +61,37 @@ def test_corner_heatmaps_peak_at_the_corners_and_read_back_subpixel():
     q2 = quad.copy()
     q2[2] = np.nan
     assert instance_corners(corner_heatmaps(q2[None], (70, 90)), mask) is None
+
+
+def test_mirror_mean_maps_a_mirrored_window_back_onto_the_window():
+    """The maps a network would give for the mirrored image of a window (its void, and its corners:
+    the mirror's TL is the window's TR) come back, through mirror_mean, as the window's own maps."""
+    H, W = 40, 64
+    quad = np.array([[10.0, 8.0], [40.0, 10.0], [38.0, 30.0], [12.0, 29.0]])  # TL TR BR BL
+    mirrored = np.stack([W - 1 - quad[:, 0], quad[:, 1]], axis=1)[[1, 0, 3, 2]]  # its TL TR BR BL
+    void = np.zeros((H, W), np.float32)
+    void[9:30, 11:40] = 1.0
+
+    def maps(q, v):
+        return np.concatenate([v[None], 0.5 * v[None], corner_heatmaps(q[None], (H, W))]).astype(np.float32)
+
+    own, of_mirror = maps(quad, void), maps(mirrored, void[:, ::-1])
+    got = mirror_mean(torch.from_numpy(np.stack([own, of_mirror])))[0].numpy()
+    assert MIRRORED_CHANNELS == (0, 1, 3, 2, 5, 4)
+    np.testing.assert_allclose(got, own, atol=1e-3)  # the heatmaps are truncated Gaussians: tails differ by 2e-4
+
+
+def test_mirror_averaged_maps_of_the_shipped_network_are_mirror_equivariant():
+    """With ``mirror`` the maps of a mirrored photo are the mirrored maps of the photo, corners
+    swapped left for right (a size the network's stride divides, so no padding moves)."""
+    from fenestra.pipeline.detectors import DETECTORS, load_model
+
+    _, net, _ = load_model(DETECTORS["default"].model, None, any_arch=True)
+    image = (np.random.default_rng(0).random((96, 128, 3)) * 255).astype(np.uint8)
+    a = predict_maps(net, image, mirror=True)
+    b = predict_maps(net, np.ascontiguousarray(image[:, ::-1]), mirror=True)
+    np.testing.assert_allclose(a, b[list(MIRRORED_CHANNELS)][:, :, ::-1], atol=1e-5)
+    assert np.abs(predict_maps(net, image) - a).max() > 1e-3  # without the mirror they differ
 
 
 def test_corners_to_quad_orders_and_refuses_degenerate_corners():

@@ -107,8 +107,9 @@ class Split:
     arch: str
     net: object
     prepare: Callable  # image (H, W, 3) uint8 -> (tensor (1, 3, Hp, Wp), H, W)
-    forward: Callable  # (B, 3, Hp, Wp) -> (logits (B, M, Hp, Wp), {feature name: (B, C, h, w)})
+    forward: Callable  # (B, 3, Hp, Wp) -> (logits (B or 2B, M, Hp, Wp), {feature name: (B or 2B, C, h, w)})
     finish: Callable  # (maps (M, H, W) float32, {name: (1, C, h, w)}) -> detections
+    probs: Callable = None  # logits -> probabilities (B, M, Hp, Wp): sigmoid, or EffWin's mirror mean
 
     def detect_batch(self, images: Sequence) -> list[list]:
         """Detections of each image, the network run once on all of them."""
@@ -117,7 +118,7 @@ class Split:
         prepared = [self.prepare(im) for im in images]
         with torch.no_grad():
             logits, feats = self.forward(stack_views([p[0] for p in prepared]))
-            probs = torch.sigmoid(logits.float())
+            probs = (self.probs or torch.sigmoid)(logits.float())
         return [self.finish(probs[i, :, :H, :W].cpu().numpy(), {k: v[i:i + 1].float().cpu() for k, v in feats.items()})
                 for i, (_, H, W) in enumerate(prepared)]
 
@@ -144,8 +145,13 @@ def split_detector(name: str) -> Split | None:
 
         head = mod.verifier_from_checkpoint(net, ckpt)
 
-        def forward(x):
+        def forward(x):  # with the weights' ``mirror``: the views, then their mirrors, in one batch
+            x = torch.cat([x, torch.flip(x, dims=[3])]) if post.mirror else x
             return net.forward_features(x) if head is not None else (net(x), {})
+
+        def probs(logits):
+            p = torch.sigmoid(logits)
+            return mod.mirror_mean(p) if post.mirror else p
 
         def finish(maps, feats):
             dets = mod.detections_from_maps(maps, post)
@@ -156,9 +162,10 @@ def split_detector(name: str) -> Split | None:
 
         def finish(maps, feats):
             return instances_from_maps(maps[0], maps[1], post)
+        probs = None
     else:
         return None
-    return Split(name, arch, net, prepare, forward, finish)
+    return Split(name, arch, net, prepare, forward, finish, probs)
 
 
 # ---------------------------------------------------------------- checks and timing
@@ -197,10 +204,10 @@ def check_outputs(split: Split, images: list, batch: int, reference: list[list])
         for start, group in zip(range(0, len(images), batch), chunks(images, batch)):
             logits, feats = split.forward(stack_views([split.prepare(im)[0] for im in group]))
             for i in range(len(group)):
-                one_logits, one_feats = singles[start + i]
-                logit_d = max(logit_d, max_abs_diff(logits[i:i + 1], one_logits))
+                one_logits, one_feats = singles[start + i]  # row 0: the view (row 1: its mirror, if any)
+                logit_d = max(logit_d, max_abs_diff(logits[i:i + 1], one_logits[0:1]))
                 for k, v in feats.items():
-                    feat_d = max(feat_d, max_abs_diff(v[i:i + 1], one_feats[k]))
+                    feat_d = max(feat_d, max_abs_diff(v[i:i + 1], one_feats[k][0:1]))
     batched = [d for group in chunks(images, batch) for d in split.detect_batch(group)]
     for k, (dets, ref) in enumerate(zip(batched, reference)):
         ok, why = detections_agree([d for d in dets if d.score >= CANDIDATE_SCORE_MIN], ref)

@@ -65,7 +65,7 @@ def stage_times(image, model, post, head) -> tuple[dict[str, tuple[float, float]
     from fenestra.pipeline.types import Detection  # noqa: PLC0415
 
     t = {}
-    (maps, feats), *t["network"] = timed(predict_maps_features, model, image)
+    (maps, feats), *t["network"] = timed(predict_maps_features, model, image, post.mirror)
     dets, *t["instances"] = timed(instances_from_maps, maps[0], maps[1], post, maps[2:])
     corners, *t["corners"] = timed(lambda: [instance_corners(maps[2:], d.mask) for d in dets])
     dets = [Detection(d.mask, d.box, d.score, d.label, corners=c) for d, c in zip(dets, corners)]

@@ -386,9 +386,9 @@ def main() -> None:
     if a.cache is not None:
         from fenestra.pipeline.detectors.verifier import network_fingerprint  # noqa: PLC0415
 
-        a.cache = a.cache / network_fingerprint(net.state_dict())[:16]
+        a.cache = a.cache / (network_fingerprint(net.state_dict())[:16] + ("-mirror" if shipped.mirror else ""))
     base = shipped if a.base == "shipped" else PostConfig(**BEFORE)
-    predict = (lambda im: mod.predict_maps(net, im)) if ckpt["arch"] == "effwin" \
+    predict = (lambda im: mod.predict_maps(net, im, shipped.mirror)) if ckpt["arch"] == "effwin" \
         else (lambda im: np.stack(mod.predict_maps(net, im)))
     dets_fn = mod.detections_from_maps if ckpt["arch"] == "effwin" \
         else (lambda maps, post: mod.instances_from_maps(maps[0], maps[1], post))

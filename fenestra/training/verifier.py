@@ -74,7 +74,7 @@ def image_samples(net, post, image: np.ndarray, windows: list, negatives: list, 
 
     scale = input_scale(image.shape[:2])
     small = image if scale == 1.0 else downscale(image, scale)
-    maps, feats = effwin.predict_maps_features(net, small)
+    maps, feats = effwin.predict_maps_features(net, small, post.mirror)
     dets = [d for d in effwin.detections_from_maps(maps, post) if d.score >= MIN_SCORE]
     if not dets:
         return None

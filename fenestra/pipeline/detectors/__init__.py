@@ -192,7 +192,8 @@ def load_map_predictor(weights: str | Path | None = None):
     mod, net, ckpt = load_model(DETECTORS["default"].model, weights, any_arch=True)
     if not hasattr(mod, "void_core_maps"):
         raise FenestraError(f"{weights}: a {ckpt['arch']!r} model has no void/core maps to tune")
-    return mod.void_core_maps(net), mod.post_config(ckpt)
+    post = mod.post_config(ckpt)
+    return (mod.void_core_maps(net, post.mirror) if post.mirror else mod.void_core_maps(net)), post
 
 
 DETECTORS: Registry[DetectorEntry] = Registry("detector", [

@@ -58,8 +58,10 @@ N_MAPS = 6  # void, core, TL, TR, BR, BL
 # cut). duplex missed 62 % -> 5 % at their introduction (fenestra/pipeline/models/README.md, "Per
 # house"; tools/instance_separation.py).
 SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7,
-                   "cut_min_height_frac": 0.75, "min_side_px": 4}  # min_side_px: a strip left between two
-# cuts (a mullion) is no window; a window under 4 network px across is not measurable (detector v3)
+                   "cut_min_height_frac": 0.75, "min_side_px": 4, "mirror": True}  # min_side_px: a strip left
+# between two cuts (a mullion) is no window; a window under 4 network px across is not measurable
+# (detector v3); mirror: the maps averaged over the image and its mirror (issue #36; docs/experiments.md
+# "Maps averaged over the mirror image")
 POST_DEFAULTS = SEPARATING_POST
 
 
@@ -231,25 +233,40 @@ def instance_corners(corner_p: np.ndarray, mask: np.ndarray, min_peak: float = 0
     return out
 
 
-@torch.no_grad()
-def predict_maps(model: EffWin, image: np.ndarray) -> np.ndarray:
-    """Probability maps (6, H, W) float32 [void, core, TL, TR, BR, BL] for one RGB image (H, W, 3) uint8."""
-    model.eval()
-    x, H, W = pad_to_stride(to_tensor(image), STRIDE)
-    x = x.to(next(model.parameters()).device).contiguous(memory_format=torch.channels_last)
-    return torch.sigmoid(model(x).float())[0, :, :H, :W].cpu().numpy()
+MIRRORED_CHANNELS = (0, 1, 3, 2, 5, 4)  # [void, core, TL, TR, BR, BL] of a mirrored image, in the image's order
+
+
+def mirror_mean(p: torch.Tensor) -> torch.Tensor:
+    """(B, 6, H, W) probabilities: for each of B images, the mean of its maps p[i] and of its
+    left-right mirror's, p[B + i], mirrored back with the left and right corner maps swapped.
+    p: (2B, 6, H, W), the B images, then their mirrors."""
+    B = p.shape[0] // 2
+    back = torch.flip(p[B:], dims=[3])[:, list(MIRRORED_CHANNELS)]
+    return 0.5 * (p[:B] + back)
 
 
 @torch.no_grad()
-def predict_maps_features(model: EffWin, image: np.ndarray) -> tuple[np.ndarray, dict[str, torch.Tensor]]:
-    """(predict_maps' maps, EffWin.forward_features' feature maps (1, C, h, w) float32 on the CPU)
-    of one RGB image, in one pass of the network."""
+def predict_maps(model: EffWin, image: np.ndarray, mirror: bool = False) -> np.ndarray:
+    """Probability maps (6, H, W) float32 [void, core, TL, TR, BR, BL] for one RGB image (H, W, 3)
+    uint8; with ``mirror``, the mean over the image and its mirror (:func:`mirror_mean`)."""
+    return predict_maps_features(model, image, mirror)[0]
+
+
+@torch.no_grad()
+def predict_maps_features(model: EffWin, image: np.ndarray,
+                          mirror: bool = False) -> tuple[np.ndarray, dict[str, torch.Tensor]]:
+    """(predict_maps' maps, EffWin.forward_features' feature maps (1, C, h, w) float32 on the CPU,
+    of the image itself) of one RGB image, in one pass of the network (a batch of two with
+    ``mirror``: the image and its left-right mirror)."""
     model.eval()
     x, H, W = pad_to_stride(to_tensor(image), STRIDE)
+    if mirror:
+        x = torch.cat([x, torch.flip(x, dims=[3])])
     x = x.to(next(model.parameters()).device).contiguous(memory_format=torch.channels_last)
     logits, feats = model.forward_features(x)
-    maps = torch.sigmoid(logits.float())[0, :, :H, :W].cpu().numpy()
-    return maps, {k: v.float().cpu() for k, v in feats.items()}
+    p = torch.sigmoid(logits.float())
+    maps = (mirror_mean(p) if mirror else p)[0, :, :H, :W].cpu().numpy()
+    return maps, {k: v[0:1].float().cpu() for k, v in feats.items()}
 
 
 def detections_from_maps(maps: np.ndarray, post: PostConfig = PostConfig()) -> list[Detection]:
@@ -294,14 +311,15 @@ def detector_from_model(model: EffWin, ckpt: dict):
     post = post_config(ckpt)
     head = verifier_from_checkpoint(model, ckpt)
     if head is None:
-        return lambda image, **_: detections_from_maps(predict_maps(model, image), post)
+        return lambda image, **_: detections_from_maps(predict_maps(model, image, post.mirror), post)
 
     def run(image: np.ndarray, **_) -> list[Detection]:
-        maps, feats = predict_maps_features(model, image)
+        maps, feats = predict_maps_features(model, image, post.mirror)
         return verified(detections_from_maps(maps, post), maps[0], feats, head)
     return run
 
 
-def void_core_maps(model: EffWin):
-    """image -> (void, core) probability maps (H, W) float32 (post-processing tuning: fenestra/training/tune.py)."""
-    return lambda image: tuple(predict_maps(model, image)[:2])
+def void_core_maps(model: EffWin, mirror: bool = False):
+    """image -> (void, core) probability maps (H, W) float32 (post-processing tuning:
+    fenestra/training/tune.py); ``mirror``: :func:`predict_maps`'."""
+    return lambda image: tuple(predict_maps(model, image, mirror)[:2])

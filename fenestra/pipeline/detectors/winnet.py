@@ -122,6 +122,9 @@ class PostConfig:
     cut_min_height_frac: a horizontal separator is kept only when the void above and below it
     (:func:`void_extent`, from its midpoint) reaches at least this fraction of its length (a
     transom leaves a short top light above its sash: a real window's transom is not cut).
+    mirror: EffWin only (ignored by WinNet, like the corner cuts): the maps are the mean of the
+    network's maps of the image and of its left-right mirror, mirrored back (the TL/TR and BR/BL
+    corner maps swapped); one more network pass, in the same batch.
     """
 
     void_threshold: float = 0.5
@@ -141,6 +144,7 @@ class PostConfig:
     cut_min_void_frac: float = 0.0
     cut_min_dip: float = 0.0
     cut_min_height_frac: float = 0.0
+    mirror: bool = False
 
     def __post_init__(self) -> None:
         if self.split_map not in ("core", "void"):
