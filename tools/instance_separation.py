@@ -56,6 +56,8 @@ CANDIDATES: dict[str, dict | None] = {
     "core0.7": {"core_threshold": 0.7},
     "core0.8": {"core_threshold": 0.8},
     "void0.6": {"void_threshold": 0.6},
+    "void0.4": {"void_threshold": 0.4},
+    "void0.3": {"void_threshold": 0.3},
     "watershed": {"separation": "watershed"},                 # core-seeded watershed on the void map
     "nearest-blob": {"separation": "nearest-blob"},           # nearest seed within the pixel's void blob
     "split": {"split_levels": (0.7, 0.8, 0.9, 0.95)},         # core blobs split by the core map's tree
