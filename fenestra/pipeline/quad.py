@@ -421,27 +421,25 @@ def _greedy_quad(P: np.ndarray, m: np.ndarray, params: QuadParams, inlier_px: fl
 
 
 def best_subset_quad(P: np.ndarray, m: np.ndarray, origin: np.ndarray, params: QuadParams,
-                     inlier_px: float, hint: np.ndarray | None = None) -> QuadResult | None:
-    """Step 7 of :func:`mask_to_quad`: the best quad of any four of the ``subset_lines`` greedy
-    lines, or None where no four pass.
+                     inlier_px: float, hint: np.ndarray) -> QuadResult | None:
+    """Step 7 of :func:`mask_to_quad`: the quad of four of the ``subset_lines`` greedy lines that
+    the predicted corners ``hint`` confirm, or None where no four pass.
 
     P (N, 2) px: the outline of the blob crop m (uint8 0/1, its pixel (0, 0) at ``origin`` (2,)
-    px). Each candidate is refitted to its own inliers (within ``inlier_px``), oriented outward and
-    shifted by the half-pixel edge offset. Four lines, sorted by their normals' angle, make a
-    quad when neighbours meet in a convex quad no farther than half the mask's size outside its
-    box. It passes when the mask fills ``subset_min_fill`` of it, leaves at most
+    px); hint (4, 2) px: predicted corners in any cyclic order. Each candidate line is refitted to
+    its own inliers (within ``inlier_px``), oriented outward and shifted by the half-pixel edge
+    offset. Four lines, sorted by their normals' angle, make a quad when neighbours meet in a
+    convex quad whose corners lie within a mean ``subset_hint_px`` of the hint's (both TL TR BR
+    BL; checked first, so only confirmed quads are rasterised) and no farther than half the mask's
+    size outside its box. It passes when the mask fills ``subset_min_fill`` of it, leaves at most
     ``subset_max_outside`` of its pixels outside it, and each side (as a segment) has outline
-    points within ``inlier_px`` along ``subset_min_cover`` of its Chebyshev length. The score is
-    the outline points so explained, or, with a ``hint`` (4, 2) px (predicted corners, any cyclic
-    order), minus the summed distance of the quad's corners to the hint's (both TL TR BR BL):
-    the mask's lines give the geometry, the corner head says which of them are the window's; the
-    nearest is kept only within a mean ``subset_hint_px`` of the hint. Ties keep the first.
+    points within ``inlier_px`` along ``subset_min_cover`` of its Chebyshev length. Of the
+    passing quads the nearest to the hint is kept (ties: the first).
     """
-    if hint is not None:
-        hint = np.asarray(hint, dtype=np.float64)
-        if hint.shape != (4, 2) or not np.all(np.isfinite(hint)):
-            return None  # corners that cannot confirm anything
-        hint = order_corners(hint)
+    hint = np.asarray(hint, dtype=np.float64)
+    if hint.shape != (4, 2) or not np.all(np.isfinite(hint)):
+        return None  # corners that cannot confirm anything
+    hint = order_corners(hint)
     cand = _choose_lines(P, params, inlier_px, n=params.subset_lines)
     if cand is None:
         return None
@@ -455,20 +453,22 @@ def best_subset_quad(P: np.ndarray, m: np.ndarray, origin: np.ndarray, params: Q
     lines = np.array(lines)
     shift = np.array([edge_offset_px(n) for n in lines[:, :2]])
     near = np.abs(P @ lines[:, :2].T - (lines[:, 2] - shift)) < inlier_px  # (N, L), unshifted lines
-    size = float(max(m.shape))
-    pad = int(np.ceil(size / 2.0))
+    pad = int(np.ceil(max(m.shape) / 2.0))
     mask = np.pad(m.astype(bool), pad)
     n_mask = int(mask.sum())
-    best, best_score = None, -np.inf
+    best, best_dist = None, np.inf
     for combo in itertools.combinations(range(len(lines)), 4):
         idx = sorted(combo, key=lambda k: np.arctan2(lines[k, 1], lines[k, 0]))
         ang = np.sort(np.arctan2(lines[idx, 1], lines[idx, 0]))
         if np.diff(np.append(ang, ang[0] + 2 * np.pi)).max() >= np.pi:
             continue  # the normals do not go round: no closed quad
         quad = np.array([intersect(lines[idx[k]], lines[idx[(k + 1) % 4]]) for k in range(4)])
+        if not np.all(np.isfinite(quad)) or not _is_convex(quad):
+            continue
+        dist = float(np.linalg.norm(order_corners(quad) - hint, axis=1).mean())
         local = quad - origin + pad
-        if not np.all(np.isfinite(quad)) or local.min() < 0 or np.any(local.max(axis=0) >= mask.shape[::-1]) \
-                or not _is_convex(quad):
+        if dist > params.subset_hint_px or dist >= best_dist or local.min() < 0 \
+                or np.any(local.max(axis=0) >= mask.shape[::-1]):
             continue
         area = np.zeros_like(mask, dtype=np.uint8)
         cv2.fillConvexPoly(area, np.round(local * 16).astype(np.int32), 1, lineType=cv2.LINE_8, shift=4)
@@ -476,24 +476,22 @@ def best_subset_quad(P: np.ndarray, m: np.ndarray, origin: np.ndarray, params: Q
         if inside < params.subset_min_fill * max(int(area.sum()), 1) or \
                 n_mask - inside > params.subset_max_outside * n_mask:
             continue
-        score, ok = 0, True
-        for k in range(4):  # side idx[k] runs from corner k-1 to corner k
-            a, b = quad[k - 1], quad[k]
-            d = b - a
-            t = (P - a) @ d / max(float(d @ d), 1e-12)
-            covered = int(np.count_nonzero(near[:, idx[k]] & (t >= 0.0) & (t <= 1.0)))
-            ok &= covered >= params.subset_min_cover * max(float(np.abs(d).max()), 1.0)
-            score += covered
-        explained = score
-        if hint is not None:
-            score = -float(np.linalg.norm(order_corners(quad) - hint, axis=1).sum())
-        if ok and score > best_score:
-            best, best_score, best_explained = (quad, lines[idx]), score, explained
-    if best is None or (hint is not None and -best_score > 4 * params.subset_hint_px):
+        if all(_side_covered(P, near[:, idx[k]], quad[k - 1], quad[k], params.subset_min_cover)
+               for k in range(4)):  # side idx[k] runs from corner k-1 to corner k
+            best, best_dist = (quad, idx), dist
+    if best is None:
         return None
-    quad = order_corners(best[0])
-    return QuadResult(quad=quad, lines=_lines_in_corner_order(best[1], quad),
-                      explained=min(best_explained / len(P), 1.0), failure=None)
+    quad, idx = order_corners(best[0]), best[1]
+    explained = float(np.count_nonzero(near[:, idx].any(axis=1))) / len(P)  # within inlier_px of a side's line
+    return QuadResult(quad=quad, lines=_lines_in_corner_order(lines[idx], quad), explained=explained, failure=None)
+
+
+def _side_covered(P: np.ndarray, near: np.ndarray, a: np.ndarray, b: np.ndarray, min_cover: float) -> bool:
+    """Do the outline points P (N, 2) flagged ``near`` (N,) the side's line, whose projection lies
+    between corners a and b (2,), number at least ``min_cover`` x the side's Chebyshev length?"""
+    d = b - a
+    t = (P - a) @ d / max(float(d @ d), 1e-12)
+    return int(np.count_nonzero(near & (t >= 0.0) & (t <= 1.0))) >= min_cover * max(float(np.abs(d).max()), 1.0)
 
 
 def _refit_short_sides(P: np.ndarray, lines: np.ndarray, corners: np.ndarray, window: int,
