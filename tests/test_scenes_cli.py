@@ -48,7 +48,9 @@ def test_show_duplex_reports_skylights():
 def test_show_table_for_humans():
     r = fenestra("scenes", "show", "duplex")
     assert r.returncode == 0, r.stderr
-    assert "22 windows" in r.stdout and r.stdout.count("skipped") == 2
+    lines = r.stdout.splitlines()
+    assert "22 windows" in r.stdout and sum(line.startswith("skipped ") for line in lines) == 2
+    assert "24 windows present, 22 extracted (fill 22), 2 skipped (not in a wall: 2)" in lines
 
 
 def test_make_then_show(tmp_path):
@@ -94,8 +96,8 @@ def _bad(tmp_path, name: str, text: bytes) -> Path:
     return p
 
 
-def _assert_cli_error(tmp_path, path: Path, *words: str) -> None:
-    r = fenestra("scenes", "show", str(path), cache=tmp_path / "c")
+def _assert_cli_error(tmp_path, path: Path, *words: str, extra: tuple[str, ...] = ()) -> None:
+    r = fenestra("scenes", "show", str(path), *extra, cache=tmp_path / "c")
     assert r.returncode != 0
     msg = r.stderr.strip()
     assert msg.startswith("error:") and len(msg.splitlines()) == 1, msg
@@ -134,18 +136,36 @@ def test_ifc_without_windows(tmp_path):
     _assert_cli_error(tmp_path, Path(house.path), "blind.ifc", "no IfcWindow")
 
 
-def test_window_without_opening(tmp_path):
+def test_window_without_fill_is_found_and_strict_fails_on_a_skip(tmp_path):
+    """No IfcRelFillsElement: the window is found by the opening that holds it (source "opening"),
+    with the same rectangle; `--strict` fails (one line naming file and window) only on a skip."""
     import ifcopenshell
+    import ifcopenshell.guid
     house = make_house(HouseSpec(seed=1), tmp_path / "h.ifc")
     f = ifcopenshell.open(house.path)
     victim = f.by_type("IfcWindow")[0]
     f.remove(victim.FillsVoids[0])
     f.write(str(tmp_path / "loose.ifc"))
-    _assert_cli_error(tmp_path, tmp_path / "loose.ifc", "loose.ifc", victim.GlobalId,
-                      "fills no opening")
-    # non-strict loading keeps the house and lists the window as skipped
-    s = load_scene(tmp_path / "loose.ifc", cache_dir=tmp_path / "c2", strict=False)
-    assert [k.id for k in s.skipped] == [victim.GlobalId] and len(s.windows) == 4
+    s = load_scene(tmp_path / "loose.ifc", cache_dir=tmp_path / "c2")
+    by_id = {w.id: w for w in s.windows}
+    assert s.skipped == () and len(s.windows) == 5 and by_id[victim.GlobalId].source == "opening"
+    truth = {w.element_id: w.corners_world for w in house.windows}
+    assert np.abs(by_id[victim.GlobalId].corners_world - truth[victim.GlobalId]).max() < 1e-3
+    r = fenestra("scenes", "show", str(tmp_path / "loose.ifc"), "--json", cache=tmp_path / "c3")
+    census = json.loads(r.stdout)["census"]
+    assert r.returncode == 0 and census == {"present": 5, "extracted": 5, "skipped": {},
+                                            "sources": {"fill": 4, "opening": 1}}
+    # a window hosted in the roof slab instead: skipped with its reason; --strict refuses the file
+    roof = next(e for e in f.by_type("IfcSlab") if e.Name == "Roof")
+    op = next(o for o in f.by_type("IfcOpeningElement") if not o.HasFillings)
+    op.VoidsElements[0].RelatingBuildingElement = roof
+    f.add(victim.FillsVoids[0] if victim.FillsVoids else f.createIfcRelFillsElement(
+        ifcopenshell.guid.new(), None, None, None, op, victim))
+    f.write(str(tmp_path / "roofed.ifc"))
+    s = load_scene(tmp_path / "roofed.ifc", cache_dir=tmp_path / "c2")
+    assert [k.id for k in s.skipped] == [victim.GlobalId] and s.skipped[0].cause == "not in a wall"
+    _assert_cli_error(tmp_path, tmp_path / "roofed.ifc", "roofed.ifc", victim.GlobalId, "not a wall",
+                      extra=("--strict",))
 
 
 def test_resolve_errors_are_scene_errors(tmp_path):

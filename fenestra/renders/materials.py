@@ -243,23 +243,25 @@ def glass_texture(horizon, zenith, reflect: float = 1.0, interior=(0.10, 0.12, 0
 
 
 # ---------------------------------------------------------------------------------- assignment
-WALL_CLASSES = ("IfcWall", "IfcWallStandardCase", "IfcCurtainWall", "IfcPlate")
+WALL_CLASSES = ("IfcWall", "IfcCurtainWall", "IfcPlate")  # compared with ElementMesh.kind (subclasses as parents)
 ROOF_CLASSES = ("IfcRoof", "IfcSlab", "IfcCovering")
 
 
 def material_key(m: ElementMesh) -> str:
-    """Which material group a mesh falls into (IFC class family + transparency)."""
-    if m.ifc_class == "IfcSite":
+    """Which material group a mesh falls into (IFC class family + transparency). The class is the
+    mesh's ``kind``: a StandardCase subclass (IfcWindowStandardCase, IfcWallStandardCase) as its parent."""
+    kind = m.kind
+    if kind == "IfcSite":
         return "ground"
     if m.rgba[3] < 0.9:
         return "glass"
-    if m.ifc_class == "IfcWindow":
+    if kind == "IfcWindow":
         return "frame"
-    if m.ifc_class in WALL_CLASSES:
+    if kind in WALL_CLASSES:
         return "wall"
-    if m.ifc_class in ROOF_CLASSES:
+    if kind in ROOF_CLASSES:
         return "roof"
-    if m.ifc_class == "IfcDoor":
+    if kind == "IfcDoor":
         return "door"
     return "other:" + "%.2f,%.2f,%.2f" % tuple(m.rgba[:3])
 
@@ -341,12 +343,13 @@ def group_scene(scene: Scene, look: Look, rng: np.random.Generator, ground_size_
     normals = {w.id: w.normal for w in scene.windows}
     for m in scene.meshes:
         key = material_key(m)
-        if m.ifc_class == "IfcWindow" and m.global_id in normals:
+        if m.kind == "IfcWindow" and m.global_id in normals:
             glass = glass_faces(m.vertices, m.faces, normals[m.global_id])
             for k, sel in (("glass", glass), ("frame", ~glass)):
                 if sel.any():
                     buckets.setdefault(k, []).append(
-                        ElementMesh(m.global_id, m.ifc_class, m.name, m.vertices, m.faces[sel], m.rgba))
+                        ElementMesh(m.global_id, m.ifc_class, m.name, m.vertices, m.faces[sel], m.rgba,
+                                    base_class=m.base_class))
             continue
         buckets.setdefault(key, []).append(m)
     groups = []

@@ -1,7 +1,8 @@
 """CLI commands of scenes/ (registered on the `fenestra` app by fenestra/app/cli.py).
 
     fenestra scenes list                       bundled houses: schema, windows, skipped
-    fenestra scenes show NAME_OR_PATH [--json] every window's ground truth, skipped windows + reasons
+    fenestra scenes show NAME_OR_PATH [--json] [--strict]  census (windows present, extracted, skipped
+                                               by cause), every window's ground truth, skipped ones + reasons
     fenestra scenes make OUT.ifc [--seed S] [--footprint "x,y;x,y;..."] [--storeys N] ...
     fenestra scenes author OUT_DIR             the hand-authored held-out houses (scenes/authored.py)
 """
@@ -21,17 +22,27 @@ def scene_summary(scene) -> dict:
     """Machine-readable summary of a Scene (what `scenes show --json` prints)."""
     return {
         "name": scene.name, "path": scene.path, "schema": scene.schema, "sha256": scene.sha256,
-        "n_meshes": len(scene.meshes),
+        "n_meshes": len(scene.meshes), "census": scene.census(),
         "windows": [{
             "id": w.id, "name": w.name, "host_id": w.host_id, "host_class": w.host_class,
             "opening_id": w.opening_id, "width": w.width, "height": w.height,
-            "aspect_ratio": w.aspect_ratio, "shape": w.shape, "notes": w.notes,
+            "aspect_ratio": w.aspect_ratio, "shape": w.shape, "notes": w.notes, "source": w.source,
             "ifc_overall_width": w.ifc_overall_width, "ifc_overall_height": w.ifc_overall_height,
             "normal": [float(x) for x in w.normal],
             "corners_world": [[float(x) for x in c] for c in w.corners_world],
         } for w in scene.windows],
-        "skipped": [{"id": s.id, "name": s.name, "reason": s.reason} for s in scene.skipped],
+        "skipped": [{"id": s.id, "name": s.name, "reason": s.reason, "cause": s.cause}
+                    for s in scene.skipped],
     }
+
+
+def census_line(census: dict) -> str:
+    """One line: 'N windows present, E extracted (by source), S skipped (by cause)'."""
+    src = ", ".join(f"{k} {v}" for k, v in sorted(census["sources"].items()))
+    skipped = sum(census["skipped"].values())
+    why = ", ".join(f"{k}: {v}" for k, v in sorted(census["skipped"].items()))
+    return (f"{census['present']} windows present, {census['extracted']} extracted"
+            + (f" ({src})" if src else "") + f", {skipped} skipped" + (f" ({why})" if why else ""))
 
 
 @scenes_app.command("list")
@@ -62,11 +73,14 @@ def list_cmd(json_out: bool = typer.Option(False, "--json", help="print JSON")) 
 
 @scenes_app.command("show")
 def show_cmd(scene: str = typer.Argument(..., help="bundled name or path to an .ifc"),
-             json_out: bool = typer.Option(False, "--json", help="print JSON")) -> None:
-    """Every window's void rectangle (id, host, width, height, normal, corners) and skipped ones."""
+             json_out: bool = typer.Option(False, "--json", help="print JSON"),
+             strict: bool = typer.Option(False, "--strict", help="fail on the first window that cannot be "
+                                         "measured instead of skipping it")) -> None:
+    """The census (windows present, extracted by source, skipped by cause), every window's void
+    rectangle (id, host, width, height, normal, corners) and each skipped window's reason."""
     from fenestra.scenes.loader import load_scene
 
-    summary = scene_summary(load_scene(scene))
+    summary = scene_summary(load_scene(scene, strict=strict))
     if json_out:
         typer.echo(json.dumps(summary, indent=1))
         return
@@ -74,16 +88,17 @@ def show_cmd(scene: str = typer.Argument(..., help="bundled name or path to an .
     from rich.table import Table
 
     t = Table(title=f"{summary['name']} ({summary['schema']}): {len(summary['windows'])} windows")
-    for col in ("id", "host", "w (m)", "h (m)", "shape", "normal", "TL corner (m)"):
+    for col in ("id", "host", "w (m)", "h (m)", "shape", "source", "normal", "TL corner (m)"):
         t.add_column(col)
     for w in summary["windows"]:
         t.add_row(w["id"], f"{w['host_class']} {w['host_id']}", f"{w['width']:.4f}",
-                  f"{w['height']:.4f}", w["shape"], " ".join(f"{x:+.3f}" for x in w["normal"]),
+                  f"{w['height']:.4f}", w["shape"], w["source"], " ".join(f"{x:+.3f}" for x in w["normal"]),
                   " ".join(f"{x:.3f}" for x in w["corners_world"][0]))
     console = Console()
     console.print(t)
+    console.print(census_line(summary["census"]), markup=False)
     for s in summary["skipped"]:
-        console.print(f"skipped {s['id']} ({s['name']}): {s['reason']}")
+        console.print(f"skipped {s['id']} ({s['name']}): {s['reason']}", markup=False, soft_wrap=True)
 
 
 def parse_footprint(text: str) -> list[tuple[float, float]]:

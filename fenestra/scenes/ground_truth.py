@@ -34,14 +34,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fenestra.scenes.ifc_read import is_any
 from fenestra.scenes.model import ElementMesh, SkippedWindow, WindowGT
-
-WALL_CLASSES: tuple[str, ...] = ("IfcWall", "IfcCurtainWall")  # is_a() includes subtypes
+from fenestra.scenes.window_sources import WALL_CLASSES, OpeningIndex, SourceError, VoidSource, window_void
 MIN_ESCAPE_MARGIN = 0.1  # exterior side needs this many more escaping rays (fraction)
 N_RAYS = 48
 RAY_OFFSET_M = 0.02
 CAP_INSET_M = 1e-5
 RIGHT_ANGLE_DEG = 0.01
+FACE_COS = float(np.cos(np.radians(20.0)))  # a wall triangle within 20 deg of the axis is a face (curved walls)
+NEAR_M = 0.3  # wall triangles this close to the opening's box decide its axis
+SHORT_SLACK_M = 0.05  # an opening may stop this short of a (curved) exterior face: its prism's section is the same
+RAY_CHUNK = 20000  # triangles per block in rays_hit_any
 EZ = np.array([0.0, 0.0, 1.0])
 
 
@@ -80,40 +84,77 @@ def face_axes(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x / np.linalg.norm(x), EZ.copy()
 
 
-def wall_normal_axis(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
-                     wall_faces: np.ndarray) -> np.ndarray:
-    """Horizontal unit normal axis (3,) of the host wall at the opening (sign arbitrary).
+def near_box(tri: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(M,) bool: triangles (M, 3, 3) whose bounding box overlaps the box [lo, hi] (3,) m."""
+    return np.all((tri.max(axis=1) >= lo) & (tri.min(axis=1) <= hi), axis=1)
+
+
+def _ranked(cand: np.ndarray, w_n: np.ndarray, w_a: np.ndarray, cos_min: float) -> list[np.ndarray]:
+    """Distinct candidate directions (3,) with wall area along them (triangles, normals w_n (M, 3),
+    areas w_a (M,), with |n . c| > cos_min), most area first; those with none left out."""
+    scored: list[tuple[float, np.ndarray]] = []
+    for c in cand:
+        c = c / np.linalg.norm(c)
+        if any(abs(c @ t) > 1 - 1e-9 for _, t in scored):
+            continue
+        scored.append((float(w_a[np.abs(w_n @ c) > cos_min].sum()), c))
+    return [c for a, c in sorted(scored, key=lambda x: -x[0]) if a > 0]
+
+
+def candidate_axes(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
+                   wall_faces: np.ndarray) -> list[np.ndarray]:
+    """Horizontal unit axes (3,) the host wall's normal may be at the opening, best first.
 
     Candidates are the opening's own horizontal face directions (an opening is a prism through
-    the wall, so the wall normal is one of them); the winner is the one along which the host wall
-    has the most face area. Raises VoidGeometryError when no candidate is parallel to a wall face.
+    the wall, so the wall normal is one of them), ranked by the host wall's face area exactly
+    parallel to them, then (a curved wall's facets) by the area of the host's triangles near the
+    opening (within NEAR_M of its box) whose normal is within 20 deg of them.
     """
     op_n, op_a = triangle_normals(op_vertices, op_faces)
     w_n, w_a = triangle_normals(wall_vertices, wall_faces)
     cand = op_n[(np.abs(op_n[:, 2]) < 1e-6) & (op_a > 1e-9)]
-    best, best_area = None, 0.0
-    tried: list[np.ndarray] = []
-    for c in cand:
-        c = c / np.linalg.norm(c)
-        if any(abs(c @ t) > 1 - 1e-9 for t in tried):
-            continue
-        tried.append(c)
-        area = float(w_a[np.abs(w_n @ c) > 1 - 1e-9].sum())
-        if area > best_area:
-            best, best_area = c, area
-    if best is None:
+    near = near_box(wall_vertices[wall_faces], op_vertices.min(axis=0) - NEAR_M,
+                    op_vertices.max(axis=0) + NEAR_M)
+    out: list[np.ndarray] = []
+    for c in _ranked(cand, w_n, w_a, 1 - 1e-9) + _ranked(cand, w_n[near], w_a[near], FACE_COS):
+        c = c.copy()
+        c[2] = 0.0
+        c /= np.linalg.norm(c)
+        if not any(abs(c @ t) > 1 - 1e-9 for t in out):
+            out.append(c)
+    return out
+
+
+def wall_normal_axis(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
+                     wall_faces: np.ndarray) -> np.ndarray:
+    """Horizontal unit normal axis (3,) of the host wall at the opening (sign arbitrary): the first
+    of :func:`candidate_axes` for which the wall has a face on each side (:func:`face_offsets`).
+    Raises VoidGeometryError when none has."""
+    return wall_axis_and_faces(op_vertices, op_faces, wall_vertices, wall_faces)[0]
+
+
+def wall_axis_and_faces(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
+                        wall_faces: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+    """(axis (3,), (d_minus, d_plus) m): the first candidate axis whose face offsets exist."""
+    axes = candidate_axes(op_vertices, op_faces, wall_vertices, wall_faces)
+    if not axes:
         raise VoidGeometryError("no vertical face of the opening is parallel to a host wall face")
-    best = best.copy()
-    best[2] = 0.0
-    return best / np.linalg.norm(best)
+    first_error = None
+    for axis in axes:
+        try:
+            return axis, face_offsets(axis, op_vertices, wall_vertices, wall_faces)
+        except VoidGeometryError as e:
+            first_error = first_error or e
+    raise first_error
 
 
 def face_offsets(axis: np.ndarray, op_vertices: np.ndarray, wall_vertices: np.ndarray,
                  wall_faces: np.ndarray) -> tuple[float, float]:
     """Offsets (m, along ``axis``) of the wall's two face planes where the opening passes.
 
-    Uses wall triangles with normal +-axis having a vertex inside the opening's lateral extent
-    (x along the wall, z), expanded by 1 mm. Returns (d_minus, d_plus), d_minus < d_plus.
+    Uses wall triangles with normal within 20 deg of +-axis whose extent (x along the wall, z)
+    overlaps the opening's, expanded by 1 mm: the outermost vertex on each side (a flat face's
+    plane; a curved face's outermost point at the opening). Returns (d_minus, d_plus), d_minus < d_plus.
     """
     normals, areas = triangle_normals(wall_vertices, wall_faces)
     x_ax = np.cross(EZ, axis)
@@ -121,15 +162,19 @@ def face_offsets(axis: np.ndarray, op_vertices: np.ndarray, wall_vertices: np.nd
     tx, tz = tri @ x_ax, tri[..., 2]
     ox, oz = op_vertices @ x_ax, op_vertices[:, 2]
     pad = 1e-3
-    inside = ((tx >= ox.min() - pad) & (tx <= ox.max() + pad)
-              & (tz >= oz.min() - pad) & (tz <= oz.max() + pad)).any(axis=1)
+    inside = ((tx.max(axis=1) >= ox.min() - pad) & (tx.min(axis=1) <= ox.max() + pad)
+              & (tz.max(axis=1) >= oz.min() - pad) & (tz.min(axis=1) <= oz.max() + pad))
     dots = normals @ axis
-    plus = inside & (dots > 1 - 1e-9) & (areas > 0)
-    minus = inside & (dots < -1 + 1e-9) & (areas > 0)
+    plus = inside & (dots > FACE_COS) & (areas > 0)
+    minus = inside & (dots < -FACE_COS) & (areas > 0)
     if not plus.any() or not minus.any():
         raise VoidGeometryError("host wall has no pair of faces around the opening")
-    d = (tri @ axis).mean(axis=1)
-    return float(d[minus].min()), float(d[plus].max())
+    d = tri @ axis
+    d_minus, d_plus = float(d[minus].min()), float(d[plus].max())
+    if d_minus >= d_plus:
+        raise VoidGeometryError(f"host wall's faces around the opening are not on two sides of it "
+                                f"({d_minus:.3f} >= {d_plus:.3f} m along the wall normal)")
+    return d_minus, d_plus
 
 
 # --------------------------------------------------------------------------- ray casting
@@ -150,25 +195,25 @@ def hemisphere_directions(normal: np.ndarray, n_rays: int = N_RAYS,
 
 
 def rays_hit_any(origin: np.ndarray, directions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(R,) bool: does the ray origin + s*direction (s > 1e-9) hit any of triangles (T, 3, 3)?
+    """(R,) bool: does the ray origin + s*direction (s > 0) hit any of triangles (T, 3, 3)?
 
-    Moller-Trumbore, vectorised over triangles, one ray at a time (T can be ~10^5).
+    A ray hits a triangle when its direction is a non-negative combination of the corners seen
+    from the origin (the triangle's cone): three sign tests against the cone's edge planes, done
+    as matrix products over blocks of RAY_CHUNK triangles (T can be ~10^6).
     """
-    v0 = triangles[:, 0]
-    e1 = triangles[:, 1] - v0
-    e2 = triangles[:, 2] - v0
-    tvec = origin - v0  # (T, 3)
-    qvec = np.cross(tvec, e1)
     hits = np.zeros(len(directions), dtype=bool)
-    for i, d in enumerate(directions):
-        pvec = np.cross(d, e2)
-        det = np.einsum("ij,ij->i", e1, pvec)
+    for k in range(0, len(triangles), RAY_CHUNK):
+        a = triangles[k:k + RAY_CHUNK] - origin  # (t, 3, 3)
+        n0, n1, n2 = (np.cross(a[:, 1], a[:, 2]), np.cross(a[:, 2], a[:, 0]),
+                      np.cross(a[:, 0], a[:, 1]))
+        det = np.einsum("ij,ij->i", a[:, 0], n0)
         ok = np.abs(det) > 1e-12
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        u = np.einsum("ij,ij->i", tvec, pvec) * inv
-        v = (qvec @ d) * inv
-        s = np.einsum("ij,ij->i", e2, qvec) * inv
-        hits[i] = bool(np.any(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (s > 1e-9)))
+        sgn = np.sign(det[ok])
+        inside = (directions @ (n0[ok] * sgn[:, None]).T >= 0) & \
+            (directions @ (n1[ok] * sgn[:, None]).T >= 0) & (directions @ (n2[ok] * sgn[:, None]).T >= 0)
+        hits |= inside.any(axis=1)
+        if hits.all():
+            break
     return hits
 
 
@@ -195,7 +240,7 @@ def section_outline(op_vertices: np.ndarray, op_faces: np.ndarray, normal: np.nd
     from shapely.ops import polygonize
 
     depth = op_vertices @ normal
-    if depth.max() < d_face - 1e-3:
+    if depth.max() < d_face - SHORT_SLACK_M:
         raise VoidGeometryError(
             f"opening stops {d_face - depth.max():.3f} m short of the exterior face")
     d_cut = min(d_face, depth.max() - CAP_INSET_M)
@@ -241,6 +286,19 @@ def to_world(points2: np.ndarray, normal: np.ndarray, d_face: float) -> np.ndarr
     return points2[:, :1] * x_ax + points2[:, 1:2] * y_ax + d_face * normal
 
 
+def exterior_side_reason(esc_a: float, esc_b: float) -> str:
+    """Why the exterior side cannot be told from two faces' escape fractions (one line): both
+    enclosed (an interior wall), both open (a lone wall: nothing of the building around it), or
+    merely too close to call."""
+    both = f"{esc_a:.0%} vs {esc_b:.0%} of rays escape from the two faces"
+    if max(esc_a, esc_b) < MIN_ESCAPE_MARGIN:
+        return f"cannot tell the exterior side: both faces are enclosed, an interior wall ({both})"
+    if min(esc_a, esc_b) > 1 - MIN_ESCAPE_MARGIN:
+        return (f"cannot tell the exterior side: both faces see the sky, a lone wall with no building "
+                f"around it ({both})")
+    return f"cannot tell the exterior side ({both})"
+
+
 # --------------------------------------------------------------------------- one window
 def void_on_wall(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
                  wall_faces: np.ndarray, scene_triangles: np.ndarray) -> VoidGeometry:
@@ -250,8 +308,7 @@ def void_on_wall(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: n
     building triangle used for the exterior test; all world coordinates, m.
     Raises VoidGeometryError (message = skip reason) when the geometry does not fit.
     """
-    axis = wall_normal_axis(op_vertices, op_faces, wall_vertices, wall_faces)
-    d_minus, d_plus = face_offsets(axis, op_vertices, wall_vertices, wall_faces)
+    axis, (d_minus, d_plus) = wall_axis_and_faces(op_vertices, op_faces, wall_vertices, wall_faces)
     x_ax = np.cross(EZ, axis)
     c2 = np.array([(op_vertices @ x_ax).min() + (op_vertices @ x_ax).max(),
                    op_vertices[:, 2].min() + op_vertices[:, 2].max()]) / 2.0
@@ -260,9 +317,7 @@ def void_on_wall(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: n
     esc_plus = escape_fraction(centre_plus, axis, scene_triangles)
     esc_minus = escape_fraction(centre_minus, -axis, scene_triangles)
     if abs(esc_plus - esc_minus) < MIN_ESCAPE_MARGIN:
-        raise VoidGeometryError(
-            f"cannot tell the exterior side: {esc_plus:.0%} vs {esc_minus:.0%} of rays escape "
-            "from the two faces (interior wall?)")
+        raise VoidGeometryError(exterior_side_reason(esc_plus, esc_minus))
     if esc_plus > esc_minus:
         normal, d_face, esc_out, esc_in = axis, d_plus, esc_plus, esc_minus
     else:
@@ -319,76 +374,137 @@ def overlap_notes(g: VoidGeometry, opening, host, settings, cache: dict[str, np.
 # --------------------------------------------------------------------------- whole file
 def scene_triangles(meshes: dict[str, ElementMesh]) -> np.ndarray:
     """(T, 3, 3) world triangles of every mesh except the site (terrain), for the exterior test."""
-    tris = [m.vertices[m.faces] for m in meshes.values() if m.ifc_class != "IfcSite"]
+    tris = [m.vertices[m.faces] for m in meshes.values() if m.kind != "IfcSite"]
     return np.concatenate(tris) if tris else np.zeros((0, 3, 3))
 
 
-def windows_ground_truth(ifc_file, meshes: dict[str, ElementMesh], label: str,
-                         geom_settings, strict: bool = True
-                         ) -> tuple[list[WindowGT], list[SkippedWindow]]:
-    """Ground truth of every IfcWindow of an open ifcopenshell file.
+def _fill_source(win, meshes: dict[str, ElementMesh], settings) -> VoidSource:
+    """Source ``fill``: the window's IfcRelFillsElement opening and the wall it voids.
 
-    meshes: GlobalId -> ElementMesh (hosts already cut). label names the file in messages.
-    strict: a window that fills no opening raises SceneError (else it is skipped with the reason).
-    """
+    Raises NotInWall (final: a roof window) or SourceError (try the geometric sources)."""
     import ifcopenshell.geom
-    import ifcopenshell.util.unit
 
-    from fenestra.errors import SceneError
+    if not win.FillsVoids:
+        raise SourceError("fills no opening (no IfcRelFillsElement)")
+    opening = win.FillsVoids[0].RelatingOpeningElement
+    if not opening.VoidsElements:
+        raise SourceError(f"opening {opening.GlobalId} voids no element (no IfcRelVoidsElement)")
+    host = opening.VoidsElements[0].RelatingBuildingElement
+    if not is_any(host, WALL_CLASSES):
+        kind = host.is_a()
+        raise NotInWall(f"hosted in {kind} {host.GlobalId}, not a wall"
+                        + (" (roof window / skylight)" if is_any(host, ("IfcRoof", "IfcSlab")) else ""))
+    try:
+        shape = ifcopenshell.geom.create_shape(settings, opening)
+    except RuntimeError as e:
+        raise SourceError(f"opening {opening.GlobalId} has no usable geometry ({e})") from None
+    op_v = np.asarray(shape.geometry.verts, dtype=np.float64).reshape(-1, 3)
+    op_f = np.asarray(shape.geometry.faces, dtype=np.int64).reshape(-1, 3)
+    if len(op_f) == 0:
+        raise SourceError(f"opening {opening.GlobalId} has an empty body")
+    return VoidSource("fill", host, opening.GlobalId, op_v, op_f)
+
+
+class NotInWall(Exception):
+    """The window is hosted in something other than a wall (a roof window): skipped, no fallback."""
+
+
+def placement_origin(win, scale: float) -> np.ndarray:
+    """World position (3,) m of a product's ObjectPlacement origin (zeros when it has none)."""
+    import ifcopenshell.util.placement
+
+    if win.ObjectPlacement is None:
+        return np.zeros(3)
+    return np.asarray(ifcopenshell.util.placement.get_local_placement(win.ObjectPlacement))[:3, 3] * scale
+
+
+def _causes(reason: str) -> str:
+    """A short class of a skip reason for the census."""
+    for key, cause in (("not a wall", "not in a wall"), ("interior wall", "interior wall"),
+                       ("lone wall", "lone wall"), ("exterior side", "exterior side unknown"),
+                       ("no usable geometry", "opening has no geometry"), ("no body", "no body geometry"),
+                       ("no wall holds", "not in a wall"), ("short of", "opening short of the face")):
+        if key in reason:
+            return cause
+    return "void not measurable"
+
+
+def measure_window(win, meshes, settings, index: OpeningIndex, walls, tris: np.ndarray,
+                   scale: float) -> tuple[VoidSource, VoidGeometry]:
+    """The window's void source and its rectangle on the exterior face, by the first source that
+    works (window_sources); raises NotInWall, or SourceError naming every source's reason."""
+    reasons: list[str] = []
+    candidates = []
+    try:
+        candidates.append(_fill_source(win, meshes, settings))
+    except SourceError as e:
+        reasons.append(f"fill: {e}")
+    ow, oh = win.OverallWidth, win.OverallHeight
+    overall = (None if ow is None else float(ow) * scale, None if oh is None else float(oh) * scale)
+    for attempt in range(2):
+        if attempt == 1:
+            try:
+                src, why = window_void(win, meshes.get(win.GlobalId), placement_origin(win, scale),
+                                       overall, index, walls, meshes)
+            except SourceError as e:
+                raise SourceError("; ".join(reasons + [str(e)])) from None
+            reasons.extend(why)
+            candidates = [src]
+        for src in candidates:
+            host_mesh = meshes.get(src.host.GlobalId)
+            if host_mesh is None:
+                reasons.append(f"{src.source}: host {src.host.is_a()} {src.host.GlobalId} has no body geometry")
+                continue
+            try:
+                return src, void_on_wall(src.vertices, src.faces, host_mesh.vertices, host_mesh.faces, tris)
+            except VoidGeometryError as e:
+                if "exterior side" in str(e):  # the same wall for every source: final
+                    raise SourceError(f"{e} (wall {src.host.GlobalId})") from None
+                reasons.append(f"{src.source}: {e}")
+        candidates = []
+    raise SourceError("; ".join(reasons))
+
+
+def window_centres(ifc_file, meshes: dict[str, ElementMesh]) -> np.ndarray:
+    """(W, 3) m: the centre of each IfcWindow's body box (windows without a body left out)."""
+    boxes = [(m.vertices.min(axis=0) + m.vertices.max(axis=0)) / 2.0
+             for w in ifc_file.by_type("IfcWindow") if (m := meshes.get(w.GlobalId)) is not None]
+    return np.array(boxes) if boxes else np.zeros((0, 3))
+
+
+def windows_ground_truth(ifc_file, meshes: dict[str, ElementMesh], label: str, geom_settings
+                         ) -> tuple[list[WindowGT], list[SkippedWindow]]:
+    """Ground truth of every IfcWindow (subtypes included) of an open ifcopenshell file.
+
+    meshes: GlobalId -> ElementMesh (hosts already cut). label names the file in messages. Every
+    window is either in the first list or in the second with a one-line reason naming it.
+    """
+    import ifcopenshell.util.unit
 
     scale = ifcopenshell.util.unit.calculate_unit_scale(ifc_file)
     tris = scene_triangles(meshes)
     windows: list[WindowGT] = []
     skipped: list[SkippedWindow] = []
     opening_cache: dict[str, np.ndarray] = {}
+    index = OpeningIndex(ifc_file, geom_settings, centres=window_centres(ifc_file, meshes))
+    walls = [(ifc_file.by_guid(m.global_id), m) for m in meshes.values() if m.kind in WALL_CLASSES
+             or is_any(ifc_file.by_guid(m.global_id), WALL_CLASSES)]
     for win in ifc_file.by_type("IfcWindow"):
         name = win.Name or ""
-
-        def skip(reason: str) -> None:
-            skipped.append(SkippedWindow(id=win.GlobalId, name=name, reason=reason))
-
-        if not win.FillsVoids:
-            if strict:
-                raise SceneError(f"{label}: window {win.GlobalId} ('{name}') fills no opening "
-                                 "(no IfcRelFillsElement)")
-            skip("fills no opening (no IfcRelFillsElement)")
-            continue
-        opening = win.FillsVoids[0].RelatingOpeningElement
-        if not opening.VoidsElements:
-            skip(f"opening {opening.GlobalId} voids no element (no IfcRelVoidsElement)")
-            continue
-        host = opening.VoidsElements[0].RelatingBuildingElement
-        if not any(host.is_a(c) for c in WALL_CLASSES):
-            kind = host.is_a()
-            skip(f"hosted in {kind} {host.GlobalId}, not a wall"
-                 + (" (roof window / skylight)" if kind in ("IfcRoof", "IfcSlab") else ""))
-            continue
-        host_mesh = meshes.get(host.GlobalId)
-        if host_mesh is None:
-            skip(f"host {host.is_a()} {host.GlobalId} has no body geometry")
-            continue
         try:
-            shape = ifcopenshell.geom.create_shape(geom_settings, opening)
-        except RuntimeError as e:
-            skip(f"opening {opening.GlobalId} has no usable geometry ({e})")
+            src, g = measure_window(win, meshes, geom_settings, index, walls, tris, scale)
+        except (NotInWall, SourceError) as e:
+            cause = "not in a wall" if isinstance(e, NotInWall) else _causes(str(e))
+            skipped.append(SkippedWindow(id=win.GlobalId, name=name, reason=str(e), cause=cause))
             continue
-        op_v = np.asarray(shape.geometry.verts, dtype=np.float64).reshape(-1, 3)
-        op_f = np.asarray(shape.geometry.faces, dtype=np.int64).reshape(-1, 3)
-        if len(op_f) == 0:
-            skip(f"opening {opening.GlobalId} has an empty body")
-            continue
-        try:
-            g = void_on_wall(op_v, op_f, host_mesh.vertices, host_mesh.faces, tris)
-        except VoidGeometryError as e:
-            skip(str(e))
-            continue
-        notes = overlap_notes(g, opening, host, geom_settings, opening_cache)
+        opening = ifc_file.by_guid(src.opening_id) if src.opening_id else None
+        notes = overlap_notes(g, opening, src.host, geom_settings, opening_cache) if opening else ""
         ow, oh = win.OverallWidth, win.OverallHeight
         windows.append(WindowGT(
-            id=win.GlobalId, host_id=host.GlobalId, host_class=host.is_a(),
-            opening_id=opening.GlobalId, name=name, corners_world=g.corners, normal=g.normal,
+            id=win.GlobalId, host_id=src.host.GlobalId, host_class=src.host.is_a(),
+            opening_id=src.opening_id, name=name, corners_world=g.corners, normal=g.normal,
             width=g.width, height=g.height,
-            ifc_overall_width=None if ow is None else float(ow) * scale,
-            ifc_overall_height=None if oh is None else float(oh) * scale,
-            shape=g.shape, outline_world=g.outline, notes=notes))
+            ifc_overall_width=None if not ow else float(ow) * scale,
+            ifc_overall_height=None if not oh else float(oh) * scale,
+            shape=g.shape, outline_world=g.outline, notes=notes, source=src.source))
     return windows, skipped

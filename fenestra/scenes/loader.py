@@ -7,7 +7,9 @@
 
 Meshes come from ``ifcopenshell.geom.iterator`` (all cores, world coordinates, openings subtracted),
 one :class:`ElementMesh` per element; IfcOpeningElement, IfcSpace and IfcAnnotation bodies are not
-loaded. Colours come from the IFC surface styles (per face when an element has several; the
+loaded (nor any other of ``ifc_read.SKIP_CLASSES``: spatial, virtual, annotation elements, by
+is_a(), subtypes included). Each mesh records its ``base_class`` (IfcWindowStandardCase ->
+IfcWindow) and the parts of a window or door (IfcRelAggregates) are merged into its mesh. Colours come from the IFC surface styles (per face when an element has several; the
 element colour is the largest-area style), else :data:`CLASS_COLOURS`.
 
 Cache: ``$FENESTRA_CACHE`` or ``~/.cache/fenestra/scenes``; one ``<sha256>-<code>.npz`` (arrays) and
@@ -29,12 +31,16 @@ import numpy as np
 
 from fenestra.errors import SceneError
 from fenestra.files import file_sha256, source_digest, write_atomic, write_json
+from fenestra.scenes.ifc_read import SKIP_CLASSES, base_class, by_types, is_any, open_ifc  # noqa: F401
 from fenestra.scenes.model import ElementMesh, Scene, SkippedWindow, WindowGT
 from fenestra.scenes.registry import BUNDLED, resolve, scene_name
 
 # The code a loaded Scene depends on (this module's folder); with the ifcopenshell version they key the cache.
-CACHE_SOURCES: tuple[str, ...] = ("loader.py", "ground_truth.py", "model.py")
-SKIP_CLASSES: tuple[str, ...] = ("IfcOpeningElement", "IfcSpace", "IfcAnnotation")
+CACHE_SOURCES: tuple[str, ...] = ("loader.py", "ground_truth.py", "model.py", "ifc_read.py",
+                                  "window_sources.py")
+# Parts aggregated into one of these are merged into its mesh (IfcOpenShell's IfcOpenHouse writes a
+# window as IfcMember frames and an IfcPlate pane with no body of the window's own).
+MERGE_INTO: tuple[str, ...] = ("IfcWindow", "IfcDoor")
 
 # Fallback colours (RGBA, 0-1) for elements without a surface style.
 CLASS_COLOURS: dict[str, tuple[float, float, float, float]] = {
@@ -57,24 +63,6 @@ def default_cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "fenestra" / "scenes"
 
 
-def open_ifc(path: Path):
-    """Open an IFC-SPF file with ifcopenshell; SceneError for unreadable/truncated files."""
-    import ifcopenshell
-
-    with open(path, "rb") as f:
-        head = f.read(64)
-        f.seek(max(0, path.stat().st_size - 256))
-        tail = f.read()
-    if not head.lstrip().startswith(b"ISO-10303-21"):
-        raise SceneError(f"{path}: not an IFC-SPF file (does not start with 'ISO-10303-21;')")
-    if b"END-ISO-10303-21" not in tail:
-        raise SceneError(f"{path}: truncated IFC file (no 'END-ISO-10303-21;' at the end)")
-    try:
-        return ifcopenshell.open(str(path))
-    except Exception as e:  # ifcopenshell raises its own Error / RuntimeError types
-        raise SceneError(f"{path}: unreadable IFC ({e})") from None
-
-
 def _style_rgba(material) -> tuple[float, float, float, float]:
     """ifcopenshell geometry style -> RGBA in [0, 1] (alpha = 1 - transparency)."""
     rgb = tuple(float(c) for c in material.diffuse.components)
@@ -84,14 +72,14 @@ def _style_rgba(material) -> tuple[float, float, float, float]:
     return (*rgb, alpha)
 
 
-def _element_mesh(shape) -> ElementMesh | None:
-    """One iterator shape -> ElementMesh (None when its body is empty)."""
+def _element_mesh(shape, base: str = "") -> ElementMesh | None:
+    """One iterator shape -> ElementMesh (None when its body is empty); base: its base class."""
     g = shape.geometry
     verts = np.asarray(g.verts, dtype=np.float64).reshape(-1, 3)
     faces = np.asarray(g.faces, dtype=np.int64).reshape(-1, 3)
     if len(faces) == 0:
         return None
-    default = CLASS_COLOURS.get(shape.type, DEFAULT_COLOUR)
+    default = CLASS_COLOURS.get(base or shape.type, CLASS_COLOURS.get(shape.type, DEFAULT_COLOUR))
     palette = []
     for m in g.materials:
         try:
@@ -110,7 +98,8 @@ def _element_mesh(shape) -> ElementMesh | None:
         if len(np.unique(mat_ids)) > 1:
             face_rgba = pal[mat_ids]
     return ElementMesh(global_id=shape.guid, ifc_class=shape.type, name=shape.name or "",
-                       vertices=verts, faces=faces, rgba=rgba, face_rgba=face_rgba)
+                       vertices=verts, faces=faces, rgba=rgba, face_rgba=face_rgba,
+                       base_class=base if base != shape.type else "")
 
 
 def geom_settings():
@@ -123,26 +112,61 @@ def geom_settings():
 
 
 def iterate_meshes(ifc_file, label: str) -> dict[str, ElementMesh]:
-    """GlobalId -> ElementMesh for every element with a body (multi-core geometry iterator)."""
+    """GlobalId -> ElementMesh for every element with a body (multi-core geometry iterator), none
+    of SKIP_CLASSES; the parts of a window or door merged into it (:func:`merge_parts`)."""
     import ifcopenshell.geom
 
-    exclude = [e for c in SKIP_CLASSES for e in ifc_file.by_type(c)]
+    exclude = by_types(ifc_file, SKIP_CLASSES)
     it = ifcopenshell.geom.iterator(geom_settings(), ifc_file, multiprocessing.cpu_count(),
                                     exclude=exclude)
     meshes: dict[str, ElementMesh] = {}
     if not it.initialize():
         raise SceneError(f"{label}: no element with 3D geometry")
     while True:
-        mesh = _element_mesh(it.get())
-        if mesh is not None:
-            meshes[mesh.global_id] = mesh
+        shape = it.get()
+        el = ifc_file.by_guid(shape.guid)
+        if not is_any(el, SKIP_CLASSES):
+            mesh = _element_mesh(shape, base_class(el))
+            if mesh is not None:
+                meshes[mesh.global_id] = mesh
         if not it.next():
             break
     for gid, m in meshes.items():
         parent = _aggregate_parent(ifc_file, gid)
         if parent:
             meshes[gid] = dataclasses.replace(m, parent_id=parent)
-    return meshes
+    return merge_parts(meshes, {m.parent_id: ifc_file.by_guid(m.parent_id) for m in meshes.values()
+                                if m.parent_id})
+
+
+def merge_parts(meshes: dict[str, ElementMesh], parents: dict) -> dict[str, ElementMesh]:
+    """Meshes with the parts of every MERGE_INTO whole (parents: GlobalId -> entity) merged into
+    one mesh of the whole (its own body first, when it has one; per-face colours kept)."""
+    groups: dict[str, list[ElementMesh]] = {}
+    for m in meshes.values():
+        whole = parents.get(m.parent_id)
+        if whole is not None and is_any(whole, MERGE_INTO):
+            groups.setdefault(m.parent_id, []).append(m)
+    merged = {p.global_id for g in groups.values() for p in g}
+    out = {gid: m for gid, m in meshes.items() if gid not in merged}
+    for gid, parts in groups.items():
+        whole = parents[gid]
+        own = [out[gid]] if gid in out else []
+        out[gid] = _merged(own + parts, gid, whole.is_a(), whole.Name or "", base_class(whole))
+    return out
+
+
+def _merged(parts: list[ElementMesh], gid: str, ifc_class: str, name: str, base: str) -> ElementMesh:
+    """One ElementMesh of several (vertices stacked, faces re-indexed, per-face colours)."""
+    offsets = np.cumsum([0] + [len(p.vertices) for p in parts])[:-1]
+    faces = np.concatenate([p.faces + o for p, o in zip(parts, offsets)])
+    face_rgba = np.concatenate([p.face_rgba if p.face_rgba is not None
+                                else np.tile(p.rgba, (len(p.faces), 1)) for p in parts])
+    first = parts[0]
+    return ElementMesh(global_id=gid, ifc_class=ifc_class, name=name,
+                       vertices=np.concatenate([p.vertices for p in parts]), faces=faces,
+                       rgba=first.rgba, face_rgba=face_rgba, parent_id="",
+                       base_class=base if base != ifc_class else "")
 
 
 def _aggregate_parent(ifc_file, global_id: str) -> str:
@@ -183,18 +207,19 @@ def _save_cache(scene: Scene, cache_dir: Path) -> None:
             arrays[f"c{i}"] = m.face_rgba
         meshes_meta.append({"global_id": m.global_id, "ifc_class": m.ifc_class, "name": m.name,
                             "rgba": list(m.rgba), "face_rgba": m.face_rgba is not None,
-                            "parent_id": m.parent_id})
+                            "parent_id": m.parent_id, "base_class": m.base_class})
     for i, w in enumerate(scene.windows):
         arrays[f"wc{i}"], arrays[f"wn{i}"] = w.corners_world, w.normal
         if w.outline_world is not None:
             arrays[f"wo{i}"] = w.outline_world
     windows_meta = [{k: getattr(w, k) for k in ("id", "host_id", "host_class", "opening_id", "name",
                                                 "width", "height", "ifc_overall_width",
-                                                "ifc_overall_height", "shape", "notes")}
+                                                "ifc_overall_height", "shape", "notes", "source")}
                     | {"outline": w.outline_world is not None} for w in scene.windows]
     meta = {"name": scene.name, "schema": scene.schema, "sha256": scene.sha256,
             "meshes": meshes_meta, "windows": windows_meta,
-            "skipped": [{"id": s.id, "name": s.name, "reason": s.reason} for s in scene.skipped]}
+            "skipped": [{"id": s.id, "name": s.name, "reason": s.reason, "cause": s.cause}
+                        for s in scene.skipped]}
     write_atomic(npz_path, lambda p: np.savez(p, **arrays))
     write_json(json_path, meta, indent=None)
 
@@ -212,7 +237,7 @@ def _load_cache(cache_dir: Path, sha: str, path: Path, name: str) -> Scene | Non
             ElementMesh(global_id=m["global_id"], ifc_class=m["ifc_class"], name=m["name"],
                         vertices=arrays[f"v{i}"], faces=arrays[f"f{i}"], rgba=tuple(m["rgba"]),
                         face_rgba=arrays[f"c{i}"] if m["face_rgba"] else None,
-                        parent_id=m.get("parent_id", ""))
+                        parent_id=m.get("parent_id", ""), base_class=m.get("base_class", ""))
             for i, m in enumerate(meta["meshes"]))
         windows = tuple(
             WindowGT(**{k: v for k, v in w.items() if k != "outline"},
@@ -228,31 +253,34 @@ def _load_cache(cache_dir: Path, sha: str, path: Path, name: str) -> Scene | Non
 
 # --------------------------------------------------------------------------- public API
 def load_scene(name_or_path: str | Path, cache_dir: str | Path | None = None,
-               use_cache: bool = True, strict: bool = True) -> Scene:
+               use_cache: bool = True, strict: bool = False) -> Scene:
     """Load a bundled house (short name) or an .ifc path -> :class:`Scene`.
 
-    cache_dir: defaults to :func:`default_cache_dir`. strict: a window filling no opening is a
-    SceneError (else it is listed in ``Scene.skipped``). Raises SceneError naming the file for a
-    missing, non-IFC, truncated or unreadable file, and for a file with no IfcWindow.
+    cache_dir: defaults to :func:`default_cache_dir`. A window that cannot be measured is listed in
+    ``Scene.skipped`` with its reason; strict: raise SceneError for the first one instead. Raises
+    SceneError (one line naming the file) for a missing, non-IFC, truncated, unreadable file, an
+    unsupported schema, and a file with no IfcWindow.
     """
     path = resolve(name_or_path)
     name = scene_name(path)
     sha = file_sha256(path)
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    if use_cache:
-        cached = _load_cache(cache, sha, path, name)
-        if cached is not None:
-            return cached
-    scene = build_scene(path, name, sha, strict=strict)
-    if use_cache:
-        try:
-            _save_cache(scene, cache)
-        except OSError:
-            pass  # a read-only cache folder only costs speed
+    scene = _load_cache(cache, sha, path, name) if use_cache else None
+    if scene is None:
+        scene = build_scene(path, name, sha)
+        if use_cache:
+            try:
+                _save_cache(scene, cache)
+            except OSError:
+                pass  # a read-only cache folder only costs speed
+    if strict and scene.skipped:
+        s = scene.skipped[0]
+        raise SceneError(f"{path}: window {s.id} ('{s.name}') skipped: {s.reason} "
+                         f"(strict; {len(scene.skipped)} of {scene.n_present} windows skipped)")
     return scene
 
 
-def build_scene(path: Path, name: str, sha: str, strict: bool = True) -> Scene:
+def build_scene(path: Path, name: str, sha: str) -> Scene:
     """Read the IFC and compute meshes and ground truth (no cache)."""
     from fenestra.scenes.ground_truth import windows_ground_truth
 
@@ -260,7 +288,7 @@ def build_scene(path: Path, name: str, sha: str, strict: bool = True) -> Scene:
     if not f.by_type("IfcWindow"):
         raise SceneError(f"{path}: the model has no IfcWindow")
     meshes = iterate_meshes(f, str(path))
-    windows, skipped = windows_ground_truth(f, meshes, str(path), geom_settings(), strict=strict)
+    windows, skipped = windows_ground_truth(f, meshes, str(path), geom_settings())
     return Scene(name=name, path=str(path), schema=f.schema, sha256=sha,
                  meshes=tuple(meshes.values()), windows=tuple(windows), skipped=tuple(skipped))
 

@@ -29,6 +29,24 @@ class ElementMesh:
     # GlobalId of the element this one is aggregated into (IfcRelAggregates), e.g. the
     # IfcCurtainWall of an IfcPlate panel; "" when none.
     parent_id: str = ""
+    # The class the element loads, looks and renders as: its nearest ancestor among the loader's
+    # BASE_CLASSES by IFC inheritance (IfcWindowStandardCase -> "IfcWindow", IfcWallStandardCase ->
+    # "IfcWall"); "" for a class with none (then ``ifc_class`` itself, see :attr:`kind`).
+    base_class: str = ""
+
+    @property
+    def kind(self) -> str:
+        """``base_class`` when set, else ``ifc_class``: what material and class checks compare."""
+        return self.base_class or self.ifc_class
+
+
+# How a window's void was found (WindowGT.source), first that works, in this order (docs/DESIGN.md):
+# "fill": the IfcOpeningElement it fills (IfcRelFillsElement) and the wall that opening voids;
+# "opening": no fill relation; the wall-voiding IfcOpeningElement whose volume holds the window's
+# body (or placement); "wall_hole": no such opening; the hole around the window's body in the wall
+# it sits in (a wall shape with the hole built in); "window_body": no hole either; the window's own
+# body (OverallWidth/Height where set) on that wall's exterior face.
+SOURCES: tuple[str, ...] = ("fill", "opening", "wall_hole", "window_body")
 
 
 @dataclass(frozen=True)
@@ -43,7 +61,7 @@ class WindowGT:
     id: str  # IfcWindow GlobalId
     host_id: str  # host wall GlobalId
     host_class: str
-    opening_id: str  # IfcOpeningElement GlobalId
+    opening_id: str  # IfcOpeningElement GlobalId ("" when the source has none: wall_hole, window_body)
     name: str
     corners_world: np.ndarray
     normal: np.ndarray
@@ -57,6 +75,7 @@ class WindowGT:
     shape: str = "rectangle"
     outline_world: np.ndarray | None = None
     notes: str = ""  # e.g. that the void overlaps another opening of the same wall
+    source: str = "fill"  # one of SOURCES: how the void was found
 
     @property
     def center(self) -> np.ndarray:
@@ -73,7 +92,8 @@ class SkippedWindow:
 
     id: str
     name: str
-    reason: str
+    reason: str  # one line: why, naming the elements involved
+    cause: str = ""  # a short class of the reason for the census ("not in a wall", "no geometry", ...)
 
 
 @dataclass(frozen=True)
@@ -87,6 +107,22 @@ class Scene:
     meshes: tuple[ElementMesh, ...]
     windows: tuple[WindowGT, ...]
     skipped: tuple[SkippedWindow, ...] = field(default_factory=tuple)
+
+    @property
+    def n_present(self) -> int:
+        """IfcWindow elements in the file: every one is a window or a skipped window."""
+        return len(self.windows) + len(self.skipped)
+
+    def census(self) -> dict:
+        """{"present", "extracted", "skipped": {cause: count}, "sources": {source: count}}."""
+        skipped: dict[str, int] = {}
+        for s in self.skipped:
+            skipped[s.cause or s.reason] = skipped.get(s.cause or s.reason, 0) + 1
+        sources: dict[str, int] = {}
+        for w in self.windows:
+            sources[w.source] = sources.get(w.source, 0) + 1
+        return {"present": self.n_present, "extracted": len(self.windows), "skipped": skipped,
+                "sources": sources}
 
     def bounds(self) -> np.ndarray:
         """(2, 3) axis-aligned world bounds of all meshes, m."""
