@@ -580,18 +580,19 @@ def _seeded_guids(seed: int) -> Iterator[None]:
         ifcopenshell.guid.new = original
 
 
-def make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
-    """Write the IFC4 house of ``spec`` to out_path; return its expected ground truth.
+def make_house(spec: HouseSpec, out_path: str | Path, schema: str = "IFC4") -> GeneratedHouse:
+    """Write the IFC4 house of ``spec`` to out_path (another schema ifcopenshell writes:
+    ``schema``, e.g. "IFC4X3" or "IFC2X3"); return its expected ground truth.
 
     The same spec gives the same entities, geometry and GlobalIds (seeded) and header; only the
     order of references inside unordered IFC SETs may differ between processes (ifcopenshell
     keeps them in Python sets), so two files of one spec can differ in bytes, not in content.
     """
     with _seeded_guids(spec.seed):
-        return _make_house(spec, out_path)
+        return _make_house(spec, out_path, schema)
 
 
-def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
+def _make_house(spec: HouseSpec, out_path: str | Path, schema: str = "IFC4") -> GeneratedHouse:
     import ifcopenshell
     import ifcopenshell.api
 
@@ -621,7 +622,7 @@ def _make_house(spec: HouseSpec, out_path: str | Path) -> GeneratedHouse:
     curtain_at = {(c.wall_index, c.storey): c for c in curtains}
 
     api = ifcopenshell.api.run
-    f = ifcopenshell.file(schema="IFC4")
+    f = ifcopenshell.file(schema=schema)
     project = api("root.create_entity", f, ifc_class="IfcProject", name="Fenestra procedural house")
     api("unit.assign_unit", f, length={"is_metric": True, "raw": "METERS"})
     model_ctx = api("context.add_context", f, context_type="Model")
