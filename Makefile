@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke real heldout-gate report docs docs-check gate train train-winnet timing photo-speed compare clean
+.PHONY: help setup sysdeps test test-all bench smoke real heldout-gate report docs docs-check gate train train-quadnet train-winnet timing photo-speed compare clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -79,18 +79,26 @@ docs:  ## docs/results.md, docs/results/summary.json and the README's answer fro
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
 	$(PY) -m fenestra.reports.markdown --check
 
-train:  ## render the detector data (make_data.sh, make_data_street.sh), train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it
+train:  ## render the detector data (make_data.sh, make_data_street.sh), train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the quad head on it (detector v8, `quadnet`), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it
 	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
 	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/default.toml
 	PY=$(PY) bash fenestra/training/scripts/verifier_data.sh out/verifier-renders
 	$(PY) -m fenestra train-verifier out/train/default.pt --yolo ../shared/real/spb_facades/train --renders out/verifier-renders --render-views 150
 	$(PY) -m fenestra ship-weights out/train/default.pt
+	$(PY) -m fenestra train --config fenestra/training/configs/quadnet.toml
+	$(PY) -m fenestra ship-weights out/train/quadnet.pt
 	PY=$(PY) bash fenestra/training/scripts/refine_data.sh out/refine-data
 	$(PY) -m fenestra train-refine --data out/refine-data/train --ship
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
 	$(PY) -m fenestra evaluate-detector --yolo ../shared/real/spb_facades/train --part val --json out/eval/default-spb-val.json
+
+train-quadnet:  ## detector v8 alone: the quad head (window centres, each with its four corners) on the shipped default network, frozen (make_data*.sh renders; CPU), then ship-weights
+	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
+	$(PY) -m fenestra train --config fenestra/training/configs/quadnet.toml
+	$(PY) -m fenestra ship-weights out/train/quadnet.pt
 
 train-winnet:  ## the from-scratch WinNet (registered as `winnet`) on the same renders: out/train/winnet.pt, then ship-weights
 	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data

@@ -230,7 +230,7 @@ def test_every_trainable_architecture_is_loaded_by_its_detector(tmp_path):
     from fenestra.pipeline.detectors import DETECTORS
 
     trainable = DETECTORS.where(trainable=True)
-    assert trainable == ["default", "winnet", "maskrcnn"]
+    assert trainable == ["default", "quadnet", "winnet", "maskrcnn"]
     for name in trainable:
         arch = DETECTORS[name].model.arch
         path = _untrained_weights(tmp_path / f"{arch}.pt", arch)
@@ -245,7 +245,7 @@ def test_training_writes_under_out_not_into_the_shipped_weights():
     from fenestra.training.train import TrainConfig
 
     configs = sorted((ROOT / "fenestra" / "training" / "configs").glob("*.toml"))
-    assert [c.name for c in configs] == ["default.toml", "maskrcnn.toml", "winnet.toml"]
+    assert [c.name for c in configs] == ["default.toml", "maskrcnn.toml", "quadnet.toml", "winnet.toml"]
     for cfg in [TrainConfig(), *(load_config(c) for c in configs)]:
         assert Path(cfg.out).parts[0] == "out" and Path(cfg.state_dir).parts[0] == "out", cfg.out
 
@@ -329,6 +329,10 @@ def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
     assert "ship-weights out/train/default.pt" in r.stdout
     assert "fenestra/training/scripts/verifier_data.sh" in files
     assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("ship-weights out/train/default.pt")
+    # detector v8's quad head starts from the shipped default network, so it trains after that is shipped
+    assert "fenestra/training/configs/quadnet.toml" in files
+    assert r.stdout.index("ship-weights out/train/default.pt") < r.stdout.index("configs/quadnet.toml") \
+        < r.stdout.index("ship-weights out/train/quadnet.pt")
     assert "fenestra/training/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
     assert r.stdout.index("refine_data.sh") < r.stdout.index("train-refine") and "--ship" in r.stdout
 

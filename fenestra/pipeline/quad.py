@@ -48,7 +48,7 @@ import cv2
 import numpy as np
 
 
-QUAD_SOURCES = ("mask", "corners", "mask+corners", "mask+lines")
+QUAD_SOURCES = ("mask", "corners", "mask+corners", "mask+lines", "network")
 
 
 @dataclass(frozen=True)
@@ -101,7 +101,10 @@ class QuadParams:
         corners; or ``"mask+corners"``: the mask fit, and the predicted corners (where they
         describe the mask) for a mask the fit finds no quadrilateral in; or ``"mask+lines"``: the
         mask fit, and where it finds no quadrilateral the best four of more lines on the same
-        outline (step 7). QUAD_SOURCES lists the choices.
+        outline (step 7); or ``"network"``: the detection's own corners as they are, unchecked against
+        its mask (a detector with a quad head, ``quadnet``, whose mask is that quad: one instance per
+        window centre), a quad reaching past the image failing ``touches_border`` (the session then
+        fits its visible part), the mask fit for a detection without corners. QUAD_SOURCES lists the choices.
     """
 
     window_pts: int = 100

@@ -110,7 +110,8 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
               image_shape: tuple[int, int] | None = None) -> list[QuadFit]:
     """Fit the quad of every detection (mask -> quad, or the predicted corners with
     ``params.source == "corners"`` where the detection has usable ones that agree with its mask:
-    pipeline.quad.corners_agree_with_mask), in order, for
+    pipeline.quad.corners_agree_with_mask; with ``"network"`` as they are: :func:`network_quad`),
+    in order, for
     :func:`reconstruct_from_quads`.
 
     image_shape: (H, W); a detection whose mask has another shape is not fitted (result None).
@@ -121,8 +122,10 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
             fits.append(QuadFit(None, 0.0))
             continue
         t0 = time.perf_counter()
-        qr = corners_to_quad(det.corners) if params.source == "corners" else None
-        if qr is not None and qr.quad is not None and not corners_agree_with_mask(qr.quad, det.mask, det.origin):
+        qr = corners_to_quad(det.corners) if params.source in ("corners", "network") else None
+        if params.source == "network" and qr is not None and qr.quad is not None and image_shape is not None:
+            qr = network_quad(qr, image_shape)
+        elif qr is not None and qr.quad is not None and not corners_agree_with_mask(qr.quad, det.mask, det.origin):
             qr = None  # predicted corners that do not describe the mask: fall back to the mask fit
         if qr is None or qr.quad is None:  # the mask fit: the source, or the fallback
             qr = mask_to_quad(det.mask, params, _hint(det, det.origin)) if image_shape is None \
@@ -131,6 +134,17 @@ def fit_quads(detections: list[Detection], params: QuadParams = QuadParams(),
             qr = corner_fallback(det, qr)
         fits.append(QuadFit(qr, (time.perf_counter() - t0) * 1e3))
     return fits
+
+
+def network_quad(qr: QuadResult, image_shape: tuple[int, int]) -> QuadResult:
+    """A network's quad (quad source ``network``) as it is when its corners lie in the (H, W) image,
+    else a ``touches_border`` failure: the session fits the visible part of a window cut by the
+    photo's edge from its mask (visible_quads), as for every other quad source."""
+    H, W = image_shape
+    q = qr.quad
+    if np.all((q[:, 0] >= -0.5) & (q[:, 0] <= W - 0.5) & (q[:, 1] >= -0.5) & (q[:, 1] <= H - 0.5)):
+        return qr
+    return QuadResult(None, None, 0.0, "touches_border: the network's quad reaches past the photo's edge")
 
 
 def visible_quads(detections: list[Detection], fits: list[QuadFit], params: QuadParams,

@@ -49,6 +49,7 @@ SIG_DIGITS = 4
 # held out. tests/test_docs.py checks this against make_data.sh.
 TRAINED_ON: dict[str, tuple[str, ...]] = {
     "default": ("fzk-haus", "duplex", "jasmin-sun", "niedriha"),
+    "quadnet": ("fzk-haus", "duplex", "jasmin-sun", "niedriha"),
     "winnet": ("fzk-haus", "duplex", "jasmin-sun", "niedriha"),
     "maskrcnn": ("fzk-haus", "duplex", "jasmin-sun", "niedriha"),
 }

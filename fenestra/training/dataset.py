@@ -8,6 +8,7 @@ Only the files are read: pipeline/ never imports renders/.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +89,45 @@ def view_corners(meta: dict) -> np.ndarray:
         o[~seen[idx]] = np.nan
         out.append(o)
     return np.asarray(out, dtype=np.float32).reshape(-1, 4, 2)
+
+
+@dataclass(frozen=True, eq=False)
+class WindowQuads:
+    """Every window's whole quad in one training image, for the quad head (detector v8).
+
+    ids: (N,) int, each window's value in the image's instance map; corners: (N, 4, 2) float64 px,
+    TL TR BR BL in image order (pipeline.quad.order_corners), also where a corner is occluded or
+    outside the image (the exact projection of the opening's outline on the wall's exterior face).
+    exact: the corners are the truth's (renders), not a box's (real photos' labels).
+    """
+
+    ids: np.ndarray
+    corners: np.ndarray
+    exact: bool = True
+
+
+def view_quads(meta: dict) -> WindowQuads:
+    """The WindowQuads of a view.json dict: every window with a visible fraction above 0 (or none
+    stated) and finite corners, its ``instance_id`` and ``corners_px`` ordered."""
+    from fenestra.pipeline.quad import order_corners  # noqa: PLC0415
+
+    ids, quads = [], []
+    for w in meta.get("windows", []):
+        q = np.asarray(w["corners_px"], dtype=np.float64)
+        if w.get("visible_fraction", 1.0) <= 0.0 or q.shape != (4, 2) or not np.all(np.isfinite(q)):
+            continue
+        ids.append(int(w["instance_id"]))
+        quads.append(order_corners(q))
+    return WindowQuads(np.asarray(ids, dtype=np.int64), np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2))
+
+
+def box_photo_quads(photo: Path, shape: tuple[int, int], classes: tuple[int, ...] = (0,)) -> WindowQuads:
+    """The WindowQuads of a YOLO photo of (H, W) = shape px: box k (read_box_photo's id k + 1) as
+    the quad (x0, y0), (x1, y0), (x1, y1), (x0, y1); not exact (a box, not the window's corners)."""
+    text, where = photo_labels(photo)
+    boxes = yolo_boxes(text, shape[1], shape[0], classes, where)
+    quads = [[[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]] for b in boxes]
+    return WindowQuads(np.arange(1, len(boxes) + 1), np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2), exact=False)
 
 
 def box_instances(boxes: list[np.ndarray], shape: tuple[int, int]) -> np.ndarray:

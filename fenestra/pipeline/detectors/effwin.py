@@ -38,6 +38,7 @@ from torch import nn
 from fenestra.errors import FenestraError
 from fenestra.pipeline.detectors.winnet import (PostConfig, _block, instances_from_maps, load_state, pad_to_stride,
                                        post_from_checkpoint)
+from fenestra.pipeline.detectors.quadhead import QUAD_STRIDE, QuadDecode, QuadHead, quad_detections, quad_mirror_mean
 from fenestra.pipeline.detectors.verifier import VerifierHead, head_from_dict, network_fingerprint, verified
 from fenestra.pipeline.types import Detection
 
@@ -95,11 +96,14 @@ def _conv(cin: int, cout: int) -> nn.Sequential:
 class EffWinConfig:
     """backbone: an EfficientNet-Lite name, run on the input downscaled 2x (average pooling), so its
     taps lie at strides 4..64 of the input; fine: channels of the from-scratch full-resolution path
-    (strides 2, 4); decoder: channels at strides 32, 16, 8, 4, 2."""
+    (strides 2, 4); decoder: channels at strides 32, 16, 8, 4, 2; quad_head: also the quad head
+    (quadhead.QuadHead on the decoder at strides 16, 8, 4): instances from window centres, each
+    with its four corners regressed (detector v8)."""
 
     backbone: str = "efficientnet-lite0"
     fine: tuple[int, int] = (16, 24)
     decoder: tuple[int, int, int, int, int] = (96, 64, 48, 32, 16)
+    quad_head: bool = False  # the centre/corner-regression head (fenestra/pipeline/detectors/quadhead.py)
 
 
 STRIDE = 64  # inputs are padded to a multiple of this (the backbone's stride 32, at half resolution)
@@ -130,6 +134,7 @@ class EffWin(nn.Module):
         self.dec = nn.ModuleList([nn.Sequential(_conv(ins[0], d[0]), _conv(d[0], d[0])),
                                   _conv(ins[1], d[1]), _conv(ins[2], d[2]), _conv(ins[3], d[3]), _conv(ins[4], d[4])])
         self.head = nn.Conv2d(d[4], N_MAPS, 1)
+        self.quad = QuadHead(d[1], d[2], d[3]) if config.quad_head else None
         self.feature_channels = {"bb32": bb[3], "bb64": bb[4], "dec32": d[0], "dec16": d[1], "dec8": d[2]}
         with torch.no_grad():  # corners are rare: start their logits low (focal-loss prior 0.01)
             self.head.bias[2:].fill_(-4.6)
@@ -141,7 +146,8 @@ class EffWin(nn.Module):
         """(logits as :meth:`forward`, feature maps by name): ``bb32`` (112 ch) and ``bb64`` (320 ch),
         the backbone at strides 32 and 64 of the input; ``dec32``, ``dec16``, ``dec8`` (96, 64, 48
         ch), the decoder at strides 32, 16, 8 (:data:`FEATURE_STRIDES`; what the box verifier pools,
-        fenestra/pipeline/detectors/verifier.py)."""
+        fenestra/pipeline/detectors/verifier.py); with a quad head also ``quad`` (B, 9, H/4, W/4), its
+        raw output (centre logit, corner offsets: fenestra/pipeline/detectors/quadhead.py)."""
         size = x.shape[-2:]
         fine = [self.fine[0](x)]
         fine.append(self.fine[1](fine[0]))
@@ -160,6 +166,8 @@ class EffWin(nn.Module):
             y = layer(torch.cat([y, *extra], dim=1))
             if k < 3:
                 feats[f"dec{(32, 16, 8)[k]}"] = y
+            elif k == 3 and self.quad is not None:
+                feats["quad"] = self.quad(feats["dec16"], feats["dec8"], y)
         return F.interpolate(self.head(y), size=size, mode="bilinear", align_corners=False), feats
 
 
@@ -257,7 +265,9 @@ def predict_maps_features(model: EffWin, image: np.ndarray,
                           mirror: bool = False) -> tuple[np.ndarray, dict[str, torch.Tensor]]:
     """(predict_maps' maps, EffWin.forward_features' feature maps (1, C, h, w) float32 on the CPU,
     of the image itself) of one RGB image, in one pass of the network (a batch of two with
-    ``mirror``: the image and its left-right mirror)."""
+    ``mirror``: the image and its left-right mirror). A quad head's ``quad`` (1, 9, ceil(H / 4),
+    ceil(W / 4)) holds the centre probability (not its logit) and the offsets, mirror-averaged
+    with ``mirror`` (quadhead.quad_mirror_mean)."""
     model.eval()
     x, H, W = pad_to_stride(to_tensor(image), STRIDE)
     if mirror:
@@ -266,6 +276,10 @@ def predict_maps_features(model: EffWin, image: np.ndarray,
     logits, feats = model.forward_features(x)
     p = torch.sigmoid(logits.float())
     maps = (mirror_mean(p) if mirror else p)[0, :, :H, :W].cpu().numpy()
+    if "quad" in feats:
+        q = feats["quad"].float()
+        q = torch.cat([torch.sigmoid(q[:, :1]), q[:, 1:]], dim=1)
+        feats["quad"] = (quad_mirror_mean(q) if mirror else q)[:, :, :-(-H // QUAD_STRIDE), :-(-W // QUAD_STRIDE)]
     return maps, {k: v[0:1].float().cpu() for k, v in feats.items()}
 
 
@@ -282,7 +296,29 @@ def model_from_checkpoint(ckpt: dict) -> EffWin:
     """The EffWin of a weights file's dict (``config``, ``state_dict``), in eval mode on the CPU;
     only the model code is needed: the ImageNet weights are in the checkpoint."""
     c = ckpt["config"]
-    return load_state(EffWin(EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"]))), ckpt)
+    config = EffWinConfig(c["backbone"], tuple(c["fine"]), tuple(c["decoder"]), bool(c.get("quad_head", False)))
+    return load_state(EffWin(config), ckpt)
+
+
+def trunk_state(state_dict: dict) -> dict:
+    """The weights of a state dict without its quad head's (``quad.*``): the network the void, core
+    and corner maps, and so the box verifier, depend on."""
+    return {k: v for k, v in state_dict.items() if not k.startswith("quad.")}
+
+
+def quad_decode(ckpt: dict) -> QuadDecode:
+    """A weights file's quad decoding: its ``quad_decode`` dict over QuadDecode's defaults."""
+    d = dict(ckpt.get("quad_decode", {}))
+    if "refine_radius_px" in d:
+        d["refine_radius_px"] = tuple(d["refine_radius_px"])
+    return QuadDecode(**d)
+
+
+def quads_from_maps(maps: np.ndarray, feats: dict, decode: QuadDecode) -> list[Detection]:
+    """Detections from a quad head's maps (predict_maps_features' ``feats["quad"]``), their corners
+    refined on maps[2:6], EffWin's corner heatmaps (quadhead.quad_detections)."""
+    q = feats["quad"][0].numpy()
+    return quad_detections(q[0], q[1:], maps[2:6], maps.shape[1:], decode)
 
 
 def post_config(ckpt: dict) -> PostConfig:
@@ -296,7 +332,7 @@ def verifier_from_checkpoint(model: EffWin, ckpt: dict) -> VerifierHead | None:
     if "verifier" not in ckpt:
         return None
     head = head_from_dict(ckpt["verifier"], channels=model.feature_channels,
-                          network=network_fingerprint(ckpt["state_dict"]))
+                          network=network_fingerprint(trunk_state(ckpt["state_dict"])))
     strides = tuple(FEATURE_STRIDES[n] for n in head.spec.layers)
     if head.spec.strides != strides:
         raise FenestraError(f"its box verifier is unusable: strides {head.spec.strides} for layers "
@@ -305,17 +341,20 @@ def verifier_from_checkpoint(model: EffWin, ckpt: dict) -> VerifierHead | None:
 
 
 def detector_from_model(model: EffWin, ckpt: dict):
-    """image (H, W, 3) uint8 RGB -> Detections with corners, with the checkpoint's PostConfig; when
-    the file has a box verifier, the detections it calls doors or signboards are dropped
-    (fenestra/pipeline/detectors/verifier.py)."""
+    """image (H, W, 3) uint8 RGB -> Detections with corners: with a quad head, one per window
+    centre, its corners the network's quad (:func:`quads_from_maps`); else the void/core maps'
+    instances with the checkpoint's PostConfig. When the file has a box verifier, the detections
+    it calls doors or signboards are dropped (fenestra/pipeline/detectors/verifier.py)."""
     post = post_config(ckpt)
     head = verifier_from_checkpoint(model, ckpt)
-    if head is None:
+    decode = quad_decode(ckpt) if model.quad is not None else None
+    if head is None and decode is None:
         return lambda image, **_: detections_from_maps(predict_maps(model, image, post.mirror), post)
 
     def run(image: np.ndarray, **_) -> list[Detection]:
         maps, feats = predict_maps_features(model, image, post.mirror)
-        return verified(detections_from_maps(maps, post), maps[0], feats, head)
+        dets = detections_from_maps(maps, post) if decode is None else quads_from_maps(maps, feats, decode)
+        return dets if head is None else verified(dets, maps[0], feats, head)
     return run
 
 

@@ -164,9 +164,14 @@ def feature_dim(feats: dict, spec: FeatureSpec) -> int:
 
 
 def detection_extras(dets: list, void_p: np.ndarray) -> np.ndarray:
-    """(N, 2) per detection (full masks on the void map's image): its score and the mean void
-    probability over its mask (the non-feature inputs of :func:`geometry_features`)."""
-    return np.array([[d.score, float(void_p[d.mask].mean())] for d in dets], np.float64).reshape(-1, 2)
+    """(N, 2) per detection (full masks on the void map's image, or crops at their origin): its
+    score and the mean void probability over its mask (the non-feature inputs of :func:`geometry_features`)."""
+    def mean_void(d) -> float:
+        m = np.asarray(d.mask, bool)
+        (x0, y0), (h, w) = d.origin, m.shape
+        sub = void_p[y0:y0 + h, x0:x0 + w]
+        return float(sub[m[:sub.shape[0], :sub.shape[1]]].mean()) if m.any() else 0.0
+    return np.array([[d.score, mean_void(d)] for d in dets], np.float64).reshape(-1, 2)
 
 
 def verified(dets: list, void_p: np.ndarray, feats: dict, head: VerifierHead) -> list:
