@@ -97,12 +97,15 @@ def plan_methods(profile: Profile | RealProfile) -> tuple[tuple[Method, ...], di
 
 def house_list(profile: Profile) -> list[str]:
     """Bundled house names of the profile (["all"] expanded), then procedural ones."""
-    from fenestra.scenes.registry import BUNDLED  # noqa: PLC0415
+    from fenestra.scenes.registry import BUNDLED, WILD_PREFIX, is_known, resolve  # noqa: PLC0415
 
     houses = list(BUNDLED) if profile.scenes.houses == (ALL,) else list(profile.scenes.houses)
-    bad = [h for h in houses if h not in BUNDLED and not Path(h).is_file()]
+    bad = [h for h in houses if not is_known(h)]
     if bad:
         raise FenestraError(f"unknown house(s) {bad}; bundled: {sorted(BUNDLED)}")
+    for h in houses:  # a wild house whose folder is absent: say so plainly (SceneError, one line)
+        if h.startswith(WILD_PREFIX):
+            resolve(h)
     seed = profile.scenes.procedural_seed
     return houses + [f"procedural:{seed + i}" for i in range(profile.scenes.procedural)]
 
