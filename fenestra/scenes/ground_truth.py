@@ -194,36 +194,79 @@ def hemisphere_directions(normal: np.ndarray, n_rays: int = N_RAYS,
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def rays_hit_any(origin: np.ndarray, directions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(R,) bool: does the ray origin + s*direction (s > 0) hit any of triangles (T, 3, 3)?
+@dataclass(frozen=True, eq=False)
+class TriangleCones:
+    """Triangles (T, 3, 3) m prepared once for many ray fans (:func:`rays_hit_any`).
+
+    For an origin o, the cone edge normal (v_j - o) x (v_k - o) = P + o x E with P = v_j x v_k and
+    E = v_j - v_k, so a ray direction d is on its inner side when [d, d x o] . [P, E] >= 0; the
+    cone's determinant is Q + o . W. PE (3, T, 6) stacks [P, E] per edge; Q (T,), W (T, 3);
+    xy (T, 3, 2) the corners' horizontal coordinates (the front cull).
+    """
+
+    PE: np.ndarray
+    Q: np.ndarray
+    W: np.ndarray
+    xy: np.ndarray
+    z: np.ndarray
+
+    @staticmethod
+    def of(triangles: np.ndarray) -> "TriangleCones":
+        """Prepare triangles (T, 3, 3) m."""
+        v0, v1, v2 = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+        P = np.stack([np.cross(v1, v2), np.cross(v2, v0), np.cross(v0, v1)])
+        E = np.stack([v1 - v2, v2 - v0, v0 - v1])
+        return TriangleCones(PE=np.concatenate([P, E], axis=2), Q=np.einsum("ij,ij->i", v0, P[0]),
+                             W=np.cross(E[0], v0) - P[0], xy=triangles[..., :2].copy(),
+                             z=triangles[..., 2].copy())
+
+    def __len__(self) -> int:
+        return self.Q.shape[0]
+
+    def in_front(self, origin: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """Indices of the triangles with a corner in front of the plane through origin (3,) with
+        normal (3,): the only ones a ray into that half-space can hit."""
+        depth = self.xy @ normal[:2] + self.z * normal[2]
+        return np.nonzero(depth.max(axis=1) > origin @ normal - 1e-9)[0]
+
+
+def rays_hit_any(origin: np.ndarray, directions: np.ndarray, triangles,
+                 subset: np.ndarray | None = None) -> np.ndarray:
+    """(R,) bool: does the ray origin + s*direction (s > 0) hit any of triangles (T, 3, 3) (or
+    their :class:`TriangleCones`; ``subset``: indices of the only ones to test)?
 
     A ray hits a triangle when its direction is a non-negative combination of the corners seen
     from the origin (the triangle's cone): three sign tests against the cone's edge planes, done
-    as matrix products over blocks of RAY_CHUNK triangles (T can be ~10^6).
+    as matrix products over blocks of RAY_CHUNK triangles (T can be ~10^6); rays that hit are
+    not tested further.
     """
-    hits = np.zeros(len(directions), dtype=bool)
-    for k in range(0, len(triangles), RAY_CHUNK):
-        a = triangles[k:k + RAY_CHUNK] - origin  # (t, 3, 3)
-        n0, n1, n2 = (np.cross(a[:, 1], a[:, 2]), np.cross(a[:, 2], a[:, 0]),
-                      np.cross(a[:, 0], a[:, 1]))
-        det = np.einsum("ij,ij->i", a[:, 0], n0)
-        ok = np.abs(det) > 1e-12
-        sgn = np.sign(det[ok])
-        inside = (directions @ (n0[ok] * sgn[:, None]).T >= 0) & \
-            (directions @ (n1[ok] * sgn[:, None]).T >= 0) & (directions @ (n2[ok] * sgn[:, None]).T >= 0)
-        hits |= inside.any(axis=1)
-        if hits.all():
+    cones = triangles if isinstance(triangles, TriangleCones) else TriangleCones.of(np.asarray(triangles))
+    d = np.asarray(directions, dtype=np.float64)
+    dd = np.concatenate([d, np.cross(d, origin)], axis=1)  # (R, 6): d . (o x E) = E . (d x o)
+    idx = np.arange(len(cones)) if subset is None else subset
+    hits = np.zeros(len(d), dtype=bool)
+    for k in range(0, len(idx), RAY_CHUNK):
+        live = np.nonzero(~hits)[0]
+        if len(live) == 0:
             break
+        sel = idx[k:k + RAY_CHUNK]
+        det = cones.Q[sel] + cones.W[sel] @ origin
+        ok = np.abs(det) > 1e-12
+        sel, sgn = sel[ok], np.sign(det[ok])[:, None]
+        inside = dd[live] @ (cones.PE[0, sel] * sgn).T >= 0
+        for j in (1, 2):
+            inside &= dd[live] @ (cones.PE[j, sel] * sgn).T >= 0
+        hits[live] = inside.any(axis=1)
     return hits
 
 
-def escape_fraction(point: np.ndarray, normal: np.ndarray, triangles: np.ndarray) -> float:
-    """Fraction of a hemisphere ray fan from ``point + RAY_OFFSET_M*normal`` that hits nothing."""
+def escape_fraction(point: np.ndarray, normal: np.ndarray, triangles) -> float:
+    """Fraction of a hemisphere ray fan from ``point + RAY_OFFSET_M*normal`` that hits nothing
+    (triangles (T, 3, 3) m or their TriangleCones; only those in front of the origin are tested)."""
     origin = point + RAY_OFFSET_M * normal
+    cones = triangles if isinstance(triangles, TriangleCones) else TriangleCones.of(np.asarray(triangles))
     dirs = hemisphere_directions(normal)
-    # keep only triangles in front of the origin's half-space (cheap cull)
-    front = ((triangles - origin) @ normal > -1e-9).any(axis=1)
-    return float(1.0 - rays_hit_any(origin, dirs, triangles[front]).mean())
+    return float(1.0 - rays_hit_any(origin, dirs, cones, cones.in_front(origin, normal)).mean())
 
 
 # --------------------------------------------------------------------------- section
@@ -300,22 +343,38 @@ def exterior_side_reason(esc_a: float, esc_b: float) -> str:
 
 
 # --------------------------------------------------------------------------- one window
+def side_key(host_id: str, axis: np.ndarray, d_minus: float, d_plus: float) -> tuple:
+    """Cache key of one flat wall's pair of faces: host, axis (sign fixed, 1e-3), offsets (cm)."""
+    return host_id, tuple(np.round(axis, 3)), round(d_minus, 2), round(d_plus, 2)
+
+
 def void_on_wall(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: np.ndarray,
-                 wall_faces: np.ndarray, scene_triangles: np.ndarray) -> VoidGeometry:
+                 wall_faces: np.ndarray, scene_triangles, side_cache: dict | None = None,
+                 host_id: str = "") -> VoidGeometry:
     """The void of one opening on its host wall's exterior face (see module docstring).
 
-    op_*: the opening's mesh, wall_*: the host wall's cut mesh, scene_triangles (T, 3, 3): every
-    building triangle used for the exterior test; all world coordinates, m.
+    op_*: the opening's mesh, wall_*: the host wall's cut mesh, scene_triangles (T, 3, 3) (or their
+    TriangleCones): every building triangle used for the exterior test; all world coordinates, m.
+    side_cache: escape fractions of a wall's face pair (:func:`side_key`) already cast for another
+    of its windows: the exterior side of a flat wall's face pair is one answer, cast once.
     Raises VoidGeometryError (message = skip reason) when the geometry does not fit.
     """
     axis, (d_minus, d_plus) = wall_axis_and_faces(op_vertices, op_faces, wall_vertices, wall_faces)
+    if axis[np.argmax(np.abs(axis))] < 0:  # one sign per axis, so both faces' windows share the key
+        axis, (d_minus, d_plus) = -axis, (-d_plus, -d_minus)
     x_ax = np.cross(EZ, axis)
     c2 = np.array([(op_vertices @ x_ax).min() + (op_vertices @ x_ax).max(),
                    op_vertices[:, 2].min() + op_vertices[:, 2].max()]) / 2.0
-    centre_plus = c2[0] * x_ax + c2[1] * EZ + d_plus * axis
-    centre_minus = c2[0] * x_ax + c2[1] * EZ + d_minus * axis
-    esc_plus = escape_fraction(centre_plus, axis, scene_triangles)
-    esc_minus = escape_fraction(centre_minus, -axis, scene_triangles)
+    key = side_key(host_id, axis, d_minus, d_plus)
+    if side_cache is not None and host_id and key in side_cache:
+        esc_plus, esc_minus = side_cache[key]
+    else:
+        centre_plus = c2[0] * x_ax + c2[1] * EZ + d_plus * axis
+        centre_minus = c2[0] * x_ax + c2[1] * EZ + d_minus * axis
+        esc_plus = escape_fraction(centre_plus, axis, scene_triangles)
+        esc_minus = escape_fraction(centre_minus, -axis, scene_triangles)
+        if side_cache is not None and host_id:
+            side_cache[key] = (esc_plus, esc_minus)
     if abs(esc_plus - esc_minus) < MIN_ESCAPE_MARGIN:
         raise VoidGeometryError(exterior_side_reason(esc_plus, esc_minus))
     if esc_plus > esc_minus:
@@ -429,8 +488,8 @@ def _causes(reason: str) -> str:
     return "void not measurable"
 
 
-def measure_window(win, meshes, settings, index: OpeningIndex, walls, tris: np.ndarray,
-                   scale: float) -> tuple[VoidSource, VoidGeometry]:
+def measure_window(win, meshes, settings, index: OpeningIndex, walls, tris: TriangleCones,
+                   scale: float, side_cache: dict | None = None) -> tuple[VoidSource, VoidGeometry]:
     """The window's void source and its rectangle on the exterior face, by the first source that
     works (window_sources); raises NotInWall, or SourceError naming every source's reason."""
     reasons: list[str] = []
@@ -456,7 +515,8 @@ def measure_window(win, meshes, settings, index: OpeningIndex, walls, tris: np.n
                 reasons.append(f"{src.source}: host {src.host.is_a()} {src.host.GlobalId} has no body geometry")
                 continue
             try:
-                return src, void_on_wall(src.vertices, src.faces, host_mesh.vertices, host_mesh.faces, tris)
+                return src, void_on_wall(src.vertices, src.faces, host_mesh.vertices, host_mesh.faces, tris,
+                                         side_cache, src.host.GlobalId)
             except VoidGeometryError as e:
                 if "exterior side" in str(e):  # the same wall for every source: final
                     raise SourceError(f"{e} (wall {src.host.GlobalId})") from None
@@ -482,7 +542,8 @@ def windows_ground_truth(ifc_file, meshes: dict[str, ElementMesh], label: str, g
     import ifcopenshell.util.unit
 
     scale = ifcopenshell.util.unit.calculate_unit_scale(ifc_file)
-    tris = scene_triangles(meshes)
+    tris = TriangleCones.of(scene_triangles(meshes))
+    side_cache: dict = {}
     windows: list[WindowGT] = []
     skipped: list[SkippedWindow] = []
     opening_cache: dict[str, np.ndarray] = {}
@@ -492,7 +553,7 @@ def windows_ground_truth(ifc_file, meshes: dict[str, ElementMesh], label: str, g
     for win in ifc_file.by_type("IfcWindow"):
         name = win.Name or ""
         try:
-            src, g = measure_window(win, meshes, geom_settings, index, walls, tris, scale)
+            src, g = measure_window(win, meshes, geom_settings, index, walls, tris, scale, side_cache)
         except (NotInWall, SourceError) as e:
             cause = "not in a wall" if isinstance(e, NotInWall) else _causes(str(e))
             skipped.append(SkippedWindow(id=win.GlobalId, name=name, reason=str(e), cause=cause))
