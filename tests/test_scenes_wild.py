@@ -236,3 +236,17 @@ def test_small_wild_house_masks_match_projected_truth(tmp_path):
                                   "wild:lanternhollow", "wild:largebuilding", "wild:ac11-institute"])
 def test_wild_house_masks_match_projected_truth(name, tmp_path):
     _check_masks(_render(name, tmp_path, 4), name)
+
+
+@pytest.mark.slow
+def test_loading_the_largest_valid_wild_file_is_bounded(tmp_path):
+    """Target: <= 30 s and <= 1 GB for a 5 MB file; checked on the largest file the loader reads
+    (AC11-Institute, 2.8 MB), uncached, in a fresh process (its peak resident memory)."""
+    largest = max((p for p in WILD.glob("*.ifc") if p.name not in UNREADABLE), key=lambda p: p.stat().st_size)
+    code = ("import resource, time; t = time.perf_counter(); from fenestra.scenes.loader import load_scene; "
+            f"s = load_scene({str(largest)!r}, use_cache=False); "
+            "print(time.perf_counter() - t, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, len(s.windows))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    seconds, max_rss_kb, n = r.stdout.split()[-3:]
+    assert int(n) > 0 and float(seconds) <= 30.0 and int(max_rss_kb) <= 1024 * 1024, r.stdout

@@ -1,7 +1,10 @@
 """Exact window-void ground truth from IFC: the opening's outline on the host wall's exterior face.
 
-For every ``IfcWindow`` that fills an ``IfcOpeningElement`` (``IfcRelFillsElement``) which voids a
-wall (``IfcRelVoidsElement``; ``IfcWall`` and subtypes, ``IfcCurtainWall``):
+For every ``IfcWindow``, its void (an opening-like prism through its host wall) comes from the first
+source that works (fenestra.scenes.window_sources, ``WindowGT.source``): the ``IfcOpeningElement`` it
+fills (``IfcRelFillsElement``) which voids a wall (``IfcRelVoidsElement``; ``IfcWall`` and subtypes,
+``IfcCurtainWall``), else the wall-voiding opening that holds it, the hole in its wall, its own body.
+Then:
 
 1. Wall normal axis ``n`` (horizontal unit vector): among the opening's own horizontal face
    directions (an opening is a prism through the wall), the one along which the host wall's mesh
