@@ -147,3 +147,17 @@ def test_every_backend_draws_the_same_ignore_map(facade):
             r.close()
         np.testing.assert_array_equal(out.ignore, v.ignore, err_msg=f"{name} {settings.antialias}")
         assert list(out.ignore_regions) == v.ignore_regions
+
+
+def test_a_standard_case_door_is_an_ignore_region_like_a_door(facade):
+    """IfcDoorStandardCase (base class IfcDoor, scenes.model.ElementMesh.kind) is a glazed door too."""
+    import dataclasses
+
+    from fenestra.renders.gt import ignore_regions
+
+    _, scene, _, _ = facade
+    assert any(r.kind == "glazed_door" for r in ignore_regions(scene))
+    as_standard_case = [dataclasses.replace(m, ifc_class="IfcDoorStandardCase", base_class="IfcDoor")
+                        if m.ifc_class == "IfcDoor" else m for m in scene.meshes]
+    renamed = dataclasses.replace(scene, meshes=type(scene.meshes)(as_standard_case))
+    assert [(r.id, r.kind) for r in ignore_regions(renamed)] == [(r.id, r.kind) for r in ignore_regions(scene)]

@@ -238,7 +238,7 @@ def ignore_regions(scene: Scene) -> tuple[IgnoreRegion, ...]:
     faces: dict[str, dict[str, np.ndarray]] = {}
     kinds: dict[str, str] = {}
     for m in scene.meshes:
-        kind = IGNORE_KINDS.get(m.ifc_class)
+        kind = IGNORE_KINDS.get(m.kind)  # IfcDoorStandardCase is a door (scenes.model.ElementMesh.kind)
         if kind is None:
             continue
         glass = glazing_faces(m)
