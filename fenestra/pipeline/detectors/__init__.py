@@ -2,6 +2,7 @@
 
     from fenestra.pipeline.detectors import DETECTORS, detect
     dets = detect("default", image)                        # learned: EffWin (pretrained backbone, corner head)
+    dets = detect("quadnet", image)                        # detector v8: EffWin + quad head, one window per centre
     dets = detect("winnet", image)                         # learned from scratch (the default before issue #13)
     dets = detect("oracle", image, instances=inst)         # exact masks from an instance map
     dets = detect("oracle-degraded", image, instances=inst, config=DegradeConfig(seed=1))
@@ -203,7 +204,8 @@ DETECTORS: Registry[DetectorEntry] = Registry("detector", [
     trainable("default", "effwin", "default", "learned, the shipped default: EffWin (pretrained "
               "EfficientNet-Lite encoder, corner head); loads any trainable detector's weights", any_arch=True),
     trainable("quadnet", "effwin", "quadnet", "learned, detector v8: the default's network (frozen) with a quad "
-              "head: one instance per window centre, its four corners regressed (quad source `network`)"),
+              "head: one instance per window centre, its four corners regressed and refined on the corner "
+              "heatmaps (quad source `network`; measured by tools/seed_spread.py, not in `all`)", in_all=False),
     trainable("winnet", "winnet", "winnet", "learned from scratch: WinNet, a small U-Net (void and core maps)"),
     trainable("maskrcnn", "maskrcnn", "maskrcnn", "Mask R-CNN ResNet-50 FPN, the paper's, trained from scratch "
               "(weights not shipped: train on a GPU machine)", in_all=False),

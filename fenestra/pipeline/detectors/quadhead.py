@@ -156,16 +156,21 @@ class QuadDecode:
     of its corner heatmap within max(refine_radius_px[0], min(refine_radius_px[1],
     refine_radius_frac x the quad's shortest side)) px, if that peak reaches ``refine_min_peak``;
     min_side_px: a quad with a shorter side is no window; dedupe_iou: of two quads whose boxes
-    overlap more than this (IoU), the lower-scored is dropped.
+    overlap more than this (IoU), or of which one holds the other's centre or shares more than
+    10 % of the smaller's area, the lower-scored is dropped; score_scale: a detection's score is
+    min(1, score_scale x its centre probability), so that the detectors' operating threshold 0.5
+    falls where the validation data put the centre threshold (tools/quad_threshold.py); the
+    ranking, and so AP, is the centre probability's.
     """
 
-    centre_threshold: float = 0.3
+    centre_threshold: float = 0.1
     max_windows: int = 300
-    refine_radius_frac: float = 0.15
-    refine_radius_px: tuple[float, float] = (2.0, 6.0)
+    refine_radius_frac: float = 0.5
+    refine_radius_px: tuple[float, float] = (4.0, 40.0)
     refine_min_peak: float = 0.1
     min_side_px: float = 3.0
     dedupe_iou: float = 0.6
+    score_scale: float = 3.333
 
 
 def centre_peaks(centre: np.ndarray, threshold: float, max_n: int) -> list[tuple[int, int, float]]:
@@ -258,14 +263,31 @@ def quad_detections(centre: np.ndarray, offsets: np.ndarray, corner_p: np.ndarra
         if sides.min() < decode.min_side_px or not _convex(q):
             continue
         quads.append(q)
-        scores.append(s)
+        scores.append(min(1.0, decode.score_scale * s))
     out: list[Detection] = []
     for q, s in zip(quads, scores):
         m = quad_mask(q, (H, W))
         if m is None:
             continue
         mask, origin, box = m
-        if any(_box_iou(box, d.box) > decode.dedupe_iou for d in out):
+        if any(_box_iou(box, d.box) > decode.dedupe_iou or _nested(q, d.corners) for d in out):
             continue
         out.append(Detection(mask, box, s, origin=origin, corners=q))
     return out
+
+
+def _inside(p: np.ndarray, quad: np.ndarray) -> bool:
+    """Does point p (2,) lie inside a convex quad (4, 2) (TL TR BR BL, clockwise on screen)?"""
+    e = np.roll(quad, -1, axis=0) - quad
+    d = p - quad
+    return bool(np.all(e[:, 0] * d[:, 1] - e[:, 1] * d[:, 0] >= 0))
+
+
+def _nested(a: np.ndarray, b: np.ndarray, max_overlap: float = 0.1) -> bool:
+    """Two quads (4, 2) that are one window: the centre of either lies inside the other, or they
+    share more than ``max_overlap`` of the smaller one's area. Two windows never overlap, so a
+    second peak on a window, whose corners regress to a part of it, is dropped."""
+    if _inside(a.mean(axis=0), b) or _inside(b.mean(axis=0), a):
+        return True
+    inter, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
+    return inter > max_overlap * min(cv2.contourArea(a.astype(np.float32)), cv2.contourArea(b.astype(np.float32)))
