@@ -161,33 +161,33 @@ def test_ship_weights_sends_each_effwin_file_to_its_own_detector():
     assert shipping_detector(Path("out/train/winnet.pt"), {"arch": "winnet"}) == "winnet"
 
 
-def test_a_second_peak_on_one_window_is_dropped_but_a_neighbour_is_kept():
-    shape = (96, 96)
-    c = np.zeros((24, 24), np.float32)
-    off = np.zeros((8, 24, 24), np.float32)
-    window = np.array([[20.0, 10], [44, 10], [44, 80], [20, 80]])
-    part = np.array([[22.0, 40], [46, 40], [46, 86], [22, 86]])  # a peak low on the window: a shifted part of it
-    neighbour = window + [28.0, 0]  # 4 px to the right
-    for (i, j), q, p in (((11, 7), window, 0.9), ((15, 8), part, 0.7), ((11, 14), neighbour, 0.8)):
+def peak_maps(peaks, cells: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """(centre (cells, cells), offsets (8, cells, cells)) with a peak of probability p at each cell
+    (i, j) whose offsets point to quad q (4, 2) px: peaks = [((i, j), q, p), ...]."""
+    c = np.zeros((cells, cells), np.float32)
+    off = np.zeros((8, cells, cells), np.float32)
+    for (i, j), q, p in peaks:
         c[i, j] = p
         cell = np.array([QUAD_STRIDE * j + 1.5, QUAD_STRIDE * i + 1.5])
         off[:, i, j] = ((q - cell) / OFFSET_SCALE_PX).reshape(-1)
-    dets = quad_detections(c, off, None, shape)
+    return c, off
+
+
+def test_a_second_peak_on_one_window_is_dropped_but_a_neighbour_is_kept():
+    window = np.array([[20.0, 10], [44, 10], [44, 80], [20, 80]])
+    part = np.array([[22.0, 40], [46, 40], [46, 86], [22, 86]])  # a peak low on the window: a shifted part of it
+    neighbour = window + [28.0, 0]  # 4 px to the right
+    c, off = peak_maps([((11, 7), window, 0.9), ((15, 8), part, 0.7), ((11, 14), neighbour, 0.8)])
+    dets = quad_detections(c, off, None, (96, 96))
     assert len(dets) == 2
     np.testing.assert_allclose(dets[0].corners, window, atol=1e-4)
     np.testing.assert_allclose(dets[1].corners, neighbour, atol=1e-4)
 
 
 def test_two_stacked_parts_of_one_window_are_one_detection():
-    shape = (96, 96)
-    c = np.zeros((24, 24), np.float32)
-    off = np.zeros((8, 24, 24), np.float32)
     top = np.array([[20.0, 10], [44, 10], [44, 50], [20, 50]])
     bottom = np.array([[20.0, 44], [44, 44], [44, 80], [20, 80]])  # overlaps the top part by 6 of its 40 rows
-    for (i, j), q, p in (((7, 7), top, 0.9), ((14, 7), bottom, 0.8)):
-        c[i, j] = p
-        cell = np.array([QUAD_STRIDE * j + 1.5, QUAD_STRIDE * i + 1.5])
-        off[:, i, j] = ((q - cell) / OFFSET_SCALE_PX).reshape(-1)
-    dets = quad_detections(c, off, None, shape)
+    c, off = peak_maps([((7, 7), top, 0.9), ((14, 7), bottom, 0.8)])
+    dets = quad_detections(c, off, None, (96, 96))
     assert len(dets) == 1
     np.testing.assert_allclose(dets[0].corners, top, atol=1e-4)
