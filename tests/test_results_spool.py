@@ -124,3 +124,24 @@ def test_verify_table_names_a_changed_row_and_passes_a_reordered_table(tmp_path)
         manifest.verify_table(tmp_path, bad, doc)
     with pytest.raises(manifest.RunIntegrityError, match="lacks 1 of 34"):
         manifest.verify_table(tmp_path, df.drop(index=3), doc)
+
+
+@pytest.mark.parametrize("owned", [True, False])
+def test_a_run_killed_while_spooling_can_be_run_again(tmp_path, owned):
+    """Issue 51, item 7: a run killed after some shards (no run_status, no finish: kill -9) leaves
+    shards that its manifest lists, so the next run of the same profile in that folder claims it and
+    clears the spool; unlisted shards (a spool without its owner) are refused as foreign."""
+    from fenestra.bench.manifest import RunIntegrityError, claim_run_dir
+
+    run = claim_run_dir(tmp_path / "run", "p", "abcd1234")
+    spool = RowSpool(run / res.SPOOL_DIR, views_per_shard=2, owner=run if owned else None)
+    for v in VIEWS[:5]:
+        spool.add(v)
+    assert len(list((run / res.SPOOL_DIR).glob("*.parquet"))) == 2  # killed here
+    if not owned:
+        with pytest.raises(RunIntegrityError, match="did not write"):
+            claim_run_dir(run, "p", "abcd1234")
+        return
+    claim_run_dir(run, "p", "abcd1234")
+    assert not (run / res.SPOOL_DIR).exists()  # the interrupted spool is cleared (STALE)
+    claim_run_dir(run, "other", "ffff0000", force=True)  # and --force replaces it for another profile

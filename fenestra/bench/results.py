@@ -110,13 +110,17 @@ class RowSpool:
     or on the number of workers. Every file is written atomically (fenestra.files.write_atomic).
     results.csv (on request) holds the same values; only an integer in a column whose views mix
     integers, floats and None (an object column) prints as ``1.0`` where its shard also held floats.
+    owner: the run folder whose Fenestra manifest (fenestra.outputs) lists each shard as soon as it
+    is written, so that a run killed before its end (kill -9) leaves no file a later run of the same
+    folder must refuse as foreign (issue 51, item 7).
     """
 
-    def __init__(self, folder: str | Path, views_per_shard: int = VIEWS_PER_SHARD) -> None:
+    def __init__(self, folder: str | Path, views_per_shard: int = VIEWS_PER_SHARD, owner: str | Path | None = None) -> None:
         if views_per_shard < 1:
             raise ValueError(f"views_per_shard must be >= 1, got {views_per_shard}")
         self.folder = Path(folder)
         self.views_per_shard = views_per_shard
+        self.owner = None if owner is None else Path(owner)
         self.n_rows = 0
         self.n_views = 0
         self._frames: list[pd.DataFrame] = []
@@ -141,6 +145,10 @@ class RowSpool:
         self._frames = []
         path = self.folder / f"{len(self._shards):06d}.parquet"
         write_atomic(path, lambda p: chunk.to_parquet(p, index=False))
+        if self.owner is not None:  # listed as it is written: a killed run's spool is Fenestra's, not a stranger's
+            from fenestra import outputs  # noqa: PLC0415
+
+            outputs.record(self.owner, [path.relative_to(self.owner).as_posix()])
         self._shards.append((path, chunk.iloc[:0].copy()))  # a copy: a slice would keep the rows alive
 
     def _template(self, profile: str) -> pd.DataFrame:

@@ -303,7 +303,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         skipped: dict[str, str] = {}
         if methods is None:
             methods, skipped = plan_methods(profile)
-        spool = res.RowSpool(run_dir / res.SPOOL_DIR)
+        spool = res.RowSpool(run_dir / res.SPOOL_DIR, owner=run_dir)
         ev = (evaluate_photos(profile, methods, progress, spooling(spool)) if photos else
               evaluate_renders(profile, methods, run_dir, workers, progress, renders_dir, executor, executor_options,
                                spooling(spool)))
