@@ -191,3 +191,22 @@ def test_two_stacked_parts_of_one_window_are_one_detection():
     dets = quad_detections(c, off, None, (96, 96))
     assert len(dets) == 1
     np.testing.assert_allclose(dets[0].corners, top, atol=1e-4)
+
+
+def test_quad_losses_weigh_the_offsets_per_sample():
+    """The offsets' L1 counts on regression cells only, per sample weight: a real photo's box
+    (weight 0: centres only, the shipped recipe) adds nothing; the centre loss counts every sample."""
+    from fenestra.training.recipes.effwin import quad_losses
+
+    t = torch.zeros(2, 11, 8, 8)
+    t[:, 0, 4, 4] = 1.0  # a centre in each sample
+    t[:, 9, 4, 4] = 1.0  # its regression cell
+    t[:, 1:9, 4, 4] = 0.5  # target offsets
+    q = torch.zeros(2, 9, 8, 8)  # predicted offsets 0: L1 = 8 x 0.5 = 4 per cell
+    exact_only = quad_losses(q, t, torch.tensor([1.0, 0.0]))
+    both = quad_losses(q, t, torch.tensor([1.0, 1.0]))
+    assert float(exact_only["quad_offsets"]) == pytest.approx(4.0) and float(both["quad_offsets"]) == pytest.approx(4.0)
+    q[1, 1:9, 4, 4] = 0.5  # the second sample now right: only the first's error counts where both weigh
+    assert float(quad_losses(q, t, torch.tensor([1.0, 1.0]))["quad_offsets"]) == pytest.approx(2.0)
+    assert float(quad_losses(q, t, torch.tensor([0.0, 1.0]))["quad_offsets"]) == pytest.approx(0.0)
+    assert float(exact_only["quad_centre"]) == pytest.approx(float(both["quad_centre"]))

@@ -82,7 +82,8 @@ class TrainConfig:
     init_weights: str | None = None  # start from this weights file (every key it has; the rest as built)
     train_only: str | None = None  # "quad": train the quad head alone on a frozen network (init_weights')
     quad_weight: float = 1.0  # effwin: weight of the quad head's centre loss
-    quad_offset_weight: float = 1.0  # effwin: weight of its corner-offset L1 loss (renders only: exact corners)
+    quad_offset_weight: float = 1.0  # effwin: weight of its corner-offset L1 loss on the renders' exact corners
+    quad_box_weight: float = 0.0  # effwin: that loss's weight on the real photos' boxes (not corners; 0: centres only)
     corner_weight: float = 1.0  # effwin: weight of the corner-heatmap loss
     edge_weight: float = 0.0  # effwin: extra void-loss weight on a rendered void's outline band (0: none)
     edge_px: int = 3  # effwin: that band's half width (px of the crop), inside and outside the outline
@@ -121,6 +122,8 @@ class TrainConfig:
             raise ValueError(f"edge_weight must be >= 0 and edge_px >= 1, got {self.edge_weight}, {self.edge_px}")
         if not 0.0 <= self.real_fraction <= 1.0:
             raise ValueError(f"real_fraction must be in [0, 1], got {self.real_fraction}")
+        if not (self.quad_box_weight >= 0.0 and math.isfinite(self.quad_box_weight)):
+            raise ValueError(f"quad_box_weight must be >= 0, got {self.quad_box_weight}")
         if self.train_only not in (None, "quad"):
             raise ValueError(f"train_only must be 'quad' or unset, got {self.train_only!r}")
         if self.train_only == "quad" and not (self.effwin_quad_head and self.init_weights):

@@ -156,7 +156,7 @@ def effwin_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, 
     """winnet_loss on the void/core maps (the void BCE weighted 1 + cfg.edge_weight on the
     :func:`edge_band` of the rendered samples, whose outlines are exact) plus cfg.corner_weight x
     corner_focal_loss; with a quad head plus its :func:`quad_losses` (cfg.quad_weight,
-    cfg.quad_offset_weight). With cfg.train_only = "quad" the frozen network runs in eval mode
+    cfg.quad_offset_weight; on the real photos' boxes cfg.quad_box_weight). With cfg.train_only = "quad" the frozen network runs in eval mode
     (its batch-norm statistics kept) and only the quad head's losses are returned."""
     x, y, w = (t.to(cfg.device) for t in batch[:3])
     if cfg.channels_last:
@@ -168,7 +168,7 @@ def effwin_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, 
     logits = logits.float()
     quad = {}
     if cfg.effwin_quad_head:
-        quad = quad_losses(feats["quad"].float(), batch[3].to(cfg.device), w)
+        quad = quad_losses(feats["quad"].float(), batch[3].to(cfg.device), torch.where(w > 0, w, cfg.quad_box_weight))
         quad = {"quad_centre": cfg.quad_weight * quad["quad_centre"],
                 "quad_offsets": cfg.quad_offset_weight * quad["quad_offsets"]}
     if cfg.train_only == "quad":
