@@ -24,7 +24,7 @@ from fenestra.scenes.loader import load_scene
 from fenestra.scenes.registry import WILD_HOUSES, wild_dir
 
 WILD = wild_dir()
-pytestmark = pytest.mark.skipif(not WILD.is_dir(), reason=f"no wild IFC folder at {WILD} (set FENESTRA_WILD_IFC)")
+pytestmark = pytest.mark.skipif(not WILD.is_dir(), reason=f"the wild IFC models are not bundled (GPL, CC BY-SA or no licence: read from ../shared only) and there is no folder at {WILD} (set FENESTRA_WILD_IFC)")
 SMALL = "IfcOpenHouse_IFC4.ifc"  # 5 windows, none with a fill relation, parts aggregated: the fast case
 SIZE_TOL_M = 0.005
 UNREADABLE = {"Allplan-Smiley-West.ifc": "IFC2X_FINAL"}  # older than IFC2X3: refused in one line

@@ -30,7 +30,7 @@ def test_without_the_folder_the_profile_says_so_in_one_line(tmp_path, monkeypatc
         resolve("wild:nope")
 
 
-@pytest.mark.skipif(not wild_dir().is_dir(), reason=f"no wild IFC folder at {wild_dir()} (set {WILD_ENV})")
+@pytest.mark.skipif(not wild_dir().is_dir(), reason=f"the wild IFC models are not bundled (GPL, CC BY-SA or no licence: read from ../shared only) and there is no folder at {wild_dir()} (set {WILD_ENV})")
 def test_with_the_folder_every_wild_house_resolves_and_keeps_its_name():
     for h in house_list(load_profile("wild")):
         path = resolve(h)

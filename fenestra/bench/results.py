@@ -112,7 +112,7 @@ class RowSpool:
     integers, floats and None (an object column) prints as ``1.0`` where its shard also held floats.
     owner: the run folder whose Fenestra manifest (fenestra.outputs) lists each shard as soon as it
     is written, so that a run killed before its end (kill -9) leaves no file a later run of the same
-    folder must refuse as foreign (issue 51, item 7).
+    folder must refuse as foreign.
     """
 
     def __init__(self, folder: str | Path, views_per_shard: int = VIEWS_PER_SHARD, owner: str | Path | None = None) -> None:

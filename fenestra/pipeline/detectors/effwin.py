@@ -38,7 +38,8 @@ from torch import nn
 from fenestra.errors import FenestraError
 from fenestra.pipeline.detectors.winnet import (PostConfig, _block, instances_from_maps, load_state, pad_to_stride,
                                        post_from_checkpoint)
-from fenestra.pipeline.detectors.quadhead import QUAD_STRIDE, QuadDecode, QuadHead, quad_detections, quad_mirror_mean
+from fenestra.pipeline.detectors.quadhead import (QUAD_STRIDE, QuadDecode, QuadHead, quad_detections, quad_mirror_mean,
+                                                  subpixel_peak)
 from fenestra.pipeline.detectors.verifier import VerifierHead, head_from_dict, network_fingerprint, verified
 from fenestra.pipeline.types import Detection
 
@@ -205,12 +206,6 @@ def corner_heatmaps(corners: np.ndarray, shape: tuple[int, int], sigma: float = 
     return out
 
 
-def _peak_offset(lm: float, l0: float, lp: float) -> float:
-    """Sub-pixel offset in [-0.5, 0.5] of the vertex of the parabola through (-1, lm), (0, l0), (1, lp)."""
-    den = lm - 2.0 * l0 + lp
-    return float(np.clip(0.5 * (lm - lp) / den, -0.5, 0.5)) if den < 0 else 0.0
-
-
 def instance_corners(corner_p: np.ndarray, mask: np.ndarray, min_peak: float = 0.1,
                      margin_frac: float = 0.25, margin_px: int = 4) -> np.ndarray | None:
     """The four corners (4, 2) px (TL TR BR BL) of one instance from corner heatmaps (4, H, W).
@@ -233,11 +228,7 @@ def instance_corners(corner_p: np.ndarray, mask: np.ndarray, min_peak: float = 0
         iy, ix = np.unravel_index(int(np.argmax(sub)), sub.shape)
         if sub[iy, ix] < min_peak:
             return None
-        py, px = iy + y0, ix + x0
-        lg = np.log(np.clip(corner_p[c].astype(np.float64), 1e-6, 1.0))
-        dx = _peak_offset(lg[py, px - 1], lg[py, px], lg[py, px + 1]) if 0 < px < W - 1 else 0.0
-        dy = _peak_offset(lg[py - 1, px], lg[py, px], lg[py + 1, px]) if 0 < py < H - 1 else 0.0
-        out[c] = (px + dx, py + dy)
+        out[c] = subpixel_peak(corner_p[c], iy + y0, ix + x0)
     return out
 
 

@@ -1,4 +1,4 @@
-"""The quad head: every window a quadrilateral straight from the network (detector v8, issue 46).
+"""The quad head: every window a quadrilateral straight from the network (detector v8).
 
 CenterNet's objects-as-points on EffWin's decoder (fenestra/pipeline/detectors/effwin.py): at stride
 :data:`QUAD_STRIDE` of the network's input, one **centre heatmap** (a Gaussian at each window's
@@ -183,8 +183,19 @@ def centre_peaks(centre: np.ndarray, threshold: float, max_n: int) -> list[tuple
 
 
 def _peak_offset(lm: float, l0: float, lp: float) -> float:
+    """Sub-pixel offset in [-0.5, 0.5] of the vertex of the parabola through (-1, lm), (0, l0), (1, lp)."""
     den = lm - 2.0 * l0 + lp
     return float(np.clip(0.5 * (lm - lp) / den, -0.5, 0.5)) if den < 0 else 0.0
+
+
+def subpixel_peak(heat: np.ndarray, py: int, px: int) -> np.ndarray:
+    """(x, y) px of a heatmap's (H, W) peak at pixel (px, py), refined by a parabola through the log
+    probabilities of the peak and its neighbours along x and along y (exact for a Gaussian peak)."""
+    H, W = heat.shape
+    lg = lambda yy, xx: float(np.log(np.clip(float(heat[yy, xx]), 1e-6, 1.0)))  # noqa: E731
+    dx = _peak_offset(lg(py, px - 1), lg(py, px), lg(py, px + 1)) if 0 < px < W - 1 else 0.0
+    dy = _peak_offset(lg(py - 1, px), lg(py, px), lg(py + 1, px)) if 0 < py < H - 1 else 0.0
+    return np.array([px + dx, py + dy])
 
 
 def refine_corner(heat: np.ndarray, p: np.ndarray, radius: float, min_peak: float) -> np.ndarray:
@@ -201,11 +212,7 @@ def refine_corner(heat: np.ndarray, p: np.ndarray, radius: float, min_peak: floa
     iy, ix = np.unravel_index(int(np.argmax(sub)), sub.shape)
     if sub[iy, ix] < min_peak:
         return p
-    py, px = iy + y0, ix + x0
-    lg = lambda yy, xx: float(np.log(np.clip(heat[yy, xx], 1e-6, 1.0)))  # noqa: E731
-    dx = _peak_offset(lg(py, px - 1), lg(py, px), lg(py, px + 1)) if 0 < px < W - 1 else 0.0
-    dy = _peak_offset(lg(py - 1, px), lg(py, px), lg(py + 1, px)) if 0 < py < H - 1 else 0.0
-    return np.array([px + dx, py + dy])
+    return subpixel_peak(heat, iy + y0, ix + x0)
 
 
 def _convex(q: np.ndarray) -> bool:
