@@ -81,6 +81,15 @@ def write_text(path: str | Path, text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
+def write_ifc_file(model, path: str | Path) -> Path:
+    """Write an ifcopenshell model to ``path`` atomically: a ``.ifc`` as its STEP text's bytes
+    written here (so any path, a name that is not UTF-8 included, works), another suffix
+    (``.ifczip``, ``.ifcxml``) by ifcopenshell in the format it names."""
+    if Path(path).suffix.lower() == ".ifc":
+        return write_bytes(path, model.to_string().encode())
+    return write_atomic(path, lambda p: model.write(str(p)))
+
+
 def write_json(path: str | Path, doc, indent: int | None = 1) -> Path:
     """Write ``doc`` as JSON (``json.dumps(doc, indent=indent)``) to ``path`` atomically."""
     return write_text(path, json.dumps(doc, indent=indent))

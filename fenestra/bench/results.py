@@ -90,6 +90,7 @@ def write_results(df: pd.DataFrame, run_dir: str | Path, csv: bool = False) -> l
 
 VIEWS_PER_SHARD = 16  # views whose rows go to one spool file (bounds the rows held in memory)
 SPOOL_DIR = ".rows"  # a run folder's spool of view shards while the evaluation runs
+SHARD_DIR = "shards"  # a run folder's Ray shards (bench.executors), kept for a resumed run
 
 
 class RowSpool:

@@ -52,6 +52,8 @@ from typing import Iterator
 
 import numpy as np
 
+from fenestra.files import write_ifc_file
+
 FASCIA_THICKNESS = 0.04  # m
 DEFAULT_FOOTPRINT: tuple[tuple[float, float], ...] = (
     (0.0, 0.0), (9.0, 0.0), (11.5, 4.5), (7.0, 9.0), (-1.5, 6.5))  # 4 of 5 walls not axis-aligned
@@ -772,7 +774,7 @@ def _make_house(spec: HouseSpec, out_path: str | Path, schema: str = "IFC4") -> 
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     f.header.file_name.time_stamp = IFC_TIMESTAMP
-    f.write(str(out_path))
+    write_ifc_file(f, out_path)
     return GeneratedHouse(spec=spec, path=str(out_path), footprint_world=poly,
                           windows=tuple(windows_out), doors=tuple(doors_out),
                           curtain_walls=tuple(curtains_out))
