@@ -28,11 +28,20 @@ def inside(root: str | Path, name: str, where: str) -> Path:
         raise DatasetError(f"{where}: must be a non-empty relative path string, got {name!r}")
     if os.path.isabs(name) or Path(name).anchor:
         raise DatasetError(f"{where}: {name!r} is an absolute path; give it relative to the dataset folder {root}")
-    base = Path(root).resolve()
-    p = (base / name).resolve()
+    base = resolved(root, "dataset folder")
+    p = resolved(base / name, f"{where}:")
     if p != base and base not in p.parents:
         raise DatasetError(f"{where}: {name!r} leads outside the dataset folder {root}")
     return Path(root) / name
+
+
+def resolved(path: str | Path, what: str) -> Path:
+    """``path`` made absolute with every symlink followed; DatasetError "<what> <path> is a symlink
+    loop" for a loop (or a link chain too long to follow)."""
+    try:
+        return Path(path).resolve()
+    except (RuntimeError, OSError) as e:  # Python < 3.13 reports a loop as RuntimeError
+        raise DatasetError(f"{what} {str(path)!r} is a symlink loop (it cannot be resolved)") from e
 
 
 def is_regular(path: str | Path) -> bool:
