@@ -36,9 +36,11 @@ from fenestra.bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTa
 from fenestra.bench.executors import HousePlan, Keep, Plan, evaluate_local, get_executor
 from fenestra.bench.profiles import ALL, Profile, planned_methods, selected
 from fenestra.bench.real.profile import RealProfile
+from fenestra.bench.views import LabelledView
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
 from fenestra.registry import plugin_metadata
+from fenestra.userfiles import utf8_name
 
 OUT_ROOT = Path("out")
 LEARNED_DETECTOR_OPTIONS = {"threads": 1}  # one torch thread per worker process
@@ -162,6 +164,13 @@ def evaluate_renders(profile: Profile, methods: tuple[Method, ...], run_dir: Pat
                      {"workers": workers, "executor": executor, "datasets": {h: str(p) for h, p in datasets}})
 
 
+def _utf8_view(view: LabelledView, folder: Path) -> LabelledView:
+    """``view`` when its name is valid UTF-8; DatasetError naming its photo in ``folder`` before it is
+    evaluated otherwise (the results table holds UTF-8 text only)."""
+    utf8_name(view.name, f"dataset {folder}: photo")
+    return view
+
+
 def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress: bool,
                     keep: Keep | None = None) -> Evaluated:
     """Evaluate every view of a real profile's datasets, in order, in this process (the real
@@ -170,7 +179,7 @@ def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     datasets, skipped = profile.available_datasets()
     options = profile.eval_options()
-    tasks = (ViewTask(LoadedView(v), methods, options) for ds in datasets for v in ds.views())
+    tasks = (ViewTask(LoadedView(_utf8_view(v, ds.folder())), methods, options) for ds in datasets for v in ds.views())
     t0 = time.perf_counter()
     outcomes = evaluate_local(tasks, workers=1, progress=progress, keep=keep)
     stage_s = {"evaluate_wall": time.perf_counter() - t0}

@@ -33,12 +33,14 @@ from fenestra import outputs
 from fenestra.bench.manifest import KIND as RUN_KIND, load_verified_results
 from fenestra.bench.paired import PairedTable, paired_comparison
 from fenestra.bench.real.simreal import SIMREAL_JSON
-from fenestra.bench.results import CORNER_STAGES, STAGE_LABELS, summarize
+from fenestra.bench.results import CORNER_STAGES, STAGE_LABELS, load_summary, summarize
+from fenestra.errors import DatasetError
 from fenestra.files import write_text
 from fenestra.methods import read_methods
 from fenestra.reports import lead as lead_mod
 from fenestra.reports import plots
 from fenestra.reports.real import real_sections
+from fenestra.userfiles import read_json
 from fenestra.reports.walls import wall_sections
 
 LEAD_TITLE = "Which method is best"
@@ -368,8 +370,8 @@ def to_html(sections: list[tuple]) -> str:
 
 
 def _summary(run_dir: Path) -> dict | None:
-    p = run_dir / "summary.json"
-    return json.loads(p.read_text()) if p.is_file() else None
+    """The run's summary.json (bench.results.load_summary: checked), None when it has none."""
+    return load_summary(run_dir) if (run_dir / "summary.json").is_file() else None
 
 
 def _is_real(summary: dict | None) -> bool:
@@ -389,7 +391,10 @@ def counterpart(run_dir: Path, summary: dict | None, real_dir: str | Path | None
         p = run_dir / SIMREAL_JSON
         if not p.is_file():
             return None, None
-        sim = Path(json.loads(p.read_text())["sim_run"])
+        doc = read_json(p, "sim-to-real link")
+        if not isinstance(doc, dict) or not isinstance(doc.get("sim_run"), str):
+            raise DatasetError(f"sim-to-real link {p} must be a JSON object with the 'sim_run' folder")
+        sim = Path(doc["sim_run"])
         if not (sim / "summary.json").is_file():
             return None, f"The synthetic run {sim} of the sim-to-real table is gone; the lead shows photos only."
         return sim, None

@@ -36,7 +36,7 @@ from fenestra.bench.real.adapters import ADAPTERS
 from fenestra.bench.views import LabelledView
 from fenestra.config import from_table, read_toml
 from fenestra.files import REPO_ROOT
-from fenestra.userfiles import resolved
+from fenestra.userfiles import resolved, utf8_name
 
 KIND = "real"
 
@@ -190,5 +190,6 @@ def with_user_data(profile: RealProfile, data: str | Path, fmt: str, options: di
     if fmt not in ADAPTERS:
         raise ProfileError(f"--format {fmt!r} unknown; choose from {sorted(ADAPTERS)}")
     p = resolved(Path(data).expanduser(), "--data")
+    utf8_name(p.name, "--data folder")
     ds = DatasetSpec(name=p.name, format=fmt, path=str(p), options=tuple(sorted((options or {}).items())))
     return replace(profile, name=f"{profile.name}-{p.name}", datasets=(ds,), kfree=None)  # [kfree] names its own datasets
