@@ -1,14 +1,18 @@
-"""Which files Fenestra may delete or replace: one rule for every command that writes a folder
-(``fenestra reconstruct --out``, its batch mode, ``fenestra bench --out``).
+"""Which files Fenestra may delete or replace: one rule for every command that writes
+(``fenestra reconstruct --out``, its batch mode, ``fenestra bench --out``, report, compare's
+page, calibrate, ``scenes make`` and ``scenes author``).
 
-    check_out(out, inputs, force=False)          # before any work: refuse a bad --out
-    with staged(out, inputs, force) as tmp:      # write everything into tmp (a hidden child of out)
+    check_out(out, inputs, force=False, kind=K)  # before any work: refuse a bad --out
+    with staged(out, inputs, force, kind=K) as tmp:  # write everything into tmp (a hidden child of out)
         ...
     # the new files are moved into out first, then the previous run's files that are not replaced
     # are removed: a failure at any point before leaves the previous result whole
-    write_owned(out, {"summary.json": data})     # one file, replacing only an owned one
+    check_file(path, kind, hosts, inputs)        # before the work that makes one file
+    write_file(path, write, kind, hosts, inputs) # one file, replacing only an owned one
+    write_owned(out, "summary.json", data)       # the same, from bytes
     record(out, ["results.parquet", ...])        # add files written in place to the manifest
     remove_owned(out)                            # delete what the manifest lists, refuse the rest
+    with locked(out, "benchmark run"): ...       # one writer at a time
 
 The rule. Every output folder holds ``MANIFEST`` (.fenestra-output.json), ``{"format": 2,
 "kind": KIND, "files": {relative path: sha256}}``: what kind of output the folder holds (KINDS)

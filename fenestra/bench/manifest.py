@@ -292,7 +292,7 @@ def claimed(run_dir: str | Path, profile: str, profile_hash: str, force: bool = 
     (fenestra.outputs.locked), claimed (:func:`claim_run_dir`) and marked by :func:`run_status`.
     A folder this call made is removed again (rmdir) when the claim is refused."""
     run_dir = Path(run_dir)
-    outputs.check_out(run_dir, inputs, force=True)
+    outputs.check_out(run_dir, inputs, force=True, kind=KIND)  # another kind: refused before the lock file is made
     created = not run_dir.exists()
     try:
         run_dir.mkdir(parents=True, exist_ok=True)

@@ -248,7 +248,7 @@ def _batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
     write_summary([])
     rows = []
     with typer.progressbar(list(zip(photos, output_names(photos))), label="reconstruct", file=sys.stderr,
-                           item_show_func=lambda item: _shown(item[0].name) if item else "") as bar:
+                           item_show_func=lambda item: item[0].name if item else "") as bar:
         for photo, name in bar:
             t0, c0 = time.perf_counter(), time.process_time()
             try:
@@ -260,11 +260,6 @@ def _batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
             rows.append(summary_row(photo, doc, error, time.perf_counter() - t0, time.process_time() - c0, out / name))
     write_summary(rows)
     return rows
-
-
-def _shown(text: str) -> str:
-    """``text`` printable on any terminal: a byte of a name that is not UTF-8 as '\\xNN'."""
-    return text.encode(errors="surrogateescape").decode(errors="backslashreplace")
 
 
 def format_summary(rows: list[dict]) -> str:
