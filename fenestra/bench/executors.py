@@ -346,18 +346,19 @@ def run_shard(plan: Plan, shard: Shard) -> str:
 SHARD_NAME = re.compile(r"[0-9a-f]{16}\.(json|parquet)")  # plan_shards' names
 
 
-def recognised_shards(run_dir: str | Path) -> list[str]:
+def recognised_shards(run_dir: str | Path, listed: Iterable[str] = ()) -> list[str]:
     """The shard files under ``run_dir/SHARD_DIR`` that :func:`write_shard` wrote, as paths
-    relative to ``run_dir``: a named index whose own digest and rows file's digest check (both
-    files), and a rows file whose index was never written (a worker killed between the two) when
-    it is a Parquet file with the ``_view`` column. Nothing is unpickled or trusted: a shard is
-    still checked when read."""
+    relative to ``run_dir``, those in ``listed`` (already in the run's manifest) not looked at: a
+    named index whose own digest and rows file's digest check (both files), and a rows file whose
+    index was never written (a worker killed between the two) when it is a Parquet file with the
+    ``_view`` column. Nothing is unpickled or trusted: a shard is still checked when read."""
     import pyarrow.parquet as pq  # noqa: PLC0415
 
     folder = Path(run_dir) / SHARD_DIR
     names = {p.name for p in folder.iterdir() if p.is_file() and not p.is_symlink() and SHARD_NAME.fullmatch(p.name)}
+    skip = set(listed)
     found = []
-    for n in sorted(names):
+    for n in sorted(n for n in names if f"{SHARD_DIR}/{n}" not in skip):
         stem, suffix = n.rsplit(".", 1)
         if suffix == "json" and _load_shard(str(folder / n), warn=False) is not None:
             found += [n, f"{stem}.parquet"]

@@ -220,7 +220,7 @@ def adopt_shards(run_dir: Path) -> list[str]:
     from fenestra.bench.executors import recognised_shards  # noqa: PLC0415
 
     owned = outputs.read_manifest(run_dir) or {}
-    found = [f for f in recognised_shards(run_dir) if f not in owned]
+    found = [f for f in recognised_shards(run_dir, listed=owned) if f not in owned]
     if found:
         outputs.record(run_dir, found)
     return found

@@ -42,11 +42,11 @@ def check_out(out: Path, force: bool, inputs: Iterable[str | Path | None] = ()) 
 def held_out(out: str | Path, force: bool = False, inputs: Iterable[str | Path | None] = ()) -> Iterator[Path]:
     """``out`` checked (:func:`check_out`) and locked for the block (fenestra.outputs.locked,
     the lock file removed at the end): a second reconstruct into it is refused at once, naming
-    the process that holds it, before its pipeline runs. A folder this made is removed again
-    (rmdir) when it stays empty."""
+    the process that holds it, before its pipeline runs. The folders this made are removed
+    again (rmdir) when they stay empty."""
     out = Path(out)
     check_out(out, force, inputs)
-    created = not out.exists()
+    made = [p for p in (out, *out.parents) if not p.exists()]  # deepest first
     out.mkdir(parents=True, exist_ok=True)
     try:
         with outputs.locked(out, "reconstruct", keep=False):
@@ -54,11 +54,11 @@ def held_out(out: str | Path, force: bool = False, inputs: Iterable[str | Path |
     except outputs.OwnershipError as e:
         raise PipelineError(str(e)) from e
     finally:
-        if created:
+        for p in made:
             try:
-                out.rmdir()  # only if still empty
+                p.rmdir()  # only if still empty
             except OSError:
-                pass
+                break
 
 
 @contextmanager
