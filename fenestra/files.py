@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
@@ -49,6 +50,15 @@ def source_digest(files: Iterable[str | Path], extra: str = "") -> str:
 
 # ---------------------------------------------------------------- atomic writes
 
+def temp_name(path: Path, pid: int | None = None) -> Path:
+    """The temporary name :func:`write_atomic` writes ``path`` under: ``.<stem>.tmp<pid><suffix>``
+    beside it (pid: this process's)."""
+    return path.with_name(f".{path.stem}.tmp{os.getpid() if pid is None else pid}{path.suffix}")
+
+
+TEMP_NAME = re.compile(r"\.(?P<stem>.+)\.tmp(?P<pid>\d+)(?P<suffix>\.[^.]*)?")  # temp_name's names
+
+
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
     """Call ``write(tmp)`` on a temporary name beside ``path`` (same suffix, so writers that pick
     the format by extension work), then rename it over ``path``; return ``path``.
@@ -57,7 +67,7 @@ def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
     no file; the temporary file is removed in every case.
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
+    tmp = temp_name(path)
     try:
         try:
             ok = write(tmp)

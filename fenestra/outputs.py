@@ -277,6 +277,23 @@ def clean_stale_stages(out: str | Path) -> list[str]:
     return gone
 
 
+def remove_dead_temp_files(out: str | Path) -> list[str]:
+    """Remove the temporary files (fenestra.files.temp_name: ``.<stem>.tmp<pid><suffix>``) under
+    ``out`` of a process that no longer runs: half-written files of a run killed while writing,
+    never listed, never a result; returns their relative paths. Call it only on a folder that
+    holds Fenestra's output (its manifest checked)."""
+    from fenestra.files import TEMP_NAME  # noqa: PLC0415
+
+    out = Path(out)
+    gone = []
+    for rel in files_in(out):
+        m = TEMP_NAME.fullmatch(Path(rel).name)
+        if m and not (out / rel).is_symlink() and not _alive(int(m.group("pid"))):
+            (out / rel).unlink(missing_ok=True)
+            gone.append(rel)
+    return gone
+
+
 def _stage(out: Path) -> Path:
     clean_stale_stages(out)
     tmp = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{os.getpid()}-", dir=out))

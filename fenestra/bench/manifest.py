@@ -215,7 +215,7 @@ KIND = "bench"  # the kind of output a run folder is (fenestra.outputs.KINDS)
 def adopt_shards(run_dir: Path) -> list[str]:
     """List in ``run_dir``'s manifest the Ray shards a killed run wrote but did not list
     (bench.executors.recognised_shards: recognised by name and digest); returns them."""
-    if not (run_dir / SHARD_DIR).is_dir() or outputs.read_manifest(run_dir) is None:
+    if not (run_dir / SHARD_DIR).is_dir():
         return []
     from fenestra.bench.executors import recognised_shards  # noqa: PLC0415
 
@@ -241,8 +241,9 @@ def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: b
     if run_dir.exists() and not run_dir.is_dir():
         raise RunIntegrityError(f"--out {run_dir} is a file, not a folder")
     outputs.check_out(run_dir, inputs, force=True, kind=KIND)  # a file, a folder overlapping an input or of another kind
-    if run_dir.is_dir():
-        adopt_shards(run_dir)
+    if run_dir.is_dir() and outputs.read_manifest(run_dir) is not None:  # a run Fenestra wrote, killed:
+        outputs.remove_dead_temp_files(run_dir)  # its half-written files go,
+        adopt_shards(run_dir)  # its unlisted shards are recognised
     owned = outputs.read_manifest(run_dir) if run_dir.is_dir() else None
     foreign = outputs.foreign_files(run_dir, owned or {})
     if foreign:

@@ -225,3 +225,26 @@ def test_staging_folders_of_dead_processes_are_cleaned(tmp_path):
         (s / "windows.json").write_text("{}")
     assert reconstruct("o", cwd=tmp_path).returncode == 0
     assert not any(s.exists() for s in stale) and (live / "windows.json").is_file()
+
+
+def test_a_killed_runs_half_written_files_do_not_block_the_next_run(made, tmp_path):
+    """kill -9 while a file was being written leaves its temporary name (fenestra.files.temp_name)
+    of a process that is gone: the next run of the folder removes it and runs; one of a live
+    process is not Fenestra's to remove, and is refused by name."""
+    from fenestra.files import temp_name
+
+    _copy(made, tmp_path, "run", "tiny.toml")
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    run = tmp_path / "run"
+    (run / ".rows").mkdir()
+    half = [temp_name(run / "results.parquet", dead.pid), temp_name(run / ".rows" / "000001.parquet", dead.pid)]
+    for h in half:
+        h.write_bytes(b"PAR1 half")
+    live = temp_name(run / "run.json", os.getpid())
+    live.write_text("{")
+    one_line_error(fenestra(*TINY_BENCH, "--out", "run", cwd=tmp_path), live.name, "did not write")
+    assert all(not h.exists() for h in half)  # a dead process's temporary files: removed
+    live.unlink()
+    r = fenestra(*TINY_BENCH, "--out", "run", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
