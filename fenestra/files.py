@@ -59,9 +59,24 @@ def temp_name(path: Path, pid: int | None = None) -> Path:
 TEMP_NAME = re.compile(r"\.(?P<stem>.+)\.tmp(?P<pid>\d+)(?P<suffix>\.[^.]*)?")  # temp_name's names
 
 
+_BEFORE_RENAME: list[Callable[[Path, Path], None]] = []  # before_rename's hooks, innermost last
+
+
+@contextmanager
+def before_rename(hook: Callable[[Path, Path], None]) -> Iterator[None]:
+    """For the block, :func:`write_atomic` calls ``hook(path, tmp)`` once the temporary file is
+    complete and before it takes its name (fenestra.outputs.listing lists it there)."""
+    _BEFORE_RENAME.append(hook)
+    try:
+        yield
+    finally:
+        _BEFORE_RENAME.remove(hook)
+
+
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
     """Call ``write(tmp)`` on a temporary name beside ``path`` (same suffix, so writers that pick
-    the format by extension work), then rename it over ``path``; return ``path``.
+    the format by extension work), then rename it over ``path``; return ``path``. The hooks of
+    :func:`before_rename` see the complete temporary file before the rename.
 
     OSError ``cannot write <path>: ...`` when the writer raises OSError, returns False or leaves
     no file; the temporary file is removed in every case.
@@ -75,6 +90,8 @@ def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
             raise OSError(f"cannot write {path}: {e.strerror or e}") from e
         if ok is False or not tmp.is_file():
             raise OSError(f"cannot write {path} (disk full or not writable?)")
+        for hook in tuple(_BEFORE_RENAME):
+            hook(path, tmp)
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)

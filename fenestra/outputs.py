@@ -431,6 +431,30 @@ def remove_owned(out: str | Path, names: Iterable[str] | None = None) -> None:
 
 
 @contextmanager
+def listing(out: str | Path) -> Iterator[Path]:
+    """While the block runs, every file that fenestra.files writes atomically under ``out`` (this
+    process) is listed in ``out``'s manifest with its new digest beside its old one (as during a
+    swap) before it takes its name: a run killed at any moment leaves no file of its own unlisted
+    (a half-written one keeps its temporary name: :func:`remove_dead_temp_files`)."""
+    from fenestra.files import before_rename  # noqa: PLC0415
+
+    root = Path(out).resolve()
+
+    def hook(path: Path, tmp: Path) -> None:
+        p = Path(path).resolve()
+        if root not in p.parents:
+            return
+        rel = p.relative_to(root).as_posix()
+        if rel in NOT_LISTED:
+            return
+        owned = read_manifest(root) or {}
+        _write_manifest(root, {rel: file_sha256(tmp)}, owned)
+
+    with before_rename(hook):
+        yield Path(out)
+
+
+@contextmanager
 def locked(folder: str | Path, what: str = "run", keep: bool = True) -> Iterator[Path]:
     """Hold an exclusive lock on ``folder`` (flock on ``folder/LOCK``, which records the holder's
     process id; released when the process ends however it ends) for the block; OwnershipError at

@@ -301,7 +301,7 @@ def claimed(run_dir: str | Path, profile: str, profile_hash: str, force: bool = 
             claim_run_dir(run_dir, profile, profile_hash, force, inputs)  # refuses: no lock file left there
         with outputs.locked(run_dir, "benchmark run"):
             claim_run_dir(run_dir, profile, profile_hash, force, inputs)
-            with run_status(run_dir):
+            with outputs.listing(run_dir), run_status(run_dir):  # every file listed as it is written
                 yield run_dir
     except BaseException:
         if created and not outputs.files_in(run_dir):

@@ -208,11 +208,14 @@ def peak_rss_mb() -> dict[str, float]:
 
 
 def _report_child(report: ReportWriter, run_dir: Path, conn) -> None:
-    """Child side of :func:`report_apart`: run the report, send back None or its error's one line."""
+    """Child side of :func:`report_apart`: run the report (each file listed in the run folder's
+    manifest as it is written, fenestra.outputs.listing), send back None or its error's one line."""
+    from fenestra import outputs  # noqa: PLC0415
     from fenestra.errors import one_line  # noqa: PLC0415
 
     try:
-        report(run_dir)
+        with outputs.listing(run_dir):
+            report(run_dir)
         conn.send(None)
     except BaseException as e:  # noqa: BLE001 - sent to the parent, which raises it as one line
         conn.send(f"{type(e).__name__}: {one_line(e)}")

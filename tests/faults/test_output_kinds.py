@@ -133,8 +133,9 @@ WRITER_CASES = [
      ["would replace mine.html, which Fenestra did not write"]),
     ("compare --html over the baseline's results.parquet", _case(("run",), (), ["compare", "run", "run", "--html", "run/results.parquet"]),
      ["--html run/results.parquet", "an .html file"]),
-    ("compare --html over an input photo", _case(("run",), (), ["compare", "run", "run", "--html", EXAMPLE / "img017.jpg"]),
-     ["img017.jpg", "an .html file"]),
+    ("compare --html over a photo", _case(("run",), (lambda d: shutil.copy(EXAMPLE / "img017.jpg", d / "img017.jpg"),),
+                                          ["compare", "run", "run", "--html", "img017.jpg"]),
+     ["--html img017.jpg", "an .html file"]),
     ("compare --html over the run's own report page", _case(("run",), (), ["compare", "run", "run", "--html", "run/report.html"]),
      ["named compare-*.html"]),
     ("compare --method with a typo", _case(("run",), (), ["compare", "run", "run", "--method", "oracle/nnoe/lm"]),
@@ -247,4 +248,37 @@ def test_a_killed_runs_half_written_files_do_not_block_the_next_run(made, tmp_pa
     assert all(not h.exists() for h in half)  # a dead process's temporary files: removed
     live.unlink()
     r = fenestra(*TINY_BENCH, "--out", "run", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+
+
+@pytest.mark.parametrize("after_s", [0.5, 4.0])
+def test_a_bench_run_killed_at_any_point_runs_again(made, tmp_path, after_s):
+    """kill -9 of a bench run (the whole process group: its workers and its report's process too)
+    some time after it claimed its folder (evaluating, or writing its report: every file is listed
+    before it takes its name); the same command then runs to the end in that folder, and --force
+    with another profile replaces what is left."""
+    import signal
+    import time
+
+    from fault_helpers import env
+
+    _copy(made, tmp_path, "tiny.toml")
+    shutil.copytree(made / "out", tmp_path / "out")  # the render cache: the run starts evaluating at once
+    run = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, "-m", "fenestra", *TINY_BENCH[:-1], "--out", "run"], cwd=tmp_path, env=env(),
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (run / "run.json").exists() and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(after_s)
+    finally:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+    r = fenestra(*TINY_BENCH, "--out", "run", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert json.loads((run / "run.json").read_text())["status"] == "complete"
+    (tmp_path / "other.toml").write_text(TINY_PROFILE.replace('name = "tiny"', 'name = "other"'))
+    r = fenestra("bench", "--profile", "other.toml", "--workers", "1", "--no-report", "--out", "run", "--force",
+                 cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
