@@ -28,20 +28,20 @@ def inside(root: str | Path, name: str, where: str) -> Path:
         raise DatasetError(f"{where}: must be a non-empty relative path string, got {name!r}")
     if os.path.isabs(name) or Path(name).anchor:
         raise DatasetError(f"{where}: {name!r} is an absolute path; give it relative to the dataset folder {root}")
-    base = resolved(root, "dataset folder")
-    p = resolved(base / name, f"{where}:")
+    base = resolved(root, f"dataset folder {str(root)!r}")
+    p = resolved(base / name, f"{where}: {name!r}")
     if p != base and base not in p.parents:
         raise DatasetError(f"{where}: {name!r} leads outside the dataset folder {root}")
     return Path(root) / name
 
 
 def resolved(path: str | Path, what: str) -> Path:
-    """``path`` made absolute with every symlink followed; DatasetError "<what> <path> is a symlink
-    loop" for a loop (or a link chain too long to follow)."""
+    """``path`` made absolute with every symlink followed; DatasetError "<what> is a symlink loop"
+    (``what`` names the path as the user gave it) for a loop, or a link chain too long to follow."""
     try:
         return Path(path).resolve()
     except (RuntimeError, OSError) as e:  # Python < 3.13 reports a loop as RuntimeError
-        raise DatasetError(f"{what} {str(path)!r} is a symlink loop (it cannot be resolved)") from e
+        raise DatasetError(f"{what} is a symlink loop (it cannot be resolved)") from e
 
 
 def utf8_name(name: str, what: str) -> str:

@@ -101,10 +101,15 @@ MEASURE = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); 
            "sys.exit(r.returncode)")
 
 
-def run_measured(args: list, cwd: Path) -> tuple[int, str, float]:
-    """(exit code, stderr, peak RSS in GB) of one CLI run."""
+def run_measured(args: list, cwd: Path, max_gb: float | None = None, timeout: float = 300) -> tuple[int, str, float]:
+    """(exit code, stderr, peak RSS in GB) of one CLI run; max_gb: its address space's limit (a run
+    that would grow without bound fails with MemoryError there instead of taking the machine)."""
+    def limit():
+        n = int(max_gb * 2**30)
+        resource.setrlimit(resource.RLIMIT_AS, (n, n))
     r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
-                       cwd=cwd, env=env(), capture_output=True, text=True, timeout=300)
+                       cwd=cwd, env=env(), capture_output=True, text=True, timeout=timeout,
+                       preexec_fn=limit if max_gb is not None else None)
     kb = int(r.stderr.rsplit("MAXRSS_KB ", 1)[1])
     return r.returncode, r.stderr, kb / 2**20
 

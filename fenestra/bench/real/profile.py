@@ -189,7 +189,7 @@ def with_user_data(profile: RealProfile, data: str | Path, fmt: str, options: di
     profile's own datasets, is dropped."""
     if fmt not in ADAPTERS:
         raise ProfileError(f"--format {fmt!r} unknown; choose from {sorted(ADAPTERS)}")
-    p = resolved(Path(data).expanduser(), "--data")
+    p = resolved(Path(data).expanduser(), f"--data {str(data)!r}")
     utf8_name(p.name, "--data folder")
     ds = DatasetSpec(name=p.name, format=fmt, path=str(p), options=tuple(sorted((options or {}).items())))
     return replace(profile, name=f"{profile.name}-{p.name}", datasets=(ds,), kfree=None)  # [kfree] names its own datasets
