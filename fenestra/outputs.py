@@ -367,10 +367,10 @@ def write_file(path: str | Path, write, kind: str | None = FILES_KIND, hosts: It
 
     path = Path(path)
     check_file(path, kind, hosts, inputs, option)
-    owned = read_manifest(path.parent) or {}
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, write)
-    _write_manifest(path.parent, {**owned, path.name: file_sha256(path)}, kind=kind)
+    with listing(path.parent):  # listed before it takes its name: a kill leaves no unlisted file of ours
+        write_atomic(path, write)
+    _write_manifest(path.parent, {**(read_manifest(path.parent) or {}), path.name: file_sha256(path)}, kind=kind)
     return path
 
 
@@ -436,7 +436,7 @@ def listing(out: str | Path) -> Iterator[Path]:
     process) is listed in ``out``'s manifest with its new digest beside its old one (as during a
     swap) before it takes its name: a run killed at any moment leaves no file of its own unlisted
     (a half-written one keeps its temporary name: :func:`remove_dead_temp_files`)."""
-    from fenestra.files import before_rename  # noqa: PLC0415
+    from fenestra.files import TEMP_NAME, before_rename  # noqa: PLC0415
 
     root = Path(out).resolve()
 
@@ -445,7 +445,7 @@ def listing(out: str | Path) -> Iterator[Path]:
         if root not in p.parents:
             return
         rel = p.relative_to(root).as_posix()
-        if rel in NOT_LISTED:
+        if rel in NOT_LISTED or TEMP_NAME.fullmatch(p.name):  # a write into another writer's temporary file
             return
         owned = read_manifest(root) or {}
         _write_manifest(root, {rel: file_sha256(tmp)}, owned)

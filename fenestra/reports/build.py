@@ -420,8 +420,15 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
 
     real_dir: a real-photo run folder (fenestra bench --profile real) whose ranks fill the lead
     figure's photo column of a synthetic run's report; a real run finds its synthetic counterpart
-    itself (simreal.json). ValueError for a real_dir that is not a real run, or given to a real run."""
+    itself (simreal.json). ValueError for a real_dir that is not a real run, or given to a real run.
+    Every file is listed in the run's manifest (fenestra.outputs) before it takes its name."""
     run_dir = Path(run_dir)
+    with outputs.listing(run_dir):
+        return _build_report(run_dir, real_dir)
+
+
+def _build_report(run_dir: Path, real_dir: str | Path | None) -> tuple[Path, Path]:
+    """build_report's body."""
     df = load_verified_results(run_dir)  # refuses a table that does not match the run's manifest
     claim_report(run_dir)
     if df.empty:
