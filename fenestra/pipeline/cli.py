@@ -28,7 +28,7 @@ from typer.core import TyperCommand
 
 from fenestra.conventions import DEFAULTS, LIMITS
 from fenestra.errors import FenestraError, PipelineError
-from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, Known
+from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, KNOWN_RANGE_M as FIELD_RANGE_M, Known
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
 from fenestra.pipeline.photo import WALL_THICKNESS_RANGE_M, PhotoOptions, model_walls, reconstruct_photo
 from fenestra.pipeline.quad import QUAD_SOURCES
@@ -61,8 +61,9 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                                  force=force)
 
 
-# the physical range of each --known-* size, m: a value outside is a typo or a unit mistake
-KNOWN_RANGE_M = {"--known-width": (0.01, 30.0), "--known-height": (0.01, 30.0), "--known-storey": (1.0, 50.0)}  # 1 cm: a curtain-wall pane is 9.3 cm (examples/)
+# the physical range of each --known-* size, m (pipeline.facade_model.KNOWN_RANGE_M, by option)
+KNOWN_RANGE_M = {opt: FIELD_RANGE_M[f] for opt, f in (("--known-width", "window_width_m"),
+                                                       ("--known-height", "window_height_m"), ("--known-storey", "storey_m"))}
 
 
 def known_sizes(width: Optional[float], height: Optional[float], storey: Optional[float]) -> Known:
