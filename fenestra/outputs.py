@@ -135,14 +135,36 @@ def describe_kind(kind: str) -> str:
     return KINDS.get(kind, f"output of kind {kind!r}")
 
 
+ENCLOSING = {"bench": (), "reconstruction": (), "batch": ("reconstruction",)}  # kind -> what may lie inside it
+
+
+def enclosing_output(out: str | Path) -> tuple[Path, str] | None:
+    """The nearest folder above ``out`` that holds a bench run, a reconstruction or a batch
+    (ENCLOSING), with its kind; None when there is none (a folder of loose files does not count)."""
+    for parent in Path(out).resolve().parents:
+        if (parent / MANIFEST).is_file():
+            try:
+                kind = read_kind(parent)
+            except OwnershipError:  # a damaged manifest above: not this command's to judge
+                continue
+            if kind in ENCLOSING:
+                return parent, kind
+    return None
+
+
 def check_kind(out: str | Path, kind: str, option: str = "--out", hosts: Iterable[str] = ()) -> None:
     """OwnershipError (one line, naming both kinds) when ``out`` holds another kind of output than
-    ``kind`` or ``hosts`` (kinds this writer may add files to: a run receives its report). A
-    folder without a recorded kind passes."""
+    ``kind`` or ``hosts`` (kinds this writer may add files to: a run receives its report), or
+    lies inside an output that may not hold it (:func:`enclosing_output`: a reconstruction only
+    inside a batch). A folder without a recorded kind passes."""
     have = read_kind(out) if Path(out).is_dir() else None
     if have is not None and have != kind and have not in tuple(hosts):
         raise OwnershipError(f"{option} {out} holds {describe_kind(have)}, not {describe_kind(kind)}; choose another "
                              "folder (--force never replaces another kind of output)")
+    above = enclosing_output(out)
+    if above is not None and kind not in ENCLOSING[above[1]]:
+        raise OwnershipError(f"{option} {out} lies inside {above[0]}, which holds {describe_kind(above[1])}; "
+                             "choose a folder outside it")
 
 
 def _inside(folder: Path, rel: str) -> bool:

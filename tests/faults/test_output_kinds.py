@@ -70,6 +70,12 @@ KIND_CASES = [
      ["--out rec holds one photo's reconstruction, not a batch"]),
     ("compare's page into a reconstruction", ("run", "rec"), ["compare", "run", "run", "--html", "rec/c.html"],
      ["--html rec holds one photo's reconstruction"]),
+    ("reconstruct into a new folder inside a bench run", ("run",), [*_reconstruct("run/sub")(None)],
+     ["--out run/sub lies inside", "which holds a benchmark run"]),
+    ("bench into a new folder inside a reconstruction", ("rec", "tiny.toml"), [*TINY_BENCH, "--out", "rec/run"],
+     ["--out rec/run lies inside", "which holds one photo's reconstruction"]),
+    ("a batch into a photo's folder of a batch", ("batch", "photos"), [*BATCH, "--out", "batch/p0/more"],
+     ["lies inside", "p0, which holds one photo's reconstruction"]),
 ]
 
 
