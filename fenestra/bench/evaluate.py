@@ -373,11 +373,13 @@ def add_relative_sizes(rows: list[dict], results: dict[int, object], view: Label
 def true_storey_m(view: LabelledView) -> float | None:
     """The storey height (m) of the house a render shows (its IFC storeys:
     fenestra.scenes.storeys), what a user who knows it gives as ``--known-storey``; None for a
-    photo or a house with fewer than two storeys."""
+    photo, a house with fewer than two storeys, or one whose storey height lies outside the range
+    a user may give (pipeline.facade_model.KNOWN_RANGE_M: a split level is no storey to know)."""
     if view.pose is None:
         return None
     from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
     from fenestra.errors import SceneError  # noqa: PLC0415
+    from fenestra.pipeline.facade_model import KNOWN_RANGE_M  # noqa: PLC0415
     from fenestra.scenes.registry import resolve  # noqa: PLC0415
     from fenestra.scenes.storeys import storey_height_m  # noqa: PLC0415
 
@@ -385,7 +387,9 @@ def true_storey_m(view: LabelledView) -> float | None:
         path = resolve(house_path(view.dataset))
     except SceneError:  # a view folder made by hand names no house
         return None
-    return storey_height_m(str(path))
+    storey = storey_height_m(str(path))
+    lo, hi = KNOWN_RANGE_M["storey_m"]
+    return storey if storey is not None and lo <= storey <= hi else None
 
 
 def metric_errors(res, w: LabelledWindow, view: LabelledView, suffix: str) -> dict:
