@@ -421,3 +421,23 @@ def test_weights_list_the_real_photos_they_train_on(tmp_path):
             for k in (1, 2, 3, 4, 6)]
     assert real_photo_records(cfg) == want
     assert real_photo_records(load_config("fenestra/training/configs/default.toml", real_fraction=0.0)) is None
+
+
+def test_cost_side_by_side_reports_medians_ratios_and_the_gate():
+    """tools/cost_side_by_side.markdown: each detector's median over photos, its ratio to the first
+    detector's, and the gated detector's verdict against the cost target."""
+    tool = _tool("cost_side_by_side")
+    times = {"default": [100.0, 300.0, 200.0], "maskrcnn": [500.0, 100.0, 400.0, 450.0]}
+    text = tool.markdown(times, 3, 2, 3, gate="maskrcnn")
+    assert "`default` **200 ms**" in text and "`maskrcnn` **425 ms** (x2.12)" in text
+    assert f"Target <= {tool.TARGET_DETECT_MS:.0f} ms: **missed**" in text and "Slowest photo of `maskrcnn`: 500 ms" in text
+    assert "Target" not in tool.markdown(times, 3, 2, 3, gate=None)
+
+
+def test_paper_side_by_side_reads_ap_from_the_evaluation_json(tmp_path):
+    tool = _tool("paper_side_by_side")
+    doc = {"n_images": 89, "n_gt": 700, "bbox": {"AP": 0.4449, "AP50": 0.78849, "AP75": float("nan")},
+           "paper_table2": {"bbox": {"AP": 61.9, "AP50": 92.8, "AP75": 81.1}}}
+    (tmp_path / "e.json").write_text(__import__("json").dumps(doc))
+    assert tool.photo_row("maskrcnn", tmp_path / "e.json") == "| `maskrcnn` | 89 | 700 | **44.5** | **78.8** | - |"
+    assert tool.paper_row(tmp_path / "e.json").endswith("| 61.9 | 92.8 | 81.1 |")
