@@ -53,6 +53,7 @@ from fenestra import coco, masks
 from fenestra.conventions import camera_depths
 from fenestra.tolerances import TOL
 from fenestra.methods import Method
+from fenestra.pipeline.types import Status
 
 NAN = float("nan")
 
@@ -508,7 +509,7 @@ def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tup
     rows, by_gt = [], {}
     for g, (w, b) in enumerate(zip(view.windows, base)):
         if g not in det_for_gt:
-            rows.append(_method_row(b, method, tail, status="missed", reason="missed", aspect_case=None))
+            rows.append(_method_row(b, method, tail, status=Status.MISSED.value, reason="missed", aspect_case=None))
             continue
         d, iou = det_for_gt[g]
         res = by_gt[g] = rec.whole(d)  # a partial window: its whole-window failure (its export: bim_columns)
@@ -563,7 +564,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         if detector_entry(det_name).needs_instances and not can_oracle:
             why = f"not run: {det_name} needs ground-truth masks, the labels are boxes"
             out.rows += [_method_row({**b, "evaluable": False, "eval_reason": "no_gt_masks"}, m, cols,
-                                     status="missed", reason=why, aspect_case=None)
+                                     status=Status.MISSED.value, reason=why, aspect_case=None)
                          for m in det_methods for b in base]
             continue
         cands = session.candidates(det_name)

@@ -49,7 +49,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fenestra.conventions import heading_difference_deg, project, rotation_error_deg, vote_axis
-from fenestra.pipeline.types import Failure, Partial, Uncertainty, WindowResult
+from fenestra.pipeline.types import Failure, Partial, Uncertainty, Unavailable, WindowResult
 
 DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
 MERGE_DEG = 5.0  # walls whose rotations differ by less are one façade plane
@@ -415,41 +415,41 @@ def visible_extent(quad: np.ndarray, K: np.ndarray, R: np.ndarray, distance_m: f
 
 
 def partial_wall(quad: np.ndarray, cut: tuple[str, ...], image_size: tuple[int, int], results: list[WindowResult],
-                 walls: list[WallModel], K: np.ndarray) -> WallModel | str:
-    """The wall a visible quad (4, 2) px cut by the image edges ``cut`` belongs on, or a one-line
-    reason why none: of the walls whose vanishing points its own sides (:func:`own_sides`) point at
+                 walls: list[WallModel], K: np.ndarray) -> WallModel | Unavailable:
+    """The wall a visible quad (4, 2) px cut by the image edges ``cut`` belongs on, or why none
+    (Unavailable, one line): of the walls whose vanishing points its own sides (:func:`own_sides`) point at
     within PARTIAL_VP_DEG (:func:`side_misfit_deg`; a wall's axes: its first member's R), the
     nearest in the image (to the convex hull of its members' snapped quads)."""
     from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415
 
     if not walls:
-        return "no wall of whole windows in the photo to place it on"
+        return Unavailable("no wall of whole windows in the photo to place it on")
     sides = own_sides(quad, cut, image_size)
     if not sides:
-        return "none of its sides is its own (all along the photo's edges)"
+        return Unavailable("none of its sides is its own (all along the photo's edges)")
     misfit = [side_misfit_deg(quad, sides, results[w.members[0]].R, K) for w in walls]
     fits = [w for w, m in zip(walls, misfit) if m <= PARTIAL_VP_DEG]
     if not fits:
         best = int(np.argmin(misfit))
-        return (f"its sides point at no wall's vanishing points (nearest: wall {walls[best].id}, "
-                f"{misfit[best]:.1f} deg beyond the noise > {PARTIAL_VP_DEG:g} deg)")
+        return Unavailable(f"its sides point at no wall's vanishing points (nearest: wall {walls[best].id}, "
+                           f"{misfit[best]:.1f} deg beyond the noise > {PARTIAL_VP_DEG:g} deg)")
     centre = np.asarray(quad, dtype=np.float64).reshape(4, 2).mean(axis=0)[None]
     near = [float(hull_distance(centre, np.array([results[k].quad_snapped for k in w.members]))[0]) for w in fits]
     return fits[int(np.argmax(near))]
 
 
-def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall: WallModel | str,
+def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall: WallModel | Unavailable,
                   R_wall: np.ndarray | None, K: np.ndarray) -> WindowResult:
     """Window ``r`` (its whole-window failure in ``r.failure``) as a partial window with visible
     quad (4, 2) px and ``cut`` sides: on ``wall`` (with axes R_wall (3, 3)), its visible extent
     (:func:`visible_extent`) as its pose and size, its reprojected quad that rectangle's; or, for a
-    reason (a str) instead of a wall or a ray that misses the wall's plane, failed at stage
+    reason (an Unavailable) instead of a wall or a ray that misses the wall's plane, failed at stage
     ``wall`` with that reason."""
     q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
     part = Partial(tuple(cut), r.failure)
-    extent = None if isinstance(wall, str) else visible_extent(q, K, R_wall, wall.distance_m)
+    extent = None if isinstance(wall, Unavailable) else visible_extent(q, K, R_wall, wall.distance_m)
     if extent is None:
-        why = wall if isinstance(wall, str) else f"a corner's ray misses wall {wall.id}'s plane"
+        why = wall.reason if isinstance(wall, Unavailable) else f"a corner's ray misses wall {wall.id}'s plane"
         return replace(r, quad_mask=q, quad_snapped=q, partial=part,
                        failure=Failure("wall", f"partial window (cut by the photo's {', '.join(cut)} edge): {why}"))
     t, w, h = extent
@@ -496,7 +496,7 @@ def place_partials(results: list[WindowResult], model: FacadeModel, visible: dic
                              failure=Failure("quad", f"{r.failure.reason}; its visible part: {qr.failure}"))
             continue
         wall = partial_wall(qr.quad, qr.cut, image_size, out, walls, K)
-        R_wall = None if isinstance(wall, str) else out[wall.members[0]].R
+        R_wall = None if isinstance(wall, Unavailable) else out[wall.members[0]].R
         out[k] = place_partial(r, qr.quad, qr.cut, wall, R_wall, K)
         if out[k].failure is None:
             placed.setdefault(wall.id, []).append(k)

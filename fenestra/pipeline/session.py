@@ -50,7 +50,7 @@ from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fi
                                            to_gray, visible_quads)
 from fenestra.pipeline.row_lines import regularize_rows
 from fenestra.pipeline.segments import SegmentCache, to_uint8
-from fenestra.pipeline.types import Detection, Failure, WindowResult
+from fenestra.pipeline.types import Detection, Failure, Unavailable, WindowResult
 
 SCORE_MIN = 0.5  # detections a user gets (the detectors' default threshold): reconstructed and exported
 CANDIDATE_SCORE_MIN = 0.05  # detections kept for detection AP (the bench), a superset of the above
@@ -258,7 +258,7 @@ class PhotoSession:
         if self.camera is not None and not method.withhold_K:
             exif = None if self.photo is None else exif_focal(self.photo, self.size)
             K = np.asarray(self.camera.K, dtype=np.float64)
-            r = choose_focal([user_focal(K, self.camera.how), exif if exif is not None else "no EXIF focal length"],
+            r = choose_focal([user_focal(K, self.camera.how), exif if exif is not None else Unavailable("no EXIF focal length")],
                              ["K", "exif"], self.size, principal_point=(float(K[0, 2]), float(K[1, 2])))
             return replace(r, K=K)  # the user's K as given (fy, skew kept)
         k = (method.detector, method.snapper, method.pose, method.quad_source)

@@ -28,13 +28,28 @@ class AspectCase(str, Enum):
 
 
 class Status(str, Enum):
-    """A reconstructed window's outcome: ``OK`` (posed), ``FAILED`` (a stage failed: ``failure``)."""
+    """A window's outcome, every state a results row holds: ``OK`` (posed), ``FAILED`` (a stage
+    failed: ``failure``), ``MISSED`` (a labelled window no detection matched, or a method that
+    cannot run on the view: the bench's rows). A str: it compares equal to, and is written as, its value."""
 
     OK = "ok"
     FAILED = "failed"
+    MISSED = "missed"
 
     def __str__(self) -> str:
         return self.value
+
+
+@dataclass(frozen=True)
+class Unavailable:
+    """A value a step could not give, and why: ``reason``, one line in the user's words (e.g. an
+    EXIF focal length outside the plausible range). Returned where a value would be, so that the
+    caller tests ``isinstance(x, Unavailable)``; ``str(u)`` is the reason."""
+
+    reason: str
+
+    def __str__(self) -> str:
+        return self.reason
 
 
 STAGES = ("quad", "snap", "aspect", "pose", "wall", "geometry")  # where a window can fail

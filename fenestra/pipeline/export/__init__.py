@@ -28,7 +28,7 @@ from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
 from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
 from fenestra.pipeline.export.overlay import draw_overlay
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Unavailable, WindowResult
 
 DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
 # texture.png (padding included), inpainted.png and substituted.png are at most this many px along
@@ -49,14 +49,14 @@ def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAUL
     exclude = exclude or {}
     for i, r in enumerate(results):
         index = int(getattr(r, "index", i))
-        pw = exclude[index] if index in exclude else place(r)
-        if not isinstance(pw, str):
+        pw = Unavailable(exclude[index]) if index in exclude else place(r)
+        if not isinstance(pw, Unavailable):
             try:
                 window_mesh(style, pw.width_m, pw.height_m)
             except ValueError as e:
-                pw = str(e)
-        if isinstance(pw, str):
-            skipped.append({"index": int(getattr(r, "index", i)), "reason": pw})
+                pw = Unavailable(str(e))
+        if isinstance(pw, Unavailable):
+            skipped.append({"index": int(getattr(r, "index", i)), "reason": pw.reason})
         else:
             placed.append(pw)
     return placed, skipped
