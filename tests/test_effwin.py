@@ -236,7 +236,7 @@ def test_corner_quads_fall_back_to_the_mask_fit_when_they_disagree_with_the_mask
     dets = [Detection(mask, box, 0.9, corners=c) for c in (good, bad, far, None)]
     fits = fit_quads(dets, QuadParams(source="corners"), mask.shape)
     np.testing.assert_allclose(fits[0].result.quad, good)  # the head's corners, as predicted
-    mask_fit = fit_quads(dets[:1], QuadParams(), mask.shape)[0].result.quad
+    mask_fit = fit_quads(dets[:1], QuadParams(source="mask"), mask.shape)[0].result.quad
     np.testing.assert_allclose(mask_fit, [[19.5, 9.5], [59.5, 9.5], [59.5, 39.5], [19.5, 39.5]], atol=0.05)
     assert corners_agree_with_mask(bad, mask)  # within 2x the area: kept (a plausible quad)
     for f in fits[2:]:  # far away, or no corners: the mask fit

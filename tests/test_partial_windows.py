@@ -78,7 +78,7 @@ def run(d: Path, windows, R, t, drawn=None, masked=None, export: bool = False) -
 
     photo, masks, K_json = write_photo(d, windows, R, t, drawn, masked)
     return reconstruct_photo(photo, d / "out", K_json=K_json, masks=masks,
-                             options=PhotoOptions(known=Known(window_height_m=WIN_H), export=export))
+                             options=PhotoOptions(known=Known(window_height_m=WIN_H), export=export)).to_json()
 
 
 def by_id(doc: dict) -> dict[int, dict]:
@@ -250,7 +250,7 @@ def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():
     assert math.isnan(cut["corner_err_px_snap"]) and math.isnan(cut["width_err_m"])
     assert cut["exported"] == 1.0 and cut["scale_source"] == "assumed"
     d = next(i for i, det in enumerate(rec.detections) if det.instance_id == 3)
-    assert rec.windows[d].partial.cut == ("right",) and rec.whole(d).failure.stage == "quad"
+    assert rec.windows[d].partial.cut == ("right",) and rec.windows[d].measured.failure.stage == "quad"
     assert all(rows[w]["evaluable"] and rows[w]["status"] == "ok" for w in ("W1", "W2"))
     assert out.export_counts[method.name] == {"n_exported": 3, "n_matched": 3, "n_on_ignore": 0, "n_on_nothing": 0}
 

@@ -316,7 +316,7 @@ def test_mask_plus_lines_reaches_the_quad_fit_through_a_detection():
     crop = full[y0:ys.max() + 1, x0:xs.max() + 1]
     det = Detection(mask=crop, box=np.array([x0, y0, xs.max() + 1, ys.max() + 1]), score=0.9, corners=q,
                     origin=(x0, y0))
-    assert fit_quads([det], QuadParams(), SHAPE)[0].result.quad is None
+    assert fit_quads([det], QuadParams(source="mask"), SHAPE)[0].result.quad is None
     fit = fit_quads([det], LINES, SHAPE)[0].result
     assert corner_err(fit, q) < TOL.notched_quad_px
 

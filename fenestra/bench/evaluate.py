@@ -17,7 +17,7 @@ decision (``exported``, ``not_exported``; per view and method, ViewOutcome.expor
 exported detections matched to a labelled window, on an ignore region such as a glazed door, or
 on nothing, the export precision's counts). A window cut by the image border is exported as its
 visible part (a partial window, issue 35) but measured as the whole window it is not: its row keeps
-the quad stage's ``touches_border`` failure (pipeline.session.Reconstruction.whole), its labelled
+the quad stage's ``touches_border`` failure (pipeline.session.Window.measured), its labelled
 window is not evaluable (corners out of frame, or ``partial``), and its export counts like any
 other (matched, on an ignore region, or on nothing). The session shares what methods have in common (each
 detector runs once per view, the quads are fitted once per detector, snapping and per-window
@@ -411,15 +411,15 @@ def bim_columns(rec, rec_storey, d: int, w: LabelledWindow, view: LabelledView) 
     used), how its wall got its scale (``scale_source``), whether it is exported
     (``exported``: 1.0 or 0.0, NaN for a missed window, like the calibration columns) or why not
     (``not_exported``), and the metric errors (:func:`metric_errors`) of the window as exported
-    (rec.as_exported: its row's regularized sill and head, what a BIM user gets) with nothing
+    (pipeline.session.Window.shipped: its row's regularized sill and head, what a BIM user gets) with nothing
     known (the assumed scale) and, suffix ``_storey``, with the true storey height given
     (``rec_storey``; NaN without one)."""
-    res = rec.as_exported(d)  # the shipped window; a partial one's size is not the window's: NaN
+    res = rec.windows[d].shipped  # the shipped window; a partial one's size is not the window's: NaN
     out = {"K_source": rec.resolved.source, "K_focal_px": float(rec.K[0, 0]),
            "scale_source": rec.scale_source(d), "exported": float(d not in rec.not_exported),
            "not_exported": rec.not_exported.get(d, ""), **metric_errors(res, w, view, "")}
     if rec_storey is not None:
-        out.update(metric_errors(rec_storey.as_exported(d), w, view, "_storey"),
+        out.update(metric_errors(rec_storey.windows[d].shipped, w, view, "_storey"),
                    scale_source_storey=rec_storey.scale_source(d))
     if rec.resolved.source != "K" and view.K is not None:  # the focal chain's answer against the truth
         f_true = float(np.sqrt(view.K[0, 0] * view.K[1, 1]))
@@ -496,7 +496,7 @@ def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tup
                  head_errors: dict | None = None) -> list[dict]:
     """One method's rows, one per labelled window in order: missed, or its result's errors.
     A detection cut by the image border is measured as the whole window it failed to be (status
-    ``failed``, ``touches_border``: rec.whole); that its visible part is exported shows in the BIM
+    ``failed``, ``touches_border``: Window.measured); that its visible part is exported shows in the BIM
     columns (``exported``, ``scale_source``) and the export counts, its sizes stay NaN.
 
     rec / rec_storey: the method's pipeline.session.Reconstruction (nothing known; the true storey
@@ -512,7 +512,7 @@ def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tup
             rows.append(_method_row(b, method, tail, status=Status.MISSED.value, reason="missed", aspect_case=None))
             continue
         d, iou = det_for_gt[g]
-        res = by_gt[g] = rec.whole(d)  # a partial window: its whole-window failure (its export: bim_columns)
+        res = by_gt[g] = rec.windows[d].measured  # a partial window: its whole-window failure (its export: bim_columns)
         if view.pose is not None and g not in gt_poses:
             gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
         errs = window_errors(res, w, gt_poses.get(g), view.K, quad_iou)

@@ -54,7 +54,7 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                            known=known_sizes(width, height, storey), substitute=substitute, export=export,
                            export_all=export_all, max_pixels=max_pixels, wall_thickness_m=wall_thickness)
     return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
-                             force=force)
+                             force=force).to_json()
 
 
 # the physical range of each --known-* size, m: a value outside is a typo or a unit mistake

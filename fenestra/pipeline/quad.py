@@ -47,6 +47,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from fenestra.conventions import DEFAULTS
+
 
 QUAD_SOURCES = ("mask", "corners", "mask+corners", "mask+lines", "network")
 
@@ -104,7 +106,8 @@ class QuadParams:
         outline (step 7); or ``"network"``: the detection's own corners as they are, unchecked against
         its mask (a detector with a quad head, ``quadnet``, whose mask is that quad: one instance per
         window centre), a quad reaching past the image failing ``touches_border`` (the session then
-        fits its visible part), the mask fit for a detection without corners. QUAD_SOURCES lists the choices.
+        fits its visible part), the mask fit for a detection without corners. QUAD_SOURCES lists the choices;
+        the default is the CLI's, fenestra.conventions.DEFAULTS.quad_source.
     """
 
     window_pts: int = 100
@@ -124,7 +127,7 @@ class QuadParams:
     speck_px: int = 4
     speck_rel: float = 0.05
     allow_border: bool = False
-    source: str = "mask"
+    source: str = DEFAULTS.quad_source
     subset_lines: int = 7
     subset_min_fill: float = 0.85
     subset_max_outside: float = 0.08

@@ -56,7 +56,15 @@ class ReconstructConfig:
     width_m: float | None = None
     fallback_focal_px: float | None = None
     snapper_params: object | None = None
-    quad: QuadParams = field(default_factory=lambda: QuadParams(source=DEFAULTS.quad_source))
+    quad: QuadParams = field(default_factory=QuadParams)
+
+    @classmethod
+    def of(cls, method, height_m: float = 1.0, **params) -> "ReconstructConfig":
+        """The config that runs a fenestra.methods.Method: its snapper, pose and quad source, the
+        scale parameter ``height_m`` and any other field in ``params`` (the one place a method
+        becomes a config: the session's runs and windows.json's ``config``)."""
+        return cls(snapper=method.snapper, pose=method.pose, height_m=height_m,
+                   quad=QuadParams(source=method.quad_source), **params)
 
     def __post_init__(self) -> None:
         SNAPPERS.lookup(self.snapper)  # UnknownName (a ValueError) naming the choices

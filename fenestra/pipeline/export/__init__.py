@@ -62,6 +62,15 @@ def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAUL
     return placed, skipped
 
 
+def export_decision(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE,
+                    exclude: dict[int, str] | None = None) -> dict[int, str]:
+    """{window index: reason} of every window that stays out of the BIM model: the windows named
+    in ``exclude`` (e.g. implausible ones), upstream failures, unusable poses and sizes no mesh of
+    ``style`` takes (:func:`split_results`). The one export decision (pipeline.session runs it
+    once per method); the writers are given it as their ``exclude``."""
+    return {s["index"]: s["reason"] for s in split_results(results, style, exclude)[1]}
+
+
 def write_overlay(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
                   exclude: dict[int, str] | None = None, boxes: dict[int, tuple] | None = None,
                   header: list[str] | None = None) -> Path:
@@ -207,4 +216,4 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     return paths
 
 
-__all__ = ["write_outputs", "write_overlay", "split_results", "export_gravity", "DEFAULT_STYLE", "EXPORT_MAX_PX"]
+__all__ = ["write_outputs", "write_overlay", "split_results", "export_decision", "export_gravity", "DEFAULT_STYLE", "EXPORT_MAX_PX"]
