@@ -260,11 +260,11 @@ def test_the_visible_part_of_a_cut_mask_is_fitted_with_the_image_edge_as_a_side(
     touches_border by default; with allow_border, the quad of the visible part, its left and top
     sides the image's edges (x, y = -0.5), the others the rectangle's (rasterised by pixel centres
     here: its edges within half a pixel)."""
-    from fenestra.pipeline.quad import QuadParams, failure_code, mask_to_quad
+    from fenestra.pipeline.quad import QuadParams, mask_to_quad
 
     rect = np.array([[-30.0, -20.3], [60.3, -20.3], [60.3, 80.7], [-30.0, 80.7]])  # TL TR BR BL, px
     mask = pixel_centre_mask(rect, (120, 160))
-    assert failure_code(mask_to_quad(mask).failure) == "touches_border"
+    assert mask_to_quad(mask).failure.code == "touches_border"
     qr = mask_to_quad(mask, QuadParams(allow_border=True))
     assert qr.failure is None and qr.cut == ("top", "left")
     visible = np.array([[-0.5, -0.5], [60.3, -0.5], [60.3, 80.7], [-0.5, 80.7]])

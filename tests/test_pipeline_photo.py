@@ -68,7 +68,7 @@ def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
                      uncertainty=Uncertainty(0.9, 0.5, 0.012, 0.68, 0.72, 1.0, 0.02, False))
     assert aspect_interval(w, {}) == pytest.approx([0.68, 0.72])
     assert aspect_interval(w, {3: (0.61, 0.71)}) == pytest.approx([0.61, 0.72])  # f at the interval's ends
-    assert aspect_interval(replace(w, failure=Failure("quad", "x"), aspect_ratio=None), {}) is None
+    assert aspect_interval(replace(w, failure=Failure("quad", None, "x"), aspect_ratio=None), {}) is None
 
 
 def test_focal_envelope_follows_the_closed_form_aspect_at_the_focal_interval_ends():

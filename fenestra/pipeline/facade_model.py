@@ -451,7 +451,7 @@ def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall:
     if extent is None:
         why = wall.reason if isinstance(wall, Unavailable) else f"a corner's ray misses wall {wall.id}'s plane"
         return replace(r, quad_mask=q, quad_snapped=q, partial=part,
-                       failure=Failure("wall", f"partial window (cut by the photo's {', '.join(cut)} edge): {why}"))
+                       failure=Failure("wall", None, f"partial window (cut by the photo's {', '.join(cut)} edge): {why}"))
     t, w, h = extent
     R = np.asarray(R_wall, dtype=np.float64)
     rect = np.array([[0.0, h, 0.0], [w, h, 0.0], [w, 0.0, 0.0], [0.0, 0.0, 0.0]])  # TL TR BR BL, window frame
@@ -493,7 +493,8 @@ def place_partials(results: list[WindowResult], model: FacadeModel, visible: dic
             continue
         if qr.quad is None:
             out[k] = replace(r, partial=Partial(tuple(qr.cut), r.failure),
-                             failure=Failure("quad", f"{r.failure.reason}; its visible part: {qr.failure}"))
+                             failure=Failure("quad", r.failure.code,
+                                             f"{r.failure.detail}; its visible part: {qr.failure.reason}"))
             continue
         wall = partial_wall(qr.quad, qr.cut, image_size, out, walls, K)
         R_wall = None if isinstance(wall, Unavailable) else out[wall.members[0]].R

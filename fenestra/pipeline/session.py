@@ -331,7 +331,7 @@ class PhotoSession:
                 envelope = focal_envelope(results, resolved.K, resolved.chosen.interval_px)
                 failure = None
             except PipelineError as e:  # recorded: the detections are still written, each with this failure
-                failure = Failure("geometry", str(e))
+                failure = Failure("geometry", None, str(e))
                 results, envelope = failed_results(dets, cfg, failure), {}
             self._geometry[k] = Geometry(tuple(results), resolved, envelope, failure)
         return self._geometry[k]

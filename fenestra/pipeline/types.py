@@ -57,15 +57,23 @@ STAGES = ("quad", "snap", "aspect", "pose", "wall", "geometry")  # where a windo
 
 @dataclass(frozen=True)
 class Failure:
-    """Why a window has no (full) result: the stage (one of :data:`STAGES`) and the reason.
-    ``str(f)`` is ``"<stage>: <reason>"``, the form windows.json and the results tables hold."""
+    """Why a window has no (full) result: the stage (one of :data:`STAGES`), a code where the stage
+    names its failures (the quad stage's ``touches_border``, ``not_quadrilateral``, ...: pipeline.quad;
+    else None) and the detail (one line, the numbers). ``reason`` is ``"<code>: <detail>"`` (the
+    detail alone without a code); ``str(f)`` is ``"<stage>: <reason>"``, the form windows.json and
+    the results tables hold. Callers test ``code``, never the text."""
 
     stage: str
-    reason: str
+    code: str | None
+    detail: str
 
     def __post_init__(self) -> None:
         if self.stage not in STAGES:
             raise ValueError(f"Failure.stage must be one of {STAGES}, got {self.stage!r}")
+
+    @property
+    def reason(self) -> str:
+        return self.detail if self.code is None else f"{self.code}: {self.detail}"
 
     def __str__(self) -> str:
         return f"{self.stage}: {self.reason}"

@@ -329,7 +329,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     idx = [k for k, r in enumerate(results) if r.quad_snapped is not None]
     out = list(results)
     for k in [k for k in idx if not usable_quad(results[k].quad_snapped)]:
-        out[k] = replace(out[k], failure=Failure("wall", "degenerate quad (a side under 1 px or non-finite)"),
+        out[k] = replace(out[k], failure=Failure("wall", None, "degenerate quad (a side under 1 px or non-finite)"),
                          R=None, t=None, quad_reprojected=None, focal_estimate_px=None)
         idx.remove(k)
     if not idx:
@@ -343,7 +343,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             fits = [fit_walls_focal(quads, image_shape, height_m, params, segments, sigmas, memo)]
         except FacadeError as e:
             for k in idx:
-                out[k] = replace(out[k], failure=Failure("wall", str(e)), R=None, t=None, quad_reprojected=None,
+                out[k] = replace(out[k], failure=Failure("wall", None, str(e)), R=None, t=None, quad_reprojected=None,
                                  focal_estimate_px=None)
             return out
         f_est = fits[0][2].focal_px
@@ -353,7 +353,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
         for j, (m, wid) in enumerate(zip(members, wall_ids)):
             k = idx[m]
             if fit is None:
-                out[k] = replace(out[k], failure=Failure("wall", "joint fit failed"), R=None, t=None,
+                out[k] = replace(out[k], failure=Failure("wall", None, "joint fit failed"), R=None, t=None,
                                  quad_reprojected=None, focal_estimate_px=None, wall=wid)
                 continue
             unc = window_uncertainty(fit, j)
