@@ -308,13 +308,14 @@ class QuadIoUMemo:
 
 
 def window_errors(res, w: LabelledWindow, gt_pose: tuple[np.ndarray, np.ndarray] | None,
-                  K: np.ndarray | None, quad_iou=metrics.quad_iou) -> dict:
+                  K: np.ndarray | None, quad_iou=metrics.quad_iou, wall: int | None = None) -> dict:
     """Every error of one WindowResult against what the window's truth knows (NaN elsewhere).
 
     gt_pose: the window's true (R, t) (metrics.gt_window_pose; renders), or None; K: the view's
     true K, or None (unknown); quad_iou: metrics.quad_iou or a :class:`QuadIoUMemo` of the view.
     Keys: ERROR_COLUMNS (match_iou and det_score NaN: the caller's), PHOTO_ERRORS, and, with
-    gt_pose and K, bench.uncertainty.COLUMNS.
+    gt_pose and K, bench.uncertainty.COLUMNS (``wall``: the façade model's wall the window is on, for
+    ``wall_id``).
     """
     out = {k: NAN for k in (*ERROR_COLUMNS, *PHOTO_ERRORS)}
     stages = {"mask": res.quad_mask, "snap": res.quad_snapped, "reproj": res.quad_reprojected}
@@ -339,7 +340,7 @@ def window_errors(res, w: LabelledWindow, gt_pose: tuple[np.ndarray, np.ndarray]
     if _finite(res.quad_snapped) and _finite(res.quad_reprojected) and K is not None:
         out["reproj_consistency_px"] = metrics.reprojection_consistency_px(res.quad_snapped, res.quad_reprojected)
     if gt_pose is not None and K is not None:
-        out.update(uncertainty.columns(res, w.aspect, gt_pose, K, out))
+        out.update(uncertainty.columns(res, w.aspect, gt_pose, K, out, wall))
     return out
 
 
@@ -515,7 +516,8 @@ def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tup
         res = by_gt[g] = rec.windows[d].measured  # a partial window: its whole-window failure (its export: bim_columns)
         if view.pose is not None and g not in gt_poses:
             gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
-        errs = window_errors(res, w, gt_poses.get(g), view.K, quad_iou)
+        win = rec.windows[d]  # its wall as measured: none for a partial one (placed on one only as its visible part)
+        errs = window_errors(res, w, gt_poses.get(g), view.K, quad_iou, None if win.placed is not None else win.wall)
         if (d, g) not in head_errors:
             head_errors[(d, g)] = head_error(dets[d], w)
         errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_errors[(d, g)],

@@ -173,7 +173,7 @@ def merge_groups(results: list[WindowResult], tol_deg: float = MERGE_DEG,
     starts: dict = {}
     for k, r in enumerate(results):
         if _posed(r):
-            starts.setdefault(("wall", r.wall) if r.wall is not None else ("window", k), []).append(k)
+            starts.setdefault(("wall", r.group) if r.group is not None else ("window", k), []).append(k)
     ordered = sorted(starts.items(), key=lambda kv: -len(kv[1]))
     up = facade_up([m for _, m in ordered], results)
     groups: list[tuple[list[int], list, np.ndarray]] = []
@@ -316,8 +316,8 @@ def plausibility(results: list[WindowResult], walls: list[WallModel], known: Kno
 def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[list[WindowResult], FacadeModel]:
     """One plane and one scale per wall, then the plausibility flags (see the module docstring).
 
-    Returns the results moved onto their walls' planes and scaled (``wall``: the merged wall id;
-    flagged windows' ``uncertainty`` widened by FLAG_WIDEN) and the FacadeModel. Failed windows pass
+    Returns the results moved onto their walls' planes and scaled (the wall each is on:
+    ``FacadeModel.wall_of``; flagged windows' ``uncertainty`` widened by FLAG_WIDEN) and the FacadeModel. Failed windows pass
     unchanged.
     """
     out = list(results)
@@ -328,7 +328,7 @@ def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[l
         offsets = np.abs([float(n @ _centre(results[k])) for k in members])  # facing: n . centre < 0
         dist, source, assumed = wall_scale(results, members, np.maximum(offsets, 1e-9), R[:, 1], known)
         for k, off in zip(members, offsets):
-            out[k] = replace(_rescaled(results[k], dist / max(off, 1e-9)), wall=wid)
+            out[k] = _rescaled(results[k], dist / max(off, 1e-9))
         walls.append(WallModel(wid, members, n, dist, source, assumed, merged))
     flags = plausibility(out, walls, known)
     for wall in walls:
@@ -456,7 +456,7 @@ def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall:
     R = np.asarray(R_wall, dtype=np.float64)
     rect = np.array([[0.0, h, 0.0], [w, h, 0.0], [w, 0.0, 0.0], [0.0, 0.0, 0.0]])  # TL TR BR BL, window frame
     return replace(r, quad_mask=q, quad_snapped=q, aspect_ratio=w / h, aspect_case=None, focal_estimate_px=None,
-                   R=R, t=t, height_m=h, quad_reprojected=project(K, R, t, rect), failure=None, wall=wall.id,
+                   R=R, t=t, height_m=h, quad_reprojected=project(K, R, t, rect), failure=None,
                    uncertainty=None, partial=part)
 
 

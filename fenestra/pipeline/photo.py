@@ -308,7 +308,8 @@ def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], e
     from fenestra.pipeline.reconstruct import windows_to_json  # noqa: PLC0415
 
     model = rec.model
-    doc = windows_to_json(rec.results(), K=rec.K, image_size=image_size, config=ReconstructConfig.of(rec.method))
+    doc = windows_to_json(rec.results(), K=rec.K, image_size=image_size, config=ReconstructConfig.of(rec.method),
+                          walls={w.index: w.wall for w in rec.windows})
     assumed = [w.id for w in model.walls if w.assumed]
     windows = []
     for win, w in zip(rec.windows, doc["windows"]):

@@ -338,8 +338,9 @@ def _list(a: np.ndarray | None):
     return None if a is None else np.asarray(a, dtype=np.float64).tolist()
 
 
-def window_to_dict(r: WindowResult) -> dict:
-    """One windows.json entry (DESIGN.md: Pipeline output)."""
+def window_to_dict(r: WindowResult, wall: int | None = None) -> dict:
+    """One windows.json entry (DESIGN.md: Pipeline output); wall: the façade model's wall the
+    window is on (pipeline.session.Window.wall), None without a façade model."""
     return {
         "index": r.index, "instance_id": r.instance_id, "score": r.score,
         "quad_mask": _list(r.quad_mask), "quad_snapped": _list(r.quad_snapped),
@@ -350,17 +351,19 @@ def window_to_dict(r: WindowResult) -> dict:
         "width_m": None if r.aspect_ratio is None or r.R is None else r.aspect_ratio * r.height_m,
         "quad_reprojected": _list(r.quad_reprojected),
         "failure": None if r.failure is None else str(r.failure), "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
-        "wall": r.wall, "uncertainty": None if r.uncertainty is None else r.uncertainty.to_json(),
+        "wall": wall, "uncertainty": None if r.uncertainty is None else r.uncertainty.to_json(),
         "partial": r.partial is not None, "cut": [] if r.partial is None else list(r.partial.cut),
     }
 
 
 def windows_to_json(results: list[WindowResult], K: np.ndarray | None = None,
-                    image_size: tuple[int, int] | None = None, config: ReconstructConfig | None = None) -> dict:
-    """windows.json as a dict: ``{"K", "image_size": [W, H], "config", "windows": [...]}``."""
+                    image_size: tuple[int, int] | None = None, config: ReconstructConfig | None = None,
+                    walls: dict[int, int | None] | None = None) -> dict:
+    """windows.json as a dict: ``{"K", "image_size": [W, H], "config", "windows": [...]}``;
+    walls: {window index: the façade model's wall it is on} (None: no façade model)."""
     cfg = None
     if config is not None:
         cfg = {"snapper": config.snapper, "pose": config.pose, "height_m": config.height_m,
                "width_m": config.width_m, "fallback_focal_px": config.fallback_focal_px}
     return {"K": _list(K), "image_size": None if image_size is None else list(image_size),
-            "config": cfg, "windows": [window_to_dict(r) for r in results]}
+            "config": cfg, "windows": [window_to_dict(r, (walls or {}).get(r.index)) for r in results]}

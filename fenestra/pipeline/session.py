@@ -99,7 +99,10 @@ class Window:
     window's visible part placed on a wall, or its failure (pipeline.facade_model.place_partials),
     None for a whole window; row: the pipeline.row_lines.RowFit of the row it voted in, or None;
     regularized: on its row's consensus sill and head (pipeline.row_lines.regularize_rows), None
-    when it keeps its own; export: its :class:`ExportDecision`.
+    when it keeps its own; export: its :class:`ExportDecision`; wall: the id of the façade model's
+    wall it is on (pipeline.facade_model.FacadeModel.wall_of: a member, or a placed partial window),
+    None for a window on none (failed). ``fit.group`` is the joint fit's own grouping, before walls
+    that face one plane merge.
     """
 
     index: int
@@ -109,6 +112,7 @@ class Window:
     row: object | None
     regularized: WindowResult | None
     export: ExportDecision
+    wall: int | None = None
 
     @property
     def result(self) -> WindowResult:
@@ -353,13 +357,18 @@ class PhotoSession:
         out = export_decision(final, style or DEFAULT_STYLE, kept_out(model, export_all))
         windows = tuple(Window(k, g.results[k], measured[k], placed[k] if placed[k].partial is not None else None,
                                rows.get(k), final[k] if k in rows and rows[k].regularized else None,
-                               ExportDecision(k not in out, out.get(k)))
+                               ExportDecision(k not in out, out.get(k)), _wall_id(model, k))
                         for k in range(len(final)))
         return Reconstruction(method, tuple(self.detections(method.detector)), windows, g.resolved, model, known,
                               g.envelope, g.failure)
 
     def _tick(self, stage: str, t0: float) -> None:
         self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.process_time() - t0
+
+
+def _wall_id(model: FacadeModel, index: int) -> int | None:
+    wall = model.wall_of(index)
+    return None if wall is None else wall.id
 
 
 def kept_out(model: FacadeModel, export_all: bool = False) -> dict[int, str]:

@@ -167,8 +167,8 @@ class WindowResult:
     bottom-left corner; size aspect_ratio*height x height m) to the camera frame (OpenCV).
     Fields are None when the stage failed; ``failure`` (a :class:`Failure`) then names the stage
     and reason.
-    wall: index of the wall the window was grouped into (per-wall strategies, pipeline.walls),
-    else None; uncertainty: its 90 % intervals (:class:`Uncertainty`, pipeline.walls.window_uncertainty),
+    group: the joint fit's wall group the window was fitted in (per-wall strategies, pipeline.walls),
+    else None (the façade model's wall a window is on is pipeline.session.Window.wall); uncertainty: its 90 % intervals (:class:`Uncertainty`, pipeline.walls.window_uncertainty),
     else None.
     partial: None for a whole window; a :class:`Partial` for a window cut by the photo's border,
     whose fields then describe its *visible* part: quad_mask = quad_snapped the visible quad (the
@@ -191,7 +191,7 @@ class WindowResult:
     failure: Failure | None
     timings_ms: dict[str, float] = field(default_factory=dict)
     instance_id: int | None = None  # the detection's id in the input instance map, if any
-    wall: int | None = None
+    group: int | None = None
     uncertainty: Uncertainty | None = None
     partial: Partial | None = None
 

@@ -354,7 +354,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             k = idx[m]
             if fit is None:
                 out[k] = replace(out[k], failure=Failure("wall", None, "joint fit failed"), R=None, t=None,
-                                 quad_reprojected=None, focal_estimate_px=None, wall=wid)
+                                 quad_reprojected=None, focal_estimate_px=None, group=wid)
                 continue
             unc = window_uncertainty(fit, j)
             scale = 1.0 if width_m is None else width_m / fit.width[j]
@@ -363,5 +363,5 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
                              aspect_case=AspectCase.ILL_CONDITIONED if unc.ill_conditioned else case,
                              focal_estimate_px=f_est, R=fit.window_R(j), t=fit.t[j] * scale,
                              height_m=fit.height * scale, quad_reprojected=fit.reprojected[j],
-                             failure=None, wall=wid, uncertainty=unc)
+                             failure=None, group=wid, uncertainty=unc)
     return out
