@@ -42,7 +42,10 @@ class PhotoOptions:
     (export the implausible windows too), substitute (catalogue style or None), export (write
     model.ifc/obj/glb besides windows.json and the overlay), max_pixels (the largest photo read,
     checked before decoding; None: fenestra.conventions.LIMITS.max_image_pixels), wall_thickness_m
-    (the exported walls' thickness, m; a photo shows no wall's depth)."""
+    (the exported walls' thickness, m; a photo shows no wall's depth).
+
+    Checked once, when built: a field that is not one of its choices or of its type raises an
+    :class:`OptionError` (a PipelineError) naming it, its choices and the value given."""
 
     detector: str = DEFAULTS.detector
     snapper: str = DEFAULTS.snapper
@@ -54,6 +57,53 @@ class PhotoOptions:
     export: bool = True
     max_pixels: int | None = None  # a larger photo is refused before decoding (None: LIMITS.max_image_pixels)
     wall_thickness_m: float = WALL_THICKNESS_M  # the exported walls' thickness (not measured: stated)
+
+    def __post_init__(self) -> None:
+        check_options(self)
+
+
+class OptionError(PipelineError):
+    """A PhotoOptions field that cannot be used: ``field`` (its name), ``why`` (what it must be)
+    and ``value`` (what was given); the message is one line naming all three."""
+
+    def __init__(self, field: str, why: str, value) -> None:
+        self.field, self.why, self.value = field, why, value
+        super().__init__(f"PhotoOptions: {field} {why}, got {value!r} ({type(value).__name__})")
+
+
+def check_options(options: PhotoOptions) -> None:
+    """:class:`OptionError` for the first field of ``options`` that is not one of its choices:
+    detector, snapper, pose, quad_source (registry names), substitute (a catalogue style or
+    None), known (a Known), export_all and export (bool), max_pixels (a positive int or None),
+    wall_thickness_m (metres in WALL_THICKNESS_RANGE_M)."""
+    import numbers  # noqa: PLC0415
+
+    from fenestra.pipeline.catalogue import CATALOGUE  # noqa: PLC0415
+    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
+    from fenestra.pipeline.poses import POSES  # noqa: PLC0415
+    from fenestra.pipeline.quad import QUAD_SOURCES  # noqa: PLC0415
+    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
+
+    for field, registry in (("detector", DETECTORS), ("snapper", SNAPPERS), ("pose", POSES)):
+        v = getattr(options, field)
+        if not isinstance(v, str) or v not in registry:
+            raise OptionError(field, f"must be one of {sorted(registry)}", v)
+    if options.quad_source not in QUAD_SOURCES:
+        raise OptionError("quad_source", f"must be one of {list(QUAD_SOURCES)}", options.quad_source)
+    if options.substitute is not None and (not isinstance(options.substitute, str)
+                                           or options.substitute not in CATALOGUE):
+        raise OptionError("substitute", f"must be None or one of {sorted(CATALOGUE)}", options.substitute)
+    if not isinstance(options.known, Known):
+        raise OptionError("known", "must be a fenestra.pipeline.facade_model.Known", options.known)
+    for field in ("export_all", "export"):
+        if not isinstance(getattr(options, field), bool):
+            raise OptionError(field, "must be True or False", getattr(options, field))
+    mp = options.max_pixels
+    if mp is not None and (isinstance(mp, bool) or not isinstance(mp, numbers.Integral) or mp <= 0):
+        raise OptionError("max_pixels", "must be a positive int or None", mp)
+    wt, (lo, hi) = options.wall_thickness_m, WALL_THICKNESS_RANGE_M
+    if isinstance(wt, bool) or not isinstance(wt, numbers.Real) or not lo <= wt <= hi:
+        raise OptionError("wall_thickness_m", f"must be a number of metres in {lo:g}-{hi:g}", wt)
 
 
 @dataclass(frozen=True)
@@ -142,16 +192,9 @@ def check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force) -
     """PipelineError, one line naming the argument, for what :func:`reconstruct_photo` cannot take:
     paths that are not str/PathLike (photo, K_json and masks must be existing regular files), focal
     values and principal point that are not finite real numbers (fx, fy > 0), options that are not
-    a PhotoOptions (or name an unknown detector, snapper, pose, quad source or substitute style, a
-    ``known`` that is not a Known, flags that are not bool, a max_pixels that is not a positive
-    int), a force that is not bool. Checked before anything is read or written."""
+    a PhotoOptions (whose fields were checked when it was built: :func:`check_options`), a force
+    that is not bool. Checked before anything is read or written."""
     import numbers  # noqa: PLC0415
-
-    from fenestra.pipeline.catalogue import CATALOGUE  # noqa: PLC0415
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from fenestra.pipeline.poses import POSES  # noqa: PLC0415
-    from fenestra.pipeline.quad import QUAD_SOURCES  # noqa: PLC0415
-    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
 
     def bad(name: str, why: str, v) -> PipelineError:
         return PipelineError(f"reconstruct_photo: {name} {why}, got {v!r} ({type(v).__name__})")
@@ -176,32 +219,12 @@ def check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force) -
         raise bad("force", "must be True or False", force)
     if not isinstance(options, PhotoOptions):
         raise bad("options", "must be a fenestra.pipeline.photo.PhotoOptions", options)
-    for field, registry in (("detector", DETECTORS), ("snapper", SNAPPERS), ("pose", POSES)):
-        v = getattr(options, field)
-        if not isinstance(v, str) or v not in registry:
-            raise bad(f"options.{field}", f"must be one of {sorted(registry)}", v)
-    if options.quad_source not in QUAD_SOURCES:
-        raise bad("options.quad_source", f"must be one of {list(QUAD_SOURCES)}", options.quad_source)
-    if options.substitute is not None and (not isinstance(options.substitute, str)
-                                           or options.substitute not in CATALOGUE):
-        raise bad("options.substitute", f"must be None or one of {sorted(CATALOGUE)}", options.substitute)
-    if not isinstance(options.known, Known):
-        raise bad("options.known", "must be a fenestra.pipeline.facade_model.Known", options.known)
-    for field in ("export_all", "export"):
-        if not isinstance(getattr(options, field), bool):
-            raise bad(f"options.{field}", "must be True or False", getattr(options, field))
-    mp = options.max_pixels
-    if mp is not None and (isinstance(mp, bool) or not isinstance(mp, numbers.Integral) or mp <= 0):
-        raise bad("options.max_pixels", "must be a positive int or None", mp)
-    wt, (lo, hi) = options.wall_thickness_m, WALL_THICKNESS_RANGE_M
-    if isinstance(wt, bool) or not isinstance(wt, numbers.Real) or not lo <= wt <= hi:
-        raise bad("options.wall_thickness_m", f"must be a number of metres in {lo:g}-{hi:g}", wt)
 
 
 def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_json: str | Path | None = None,
                       fx: float | None = None, fy: float | None = None, cx: float | None = None,
                       cy: float | None = None, masks: str | Path | None = None,
-                      options: PhotoOptions = PhotoOptions(), force: bool = False) -> PhotoResult:
+                      options: PhotoOptions | None = None, force: bool = False) -> PhotoResult:
     """Reconstruct the windows of one photo; return the typed :class:`PhotoResult` (its
     ``to_json()``: the windows.json data).
 
@@ -212,7 +235,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     folder that is not an output), or None to write nothing. K_json / fx, fy, cx, cy: the user's
     intrinsics (at most one of K_json and fx); without them the focal chain of
     pipeline.intrinsics.resolve_K decides. masks: an instance-map PNG (16-bit ids, 0 = none)
-    instead of the detector.
+    instead of the detector. options: a PhotoOptions (None: the defaults, ``PhotoOptions()``).
 
     The work is :meth:`fenestra.pipeline.session.PhotoSession.run` (what the bench runs too);
     this reads the inputs, runs it, and writes the files (:func:`write_all`). windows.json's data
@@ -230,6 +253,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     from fenestra.pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
     from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415
 
+    options = PhotoOptions() if options is None else options
     check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force)  # PipelineError naming the argument
     photo = Path(photo)
     inputs = (photo, K_json, masks)  # never inside out: replacing it would delete them
