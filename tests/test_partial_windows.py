@@ -251,6 +251,20 @@ def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():
     assert cut["exported"] == 1.0 and cut["scale_source"] == "assumed"
     d = next(i for i, det in enumerate(rec.detections) if det.instance_id == 3)
     assert rec.windows[d].partial.cut == ("right",) and rec.windows[d].measured.failure.stage == "quad"
+    # the window's record keeps every stage: the fit and the façade model's whole-window failure, its
+    # visible part placed on the wall, what the model holds (that part) and what the bench measures
+    cut_win = rec.windows[d]
+    assert cut_win.fit.failure.code == cut_win.measured.failure.code == "touches_border"
+    assert cut_win.placed is not None and cut_win.placed.failure is None and cut_win.placed.partial.cut == ("right",)
+    assert cut_win.result is cut_win.placed and cut_win.shipped is cut_win.measured
+    assert cut_win.wall == rec.model.wall_of(d).id and cut_win.export.exported
+    for k, win in enumerate(rec.windows):
+        if k == d:
+            continue
+        assert win.placed is None and win.fit.group is not None and win.measured.group == win.fit.group
+        assert win.fit.height_m == 1.0 != win.measured.height_m  # the fit's scale parameter; the wall's scale
+        assert win.result is (win.regularized or win.measured) and win.shipped is win.result
+        assert win.wall == rec.model.wall_of(k).id
     assert all(rows[w]["evaluable"] and rows[w]["status"] == "ok" for w in ("W1", "W2"))
     assert out.export_counts[method.name] == {"n_exported": 3, "n_matched": 3, "n_on_ignore": 0, "n_on_nothing": 0}
 
