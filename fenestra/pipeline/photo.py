@@ -27,7 +27,7 @@ from fenestra.methods import Method
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
 from fenestra.pipeline.facade_model import Known
 from fenestra.pipeline.reconstruct import ReconstructConfig
-from fenestra.pipeline.session import focal_envelope  # noqa: F401  (re-exported)
+from fenestra.pipeline.session import Reconstruction, focal_envelope  # noqa: F401  (focal_envelope re-exported)
 from fenestra.pipeline.types import Detection, WindowResult
 
 
@@ -137,7 +137,7 @@ class PhotoResult:
     when nothing was written (``out`` None).
     """
 
-    reconstruction: object
+    reconstruction: Reconstruction
     image_size: tuple[int, int]
     warnings: tuple[str, ...]
     photo: str
@@ -318,7 +318,7 @@ def row_fields(r: WindowResult, measured: WindowResult | None, fit) -> dict:
                 "quad_reprojected": None if m.quad_reprojected is None else np.asarray(m.quad_reprojected).tolist()}}
 
 
-def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], export: bool = True,
+def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnings: list[str], export: bool = True,
                         written: set[int] | None = None) -> dict:
     """windows.json's data of a pipeline.session.Reconstruction (a new dict; pure): ``K``,
     ``K_source``, ``image_size``, ``config``, ``walls``, ``scale``, ``windows`` (per window its

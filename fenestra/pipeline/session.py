@@ -48,7 +48,7 @@ from fenestra.pipeline.poses import POSES
 from fenestra.pipeline.quad import QuadParams
 from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct_from_quads,
                                            to_gray, visible_quads)
-from fenestra.pipeline.row_lines import regularize_rows
+from fenestra.pipeline.row_lines import RowFit, regularize_rows
 from fenestra.pipeline.segments import SegmentCache, to_uint8
 from fenestra.pipeline.types import Detection, Failure, Unavailable, WindowResult
 
@@ -109,7 +109,7 @@ class Window:
     fit: WindowResult
     measured: WindowResult
     placed: WindowResult | None
-    row: object | None
+    row: RowFit | None
     regularized: WindowResult | None
     export: ExportDecision
     wall: int | None = None
@@ -118,7 +118,7 @@ class Window:
     def result(self) -> WindowResult:
         """The window as the model holds it (windows.json's main fields, the files): regularized,
         else its placed visible part, else as measured."""
-        return self.regularized or self.placed or self.measured
+        return next(r for r in (self.regularized, self.placed, self.measured) if r is not None)
 
     @property
     def shipped(self) -> WindowResult:
