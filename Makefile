@@ -5,7 +5,7 @@ PIP := .venv/bin/pip
 export PYOPENGL_PLATFORM ?= egl
 export MPLBACKEND ?= Agg
 
-.PHONY: help setup sysdeps test test-all bench smoke real heldout-gate report docs docs-check gate train train-quadnet train-winnet timing photo-speed compare clean
+.PHONY: help setup sysdeps test test-all bench smoke real heldout-gate report docs docs-check gate train train-quadnet train-maskrcnn train-winnet timing photo-speed compare clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-10s %s\n", $$1, $$2}'
@@ -99,6 +99,13 @@ train-quadnet:  ## detector v8 alone: the quad head (window centres, each with i
 	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/quadnet.toml
 	$(PY) -m fenestra ship-weights out/train/quadnet.pt
+
+train-maskrcnn:  ## the paper's detector: Mask R-CNN on an ImageNet-pretrained EfficientNet-Lite0 FPN, on the default's renders and street photos (make_data*.sh; CPU, resumable: a run stopped midway continues from its last checkpoint), then ship-weights and its figures
+	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
+	$(PY) -m fenestra train --config fenestra/training/configs/maskrcnn.toml --resume
+	$(PY) -m fenestra ship-weights out/train/maskrcnn.pt
+	$(PY) -m fenestra evaluate-detector --detector maskrcnn --yolo ../shared/real/spb_facades/train --part val --json out/eval/maskrcnn-spb-val.json
 
 train-winnet:  ## the from-scratch WinNet (registered as `winnet`) on the same renders: out/train/winnet.pt, then ship-weights
 	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data

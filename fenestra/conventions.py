@@ -204,6 +204,14 @@ class InputLimits:
         4.6 GB). A COCO RLE mask is an image: its stated size is bounded by max_image_pixels and
         must be its photo's, and an image's window annotations by max_windows_per_photo, all
         checked before any mask is decoded.
+    max_procedural_houses / max_views_per_dataset / max_views_per_run: a benchmark profile's
+        ``scenes.procedural``, its ``render.views_per_house`` (and ``fenestra render --views``), and
+        its houses x views, checked when the profile is loaded (the ``scale`` profile renders
+        20 x 500 views; each view costs ~0.2 s and its rows).
+    max_storeys / max_windows_per_wall / max_house_windows: a procedural house's storeys, windows per
+        wall and storey, and walls x storeys x windows per wall, checked before any IFC entity is made.
+    max_dataset_photos: the photos a dataset may list (a folder's photos, a COCO file's images),
+        checked before the first is read.
     """
 
     max_windows_per_photo: int = 1000
@@ -220,6 +228,22 @@ class InputLimits:
     max_render_side_px: int = 8192
     max_label_bytes: int = 4 * 2**20
     max_label_lines: int = 100_000
+    max_procedural_houses: int = 1000
+    max_views_per_dataset: int = 10_000
+    max_views_per_run: int = 100_000
+    max_storeys: int = 100
+    max_windows_per_wall: int = 100
+    max_house_windows: int = 10_000
+    max_dataset_photos: int = 100_000
+
+    def check(self, name: str, value: int, what: str, error: type[Exception] = ValueError) -> int:
+        """``value`` when it is at most the bound ``name`` (a field of this class); else ``error``
+        naming ``what`` (the key or option the user gave), the value and the bound, raised before
+        anything of that size is allocated."""
+        bound = getattr(self, name)
+        if value > bound:
+            raise error(f"{what} = {value} is more than the {bound} allowed (fenestra.conventions.LIMITS.{name})")
+        return value
 
 
 LIMITS = InputLimits()

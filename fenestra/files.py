@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
@@ -49,15 +50,39 @@ def source_digest(files: Iterable[str | Path], extra: str = "") -> str:
 
 # ---------------------------------------------------------------- atomic writes
 
+def temp_name(path: Path, pid: int | None = None) -> Path:
+    """The temporary name :func:`write_atomic` writes ``path`` under: ``.<stem>.tmp<pid><suffix>``
+    beside it (pid: this process's)."""
+    return path.with_name(f".{path.stem}.tmp{os.getpid() if pid is None else pid}{path.suffix}")
+
+
+TEMP_NAME = re.compile(r"\.(?P<stem>.+)\.tmp(?P<pid>\d+)(?P<suffix>\.[^.]*)?")  # temp_name's names
+
+
+_BEFORE_RENAME: list[Callable[[Path, Path], None]] = []  # before_rename's hooks, innermost last
+
+
+@contextmanager
+def before_rename(hook: Callable[[Path, Path], None]) -> Iterator[None]:
+    """For the block, :func:`write_atomic` calls ``hook(path, tmp)`` once the temporary file is
+    complete and before it takes its name (fenestra.outputs.listing lists it there)."""
+    _BEFORE_RENAME.append(hook)
+    try:
+        yield
+    finally:
+        _BEFORE_RENAME.remove(hook)
+
+
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
     """Call ``write(tmp)`` on a temporary name beside ``path`` (same suffix, so writers that pick
-    the format by extension work), then rename it over ``path``; return ``path``.
+    the format by extension work), then rename it over ``path``; return ``path``. The hooks of
+    :func:`before_rename` see the complete temporary file before the rename.
 
     OSError ``cannot write <path>: ...`` when the writer raises OSError, returns False or leaves
     no file; the temporary file is removed in every case.
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
+    tmp = temp_name(path)
     try:
         try:
             ok = write(tmp)
@@ -65,6 +90,8 @@ def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
             raise OSError(f"cannot write {path}: {e.strerror or e}") from e
         if ok is False or not tmp.is_file():
             raise OSError(f"cannot write {path} (disk full or not writable?)")
+        for hook in tuple(_BEFORE_RENAME):
+            hook(path, tmp)
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -79,6 +106,15 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
 def write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically (:func:`write_atomic`)."""
     return write_bytes(path, text.encode("utf-8"))
+
+
+def write_ifc_file(model, path: str | Path) -> Path:
+    """Write an ifcopenshell model to ``path`` atomically: a ``.ifc`` as its STEP text's bytes
+    written here (so any path, a name that is not UTF-8 included, works), another suffix
+    (``.ifczip``, ``.ifcxml``) by ifcopenshell in the format it names."""
+    if Path(path).suffix.lower() == ".ifc":
+        return write_bytes(path, model.to_string().encode())
+    return write_atomic(path, lambda p: model.write(str(p)))
 
 
 def write_json(path: str | Path, doc, indent: int | None = 1) -> Path:

@@ -45,18 +45,22 @@ def header_size(path: str | Path) -> tuple[int, int] | None:
     from PIL import Image  # noqa: PLC0415
 
     Image.init()
-    with open(path, "rb") as fp:
-        prefix = fp.read(16)
-        for fmt in Image.ID:
-            factory, accept = Image.OPEN[fmt]
-            fp.seek(0)
-            try:
-                if accept is not None and not accept(prefix):
+    bound, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # a plugin (WebP) checks PIL's own bound as it opens
+    try:
+        with open(path, "rb") as fp:
+            prefix = fp.read(16)
+            for fmt in Image.ID:
+                factory, accept = Image.OPEN[fmt]
+                fp.seek(0)
+                try:
+                    if accept is not None and not accept(prefix):
+                        continue
+                    im = factory(fp, str(path))
+                except (SyntaxError, IndexError, TypeError, ValueError, OSError, EOFError, struct.error):
                     continue
-                im = factory(fp, str(path))
-            except (SyntaxError, IndexError, TypeError, ValueError, OSError, EOFError, struct.error):
-                continue
-            return int(im.size[0]), int(im.size[1])
+                return int(im.size[0]), int(im.size[1])
+    finally:
+        Image.MAX_IMAGE_PIXELS = bound
     return None
 
 
@@ -80,6 +84,25 @@ def radiance_size(path: str | Path) -> tuple[int, int] | None:
     raise DatasetError(f"cannot read {path}: a Radiance HDR file whose header states no size")
 
 
+def webp_size(path: str | Path) -> tuple[int, int] | None:
+    """(W, H) px a WebP file's first chunk states (VP8X canvas, VP8L or VP8 frame), read from its
+    bytes (PIL's WebP reader refuses a size over its own bomb bound before reporting it); None when
+    the file is not a WebP of one of these chunks."""
+    with open(path, "rb") as fp:
+        head = fp.read(30)
+    if len(head) < 30 or head[:4] != b"RIFF" or head[8:12] != b"WEBP":
+        return None
+    kind, body = head[12:16], head[20:]
+    if kind == b"VP8X":
+        return 1 + int.from_bytes(body[4:7], "little"), 1 + int.from_bytes(body[7:10], "little")
+    if kind == b"VP8L" and body[0] == 0x2F:
+        bits = int.from_bytes(body[1:5], "little")
+        return 1 + (bits & 0x3FFF), 1 + ((bits >> 14) & 0x3FFF)
+    if kind == b"VP8 " and body[3:6] == b"\x9d\x01\x2a":
+        return int.from_bytes(body[6:8], "little") & 0x3FFF, int.from_bytes(body[8:10], "little") & 0x3FFF
+    return None
+
+
 def check_size(path: str | Path, what: str = "image", max_pixels: int | None = None) -> None:
     """DatasetError naming the file when it is larger than LIMITS.max_image_bytes, or its header
     states more than ``max_pixels`` (default LIMITS.max_image_pixels) pixels; checked before decoding."""
@@ -91,7 +114,7 @@ def check_size(path: str | Path, what: str = "image", max_pixels: int | None = N
     if n_bytes > LIMITS.max_image_bytes:
         raise DatasetError(f"{what} {p} is {n_bytes / 2**20:.0f} MiB, over the {LIMITS.max_image_bytes / 2**20:.0f} MiB "
                            "an image file may have (fenestra.conventions.LIMITS.max_image_bytes)")
-    size = header_size(p) or radiance_size(p)
+    size = webp_size(p) or header_size(p) or radiance_size(p)
     if size is None:  # its size cannot be known before decoding: refused, never decoded blind
         raise DatasetError(f"cannot read {what} {p}: not an image format whose size Fenestra can read before "
                            "decoding (JPEG, PNG, TIFF, BMP, WebP, PNM, Radiance HDR, ...); convert it to PNG or JPEG")

@@ -21,16 +21,26 @@ import numpy as np
 
 # ---------------------------------------------------------------- boxes
 
+def mask_extent(mask: np.ndarray) -> tuple[int, int, int, int] | None:
+    """(x0, y0, x1, y1): the first and last column and row (inclusive, px) holding a non-zero pixel
+    of a 2-D mask; None when it has none. Memory: a row and a column of bools, never one index per
+    pixel (a full-width mask of a 150 Mpx photo holds 150 million)."""
+    m = np.asarray(mask)
+    cols, rows = np.flatnonzero(m.any(axis=0)), np.flatnonzero(m.any(axis=1))
+    if cols.size == 0:
+        return None
+    return int(cols[0]), int(rows[0]), int(cols[-1]), int(rows[-1])
+
+
 def mask_box(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> np.ndarray:
     """(4,) float64 x0, y0, x1, y1 px of a non-empty mask (non-zero = inside) on the pixel-edge
     outline (pixel centres at integers; x1 - x0 = width in px). origin (x0, y0): image pixel of
     the mask's [0, 0] when it is a crop. ValueError for an empty mask."""
-    ys, xs = np.nonzero(np.asarray(mask))
-    if xs.size == 0:
+    extent = mask_extent(mask)
+    if extent is None:
         raise ValueError("mask_box: empty mask")
-    ox, oy = origin
-    return np.array([xs.min() + ox - 0.5, ys.min() + oy - 0.5, xs.max() + ox + 0.5, ys.max() + oy + 0.5],
-                    dtype=np.float64)
+    (ox, oy), (x0, y0, x1, y1) = origin, extent
+    return np.array([x0 + ox - 0.5, y0 + oy - 0.5, x1 + ox + 0.5, y1 + oy + 0.5], dtype=np.float64)
 
 
 def box_to_coco(box) -> list[float]:

@@ -1,17 +1,27 @@
-"""Which files Fenestra may delete or replace: one rule for every command that writes a folder
-(``fenestra reconstruct --out``, its batch mode, ``fenestra bench --out``).
+"""Which files Fenestra may delete or replace: one rule for every command that writes
+(``fenestra reconstruct --out``, its batch mode, ``fenestra bench --out``, report, compare's
+page, calibrate, ``scenes make`` and ``scenes author``).
 
-    check_out(out, inputs, force=False)          # before any work: refuse a bad --out
-    with staged(out, inputs, force) as tmp:      # write everything into tmp (a hidden child of out)
+    check_out(out, inputs, force=False, kind=K)  # before any work: refuse a bad --out
+    with staged(out, inputs, force, kind=K) as tmp:  # write everything into tmp (a hidden child of out)
         ...
     # the new files are moved into out first, then the previous run's files that are not replaced
     # are removed: a failure at any point before leaves the previous result whole
-    write_owned(out, {"summary.json": data})     # one file, replacing only an owned one
+    check_file(path, kind, hosts, inputs)        # before the work that makes one file
+    write_file(path, write, kind, hosts, inputs) # one file, replacing only an owned one
+    write_owned(out, "summary.json", data)       # the same, from bytes
     record(out, ["results.parquet", ...])        # add files written in place to the manifest
     remove_owned(out)                            # delete what the manifest lists, refuse the rest
+    with locked(out, "benchmark run"): ...       # one writer at a time
 
 The rule. Every output folder holds ``MANIFEST`` (.fenestra-output.json), ``{"format": 2,
-"files": {relative path: sha256}}``: the files Fenestra wrote there and their digests.
+"kind": KIND, "files": {relative path: sha256}}``: what kind of output the folder holds (KINDS)
+and the files Fenestra wrote there with their digests.
+
+- A command writes only into a folder of its own kind (``check_kind``; a report or comparison
+  page also into the bench run it describes), ``--force`` or not: a reconstruction never
+  replaces a bench run, a batch never replaces a run's summary.json. A manifest without a kind
+  (an older Fenestra) has the kind of the files it lists (run.json, windows.json, summary.json).
 
 - Fenestra deletes or replaces a file only when the manifest lists it and its bytes still have
   the listed digest. A file it did not write, or one edited since, is refused with its name:
@@ -32,6 +42,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -47,6 +58,14 @@ LOCK = ".fenestra.lock"
 FORMAT = 2
 MAX_NAMED = 5
 NOT_LISTED = (MANIFEST, LOCK)  # bookkeeping of this module: never a result, never "foreign"
+KINDS = {  # what an output folder holds -> how an error names it
+    "bench": "a benchmark run",
+    "reconstruction": "one photo's reconstruction",
+    "batch": "a batch of reconstructions",
+    "files": "files Fenestra wrote one by one (a comparison page, K.json, IFC houses)",
+}
+FILES_KIND = "files"
+LEGACY_KIND = (("run.json", "bench"), ("windows.json", "reconstruction"), ("summary.json", "batch"))
 
 
 class OwnershipError(FenestraError):
@@ -68,24 +87,62 @@ def files_in(folder: str | Path) -> list[str]:
     return sorted(out)
 
 
-def read_manifest(out: str | Path) -> dict[str, str | list[str]] | None:
-    """{relative path: sha256 (a list of two while a swap is under way)} of the files Fenestra
-    wrote into ``out``; None when it holds no manifest. OwnershipError for a damaged one, or an older manifest without digests."""
+def _read_doc(out: str | Path) -> dict | None:
+    """``out``'s manifest as stored, None when it holds none; OwnershipError for a damaged one."""
     m = Path(out) / MANIFEST
     if not m.is_file():
         return None
     try:
         doc = json.loads(m.read_bytes())
-        files = doc["files"]
+        doc["files"]
+        return doc
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise OwnershipError(f"{m} is damaged ({type(e).__name__}); Fenestra cannot tell its files from "
                              "yours: remove them yourself or choose another --out") from e
+
+
+def read_manifest(out: str | Path) -> dict[str, str | list[str]] | None:
+    """{relative path: sha256 (a list of two while a swap is under way)} of the files Fenestra
+    wrote into ``out``; None when it holds no manifest. OwnershipError for a damaged one, or an older manifest without digests."""
+    m = Path(out) / MANIFEST
+    doc = _read_doc(out)
+    if doc is None:
+        return None
+    files = doc["files"]
     def digest(v) -> bool:
         return isinstance(v, str) or (isinstance(v, list) and all(isinstance(x, str) for x in v))
     if not isinstance(files, dict) or not all(isinstance(k, str) and digest(v) for k, v in files.items()):
         raise OwnershipError(f"{m} lists no file digests (written by an older Fenestra); Fenestra replaces only "
                              "files whose digest it recorded: remove the folder yourself or choose another --out")
     return {k: v for k, v in files.items() if _inside(Path(out), k)}
+
+
+def read_kind(out: str | Path) -> str | None:
+    """The kind of output ``out`` holds (a key of KINDS, or whatever a newer Fenestra recorded):
+    its manifest's ``kind``, else (an older manifest) that of the first LEGACY_KIND file it lists;
+    None for a folder without manifest, or one whose manifest says nothing of its kind."""
+    doc = _read_doc(out)
+    if doc is None:
+        return None
+    if isinstance(doc.get("kind"), str):
+        return doc["kind"]
+    files = doc["files"] if isinstance(doc["files"], dict) else {}
+    return next((kind for name, kind in LEGACY_KIND if name in files), None)
+
+
+def describe_kind(kind: str) -> str:
+    """How an error names a kind of output: KINDS' words, or the recorded name."""
+    return KINDS.get(kind, f"output of kind {kind!r}")
+
+
+def check_kind(out: str | Path, kind: str, option: str = "--out", hosts: Iterable[str] = ()) -> None:
+    """OwnershipError (one line, naming both kinds) when ``out`` holds another kind of output than
+    ``kind`` or ``hosts`` (kinds this writer may add files to: a run receives its report). A
+    folder without a recorded kind passes."""
+    have = read_kind(out) if Path(out).is_dir() else None
+    if have is not None and have != kind and have not in tuple(hosts):
+        raise OwnershipError(f"{option} {out} holds {describe_kind(have)}, not {describe_kind(kind)}; choose another "
+                             "folder (--force never replaces another kind of output)")
 
 
 def _inside(folder: Path, rel: str) -> bool:
@@ -127,9 +184,10 @@ def _overlaps(out: Path, path: str | Path) -> str | None:
 
 
 def check_out(out: str | Path, inputs: Iterable[str | Path | None] = (), force: bool = False,
-              option: str = "--out") -> None:
+              option: str = "--out", kind: str | None = None) -> None:
     """OwnershipError (one line) when ``out`` may not receive an output: an existing file; a
-    folder that contains, is, or lies inside one of ``inputs``; a non-empty folder that holds no
+    folder that contains, is, or lies inside one of ``inputs``; a folder holding another
+    ``kind`` of output (:func:`check_kind`, ``force`` or not); a non-empty folder that holds no
     Fenestra manifest (``force``: allowed, its files stay and are never replaced)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -142,6 +200,8 @@ def check_out(out: str | Path, inputs: Iterable[str | Path | None] = (), force: 
             raise OwnershipError(f"{option} {out} holds the input {p}; write the result to another folder")
         if how is not None:
             raise OwnershipError(f"{option} {out} {how} the input folder {p}; write the result to another folder")
+    if kind is not None:
+        check_kind(out, kind, option)
     if out.is_dir() and not force and read_manifest(out) is None:
         mine = files_in(out)
         if mine:
@@ -151,23 +211,34 @@ def check_out(out: str | Path, inputs: Iterable[str | Path | None] = (), force: 
 
 # ---------------------------------------------------------------- writing under the rule
 
-def _write_manifest(out: Path, files: dict, previous: dict | None = None) -> None:
+def _write_manifest(out: Path, files: dict, previous: dict | None = None, kind: str | None = None) -> None:
     """Write ``out``'s manifest listing ``files``; with ``previous`` (during a swap) a file with
-    either set's digest is ours."""
+    either set's digest is ours. kind: the folder's kind when it has none recorded yet (a
+    recorded kind is kept)."""
     merged: dict[str, set[str]] = {}
     for src in (previous or {}, files):
         for k, v in src.items():
             merged.setdefault(k, set()).update(v if isinstance(v, list) else [v])
-    doc = {"format": FORMAT, "files": {k: sorted(v) if len(v) > 1 else next(iter(v)) for k, v in sorted(merged.items())}}
+    kind = read_kind(out) or kind
+    doc = {"format": FORMAT, **({"kind": kind} if kind else {}),
+           "files": {k: sorted(v) if len(v) > 1 else next(iter(v)) for k, v in sorted(merged.items())}}
     write_json(out / MANIFEST, doc)
 
 
-def _refuse_foreign(out: Path, names: Iterable[str], owned: dict[str, str]) -> None:
+def _refuse_foreign(out: Path, names: Iterable[str], owned: dict[str, str], option: str = "--out") -> None:
     clash = [n for n in names if (out / n).exists() or (out / n).is_symlink()]
     clash = [n for n in clash if not _ours(out, n, owned)]
     if clash:
-        raise OwnershipError(f"--out {out}: would replace {_name(clash)}, which Fenestra did not write (or which "
+        raise OwnershipError(f"{option} {out}: would replace {_name(clash)}, which Fenestra did not write (or which "
                              "changed since); move it away or choose another folder")
+
+
+def check_names(out: str | Path, names: Iterable[str], option: str = "--out") -> None:
+    """OwnershipError naming those of ``names`` (paths relative to ``out``) that exist in ``out``
+    and that its manifest does not list with their current digest: what a writer of those names
+    would replace and may not."""
+    out = Path(out)
+    _refuse_foreign(out, names, read_manifest(out) or {}, option)
 
 
 def _prune(out: Path, rel: str) -> None:
@@ -181,8 +252,51 @@ def _prune(out: Path, rel: str) -> None:
         d = d.parent
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def clean_stale_stages(out: str | Path) -> list[str]:
+    """Remove the staging folders in ``out`` that a process killed while writing left behind:
+    ``STAGE_PREFIX<pid>-*`` of a process that no longer runs, and those of an older Fenestra
+    (no process id in the name); returns their names. Only this module's own
+    staging folders are ever removed with rmtree."""
+    out = Path(out)
+    gone = []
+    for d in out.glob(STAGE_PREFIX + "*"):
+        pid = re.match(re.escape(STAGE_PREFIX) + r"(\d+)-", d.name)
+        if d.is_dir() and not d.is_symlink() and (pid is None or not _alive(int(pid.group(1)))):
+            shutil.rmtree(d, ignore_errors=True)
+            gone.append(d.name)
+    return gone
+
+
+def remove_dead_temp_files(out: str | Path) -> list[str]:
+    """Remove the temporary files (fenestra.files.temp_name: ``.<stem>.tmp<pid><suffix>``) under
+    ``out`` of a process that no longer runs: half-written files of a run killed while writing,
+    never listed, never a result; returns their relative paths. Call it only on a folder that
+    holds Fenestra's output (its manifest checked)."""
+    from fenestra.files import TEMP_NAME  # noqa: PLC0415
+
+    out = Path(out)
+    gone = []
+    for rel in files_in(out):
+        m = TEMP_NAME.fullmatch(Path(rel).name)
+        if m and not (out / rel).is_symlink() and not _alive(int(m.group("pid"))):
+            (out / rel).unlink(missing_ok=True)
+            gone.append(rel)
+    return gone
+
+
 def _stage(out: Path) -> Path:
-    tmp = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=out))
+    clean_stale_stages(out)
+    tmp = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}{os.getpid()}-", dir=out))
     umask = os.umask(0o022)
     os.umask(umask)
     tmp.chmod(0o777 & ~umask)  # the result's folders get a normal folder's mode
@@ -190,15 +304,17 @@ def _stage(out: Path) -> Path:
 
 
 @contextmanager
-def staged(out: str | Path, inputs: Iterable[str | Path | None] = (), force: bool = False) -> Iterator[Path]:
+def staged(out: str | Path, inputs: Iterable[str | Path | None] = (), force: bool = False,
+           kind: str | None = None) -> Iterator[Path]:
     """Yield a fresh hidden folder inside ``out`` (so the final renames stay on one filesystem);
     when the block ends without error its files take their place in ``out``: each moved in,
     replacing only a file of the previous output (:func:`check_out`, the rule above), then the
     previous output's files that were not replaced are removed, then the manifest lists the new
-    set. On any error (SIGTERM, Ctrl-C) the staging folder is deleted and ``out`` is as it was."""
+    set. On any error (SIGTERM, Ctrl-C) the staging folder is deleted and ``out`` is as it was.
+    kind: the output's kind (KINDS): a folder of another kind is refused, a new one records it."""
     out = Path(out)
     inputs = tuple(inputs)
-    check_out(out, inputs, force)
+    check_out(out, inputs, force, kind=kind)
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     tmp = None
@@ -209,7 +325,7 @@ def staged(out: str | Path, inputs: Iterable[str | Path | None] = (), force: boo
         new = {f: file_sha256(tmp / f) for f in files_in(tmp)}
         _refuse_foreign(out, new, old)
         stale = [f for f in old if f not in new and _ours(out, f, old)]
-        _write_manifest(out, new, old)  # both sets are ours while they swap
+        _write_manifest(out, new, old, kind)  # both sets are ours while they swap
         for f in new:  # new files in first: the previous result stays whole until they are
             (out / f).parent.mkdir(parents=True, exist_ok=True)
             os.replace(tmp / f, out / f)
@@ -232,29 +348,58 @@ def staged(out: str | Path, inputs: Iterable[str | Path | None] = (), force: boo
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def write_owned(out: str | Path, name: str, data: bytes) -> Path:
-    """Write ``out/name`` atomically and list it (with its digest) in ``out``'s manifest;
-    OwnershipError when a file of that name exists that Fenestra did not write."""
-    from fenestra.files import write_bytes  # noqa: PLC0415
+def write_owned(out: str | Path, name: str, data: bytes, kind: str | None = None, hosts: Iterable[str] = (),
+                inputs: Iterable[str | Path | None] = (), option: str = "--out") -> Path:
+    """Write ``data`` to ``out/name`` atomically and list it (with its digest) in ``out``'s
+    manifest (:func:`write_file`)."""
+    return write_file(Path(out) / name, lambda p: p.write_bytes(data) == len(data), kind, hosts, inputs, option)
 
-    out = Path(out)
-    owned = read_manifest(out) or {}
-    _refuse_foreign(out, [name], owned)
-    path = write_bytes(out / name, data)
-    _write_manifest(out, {**owned, name: file_sha256(path)})
+
+def write_file(path: str | Path, write, kind: str | None = FILES_KIND, hosts: Iterable[str] = (),
+               inputs: Iterable[str | Path | None] = (), option: str = "--out") -> Path:
+    """Call ``write(tmp)`` on a temporary name beside ``path`` (fenestra.files.write_atomic, same
+    suffix), rename it to ``path`` and list it with its digest in its folder's manifest.
+    OwnershipError, before ``write`` runs, when ``path`` is one of ``inputs`` (files the command
+    reads: never replaced, not even when Fenestra wrote them), when a file of that name exists
+    that Fenestra did not write, or when its folder holds another kind of output than ``kind``
+    or ``hosts`` (:func:`check_kind`; a folder new to Fenestra records ``kind``)."""
+    from fenestra.files import write_atomic  # noqa: PLC0415
+
+    path = Path(path)
+    check_file(path, kind, hosts, inputs, option)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with listing(path.parent):  # listed before it takes its name: a kill leaves no unlisted file of ours
+        write_atomic(path, write)
+    _write_manifest(path.parent, {**(read_manifest(path.parent) or {}), path.name: file_sha256(path)}, kind=kind)
     return path
 
 
-def record(out: str | Path, names: Iterable[str] | None = None) -> dict[str, str]:
+def check_file(path: str | Path, kind: str | None = FILES_KIND, hosts: Iterable[str] = (),
+               inputs: Iterable[str | Path | None] = (), option: str = "--out") -> None:
+    """OwnershipError (one line) when :func:`write_file` would refuse ``path``: call it before the
+    work that makes the file."""
+    path = Path(path)
+    target = path.resolve()
+    if any(p is not None and Path(p).resolve() == target for p in inputs):
+        raise OwnershipError(f"{option} {path} is an input of this command; write to another file")
+    if path.is_dir():
+        raise OwnershipError(f"{option} {path} is a folder, not a file")
+    if kind is not None:
+        check_kind(path.parent, kind, option, hosts)
+    _refuse_foreign(path.parent, [path.name], read_manifest(path.parent) or {}, option)
+
+
+def record(out: str | Path, names: Iterable[str] | None = None, kind: str | None = None) -> dict[str, str]:
     """List ``names`` (default: every file under ``out``) with their current digests in
     ``out``'s manifest, which then lists only files that exist; returns it. Call it only on files
-    this run wrote (a run folder whose foreign files were refused up front)."""
+    this run wrote (a run folder whose foreign files were refused up front). kind: the folder's
+    kind, when none is recorded yet."""
     out = Path(out)
     owned = read_manifest(out) or {}
     names = files_in(out) if names is None else list(names)
     owned.update({n: file_sha256(out / n) for n in names if (out / n).is_file() and not (out / n).is_symlink()})
     owned = {n: d for n, d in owned.items() if (out / n).is_file()}
-    _write_manifest(out, owned)
+    _write_manifest(out, owned, kind=kind)
     return owned
 
 
@@ -286,22 +431,54 @@ def remove_owned(out: str | Path, names: Iterable[str] | None = None) -> None:
 
 
 @contextmanager
-def locked(folder: str | Path, what: str = "run") -> Iterator[Path]:
-    """Hold an exclusive lock on ``folder`` (flock on ``folder/LOCK``, released when the process
-    ends however it ends) for the block; OwnershipError at once when another process holds it:
-    concurrent runs into one folder are refused up front, not detected at the end."""
+def listing(out: str | Path) -> Iterator[Path]:
+    """While the block runs, every file that fenestra.files writes atomically under ``out`` (this
+    process) is listed in ``out``'s manifest with its new digest beside its old one (as during a
+    swap) before it takes its name: a run killed at any moment leaves no file of its own unlisted
+    (a half-written one keeps its temporary name: :func:`remove_dead_temp_files`)."""
+    from fenestra.files import TEMP_NAME, before_rename  # noqa: PLC0415
+
+    root = Path(out).resolve()
+
+    def hook(path: Path, tmp: Path) -> None:
+        p = Path(path).resolve()
+        if root not in p.parents:
+            return
+        rel = p.relative_to(root).as_posix()
+        if rel in NOT_LISTED or TEMP_NAME.fullmatch(p.name):  # a write into another writer's temporary file
+            return
+        owned = read_manifest(root) or {}
+        _write_manifest(root, {rel: file_sha256(tmp)}, owned)
+
+    with before_rename(hook):
+        yield Path(out)
+
+
+@contextmanager
+def locked(folder: str | Path, what: str = "run", keep: bool = True) -> Iterator[Path]:
+    """Hold an exclusive lock on ``folder`` (flock on ``folder/LOCK``, which records the holder's
+    process id; released when the process ends however it ends) for the block; OwnershipError at
+    once, naming the process, when another process holds it: concurrent runs into one folder are
+    refused up front, not detected at the end. keep=False: the lock file is removed at the end
+    (while still held) unless it was there before."""
     import fcntl  # noqa: PLC0415
 
     folder = Path(folder)
+    existed = (folder / LOCK).exists()
     fd = os.open(folder / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    held = False
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise OwnershipError(f"{folder}: another {what} is writing into this folder (it holds {LOCK}); "
-                                 "wait for it to end or choose another --out") from None
+            pid = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            raise OwnershipError(f"{folder} is in use by process {pid}: another {what} is writing into this folder "
+                                 f"(it holds {LOCK}); wait for it to end or choose another --out") from None
+        held = True
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
         yield folder
     finally:
+        if held and not keep and not existed:
+            (folder / LOCK).unlink(missing_ok=True)
         os.close(fd)  # releases the lock

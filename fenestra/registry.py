@@ -28,7 +28,7 @@ from collections.abc import Iterable, Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any, Generic, Protocol, TypeVar, runtime_checkable
 
-from fenestra.errors import FenestraError
+from fenestra.errors import FenestraError, bounded
 
 ALL = "all"
 PLUGIN_GROUP = "fenestra.plugins"
@@ -99,9 +99,10 @@ def _caller() -> str:
 
 def load_plugins() -> list[str]:
     """Load every ``fenestra.plugins`` entry point once (see the module docstring); returns the
-    names of those that loaded. A plug-in that fails (an exception, ``sys.exit`` during its import,
-    a name already taken without ``override = True``) is undone (what it registered is removed,
-    what it replaced restored) and named in one warning line on stderr: every command still works."""
+    names of those that loaded. A plug-in that fails (any exception, its own BaseException subclasses
+    too, ``sys.exit`` during its import, a name already taken without ``override = True``) is undone
+    (what it registered is removed, what it replaced restored) and named in one warning line on
+    stderr: every command still works. Ctrl-C while one loads is the user's: raised."""
     if _PLUGINS.loaded:
         return list(_PLUGINS.names)
     _PLUGINS.loaded = True  # before loading: a plug-in reads and registers into the registries
@@ -113,13 +114,15 @@ def load_plugins() -> list[str]:
             obj = ep.load()
             if callable(obj):
                 obj()
-        except (Exception, SystemExit) as e:  # noqa: BLE001 - foreign code: named, undone, never fatal
+        except KeyboardInterrupt:  # Ctrl-C while a plug-in loads: the user's, not the plug-in's
+            raise
+        except BaseException as e:  # noqa: BLE001 - foreign code (its own BaseException subclasses too): named, undone, never fatal
             for reg, name, previous in reversed(_PLUGINS.undo):
                 reg._entries.pop(name, None)
                 if previous is not None:
                     reg._entries[name] = previous
             _PLUGINS.overrides = {k: v for k, v in _PLUGINS.overrides.items() if v != ep.name}
-            why = f"{type(e).__name__}: {e}" if not isinstance(e, SystemExit) else f"it called sys.exit({e.code!r})"
+            why = f"{type(e).__name__}: {bounded(e)}" if not isinstance(e, SystemExit) else f"it called sys.exit({bounded(repr(e.code))})"
             _PLUGINS.failed[ep.name] = why
             _warn(f"fenestra plug-in {ep.name!r} ({ep.value}) failed to load and is ignored: {why}")
             continue

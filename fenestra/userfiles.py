@@ -18,7 +18,7 @@ import stat
 from pathlib import Path
 
 from fenestra.conventions import LIMITS
-from fenestra.errors import DatasetError
+from fenestra.errors import DatasetError, bounded
 
 
 def inside(root: str | Path, name: str, where: str) -> Path:
@@ -28,11 +28,32 @@ def inside(root: str | Path, name: str, where: str) -> Path:
         raise DatasetError(f"{where}: must be a non-empty relative path string, got {name!r}")
     if os.path.isabs(name) or Path(name).anchor:
         raise DatasetError(f"{where}: {name!r} is an absolute path; give it relative to the dataset folder {root}")
-    base = Path(root).resolve()
-    p = (base / name).resolve()
+    base = resolved(root, f"dataset folder {str(root)!r}")
+    p = resolved(base / name, f"{where}: {name!r}")
     if p != base and base not in p.parents:
         raise DatasetError(f"{where}: {name!r} leads outside the dataset folder {root}")
     return Path(root) / name
+
+
+def resolved(path: str | Path, what: str) -> Path:
+    """``path`` made absolute with every symlink followed; DatasetError "<what> is a symlink loop"
+    (``what`` names the path as the user gave it) for a loop, or a link chain too long to follow."""
+    try:
+        return Path(path).resolve()
+    except (RuntimeError, OSError) as e:  # Python < 3.13 reports a loop as RuntimeError
+        raise DatasetError(f"{what} is a symlink loop (it cannot be resolved)") from e
+
+
+def utf8_name(name: str, what: str) -> str:
+    """``name`` (a file or folder name as Python decodes it: bytes that are not UTF-8 become lone
+    surrogates) when it is valid UTF-8; DatasetError naming ``what`` otherwise (tables and JSON
+    files hold UTF-8 text only)."""
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        raise DatasetError(f"{what} {name!r}: the name is not valid UTF-8, which a results table cannot "
+                           "hold; rename it") from None
+    return name
 
 
 def is_regular(path: str | Path) -> bool:
@@ -84,5 +105,6 @@ def read_json(path: str | Path, what: str = "JSON file", limit: int | None = Non
     raw = read_bytes(p, what, LIMITS.max_json_bytes if limit is None else limit, "max_json_bytes")
     try:
         return json.loads(raw)
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
-        raise DatasetError(f"{what} {p} is not valid JSON: {e}") from e
+    except (ValueError, RecursionError) as e:  # ValueError: not UTF-8, not JSON, or a number of > 4300 digits
+        why = "nested too deeply" if isinstance(e, RecursionError) else bounded(e)
+        raise DatasetError(f"{what} {p} is not valid JSON: {why}") from e

@@ -95,7 +95,7 @@ def test_implausible_windows_are_flagged_with_reasons_and_wider_error_bars():
 def test_known_takes_one_positive_size():
     with pytest.raises(ValueError, match="at most one"):
         Known(window_width_m=1.0, window_height_m=1.5)
-    with pytest.raises(ValueError, match="positive"):
+    with pytest.raises(ValueError, match=r"Known.storey_m must be a length in m within the physical range \[1, 50\]"):
         Known(storey_m=-3.0)
 
 

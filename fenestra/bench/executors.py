@@ -34,6 +34,7 @@ import hashlib
 import json
 import multiprocessing as mp
 import os
+import re
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -42,6 +43,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from fenestra.bench.evaluate import EvalOptions, ViewOutcome, ViewTask, evaluate_task
+from fenestra.bench.results import SHARD_DIR
 from fenestra.bench.profiles import Profile
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
@@ -243,7 +245,7 @@ def plan_shards(plan: Plan, shard_views: int) -> list[Shard]:
             views = range(start, min(n, start + shard_views))
             key = hashlib.sha256(repr((version, h.dataset, plan.options, plan.methods, views.start, views.stop))
                                  .encode()).hexdigest()[:16]
-            shards.append(Shard(i, h, views, str(Path(plan.run_dir) / "shards" / f"{key}.json")))
+            shards.append(Shard(i, h, views, str(Path(plan.run_dir) / SHARD_DIR / f"{key}.json")))
     return shards
 
 
@@ -339,6 +341,41 @@ def run_shard(plan: Plan, shard: Shard) -> str:
     render_s = time.perf_counter() - t0
     outcomes = [evaluate_task(t) for t in view_tasks(plan, shard.house.house, ds, shard.views)]
     return str(write_shard(shard.out, str(ds), outcomes, render_s))
+
+
+SHARD_NAME = re.compile(r"[0-9a-f]{16}\.(json|parquet)")  # plan_shards' names
+
+
+def recognised_shards(run_dir: str | Path, listed: Iterable[str] = ()) -> list[str]:
+    """The shard files under ``run_dir/SHARD_DIR`` that :func:`write_shard` wrote, as paths
+    relative to ``run_dir``, those in ``listed`` (already in the run's manifest) not looked at: a
+    named index whose own digest and rows file's digest check (both files), and a rows file whose
+    index was never written (a worker killed between the two) when it is a Parquet file with the
+    ``_view`` column. Nothing is unpickled or trusted: a shard is still checked when read."""
+    import pyarrow.parquet as pq  # noqa: PLC0415
+
+    folder = Path(run_dir) / SHARD_DIR
+    names = {p.name for p in folder.iterdir() if p.is_file() and not p.is_symlink() and SHARD_NAME.fullmatch(p.name)}
+    skip = set(listed)
+    found = []
+    for n in sorted(n for n in names if f"{SHARD_DIR}/{n}" not in skip):
+        stem, suffix = n.rsplit(".", 1)
+        if suffix == "json" and _load_shard(str(folder / n), warn=False) is not None:
+            found += [n, f"{stem}.parquet"]
+        elif suffix == "parquet" and f"{stem}.json" not in names:
+            with contextlib.suppress(Exception):  # not Parquet, unreadable: not recognised
+                if "_view" in pq.read_schema(folder / n).names:
+                    found.append(n)
+    return [f"{SHARD_DIR}/{n}" for n in found]
+
+
+def _record_shard(run_dir: str, path: str) -> None:
+    """List a finished shard's two files in the run folder's manifest (fenestra.outputs)."""
+    from fenestra import outputs  # noqa: PLC0415
+
+    index = Path(path)
+    outputs.record(run_dir, [p.relative_to(run_dir).as_posix() for p in (index, index.with_suffix(".parquet"))
+                             if p.is_file()])
 
 
 def _load_shard(path: str, warn: bool = True) -> dict | None:
@@ -442,6 +479,7 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
                 job = bar.add_task(f"shards on {n_actors} Ray workers", total=len(todo))
                 for path in _ray_map(ray, plan, todo, n_actors):
                     done[path] = _shard_render_s(path)
+                    _record_shard(plan.run_dir, path)  # listed as written: a killed run's shards are Fenestra's
                     bar.advance(job)
         finally:
             if started:

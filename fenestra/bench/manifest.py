@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from fenestra.bench.results import RESULTS_CSV, RESULTS_PARQUET, SPOOL_DIR, load_results
+from fenestra.bench.results import RESULTS_CSV, RESULTS_PARQUET, SHARD_DIR, SPOOL_DIR, load_results
 from fenestra import outputs
 from fenestra.errors import FenestraError, one_line
 from fenestra.files import file_sha256, write_json
@@ -208,6 +208,22 @@ def load_verified_results(run_dir: str | Path) -> pd.DataFrame:
 
 
 STALE = (MANIFEST_JSON, "report.html", "report.md", "figures", SPOOL_DIR)  # an earlier run's outputs
+COMPARE_PREFIX = "compare-"  # a comparison page written into the run (fenestra compare): stale too
+KIND = "bench"  # the kind of output a run folder is (fenestra.outputs.KINDS)
+
+
+def adopt_shards(run_dir: Path) -> list[str]:
+    """List in ``run_dir``'s manifest the Ray shards a killed run wrote but did not list
+    (bench.executors.recognised_shards: recognised by name and digest); returns them."""
+    if not (run_dir / SHARD_DIR).is_dir():
+        return []
+    from fenestra.bench.executors import recognised_shards  # noqa: PLC0415
+
+    owned = outputs.read_manifest(run_dir) or {}
+    found = [f for f in recognised_shards(run_dir, listed=owned) if f not in owned]
+    if found:
+        outputs.record(run_dir, found)
+    return found
 
 
 def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: bool = False,
@@ -224,7 +240,10 @@ def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: b
     run_dir = Path(run_dir)
     if run_dir.exists() and not run_dir.is_dir():
         raise RunIntegrityError(f"--out {run_dir} is a file, not a folder")
-    outputs.check_out(run_dir, inputs, force=True)  # a file, or a folder overlapping an input
+    outputs.check_out(run_dir, inputs, force=True, kind=KIND)  # a file, a folder overlapping an input or of another kind
+    if run_dir.is_dir() and outputs.read_manifest(run_dir) is not None:  # a run Fenestra wrote, killed:
+        outputs.remove_dead_temp_files(run_dir)  # its half-written files go,
+        adopt_shards(run_dir)  # its unlisted shards are recognised
     owned = outputs.read_manifest(run_dir) if run_dir.is_dir() else None
     foreign = outputs.foreign_files(run_dir, owned or {})
     if foreign:
@@ -243,9 +262,9 @@ def claim_run_dir(run_dir: str | Path, profile: str, profile_hash: str, force: b
                                         "choose another --out or pass --force to replace it")
             outputs.remove_owned(run_dir)  # exactly the files listed, each with its digest
     run_dir.mkdir(parents=True, exist_ok=True)
-    outputs.remove_owned(run_dir, STALE)
+    outputs.remove_owned(run_dir, [*STALE, *(f for f in owned or {} if f.startswith(COMPARE_PREFIX))])
     write_json(run_dir / RUN_JSON, {"profile": profile, "profile_hash": profile_hash, "status": "running"})
-    outputs.record(run_dir, [RUN_JSON])
+    outputs.record(run_dir, [RUN_JSON], kind=KIND)
     return run_dir
 
 
@@ -274,7 +293,7 @@ def claimed(run_dir: str | Path, profile: str, profile_hash: str, force: bool = 
     (fenestra.outputs.locked), claimed (:func:`claim_run_dir`) and marked by :func:`run_status`.
     A folder this call made is removed again (rmdir) when the claim is refused."""
     run_dir = Path(run_dir)
-    outputs.check_out(run_dir, inputs, force=True)
+    outputs.check_out(run_dir, inputs, force=True, kind=KIND)  # another kind: refused before the lock file is made
     created = not run_dir.exists()
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
@@ -282,7 +301,7 @@ def claimed(run_dir: str | Path, profile: str, profile_hash: str, force: bool = 
             claim_run_dir(run_dir, profile, profile_hash, force, inputs)  # refuses: no lock file left there
         with outputs.locked(run_dir, "benchmark run"):
             claim_run_dir(run_dir, profile, profile_hash, force, inputs)
-            with run_status(run_dir):
+            with outputs.listing(run_dir), run_status(run_dir):  # every file listed as it is written
                 yield run_dir
     except BaseException:
         if created and not outputs.files_in(run_dir):
@@ -295,9 +314,13 @@ def claimed(run_dir: str | Path, profile: str, profile_hash: str, force: bool = 
 def require_complete(run_dir: str | Path) -> None:
     """RunIntegrityError unless the run folder's run.json says ``complete`` (a run that failed,
     was interrupted, or is still running is never gated). A folder without run.json (a table
-    sealed outside ``fenestra bench``, :func:`seal`) passes."""
+    sealed outside ``fenestra bench``, :func:`seal`) passes, unless Fenestra's manifest there
+    (fenestra.outputs) lists run.json: then its absence is a failure, never a pass."""
     p = Path(run_dir) / RUN_JSON
     if not p.is_file():
+        if RUN_JSON in (outputs.read_manifest(run_dir) or {}):
+            raise RunIntegrityError(f"{p} is missing, but {Path(run_dir) / outputs.MANIFEST} lists it: the run "
+                                    "folder is incomplete; re-run `fenestra bench`")
         return
     try:
         doc = json.loads(p.read_bytes())

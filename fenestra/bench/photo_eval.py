@@ -62,6 +62,7 @@ import pandas as pd
 from fenestra.bench.metrics import box_iou_matrix
 from fenestra.bench.results import AS_IS, KFREE_PARQUET, KFREE_TARGETS, KNOWN_STOREY, focal_spreads
 from fenestra.bench.views import LabelledView
+from fenestra.files import write_atomic
 from fenestra.pipeline.facade_model import MAX_WINDOW_M, Known
 from fenestra.pipeline.photo import model_walls
 
@@ -567,7 +568,7 @@ def run_kfree(spec: KfreeSpec, views: Iterable[LabelledView], run_dir: Path, pro
     return the summary block."""
     t0 = time.perf_counter()
     df = evaluate_kfree(spec, views, progress, workers)
-    df.to_parquet(Path(run_dir) / KFREE_PARQUET, index=False)
+    write_atomic(Path(run_dir) / KFREE_PARQUET, lambda p: df.to_parquet(p, index=False))
     return summarize_kfree(df, spec, time.perf_counter() - t0)
 
 

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from fenestra.config import from_table, read_toml
+from fenestra.conventions import LIMITS
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
 
@@ -249,6 +250,19 @@ def _validate(p: Profile, where: str) -> None:
             raise ProfileError(f"{where}: {key} has bad value {value!r}")
     if not p.scenes.houses and p.scenes.procedural == 0:
         raise ProfileError(f"{where}: no houses: scenes.houses is empty and scenes.procedural = 0")
+    _check_counts(p, where)
+
+
+def _check_counts(p: Profile, where: str) -> None:
+    """The profile's counts within fenestra.conventions.LIMITS (procedural houses, views per house,
+    views in all); ProfileError naming the key, its value and the bound."""
+    from fenestra.scenes.registry import BUNDLED  # noqa: PLC0415
+
+    LIMITS.check("max_procedural_houses", p.scenes.procedural, f"{where}: scenes.procedural", ProfileError)
+    LIMITS.check("max_views_per_dataset", p.render.views_per_house, f"{where}: render.views_per_house", ProfileError)
+    n_houses = (len(BUNDLED) if p.scenes.houses == (ALL,) else len(p.scenes.houses)) + p.scenes.procedural
+    LIMITS.check("max_views_per_run", n_houses * p.render.views_per_house,
+                 f"{where}: houses x render.views_per_house ({n_houses} x {p.render.views_per_house})", ProfileError)
 
 
 def profile_from_dict(data: dict, where: str = "profile") -> Profile:

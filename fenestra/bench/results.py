@@ -29,9 +29,11 @@ import numpy as np
 import pandas as pd
 
 from fenestra.bench.metrics import error_stats, recall_at
+from fenestra.errors import DatasetError, bounded
 from fenestra.files import REPO_ROOT, file_sha256, write_atomic, write_text
 from fenestra.pipeline.facade_model import MAX_WINDOW_M
 from fenestra.tolerances import TOL
+from fenestra.userfiles import read_json
 
 RESULTS_PARQUET = "results.parquet"
 RESULTS_CSV = "results.csv"
@@ -56,6 +58,10 @@ TRUTH_FLAGS = {**{f"corner_err_px_{s}": "has_quad" for s in CORNER_STAGES}, "iou
                "trans_err_m": "has_pose", "rel_size_err": "has_size", "reproj_consistency_px": "known_K"}
 REQUIRED_COLUMNS = ("method", "detector", "snapper", "pose", "evaluable", "status",
                     *(f"corner_err_px_{s}" for s in CORNER_STAGES), *OTHER_ERRORS)
+# a results table's columns of names and ids (text even when they look like numbers: a view "000001")
+TEXT_COLUMNS = ("profile", "house", "dataset", "renderer", "view", "window_id", "detector", "snapper",
+                "pose", "method", "eval_reason", "aspect_case", "status", "reason", "K_source", "scale_source",
+                "scale_source_storey")
 SUMMARY_REQUIRED = tuple(c for c in REQUIRED_COLUMNS if c not in ("detector", "snapper", "pose"))  # what summarize reads
 VERSIONED_PACKAGES = ("numpy", "scipy", "opencv-python-headless", "ifcopenshell", "trimesh",
                       "torch", "torchvision", "mitsuba", "pyrender", "shapely", "pandas",
@@ -90,6 +96,7 @@ def write_results(df: pd.DataFrame, run_dir: str | Path, csv: bool = False) -> l
 
 VIEWS_PER_SHARD = 16  # views whose rows go to one spool file (bounds the rows held in memory)
 SPOOL_DIR = ".rows"  # a run folder's spool of view shards while the evaluation runs
+SHARD_DIR = "shards"  # a run folder's Ray shards (bench.executors), kept for a resumed run
 
 
 class RowSpool:
@@ -226,19 +233,35 @@ def load_results(run_dir: str | Path) -> pd.DataFrame:
     run_dir = Path(run_dir)
     if (run_dir / RESULTS_PARQUET).is_file():
         df = pd.read_parquet(run_dir / RESULTS_PARQUET)
-    elif (run_dir / RESULTS_CSV).is_file():
-        df = pd.read_csv(run_dir / RESULTS_CSV)
+    elif (run_dir / RESULTS_CSV).is_file():  # CSV has no types: names and ids stay text ("000001", not 1)
+        df = pd.read_csv(run_dir / RESULTS_CSV, dtype=dict.fromkeys(TEXT_COLUMNS, str))
     else:
         raise FileNotFoundError(f"{run_dir} has no {RESULTS_PARQUET} or {RESULTS_CSV}: not a run folder")
     return check_table(df, str(run_dir))
 
 
 def load_summary(run_dir: str | Path) -> dict:
-    """summary.json of a run folder."""
+    """summary.json of a run folder: a JSON object whose "metadata" (with the "profile" name) and
+    "results" (method -> statistics) are objects; DatasetError naming the file and the field
+    otherwise (a file that is not JSON, too large, or another command's summary)."""
     p = Path(run_dir) / SUMMARY_JSON
     if not p.is_file():
         raise FileNotFoundError(f"{run_dir} has no {SUMMARY_JSON}")
-    return json.loads(p.read_text())
+    doc = read_json(p, "run summary")
+    if not isinstance(doc, dict):
+        raise DatasetError(f"run summary {p} must be a JSON object with 'metadata' and 'results', got "
+                           f"{type(doc).__name__}: not a benchmark run's summary")
+    for key in ("metadata", "results"):
+        if not isinstance(doc.get(key), dict):
+            raise DatasetError(f"run summary {p}: '{key}' must be a JSON object, got {bounded(repr(doc.get(key)))}")
+    if not isinstance(doc["metadata"].get("profile"), str):
+        raise DatasetError(f"run summary {p}: metadata 'profile' must be a profile name, got "
+                           f"{bounded(repr(doc['metadata'].get('profile')))}")
+    bad = next((m for m, v in doc["results"].items() if not isinstance(v, dict)), None)
+    if bad is not None or not isinstance(doc.get("detection", {}), dict):
+        field = f"results[{bounded(repr(bad))}]" if bad is not None else "'detection'"
+        raise DatasetError(f"run summary {p}: {field} must be a JSON object of statistics")
+    return doc
 
 
 def _stats_with_recall(errors: np.ndarray) -> dict:

@@ -36,9 +36,11 @@ from fenestra.bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTa
 from fenestra.bench.executors import HousePlan, Keep, Plan, evaluate_local, get_executor
 from fenestra.bench.profiles import ALL, Profile, planned_methods, selected
 from fenestra.bench.real.profile import RealProfile
+from fenestra.bench.views import LabelledView
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
 from fenestra.registry import plugin_metadata
+from fenestra.userfiles import utf8_name
 
 OUT_ROOT = Path("out")
 LEARNED_DETECTOR_OPTIONS = {"threads": 1}  # one torch thread per worker process
@@ -162,6 +164,13 @@ def evaluate_renders(profile: Profile, methods: tuple[Method, ...], run_dir: Pat
                      {"workers": workers, "executor": executor, "datasets": {h: str(p) for h, p in datasets}})
 
 
+def _utf8_view(view: LabelledView, folder: Path) -> LabelledView:
+    """``view`` when its name is valid UTF-8; DatasetError naming its photo in ``folder`` before it is
+    evaluated otherwise (the results table holds UTF-8 text only)."""
+    utf8_name(view.name, f"dataset {folder}: photo")
+    return view
+
+
 def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress: bool,
                     keep: Keep | None = None) -> Evaluated:
     """Evaluate every view of a real profile's datasets, in order, in this process (the real
@@ -170,7 +179,7 @@ def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     datasets, skipped = profile.available_datasets()
     options = profile.eval_options()
-    tasks = (ViewTask(LoadedView(v), methods, options) for ds in datasets for v in ds.views())
+    tasks = (ViewTask(LoadedView(_utf8_view(v, ds.folder())), methods, options) for ds in datasets for v in ds.views())
     t0 = time.perf_counter()
     outcomes = evaluate_local(tasks, workers=1, progress=progress, keep=keep)
     stage_s = {"evaluate_wall": time.perf_counter() - t0}
@@ -199,11 +208,14 @@ def peak_rss_mb() -> dict[str, float]:
 
 
 def _report_child(report: ReportWriter, run_dir: Path, conn) -> None:
-    """Child side of :func:`report_apart`: run the report, send back None or its error's one line."""
+    """Child side of :func:`report_apart`: run the report (each file listed in the run folder's
+    manifest as it is written, fenestra.outputs.listing), send back None or its error's one line."""
+    from fenestra import outputs  # noqa: PLC0415
     from fenestra.errors import one_line  # noqa: PLC0415
 
     try:
-        report(run_dir)
+        with outputs.listing(run_dir):
+            report(run_dir)
         conn.send(None)
     except BaseException as e:  # noqa: BLE001 - sent to the parent, which raises it as one line
         conn.send(f"{type(e).__name__}: {one_line(e)}")

@@ -17,6 +17,7 @@ overlay and the texture) lives in that undistorted image; windows.json says ``"u
 from __future__ import annotations
 
 import json
+import re
 import time
 from pathlib import Path
 from typing import Optional
@@ -26,8 +27,8 @@ import typer
 from typer.core import TyperCommand
 
 from fenestra.conventions import DEFAULTS, LIMITS
-from fenestra.errors import PipelineError
-from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, Known
+from fenestra.errors import FenestraError, PipelineError
+from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, KNOWN_RANGE_M as FIELD_RANGE_M, Known
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
 from fenestra.pipeline.photo import WALL_THICKNESS_RANGE_M, OptionError, PhotoOptions, model_walls, reconstruct_photo
 from fenestra.pipeline.quad import QUAD_SOURCES
@@ -50,16 +51,20 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     wall_thickness: the exported walls' thickness, m (WALL_THICKNESS_RANGE_M). options: the
     PhotoOptions already built from the flags (:func:`photo_options`; the batch builds them once),
     else built here from the option arguments."""
+    from fenestra.pipeline.outdir import held_out  # noqa: PLC0415
+
     if options is None:
         options = photo_options(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source, width=width,
                                 height=height, storey=storey, substitute=substitute, export=export,
                                 export_all=export_all, max_pixels=max_pixels, wall_thickness=wall_thickness)
-    return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
-                             force=force).to_json()
+    with held_out(out, force, (photo, K_json, masks)):  # one reconstruct at a time into a folder
+        return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
+                                 force=force).to_json()
 
 
-# the physical range of each --known-* size, m: a value outside is a typo or a unit mistake
-KNOWN_RANGE_M = {"--known-width": (0.01, 30.0), "--known-height": (0.01, 30.0), "--known-storey": (1.0, 50.0)}  # 1 cm: a curtain-wall pane is 9.3 cm (examples/)
+# the physical range of each --known-* size, m (pipeline.facade_model.KNOWN_RANGE_M, by option)
+KNOWN_RANGE_M = {opt: FIELD_RANGE_M[f] for opt, f in (("--known-width", "window_width_m"),
+                                                       ("--known-height", "window_height_m"), ("--known-storey", "storey_m"))}
 
 
 def known_sizes(width: Optional[float], height: Optional[float], storey: Optional[float]) -> Known:
@@ -116,7 +121,10 @@ def option_message(e: OptionError) -> str:
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
-    """The `calibrate` command as a function: returns the K.json dict it wrote."""
+    """The `calibrate` command as a function: returns the K.json dict it wrote. ``out`` follows
+    fenestra.outputs' rule (checked before any photo is read): never one of the photos, never a
+    file Fenestra did not write, never into a folder holding another kind of output."""
+    from fenestra import outputs  # noqa: PLC0415
     from fenestra.pipeline.intrinsics import calibrate_chessboard, calibration_json  # noqa: PLC0415
     from fenestra.images import read_image  # noqa: PLC0415
 
@@ -124,10 +132,13 @@ def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) ->
         cols, rows = (int(v) for v in pattern.lower().split("x"))
     except ValueError as e:
         raise PipelineError(f"--pattern must be COLSxROWS inner corners (e.g. 9x6), got {pattern!r}") from e
-    cal = calibrate_chessboard([read_image(p, "photo") for p in photos], (cols, rows), square)
-    doc = calibration_json(cal)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(doc, indent=2))
+    try:
+        outputs.check_file(out, inputs=photos)
+        cal = calibrate_chessboard([read_image(p, "photo") for p in photos], (cols, rows), square)
+        doc = calibration_json(cal)
+        outputs.write_file(out, lambda p: p.write_text(json.dumps(doc, indent=2)), inputs=photos)
+    except outputs.OwnershipError as e:
+        raise PipelineError(str(e)) from e
     return doc
 
 
@@ -155,11 +166,34 @@ def expand_photos(args: list[str]) -> list[Path]:
     return found
 
 
+BATCH_FILES = ("summary.json", "summary.csv")  # a batch folder's own files: never a photo's folder
+MAX_NAME_BYTES = 100  # a photo folder's name, UTF-8 bytes (filesystems allow 255)
+
+
+def safe_name(stem: str) -> str:
+    """A folder name for a photo's stem: every character but letters, digits, '_', '-' and '.'
+    (a byte of a name that is not UTF-8 among them) replaced by '_', leading dots removed (never
+    '.', '..' or a hidden folder), at most MAX_NAME_BYTES bytes; 'photo' when nothing is left."""
+    name = re.sub(r"[^\w.-]", "_", stem).lstrip(".")
+    while len(name.encode()) > MAX_NAME_BYTES:
+        name = name[:-1]
+    return name or "photo"
+
+
 def output_names(photos: list[Path]) -> list[str]:
-    """One subfolder name per photo: its stem, with its parent folder's name prefixed where stems repeat."""
-    stems = [p.stem for p in photos]
-    names = [s if stems.count(s) == 1 else f"{p.parent.name}_{s}" for p, s in zip(photos, stems)]
-    return [n if names.count(n) == 1 else f"{n}_{i}" for i, n in enumerate(names)]
+    """One subfolder name per photo (:func:`safe_name` of its stem, with its parent folder's name
+    prefixed where stems repeat), unique without regard to case and never one of BATCH_FILES:
+    a clash gets '_0', '_1', ... appended."""
+    stems = [safe_name(p.stem) for p in photos]
+    names = [s if stems.count(s) == 1 else safe_name(f"{p.parent.name}_{s}") for p, s in zip(photos, stems)]
+    taken, out = {n.lower() for n in BATCH_FILES}, []
+    for n in names:
+        m, i = n, 0
+        while m.lower() in taken or (i == 0 and names.count(n) > 1):
+            m, i = f"{n}_{i}", i + 1
+        taken.add(m.lower())
+        out.append(m)
+    return out
 
 
 def summary_row(photo: Path, doc: dict | None, error: str | None, seconds: float | None = None,
@@ -200,22 +234,40 @@ def summary_csv(rows: list[dict]) -> str:
 
 
 def run_batch(photos: list[Path], out: Path, kw: dict, inputs: tuple = ()) -> list[dict]:
-    """Reconstruct each photo into out/<name> (run_reconstruct with ``kw``), with a progress bar on
-    stderr; a photo that is bad input is recorded (its error) and the batch goes on. Writes
-    out/summary.json and returns its rows. ``out`` follows fenestra.outputs' rule, checked
-    before any photo: never a folder holding or inside the photos, ``inputs`` (the folders
-    named) or K/masks; summary.json replaces only a summary Fenestra wrote."""
+    """Reconstruct each photo into out/<name> (run_reconstruct with ``kw``; names: :func:`output_names`),
+    with a progress bar on stderr; a photo that fails (bad input, or a bug: "internal error") is
+    recorded (its error) and the batch goes on. Writes out/summary.json and returns its rows.
+    ``out`` follows fenestra.outputs' rule, checked before any photo: never a folder holding or
+    inside the photos, ``inputs`` (the folders named) or K/masks, nor one holding another kind of
+    output (a bench run, one photo's reconstruction); summary.json replaces only a summary
+    Fenestra wrote. ``out`` is locked while the batch runs."""
+    from fenestra import outputs  # noqa: PLC0415
+
+    try:
+        outputs.check_out(out, (*inputs, *photos, kw.get("K_json"), kw.get("masks")), kw.get("force", False),
+                          kind=BATCH_KIND)
+        out.mkdir(parents=True, exist_ok=True)
+        with outputs.locked(out, "batch", keep=False):
+            return _batch(photos, out, kw)
+    except outputs.OwnershipError as e:
+        raise PipelineError(str(e)) from e
+
+
+BATCH_KIND = "batch"  # the kind of output a batch folder is (fenestra.outputs.KINDS)
+
+
+def _batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
+    """run_batch's body, in a checked and locked ``out``: summary.json and summary.csv claimed up
+    front (refused before any photo runs), then each photo into its folder, then the summary."""
     import sys  # noqa: PLC0415
 
     from fenestra import outputs  # noqa: PLC0415
 
-    try:
-        outputs.check_out(out, (*inputs, *photos, kw.get("K_json"), kw.get("masks")), kw.get("force", False))
-        out.mkdir(parents=True, exist_ok=True)
-        outputs.write_owned(out, "summary.json", b"[]")  # claimed up front: refused before any photo runs
-        outputs.write_owned(out, "summary.csv", summary_csv([]).encode())
-    except outputs.OwnershipError as e:
-        raise PipelineError(str(e)) from e
+    def write_summary(rows: list[dict]) -> None:
+        outputs.write_owned(out, "summary.json", json.dumps(rows, indent=2).encode(), kind=BATCH_KIND)
+        outputs.write_owned(out, "summary.csv", summary_csv(rows).encode(errors="backslashreplace"), kind=BATCH_KIND)
+
+    write_summary([])
     rows = []
     with typer.progressbar(list(zip(photos, output_names(photos))), label="reconstruct", file=sys.stderr,
                            item_show_func=lambda item: item[0].name if item else "") as bar:
@@ -223,11 +275,12 @@ def run_batch(photos: list[Path], out: Path, kw: dict, inputs: tuple = ()) -> li
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 doc, error = run_reconstruct(photo, out / name, **kw), None
-            except (PipelineError, ValueError, OSError) as e:
+            except (FenestraError, ValueError, OSError) as e:
                 doc, error = None, " ".join(str(e).split())
+            except Exception as e:  # noqa: BLE001 -- a bug on one photo is recorded, the batch goes on
+                doc, error = None, f"internal error ({type(e).__name__}, please report it): " + " ".join(str(e).split())
             rows.append(summary_row(photo, doc, error, time.perf_counter() - t0, time.process_time() - c0, out / name))
-    outputs.write_owned(out, "summary.json", json.dumps(rows, indent=2).encode())
-    outputs.write_owned(out, "summary.csv", summary_csv(rows).encode())
+    write_summary(rows)
     return rows
 
 

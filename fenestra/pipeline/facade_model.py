@@ -49,6 +49,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fenestra.conventions import heading_difference_deg, project, rotation_error_deg, vote_axis
+from fenestra.errors import bounded
 from fenestra.pipeline.types import Failure, Partial, Uncertainty, Unavailable, WindowResult
 
 DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
@@ -67,6 +68,11 @@ AGREE_RATIO = 1.5  # typical windows of a wall agree within this factor in heigh
 MAX_WINDOW_M = 4.0  # a window taller or wider than this is flagged unless a known size says otherwise
 
 
+# the physical range of each known size, m: a value outside is a typo or a unit mistake (1 cm: a
+# curtain-wall pane is 9.3 cm, examples/)
+KNOWN_RANGE_M = {"window_width_m": (0.01, 30.0), "window_height_m": (0.01, 30.0), "storey_m": (1.0, 50.0)}
+
+
 @dataclass(frozen=True)
 class Known:
     """What the user knows that sets the scale (at most one): window_width_m / window_height_m of a
@@ -82,8 +88,10 @@ class Known:
         if len(given) > 1:
             raise ValueError(f"give at most one known size, got {given}")
         for k, v in given.items():
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{k} must be a positive length in m, got {v}")
+            lo, hi = KNOWN_RANGE_M[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not lo <= v <= hi:
+                raise ValueError(f"Known.{k} must be a length in m within the physical range [{lo:g}, {hi:g}], "
+                                 f"got {bounded(repr(v))}")
 
 
 @dataclass(frozen=True)

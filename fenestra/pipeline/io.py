@@ -21,7 +21,7 @@ import numpy as np
 
 from fenestra.checks import check_K
 from fenestra.conventions import LIMITS, make_K
-from fenestra.errors import PipelineError
+from fenestra.errors import PipelineError, bounded
 
 
 def K_from_values(fx: float, fy: float | None, cx: float | None, cy: float | None,
@@ -69,10 +69,10 @@ def check_distortion(values) -> np.ndarray | None:
     try:
         d = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError) as e:
-        raise PipelineError(f"distortion must be a list of numbers, got {values!r}") from e
+        raise PipelineError(f"distortion must be a list of numbers, got {bounded(repr(values))}") from e
     if d.ndim != 1 or d.size not in DISTORTION_SIZES:
         raise PipelineError(f"distortion must be a flat list of {', '.join(map(str, DISTORTION_SIZES))} "
-                            f"OpenCV coefficients (k1, k2, p1, p2, k3, ...), got {values!r}")
+                            f"OpenCV coefficients (k1, k2, p1, p2, k3, ...), got {bounded(repr(values))}")
     if not np.all(np.isfinite(d)):
         raise PipelineError(f"distortion has non-finite coefficients: {d.tolist()}")
     return d if np.any(d) else None
@@ -219,8 +219,9 @@ def _read_K_json(path: str | Path, image_size: tuple[int, int] | None) -> tuple[
     except UnicodeDecodeError as e:  # a binary file: JSON is UTF-8 text
         raise PipelineError(f"intrinsics file {p} is not JSON (not UTF-8 text: byte {e.object[e.start]:#04x} "
                             f"at offset {e.start})") from e
-    except (OSError, json.JSONDecodeError) as e:
-        raise PipelineError(f"cannot read intrinsics JSON {p}: {e}") from e
+    except (OSError, ValueError, RecursionError) as e:  # ValueError: not JSON, or a number of > 4300 digits
+        why = "nested too deeply" if isinstance(e, RecursionError) else bounded(e)
+        raise PipelineError(f"cannot read intrinsics JSON {p}: {why}") from e
     if not isinstance(data, dict):
         raise PipelineError(f"{p}: expected a JSON object with 'K' or 'fx', got {type(data).__name__}")
     try:

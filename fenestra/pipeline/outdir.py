@@ -26,12 +26,39 @@ from fenestra.errors import PipelineError
 MANIFEST = outputs.MANIFEST
 
 
+KIND = "reconstruction"  # the kind of output a reconstruct folder is (fenestra.outputs.KINDS)
+
+
 def check_out(out: Path, force: bool, inputs: Iterable[str | Path | None] = ()) -> None:
-    """PipelineError if ``out`` may not receive a reconstruct output (fenestra.outputs.check_out)."""
+    """PipelineError if ``out`` may not receive a reconstruct output (fenestra.outputs.check_out:
+    an input, a folder of another kind, a user's folder without ``force``)."""
     try:
-        outputs.check_out(Path(out), inputs, force)
+        outputs.check_out(Path(out), inputs, force, kind=KIND)
     except outputs.OwnershipError as e:
         raise PipelineError(str(e)) from e
+
+
+@contextmanager
+def held_out(out: str | Path, force: bool = False, inputs: Iterable[str | Path | None] = ()) -> Iterator[Path]:
+    """``out`` checked (:func:`check_out`) and locked for the block (fenestra.outputs.locked,
+    the lock file removed at the end): a second reconstruct into it is refused at once, naming
+    the process that holds it, before its pipeline runs. The folders this made are removed
+    again (rmdir) when they stay empty."""
+    out = Path(out)
+    check_out(out, force, inputs)
+    made = [p for p in (out, *out.parents) if not p.exists()]  # deepest first
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        with outputs.locked(out, "reconstruct", keep=False):
+            yield out
+    except outputs.OwnershipError as e:
+        raise PipelineError(str(e)) from e
+    finally:
+        for p in made:
+            try:
+                p.rmdir()  # only if still empty
+            except OSError:
+                break
 
 
 @contextmanager
@@ -40,7 +67,7 @@ def staged_dir(out: str | Path, force: bool = False, inputs: Iterable[str | Path
     replace the previous output's in ``out`` (fenestra.outputs.staged). OSError (read-only,
     name too long) propagates; a refusal is a PipelineError."""
     try:
-        with outputs.staged(Path(out), inputs, force) as tmp:
+        with outputs.staged(Path(out), inputs, force, kind=KIND) as tmp:
             yield tmp
     except outputs.OwnershipError as e:
         raise PipelineError(str(e)) from e

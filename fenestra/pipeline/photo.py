@@ -23,6 +23,7 @@ import numpy as np
 
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import PipelineError
+from fenestra.masks import mask_extent
 from fenestra.methods import Method
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
 from fenestra.pipeline.facade_model import Known
@@ -412,10 +413,10 @@ def detection_boxes(detections: list[Detection]) -> dict[int, tuple[int, int, in
     """{index: (x0, y0, x1, y1) px} of each detection's mask (full image coordinates)."""
     boxes = {}
     for i, d in enumerate(detections):
-        ys, xs = np.nonzero(np.asarray(d.mask))
-        if len(xs):
-            x0, y0 = d.origin
-            boxes[i] = (int(xs.min() + x0), int(ys.min() + y0), int(xs.max() + x0), int(ys.max() + y0))
+        extent = mask_extent(d.mask)
+        if extent is not None:
+            (ox, oy), (x0, y0, x1, y1) = d.origin, extent
+            boxes[i] = (x0 + ox, y0 + oy, x1 + ox, y1 + oy)
     return boxes
 
 

@@ -182,6 +182,14 @@ def corner_fallback(det: Detection, failed: QuadResult) -> QuadResult:
     return qr
 
 
+def _reaches_inner_edge(m: np.ndarray, origin: tuple[int, int], image_shape: tuple[int, int]) -> bool:
+    """Whether an (h, w) mask crop at ``origin`` of an (H, W) image has a foreground pixel on one of
+    its edges that is not an edge of the image (where a full mask would continue with background)."""
+    (x0, y0), (h, w), (H, W) = origin, m.shape, image_shape
+    edges = ((y0 > 0, m[0]), (y0 + h < H, m[-1]), (x0 > 0, m[:, 0]), (x0 + w < W, m[:, -1]))
+    return any(inner and bool(np.any(line)) for inner, line in edges)
+
+
 def mask_outside(det: Detection, image_shape: tuple[int, int]) -> str | None:
     """Why a detection's mask (full or a crop at ``det.origin``) does not lie in an (H, W) image."""
     (x0, y0), (h, w) = det.origin, np.asarray(det.mask).shape
@@ -202,16 +210,22 @@ def fit_sparse(det: Detection, params: QuadParams, image_shape: tuple[int, int])
 
     The crop is padded by one background pixel where the image allows (what mask_to_quad's own
     crop of a full mask holds), so border checks and the fit are those of the full mask; the
-    quad (4, 2) and lines (n_x, n_y, c) are moved to image coordinates.
+    quad (4, 2) and lines (n_x, n_y, c) are moved to image coordinates. A crop whose mask
+    reaches none of its own edges inside the image is fitted as it is (no padded copy: a
+    full-width crop of a 150 Mpx photo is 150 MB).
     """
     m, (x0, y0) = np.asarray(det.mask), det.origin
     (h, w), (H, W) = m.shape, image_shape
     if (x0, y0, w, h) == (0, 0, W, H):
         return mask_to_quad(m, params, _hint(det, (0, 0)))
-    px, py = max(x0 - 1, 0), max(y0 - 1, 0)
-    padded = np.zeros((min(y0 + h + 1, H) - py, min(x0 + w + 1, W) - px), dtype=bool)
-    padded[y0 - py:y0 - py + h, x0 - px:x0 - px + w] = m != 0
-    qr = mask_to_quad(padded, params, _hint(det, (px, py)))
+    if m.size and not _reaches_inner_edge(m, (x0, y0), image_shape):
+        px, py = x0, y0
+        qr = mask_to_quad(m, params, _hint(det, (px, py)))
+    else:
+        px, py = max(x0 - 1, 0), max(y0 - 1, 0)
+        padded = np.zeros((min(y0 + h + 1, H) - py, min(x0 + w + 1, W) - px), dtype=bool)
+        padded[y0 - py:y0 - py + h, x0 - px:x0 - px + w] = m != 0
+        qr = mask_to_quad(padded, params, _hint(det, (px, py)))
     if qr.quad is None:
         return qr
     o = np.array([px, py], dtype=np.float64)

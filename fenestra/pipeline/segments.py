@@ -38,6 +38,8 @@ def to_uint8(gray: np.ndarray) -> np.ndarray:
     g = check_gray(gray)
     if g.dtype == np.uint8:
         return g
+    if g.size and float(g.min()) >= 0:  # OpenCV rounds (half to even, as np.round) and saturates in one pass: no float copy
+        return cv2.convertScaleAbs(g)
     r = np.round(g)
     return np.clip(r, 0, 255, out=r).astype(np.uint8)
 

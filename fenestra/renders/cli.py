@@ -16,6 +16,7 @@ def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app (defaults from the config dataclasses, choices
     from the registries)."""
     from fenestra.config import choices  # noqa: PLC0415
+    from fenestra.conventions import LIMITS  # noqa: PLC0415
     from fenestra.renders.backends import RENDERERS  # noqa: PLC0415
     from fenestra.renders.base import DENOISERS, LOOK_PER, LOOKS, RenderSettings  # noqa: PLC0415
     from fenestra.renders.dataset import DatasetConfig  # noqa: PLC0415
@@ -49,6 +50,7 @@ def register(app: typer.Typer) -> None:
         from fenestra.renders.dataset import render_dataset  # noqa: PLC0415
         from fenestra.renders.sensor import REALISTIC, SensorConfig  # noqa: PLC0415
 
+        LIMITS.check("max_views_per_dataset", views, "--views")
         cfg = DatasetConfig(
             scene=scene, n_views=views, seed=seed, renderer=renderer, out_root=out,
             sampler=SamplerConfig(width=width, height=height, hfov_deg=(hfov_min, hfov_max),

@@ -34,6 +34,7 @@ from fenestra import files
 from fenestra.coco import coco_ground_truth
 from fenestra.rendered_view import View, check_view, read_meta, read_view, view_annotations, write_ignore, write_view
 from fenestra.checks import INSTANCE_DTYPE
+from fenestra.conventions import LIMITS
 from fenestra.renders.backends import RENDERERS, make_renderer, occluder_visibility, visibility_function
 from fenestra.renders.base import RenderSettings
 from fenestra.renders.sampler import SamplerConfig, ViewSpec, iter_views
@@ -60,6 +61,7 @@ class DatasetConfig:
     def __post_init__(self) -> None:
         if self.n_views < 1:
             raise ValueError(f"n_views must be >= 1, got {self.n_views}")
+        LIMITS.check("max_views_per_dataset", self.n_views, "n_views (views of one dataset)")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
         if self.renderer not in RENDERERS:

@@ -24,21 +24,23 @@ import html as html_lib
 import json
 import math
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from fenestra.bench.manifest import load_verified_results
+from fenestra import outputs
+from fenestra.bench.manifest import KIND as RUN_KIND, load_verified_results
 from fenestra.bench.paired import PairedTable, paired_comparison
 from fenestra.bench.real.simreal import SIMREAL_JSON
-from fenestra.bench.results import CORNER_STAGES, STAGE_LABELS, summarize
+from fenestra.bench.results import CORNER_STAGES, STAGE_LABELS, load_summary, summarize
+from fenestra.errors import DatasetError
 from fenestra.files import write_text
 from fenestra.methods import read_methods
 from fenestra.reports import lead as lead_mod
 from fenestra.reports import plots
 from fenestra.reports.real import real_sections
+from fenestra.userfiles import read_json
 from fenestra.reports.walls import wall_sections
 
 LEAD_TITLE = "Which method is best"
@@ -209,7 +211,8 @@ def make_figures(df: pd.DataFrame, fig_dir: Path, lead: list | None = None) -> d
     its FIGURE_COLUMNS of the table. A figure whose inputs
     (its rows of the table, its name, the plotting code) have the digest recorded for its file in
     ``figures/index.json`` by an earlier report of this folder is reused, not drawn again; any
-    other file in fig_dir is removed (no stale figure stays beside them). lead: the columns of
+    other file in fig_dir that an earlier report wrote (listed in fig_dir's parent's manifest,
+    fenestra.outputs) is removed (no stale figure stays beside them). lead: the columns of
     the lead figure (reports.lead.lead_columns; LEAD_FIGURE, under "lead"; none if empty)."""
     fig_dir.mkdir(parents=True, exist_ok=True)
     try:
@@ -236,9 +239,8 @@ def make_figures(df: pd.DataFrame, fig_dir: Path, lead: list | None = None) -> d
     figs["conditions"] = [draw(plots.error_vs_conditions, df, "error_vs_conditions.png")]
     figs["aspect_rotation"] = [draw(plots.aspect_rotation, df, "aspect_rotation.png")]
     figs["lead"] = [draw(plots.ranked_methods, lead, LEAD_FIGURE)] if lead else []
-    for p in fig_dir.iterdir():
-        if p.name not in index and p.name != FIGURE_INDEX:
-            p.unlink() if p.is_file() else shutil.rmtree(p)
+    stale = [f"{fig_dir.name}/{p.name}" for p in fig_dir.iterdir() if p.name not in index and p.name != FIGURE_INDEX]
+    outputs.remove_owned(fig_dir.parent, stale)  # an earlier report's figures; never a file it did not write
     write_text(fig_dir / FIGURE_INDEX, json.dumps(index, indent=1))
     return figs
 
@@ -368,8 +370,8 @@ def to_html(sections: list[tuple]) -> str:
 
 
 def _summary(run_dir: Path) -> dict | None:
-    p = run_dir / "summary.json"
-    return json.loads(p.read_text()) if p.is_file() else None
+    """The run's summary.json (bench.results.load_summary: checked), None when it has none."""
+    return load_summary(run_dir) if (run_dir / "summary.json").is_file() else None
 
 
 def _is_real(summary: dict | None) -> bool:
@@ -389,7 +391,10 @@ def counterpart(run_dir: Path, summary: dict | None, real_dir: str | Path | None
         p = run_dir / SIMREAL_JSON
         if not p.is_file():
             return None, None
-        sim = Path(json.loads(p.read_text())["sim_run"])
+        doc = read_json(p, "sim-to-real link")
+        if not isinstance(doc, dict) or not isinstance(doc.get("sim_run"), str):
+            raise DatasetError(f"sim-to-real link {p} must be a JSON object with the 'sim_run' folder")
+        sim = Path(doc["sim_run"])
         if not (sim / "summary.json").is_file():
             return None, f"The synthetic run {sim} of the sim-to-real table is gone; the lead shows photos only."
         return sim, None
@@ -415,9 +420,17 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
 
     real_dir: a real-photo run folder (fenestra bench --profile real) whose ranks fill the lead
     figure's photo column of a synthetic run's report; a real run finds its synthetic counterpart
-    itself (simreal.json). ValueError for a real_dir that is not a real run, or given to a real run."""
+    itself (simreal.json). ValueError for a real_dir that is not a real run, or given to a real run.
+    Every file is listed in the run's manifest (fenestra.outputs) before it takes its name."""
     run_dir = Path(run_dir)
+    with outputs.listing(run_dir):
+        return _build_report(run_dir, real_dir)
+
+
+def _build_report(run_dir: Path, real_dir: str | Path | None) -> tuple[Path, Path]:
+    """build_report's body."""
     df = load_verified_results(run_dir)  # refuses a table that does not match the run's manifest
+    claim_report(run_dir)
     if df.empty:
         raise ValueError(f"{run_dir}: the results table is empty")
     summary = _summary(run_dir)
@@ -440,7 +453,23 @@ def build_report(run_dir: str | Path, real_dir: str | Path | None = None) -> tup
     md, html = run_dir / "report.md", run_dir / "report.html"
     write_text(md, _to_md(sections, run_dir))
     write_text(html, to_html(sections))
+    outputs.record(run_dir, [*REPORT_FILES, *(f"{FIGURES}/{f}" for f in outputs.files_in(run_dir / FIGURES))],
+                   kind=RUN_KIND)  # the run's files: its next bench replaces them
     return html, md
+
+
+REPORT_FILES = ("report.md", "report.html")
+FIGURES = "figures"
+
+
+def claim_report(run_dir: Path) -> None:
+    """OwnershipError (one line, fenestra.outputs) unless ``run_dir`` may receive its report: a
+    bench run (or a table sealed without one), where report.md, report.html and every file in
+    figures/ are Fenestra's (a figure's name is known only once drawn, so any file there that
+    Fenestra did not write is refused)."""
+    outputs.check_kind(run_dir, RUN_KIND, option="report")
+    figures = [f"{FIGURES}/{f}" for f in outputs.files_in(run_dir / FIGURES)] if (run_dir / FIGURES).is_dir() else []
+    outputs.check_names(run_dir, [*REPORT_FILES, *figures], option="report")
 
 
 __all__ = ["build_report", "paired_comparison", "comparison_rows", "narrative", "best_method",

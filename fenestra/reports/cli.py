@@ -54,9 +54,11 @@ def compare(run_a: Path = typer.Argument(..., help="the baseline run folder"),
 
     if top < 0:
         raise ValueError(f"--top must be >= 0, got {top}")
+    page = html if html is not None else Path(run_b) / f"compare-{Path(run_a).resolve().name}.html"
+    cmp.check_page(page, run_a, run_b)  # before the comparison: never over a file it did not write, nor a run's
     c = cmp.compare_runs(run_a, run_b, method=method, top=top)
     typer.echo(cmp.text(c))
-    page = cmp.write_html(c, html if html is not None else Path(run_b) / f"compare-{Path(run_a).resolve().name}.html")
+    page = cmp.write_html(c, page)
     typer.echo(f"page: {page}")
     if c.regressions:
         raise typer.Exit(1)

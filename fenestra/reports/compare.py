@@ -28,12 +28,13 @@ import numpy as np
 import pandas as pd
 from scipy.stats import wilcoxon
 
-from fenestra.bench.manifest import KEY_COLUMNS, load_manifest, load_verified_results, verify_table
+from fenestra import outputs
+from fenestra.bench.manifest import (COMPARE_PREFIX, KEY_COLUMNS, MANIFEST_JSON, RUN_JSON, load_manifest,
+                                     load_verified_results, verify_table)
 from fenestra.bench.paired import PAIR_KEY
-from fenestra.bench.results import RESULTS_PARQUET, TRUTH_FLAGS, load_summary, parquet_columns
+from fenestra.bench.results import RESULTS_CSV, RESULTS_PARQUET, SUMMARY_JSON, TRUTH_FLAGS, load_summary, parquet_columns
 from fenestra.conventions import DEFAULTS
 from fenestra.errors import FenestraError
-from fenestra.files import write_text
 from fenestra.tolerances import TOL
 
 TOP_WINDOWS = 10  # the windows that changed most, listed
@@ -193,7 +194,8 @@ def _top(pairs: pd.DataFrame, key: list[str], n: int) -> pd.DataFrame:
 def compare_runs(run_a: str | Path, run_b: str | Path, method: str | None = None,
                  top: int = TOP_WINDOWS) -> Comparison:
     """The comparison of run B against baseline run A (module doc); CompareError for runs of
-    different profiles or with no window in common. method: the gated method (default: the CLI's)."""
+    different profiles or with no window in common. method: the gated method (default: the CLI's);
+    CompareError when a method given is not in both runs (a typo never passes as "nothing gated")."""
     a, b = run_info(Path(run_a)), run_info(Path(run_b))
     if a.profile != b.profile:
         raise CompareError(f"{b.path} is a run of profile {b.profile!r}, {a.path} of {a.profile!r}: "
@@ -203,6 +205,10 @@ def compare_runs(run_a: str | Path, run_b: str | Path, method: str | None = None
     pa, pb = _prepared(dfa, key), _prepared(dfb, key)
     ma, mb = [str(m) for m in pd.unique(dfa["method"])], [str(m) for m in pd.unique(dfb["method"])]
     gated = method or DEFAULTS.label
+    if method is not None and not (method in ma and method in mb):
+        where = "neither run" if method not in ma and method not in mb else f"only {a.path if method in ma else b.path}"
+        raise CompareError(f"--method {method[:100]!r} is in {where}, so nothing could be gated; methods of both runs: "
+                           f"{', '.join(m for m in ma if m in set(mb))[:300] or 'none'}")
     common = sorted((m for m in ma if m in set(mb)), key=lambda m: m != gated)  # the gated method first
     if not common:
         raise CompareError(f"no method is in both {a.path} and {b.path} (A: {ma[:3]}..., B: {mb[:3]}...)")
@@ -320,7 +326,35 @@ def write_html(c: Comparison, path: str | Path) -> Path:
             sections += [("h2", "Methods of one run only"),
                          ("p", f"Only in A: {', '.join(c.only_a) or 'none'}. Only in B: {', '.join(c.only_b) or 'none'}.")]
         page = to_html(sections).replace("<title>Fenestra report</title>", "<title>Fenestra run comparison</title>")
-    return write_text(path, page)
+    outputs.write_file(path, lambda p: p.write_text(page, encoding="utf-8"), *_page_rule(path, c.a.path, c.b.path))
+    return path
 
 
-__all__ = ["METRICS", "Change", "Comparison", "CompareError", "compare_runs", "text", "verdict", "write_html"]
+PAGE_SUFFIXES = (".html", ".htm")
+RUN_FILES = (RESULTS_PARQUET, RESULTS_CSV, MANIFEST_JSON, RUN_JSON, SUMMARY_JSON)  # what a comparison reads of a run
+
+
+def _page_rule(path: Path, run_a: Path, run_b: Path) -> tuple:
+    """(kind, hosts, inputs, option) of fenestra.outputs.write_file for the comparison page at
+    ``path``: inside one of the two runs it is one of the run's files (kind bench), named
+    COMPARE_PREFIX*.html so that the run's next ``fenestra bench`` clears it; elsewhere a file of
+    its own (kind files, also allowed into another run folder). CompareError for a name that is
+    not a page (PAGE_SUFFIXES) or a run's page not named so; the runs' files are inputs."""
+    if path.suffix.lower() not in PAGE_SUFFIXES:
+        raise CompareError(f"--html {path}: a comparison page is an .html file; name one (e.g. compare.html)")
+    in_run = path.parent.resolve() in (Path(run_a).resolve(), Path(run_b).resolve())
+    if in_run and not path.name.startswith(COMPARE_PREFIX):
+        raise CompareError(f"--html {path}: a comparison page inside a run folder is named {COMPARE_PREFIX}*.html "
+                           "(the run's next bench clears it); choose such a name or another folder")
+    inputs = tuple(Path(r) / f for r in (run_a, run_b) for f in RUN_FILES)
+    return ("bench", (), inputs, "--html") if in_run else (outputs.FILES_KIND, ("bench",), inputs, "--html")
+
+
+def check_page(path: str | Path, run_a: str | Path, run_b: str | Path) -> None:
+    """CompareError / fenestra.outputs.OwnershipError (one line) when the comparison page may not be
+    written at ``path`` (:func:`_page_rule`): checked before the runs are compared."""
+    outputs.check_file(Path(path), *_page_rule(Path(path), Path(run_a), Path(run_b)))
+
+
+__all__ = ["METRICS", "Change", "Comparison", "CompareError", "check_page", "compare_runs", "text", "verdict",
+           "write_html"]

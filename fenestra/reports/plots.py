@@ -20,6 +20,7 @@ import pandas as pd  # noqa: E402
 
 from fenestra.bench.results import CORNER_STAGES, STAGE_LABELS  # noqa: E402
 from fenestra.conventions import DEFAULTS, PAPER  # noqa: E402
+from fenestra.files import write_atomic  # noqa: E402
 
 HIST_MAX_PX = 20.0  # histogram range; larger errors go to the overflow bar
 STAGE_COLOURS = {"mask": "#888888", "snap": "#1f77b4", "reproj": "#d62728"}
@@ -69,7 +70,7 @@ def _save(fig, path: Path, tight: bool = True) -> Path:
     (two extra layout passes, most of a figure's cost); False for figures with a fixed layout."""
     if tight:
         fig.tight_layout()
-    fig.savefig(path, dpi=100, bbox_inches="tight" if tight else None)
+    write_atomic(path, lambda p: fig.savefig(p, dpi=100, bbox_inches="tight" if tight else None))
     plt.close(fig)
     return path
 

@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fenestra.files import write_ifc_file
 from fenestra.scenes.generate import (IFC_TIMESTAMP, PANE_THICKNESS, ExpectedOpening, _bars,
                                       _placement, _seeded_guids, box_mesh, offset_polygon,
                                       window_parts)
@@ -377,7 +378,7 @@ def write_plan(plan: Plan, path: str | Path) -> tuple[ExpectedOpening, ...]:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     ifc.f.header.file_name.time_stamp = IFC_TIMESTAMP
-    ifc.f.write(str(path))
+    write_ifc_file(ifc.f, path)
     return out
 
 

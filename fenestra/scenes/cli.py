@@ -13,6 +13,7 @@ from pathlib import Path
 
 import typer
 
+from fenestra import outputs
 from fenestra.scenes.generate import HouseSpec
 
 scenes_app = typer.Typer(no_args_is_help=True, help="IFC houses and their window ground truth.")
@@ -147,7 +148,7 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
                      curtain_walls=curtain_walls, curtain_wall_width=curtain_wall_width,
                      curtain_wall_rows=curtain_wall_rows, sill_depth=sill_depth,
                      surround_width=surround_width, shutters=shutters, **kw)
-    house = make_house(spec, out)
+    house = write_scene(out, lambda p: make_house(spec, p))
     if json_out:
         typer.echo(json.dumps(house.to_json(), indent=1))
     else:
@@ -160,10 +161,25 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
 def author_cmd(out_dir: Path = typer.Argument(..., help="folder for the .ifc files (created)")) -> None:
     """Write the hand-authored held-out houses (authored-terrace, authored-studio) into OUT_DIR;
     `fenestra scenes author fenestra/scenes/ifc` regenerates the bundled copies."""
-    from fenestra.scenes.authored import AUTHORED, author_all
+    from fenestra.scenes.authored import AUTHORED
 
-    for name, windows in author_all(out_dir).items():
-        typer.echo(f"wrote {out_dir / AUTHORED[name][0]}: {name}, {len(windows)} windows")
+    for file, _ in AUTHORED.values():  # every file checked before any is written
+        outputs.check_file(out_dir / file)
+    for name, (file, writer) in AUTHORED.items():
+        windows = write_scene(out_dir / file, writer)
+        typer.echo(f"wrote {out_dir / file}: {name}, {len(windows)} windows")
+
+
+def write_scene(path: Path, write):
+    """``write(tmp)``'s result, the IFC file it wrote at a temporary name moved to ``path`` under
+    fenestra.outputs' rule (never over a file Fenestra did not write; listed in the folder's
+    manifest), with ``path`` in place of the temporary name where the result records it."""
+    import dataclasses  # noqa: PLC0415
+
+    made = []
+    outputs.write_file(path, lambda tmp: made.append(write(tmp)))
+    result = made[0]
+    return dataclasses.replace(result, path=str(path)) if dataclasses.is_dataclass(result) else result
 
 
 def register(app: typer.Typer) -> None:

@@ -52,6 +52,9 @@ from typing import Iterator
 
 import numpy as np
 
+from fenestra.conventions import LIMITS
+from fenestra.files import write_ifc_file
+
 FASCIA_THICKNESS = 0.04  # m
 DEFAULT_FOOTPRINT: tuple[tuple[float, float], ...] = (
     (0.0, 0.0), (9.0, 0.0), (11.5, 4.5), (7.0, 9.0), (-1.5, 6.5))  # 4 of 5 walls not axis-aligned
@@ -223,6 +226,15 @@ def face_rect(a: np.ndarray, u: np.ndarray, z0: float, off: float, sill: float, 
     ez = np.array([0.0, 0.0, 1.0])
     bl = np.append(a, z0) + off * u + sill * ez
     return np.stack([bl + h * ez, bl + w * u + h * ez, bl + w * u, bl])
+
+
+def check_counts(spec: HouseSpec, n_walls: int) -> None:
+    """ValueError naming the field, its value and the bound when the house would be larger than
+    fenestra.conventions.LIMITS allows (storeys, windows per wall and storey, windows in all)."""
+    LIMITS.check("max_storeys", spec.storeys, "storeys")
+    LIMITS.check("max_windows_per_wall", spec.windows_per_wall, "windows_per_wall")
+    LIMITS.check("max_house_windows", n_walls * spec.storeys * spec.windows_per_wall,
+                 f"walls x storeys x windows_per_wall ({n_walls} x {spec.storeys} x {spec.windows_per_wall})")
 
 
 def check_options(spec: HouseSpec, n_walls: int) -> None:
@@ -605,6 +617,7 @@ def _make_house(spec: HouseSpec, out_path: str | Path, schema: str = "IFC4") -> 
     if not 0 <= spec.reveal_depth < spec.wall_thickness - spec.frame_depth:
         raise ValueError(f"reveal_depth {spec.reveal_depth} must leave room for the frame")
     poly = rotate_xy(check_footprint(spec.footprint), spec.rotation_deg)
+    check_counts(spec, len(poly))
     check_options(spec, len(poly))
     plan = plan_windows(spec, poly)
     rng = np.random.default_rng([spec.seed, 7])  # optional parts only: plan's stream is untouched
@@ -772,7 +785,7 @@ def _make_house(spec: HouseSpec, out_path: str | Path, schema: str = "IFC4") -> 
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     f.header.file_name.time_stamp = IFC_TIMESTAMP
-    f.write(str(out_path))
+    write_ifc_file(f, out_path)
     return GeneratedHouse(spec=spec, path=str(out_path), footprint_world=poly,
                           windows=tuple(windows_out), doors=tuple(doors_out),
                           curtain_walls=tuple(curtains_out))

@@ -53,7 +53,9 @@ class TrainConfig:
     edge_weight, edge_px: EffWin's void loss weighs the pixels within edge_px of a rendered void's
     outline (1 + edge_weight) x (recipes.effwin.edge_band; real photos' box masks: 1): where a mask
     stops at the glass of a recessed window, the reveal it leaves out lies in that band.
-    maskrcnn_min_size/max_size: Mask R-CNN's internal resize (small for CPU smoke runs).
+    maskrcnn_backbone: Mask R-CNN's backbone (fenestra/pipeline/detectors/maskrcnn.BACKBONES: the shipped
+    efficientnet-lite0 FPN at native resolution, or the paper's resnet50 FPN); maskrcnn_min_size/max_size:
+    the resnet50's internal resize (small for CPU smoke runs).
     device: "cpu" or "cuda"; amp: bfloat16 autocast (fast on CUDA and on CPUs with AMX/AVX512-BF16, slow
     emulation elsewhere); channels_last: NHWC memory layout (faster convolutions on CPU and GPU);
     workers: processes making batches ahead.
@@ -88,8 +90,9 @@ class TrainConfig:
     edge_weight: float = 0.0  # effwin: extra void-loss weight on a rendered void's outline band (0: none)
     edge_px: int = 3  # effwin: that band's half width (px of the crop), inside and outside the outline
     real_data: str | None = None  # a YOLO folder of real photos with window boxes (class 0)
-    real_fraction: float = 0.0  # effwin: share of batch samples drawn from real_data (box masks, no corners)
+    real_fraction: float = 0.0  # effwin, maskrcnn: share of batch samples drawn from real_data (box masks, no corners)
     real_holdout_every: int = 5  # real_data photos with index % n == 0 are validation, never trained on
+    maskrcnn_backbone: str = "efficientnet-lite0"
     maskrcnn_min_size: int = 480
     maskrcnn_max_size: int = 640
     log_every: int = 10
@@ -132,15 +135,35 @@ class TrainConfig:
             raise ValueError("real_fraction > 0 needs real_data (a YOLO folder of real photos)")
 
 
+CONFIG_TABLES = ("train", "augment", "real_augment")
+
+
+def read_config_tables(path: Path, seen: tuple[Path, ...] = ()) -> dict:
+    """A training config's tables ({table: {key: value}}): the file's own over those of the config
+    its top-level ``based_on`` names (a file beside it), key by key; ValueError naming the file for
+    an unknown table, a missing base or a cycle."""
+    raw = read_toml(path, ValueError, "training config")
+    unknown = sorted(set(raw) - {*CONFIG_TABLES, "based_on"})
+    if unknown:
+        raise ValueError(f"{path}: unknown table(s) {unknown}; allowed: {sorted(CONFIG_TABLES)} and based_on")
+    base = raw.pop("based_on", None)
+    if base is None:
+        return raw
+    if not isinstance(base, str) or Path(base).name != base:
+        raise ValueError(f"{path}: based_on must name a config file beside it, got {base!r}")
+    base_path = path.parent / base
+    if base_path.resolve() in seen or base_path.resolve() == path.resolve():
+        raise ValueError(f"{path}: based_on {base!r} makes a cycle")
+    tables = read_config_tables(base_path, (*seen, path.resolve()))
+    return {t: {**tables.get(t, {}), **raw.get(t, {})} for t in CONFIG_TABLES if t in tables or t in raw}
+
+
 def load_config(path: str | Path | None = None, **overrides: object) -> TrainConfig:
     """TrainConfig from a TOML file ([train] keys, optional [augment] table, optional
-    [real_augment] table: the keys in which the real photos' augmentation differs from [augment])
-    plus overrides (None: not given), through fenestra.config.from_table: unknown keys and
+    [real_augment] table: the keys in which the real photos' augmentation differs from [augment];
+    ``based_on = "other.toml"``: start from that config's tables, read_config_tables) plus overrides (None: not given), through fenestra.config.from_table: unknown keys and
     ill-typed values are errors naming them."""
-    raw: dict = read_toml(path, ValueError, "training config") if path is not None else {}
-    unknown = sorted(set(raw) - {"train", "augment", "real_augment"})
-    if unknown:
-        raise ValueError(f"{path}: unknown table(s) {unknown}; allowed: ['augment', 'real_augment', 'train']")
+    raw: dict = read_config_tables(Path(path)) if path is not None else {}
     train = {**raw.get("train", {}), **{k: v for k, v in overrides.items() if v is not None}}
     tables = {"augment": raw.get("augment", {})}
     if "real_augment" in raw:
@@ -265,6 +288,30 @@ def checkpoint(model: torch.nn.Module, cfg: TrainConfig, meta: dict) -> dict:
     return {**recipe(cfg.arch).checkpoint(model, cfg), "train_config": dataclasses.asdict(cfg), "meta": meta}
 
 
+RUN_FIELDS_FREE = ("resume", "log_every", "save_every", "workers", "state_dir")  # change no weight
+
+
+def run_identity(cfg: TrainConfig) -> dict:
+    """What a training run's weights depend on: the config's fields (but :data:`RUN_FIELDS_FREE`),
+    as text, and the dataset folders it reads (their names carry their content's hash)."""
+    fields = {k: repr(v) for k, v in dataclasses.asdict(cfg).items() if k not in RUN_FIELDS_FREE}
+    return {"config": fields, "datasets": sorted(p.name for p in find_datasets(cfg.data)) if cfg.data else []}
+
+
+def check_resumable(state_path: Path, saved: dict | None, run_id: dict) -> None:
+    """ValueError naming the state file and what differs when its run is not this one (another
+    config, other data, or a state written before states recorded their run)."""
+    if saved is None:
+        raise ValueError(f"{state_path}: this training state does not record its run; delete it to start afresh")
+    diff = sorted(k for k in {*saved["config"], *run_id["config"]} if saved["config"].get(k) != run_id["config"].get(k))
+    if saved["datasets"] != run_id["datasets"]:
+        diff.append("datasets")
+    if diff:
+        shown = ", ".join(diff[:6]) + (f" and {len(diff) - 6} more" if len(diff) > 6 else "")
+        raise ValueError(f"{state_path}: written by another training run ({shown} differ); "
+                         "delete it, or run without --resume to start afresh")
+
+
 def _device_name(device: str) -> str:
     return torch.cuda.get_device_name(0) if device == "cuda" else "cpu"
 
@@ -288,8 +335,10 @@ def train(cfg: TrainConfig, log=print) -> Path:
         log("warning: amp = true on a CPU without native bfloat16 (AMX/AVX512-BF16): it is emulated and "
             "slow; set amp = false in the config")
     start, elapsed0 = 0, 0.0
+    run_id = run_identity(cfg)
     if cfg.resume and state_path.is_file():
         st = torch.load(state_path, map_location=cfg.device, weights_only=False)
+        check_resumable(state_path, st.get("run"), run_id)
         model.load_state_dict(st["model"])
         opt.load_state_dict(st["opt"])
         start, elapsed0 = st["iteration"], st["elapsed_s"]
@@ -323,7 +372,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
                     " ".join(f"{k} {float(v.detach()):.4f}" for k, v in parts.items()))
             if (it + 1) % cfg.save_every == 0 or it == cfg.iterations - 1:
                 torch.save({"model": model.state_dict(), "opt": opt.state_dict(), "iteration": it + 1,
-                            "elapsed_s": elapsed, "torch_rng": torch.get_rng_state()}, state_path)
+                            "elapsed_s": elapsed, "torch_rng": torch.get_rng_state(), "run": run_id}, state_path)
                 meta = {"iterations_done": it + 1, "train_seconds": round(elapsed, 1),
                         "torch": torch.__version__, "threads": cfg.threads, "device": _device_name(cfg.device),
                         "n_train_views": sum(d[2] is not None for d in data) if data else None,

@@ -8,7 +8,10 @@ say), one file per subject:
   the Python API's arguments), Ctrl-C;
 - test_dataset_faults.py: a user's dataset (paths inside it, bounded labels, unique stems);
 - test_gate_faults.py, test_digest_faults.py: results that cannot be forged or silently shortened;
-- test_render_cache_faults.py, test_memory_faults.py, test_plugin_faults.py.
+- test_render_cache_faults.py, test_memory_faults.py, test_plugin_faults.py;
+- test_count_faults.py: every count bounded at load (fenestra.conventions.LIMITS), memory on the
+  largest admitted photo;
+- test_user_error_faults.py: more user errors as one bounded line (summary.json, K.json, names).
 
 fault_helpers.py holds what they share. Disk full is a real failing write: the child runs under
 RLIMIT_FSIZE (a file-size limit the kernel enforces with EFBIG, SIGXFSZ ignored), so cv2.imwrite

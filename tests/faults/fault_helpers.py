@@ -101,12 +101,25 @@ MEASURE = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]); 
            "sys.exit(r.returncode)")
 
 
-def run_measured(args: list, cwd: Path) -> tuple[int, str, float]:
-    """(exit code, stderr, peak RSS in GB) of one CLI run."""
-    r = subprocess.run([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
-                       cwd=cwd, env=env(), capture_output=True, text=True, timeout=300)
-    kb = int(r.stderr.rsplit("MAXRSS_KB ", 1)[1])
-    return r.returncode, r.stderr, kb / 2**20
+def run_measured(args: list, cwd: Path, max_gb: float | None = None, timeout: float = 300) -> tuple[int, str, float]:
+    """(exit code, stderr, peak RSS in GB) of one CLI run; max_gb: its address space's limit (a run
+    that would grow without bound fails with MemoryError there instead of taking the machine)."""
+    def limit():
+        if max_gb is not None:
+            n = int(max_gb * 2**30)
+            resource.setrlimit(resource.RLIMIT_AS, (n, n))
+    # a session of its own: on timeout the launcher and the CLI under it are killed together
+    p = subprocess.Popen([sys.executable, "-c", MEASURE, sys.executable, "-m", "fenestra", *map(str, args)],
+                         cwd=cwd, env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True, preexec_fn=limit)
+    try:
+        _, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        raise
+    kb = int(err.rsplit("MAXRSS_KB ", 1)[1])
+    return p.returncode, err, kb / 2**20
 
 
 # ---------------------------------------------------------------- 7. a user's dataset and other inputs

@@ -35,6 +35,8 @@ PLUGINS = [
     ("raises at import", 'raise ImportError("no module named fancy")\n',
      ["fenestra plug-in 'badplug' (badplug) failed to load and is ignored: ImportError: no module named fancy"]),
     ("calls sys.exit(0) at import", "import sys\nsys.exit(0)\n", ["'badplug'", "it called sys.exit(0)"]),
+    ("raises its own BaseException subclass with a long message", 'class Boom(BaseException):\n    pass\n'
+     'raise Boom("x" * 100000)\n', ["'badplug'", "failed to load and is ignored: Boom: xxx", "... (100000 characters)"]),
     ("registers a built-in's name", "from fenestra.pipeline.snappers import SNAPPERS\n" + ENTRY + "SNAPPERS.register(E())\n",
      ["'badplug'", "snapper 'lsd' is already registered"]),
     ("replaces a built-in without override", "from fenestra.pipeline.snappers import SNAPPERS\n" + ENTRY

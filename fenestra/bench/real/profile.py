@@ -36,6 +36,7 @@ from fenestra.bench.real.adapters import ADAPTERS
 from fenestra.bench.views import LabelledView
 from fenestra.config import from_table, read_toml
 from fenestra.files import REPO_ROOT
+from fenestra.userfiles import resolved, utf8_name
 
 KIND = "real"
 
@@ -188,6 +189,7 @@ def with_user_data(profile: RealProfile, data: str | Path, fmt: str, options: di
     profile's own datasets, is dropped."""
     if fmt not in ADAPTERS:
         raise ProfileError(f"--format {fmt!r} unknown; choose from {sorted(ADAPTERS)}")
-    p = Path(data).expanduser().resolve()
+    p = resolved(Path(data).expanduser(), f"--data {str(data)!r}")
+    utf8_name(p.name, "--data folder")
     ds = DatasetSpec(name=p.name, format=fmt, path=str(p), options=tuple(sorted((options or {}).items())))
     return replace(profile, name=f"{profile.name}-{p.name}", datasets=(ds,), kfree=None)  # [kfree] names its own datasets

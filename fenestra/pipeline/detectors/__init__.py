@@ -110,7 +110,7 @@ class DetectorEntry:
     (fenestra.registry): needs_instances: it reads the ground-truth instance map (``instances=``
     (H, W) int, per image; the oracles), so it runs only where one exists (renders, labelled masks)
     and always at the image's full resolution. in_all: part of a profile's ``detectors = ["all"]``
-    (False for maskrcnn, whose weights are not shipped: a fresh clone would have to skip it).
+    (False for quadnet, measured by its own tools).
     trainable: it loads a weights file (``model``: :class:`Checkpointed`) that a training recipe
     (fenestra/training/recipes/<arch>.py) writes.
     """
@@ -207,8 +207,9 @@ DETECTORS: Registry[DetectorEntry] = Registry("detector", [
               "head: one instance per window centre, its four corners regressed and refined on the corner "
               "heatmaps (quad source `network`; measured by tools/seed_spread.py, not in `all`)", in_all=False),
     trainable("winnet", "winnet", "winnet", "learned from scratch: WinNet, a small U-Net (void and core maps)"),
-    trainable("maskrcnn", "maskrcnn", "maskrcnn", "Mask R-CNN ResNet-50 FPN, the paper's, trained from scratch "
-              "(weights not shipped: train on a GPU machine)", in_all=False),
+    trainable("maskrcnn", "maskrcnn", "maskrcnn", "the paper's method's detector: Mask R-CNN (torchvision; RPN, RoIAlign, "
+              "box and 28 x 28 mask heads) on an ImageNet-pretrained EfficientNet-Lite0 FPN instead of the "
+              "paper's ResNet-50 FPN, trained on this project's CPU on Fenestra's renders and street photos"),
 ])
 
 

@@ -72,6 +72,7 @@ import ifcopenshell.guid
 import ifcopenshell.util.geolocation
 import numpy as np
 
+from fenestra.files import write_ifc_file
 from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
 from fenestra.pipeline.export.geometry import (COVERING_THICKNESS_M, WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow,
                                                StoreyLevels, TextureLayout, facade_pixels, hole_in, storey_levels,
@@ -410,7 +411,7 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
             ids[pw.index] = {"wall": wall.GlobalId, "covering": covering.GlobalId,
                              **_window_in_wall(f, contexts["body"], storeys[levels.row_of.get(pw.index, 0)], wall, pw,
                                                lib, thickness_m, (properties or {}).get(pw.index))}
-    f.write(str(path))
+    write_ifc_file(f, path)
     return ids
 
 

@@ -13,6 +13,8 @@ panel.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -170,13 +172,19 @@ def panel_layout(height: int, width: int, results: list[WindowResult], exclude: 
 
 
 def _panel(height: int, width: int, results: list[WindowResult], exclude: dict[int, str], header: list[str],
-           scale: float) -> np.ndarray:
-    """The side panel (at least ``height``, width x columns, 3) uint8 RGB: legend, header lines, one
-    entry per window, laid out by :func:`panel_layout` so that it is no taller than ``height``."""
+           scale: float) -> tuple[tuple[int, int], Callable[[np.ndarray], None]]:
+    """The side panel: its size (rows, columns) px, at least ``height`` rows of width x columns, and
+    a function that draws it (legend, header lines, one entry per window, laid out by
+    :func:`panel_layout` so that it is no taller than ``height``) into an (rows, columns, 3) uint8
+    RGB array filled with the background grey (the overlay's canvas: no panel-sized copy)."""
     s, n_cols, columns = panel_layout(height, width, results, exclude, header, scale)
     step, ch, _ = _metrics(width, s)
     bottom = max([y for col in columns for _, y, _, _ in col] + [step * (len(LEGEND) + 1)])
-    panel = np.full((max(height, bottom + step), width * n_cols, 3), 30, np.uint8)
+    return (max(height, bottom + step), width * n_cols), lambda panel: _draw_panel(panel, columns, step, ch, s)
+
+
+def _draw_panel(panel: np.ndarray, columns: list, step: int, ch: int, s: float) -> None:
+    """Draw the legend and the laid-out text ``columns`` (:func:`panel_layout`) into ``panel`` in place."""
     y = step
     for name, label in LEGEND:
         cv2.rectangle(panel, (8, y - ch), (8 + ch, y), COLOURS[name], cv2.FILLED)
@@ -185,7 +193,6 @@ def _panel(height: int, width: int, results: list[WindowResult], exclude: dict[i
     for col in columns:
         for x, y, text, colour in col:
             _text(panel, text, (x, y), colour, s)
-    return panel
 
 
 def _draw_quads(img, r: WindowResult, kind: str, boxes: dict[int, tuple], thick: int) -> None:
@@ -217,11 +224,10 @@ def draw_overlay(image: np.ndarray, K: np.ndarray, results: list[WindowResult], 
     H, W = image.shape[:2]
     thick = max(1, int(round(min(H, W) / 400)))
     scale = max(0.4, min(H, W) / 1600)
-    panel = _panel(H, max(360, int(0.4 * W)), results, exclude, header or [], scale)  # at least H tall
-    # one canvas, the photo copied in once and drawn on in place (a 100 Mpx photo: no second copy)
-    canvas = np.full((panel.shape[0], W + panel.shape[1], 3), 30, np.uint8)  # a long list: a dark band below
-    canvas[:, W:] = panel
-    del panel
+    (rows, cols), draw_panel = _panel(H, max(360, int(0.4 * W)), results, exclude, header or [], scale)  # >= H rows
+    # one canvas, the photo copied in once and everything drawn on it in place (a 100 Mpx photo: no second copy)
+    canvas = np.full((rows, W + cols, 3), 30, np.uint8)  # a long list: a dark band below
+    draw_panel(canvas[:, W:])
     img = canvas[:H, :W]
     img[...] = image
     for r in results:

@@ -23,6 +23,7 @@ recorded in the ``refused`` list an adapter takes (a stderr warning when None).
 """
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +33,7 @@ from fenestra.bench.real.adapters.curtainwall import CURTAIN_K, read_curtainwall
 from fenestra.bench.real.adapters.labelmap import read_labelmap
 from fenestra.bench.real.adapters.yolo import read_yolo
 from fenestra.bench.views import LabelledView
+from fenestra.errors import DatasetError
 from fenestra.registry import Registry
 
 __all__ = ["ADAPTERS", "Adapter", "CURTAIN_K", "read_coco", "read_curtainwall", "read_labelmap", "read_yolo"]
@@ -47,6 +49,14 @@ class Adapter:
     description: str
 
     def __call__(self, folder: Path, **options) -> Iterator[LabelledView]:
+        """The reader's views; DatasetError naming an option the reader does not take (and those it
+        does), before anything is read."""
+        params = list(inspect.signature(self.read).parameters.values())[1:]  # after the folder
+        known = [p.name for p in params if p.name != "refused"]
+        unknown = sorted(set(options) - set(known) - {"refused"})
+        if unknown and not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+            raise DatasetError(f"dataset format {self.name!r} has no option {', '.join(map(repr, unknown))}; "
+                               f"its options: {', '.join(known)}")
         return self.read(folder, **options)
 
 

@@ -169,6 +169,9 @@ def coco_problems(doc, where: str) -> list[str]:
         return [f"{where}: the top level must be a JSON object with 'images' and 'annotations', "
                 f"got {type(doc).__name__}"]
     problems: list[str] = []
+    if isinstance(doc.get("images"), list) and len(doc["images"]) > LIMITS.max_dataset_photos:
+        return [f"{where}: 'images' lists {len(doc['images'])} photos, more than the {LIMITS.max_dataset_photos} "
+                "a dataset may have (fenestra.conventions.LIMITS.max_dataset_photos)"]
     imgs = _list_of_dicts(doc, "images", where, problems)
     cats = _list_of_dicts(doc, "categories", where, problems)
     anns = _list_of_dicts(doc, "annotations", where, problems)

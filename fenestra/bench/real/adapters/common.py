@@ -46,7 +46,7 @@ def dataset_photos(folder: Path, refused: list[str] | None = None) -> list[Path]
     if not folder.is_dir():
         raise FileNotFoundError(f"image folder not found: {folder}")
     out = []
-    for p in sorted(q for q in folder.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES):
+    for p in sorted(_photo_names(folder)):
         try:
             inside(folder, p.name, f"{folder}")
         except DatasetError as e:
@@ -65,6 +65,19 @@ def dataset_photos(folder: Path, refused: list[str] | None = None) -> list[Path]
             raise DatasetError(f"{folder}: photos {other.name!r} and {p.name!r} differ only by case or extension "
                                "(one view name, one label file); rename one")
     return out
+
+
+def _photo_names(folder: Path) -> list[Path]:
+    """The .jpg/.jpeg/.png entries of ``folder``, unsorted; DatasetError as soon as there are more than
+    LIMITS.max_dataset_photos (the listing stops there)."""
+    names = []
+    for q in folder.iterdir():
+        if q.suffix.lower() in IMAGE_SUFFIXES:
+            names.append(q)
+            if len(names) > LIMITS.max_dataset_photos:
+                raise DatasetError(f"{folder}: more than the {LIMITS.max_dataset_photos} photos a dataset may have "
+                                   "(fenestra.conventions.LIMITS.max_dataset_photos)")
+    return names
 
 
 def dataset_file(root: Path, name: str, what: str) -> Path:
