@@ -1,9 +1,9 @@
 """Fenestra: single-photo façade window reconstruction, measured against exact IFC ground truth.
 
-The public API (the same data as ``fenestra reconstruct``'s windows.json)::
+The public API (typed; ``to_json()`` is ``fenestra reconstruct``'s windows.json)::
 
     from fenestra import reconstruct_photo, PhotoOptions, Known
-    doc = reconstruct_photo("street.jpg", out="out/street")
+    doc = reconstruct_photo("street.jpg", out="out/street").to_json()
 
 The names (and ``__version__``) are loaded on first use: importing a ground-floor module
 (``fenestra.conventions``) stays light. ``__version__``: the installed package's version (package metadata, i.e.

@@ -302,7 +302,7 @@ def test_reconstruct_base_only_for_per_wall_strategies():
 
 def test_quad_iou_memo_gives_quad_iou_once_per_pair():
     from fenestra.bench import metrics
-    from fenestra.bench.evaluate import QuadIoUMemo
+    from fenestra.bench.evaluators import QuadIoUMemo
 
     memo, gt = QuadIoUMemo(), np.array([[0, 0], [10, 0], [10, 10], [0, 10.0]])
     for q in (gt + 1.0, gt + 2.5, gt + 1.0, gt * 0.5):
@@ -414,3 +414,41 @@ def test_a_detection_on_a_door_box_is_on_the_ignore_region(door_view_dir):
         box = b + np.array([1, 0, 1, 0]) * shift * (b[2] - b[0])
         boxed = dataclasses.replace(view, ignore=(LabelledWindow("D3", box=box),))
         assert on_ignore(boxed, masks, dets) == want, shift
+
+
+def test_each_evaluator_returns_its_own_columns_and_together_they_fill_the_table(tmp_path):
+    """bench.evaluators: on a hand-made render (three windows, one off the image's edge) every
+    evaluator returns, per matched labelled window, only the columns it declares; together their
+    columns are every error and BIM column of the render table (the loop adds status, reason,
+    aspect case); the evaluate_view rows hold exactly the merged values."""
+    from fenestra.bench.evaluate import RENDER_TAIL, _match_ious, view_session
+    from fenestra.bench import matching
+    from fenestra.bench.evaluators import MethodResult, default_evaluators
+    from fenestra.masks import SparseMask
+    from fenestra.tolerances import TOL
+
+    wins = [_window(0.5, 1.0, 1.2, 1.4), _window(2.6, 1.0, 0.9, 1.4), _window(6.0, 1.0, 1.6, 1.4)]
+    view = read_rendered_view(_write_view(tmp_path / "000000", wins), "hand", "hand")
+    method = Method("oracle", "linefit", "wall")
+    rec = view_session(view, EvalOptions(), ("oracle",)).run(method)
+    dets = list(rec.detections)
+    det_masks = [SparseMask.from_crop(d.mask, d.origin, view.size) for d in dets]
+    det_for_gt = matching.match(_match_ious(view, det_masks, dets), TOL.match_iou).det_for_gt()
+    assert sorted(det_for_gt) == [0, 1, 2]
+    evaluators = default_evaluators()
+    merged = {g: {} for g in det_for_gt}
+    for e in evaluators:
+        e.reset(view)
+        got = e.process(view, MethodResult(rec, None, det_for_gt))
+        assert set(got) <= set(det_for_gt), type(e).__name__
+        for g, cols in got.items():
+            assert set(cols) <= set(e.columns), (type(e).__name__, set(cols) - set(e.columns))
+            merged[g].update(cols)
+    declared = {c for e in evaluators for c in e.columns}
+    assert set(RENDER_TAIL) - {"status", "reason", "aspect_case"} <= declared
+    rows = {r["window_id"]: r for r in evaluate_view(view, (method,), EvalOptions()).rows}
+    for g, cols in merged.items():
+        row = rows[view.windows[g].id]
+        for c, v in cols.items():
+            if c in RENDER_TAIL and not c.endswith("_storey"):  # the rows also know the true storey
+                assert row[c] == v or (v != v and row[c] != row[c]), (g, c, row[c], v)

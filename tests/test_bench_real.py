@@ -15,7 +15,8 @@ import pytest
 
 from fenestra.bench import metrics as rm
 from fenestra.bench.detection_ap import coco_ap_of
-from fenestra.bench.evaluate import EvalOptions, ViewOutcome, evaluate_view, gt_coco, window_errors
+from fenestra.bench.evaluate import EvalOptions, ViewOutcome, evaluate_view, gt_coco
+from fenestra.bench.evaluators import window_errors
 from fenestra.methods import Method
 from fenestra.bench.real.adapters import ADAPTERS, CURTAIN_K, read_coco
 from fenestra.bench.real.profile import ProfileError, load_real_profile, real_profile_from_dict

@@ -102,10 +102,10 @@ def test_corners_to_quad_orders_and_refuses_degenerate_corners():
         n, c = r.lines[k, :2], r.lines[k, 2]
         assert abs(n @ quad[k] - c) < 1e-9 and abs(n @ quad[(k + 1) % 4] - c) < 1e-9
         assert n @ quad.mean(axis=0) < c
-    assert corners_to_quad(None).failure.startswith("no_corners")
-    assert corners_to_quad(np.array([[0, 0], [10, 0], [10, 0.5], [0, 0.5]])).failure.startswith("not_quadrilateral")
+    assert corners_to_quad(None).failure.code == "no_corners"
+    assert corners_to_quad(np.array([[0, 0], [10, 0], [10, 0.5], [0, 0.5]])).failure.code == "not_quadrilateral"
     bowtie = np.array([[0, 0], [10, 10], [10, 0], [0, 10]], float)  # TR and BR swapped: crossed sides
-    assert corners_to_quad(bowtie).failure.startswith("not_quadrilateral")
+    assert corners_to_quad(bowtie).failure.code == "not_quadrilateral"
 
 
 def test_crop_warp_moves_points_with_the_pixels():
@@ -236,7 +236,7 @@ def test_corner_quads_fall_back_to_the_mask_fit_when_they_disagree_with_the_mask
     dets = [Detection(mask, box, 0.9, corners=c) for c in (good, bad, far, None)]
     fits = fit_quads(dets, QuadParams(source="corners"), mask.shape)
     np.testing.assert_allclose(fits[0].result.quad, good)  # the head's corners, as predicted
-    mask_fit = fit_quads(dets[:1], QuadParams(), mask.shape)[0].result.quad
+    mask_fit = fit_quads(dets[:1], QuadParams(source="mask"), mask.shape)[0].result.quad
     np.testing.assert_allclose(mask_fit, [[19.5, 9.5], [59.5, 9.5], [59.5, 39.5], [19.5, 39.5]], atol=0.05)
     assert corners_agree_with_mask(bad, mask)  # within 2x the area: kept (a plausible quad)
     for f in fits[2:]:  # far away, or no corners: the mask fit

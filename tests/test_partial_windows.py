@@ -78,7 +78,7 @@ def run(d: Path, windows, R, t, drawn=None, masked=None, export: bool = False) -
 
     photo, masks, K_json = write_photo(d, windows, R, t, drawn, masked)
     return reconstruct_photo(photo, d / "out", K_json=K_json, masks=masks,
-                             options=PhotoOptions(known=Known(window_height_m=WIN_H), export=export))
+                             options=PhotoOptions(known=Known(window_height_m=WIN_H), export=export)).to_json()
 
 
 def by_id(doc: dict) -> dict[int, dict]:
@@ -250,7 +250,21 @@ def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():
     assert math.isnan(cut["corner_err_px_snap"]) and math.isnan(cut["width_err_m"])
     assert cut["exported"] == 1.0 and cut["scale_source"] == "assumed"
     d = next(i for i, det in enumerate(rec.detections) if det.instance_id == 3)
-    assert rec.windows[d].partial.cut == ("right",) and rec.whole(d).failure.stage == "quad"
+    assert rec.windows[d].partial.cut == ("right",) and rec.windows[d].measured.failure.stage == "quad"
+    # the window's record keeps every stage: the fit and the façade model's whole-window failure, its
+    # visible part placed on the wall, what the model holds (that part) and what the bench measures
+    cut_win = rec.windows[d]
+    assert cut_win.fit.failure.code == cut_win.measured.failure.code == "touches_border"
+    assert cut_win.placed is not None and cut_win.placed.failure is None and cut_win.placed.partial.cut == ("right",)
+    assert cut_win.result is cut_win.placed and cut_win.shipped is cut_win.measured
+    assert cut_win.wall == rec.model.wall_of(d).id and cut_win.export.exported
+    for k, win in enumerate(rec.windows):
+        if k == d:
+            continue
+        assert win.placed is None and win.fit.group is not None and win.measured.group == win.fit.group
+        assert win.fit.height_m == 1.0 != win.measured.height_m  # the fit's scale parameter; the wall's scale
+        assert win.result is (win.regularized or win.measured) and win.shipped is win.result
+        assert win.wall == rec.model.wall_of(k).id
     assert all(rows[w]["evaluable"] and rows[w]["status"] == "ok" for w in ("W1", "W2"))
     assert out.export_counts[method.name] == {"n_exported": 3, "n_matched": 3, "n_on_ignore": 0, "n_on_nothing": 0}
 
@@ -260,11 +274,11 @@ def test_the_visible_part_of_a_cut_mask_is_fitted_with_the_image_edge_as_a_side(
     touches_border by default; with allow_border, the quad of the visible part, its left and top
     sides the image's edges (x, y = -0.5), the others the rectangle's (rasterised by pixel centres
     here: its edges within half a pixel)."""
-    from fenestra.pipeline.quad import QuadParams, failure_code, mask_to_quad
+    from fenestra.pipeline.quad import QuadParams, mask_to_quad
 
     rect = np.array([[-30.0, -20.3], [60.3, -20.3], [60.3, 80.7], [-30.0, 80.7]])  # TL TR BR BL, px
     mask = pixel_centre_mask(rect, (120, 160))
-    assert failure_code(mask_to_quad(mask).failure) == "touches_border"
+    assert mask_to_quad(mask).failure.code == "touches_border"
     qr = mask_to_quad(mask, QuadParams(allow_border=True))
     assert qr.failure is None and qr.cut == ("top", "left")
     visible = np.array([[-0.5, -0.5], [60.3, -0.5], [60.3, 80.7], [-0.5, 80.7]])

@@ -46,7 +46,7 @@ def test_gps_tags_by_hand():
 def test_exif_position_reaches_windows_json_and_the_ifc_site(tmp_path):
     photo = _photo_with_gps(tmp_path, GPS)
     assert gps_from_exif(photo)["latitude_deg"] == pytest.approx(LAT, abs=1e-9)
-    doc = reconstruct_photo(photo, tmp_path / "out", K_json=EX / "K.json", masks=EX / "panes017.png")
+    doc = reconstruct_photo(photo, tmp_path / "out", K_json=EX / "K.json", masks=EX / "panes017.png").to_json()
     assert doc["gps"]["longitude_deg"] == pytest.approx(LON, abs=1e-9)
     site = ifcopenshell.open(str(tmp_path / "out" / "model.ifc")).by_type("IfcSite")[0]
     assert ifcopenshell.util.geolocation.dms2dd(*site.RefLatitude) == pytest.approx(LAT, abs=1e-6)
@@ -63,6 +63,6 @@ def test_exif_position_reaches_windows_json_and_the_ifc_site(tmp_path):
     bearing = np.radians(210.0 - gamma)
     assert np.allclose((conv.XAxisAbscissa, conv.XAxisOrdinate), (np.sin(bearing), np.cos(bearing)), atol=1e-9)
     # a photo without GPS: no position, no site reference
-    doc = reconstruct_photo(EX / "img017.jpg", tmp_path / "plain", K_json=EX / "K.json", masks=EX / "panes017.png")
+    doc = reconstruct_photo(EX / "img017.jpg", tmp_path / "plain", K_json=EX / "K.json", masks=EX / "panes017.png").to_json()
     assert doc["gps"] is None
     assert ifcopenshell.open(str(tmp_path / "plain" / "model.ifc")).by_type("IfcSite")[0].RefLatitude is None

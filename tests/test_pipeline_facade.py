@@ -172,7 +172,7 @@ def test_intervals_cover_about_90_percent():
 def test_apply_walls_without_K_estimates_focal_and_poses():
     R, _, quads, labels, _ = scene()
     out = walls.apply_walls(_results(quads), None, SHAPE, 1.0, None, walls.WallParams())
-    assert {r.wall for r in out} == {0, 1}
+    assert {r.group for r in out} == {0, 1}
     for r, lab in zip(out, labels):
         assert r.failure is None and r.focal_estimate_px == pytest.approx(820.0, rel=1e-6)
         assert rotation_error_deg(r.R, true_R(R, EX_FRONT if lab == 0 else EX_SIDE)) < 1e-4

@@ -21,11 +21,12 @@ UNC = Uncertainty(level=0.9, sigma_px=0.5, aspect_sd=0.01, aspect_lo=0.73, aspec
 
 
 def _window(i: int, x0: float, y0: float, w: float, h: float, s: float, wall: int | None = 0, R_F=np.eye(3)):
-    """WindowResult of a true window (façade frame R_F, world) scaled by s about the camera centre."""
+    """WindowResult of a true window (façade frame R_F, world) scaled by s about the camera centre,
+    fitted in the joint fit's wall group ``wall``."""
     R = R_W @ R_F  # window frame -> camera: x along the wall, y up, z outward (towards +z world)
     t = R_W @ (R_F @ np.array([x0, y0, 0.0])) + T_W
     q = project(K, R, t, np.array([[0, h, 0], [w, h, 0], [w, 0, 0], [0, 0, 0]], dtype=float))
-    return WindowResult(i, 0.9, q, q, w / h, "general", None, R, t * s, h * s, q, None, wall=wall,
+    return WindowResult(i, 0.9, q, q, w / h, "general", None, R, t * s, h * s, q, None, group=wall,
                         uncertainty=UNC)
 
 
@@ -68,7 +69,7 @@ def test_walls_with_the_same_rotation_merge_and_a_corner_wall_does_not():
     ws += [_window(6, 1.0, 1.0, 1.2, 1.6, 1.0, wall=2, R_F=side), _window(7, 3.0, 1.0, 1.2, 1.6, 1.0, wall=2, R_F=side)]
     results, model = facade_model(ws, Known(window_height_m=1.6))
     assert [w.members for w in model.walls] == [(0, 1, 2, 3, 4, 5), (6, 7)]
-    assert model.walls[0].merged_from == (0, 1) and [r.wall for r in results] == [0] * 6 + [1, 1]
+    assert model.walls[0].merged_from == (0, 1) and [model.wall_of(r.index).id for r in results] == [0] * 6 + [1, 1]
     assert not model.flags  # a right-angle corner is a façade, not an implausible plane
 
 

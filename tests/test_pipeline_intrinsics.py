@@ -13,6 +13,7 @@ from fenestra.pipeline.cli import run_calibrate, run_reconstruct
 from fenestra.pipeline.intrinsics import (TAG_FOCAL, TAG_FOCAL_35, TAG_PLANE_UNIT, TAG_PLANE_XRES, calibrate_chessboard,
                                  focal_from_exif, focal_from_exif_tags, resolve_K)
 from fenestra.pipeline.io import read_camera
+from fenestra.pipeline.types import Unavailable
 from quad_image import coverage
 
 SIZE = (640, 480)  # W, H
@@ -236,16 +237,16 @@ def test_vanishing_point_rule_is_the_calibrated_interval_against_the_priors():
     bound = (hi - lo) / (2 * VP_SD_MULTIPLIER)
     assert vp_max_sd(SIZE) == pytest.approx(bound)
     e = vanishing_estimate(463.0, 84.0, SIZE)  # 18 % relative sd: vaguer than +-15 %, yet narrower than the prior
-    assert not isinstance(e, str) and e.source == "vanishing points"
+    assert not isinstance(e, Unavailable) and e.source == "vanishing points"
     assert e.interval_px == pytest.approx((463.0 - VP_SD_MULTIPLIER * 84.0, 463.0 + VP_SD_MULTIPLIER * 84.0))
     assert e.interval_px[1] - e.interval_px[0] < hi - lo
     assert choose_focal([e], ["vanishing points"], SIZE).source == "vanishing points"
-    assert not isinstance(vanishing_estimate(463.0, 0.99 * bound, SIZE), str)
+    assert not isinstance(vanishing_estimate(463.0, 0.99 * bound, SIZE), Unavailable)
     refused = vanishing_estimate(463.0, 1.01 * bound, SIZE)
-    assert isinstance(refused, str) and "prior" in refused
-    assert isinstance(vanishing_estimate(487.0, 135.0, SIZE), str)  # issue 35's other example: wider than the prior
+    assert isinstance(refused, Unavailable) and "prior" in refused.reason
+    assert isinstance(vanishing_estimate(487.0, 135.0, SIZE), Unavailable)  # issue 35's other example: wider than the prior
     r = choose_focal([refused], ["vanishing points"], SIZE)
-    assert r.source == "prior" and r.unavailable["vanishing points"] == refused
+    assert r.source == "prior" and r.unavailable["vanishing points"] == refused.reason
     # the bound scales with the photo: twice the pixels, twice the sd allowed
     assert vp_max_sd((1280, 960)) == pytest.approx(2 * bound)
 
@@ -304,17 +305,17 @@ def test_unstable_vanishing_points_fall_back_to_the_prior_and_say_so():
     whole = vanishing_focal(mixed, SIZE, check_stability=False)  # the chain before the check: an answer
     assert whole.source == "vanishing points" and whole.interval_px[1] - whole.interval_px[0] < 0.3 * whole.focal_px
     said = vanishing_focal(mixed, SIZE)
-    assert isinstance(said, str) and said.startswith(f"unstable: halves give 700 px and {fb:.0f} px")
+    assert isinstance(said, Unavailable) and said.reason.startswith(f"unstable: halves give 700 px and {fb:.0f} px")
     r = resolve_K(None, mixed, SIZE)
-    assert r.source == "prior" and r.to_json()["unavailable"]["vanishing points"] == said
+    assert r.source == "prior" and r.to_json()["unavailable"]["vanishing points"] == said.reason
     assert [c["source"] for c in r.to_json()["candidates"]] == ["prior"]
     # a half with no vanishing point at all: 40 x 60 px upright rectangles at the same centres
     flat = q.copy()
     box = np.array([[-20.0, -30.0], [20.0, -30.0], [20.0, 30.0], [-20.0, 30.0]])
     flat[halves[1]] = centres[halves[1]] + box
-    assert not isinstance(vanishing_fit(flat, SIZE), str) and isinstance(vanishing_fit(flat[halves[1]], SIZE), str)
+    assert not isinstance(vanishing_fit(flat, SIZE), Unavailable) and isinstance(vanishing_fit(flat[halves[1]], SIZE), Unavailable)
     said = vanishing_focal(flat, SIZE)
-    assert isinstance(said, str) and said.startswith("unstable: halves give 700 px and no focal length")
+    assert isinstance(said, Unavailable) and said.reason.startswith("unstable: halves give 700 px and no focal length")
     # too few windows to split: not tested
     few = mixed[: 2 * VP_SPLIT_MIN_QUADS - 1]
     assert vanishing_stability(few, SIZE, (700.0, 10.0)) == (True, "")

@@ -68,7 +68,7 @@ def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
                      uncertainty=Uncertainty(0.9, 0.5, 0.012, 0.68, 0.72, 1.0, 0.02, False))
     assert aspect_interval(w, {}) == pytest.approx([0.68, 0.72])
     assert aspect_interval(w, {3: (0.61, 0.71)}) == pytest.approx([0.61, 0.72])  # f at the interval's ends
-    assert aspect_interval(replace(w, failure=Failure("quad", "x"), aspect_ratio=None), {}) is None
+    assert aspect_interval(replace(w, failure=Failure("quad", None, "x"), aspect_ratio=None), {}) is None
 
 
 def test_focal_envelope_follows_the_closed_form_aspect_at_the_focal_interval_ends():
@@ -129,15 +129,18 @@ def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
 
 
 def test_python_api_returns_what_windows_json_holds(tmp_path):
-    """pipeline.reconstruct_photo (the documented API) gives the dict the CLI writes as windows.json."""
+    """pipeline.reconstruct_photo (the documented API) gives the typed result whose to_json() is the
+    dict the CLI writes as windows.json."""
     import fenestra as pipeline  # noqa: PLC0415  (the public API)
 
     assert "reconstruct_photo" in pipeline.__all__ and "windows.json" in pipeline.__doc__
     ex = ROOT / "examples" / "curtainwall"
     kw = dict(K_json=ex / "K.json", masks=ex / "panes017.png",
               options=pipeline.PhotoOptions(snapper="none", known=pipeline.Known(window_width_m=0.0932), export=False))
-    doc = pipeline.reconstruct_photo(ex / "img017.jpg", **kw)
-    written = pipeline.reconstruct_photo(ex / "img017.jpg", tmp_path / "o", **kw)
+    result = pipeline.reconstruct_photo(ex / "img017.jpg", **kw)
+    assert result.export is None and len(result.reconstruction.windows) == len(result.to_json()["windows"])
+    doc = result.to_json()
+    written = pipeline.reconstruct_photo(ex / "img017.jpg", tmp_path / "o", **kw).to_json()
     saved = json.loads((tmp_path / "o" / "windows.json").read_text())
     assert not (tmp_path / "o" / "model.ifc").exists()  # export=False: windows.json and the overlay only
     assert (tmp_path / "o" / "overlay.png").is_file()

@@ -11,7 +11,7 @@ import torch
 from fenestra.pipeline.detectors.effwin import corner_heatmaps
 from fenestra.pipeline.detectors.quadhead import (OFFSET_SCALE_PX, QUAD_STRIDE, QuadDecode, quad_detections,
                                                   quad_mirror_mean, quad_targets, refine_corner)
-from fenestra.pipeline.quad import QuadParams, failure_code
+from fenestra.pipeline.quad import QuadParams
 from fenestra.pipeline.reconstruct import fit_quads, visible_quads
 
 
@@ -99,7 +99,7 @@ def test_network_quad_source_takes_the_quad_and_hands_cut_windows_to_the_visible
     params = QuadParams(source="network")
     fits = fit_quads(dets, params, shape)
     np.testing.assert_allclose(fits[0].result.quad, inside, atol=1e-3)
-    assert failure_code(fits[1].result.failure) == "touches_border"
+    assert fits[1].result.failure.code == "touches_border"
     vis = visible_quads(dets, fits, params, shape)
     assert set(vis) == {1} and vis[1].quad is not None and "right" in vis[1].cut
     assert vis[1].quad[:, 0].max() == pytest.approx(127.5, abs=0.6)  # the visible part ends at the edge

@@ -61,9 +61,9 @@ def runs(tmp_path_factory) -> dict:
     tmp = tmp_path_factory.mktemp("invariance")
     opts = PhotoOptions(export=False)
     src = SPB / "images" / "img_185.jpg"
-    docs = {"orig": reconstruct_photo(src, options=opts)}
+    docs = {"orig": reconstruct_photo(src, options=opts).to_json()}
     for kind in ("gray", "jpeg", "mirror", "rot", "crop"):
-        docs[kind] = reconstruct_photo(transformed(src, kind, tmp), options=opts)
+        docs[kind] = reconstruct_photo(transformed(src, kind, tmp), options=opts).to_json()
     return docs
 
 

@@ -27,8 +27,8 @@ def _window(i: int, x: float, sill: float, h: float, partial: bool = False) -> W
     t = np.array([x, -sill, 10.0])
     rect = np.array([[0.0, h, 0.0], [WIDTH_M, h, 0.0], [WIDTH_M, 0.0, 0.0], [0.0, 0.0, 0.0]])
     q = project(K, R_WALL, t, rect)
-    part = Partial(("left",), Failure("quad", "touches_border")) if partial else None
-    return WindowResult(i, 0.9, q, q, WIDTH_M / h, "general", None, R_WALL.copy(), t, h, q, None, wall=0,
+    part = Partial(("left",), Failure("quad", "touches_border", "mask reaches the image left edge")) if partial else None
+    return WindowResult(i, 0.9, q, q, WIDTH_M / h, "general", None, R_WALL.copy(), t, h, q, None, group=0,
                         partial=part)
 
 

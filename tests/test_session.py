@@ -71,7 +71,7 @@ def test_reconstruct_photo_gives_the_bench_rows_of_the_cli_method(view_dirs, tmp
         if not withhold_K:
             K_json = tmp_path / f"{vd.name}-K.json"
             K_json.write_text(json.dumps({"K": meta["K"], "width": meta["width"], "height": meta["height"]}))
-        doc = reconstruct_photo(vd / "image.png", K_json=K_json, options=PhotoOptions())
+        doc = reconstruct_photo(vd / "image.png", K_json=K_json, options=PhotoOptions()).to_json()
         rows = evaluate_view(read_rendered_view(vd, "fzk-haus", meta["renderer"]), (method,), EvalOptions()).rows
         gt = truth(vd)
         for row in (r for r in rows if r["status"] == "ok"):

@@ -70,7 +70,7 @@ CANVAS_STATE = """(() => {
 def reconstruct(out: Path, export: bool = True) -> dict:
     options = fenestra.PhotoOptions(snapper="none", known=fenestra.Known(window_width_m=0.0932), export=export)
     return fenestra.reconstruct_photo(EX / "img017.jpg", out, K_json=EX / "K.json", masks=EX / "panes017.png",
-                                      options=options)
+                                      options=options).to_json()
 
 
 @pytest.fixture(scope="module")

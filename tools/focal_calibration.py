@@ -65,6 +65,7 @@ def calibration_rows(seeds: list[int], views: int, hfov: tuple[float, float], da
                                               vanishing_fit, vanishing_stability)
     from fenestra.pipeline.poses import POSES  # noqa: PLC0415
     from fenestra.pipeline.session import PhotoSession  # noqa: PLC0415
+    from fenestra.pipeline.types import Unavailable  # noqa: PLC0415
     from fenestra.rendered_view import read_view  # noqa: PLC0415
     from fenestra.renders.dataset import DatasetConfig, render_dataset  # noqa: PLC0415
     from fenestra.renders.sampler import SamplerConfig  # noqa: PLC0415
@@ -82,12 +83,12 @@ def calibration_rows(seeds: list[int], views: int, hfov: tuple[float, float], da
             quads = session.kfree_quads(DEFAULTS)
             fit = vanishing_fit(quads, session.size, wall, session.segments)
             f_true = float(view.meta["K"][0][0])
-            f, sd, reason = (fit[0], fit[1], "") if isinstance(fit, tuple) else (np.nan, np.nan, fit)
+            f, sd, reason = (np.nan, np.nan, fit.reason) if isinstance(fit, Unavailable) else (fit[0], fit[1], "")
             seconds = time.process_time() - t0
             t1 = time.process_time()
             stable, halves = vanishing_stability(quads, session.size, fit, wall, session.segments,
                                                  VP_SPLIT_MIN_QUADS if min_quads is None else min_quads) \
-                if isinstance(fit, tuple) else (None, "")
+                if not isinstance(fit, Unavailable) else (None, "")
             check_s = time.process_time() - t1
             rows.append({"house": f"procedural:{seed}", "view": i, "mode": view.meta.get("mode"),
                          "f_true": f_true, "fov_true_deg": fov_from_focal(f_true, session.size),
@@ -109,6 +110,7 @@ def summarize(df, level: float = 0.90) -> str:
     import numpy as np  # noqa: PLC0415
 
     from fenestra.pipeline import intrinsics as I  # noqa: PLC0415
+    from fenestra.pipeline.types import Unavailable  # noqa: PLC0415
 
     lines = []
     fit = df[np.isfinite(df["f"]) & np.isfinite(df["sd"])].copy()
@@ -145,7 +147,7 @@ def summarize(df, level: float = 0.90) -> str:
     rules = {f"before: x{OLD_INFLATION:g} inflation, +-{100 * OLD_GATE:g} % gate":
              lambda r: OLD_Z90 * OLD_INFLATION * r["sd"] <= OLD_GATE * r["f"],
              f"in use: {I.VP_SD_MULTIPLIER:g} sd interval narrower than the prior's (intrinsics.vanishing_estimate)":
-             lambda r: not isinstance(I.vanishing_estimate(r["f"], r["sd"], (int(r["width"]), int(r["height"]))), str)}
+             lambda r: not isinstance(I.vanishing_estimate(r["f"], r["sd"], (int(r["width"]), int(r["height"]))), Unavailable)}
     if "stable" in fit:  # tables from before the stability check (issue 35) lack it
         used = list(rules.values())[-1]
         rules["with the stability check (the halves of the windows agree; intrinsics.vanishing_stability)"] = \

@@ -17,7 +17,7 @@ decision (``exported``, ``not_exported``; per view and method, ViewOutcome.expor
 exported detections matched to a labelled window, on an ignore region such as a glazed door, or
 on nothing, the export precision's counts). A window cut by the image border is exported as its
 visible part (a partial window, issue 35) but measured as the whole window it is not: its row keeps
-the quad stage's ``touches_border`` failure (pipeline.session.Reconstruction.whole), its labelled
+the quad stage's ``touches_border`` failure (pipeline.session.Window.measured), its labelled
 window is not evaluable (corners out of frame, or ``partial``), and its export counts like any
 other (matched, on an ignore region, or on nothing). The session shares what methods have in common (each
 detector runs once per view, the quads are fitted once per detector, snapping and per-window
@@ -39,7 +39,6 @@ consistency and relative size).
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Protocol
@@ -47,12 +46,14 @@ from typing import Protocol
 import numpy as np
 
 from fenestra.bench import matching, metrics, uncertainty
+from fenestra.bench.evaluators import MethodResult, default_evaluators
 from fenestra.bench.profiles import EvalSpec
 from fenestra.bench.views import LabelledView, LabelledWindow
 from fenestra import coco, masks
 from fenestra.conventions import camera_depths
 from fenestra.tolerances import TOL
 from fenestra.methods import Method
+from fenestra.pipeline.types import Status
 
 NAN = float("nan")
 
@@ -165,7 +166,7 @@ ERROR_COLUMNS = (
     "iou_2d_reproj", "match_iou", "det_score", "corner_err_px_head",
 )
 PHOTO_ERRORS = ("reproj_consistency_px", "rel_size_err")
-# what a BIM user gets (bim_columns): every table, renders and photos
+# what a BIM user gets (bench.evaluators.BimEvaluator): every table, renders and photos
 BIM_COLUMNS = ("K_source", "K_focal_px", "scale_source", "exported", "not_exported", "width_err_m", "height_err_m",
                "pos_err_m", "scale_source_storey", "width_err_m_storey", "height_err_m_storey", "pos_err_m_storey")
 RENDER_TAIL = (*ERROR_COLUMNS, *uncertainty.COLUMNS, *BIM_COLUMNS, "status", "reason", "aspect_case")
@@ -284,91 +285,7 @@ def gt_coco(view: LabelledView) -> list[dict]:
     return out
 
 
-# ---------------------------------------------------------------- per window and method
-
-def _finite(q) -> bool:
-    return q is not None and bool(np.isfinite(q).all())
-
-
-class QuadIoUMemo:
-    """bench.metrics.quad_iou of quad pairs, each pair computed once: a view's mask-fit quads are
-    the same for every snapper and pose, its snapped quads for every pose (a callable like
-    metrics.quad_iou; make one per view)."""
-
-    def __init__(self) -> None:
-        self._seen: dict[tuple, float] = {}
-
-    def __call__(self, q: np.ndarray, gt: np.ndarray) -> float:
-        a, b = np.asarray(q), np.asarray(gt)
-        key = (a.dtype.str, a.shape, a.tobytes(), b.dtype.str, b.shape, b.tobytes())
-        if key not in self._seen:
-            self._seen[key] = metrics.quad_iou(q, gt)
-        return self._seen[key]
-
-
-def window_errors(res, w: LabelledWindow, gt_pose: tuple[np.ndarray, np.ndarray] | None,
-                  K: np.ndarray | None, quad_iou=metrics.quad_iou) -> dict:
-    """Every error of one WindowResult against what the window's truth knows (NaN elsewhere).
-
-    gt_pose: the window's true (R, t) (metrics.gt_window_pose; renders), or None; K: the view's
-    true K, or None (unknown); quad_iou: metrics.quad_iou or a :class:`QuadIoUMemo` of the view.
-    Keys: ERROR_COLUMNS (match_iou and det_score NaN: the caller's), PHOTO_ERRORS, and, with
-    gt_pose and K, bench.uncertainty.COLUMNS.
-    """
-    out = {k: NAN for k in (*ERROR_COLUMNS, *PHOTO_ERRORS)}
-    stages = {"mask": res.quad_mask, "snap": res.quad_snapped, "reproj": res.quad_reprojected}
-    if w.quad is not None:
-        for s, q in stages.items():
-            if _finite(q):
-                e = metrics.corner_errors_px(q, w.quad)
-                out[f"corner_err_px_{s}"], out[f"corner_err_px_{s}_max"] = float(e.mean()), float(e.max())
-        out["snap_gain_px"] = out["corner_err_px_mask"] - out["corner_err_px_snap"]
-        for col, s in (("iou_2d", "snap"), ("iou_2d_mask", "mask"), ("iou_2d_reproj", "reproj")):
-            if _finite(stages[s]):
-                out[col] = quad_iou(stages[s], w.quad)
-    if res.aspect_ratio is not None and math.isfinite(res.aspect_ratio):
-        out["aspect_est"] = float(res.aspect_ratio)
-        if w.aspect is not None:
-            out["aspect_err_rel"] = metrics.aspect_error_rel(res.aspect_ratio, w.aspect)
-    if gt_pose is not None and res.R is not None and res.t is not None:
-        R_gt, t_gt = gt_pose
-        out["rot_err_deg"] = metrics.rotation_error_deg(res.R, R_gt)
-        out["normal_err_deg"] = metrics.normal_error_deg(res.R, R_gt)
-        out["trans_err_m"] = metrics.translation_error_m(res.t, res.height_m, t_gt, w.size_m[1])
-    if _finite(res.quad_snapped) and _finite(res.quad_reprojected) and K is not None:
-        out["reproj_consistency_px"] = metrics.reprojection_consistency_px(res.quad_snapped, res.quad_reprojected)
-    if gt_pose is not None and K is not None:
-        out.update(uncertainty.columns(res, w.aspect, gt_pose, K, out))
-    return out
-
-
-def head_error(det, w: LabelledWindow) -> float:
-    """Mean corner error (px) of a detection's predicted corners (a corner head's; pipeline.quad.
-    corners_to_quad) against the labelled quad; NaN without either, or when they are not a quad."""
-    from fenestra.pipeline.quad import corners_to_quad  # noqa: PLC0415
-
-    if w.quad is None:
-        return NAN
-    q = corners_to_quad(det.corners).quad
-    return NAN if q is None else float(metrics.corner_errors_px(q, w.quad).mean())
-
-
-def add_relative_sizes(rows: list[dict], results: dict[int, object], view: LabelledView) -> None:
-    """Fill ``rel_size_err`` of one method's rows of a coplanar view: windows with a pose and a
-    known size (at least two), see bench.metrics.relative_size_errors."""
-    if not view.coplanar:
-        return
-    idx = [g for g, r in results.items() if r.R is not None and view.windows[g].size_m is not None]
-    if len(idx) < 2:
-        return
-    # distance per unit of the window's own scale: invariant to the façade model's move along the ray
-    d = [metrics.plane_distance(results[g].R, results[g].t) / float(results[g].height_m) for g in idx]
-    errs = metrics.relative_size_errors(np.array(d), np.array([view.windows[g].size_m[1] for g in idx]))
-    for g, e in zip(idx, errs):
-        rows[g]["rel_size_err"] = float(e)
-
-
-# ---------------------------------------------------------------- what a BIM user gets
+# ---------------------------------------------------------------- the view's storey height (rec_storey)
 
 def true_storey_m(view: LabelledView) -> float | None:
     """The storey height (m) of the house a render shows (its IFC storeys:
@@ -390,44 +307,6 @@ def true_storey_m(view: LabelledView) -> float | None:
     storey = storey_height_m(str(path))
     lo, hi = KNOWN_RANGE_M["storey_m"]
     return storey if storey is not None and lo <= storey <= hi else None
-
-
-def metric_errors(res, w: LabelledWindow, view: LabelledView, suffix: str) -> dict:
-    """``width_err_m``, ``height_err_m`` (|error| m, the window at its wall's scale) and
-    ``pos_err_m`` (its centre, camera frame; renders) of one window of a façade model, each
-    name + ``suffix``; NaN where the window has no pose or the truth no size."""
-    out = {f"{k}{suffix}": NAN for k in ("width_err_m", "height_err_m", "pos_err_m")}
-    if res.failure is not None or res.R is None or res.aspect_ratio is None or w.size_m is None:
-        return out
-    out[f"width_err_m{suffix}"], out[f"height_err_m{suffix}"] = metrics.size_errors_m(res.aspect_ratio, res.height_m,
-                                                                                    w.size_m)
-    if view.pose is not None and w.corners_world is not None:
-        out[f"pos_err_m{suffix}"] = metrics.centre_error_m(res.R, res.t, res.aspect_ratio * res.height_m, res.height_m,
-                                                          *view.pose, w.corners_world)
-    return out
-
-
-def bim_columns(rec, rec_storey, d: int, w: LabelledWindow, view: LabelledView) -> dict:
-    """The BIM columns of one matched window (detection ``d``) under one method: where K came from
-    (``K_source``: "K", "exif", "vanishing points", "prior") and its focal length (``K_focal_px``;
-    where K was not given, the rows' ``focal_est_px`` and ``focal_err_rel`` are that of the K
-    used), how its wall got its scale (``scale_source``), whether it is exported
-    (``exported``: 1.0 or 0.0, NaN for a missed window, like the calibration columns) or why not
-    (``not_exported``), and the metric errors (:func:`metric_errors`) of the window as exported
-    (rec.as_exported: its row's regularized sill and head, what a BIM user gets) with nothing
-    known (the assumed scale) and, suffix ``_storey``, with the true storey height given
-    (``rec_storey``; NaN without one)."""
-    res = rec.as_exported(d)  # the shipped window; a partial one's size is not the window's: NaN
-    out = {"K_source": rec.resolved.source, "K_focal_px": float(rec.K[0, 0]),
-           "scale_source": rec.scale_source(d), "exported": float(d not in rec.not_exported),
-           "not_exported": rec.not_exported.get(d, ""), **metric_errors(res, w, view, "")}
-    if rec_storey is not None:
-        out.update(metric_errors(rec_storey.as_exported(d), w, view, "_storey"),
-                   scale_source_storey=rec_storey.scale_source(d))
-    if rec.resolved.source != "K" and view.K is not None:  # the focal chain's answer against the truth
-        f_true = float(np.sqrt(view.K[0, 0] * view.K[1, 1]))
-        out.update(focal_est_px=float(rec.K[0, 0]), focal_err_rel=abs(float(rec.K[0, 0]) - f_true) / f_true)
-    return out
 
 
 # ---------------------------------------------------------------- the session: detection and reconstruction
@@ -494,39 +373,29 @@ def _method_row(base: dict, method: Method, tail: tuple[str, ...], **values) -> 
     return row
 
 
-def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tuple[str, ...], rec, rec_storey,
-                 det_for_gt: dict, gt_poses: dict, quad_iou=metrics.quad_iou,
-                 head_errors: dict | None = None) -> list[dict]:
-    """One method's rows, one per labelled window in order: missed, or its result's errors.
+def _method_rows(view: LabelledView, base: list[dict], method: Method, tail: tuple[str, ...],
+                 result: MethodResult, evaluators: list) -> list[dict]:
+    """One method's rows, one per labelled window in order: missed, or the columns every evaluator
+    (bench.evaluators) gives it, merged in their order, with its status, reason and aspect case.
     A detection cut by the image border is measured as the whole window it failed to be (status
-    ``failed``, ``touches_border``: rec.whole); that its visible part is exported shows in the BIM
-    columns (``exported``, ``scale_source``) and the export counts, its sizes stay NaN.
+    ``failed``, ``touches_border``: Window.measured); that its visible part is exported shows in the
+    BIM columns (``exported``, ``scale_source``) and the export counts, its sizes stay NaN.
 
-    rec / rec_storey: the method's pipeline.session.Reconstruction (nothing known; the true storey
-    height known, or None); det_for_gt: {window index: (detection index, IoU)}; gt_poses: {window
-    index: true (R, t)}, filled here once per window of a render (the same for every method);
-    quad_iou: as for window_errors; head_errors: {(detection index, window index): head_error},
-    kept across the methods of one detector (None: computed here)."""
-    head_errors = {} if head_errors is None else head_errors
-    dets = rec.detections
-    rows, by_gt = [], {}
-    for g, (w, b) in enumerate(zip(view.windows, base)):
-        if g not in det_for_gt:
-            rows.append(_method_row(b, method, tail, status="missed", reason="missed", aspect_case=None))
+    result: the method's bench.evaluators.MethodResult on the view; evaluators: the view's
+    (reset for it), each run once on the method."""
+    columns: dict[int, dict] = {g: {} for g in result.det_for_gt}
+    for e in evaluators:
+        for g, c in e.process(view, result).items():
+            columns[g].update(c)
+    rows = []
+    for g, b in enumerate(base):
+        if g not in result.det_for_gt:
+            rows.append(_method_row(b, method, tail, status=Status.MISSED.value, reason="missed", aspect_case=None))
             continue
-        d, iou = det_for_gt[g]
-        res = by_gt[g] = rec.whole(d)  # a partial window: its whole-window failure (its export: bim_columns)
-        if view.pose is not None and g not in gt_poses:
-            gt_poses[g] = metrics.gt_window_pose(*view.pose, w.corners_world)
-        errs = window_errors(res, w, gt_poses.get(g), view.K, quad_iou)
-        if (d, g) not in head_errors:
-            head_errors[(d, g)] = head_error(dets[d], w)
-        errs.update(match_iou=iou, det_score=float(dets[d].score), corner_err_px_head=head_errors[(d, g)],
-                    **bim_columns(rec, rec_storey, d, w, view))
-        rows.append(_method_row(b, method, tail, **errs,
+        res = result.measured(g)  # a partial window: its whole-window failure (its export: the BIM columns)
+        rows.append(_method_row(b, method, tail, **columns[g],
                                 aspect_case=None if res.aspect_case is None else res.aspect_case.value,
                                 status=res.status.value, reason="" if res.failure is None else f"failed: {res.failure}"))
-    add_relative_sizes(rows, by_gt, view)
     return rows
 
 
@@ -554,8 +423,9 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     base = [window_base(view, w, options.evaluation) for w in view.windows]
     out = ViewOutcome(rows=[], stage_s=stage_s, coco_gt=gt_coco(view), dataset=view.dataset, view=view.name,
                       size=view.size, window_ids=tuple(str(w.id) for w in view.windows))
-    gt_poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    iou_memo = QuadIoUMemo()  # quad IoUs of this view, each pair computed once for every method
+    evaluators = default_evaluators()  # one set per view: their memos are the view's
+    for e in evaluators:
+        e.reset(view)
     storey = true_storey_m(view)
     t0 = tick("load", t0)
     session = view_session(view, options, tuple(dict.fromkeys(m.detector for m in methods)))
@@ -567,7 +437,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         if detector_entry(det_name).needs_instances and not can_oracle:
             why = f"not run: {det_name} needs ground-truth masks, the labels are boxes"
             out.rows += [_method_row({**b, "evaluable": False, "eval_reason": "no_gt_masks"}, m, cols,
-                                     status="missed", reason=why, aspect_case=None)
+                                     status=Status.MISSED.value, reason=why, aspect_case=None)
                          for m in det_methods for b in base]
             continue
         cands = session.candidates(det_name)
@@ -583,15 +453,13 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
         matched = {d for d, _ in det_for_gt.values()}
         ignored = on_ignore(view, kept, dets)
         t0 = tick("match", t0)
-        head_errors: dict = {}  # (detection, window) -> the detection's predicted corners' error, for every method
         for method in det_methods:
             rec = session.run(method, height_m=options.height_m)
             rec_storey = None if storey is None else session.run(method, Known(storey_m=storey),
                                                                  height_m=options.height_m)
             t0 = tick("reconstruct", t0)
             out.export_counts[method.name] = export_counts(rec, matched, ignored)
-            out.rows += _method_rows(view, base, method, cols, rec, rec_storey, det_for_gt, gt_poses, iou_memo,
-                                     head_errors)
+            out.rows += _method_rows(view, base, method, cols, MethodResult(rec, rec_storey, det_for_gt), evaluators)
             t0 = tick("metrics", t0)
     for k, s in session.stage_s.items():  # inside "detect" and "reconstruct": where the session's CPU went
         stage_s[f"session.{k}"] = s

@@ -349,7 +349,7 @@ def run_photo(view: LabelledView, transform: str, tmp: Path, match_iou: float, d
     t0 = time.perf_counter()
     doc, error = None, None
     try:
-        doc = reconstruct_photo(photo, out, options=opts, masks=masks, force=True)
+        doc = reconstruct_photo(photo, out, options=opts, masks=masks, force=True).to_json()
     except Exception as e:  # noqa: BLE001 - measured: a photo without an output is a figure
         error = f"{type(e).__name__}: {e}"
     seconds = time.perf_counter() - t0

@@ -21,17 +21,19 @@ COLUMNS = ("focal_est_px", "focal_err_rel", "aspect_in90", "rot_in90", "trans_in
 CALIBRATION = ("aspect_in90", "rot_in90", "trans_in90")
 
 
-def columns(res, aspect_gt: float, gt_pose: tuple[np.ndarray, np.ndarray], K: np.ndarray, errors: dict) -> dict:
+def columns(res, aspect_gt: float, gt_pose: tuple[np.ndarray, np.ndarray], K: np.ndarray, errors: dict,
+            wall: int | None = None) -> dict:
     """The COLUMNS of one WindowResult against its GT window: ``aspect_gt`` its true width / height,
     ``gt_pose`` its true (R, t) (metrics.gt_window_pose), K the true intrinsics (3, 3) px;
-    ``errors``: its bench.evaluate.window_errors row."""
+    ``errors``: its bench.evaluate.window_errors row; wall: the façade model's wall it is on
+    (pipeline.session.Window.wall; ``wall_id``), or None."""
     out = {k: NAN for k in COLUMNS}
     f_true = float(np.sqrt(K[0, 0] * K[1, 1]))
     if res.focal_estimate_px is not None and math.isfinite(res.focal_estimate_px):
         out["focal_est_px"] = float(res.focal_estimate_px)
         out["focal_err_rel"] = abs(res.focal_estimate_px - f_true) / f_true
-    if res.wall is not None:
-        out["wall_id"] = float(res.wall)
+    if wall is not None:
+        out["wall_id"] = float(wall)
     u = res.uncertainty
     if u is None or res.R is None:
         return out

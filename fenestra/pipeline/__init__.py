@@ -1,13 +1,15 @@
 """The pipeline: detect -> quad -> snap -> aspect -> pose -> walls -> façade model -> export.
 
-The documented Python API for one photo (the same data as ``fenestra reconstruct``'s windows.json),
-also importable from the package itself (``from fenestra import reconstruct_photo``)::
+The documented Python API for one photo (typed; ``to_json()`` is ``fenestra reconstruct``'s
+windows.json), also importable from the package itself (``from fenestra import reconstruct_photo``)::
 
     from fenestra import reconstruct_photo, PhotoOptions, Known
 
-    doc = reconstruct_photo("street.jpg")                      # nothing written; a dict
-    doc = reconstruct_photo("street.jpg", out="out/street",     # ... and the files
+    res = reconstruct_photo("street.jpg")                      # nothing written; a PhotoResult
+    res = reconstruct_photo("street.jpg", out="out/street",     # ... and the files (res.export: what was written)
                             options=PhotoOptions(known=Known(window_height_m=1.4)))
+    res.reconstruction     # typed: each window's stages (fit, measured, placed, regularized, export), K, walls
+    doc = res.to_json()    # windows.json's data:
     doc["K_source"]        # where the focal length came from, its interval, every source's value
     doc["walls"]           # one entry per façade plane: members, scale and its source ("assumed"?)
     doc["windows"]         # one per detection: quads, aspect, R, t, size, flags, failure, exported

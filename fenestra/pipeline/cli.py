@@ -30,7 +30,7 @@ from fenestra.conventions import DEFAULTS, LIMITS
 from fenestra.errors import FenestraError, PipelineError
 from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, KNOWN_RANGE_M as FIELD_RANGE_M, Known
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
-from fenestra.pipeline.photo import WALL_THICKNESS_RANGE_M, PhotoOptions, model_walls, reconstruct_photo
+from fenestra.pipeline.photo import WALL_THICKNESS_RANGE_M, OptionError, PhotoOptions, model_walls, reconstruct_photo
 from fenestra.pipeline.quad import QUAD_SOURCES
 from fenestra.pipeline.reconstruct import POSES
 from fenestra.pipeline.snappers import SNAPPERS
@@ -43,22 +43,23 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                     substitute: Optional[str] = None, export: bool = True, force: bool = False,
                     quad_source: str = DEFAULTS.quad_source, storey: Optional[float] = None,
                     export_all: bool = False, max_pixels: Optional[int] = None,
-                    wall_thickness: float = WALL_THICKNESS_M) -> dict:
+                    wall_thickness: float = WALL_THICKNESS_M, options: Optional[PhotoOptions] = None) -> dict:
     """The `reconstruct` command on one photo as a function: pipeline.photo.reconstruct_photo
     writing into ``out``; returns the windows.json dict it wrote. height / width / storey: the
     known window height / window width / storey height, m (at most one; none: assumed);
     max_pixels: the largest photo read (None: fenestra.conventions.LIMITS.max_image_pixels);
-    wall_thickness: the exported walls' thickness, m (WALL_THICKNESS_RANGE_M)."""
-    check_style(substitute)
-    check_wall_thickness(wall_thickness)
-    options = PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source,
-                           known=known_sizes(width, height, storey), substitute=substitute, export=export,
-                           export_all=export_all, max_pixels=max_pixels, wall_thickness_m=wall_thickness)
+    wall_thickness: the exported walls' thickness, m (WALL_THICKNESS_RANGE_M). options: the
+    PhotoOptions already built from the flags (:func:`photo_options`; the batch builds them once),
+    else built here from the option arguments."""
     from fenestra.pipeline.outdir import held_out  # noqa: PLC0415
 
+    if options is None:
+        options = photo_options(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source, width=width,
+                                height=height, storey=storey, substitute=substitute, export=export,
+                                export_all=export_all, max_pixels=max_pixels, wall_thickness=wall_thickness)
     with held_out(out, force, (photo, K_json, masks)):  # one reconstruct at a time into a folder
         return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
-                                 force=force)
+                                 force=force).to_json()
 
 
 # the physical range of each --known-* size, m (pipeline.facade_model.KNOWN_RANGE_M, by option)
@@ -80,23 +81,43 @@ def known_sizes(width: Optional[float], height: Optional[float], storey: Optiona
         raise PipelineError(f"--known-width/--known-height/--known-storey: {e}") from e
 
 
-def check_wall_thickness(m: float) -> None:
-    """PipelineError naming --wall-thickness when m (metres) is outside WALL_THICKNESS_RANGE_M."""
-    lo, hi = WALL_THICKNESS_RANGE_M
-    if not (isinstance(m, (int, float)) and lo <= m <= hi):
-        raise PipelineError(f"--wall-thickness {m!r} m is outside the physical range [{lo:g}, {hi:g}] m")
+# the flag of each PhotoOptions field (what a refused option's message names)
+OPTION_FLAGS = {"detector": "--detector", "snapper": "--snapper", "pose": "--pose", "quad_source": "--quad-source",
+                "substitute": "--substitute", "max_pixels": "--max-pixels", "wall_thickness_m": "--wall-thickness"}
 
 
-def check_style(style: Optional[str]) -> None:
-    """PipelineError naming --substitute and the catalogue's styles when ``style`` is not one:
-    checked before the photo is read, not found missing after the pipeline ran."""
+def photo_options(detector: str = DEFAULTS.detector, snapper: str = DEFAULTS.snapper, pose: str = DEFAULTS.pose,
+                  quad_source: str = DEFAULTS.quad_source, width: Optional[float] = None,
+                  height: Optional[float] = None, storey: Optional[float] = None, substitute: Optional[str] = None,
+                  export: bool = True, export_all: bool = False, max_pixels: Optional[int] = None,
+                  wall_thickness: float = WALL_THICKNESS_M) -> PhotoOptions:
+    """The PhotoOptions of the `reconstruct` flags, checked once (PhotoOptions checks itself when
+    built; the --known-* sizes by :func:`known_sizes`): PipelineError, one line naming the flag
+    (:func:`option_message`), before any photo is read."""
+    try:
+        return PhotoOptions(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source,
+                            known=known_sizes(width, height, storey), substitute=substitute, export=export,
+                            export_all=export_all, max_pixels=max_pixels, wall_thickness_m=wall_thickness)
+    except OptionError as e:
+        raise PipelineError(option_message(e)) from e
+
+
+def option_message(e: OptionError) -> str:
+    """A refused PhotoOptions field in the command line's words: its flag (OPTION_FLAGS), what it
+    must be and the value given (--wall-thickness: the physical range; --substitute: the
+    catalogue's styles)."""
     from fenestra.pipeline.catalogue import get_style  # noqa: PLC0415
 
-    if style is not None:
+    flag = OPTION_FLAGS.get(e.field, e.field)
+    if e.field == "wall_thickness_m":
+        lo, hi = WALL_THICKNESS_RANGE_M
+        return f"{flag} {e.value!r} m is outside the physical range [{lo:g}, {hi:g}] m"
+    if e.field == "substitute" and isinstance(e.value, str):
         try:
-            get_style(style)
-        except ValueError as e:
-            raise PipelineError(f"--substitute: {e}") from e
+            get_style(e.value)
+        except ValueError as why:
+            return f"{flag}: {why}"
+    return f"{flag} {e.why}, got {e.value!r}"
 
 
 def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) -> dict:
@@ -398,18 +419,13 @@ def register(app: typer.Typer) -> None:
           fenestra reconstruct 'photos/*.jpg' --out out/batch
           fenestra reconstruct img017.jpg --K K.json --masks panes017.png --out out/cw
         """  # noqa: E501 -- one paragraph: the help reflows it
-        if quad_source not in QUAD_SOURCES:
-            raise typer.BadParameter(f"--quad-source must be one of {QUAD_SOURCES}, got {quad_source!r}")
-        check_style(substitute)  # option mistakes: refused before any photo is read
-        check_wall_thickness(wall_thickness)
-        known_sizes(width, height, storey)
+        options = photo_options(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source, width=width,
+                                height=height, storey=storey, substitute=substitute, export_all=export_all,
+                                max_pixels=max_pixels, wall_thickness=wall_thickness)  # refused before any photo is read
         paths = expand_photos(photos)
         if masks is not None and len(paths) > 1:
             raise PipelineError(f"--masks describes one photo; {len(paths)} photos given")
-        kw = dict(K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, detector=detector, snapper=snapper,
-                  pose=pose, height=height, width=width, substitute=substitute, force=force,
-                  quad_source=quad_source, storey=storey, export_all=export_all, max_pixels=max_pixels,
-                  wall_thickness=wall_thickness)
+        kw = dict(K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, force=force, options=options)
         if len(paths) == 1:
             doc = run_reconstruct(paths[0], out, **kw)
             typer.echo(format_table(doc))

@@ -50,7 +50,7 @@ import numpy as np
 
 from fenestra.conventions import heading_difference_deg, project, rotation_error_deg, vote_axis
 from fenestra.errors import bounded
-from fenestra.pipeline.types import Failure, Partial, Uncertainty, WindowResult
+from fenestra.pipeline.types import Failure, Partial, Uncertainty, Unavailable, WindowResult
 
 DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
 MERGE_DEG = 5.0  # walls whose rotations differ by less are one façade plane
@@ -181,7 +181,7 @@ def merge_groups(results: list[WindowResult], tol_deg: float = MERGE_DEG,
     starts: dict = {}
     for k, r in enumerate(results):
         if _posed(r):
-            starts.setdefault(("wall", r.wall) if r.wall is not None else ("window", k), []).append(k)
+            starts.setdefault(("wall", r.group) if r.group is not None else ("window", k), []).append(k)
     ordered = sorted(starts.items(), key=lambda kv: -len(kv[1]))
     up = facade_up([m for _, m in ordered], results)
     groups: list[tuple[list[int], list, np.ndarray]] = []
@@ -324,8 +324,8 @@ def plausibility(results: list[WindowResult], walls: list[WallModel], known: Kno
 def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[list[WindowResult], FacadeModel]:
     """One plane and one scale per wall, then the plausibility flags (see the module docstring).
 
-    Returns the results moved onto their walls' planes and scaled (``wall``: the merged wall id;
-    flagged windows' ``uncertainty`` widened by FLAG_WIDEN) and the FacadeModel. Failed windows pass
+    Returns the results moved onto their walls' planes and scaled (the wall each is on:
+    ``FacadeModel.wall_of``; flagged windows' ``uncertainty`` widened by FLAG_WIDEN) and the FacadeModel. Failed windows pass
     unchanged.
     """
     out = list(results)
@@ -336,7 +336,7 @@ def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[l
         offsets = np.abs([float(n @ _centre(results[k])) for k in members])  # facing: n . centre < 0
         dist, source, assumed = wall_scale(results, members, np.maximum(offsets, 1e-9), R[:, 1], known)
         for k, off in zip(members, offsets):
-            out[k] = replace(_rescaled(results[k], dist / max(off, 1e-9)), wall=wid)
+            out[k] = _rescaled(results[k], dist / max(off, 1e-9))
         walls.append(WallModel(wid, members, n, dist, source, assumed, merged))
     flags = plausibility(out, walls, known)
     for wall in walls:
@@ -423,48 +423,48 @@ def visible_extent(quad: np.ndarray, K: np.ndarray, R: np.ndarray, distance_m: f
 
 
 def partial_wall(quad: np.ndarray, cut: tuple[str, ...], image_size: tuple[int, int], results: list[WindowResult],
-                 walls: list[WallModel], K: np.ndarray) -> WallModel | str:
-    """The wall a visible quad (4, 2) px cut by the image edges ``cut`` belongs on, or a one-line
-    reason why none: of the walls whose vanishing points its own sides (:func:`own_sides`) point at
+                 walls: list[WallModel], K: np.ndarray) -> WallModel | Unavailable:
+    """The wall a visible quad (4, 2) px cut by the image edges ``cut`` belongs on, or why none
+    (Unavailable, one line): of the walls whose vanishing points its own sides (:func:`own_sides`) point at
     within PARTIAL_VP_DEG (:func:`side_misfit_deg`; a wall's axes: its first member's R), the
     nearest in the image (to the convex hull of its members' snapped quads)."""
     from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415
 
     if not walls:
-        return "no wall of whole windows in the photo to place it on"
+        return Unavailable("no wall of whole windows in the photo to place it on")
     sides = own_sides(quad, cut, image_size)
     if not sides:
-        return "none of its sides is its own (all along the photo's edges)"
+        return Unavailable("none of its sides is its own (all along the photo's edges)")
     misfit = [side_misfit_deg(quad, sides, results[w.members[0]].R, K) for w in walls]
     fits = [w for w, m in zip(walls, misfit) if m <= PARTIAL_VP_DEG]
     if not fits:
         best = int(np.argmin(misfit))
-        return (f"its sides point at no wall's vanishing points (nearest: wall {walls[best].id}, "
-                f"{misfit[best]:.1f} deg beyond the noise > {PARTIAL_VP_DEG:g} deg)")
+        return Unavailable(f"its sides point at no wall's vanishing points (nearest: wall {walls[best].id}, "
+                           f"{misfit[best]:.1f} deg beyond the noise > {PARTIAL_VP_DEG:g} deg)")
     centre = np.asarray(quad, dtype=np.float64).reshape(4, 2).mean(axis=0)[None]
     near = [float(hull_distance(centre, np.array([results[k].quad_snapped for k in w.members]))[0]) for w in fits]
     return fits[int(np.argmax(near))]
 
 
-def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall: WallModel | str,
+def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall: WallModel | Unavailable,
                   R_wall: np.ndarray | None, K: np.ndarray) -> WindowResult:
     """Window ``r`` (its whole-window failure in ``r.failure``) as a partial window with visible
     quad (4, 2) px and ``cut`` sides: on ``wall`` (with axes R_wall (3, 3)), its visible extent
     (:func:`visible_extent`) as its pose and size, its reprojected quad that rectangle's; or, for a
-    reason (a str) instead of a wall or a ray that misses the wall's plane, failed at stage
+    reason (an Unavailable) instead of a wall or a ray that misses the wall's plane, failed at stage
     ``wall`` with that reason."""
     q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
     part = Partial(tuple(cut), r.failure)
-    extent = None if isinstance(wall, str) else visible_extent(q, K, R_wall, wall.distance_m)
+    extent = None if isinstance(wall, Unavailable) else visible_extent(q, K, R_wall, wall.distance_m)
     if extent is None:
-        why = wall if isinstance(wall, str) else f"a corner's ray misses wall {wall.id}'s plane"
+        why = wall.reason if isinstance(wall, Unavailable) else f"a corner's ray misses wall {wall.id}'s plane"
         return replace(r, quad_mask=q, quad_snapped=q, partial=part,
-                       failure=Failure("wall", f"partial window (cut by the photo's {', '.join(cut)} edge): {why}"))
+                       failure=Failure("wall", None, f"partial window (cut by the photo's {', '.join(cut)} edge): {why}"))
     t, w, h = extent
     R = np.asarray(R_wall, dtype=np.float64)
     rect = np.array([[0.0, h, 0.0], [w, h, 0.0], [w, 0.0, 0.0], [0.0, 0.0, 0.0]])  # TL TR BR BL, window frame
     return replace(r, quad_mask=q, quad_snapped=q, aspect_ratio=w / h, aspect_case=None, focal_estimate_px=None,
-                   R=R, t=t, height_m=h, quad_reprojected=project(K, R, t, rect), failure=None, wall=wall.id,
+                   R=R, t=t, height_m=h, quad_reprojected=project(K, R, t, rect), failure=None,
                    uncertainty=None, partial=part)
 
 
@@ -501,10 +501,11 @@ def place_partials(results: list[WindowResult], model: FacadeModel, visible: dic
             continue
         if qr.quad is None:
             out[k] = replace(r, partial=Partial(tuple(qr.cut), r.failure),
-                             failure=Failure("quad", f"{r.failure.reason}; its visible part: {qr.failure}"))
+                             failure=Failure("quad", r.failure.code,
+                                             f"{r.failure.detail}; its visible part: {qr.failure.reason}"))
             continue
         wall = partial_wall(qr.quad, qr.cut, image_size, out, walls, K)
-        R_wall = None if isinstance(wall, str) else out[wall.members[0]].R
+        R_wall = None if isinstance(wall, Unavailable) else out[wall.members[0]].R
         out[k] = place_partial(r, qr.quad, qr.cut, wall, R_wall, K)
         if out[k].failure is None:
             placed.setdefault(wall.id, []).append(k)

@@ -43,6 +43,7 @@ import cv2
 import numpy as np
 
 from fenestra.errors import PipelineError
+from fenestra.pipeline.types import Unavailable
 
 if TYPE_CHECKING:  # annotations only; pipeline.walls is imported lazily below
     from fenestra.pipeline.segments import SegmentCache
@@ -277,13 +278,13 @@ def user_focal(K: np.ndarray, how: str) -> FocalEstimate:
     return FocalEstimate("K", f, (f, f), how)
 
 
-def exif_focal(photo: str | Path, image_size: tuple[int, int]) -> FocalEstimate | str | None:
+def exif_focal(photo: str | Path, image_size: tuple[int, int]) -> FocalEstimate | Unavailable | None:
     """The photo's EXIF focal length (:func:`focal_from_exif`) +- EXIF_REL_INTERVAL, None without
-    one, or why it is refused (str: outside EXIF_FOV_RANGE_DEG; the chain records it as unavailable)."""
+    one, or why it is refused (Unavailable: outside EXIF_FOV_RANGE_DEG; the chain records it as unavailable)."""
     try:
         found = focal_from_exif(photo, image_size)
     except PipelineError as e:
-        return str(e)
+        return Unavailable(str(e))
     if found is None:
         return None
     f, how = found
@@ -300,27 +301,27 @@ def prior_focal(image_size: tuple[int, int]) -> FocalEstimate:
 
 def vanishing_fit(quads: np.ndarray, image_size: tuple[int, int], wall: WallParams | None = None,
                   segment_cache: SegmentCache | None = None,
-                  give_up_rel_sd: float | None = None) -> tuple[float, float] | str:
+                  give_up_rel_sd: float | None = None) -> tuple[float, float] | Unavailable:
     """The façade's vanishing-point focal length and its sd (px), ungated: (f, sd) from snapped
     window quads (N, 4, 2) px (pipeline.walls.focal_from_walls), or why there is none
-    (unobservable, or an implausible field of view). give_up_rel_sd: a relative sd above which the
+    (Unavailable: unobservable, or an implausible field of view). give_up_rel_sd: a relative sd above which the
     caller will not use the answer (the fit may stop early above a multiple of it); None: never."""
     from fenestra.pipeline.walls import WallParams, focal_from_walls  # noqa: PLC0415
 
     W, H = image_size
     if not len(quads):
-        return "no window quads"
+        return Unavailable("no window quads")
     try:
         f, sd = focal_from_walls(np.asarray(quads, dtype=np.float64), (H, W), wall or WallParams(), segment_cache,
                                  max_rel_sd=give_up_rel_sd)
     except PipelineError as e:
-        return str(e)
+        return Unavailable(str(e))
     if not (np.isfinite(f) and f > 0 and np.isfinite(sd)):
-        return f"focal length {f} +- {sd} px"
+        return Unavailable(f"focal length {f} +- {sd} px")
     fov = fov_from_focal(f, image_size)
     if not PLAUSIBLE_FOV_DEG[0] <= fov <= PLAUSIBLE_FOV_DEG[1]:
-        return (f"f = {f:.0f} px is a {fov:.0f} deg field of view, outside the plausible "
-                f"{PLAUSIBLE_FOV_DEG[0]:g}-{PLAUSIBLE_FOV_DEG[1]:g} deg")
+        return Unavailable(f"f = {f:.0f} px is a {fov:.0f} deg field of view, outside the plausible "
+                           f"{PLAUSIBLE_FOV_DEG[0]:g}-{PLAUSIBLE_FOV_DEG[1]:g} deg")
     return f, sd
 
 
@@ -331,15 +332,15 @@ def vp_max_sd(image_size: tuple[int, int]) -> float:
     return (hi - lo) / (2.0 * VP_SD_MULTIPLIER)
 
 
-def vanishing_estimate(f: float, sd: float, image_size: tuple[int, int], how: str = "") -> FocalEstimate | str:
+def vanishing_estimate(f: float, sd: float, image_size: tuple[int, int], how: str = "") -> FocalEstimate | Unavailable:
     """The acceptance rule of a vanishing-point fit f +- sd (px): the estimate with its calibrated
     90 % interval f +- VP_SD_MULTIPLIER x sd when that interval is narrower than the prior's, else
-    why it is not used. how: words on where it came from, for the detail."""
+    why it is not used (Unavailable). how: words on where it came from, for the detail."""
     half = VP_SD_MULTIPLIER * sd
     if not sd < vp_max_sd(image_size):
         lo, hi = prior_focal(image_size).interval_px
-        return (f"f = {f:.0f} +- {half:.0f} px (90 %, calibrated {VP_SD_MULTIPLIER:g} sd) is no narrower than the "
-                f"prior's {lo:.0f}-{hi:.0f} px")
+        return Unavailable(f"f = {f:.0f} +- {half:.0f} px (90 %, calibrated {VP_SD_MULTIPLIER:g} sd) is no narrower "
+                           f"than the prior's {lo:.0f}-{hi:.0f} px")
     return FocalEstimate("vanishing points", f, (max(f - half, 1e-6), f + half),
                          f"f = {f:.1f} +- {sd:.1f} px (sd){how}, principal point at the "
                          f"image centre; interval: 90 %, {VP_SD_MULTIPLIER:g} sd (calibrated on renders)")
@@ -371,9 +372,9 @@ def vanishing_stability(quads: np.ndarray, image_size: tuple[int, int], fit: tup
         return True, ""
     give_up = vp_max_sd(image_size) / prior_focal(image_size).focal_px
     fits = [vanishing_fit(np.asarray(quads)[i], image_size, wall, segment_cache, give_up_rel_sd=give_up) for i in idx]
-    said = [f"{f[0]:.0f} px" if isinstance(f, tuple) else f"no focal length ({f})" for f in fits]
+    said = [f"no focal length ({f})" if isinstance(f, Unavailable) else f"{f[0]:.0f} px" for f in fits]
     words = ("halves give " if parts == 2 else f"{parts} parts give ") + " and ".join(said)
-    answered = [f for f in fits if isinstance(f, tuple)]
+    answered = [f for f in fits if not isinstance(f, Unavailable)]
     k = VP_SD_MULTIPLIER
     disjoint = any(abs(a[0] - b[0]) > k * (a[1] + b[1]) for n, a in enumerate(answered) for b in answered[n + 1:])
     if disjoint or len(answered) < len(fits):
@@ -385,22 +386,22 @@ def vanishing_stability(quads: np.ndarray, image_size: tuple[int, int], fit: tup
 
 def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallParams | None = None,
                     segment_cache: SegmentCache | None = None,
-                    check_stability: bool | None = None) -> FocalEstimate | str:
+                    check_stability: bool | None = None) -> FocalEstimate | Unavailable:
     """The façade's vanishing-point focal length (:func:`vanishing_fit`) from snapped window quads
     (N, 4, 2) px if :func:`vanishing_estimate` accepts it and (check_stability; None: the module's
     VP_STABILITY_CHECK, read at the call) the halves of its windows agree (:func:`vanishing_stability`),
-    or why there is none (str)."""
+    or why there is none (Unavailable)."""
     fit = vanishing_fit(quads, image_size, wall, segment_cache,
                         give_up_rel_sd=vp_max_sd(image_size) / prior_focal(image_size).focal_px)
-    if isinstance(fit, str):
+    if isinstance(fit, Unavailable):
         return fit
     lines = " and the facade line segments" if wall is not None and wall.lines else ""
     est = vanishing_estimate(*fit, image_size, f" from {len(quads)} window(s){lines}")
-    if isinstance(est, str) or not (VP_STABILITY_CHECK if check_stability is None else check_stability):
+    if isinstance(est, Unavailable) or not (VP_STABILITY_CHECK if check_stability is None else check_stability):
         return est
     stable, words = vanishing_stability(quads, image_size, fit, wall, segment_cache)
     if not stable:
-        return words
+        return Unavailable(words)
     return replace(est, detail=est.detail + (f"; stable: {words}" if words else ""))
 
 
@@ -438,13 +439,13 @@ def disagreements(estimates: list[FocalEstimate]) -> list[str]:
             for i, a in enumerate(measured) for b in measured[i + 1:] if not a.overlaps(b)]
 
 
-def choose_focal(ranked: list[FocalEstimate | str | None], names: list[str], image_size: tuple[int, int],
+def choose_focal(ranked: list[FocalEstimate | Unavailable | None], names: list[str], image_size: tuple[int, int],
                  principal_point: tuple[float, float] | None = None) -> ResolvedK:
-    """The chain's answer: ``ranked`` holds each source's estimate, or why it has none (str, or
-    None for "not given"), in rank order, named by ``names``; the prior closes the chain.
+    """The chain's answer: ``ranked`` holds each source's estimate, or why it has none (Unavailable,
+    or None for "not given"), in rank order, named by ``names``; the prior closes the chain.
     principal_point (cx, cy) px: kept from the user's K, else the image centre."""
     estimates = [e for e in ranked if isinstance(e, FocalEstimate)] + [prior_focal(image_size)]
-    unavailable = {n: e for n, e in zip(names, ranked) if isinstance(e, str)}
+    unavailable = {n: e.reason for n, e in zip(names, ranked) if isinstance(e, Unavailable)}
     chosen = estimates[0]
     K = centred_K(chosen.focal_px, image_size)
     if principal_point is not None:
@@ -463,7 +464,7 @@ def resolve_K(photo: str | Path | None, quads: np.ndarray, image_size: tuple[int
     """
     exif = None if photo is None else exif_focal(photo, image_size)  # None: an image without a file (a render)
     vp = vanishing_focal(quads, image_size, wall, segment_cache)
-    return choose_focal([exif if exif is not None else "no EXIF focal length", vp], ["exif", "vanishing points"],
+    return choose_focal([exif if exif is not None else Unavailable("no EXIF focal length"), vp], ["exif", "vanishing points"],
                         image_size)
 
 

@@ -1,8 +1,11 @@
 """One photo in, a façade out: the path behind ``fenestra reconstruct`` and its Python API.
 
     from fenestra.pipeline import reconstruct_photo
-    doc = reconstruct_photo("street.jpg")                 # the windows.json data, nothing written
-    doc = reconstruct_photo("street.jpg", out="out/st")   # ... and windows.json, model.ifc, overlay.png, ...
+    res = reconstruct_photo("street.jpg")                 # a PhotoResult, nothing written
+    res = reconstruct_photo("street.jpg", out="out/st")   # ... and windows.json, model.ifc, overlay.png, ...
+    res.reconstruction    # typed: pipeline.session.Reconstruction (every window's stages, K, walls)
+    res.export            # typed: what the writer wrote (ExportReport), None when nothing was written
+    res.to_json()         # windows.json's data (a new dict)
 
 Always an answer: the intrinsics come from a ranked chain (the user's K, EXIF, the façade's
 vanishing points, a stated prior: pipeline.intrinsics), so the geometry always runs; a failure of
@@ -13,7 +16,7 @@ both --K and --fx, a K file that does not fit the photo).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -24,9 +27,8 @@ from fenestra.masks import mask_extent
 from fenestra.methods import Method
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
 from fenestra.pipeline.facade_model import Known
-from fenestra.pipeline.quad import QuadParams
 from fenestra.pipeline.reconstruct import ReconstructConfig
-from fenestra.pipeline.session import focal_envelope  # noqa: F401  (re-exported)
+from fenestra.pipeline.session import Reconstruction, focal_envelope  # noqa: F401  (focal_envelope re-exported)
 from fenestra.pipeline.types import Detection, WindowResult
 
 
@@ -41,7 +43,10 @@ class PhotoOptions:
     (export the implausible windows too), substitute (catalogue style or None), export (write
     model.ifc/obj/glb besides windows.json and the overlay), max_pixels (the largest photo read,
     checked before decoding; None: fenestra.conventions.LIMITS.max_image_pixels), wall_thickness_m
-    (the exported walls' thickness, m; a photo shows no wall's depth)."""
+    (the exported walls' thickness, m; a photo shows no wall's depth).
+
+    Checked once, when built: a field that is not one of its choices or of its type raises an
+    :class:`OptionError` (a PipelineError) naming it, its choices and the value given."""
 
     detector: str = DEFAULTS.detector
     snapper: str = DEFAULTS.snapper
@@ -54,8 +59,106 @@ class PhotoOptions:
     max_pixels: int | None = None  # a larger photo is refused before decoding (None: LIMITS.max_image_pixels)
     wall_thickness_m: float = WALL_THICKNESS_M  # the exported walls' thickness (not measured: stated)
 
-    def config(self) -> ReconstructConfig:
-        return ReconstructConfig(snapper=self.snapper, pose=self.pose, quad=QuadParams(source=self.quad_source))
+    def __post_init__(self) -> None:
+        check_options(self)
+
+
+class OptionError(PipelineError):
+    """A PhotoOptions field that cannot be used: ``field`` (its name), ``why`` (what it must be)
+    and ``value`` (what was given); the message is one line naming all three."""
+
+    def __init__(self, field: str, why: str, value) -> None:
+        self.field, self.why, self.value = field, why, value
+        super().__init__(f"PhotoOptions: {field} {why}, got {value!r} ({type(value).__name__})")
+
+
+def check_options(options: PhotoOptions) -> None:
+    """:class:`OptionError` for the first field of ``options`` that is not one of its choices:
+    detector, snapper, pose, quad_source (registry names), substitute (a catalogue style or
+    None), known (a Known), export_all and export (bool), max_pixels (a positive int or None),
+    wall_thickness_m (metres in WALL_THICKNESS_RANGE_M)."""
+    import numbers  # noqa: PLC0415
+
+    from fenestra.pipeline.catalogue import CATALOGUE  # noqa: PLC0415
+    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
+    from fenestra.pipeline.poses import POSES  # noqa: PLC0415
+    from fenestra.pipeline.quad import QUAD_SOURCES  # noqa: PLC0415
+    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
+
+    for field, registry in (("detector", DETECTORS), ("snapper", SNAPPERS), ("pose", POSES)):
+        v = getattr(options, field)
+        if not isinstance(v, str) or v not in registry:
+            raise OptionError(field, f"must be one of {sorted(registry)}", v)
+    if options.quad_source not in QUAD_SOURCES:
+        raise OptionError("quad_source", f"must be one of {list(QUAD_SOURCES)}", options.quad_source)
+    if options.substitute is not None and (not isinstance(options.substitute, str)
+                                           or options.substitute not in CATALOGUE):
+        raise OptionError("substitute", f"must be None or one of {sorted(CATALOGUE)}", options.substitute)
+    if not isinstance(options.known, Known):
+        raise OptionError("known", "must be a fenestra.pipeline.facade_model.Known", options.known)
+    for field in ("export_all", "export"):
+        if not isinstance(getattr(options, field), bool):
+            raise OptionError(field, "must be True or False", getattr(options, field))
+    mp = options.max_pixels
+    if mp is not None and (isinstance(mp, bool) or not isinstance(mp, numbers.Integral) or mp <= 0):
+        raise OptionError("max_pixels", "must be a positive int or None", mp)
+    wt, (lo, hi) = options.wall_thickness_m, WALL_THICKNESS_RANGE_M
+    if isinstance(wt, bool) or not isinstance(wt, numbers.Real) or not lo <= wt <= hi:
+        raise OptionError("wall_thickness_m", f"must be a number of metres in {lo:g}-{hi:g}", wt)
+
+
+@dataclass(frozen=True)
+class ExportReport:
+    """What the writer wrote for one photo (:func:`write_all`): files {kind: file name} (overlay,
+    viewer, and with the models ifc, obj, mtl, glb, texture, inpainted, manifest[, substituted]);
+    exported: the detection indices whose model was written; skipped: (index, reason) of the windows
+    left out, in detection order; failure: None, or why writing the models failed ("Type: message",
+    recorded, not raised: windows.json is still written). :meth:`to_json` is windows.json's ``export``."""
+
+    files: dict = field(default_factory=dict)
+    exported: tuple[int, ...] = ()
+    skipped: tuple[tuple[int, str], ...] = ()
+    failure: str | None = None
+
+    def to_json(self) -> dict:
+        return {"files": dict(self.files), "exported": list(self.exported),
+                "skipped": [{"index": i, "reason": r} for i, r in self.skipped], "failure": self.failure}
+
+
+@dataclass(frozen=True)
+class PhotoResult:
+    """What :func:`reconstruct_photo` gives: the typed reconstruction and, when files were
+    written, the typed export report; :meth:`to_json` is windows.json's data, computed from them.
+
+    reconstruction: pipeline.session.Reconstruction; image_size (W, H) px; warnings: the photo's
+    and the intrinsics' (the focal chain's are added by to_json); photo: the photo's path; gps:
+    its EXIF position (pipeline.intrinsics.gps_from_exif) or None; undistorted / distortion: the
+    user's lens distortion removed, its coefficients; export_models: options.export (models are
+    made: windows' ``exported`` is the decision, else None); export: the ExportReport, or None
+    when nothing was written (``out`` None).
+    """
+
+    reconstruction: Reconstruction
+    image_size: tuple[int, int]
+    warnings: tuple[str, ...]
+    photo: str
+    gps: dict | None
+    undistorted: bool
+    distortion: list | None
+    export_models: bool = True
+    export: ExportReport | None = None
+
+    def to_json(self) -> dict:
+        """windows.json's data (a new dict): :func:`reconstruction_json` of the reconstruction, the
+        photo's fields, and ``export`` when written (a window is ``exported`` when the decision
+        keeps it and its model was written)."""
+        written = None if self.export is None else set(self.export.exported)
+        doc = reconstruction_json(self.reconstruction, self.image_size, list(self.warnings), self.export_models,
+                                  written)
+        doc.update(photo=self.photo, gps=self.gps, undistorted=self.undistorted, distortion=self.distortion)
+        if self.export is not None:
+            doc["export"] = self.export.to_json()
+        return doc
 
 
 def user_camera(photo: Path, size: tuple[int, int], K_json: Path | None, fx: float | None, fy: float | None,
@@ -90,16 +193,9 @@ def check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force) -
     """PipelineError, one line naming the argument, for what :func:`reconstruct_photo` cannot take:
     paths that are not str/PathLike (photo, K_json and masks must be existing regular files), focal
     values and principal point that are not finite real numbers (fx, fy > 0), options that are not
-    a PhotoOptions (or name an unknown detector, snapper, pose, quad source or substitute style, a
-    ``known`` that is not a Known, flags that are not bool, a max_pixels that is not a positive
-    int), a force that is not bool. Checked before anything is read or written."""
+    a PhotoOptions (whose fields were checked when it was built: :func:`check_options`), a force
+    that is not bool. Checked before anything is read or written."""
     import numbers  # noqa: PLC0415
-
-    from fenestra.pipeline.catalogue import CATALOGUE  # noqa: PLC0415
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from fenestra.pipeline.poses import POSES  # noqa: PLC0415
-    from fenestra.pipeline.quad import QUAD_SOURCES  # noqa: PLC0415
-    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
 
     def bad(name: str, why: str, v) -> PipelineError:
         return PipelineError(f"reconstruct_photo: {name} {why}, got {v!r} ({type(v).__name__})")
@@ -124,33 +220,14 @@ def check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force) -
         raise bad("force", "must be True or False", force)
     if not isinstance(options, PhotoOptions):
         raise bad("options", "must be a fenestra.pipeline.photo.PhotoOptions", options)
-    for field, registry in (("detector", DETECTORS), ("snapper", SNAPPERS), ("pose", POSES)):
-        v = getattr(options, field)
-        if not isinstance(v, str) or v not in registry:
-            raise bad(f"options.{field}", f"must be one of {sorted(registry)}", v)
-    if options.quad_source not in QUAD_SOURCES:
-        raise bad("options.quad_source", f"must be one of {list(QUAD_SOURCES)}", options.quad_source)
-    if options.substitute is not None and (not isinstance(options.substitute, str)
-                                           or options.substitute not in CATALOGUE):
-        raise bad("options.substitute", f"must be None or one of {sorted(CATALOGUE)}", options.substitute)
-    if not isinstance(options.known, Known):
-        raise bad("options.known", "must be a fenestra.pipeline.facade_model.Known", options.known)
-    for field in ("export_all", "export"):
-        if not isinstance(getattr(options, field), bool):
-            raise bad(f"options.{field}", "must be True or False", getattr(options, field))
-    mp = options.max_pixels
-    if mp is not None and (isinstance(mp, bool) or not isinstance(mp, numbers.Integral) or mp <= 0):
-        raise bad("options.max_pixels", "must be a positive int or None", mp)
-    wt, (lo, hi) = options.wall_thickness_m, WALL_THICKNESS_RANGE_M
-    if isinstance(wt, bool) or not isinstance(wt, numbers.Real) or not lo <= wt <= hi:
-        raise bad("options.wall_thickness_m", f"must be a number of metres in {lo:g}-{hi:g}", wt)
 
 
 def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_json: str | Path | None = None,
                       fx: float | None = None, fy: float | None = None, cx: float | None = None,
                       cy: float | None = None, masks: str | Path | None = None,
-                      options: PhotoOptions = PhotoOptions(), force: bool = False) -> dict:
-    """Reconstruct the windows of one photo; return the windows.json data (a dict).
+                      options: PhotoOptions | None = None, force: bool = False) -> PhotoResult:
+    """Reconstruct the windows of one photo; return the typed :class:`PhotoResult` (its
+    ``to_json()``: the windows.json data).
 
     photo: any image file OpenCV reads (EXIF orientation applied). out: a folder to write
     windows.json, overlay.png, index.html (a page showing them: pipeline.export.viewer) and
@@ -159,11 +236,11 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     folder that is not an output), or None to write nothing. K_json / fx, fy, cx, cy: the user's
     intrinsics (at most one of K_json and fx); without them the focal chain of
     pipeline.intrinsics.resolve_K decides. masks: an instance-map PNG (16-bit ids, 0 = none)
-    instead of the detector.
+    instead of the detector. options: a PhotoOptions (None: the defaults, ``PhotoOptions()``).
 
     The work is :meth:`fenestra.pipeline.session.PhotoSession.run` (what the bench runs too);
-    this reads the inputs, builds the windows.json data (:func:`reconstruction_json`) and writes
-    the files. The dict: ``K``, ``K_source`` (source, focal_px, interval_px, candidates,
+    this reads the inputs, runs it, and writes the files (:func:`write_all`). windows.json's data
+    (:meth:`PhotoResult.to_json`): ``K``, ``K_source`` (source, focal_px, interval_px, candidates,
     unavailable, detail), ``image_size`` [W, H], ``config``, ``windows`` (one per detection,
     failures included), ``warnings``, ``geometry_failure`` (None, or why the geometry failed as a
     whole), ``undistorted``, ``distortion``, ``export`` (what was exported or skipped, when
@@ -177,6 +254,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     from fenestra.pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
     from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415
 
+    options = PhotoOptions() if options is None else options
     check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force)  # PipelineError naming the argument
     photo = Path(photo)
     inputs = (photo, K_json, masks)  # never inside out: replacing it would delete them
@@ -193,16 +271,17 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
                            instances=instances, detector_options={"oracle": {"sparse": True}})  # --masks: crops
     rec = session.run(method_of(options, masks is not None), options.known, options.export_all, options.substitute)
     del session, instances  # export needs neither the gray copies nor the instance map (a 100 Mpx photo: 0.5 GB each)
-    doc = reconstruction_json(rec, size, warnings + intrinsics_warnings(rec.K, size), options.export)
     from fenestra.pipeline.intrinsics import gps_from_exif  # noqa: PLC0415
 
-    doc.update(photo=str(photo), gps=gps_from_exif(photo), undistorted=bool(camera is not None and camera.has_distortion),
-               distortion=None if camera is None or camera.distortion is None else camera.distortion.tolist())
+    result = PhotoResult(rec, size, tuple(warnings + intrinsics_warnings(rec.K, size)), str(photo), gps_from_exif(photo),
+                         bool(camera is not None and camera.has_distortion),
+                         None if camera is None or camera.distortion is None else camera.distortion.tolist(),
+                         options.export)
     if out is not None:
         with staged_dir(Path(out), force, inputs) as tmp:
-            doc["export"] = write_all(tmp, image, rec, options, doc)
-            (tmp / "windows.json").write_text(json.dumps(doc, indent=2))
-    return doc
+            result = replace(result, export=write_all(tmp, image, result, options))
+            (tmp / "windows.json").write_text(json.dumps(result.to_json(), indent=2))
+    return result
 
 
 def aspect_interval(w: WindowResult, envelope: dict[int, tuple[float, float]]) -> list[float] | None:
@@ -240,34 +319,36 @@ def row_fields(r: WindowResult, measured: WindowResult | None, fit) -> dict:
                 "quad_reprojected": None if m.quad_reprojected is None else np.asarray(m.quad_reprojected).tolist()}}
 
 
-def reconstruction_json(rec, image_size: tuple[int, int], warnings: list[str], export: bool = True) -> dict:
-    """windows.json's data of a pipeline.session.Reconstruction (a new dict; nothing changed in
-    place): ``K``, ``K_source``, ``image_size``, ``config``, ``walls``, ``scale``, ``windows`` (per
-    window its stage results plus ``plausible``, ``flags``, ``scale_source``, ``scale_assumed``,
-    ``K_source``, ``aspect_interval`` (of the measured window), ``confidence``, the row
-    regularization's fields (:func:`row_fields`), ``exported``: the export decision, None when
-    no model is made (``export`` False), ``not_exported``: why not; ``partial`` and ``cut``: a
-    window cut by the photo's edges, its fields those of its visible part), ``warnings`` (the
-    photo's, the focal chain's), ``geometry_failure``."""
+def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnings: list[str], export: bool = True,
+                        written: set[int] | None = None) -> dict:
+    """windows.json's data of a pipeline.session.Reconstruction (a new dict; pure): ``K``,
+    ``K_source``, ``image_size``, ``config``, ``walls``, ``scale``, ``windows`` (per window its
+    stage results as the model holds it plus ``plausible``, ``flags``, ``scale_source``,
+    ``scale_assumed``, ``K_source``, ``aspect_interval`` (of the measured window), ``confidence``,
+    the row regularization's fields (:func:`row_fields`), ``exported``: the export decision (and,
+    with ``written`` the indices whose model was written, only those), None when no model is made
+    (``export`` False), ``not_exported``: why not; ``partial`` and ``cut``: a window cut by the
+    photo's edges, its fields those of its visible part), ``warnings`` (the photo's, the focal
+    chain's), ``geometry_failure``."""
     from fenestra.pipeline.reconstruct import windows_to_json  # noqa: PLC0415
 
     model = rec.model
-    cfg = replace(ReconstructConfig(snapper=rec.method.snapper, pose=rec.method.pose),
-                  quad=QuadParams(source=rec.method.quad_source))
-    doc = windows_to_json(list(rec.windows), K=rec.K, image_size=image_size, config=cfg)
+    doc = windows_to_json(rec.results(), K=rec.K, image_size=image_size, config=ReconstructConfig.of(rec.method),
+                          walls={w.index: w.wall for w in rec.windows})
     assumed = [w.id for w in model.walls if w.assumed]
     windows = []
-    for r, w in zip(rec.windows, doc["windows"]):
-        wall = model.wall_of(r.index)
-        flags = model.flags.get(r.index, [])
+    for win, w in zip(rec.windows, doc["windows"]):
+        r, k = win.result, win.index
+        wall = model.wall_of(k)
+        flags = model.flags.get(k, [])
+        exported = win.export.exported and (written is None or k in written)
         windows.append({**w, "plausible": r.failure is None and not flags, "flags": flags,
                         "confidence": confidence(r, bool(flags)), "K_source": rec.resolved.source,
-                        "exported": (r.index not in rec.not_exported) if export else None,
-                        "not_exported": rec.not_exported.get(r.index),
-                        "aspect_interval": aspect_interval(rec.measured.get(r.index, r), rec.envelope),
+                        "exported": exported if export else None, "not_exported": win.export.reason,
+                        "aspect_interval": aspect_interval(r if win.regularized is None else win.measured, rec.envelope),
                         "scale_source": None if wall is None else wall.scale_source,
                         "scale_assumed": None if wall is None else wall.assumed,
-                        **row_fields(r, rec.measured.get(r.index), rec.rows.get(r.index))})
+                        **row_fields(r, win.measured if win.regularized is not None else None, win.row)})
     return {**doc, "windows": windows, "walls": [w.to_json() for w in model.walls],
             "scale": {"assumed": bool(assumed), "assumed_walls": assumed,
                       "sources": sorted({w.scale_source for w in model.walls})},
@@ -285,45 +366,38 @@ def model_walls(doc: dict) -> int:
                 if w.get("wall") is not None and w.get("not_exported") is None and w.get("failure") is None})
 
 
-def write_all(out: Path, image: np.ndarray, rec, options: PhotoOptions, doc: dict) -> dict:
-    """The overlay always, then (options.export) the models of a pipeline.session.Reconstruction,
-    then index.html (pipeline.export.viewer: the overlay, the GLB in 3D or why there is none, the
-    window table);
-    returns {"files", "exported", "skipped", "failure"}: an export that fails is recorded, not
-    raised (windows.json is still written by the caller). The windows the reconstruction decided
-    not to export (``rec.not_exported``) stay out; with options.export each window of ``doc`` keeps
-    ``exported`` only if its model was written (else False)."""
+def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoOptions) -> ExportReport:
+    """The overlay always, then (options.export) the models of ``result``'s reconstruction, then
+    index.html (pipeline.export.viewer: the overlay, the GLB in 3D or why there is none, the window
+    table); returns the :class:`ExportReport`: an export that fails is recorded, not raised
+    (windows.json is still written by the caller). The writers follow the reconstruction's export
+    decision (``Window.export``): the windows it keeps out are the writers' ``exclude``."""
     from fenestra.pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
     from fenestra.pipeline.export.viewer import write_viewer  # noqa: PLC0415
 
-    from fenestra.pipeline.session import kept_out  # noqa: PLC0415
-
-    model, results = rec.model, list(rec.windows)
-    exclude = kept_out(model, options.export_all)
-    report = {"files": {}, "exported": [], "skipped": [], "failure": None}
+    rec = result.reconstruction
+    model, results, decided = rec.model, rec.results(), rec.not_exported
+    doc = result.to_json()  # the windows.json data before writing: the IFC properties, the overlay's header
+    files, exported, skipped, failure = {}, (), (), None
     if options.export:
         info = {w["index"]: w for w in doc["windows"]}
         try:
-            paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=exclude,
+            paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=decided,
                                   walls={k: w.id for w in model.walls for k in w.windows},
                                   properties={k: window_properties(info[k]) for k in info},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False,
-                                  gps=gps_tuple(doc.get("gps")), thickness_m=options.wall_thickness_m)
+                                  gps=gps_tuple(result.gps), thickness_m=options.wall_thickness_m)
         except (PipelineError, ValueError, OSError) as e:
-            report["failure"] = f"{type(e).__name__}: {e}"
+            failure = f"{type(e).__name__}: {e}"
         else:
-            manifest = json.loads(paths["manifest"].read_text())
-            report.update(files={k: p.name for k, p in paths.items()},
-                          exported=[e["index"] for e in manifest["exported"]], skipped=manifest["skipped"])
-    reasons = {**exclude, **{e["index"]: e["reason"] for e in report["skipped"]}}
-    report["files"]["overlay"] = write_overlay(out, image, rec.K, results, reasons,
-                                               boxes=detection_boxes(list(rec.detections)),
-                                               header=overlay_header(doc)).name
-    if options.export:  # what was written (the decision, unless the export failed)
-        for w in doc["windows"]:
-            w["exported"] = w["index"] in report["exported"]
-    report["files"]["viewer"] = write_viewer(out, {**doc, "export": report}, report["files"]).name  # index.html
-    return report
+            files = {k: p.name for k, p in paths.items()}
+            exported = tuple(w.index for w in rec.windows if w.export.exported)
+            skipped = tuple((w.index, w.export.reason) for w in rec.windows if not w.export.exported)
+    files["overlay"] = write_overlay(out, image, rec.K, results, decided, boxes=detection_boxes(list(rec.detections)),
+                                     header=overlay_header(doc)).name
+    report = ExportReport(files, exported, skipped, failure)
+    viewer = write_viewer(out, replace(result, export=report).to_json(), dict(files)).name  # index.html
+    return replace(report, files={**files, "viewer": viewer})
 
 
 def gps_tuple(gps: dict | None) -> tuple | None:

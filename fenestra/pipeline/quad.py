@@ -47,6 +47,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from fenestra.conventions import DEFAULTS
+from fenestra.pipeline.types import Failure
+
 
 QUAD_SOURCES = ("mask", "corners", "mask+corners", "mask+lines", "network")
 
@@ -104,7 +107,8 @@ class QuadParams:
         outline (step 7); or ``"network"``: the detection's own corners as they are, unchecked against
         its mask (a detector with a quad head, ``quadnet``, whose mask is that quad: one instance per
         window centre), a quad reaching past the image failing ``touches_border`` (the session then
-        fits its visible part), the mask fit for a detection without corners. QUAD_SOURCES lists the choices.
+        fits its visible part), the mask fit for a detection without corners. QUAD_SOURCES lists the choices;
+        the default is the CLI's, fenestra.conventions.DEFAULTS.quad_source.
     """
 
     window_pts: int = 100
@@ -124,7 +128,7 @@ class QuadParams:
     speck_px: int = 4
     speck_rel: float = 0.05
     allow_border: bool = False
-    source: str = "mask"
+    source: str = DEFAULTS.quad_source
     subset_lines: int = 7
     subset_min_fill: float = 0.85
     subset_max_outside: float = 0.08
@@ -146,8 +150,9 @@ class QuadResult:
     lines: (4, 3) float64, each row (n_x, n_y, c) of the side line n . p = c with |n| = 1 and n
         pointing out of the mask, in order top, right, bottom, left; None on failure.
     explained: fraction of outline points within ``inlier_px`` of a chosen line (0 if not fitted).
-    failure: None, or ``"<code>: <detail>"`` with code in empty_mask, too_small, touches_border,
-        multiple_blobs, not_quadrilateral (:func:`failure_code`).
+    failure: None, or a pipeline.types.Failure of stage ``quad`` whose code is one of empty_mask,
+        too_small, touches_border, multiple_blobs, not_quadrilateral, no_corners (its ``detail``
+        the numbers; ``str``: ``"quad: <code>: <detail>"``, the form windows.json holds).
     cut: the image edges the mask's blob reaches (of pipeline.types.CUT_SIDES, in that order; a
         fit with ``allow_border`` only, else ()): the quad is then the *visible* part of the
         window, its sides along those edges the image's edges.
@@ -156,18 +161,12 @@ class QuadResult:
     quad: np.ndarray | None
     lines: np.ndarray | None
     explained: float
-    failure: str | None
+    failure: Failure | None
     cut: tuple[str, ...] = ()
 
 
-def failure_code(reason: str | None) -> str | None:
-    """The code of a :class:`QuadResult` failure (``"touches_border"`` of
-    ``"touches_border: mask reaches ..."``), None for None."""
-    return None if reason is None else reason.split(":", 1)[0]
-
-
-def _fail(reason: str, explained: float = 0.0) -> QuadResult:
-    return QuadResult(quad=None, lines=None, explained=explained, failure=reason)
+def _fail(code: str, detail: str, explained: float = 0.0) -> QuadResult:
+    return QuadResult(quad=None, lines=None, explained=explained, failure=Failure("quad", code, detail))
 
 
 def edge_offset_px(normal: np.ndarray) -> float:
@@ -175,19 +174,20 @@ def edge_offset_px(normal: np.ndarray) -> float:
     return 0.5 * float(max(abs(normal[0]), abs(normal[1])))
 
 
-def check_mask(mask: np.ndarray, params: QuadParams = QuadParams()) -> tuple[np.ndarray | None, tuple[int, int], str | None]:
-    """Validate a (H, W) mask; return (blob crop as uint8 0/1, crop origin (x0, y0), failure reason).
+def check_mask(mask: np.ndarray, params: QuadParams = QuadParams()
+               ) -> tuple[np.ndarray | None, tuple[int, int], Failure | None]:
+    """Validate a (H, W) mask; return (blob crop as uint8 0/1, crop origin (x0, y0), failure).
 
-    On success the reason is None and the crop holds the single blob with a one-pixel background
+    On success the failure is None and the crop holds the single blob with a one-pixel background
     margin where the image allows; on failure the crop is None. Raises ValueError for a mask that
     is not 2-D (a programming error, not a bad detection).
     """
-    m, origin, _, reason = _check_mask(mask, params)
-    return m, origin, reason
+    m, origin, _, failure = _check_mask(mask, params)
+    return m, origin, failure
 
 
 def _check_mask(mask: np.ndarray, params: QuadParams) -> tuple[np.ndarray | None, tuple[int, int], tuple[str, ...],
-                                                              str | None]:
+                                                              Failure | None]:
     """:func:`check_mask`, with the image edges the blob reaches (pipeline.types.CUT_SIDES order)
     as the third item."""
     mask = np.asarray(mask)
@@ -196,7 +196,7 @@ def _check_mask(mask: np.ndarray, params: QuadParams) -> tuple[np.ndarray | None
     full = np.ascontiguousarray(mask).view(np.uint8) if mask.dtype == bool else (mask != 0).astype(np.uint8)  # bool: 0/1 already, no copy
     x, y, w, h = cv2.boundingRect(full)
     if w == 0 or h == 0:
-        return None, (0, 0), (), "empty_mask: no foreground pixel"
+        return None, (0, 0), (), Failure("quad", "empty_mask", "no foreground pixel")
     H, W = full.shape
     x0, y0 = max(x - 1, 0), max(y - 1, 0)
     m = full[y0:min(y + h + 1, H), x0:min(x + w + 1, W)]
@@ -206,12 +206,12 @@ def _check_mask(mask: np.ndarray, params: QuadParams) -> tuple[np.ndarray | None
     big = np.flatnonzero(sizes > speck)
     if len(big) > 1:
         top = sorted(sizes[big].tolist(), reverse=True)[:4]
-        return None, (x0, y0), (), (f"multiple_blobs: {len(big)} components larger than "
-                                    f"{speck:.0f} px (largest: {top} px)")
+        return None, (x0, y0), (), Failure("quad", "multiple_blobs", f"{len(big)} components larger than "
+                                           f"{speck:.0f} px (largest: {top} px)")
     keep = 1 + int(np.argmax(sizes))
     area = int(sizes[keep - 1])
     if area < params.min_area_px:
-        return None, (x0, y0), (), f"too_small: {area} px < min_area_px={params.min_area_px}"
+        return None, (x0, y0), (), Failure("quad", "too_small", f"{area} px < min_area_px={params.min_area_px}")
     if len(sizes) > 1:
         m = (labels == keep).astype(np.uint8)
     bx, by, bw, bh = stats[keep, :4]
@@ -219,7 +219,8 @@ def _check_mask(mask: np.ndarray, params: QuadParams) -> tuple[np.ndarray | None
     sides = [name for name, touch in (("top", by == 0), ("bottom", by + bh == H), ("left", bx == 0),
                                       ("right", bx + bw == W)) if touch]
     if sides and not params.allow_border:
-        return None, (x0, y0), tuple(sides), f"touches_border: mask reaches the image {', '.join(sides)} edge"
+        return None, (x0, y0), tuple(sides), Failure("quad", "touches_border",
+                                                     f"mask reaches the image {', '.join(sides)} edge")
     return m, (x0, y0), tuple(sides), None
 
 
@@ -377,13 +378,13 @@ def mask_to_quad(mask: np.ndarray, params: QuadParams = QuadParams(), hint: np.n
     Returns a :class:`QuadResult`; failures are reported in ``failure``, never raised (except a
     mask that is not 2-D: ValueError).
     """
-    m, origin, cut, reason = _check_mask(mask, params)
-    if reason is not None:
-        return _fail(reason)
+    m, origin, cut, failure = _check_mask(mask, params)
+    if failure is not None:
+        return QuadResult(quad=None, lines=None, explained=0.0, failure=failure)
     P = outline(m) + np.asarray(origin, dtype=np.float64)
     inlier_px = max(params.inlier_px, params.inlier_rel * float(np.sqrt(np.count_nonzero(m))))
     qr = _greedy_quad(P, m, params, inlier_px)
-    if params.source == "mask+lines" and hint is not None and failure_code(qr.failure) == "not_quadrilateral":
+    if params.source == "mask+lines" and hint is not None and getattr(qr.failure, "code", None) == "not_quadrilateral":
         sub = best_subset_quad(P, m, np.asarray(origin, dtype=np.float64), params, inlier_px, hint)
         if sub is not None:
             return dataclasses.replace(sub, cut=cut)
@@ -395,15 +396,15 @@ def _greedy_quad(P: np.ndarray, m: np.ndarray, params: QuadParams, inlier_px: fl
     N = len(P)
     lines = _choose_lines(P, params, inlier_px)
     if lines is None:
-        return _fail("not_quadrilateral: fewer than four distinct lines on the outline")
+        return _fail("not_quadrilateral", "fewer than four distinct lines on the outline")
     lines, assign = _refit(P, lines, radius=inlier_px)
     counts = np.bincount(assign[assign >= 0], minlength=4)
     explained = float(counts.sum()) / N
     if explained < params.min_explained:
-        return _fail(f"not_quadrilateral: four lines explain {explained:.0%} of the outline "
+        return _fail("not_quadrilateral", f"four lines explain {explained:.0%} of the outline "
                     f"< min_explained={params.min_explained:.0%}", explained)
     if counts.min() < 3:  # no line to speak of, whatever its length
-        return _fail(f"not_quadrilateral: a side explains only {counts.min() / N:.1%} of the outline "
+        return _fail("not_quadrilateral", f"a side explains only {counts.min() / N:.1%} of the outline "
                     f"< min_side_frac={params.min_side_frac:.0%}", explained)
     # order the lines around the contour: circular mean of the outline index of their points
     ang = 2.0 * np.pi * np.arange(N) / N
@@ -418,19 +419,19 @@ def _greedy_quad(P: np.ndarray, m: np.ndarray, params: QuadParams, inlier_px: fl
         lines[k, 2] += edge_offset_px(lines[k, :2])
     corners = np.array([intersect(lines[k], lines[(k + 1) % 4]) for k in range(4)])
     if not np.all(np.isfinite(corners)):
-        return _fail("not_quadrilateral: two neighbouring sides are parallel", explained)
+        return _fail("not_quadrilateral", "two neighbouring sides are parallel", explained)
     lines, corners = _refit_short_sides(P, lines, corners, _fit_windows(P, params)[0], inlier_px, params)
     reason = _side_support(corners, counts, N, params)
     if reason is not None:
-        return _fail(reason, explained)
+        return _fail("not_quadrilateral", reason, explained)
     # each corner must lie near the outline (a triangle's fourth 'side' puts a corner far away)
     size = np.sqrt(float(m.sum()))
     gap = np.min(np.linalg.norm(P[None] - corners[:, None], axis=2), axis=1)
     if gap.max() > max(4.0, 0.15 * size):
-        return _fail(f"not_quadrilateral: a corner lies {gap.max():.1f} px from the outline", explained)
+        return _fail("not_quadrilateral", f"a corner lies {gap.max():.1f} px from the outline", explained)
     quad = order_corners(corners)
     if not _is_convex(quad):
-        return _fail("not_quadrilateral: the four lines give a non-convex quad", explained)
+        return _fail("not_quadrilateral", "the four lines give a non-convex quad", explained)
     return QuadResult(quad=quad, lines=_lines_in_corner_order(lines, quad), explained=explained, failure=None)
 
 
@@ -549,7 +550,7 @@ def _refit_short_sides(P: np.ndarray, lines: np.ndarray, corners: np.ndarray, wi
 
 
 def _side_support(corners: np.ndarray, counts: np.ndarray, N: int, params: QuadParams) -> str | None:
-    """None if every side is supported by the outline, else the failure reason.
+    """None if every side is supported by the outline, else the failure's detail (a ``not_quadrilateral``).
 
     corners (4, 2): corner k joins side k and side k+1; counts (4,): outline points explained by
     side k. A side passes with ``min_side_frac`` of the outline, or else (a thin window's short
@@ -564,7 +565,7 @@ def _side_support(corners: np.ndarray, counts: np.ndarray, N: int, params: QuadP
             return None  # every remaining side explains more
         own, opposite = counts[k] / expected[k], length[k] / max(length[(k + 2) % 4], 1e-9)
         if own < params.min_side_own or opposite < params.min_opposite_ratio:
-            return (f"not_quadrilateral: a side explains only {counts[k] / N:.1%} of the outline "
+            return (f"a side explains only {counts[k] / N:.1%} of the outline "
                     f"< min_side_frac={params.min_side_frac:.0%}, and {min(own, 9.99):.0%} of its own "
                     f"{length[k]:.1f} px (min_side_own={params.min_side_own:.0%}) at "
                     f"{min(opposite, 9.99):.2f} x the opposite side's length "
@@ -597,16 +598,16 @@ def corners_to_quad(corners: np.ndarray | None, min_side_px: float = 3.0) -> Qua
     through neighbouring corners, normals pointing out; explained = 1 (no outline is fitted).
     """
     if corners is None:
-        return _fail("no_corners: the detection has no predicted corners")
+        return _fail("no_corners", "the detection has no predicted corners")
     c = np.asarray(corners, dtype=np.float64)
     if c.shape != (4, 2) or not np.all(np.isfinite(c)):
-        return _fail(f"no_corners: corners must be (4, 2) finite px, got shape {c.shape}")
+        return _fail("no_corners", f"corners must be (4, 2) finite px, got shape {c.shape}")
     quad = order_corners(c)
     if not _is_convex(quad):
-        return _fail("not_quadrilateral: the predicted corners are not convex")
+        return _fail("not_quadrilateral", "the predicted corners are not convex")
     sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
     if sides.min() < min_side_px:
-        return _fail(f"not_quadrilateral: a predicted side is {sides.min():.1f} px < {min_side_px} px")
+        return _fail("not_quadrilateral", f"a predicted side is {sides.min():.1f} px < {min_side_px} px")
     centre = quad.mean(axis=0)
     lines = np.zeros((4, 3))
     for k in range(4):

@@ -56,7 +56,15 @@ class ReconstructConfig:
     width_m: float | None = None
     fallback_focal_px: float | None = None
     snapper_params: object | None = None
-    quad: QuadParams = field(default_factory=lambda: QuadParams(source=DEFAULTS.quad_source))
+    quad: QuadParams = field(default_factory=QuadParams)
+
+    @classmethod
+    def of(cls, method, height_m: float = 1.0, **params) -> "ReconstructConfig":
+        """The config that runs a fenestra.methods.Method: its snapper, pose and quad source, the
+        scale parameter ``height_m`` and any other field in ``params`` (the one place a method
+        becomes a config: the session's runs and windows.json's ``config``)."""
+        return cls(snapper=method.snapper, pose=method.pose, height_m=height_m,
+                   quad=QuadParams(source=method.quad_source), **params)
 
     def __post_init__(self) -> None:
         SNAPPERS.lookup(self.snapper)  # UnknownName (a ValueError) naming the choices
@@ -144,7 +152,8 @@ def network_quad(qr: QuadResult, image_shape: tuple[int, int]) -> QuadResult:
     q = qr.quad
     if np.all((q[:, 0] >= -0.5) & (q[:, 0] <= W - 0.5) & (q[:, 1] >= -0.5) & (q[:, 1] <= H - 0.5)):
         return qr
-    return QuadResult(None, None, 0.0, "touches_border: the network's quad reaches past the photo's edge")
+    return QuadResult(None, None, 0.0,
+                      Failure("quad", "touches_border", "the network's quad reaches past the photo's edge"))
 
 
 def visible_quads(detections: list[Detection], fits: list[QuadFit], params: QuadParams,
@@ -155,11 +164,9 @@ def visible_quads(detections: list[Detection], fits: list[QuadFit], params: Quad
     of a cut window are guesses beyond the photo); its ``cut`` names the image edges, its
     ``failure`` why even the visible part is no quadrilateral (a pentagon where an edge crosses a
     corner). image_shape: (H, W). Pure; the session caches it per detector and quad parameters."""
-    from fenestra.pipeline.quad import failure_code  # noqa: PLC0415
-
     border = replace(params, allow_border=True, source="mask")
     return {i: fit_sparse(det, border, image_shape) for i, (det, fit) in enumerate(zip(detections, fits))
-            if fit.result is not None and failure_code(fit.result.failure) == "touches_border"}
+            if fit.result is not None and getattr(fit.result.failure, "code", None) == "touches_border"}
 
 
 def corner_fallback(det: Detection, failed: QuadResult) -> QuadResult:
@@ -167,7 +174,7 @@ def corner_fallback(det: Detection, failed: QuadResult) -> QuadResult:
     quadrilateral (``not_quadrilateral``: a ragged or notched learned mask) and they describe the
     mask (pipeline.quad.corners_agree_with_mask); else ``failed`` as it is. Never for a mask cut by
     the image border or holding several blobs: there the window's own corners are not seen."""
-    if not (failed.failure or "").startswith("not_quadrilateral") or det.corners is None:
+    if failed.failure is None or failed.failure.code != "not_quadrilateral" or det.corners is None:
         return failed
     qr = corners_to_quad(det.corners)
     if qr.quad is None or not corners_agree_with_mask(qr.quad, det.mask, det.origin):
@@ -238,13 +245,13 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
     H, W = gray.shape
     outside = mask_outside(det, (H, W))
     if outside:
-        return _result(i, det, cfg, timings, Failure("quad", outside))
+        return _result(i, det, cfg, timings, Failure("quad", None, outside))
     if fit is None or fit.result is None:
         fit = fit_quads([det], cfg.quad, (H, W))[0]
     qr = fit.result
     timings["quad"] = fit.ms
-    if qr.failure:
-        return _result(i, det, cfg, timings, Failure("quad", qr.failure))
+    if qr.failure is not None:
+        return _result(i, det, cfg, timings, qr.failure)
     t0 = time.perf_counter()
     s = SNAPPERS[cfg.snapper]
     sp = cfg.snapper_params or s.params()
@@ -264,13 +271,13 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
         ar = aspect() if memo is None else memo("aspect", key(snapped, K, pp, cfg.fallback_focal_px), aspect)
     except (PipelineError, ValueError) as e:
         timings["aspect"] = (time.perf_counter() - t0) * 1e3
-        return _result(i, det, cfg, timings, Failure("aspect", str(e)), **done)
+        return _result(i, det, cfg, timings, Failure("aspect", None, str(e)), **done)
     timings["aspect"] = (time.perf_counter() - t0) * 1e3
     done.update(aspect_ratio=ar.ratio, aspect_case=ar.case,
                 focal_estimate_px=ar.focal_px if ar.focal_source != "K" else None)
     if K is None:
         if ar.focal_px is None:
-            return _result(i, det, cfg, timings, Failure("pose", "no K and no focal length (fronto-parallel quad); "
+            return _result(i, det, cfg, timings, Failure("pose", None, "no K and no focal length (fronto-parallel quad); "
                                                                    "give K or fallback_focal_px"), **done)
         K_used = np.array([[ar.focal_px, 0.0, pp[0]], [0.0, ar.focal_px, pp[1]], [0.0, 0.0, 1.0]])
     else:
@@ -280,7 +287,7 @@ def reconstruct_one(i: int, gray: np.ndarray, K: np.ndarray | None, det: Detecti
         pr = estimate_pose(snapped, K_used, ar.ratio, cfg.height_m, cfg.width_m, POSES[cfg.pose].solver)
     except (PipelineError, ValueError) as e:
         timings["pose"] = (time.perf_counter() - t0) * 1e3
-        return _result(i, det, cfg, timings, Failure("pose", str(e)), **done)
+        return _result(i, det, cfg, timings, Failure("pose", None, str(e)), **done)
     timings["pose"] = (time.perf_counter() - t0) * 1e3
     return _result(i, det, cfg, timings, None, R=pr.R, t=pr.t, quad_reprojected=pr.reprojected,
                    height_m=pr.height_m, **done)
@@ -345,8 +352,9 @@ def _list(a: np.ndarray | None):
     return None if a is None else np.asarray(a, dtype=np.float64).tolist()
 
 
-def window_to_dict(r: WindowResult) -> dict:
-    """One windows.json entry (DESIGN.md: Pipeline output)."""
+def window_to_dict(r: WindowResult, wall: int | None = None) -> dict:
+    """One windows.json entry (DESIGN.md: Pipeline output); wall: the façade model's wall the
+    window is on (pipeline.session.Window.wall), None without a façade model."""
     return {
         "index": r.index, "instance_id": r.instance_id, "score": r.score,
         "quad_mask": _list(r.quad_mask), "quad_snapped": _list(r.quad_snapped),
@@ -357,17 +365,19 @@ def window_to_dict(r: WindowResult) -> dict:
         "width_m": None if r.aspect_ratio is None or r.R is None else r.aspect_ratio * r.height_m,
         "quad_reprojected": _list(r.quad_reprojected),
         "failure": None if r.failure is None else str(r.failure), "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
-        "wall": r.wall, "uncertainty": None if r.uncertainty is None else r.uncertainty.to_json(),
+        "wall": wall, "uncertainty": None if r.uncertainty is None else r.uncertainty.to_json(),
         "partial": r.partial is not None, "cut": [] if r.partial is None else list(r.partial.cut),
     }
 
 
 def windows_to_json(results: list[WindowResult], K: np.ndarray | None = None,
-                    image_size: tuple[int, int] | None = None, config: ReconstructConfig | None = None) -> dict:
-    """windows.json as a dict: ``{"K", "image_size": [W, H], "config", "windows": [...]}``."""
+                    image_size: tuple[int, int] | None = None, config: ReconstructConfig | None = None,
+                    walls: dict[int, int | None] | None = None) -> dict:
+    """windows.json as a dict: ``{"K", "image_size": [W, H], "config", "windows": [...]}``;
+    walls: {window index: the façade model's wall it is on} (None: no façade model)."""
     cfg = None
     if config is not None:
         cfg = {"snapper": config.snapper, "pose": config.pose, "height_m": config.height_m,
                "width_m": config.width_m, "fallback_focal_px": config.fallback_focal_px}
     return {"K": _list(K), "image_size": None if image_size is None else list(image_size),
-            "config": cfg, "windows": [window_to_dict(r) for r in results]}
+            "config": cfg, "windows": [window_to_dict(r, (walls or {}).get(r.index)) for r in results]}

@@ -2,11 +2,11 @@
 
     session = PhotoSession(image, camera=UserCamera(K, "--K K.json"))   # or camera=None: K-free
     rec = session.run(Method("default", "refine", "wall+lines"))         # a Reconstruction
-    rec.windows          # one WindowResult per detection, on its wall's plane, at its wall's scale
     rec.resolved         # the K used and where it came from (pipeline.intrinsics.ResolvedK)
     rec.model            # walls, their scales and the implausible windows (pipeline.facade_model)
+    rec.windows[i]       # a Window: every stage's value (fit, measured, placed, regularized, export)
+    rec.windows[i].result    # as the model holds it; .measured: as a whole window on its wall
     rec.exported         # {detection index: True/False}: what goes into the BIM model
-    rec.whole(i)         # window i as a whole window (a partial window: its whole-window failure)
 
 The CLI makes one session per photo and runs one method; the bench makes one per view and runs
 every method of its profile, then measures the rows. Both get the same answer for the same method,
@@ -15,7 +15,7 @@ because both go through :meth:`PhotoSession.run`: the detector at the CLI's reso
 the method has no K (EXIF, vanishing points, prior: pipeline.intrinsics), the façade model (one
 plane and one scale per wall: pipeline.facade_model), the windows cut by the photo's border placed
 on those walls afterwards (their visible part: pipeline.facade_model.place_partials) and the export
-decision (pipeline.export.split_results).
+decision (pipeline.export.export_decision), each stage's value kept in a :class:`Window`.
 
 Partial windows (issue 35). A detection whose mask reaches the photo's edge fails the quad stage
 (``touches_border``: its corners there are not in the photo), so it takes no part in the geometry,
@@ -48,9 +48,9 @@ from fenestra.pipeline.poses import POSES
 from fenestra.pipeline.quad import QuadParams
 from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fit_quads, reconstruct_from_quads,
                                            to_gray, visible_quads)
-from fenestra.pipeline.row_lines import regularize_rows
+from fenestra.pipeline.row_lines import RowFit, regularize_rows
 from fenestra.pipeline.segments import SegmentCache, to_uint8
-from fenestra.pipeline.types import Detection, Failure, WindowResult
+from fenestra.pipeline.types import Detection, Failure, Unavailable, WindowResult
 
 SCORE_MIN = 0.5  # detections a user gets (the detectors' default threshold): reconstructed and exported
 CANDIDATE_SCORE_MIN = 0.05  # detections kept for detection AP (the bench), a superset of the above
@@ -78,56 +78,100 @@ class Geometry:
 
 
 @dataclass(frozen=True)
+class ExportDecision:
+    """Whether one window goes into the BIM model: ``exported``, or ``reason`` (one line) why not:
+    failed, implausible (unless export_all), an unusable pose or a size no mesh takes
+    (pipeline.export.export_decision, made once per run: the writers follow it)."""
+
+    exported: bool
+    reason: str | None = None
+
+
+@dataclass(frozen=True)
+class Window:
+    """One detection through every stage of one method; each stage adds its field, none is
+    overwritten (:meth:`PhotoSession.run`).
+
+    index: the detection's (``Reconstruction.detections[index]``); fit: the method's per-window or
+    per-wall result before the façade model (at the scale parameter); measured: on its wall's plane
+    at its wall's scale (pipeline.facade_model.facade_model; a window cut by the photo's border: its
+    whole-window failure, its whole corners and size not being in the photo); placed: a partial
+    window's visible part placed on a wall, or its failure (pipeline.facade_model.place_partials),
+    None for a whole window; row: the pipeline.row_lines.RowFit of the row it voted in, or None;
+    regularized: on its row's consensus sill and head (pipeline.row_lines.regularize_rows), None
+    when it keeps its own; export: its :class:`ExportDecision`; wall: the id of the façade model's
+    wall it is on (pipeline.facade_model.FacadeModel.wall_of: a member, or a placed partial window),
+    None for a window on none (failed). ``fit.group`` is the joint fit's own grouping, before walls
+    that face one plane merge.
+    """
+
+    index: int
+    fit: WindowResult
+    measured: WindowResult
+    placed: WindowResult | None
+    row: RowFit | None
+    regularized: WindowResult | None
+    export: ExportDecision
+    wall: int | None = None
+
+    @property
+    def result(self) -> WindowResult:
+        """The window as the model holds it (windows.json's main fields, the files): regularized,
+        else its placed visible part, else as measured."""
+        return next(r for r in (self.regularized, self.placed, self.measured) if r is not None)
+
+    @property
+    def shipped(self) -> WindowResult:
+        """The window as a BIM user gets it, measured as a whole window: :attr:`result`, but for a
+        partial window its whole-window failure (its whole size is not in the photo). What the
+        bench's BIM errors (width, height, position) measure; its corner, aspect-ratio and pose
+        errors measure :attr:`measured`."""
+        return self.measured if self.placed is not None else self.result
+
+    @property
+    def partial(self):
+        """The pipeline.types.Partial of a window cut by the photo's border, else None."""
+        return self.result.partial
+
+
+@dataclass(frozen=True)
 class Reconstruction:
     """What one method gives on one photo (what windows.json holds, typed).
 
     method; detections (the detector's, score >= SCORE_MIN, best first; ``windows[i]`` is
-    ``detections[i]``'s); windows: WindowResult per detection after the façade model; resolved:
-    pipeline.intrinsics.ResolvedK (``K``: the K used); model: pipeline.facade_model.FacadeModel;
-    known: what set the scale; envelope: {index: (lo, hi)} aspect ratio at the ends of the focal
-    interval; geometry_failure: Failure or None; not_exported: {index: reason} of every window that
-    stays out of the BIM model (failed, implausible unless export_all, unusable pose or size);
-    unplaced: {index: the façade model's WindowResult} of the partial windows (``windows[i].partial``
-    set), before they were placed: their whole-window failure (:meth:`whole`); measured: {index:
-    WindowResult} of the windows whose row regularized them (pipeline.row_lines), as measured;
-    rows: {index: pipeline.row_lines.RowFit} of every window that voted in a row.
+    ``detections[i]``'s); windows: one :class:`Window` per detection, every stage's value kept;
+    resolved: pipeline.intrinsics.ResolvedK (``K``: the K used); model:
+    pipeline.facade_model.FacadeModel; known: what set the scale; envelope: {index: (lo, hi)}
+    aspect ratio at the ends of the focal interval; geometry_failure: Failure or None.
     """
 
     method: Method
     detections: tuple[Detection, ...]
-    windows: tuple[WindowResult, ...]
+    windows: tuple[Window, ...]
     resolved: ResolvedK
     model: FacadeModel
     known: Known
     envelope: dict
     geometry_failure: Failure | None
-    not_exported: dict
-    unplaced: dict = field(default_factory=dict)
-    measured: dict = field(default_factory=dict)
-    rows: dict = field(default_factory=dict)
 
     @property
     def K(self) -> np.ndarray:
         return self.resolved.K
 
-    def whole(self, index: int) -> WindowResult:
-        """Window ``index`` as a whole window: ``windows[index]``, or for a partial window (cut by
-        the photo's border) its result before its visible part was placed (failed at the quad
-        stage: its whole corners and size are not in the photo), or for a window its row
-        regularized the window as measured (:attr:`measured`). What the bench measures a
-        window's corners, aspect ratio and pose by; what is exported is :meth:`as_exported`."""
-        return self.unplaced.get(index, self.measured.get(index, self.windows[index]))
+    def results(self) -> list[WindowResult]:
+        """Every window as the model holds it (:attr:`Window.result`), in detection order: what
+        the writers draw, inpaint and export."""
+        return [w.result for w in self.windows]
 
-    def as_exported(self, index: int) -> WindowResult:
-        """Window ``index`` as the model exports it: ``windows[index]`` (its row's regularized sill
-        and head, pipeline.row_lines), or for a partial window its whole-window failure (its whole
-        size is not in the photo). What the bench's BIM errors (width, height, position) measure."""
-        return self.unplaced.get(index, self.windows[index])
+    @property
+    def not_exported(self) -> dict[int, str]:
+        """{detection index: reason} of every window that stays out of the BIM model."""
+        return {w.index: w.export.reason for w in self.windows if not w.export.exported}
 
     @property
     def exported(self) -> dict[int, bool]:
         """{detection index: whether the window goes into the model}."""
-        return {r.index: r.index not in self.not_exported for r in self.windows}
+        return {w.index: w.export.exported for w in self.windows}
 
     def scale_source(self, index: int) -> str | None:
         """How window ``index``'s wall got its scale: "assumed" (the default window height), or
@@ -202,8 +246,7 @@ class PhotoSession:
     # ------------------------------------------------------------ geometry
 
     def config(self, method: Method, height_m: float = 1.0) -> ReconstructConfig:
-        return ReconstructConfig(snapper=method.snapper, pose=method.pose, height_m=height_m,
-                                 quad=QuadParams(source=method.quad_source))
+        return ReconstructConfig.of(method, height_m)
 
     def quads(self, detector: str, params: QuadParams) -> list:
         """fit_quads of the detector's detections (cached per detector and quad parameters)."""
@@ -258,7 +301,7 @@ class PhotoSession:
         if self.camera is not None and not method.withhold_K:
             exif = None if self.photo is None else exif_focal(self.photo, self.size)
             K = np.asarray(self.camera.K, dtype=np.float64)
-            r = choose_focal([user_focal(K, self.camera.how), exif if exif is not None else "no EXIF focal length"],
+            r = choose_focal([user_focal(K, self.camera.how), exif if exif is not None else Unavailable("no EXIF focal length")],
                              ["K", "exif"], self.size, principal_point=(float(K[0, 2]), float(K[1, 2])))
             return replace(r, K=K)  # the user's K as given (fy, skew kept)
         k = (method.detector, method.snapper, method.pose, method.quad_source)
@@ -292,7 +335,7 @@ class PhotoSession:
                 envelope = focal_envelope(results, resolved.K, resolved.chosen.interval_px)
                 failure = None
             except PipelineError as e:  # recorded: the detections are still written, each with this failure
-                failure = Failure("geometry", str(e))
+                failure = Failure("geometry", None, str(e))
                 results, envelope = failed_results(dets, cfg, failure), {}
             self._geometry[k] = Geometry(tuple(results), resolved, envelope, failure)
         return self._geometry[k]
@@ -304,23 +347,28 @@ class PhotoSession:
         the rows' sill and head lines regularized (pipeline.row_lines.regularize_rows; not with
         ``regularize`` False) and the export decision (flagged windows stay out unless export_all;
         style: the catalogue window, None for the default)."""
-        from fenestra.pipeline.export import DEFAULT_STYLE, split_results  # noqa: PLC0415
+        from fenestra.pipeline.export import DEFAULT_STYLE, export_decision  # noqa: PLC0415
 
         g = self.geometry(method, height_m)
-        whole, model = facade_model(list(g.results), known)
+        measured, model = facade_model(list(g.results), known)
         visible = self.visible(method.detector, self.config(method, height_m).quad)
-        results, model = place_partials(whole, model, visible, g.resolved.K, self.size, known)
-        unplaced = {r.index: whole[r.index] for r in results if r.partial is not None}
-        final, rows = regularize_rows(results, model, g.resolved.K) if regularize else (results, {})
-        measured = {k: results[k] for k, fit in rows.items() if fit.regularized}
-        results = final
-        _, skipped = split_results(results, style or DEFAULT_STYLE, kept_out(model, export_all))
-        return Reconstruction(method, tuple(self.detections(method.detector)), tuple(results), g.resolved, model,
-                              known, g.envelope, g.failure, {s["index"]: s["reason"] for s in skipped}, unplaced,
-                              measured, rows)
+        placed, model = place_partials(measured, model, visible, g.resolved.K, self.size, known)
+        final, rows = regularize_rows(placed, model, g.resolved.K) if regularize else (placed, {})
+        out = export_decision(final, style or DEFAULT_STYLE, kept_out(model, export_all))
+        windows = tuple(Window(k, g.results[k], measured[k], placed[k] if placed[k].partial is not None else None,
+                               rows.get(k), final[k] if k in rows and rows[k].regularized else None,
+                               ExportDecision(k not in out, out.get(k)), _wall_id(model, k))
+                        for k in range(len(final)))
+        return Reconstruction(method, tuple(self.detections(method.detector)), windows, g.resolved, model, known,
+                              g.envelope, g.failure)
 
     def _tick(self, stage: str, t0: float) -> None:
         self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.process_time() - t0
+
+
+def _wall_id(model: FacadeModel, index: int) -> int | None:
+    wall = model.wall_of(index)
+    return None if wall is None else wall.id
 
 
 def kept_out(model: FacadeModel, export_all: bool = False) -> dict[int, str]:
@@ -358,4 +406,4 @@ def focal_envelope(results: list, K: np.ndarray, interval_px: tuple[float, float
     return out
 
 
-__all__ = ["CANDIDATE_SCORE_MIN", "Geometry", "focal_envelope", "kept_out", "PhotoSession", "Reconstruction", "SCORE_MIN", "UserCamera"]
+__all__ = ["CANDIDATE_SCORE_MIN", "ExportDecision", "Geometry", "focal_envelope", "kept_out", "PhotoSession", "Reconstruction", "SCORE_MIN", "UserCamera", "Window"]

@@ -28,13 +28,28 @@ class AspectCase(str, Enum):
 
 
 class Status(str, Enum):
-    """A reconstructed window's outcome: ``OK`` (posed), ``FAILED`` (a stage failed: ``failure``)."""
+    """A window's outcome, every state a results row holds: ``OK`` (posed), ``FAILED`` (a stage
+    failed: ``failure``), ``MISSED`` (a labelled window no detection matched, or a method that
+    cannot run on the view: the bench's rows). A str: it compares equal to, and is written as, its value."""
 
     OK = "ok"
     FAILED = "failed"
+    MISSED = "missed"
 
     def __str__(self) -> str:
         return self.value
+
+
+@dataclass(frozen=True)
+class Unavailable:
+    """A value a step could not give, and why: ``reason``, one line in the user's words (e.g. an
+    EXIF focal length outside the plausible range). Returned where a value would be, so that the
+    caller tests ``isinstance(x, Unavailable)``; ``str(u)`` is the reason."""
+
+    reason: str
+
+    def __str__(self) -> str:
+        return self.reason
 
 
 STAGES = ("quad", "snap", "aspect", "pose", "wall", "geometry")  # where a window can fail
@@ -42,15 +57,23 @@ STAGES = ("quad", "snap", "aspect", "pose", "wall", "geometry")  # where a windo
 
 @dataclass(frozen=True)
 class Failure:
-    """Why a window has no (full) result: the stage (one of :data:`STAGES`) and the reason.
-    ``str(f)`` is ``"<stage>: <reason>"``, the form windows.json and the results tables hold."""
+    """Why a window has no (full) result: the stage (one of :data:`STAGES`), a code where the stage
+    names its failures (the quad stage's ``touches_border``, ``not_quadrilateral``, ...: pipeline.quad;
+    else None) and the detail (one line, the numbers). ``reason`` is ``"<code>: <detail>"`` (the
+    detail alone without a code); ``str(f)`` is ``"<stage>: <reason>"``, the form windows.json and
+    the results tables hold. Callers test ``code``, never the text."""
 
     stage: str
-    reason: str
+    code: str | None
+    detail: str
 
     def __post_init__(self) -> None:
         if self.stage not in STAGES:
             raise ValueError(f"Failure.stage must be one of {STAGES}, got {self.stage!r}")
+
+    @property
+    def reason(self) -> str:
+        return self.detail if self.code is None else f"{self.code}: {self.detail}"
 
     def __str__(self) -> str:
         return f"{self.stage}: {self.reason}"
@@ -144,8 +167,8 @@ class WindowResult:
     bottom-left corner; size aspect_ratio*height x height m) to the camera frame (OpenCV).
     Fields are None when the stage failed; ``failure`` (a :class:`Failure`) then names the stage
     and reason.
-    wall: index of the wall the window was grouped into (per-wall strategies, pipeline.walls),
-    else None; uncertainty: its 90 % intervals (:class:`Uncertainty`, pipeline.walls.window_uncertainty),
+    group: the joint fit's wall group the window was fitted in (per-wall strategies, pipeline.walls),
+    else None (the façade model's wall a window is on is pipeline.session.Window.wall); uncertainty: its 90 % intervals (:class:`Uncertainty`, pipeline.walls.window_uncertainty),
     else None.
     partial: None for a whole window; a :class:`Partial` for a window cut by the photo's border,
     whose fields then describe its *visible* part: quad_mask = quad_snapped the visible quad (the
@@ -168,7 +191,7 @@ class WindowResult:
     failure: Failure | None
     timings_ms: dict[str, float] = field(default_factory=dict)
     instance_id: int | None = None  # the detection's id in the input instance map, if any
-    wall: int | None = None
+    group: int | None = None
     uncertainty: Uncertainty | None = None
     partial: Partial | None = None
 

@@ -176,6 +176,10 @@ FAULTS = [
      ["--wall-thickness 30.0 m is outside the physical range [0.01, 2] m"]),
     ("--substitute nosuch", lambda d: [*_reconstruct("o")(d), "--substitute", "nosuch"],
      ["--substitute: unknown window style 'nosuch'; choose one of"]),
+    ("--detector nosuch", lambda d: [*_reconstruct("o")(d), "--detector", "nosuch"],
+     ["--detector must be one of [", "got 'nosuch'"]),
+    ("--quad-source nosuch", lambda d: [*_reconstruct("o")(d), "--quad-source", "nosuch"],
+     ["--quad-source must be one of ['mask'", "got 'nosuch'"]),
     ("gate --suggest --margin nan", lambda d: [*run_with_status("complete")(d), "--suggest", "--margin", "nan"],
      ["--margin must be a finite number >= 0, got nan"]),
     ("gate on a run marked failed", run_with_status("failed"),
@@ -366,38 +370,42 @@ API_FAULTS = [
     ("cx a list", dict(fx=800.0, cx=[1]), ["cx must be a finite number", "got [1] (list)"]),
     ("force a string", dict(force="yes"), ["force must be True or False, got 'yes' (str)"]),
     ("options a dict", dict(options={"detector": "oracle"}), ["options must be a fenestra.pipeline.photo.PhotoOptions"]),
-    ("unknown detector", dict(options="detector=nosuch"), ["options.detector must be one of", "got 'nosuch'"]),
-    ("unknown snapper", dict(options="snapper=nosuch"), ["options.snapper must be one of", "'linefit'"]),
-    ("unknown pose", dict(options="pose=nosuch"), ["options.pose must be one of", "'wall'"]),
-    ("unknown quad source", dict(options="quad_source=nosuch"), ["options.quad_source must be one of ['mask'"]),
-    ("unknown substitute", dict(options="substitute=nosuch"), ["options.substitute must be None or one of"]),
-    ("known a number", dict(options="known=3.2"), ["options.known must be a fenestra.pipeline.facade_model.Known"]),
-    ("export_all a string", dict(options="export_all='no'"), ["options.export_all must be True or False"]),
-    ("max_pixels a string", dict(options="max_pixels='x'"), ["options.max_pixels must be a positive int or None"]),
-    ("max_pixels 0", dict(options="max_pixels=0"), ["options.max_pixels must be a positive int or None, got 0"]),
+    ("unknown detector", dict(options="detector=nosuch"), ["PhotoOptions: detector must be one of", "got 'nosuch'"]),
+    ("unknown snapper", dict(options="snapper=nosuch"), ["PhotoOptions: snapper must be one of", "'linefit'"]),
+    ("unknown pose", dict(options="pose=nosuch"), ["PhotoOptions: pose must be one of", "'wall'"]),
+    ("unknown quad source", dict(options="quad_source=nosuch"), ["PhotoOptions: quad_source must be one of ['mask'"]),
+    ("unknown substitute", dict(options="substitute=nosuch"), ["PhotoOptions: substitute must be None or one of"]),
+    ("known a number", dict(options="known=3.2"), ["PhotoOptions: known must be a fenestra.pipeline.facade_model.Known"]),
+    ("export_all a string", dict(options="export_all='no'"), ["PhotoOptions: export_all must be True or False"]),
+    ("max_pixels a string", dict(options="max_pixels='x'"), ["PhotoOptions: max_pixels must be a positive int or None"]),
+    ("max_pixels 0", dict(options="max_pixels=0"), ["PhotoOptions: max_pixels must be a positive int or None, got 0"]),
     ("wall thickness 30 (cm, not m)", dict(options="wall_thickness_m=30.0"),
-     ["options.wall_thickness_m must be a number of metres in 0.01-2, got 30.0"]),
+     ["PhotoOptions: wall_thickness_m must be a number of metres in 0.01-2, got 30.0"]),
 ]
 
 
 @pytest.mark.parametrize("case, kwargs, needles", API_FAULTS, ids=[c for c, _, _ in API_FAULTS])
 def test_the_python_api_raises_only_pipeline_error(case, kwargs, needles, tmp_path, monkeypatch):
     """reconstruct_photo (fenestra's Python API) with one bad argument: one PipelineError line
-    naming it, before anything is read or written (no TypeError, ValueError or AttributeError)."""
+    naming it, before anything is read or written (no TypeError, ValueError or AttributeError). A
+    bad PhotoOptions field is refused when the options are built (``PhotoOptions: ...``), the
+    other arguments by reconstruct_photo (``reconstruct_photo: ...``)."""
     from fenestra import reconstruct_photo
     from fenestra.errors import PipelineError
     from fenestra.pipeline.photo import PhotoOptions
 
     monkeypatch.chdir(tmp_path)
     kw = {"photo": EXAMPLE / "img017.jpg", "out": tmp_path / "o", **kwargs}
-    if isinstance(kw.get("options"), str):  # "field=value": PhotoOptions with that one field (not checked by it)
-        field, value = kw["options"].split("=", 1)
-        kw["options"] = PhotoOptions(**{field: value if value.isidentifier() else eval(value)})
+    field = None
+    if isinstance(kw.get("options"), str):  # "field=value": PhotoOptions with that one field
+        field, value = kw.pop("options").split("=", 1)
     photo = kw.pop("photo")
     with pytest.raises(PipelineError) as e:
+        if field is not None:
+            kw["options"] = PhotoOptions(**{field: value if value.isidentifier() else eval(value)})
         reconstruct_photo(photo, **kw)
     line = str(e.value)
-    assert "\n" not in line and line.startswith("reconstruct_photo: "), line
+    assert "\n" not in line and line.startswith("PhotoOptions: " if field else "reconstruct_photo: "), line
     for n in needles:
         assert n in line, line
     assert not (tmp_path / "o").exists()

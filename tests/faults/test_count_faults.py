@@ -133,6 +133,6 @@ def test_a_full_width_detection_costs_at_most_twice_its_mask():
         box_peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert fit.failure.startswith("touches_border") and boxes == {0: (0, 510, 2999, 3489)}
+    assert fit.failure.code == "touches_border" and boxes == {0: (0, 510, 2999, 3489)}
     assert fit_peak <= 2.1 * m.nbytes, fit_peak / m.nbytes
     assert box_peak <= 0.05 * m.nbytes, box_peak / m.nbytes

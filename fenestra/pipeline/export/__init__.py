@@ -28,7 +28,7 @@ from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
 from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
 from fenestra.pipeline.export.overlay import draw_overlay
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Unavailable, WindowResult
 
 DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
 # texture.png (padding included), inpainted.png and substituted.png are at most this many px along
@@ -49,17 +49,26 @@ def split_results(results: list[WindowResult], style: str | WindowStyle = DEFAUL
     exclude = exclude or {}
     for i, r in enumerate(results):
         index = int(getattr(r, "index", i))
-        pw = exclude[index] if index in exclude else place(r)
-        if not isinstance(pw, str):
+        pw = Unavailable(exclude[index]) if index in exclude else place(r)
+        if not isinstance(pw, Unavailable):
             try:
                 window_mesh(style, pw.width_m, pw.height_m)
             except ValueError as e:
-                pw = str(e)
-        if isinstance(pw, str):
-            skipped.append({"index": int(getattr(r, "index", i)), "reason": pw})
+                pw = Unavailable(str(e))
+        if isinstance(pw, Unavailable):
+            skipped.append({"index": int(getattr(r, "index", i)), "reason": pw.reason})
         else:
             placed.append(pw)
     return placed, skipped
+
+
+def export_decision(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE,
+                    exclude: dict[int, str] | None = None) -> dict[int, str]:
+    """{window index: reason} of every window that stays out of the BIM model: the windows named
+    in ``exclude`` (e.g. implausible ones), upstream failures, unusable poses and sizes no mesh of
+    ``style`` takes (:func:`split_results`). The one export decision (pipeline.session runs it
+    once per method); the writers are given it as their ``exclude``."""
+    return {s["index"]: s["reason"] for s in split_results(results, style, exclude)[1]}
 
 
 def write_overlay(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
@@ -207,4 +216,4 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     return paths
 
 
-__all__ = ["write_outputs", "write_overlay", "split_results", "export_gravity", "DEFAULT_STYLE", "EXPORT_MAX_PX"]
+__all__ = ["write_outputs", "write_overlay", "split_results", "export_decision", "export_gravity", "DEFAULT_STYLE", "EXPORT_MAX_PX"]

@@ -40,7 +40,7 @@ import numpy as np
 
 from fenestra.checks import check_K, check_rotation
 from fenestra.conventions import project, vote_axis
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Unavailable, WindowResult
 
 # Camera frame (OpenCV) -> export world of a level camera (z up, camera looking along +y); a proper rotation.
 CAMERA_TO_EXPORT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -98,32 +98,32 @@ class PlacedWindow:
         return np.array([[0, h, 0], [w, h, 0], [w, 0, 0], [0, 0, 0]], dtype=np.float64)
 
 
-def place(result: WindowResult) -> PlacedWindow | str:
-    """A PlacedWindow, or a one-line reason why ``result`` cannot be exported.
+def place(result: WindowResult) -> PlacedWindow | Unavailable:
+    """A PlacedWindow, or why ``result`` cannot be exported (Unavailable, one line).
 
     Rejects results that failed upstream, miss pose or aspect ratio, have a rotation that is not
     proper/orthonormal, a non-positive size, or a void not entirely in front of the camera.
     """
     if not isinstance(result, WindowResult):
-        return f"not a WindowResult: {type(result).__name__}"
+        return Unavailable(f"not a WindowResult: {type(result).__name__}")
     if result.failure:
-        return f"upstream failure: {result.failure}"
+        return Unavailable(f"upstream failure: {result.failure}")
     if result.R is None or result.t is None or result.aspect_ratio is None:
-        return "missing pose or aspect ratio"
+        return Unavailable("missing pose or aspect ratio")
     t = np.asarray(result.t, dtype=np.float64).reshape(-1)
     if t.shape != (3,) or not np.all(np.isfinite(t)):
-        return f"bad translation t: shape {t.shape}, values {t.tolist()}"
+        return Unavailable(f"bad translation t: shape {t.shape}, values {t.tolist()}")
     try:
         R = check_rotation(result.R, "R")
     except ValueError as e:
-        return str(e)
+        return Unavailable(str(e))
     h = float(result.height_m)
     w = float(result.aspect_ratio) * h
     if not (np.isfinite(w) and np.isfinite(h) and w > 0 and h > 0):
-        return f"bad window size w={w}, h={h} (aspect_ratio={result.aspect_ratio}, height_m={result.height_m})"
+        return Unavailable(f"bad window size w={w}, h={h} (aspect_ratio={result.aspect_ratio}, height_m={result.height_m})")
     pw = PlacedWindow(int(result.index), w, h, R, t, partial=getattr(result, "partial", None) is not None)
     if np.any(pw.to_camera(pw.void_corners())[:, 2] <= 1e-6):
-        return "void is not in front of the camera"
+        return Unavailable("void is not in front of the camera")
     return pw
 
 

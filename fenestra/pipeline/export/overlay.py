@@ -21,7 +21,7 @@ import numpy as np
 from fenestra.checks import check_image, check_K
 from fenestra.conventions import project
 from fenestra.pipeline.export.geometry import place
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Unavailable, WindowResult
 
 COLOURS = {"mask": (255, 220, 0), "snapped": (255, 0, 255), "reprojected": (0, 230, 0),
            "x": (255, 0, 0), "y": (0, 200, 0), "z": (0, 80, 255), "failed": (255, 40, 40),
@@ -69,7 +69,7 @@ def _text(img, s, at, colour, scale):
 def _draw_3d(img, K, result, thick, depth_m: float = 0.07):
     """Reprojected window box (facade outline, back outline, depth edges) and axes."""
     pw = place(result)
-    if isinstance(pw, str):  # no usable pose: nothing to reproject
+    if isinstance(pw, Unavailable):  # no usable pose: nothing to reproject
         return
     front = pw.void_corners()
     back = front - [0.0, 0.0, depth_m]
@@ -97,8 +97,8 @@ def _status(r: WindowResult, exclude: dict[int, str]) -> tuple[str, str]:
     if r.index in exclude:
         return "flagged", exclude[r.index]
     placed = place(r)
-    if isinstance(placed, str):
-        return "failed", placed
+    if isinstance(placed, Unavailable):
+        return "failed", placed.reason
     if r.partial is not None:
         return "exported", (f"partial, cut by the {', '.join(r.partial.cut)} edge: visible "
                             f"{placed.width_m:.2f} x {placed.height_m:.2f} m")

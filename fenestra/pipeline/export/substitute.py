@@ -17,7 +17,7 @@ from fenestra.errors import PipelineError
 from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
 from fenestra.pipeline.export.geometry import PlacedWindow, place
 from fenestra.pipeline.export.inpaint import inpaint_voids
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Unavailable, WindowResult
 
 # Direction towards the light in the camera frame (up-left of the camera), and the ambient share.
 LIGHT_DIR_CAM = np.array([-0.35, -0.6, -1.0]) / np.linalg.norm([-0.35, -0.6, -1.0])
@@ -168,7 +168,7 @@ def substitute(image: np.ndarray, K: np.ndarray, result: WindowResult, style: st
     image = check_image(image)
     style = get_style(style)
     pw = place(result)
-    if isinstance(pw, str):
+    if isinstance(pw, Unavailable):
         raise PipelineError(f"cannot substitute window {getattr(result, 'index', '?')}: {pw}")
     if background is None:
         background, _ = inpaint_voids(image, [result])

@@ -329,7 +329,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
     idx = [k for k, r in enumerate(results) if r.quad_snapped is not None]
     out = list(results)
     for k in [k for k in idx if not usable_quad(results[k].quad_snapped)]:
-        out[k] = replace(out[k], failure=Failure("wall", "degenerate quad (a side under 1 px or non-finite)"),
+        out[k] = replace(out[k], failure=Failure("wall", None, "degenerate quad (a side under 1 px or non-finite)"),
                          R=None, t=None, quad_reprojected=None, focal_estimate_px=None)
         idx.remove(k)
     if not idx:
@@ -343,7 +343,7 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
             fits = [fit_walls_focal(quads, image_shape, height_m, params, segments, sigmas, memo)]
         except FacadeError as e:
             for k in idx:
-                out[k] = replace(out[k], failure=Failure("wall", str(e)), R=None, t=None, quad_reprojected=None,
+                out[k] = replace(out[k], failure=Failure("wall", None, str(e)), R=None, t=None, quad_reprojected=None,
                                  focal_estimate_px=None)
             return out
         f_est = fits[0][2].focal_px
@@ -353,8 +353,8 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
         for j, (m, wid) in enumerate(zip(members, wall_ids)):
             k = idx[m]
             if fit is None:
-                out[k] = replace(out[k], failure=Failure("wall", "joint fit failed"), R=None, t=None,
-                                 quad_reprojected=None, focal_estimate_px=None, wall=wid)
+                out[k] = replace(out[k], failure=Failure("wall", None, "joint fit failed"), R=None, t=None,
+                                 quad_reprojected=None, focal_estimate_px=None, group=wid)
                 continue
             unc = window_uncertainty(fit, j)
             scale = 1.0 if width_m is None else width_m / fit.width[j]
@@ -363,5 +363,5 @@ def apply_walls(results: list[WindowResult], K: np.ndarray | None, image_shape: 
                              aspect_case=AspectCase.ILL_CONDITIONED if unc.ill_conditioned else case,
                              focal_estimate_px=f_est, R=fit.window_R(j), t=fit.t[j] * scale,
                              height_m=fit.height * scale, quad_reprojected=fit.reprojected[j],
-                             failure=None, wall=wid, uncertainty=unc)
+                             failure=None, group=wid, uncertainty=unc)
     return out
