@@ -40,7 +40,7 @@ def test_committed_docs_are_what_the_committed_summary_renders():
 
 def test_committed_summary_is_small_and_names_its_runs():
     doc = json.loads(PATHS.summary.read_text())
-    assert PATHS.summary.stat().st_size < 32_000
+    assert PATHS.summary.stat().st_size < 48_000  # 23 methods of the default profile: about 1.7 kB each
     pv = doc["synthetic"]["provenance"]
     assert pv["profile"] and pv["config_hash"] and pv["commit"] and pv["date"]
     results_md = PATHS.markdown.read_text()
