@@ -272,3 +272,19 @@ def test_second_report_reuses_every_figure_and_redraws_changed_ones(tmp_path):
     assert again.keys() == first.keys()
     assert again["lead_ranked.png"] != first["lead_ranked.png"] and again["recall_curves.png"] != first["recall_curves.png"]
     assert again["aspect_rotation.png"] == first["aspect_rotation.png"]  # aspect and rotation did not change
+
+
+def test_figure8_has_the_papers_method_though_it_never_runs_the_main_pose():
+    """One figure 8 per detector x snapper: under the main pose where the pair ran it, else under
+    its own pose (the paper's harris runs under lm only)."""
+    import pandas as pd
+
+    from fenestra.reports import build, plots
+
+    rows = [("default", "refine", "wall+lines"), ("default", "harris", "wall+lines"), ("default", "harris", "lm"),
+            ("maskrcnn", "harris", "lm"), ("maskrcnn", "refine", "wall+lines")]
+    df = pd.DataFrame([{"detector": d, "snapper": s, "pose": p, "method": f"{d}/{s}/{p}"} for d, s, p in rows])
+    assert plots.main_pose(df) == "wall+lines"
+    got = [m for m, _ in build.figure8_groups(df)]
+    assert got == ["default/harris/wall+lines", "default/refine/wall+lines", "maskrcnn/harris/lm",
+                   "maskrcnn/refine/wall+lines"]

@@ -176,6 +176,21 @@ def narrative(df: pd.DataFrame, results: dict, table: PairedTable | None = None)
 
 # ---------------------------------------------------------------- documents
 
+def figure8_groups(df: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """(method, its rows) of one figure 8 per detector x snapper, by method label: the mask-fit and
+    snapped panels do not depend on the pose, so a pair's figure is its rows under the main pose
+    (plots.main_pose), or under its first pose where the pair never ran the main one (the paper's
+    method: harris under lm only)."""
+    main = plots.main_pose(df)
+    out = []
+    for _, g in df.groupby(["detector", "snapper"], sort=True):
+        poses = sorted(g["pose"].unique())
+        pose = main if main in poses else poses[0]
+        sub = g[g["pose"] == pose]
+        out += list(sub.groupby("method", sort=True))
+    return sorted(out, key=lambda mg: mg[0])
+
+
 def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
@@ -231,10 +246,7 @@ def make_figures(df: pd.DataFrame, fig_dir: Path, lead: list | None = None) -> d
         index[name] = key
         return path
 
-    # one figure 8 per detector x snapper: the mask-fit and snapped panels do not depend on the
-    # pose, so the figure of the main pose stands for every pose of its pair
-    d = df[df["pose"] == plots.main_pose(df)]
-    figs = {"fig8": [draw(plots.figure8, g, f"fig8_{_safe(m)}.png", m) for m, g in d.groupby("method", sort=True)]}
+    figs = {"fig8": [draw(plots.figure8, g, f"fig8_{_safe(m)}.png", m) for m, g in figure8_groups(df)]}
     figs["recall"] = [draw(plots.recall_curves, df, "recall_curves.png")]
     figs["conditions"] = [draw(plots.error_vs_conditions, df, "error_vs_conditions.png")]
     figs["aspect_rotation"] = [draw(plots.aspect_rotation, df, "aspect_rotation.png")]
