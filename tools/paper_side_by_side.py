@@ -15,7 +15,6 @@ training (iterations, seconds, views, photos, parameters, size).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -24,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from tools.v8_side_by_side import COLUMNS, RESULTS, rows  # noqa: E402
+from tools.v8_side_by_side import doc_arguments, rows, table_head  # noqa: E402
 
 SPREADS = ("seed_spread_paper.json", "seed_spread_paper_standin.json", "seed_spread_paper_cli.json")
 PHOTOS = (("maskrcnn", "spb_val_maskrcnn.json"), ("default", "spb_val_default.json"))
@@ -60,15 +59,10 @@ def training_text(weights: Path) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--results", type=Path, default=RESULTS)
-    ap.add_argument("--doc", type=Path, action="append", default=[])
-    ap.add_argument("--block", default="paper-side-by-side")
-    a = ap.parse_args()
-    head = ["families", "method", "seeds"] + [t for _, t, *_ in COLUMNS]
+    a = doc_arguments(__doc__, "paper-side-by-side")
     lines = [f"<!-- `python tools/paper_side_by_side.py {' '.join(sys.argv[1:])}` -->",
              "Renders of the held-out families (profile `heldout-paper`), median over the seeds [min–max]:", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+             *table_head()]
     lines += [rows("bench held-out families", a.results / n) for n in SPREADS if (a.results / n).is_file()]
     photos = [(n, a.results / f) for n, f in PHOTOS if (a.results / f).is_file()]
     if photos:

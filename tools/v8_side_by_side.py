@@ -44,17 +44,26 @@ def rows(title: str, path: Path) -> str:
             + " | ".join(cell(figs.get(k, {}), s, u, d) for k, _, s, u, d in COLUMNS) + " |")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def table_head() -> list[str]:
+    """The Markdown header and rule of a table of :func:`rows`."""
+    head = ["families", "method", "seeds"] + [t for _, t, *_ in COLUMNS]
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+
+def doc_arguments(doc: str | None, block: str) -> argparse.Namespace:
+    """--results (the JSON folder), --doc (repeatable), --block, parsed from the command line."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--results", type=Path, default=RESULTS)
     ap.add_argument("--doc", type=Path, action="append", default=[])
-    ap.add_argument("--block", default="v8-side-by-side")
-    a = ap.parse_args()
-    head = ["families", "method", "seeds"] + [t for _, t, *_ in COLUMNS]
+    ap.add_argument("--block", default=block)
+    return ap.parse_args()
+
+
+def main() -> None:
+    a = doc_arguments(__doc__, "v8-side-by-side")
     lines = [f"<!-- `python tools/v8_side_by_side.py {' '.join(sys.argv[1:])}` -->",
              "Pooled held-out families, median over the seeds [min–max] (tools/seed_spread.py's JSON files in "
-             "docs/results/; quads and corners within 5 px are shares of the evaluable windows):", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+             "docs/results/; quads and corners within 5 px are shares of the evaluable windows):", "", *table_head()]
     for title, names in RUNS:
         for name in names:
             if (a.results / name).is_file():
