@@ -9,7 +9,8 @@
     ship.py        checked copy of trained weights into fenestra/pipeline/models      `fenestra ship-weights`
     tune.py        WinNet post-processing thresholds on validation views     `python -m fenestra.training.tune`
     pack_data.py   rendered data packed small for a GPU machine              `python fenestra/training/pack_data.py`
-    configs/       the detectors' training configs (default.toml: EffWin, the shipped default; winnet.toml; maskrcnn.toml)
+    configs/       the detectors' training configs (default.toml: EffWin, the shipped default; quadnet.toml; winnet.toml;
+                   maskrcnn.toml: the paper's Mask R-CNN on EfficientNet-Lite0, CPU; maskrcnn-r50-gpu.toml: its ResNet-50, GPU)
     scripts/       make_data.sh (the fenestra/training/validation/held-out renders), gpu_*.sh (GPU machine runs)
 
 training/ may import fenestra, scenes, renders and pipeline; pipeline/ never imports training/

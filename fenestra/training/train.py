@@ -2,7 +2,7 @@
 
     fenestra train --config fenestra/training/configs/default.toml            # EffWin (the default), CPU -> out/train/default.pt
     fenestra train --config fenestra/training/configs/winnet.toml             # WinNet, CPU -> out/train/winnet.pt
-    fenestra train --config fenestra/training/configs/maskrcnn.toml --data D  # Mask R-CNN (GPU advised)
+    fenestra train --config fenestra/training/configs/maskrcnn.toml           # Mask R-CNN (EfficientNet-Lite0 FPN), CPU -> out/train/maskrcnn.pt
     fenestra ship-weights out/train/default.pt                       # then: the shipped weights
 
 What differs between architectures (model and optimizer, batches, losses, the weights file) is one
