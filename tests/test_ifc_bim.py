@@ -193,6 +193,17 @@ def test_ifc_is_schema_valid(model):
     assert logger.statements == []
 
 
+def test_the_header_names_the_file_and_what_wrote_it(model):
+    """FILE_NAME: the file's own name, Fenestra and its version, IfcOpenShell's; no 'Nobody'."""
+    import fenestra
+
+    h = model[2].header.file_name
+    assert h.name == model[0]["ifc"].name and h.originating_system == f"Fenestra {fenestra.__version__}"
+    assert h.preprocessor_version == f"IfcOpenShell {ifcopenshell.version}" and h.authorization == ""
+    text = model[0]["ifc"].read_text()
+    assert "/dev/null" not in text.split("ENDSEC;")[0] and "Nobody" not in text.split("ENDSEC;")[0]
+
+
 def test_one_storey_per_row_at_its_elevation(model):
     _, manifest, ifc = model
     storeys = sorted(ifc.by_type("IfcBuildingStorey"), key=lambda s: s.Name)

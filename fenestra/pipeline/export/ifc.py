@@ -411,8 +411,23 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
             ids[pw.index] = {"wall": wall.GlobalId, "covering": covering.GlobalId,
                              **_window_in_wall(f, contexts["body"], storeys[levels.row_of.get(pw.index, 0)], wall, pw,
                                                lib, thickness_m, (properties or {}).get(pw.index))}
+    stamp_provenance(f, Path(path).name)
     write_ifc_file(f, path)
     return ids
+
+
+def stamp_provenance(f: ifcopenshell.file, file_name: str) -> None:
+    """The STEP header's FILE_NAME says what the file is and what wrote it: its own name (not
+    ``/dev/null``), Fenestra and its version as the originating system, IfcOpenShell's as the
+    preprocessor; author and organization stay empty (the photographer is not known) and the
+    authorization is empty, not ``Nobody``."""
+    import fenestra  # noqa: PLC0415  (the version, read from the package metadata on first use)
+
+    h = f.header.file_name
+    h.name = file_name
+    h.author, h.organization, h.authorization = ("",), ("",), ""
+    h.preprocessor_version = f"IfcOpenShell {ifcopenshell.version}"
+    h.originating_system = f"Fenestra {fenestra.__version__}"
 
 
 def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, lib: _Library, thickness_m: float,
