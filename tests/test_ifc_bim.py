@@ -405,3 +405,16 @@ def test_a_stated_wall_thickness_reaches_the_ifc_the_meshes_and_the_manifest(tmp
             verts.append([float(x) for x in s.split()[1:4]])
     depth = facade_points(manifest, np.array(verts))[:, 2]  # the true façade frame: z along the wall's normal
     assert np.ptp(depth) == pytest.approx(0.12 + COVERING_THICKNESS_M, abs=1e-6)
+
+
+def test_window_types_say_their_panels_and_windows_their_perimeter(model):
+    from fenestra.pipeline.catalogue import CATALOGUE
+    from fenestra.pipeline.export.ifc import partitioning
+
+    assert partitioning(CATALOGUE["two-by-two-mullion"]) == ("USERDEFINED", "2 x 2 panels")
+    for wtype in model[2].by_type("IfcWindowType"):
+        assert wtype.PartitioningType != "NOTDEFINED" and wtype.PredefinedType == "WINDOW"
+    for window in model[2].by_type("IfcWindow"):
+        q = ifcopenshell.util.element.get_psets(window)["Qto_WindowBaseQuantities"]
+        assert q["Perimeter"] == pytest.approx(2 * (q["Width"] + q["Height"]))
+        assert q["Area"] == pytest.approx(q["Width"] * q["Height"])

@@ -43,7 +43,7 @@ z = 0, the camera above the origin looking along +y). The file holds
                        IfcWindowType per (catalogue style, size class: :func:`size_class`) with an
                        IfcMaterialConstituentSet (Framing: IfcMaterial "Frame", Glazing:
                        IfcMaterial "Glass", each styled in the style's colours);
-                       Qto_WindowBaseQuantities (Width, Height, Area); Pset_WindowCommon
+                       Qto_WindowBaseQuantities (Width, Height, Area, Perimeter); Pset_WindowCommon
                        (IsExternal) and Fenestra_Window (confidence, aspect interval, K source,
                        scale source, ...) when given
 
@@ -93,6 +93,20 @@ def size_class(area_m2: float) -> str:
     if not (np.isfinite(area_m2) and area_m2 > 0):
         raise ValueError(f"window area must be finite and positive, got {area_m2!r}")
     return next(name for name, upper in WINDOW_SIZE_CLASSES if area_m2 < upper)
+
+
+# IfcWindowTypePartitioningEnum of a style's (mullions, transoms): its panels side by side (split by
+# vertical mullions) or stacked (split by transoms); any other grid is USERDEFINED, named
+PARTITIONING = {(0, 0): "SINGLE_PANEL", (1, 0): "DOUBLE_PANEL_VERTICAL", (0, 1): "DOUBLE_PANEL_HORIZONTAL",
+                (2, 0): "TRIPLE_PANEL_VERTICAL", (0, 2): "TRIPLE_PANEL_HORIZONTAL"}
+
+
+def partitioning(style: WindowStyle) -> tuple[str, str | None]:
+    """(IfcWindowType.PartitioningType, UserDefinedPartitioningType or None) of a catalogue style."""
+    key = (style.mullions, style.transoms)
+    if key in PARTITIONING:
+        return PARTITIONING[key], None
+    return "USERDEFINED", f"{style.mullions + 1} x {style.transoms + 1} panels"
 
 
 def union_area(rects) -> float:
@@ -356,7 +370,9 @@ class _Library:
             f, mat = self.f, ifcopenshell.api.material
             wtype = ifcopenshell.api.root.create_entity(f, ifc_class="IfcWindowType", predefined_type="WINDOW",
                                                         name=f"{self.style.name} {cls}")
-            wtype.PartitioningType = "NOTDEFINED"
+            wtype.PartitioningType, user_defined = partitioning(self.style)
+            if user_defined is not None:
+                wtype.UserDefinedPartitioningType = user_defined
             constituents = mat.add_material_set(f, name=f"Window {self.style.name}",
                                                 set_type="IfcMaterialConstituentSet")
             mat.add_constituent(f, constituent_set=constituents, material=self.frame, name="Framing")
@@ -461,7 +477,8 @@ def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, lib: _Library, thic
     wtype = lib.window_type(pw.width_m * pw.height_m)
     ifcopenshell.api.type.assign_type(f, related_objects=[window], relating_type=wtype)
     _add_qto(f, window, "Qto_WindowBaseQuantities",
-             {"Width": pw.width_m, "Height": pw.height_m, "Area": pw.width_m * pw.height_m})
+             {"Width": pw.width_m, "Height": pw.height_m, "Area": pw.width_m * pw.height_m,
+              "Perimeter": 2.0 * (pw.width_m + pw.height_m)})
     if props is not None:
         _add_pset(f, window, "Pset_WindowCommon", {"IsExternal": True})
         _add_pset(f, window, "Fenestra_Window", props)
