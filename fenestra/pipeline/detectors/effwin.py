@@ -89,6 +89,13 @@ def efficientnet_lite(backbone: str = "efficientnet-lite0", pretrained: bool = F
     return net
 
 
+def resolution_taps(blocks: nn.ModuleList) -> tuple[int, ...]:
+    """Indices of an EfficientNet-Lite's blocks that end a resolution (the last block before a
+    stride-2 block, and the last one): its feature maps at strides 2, 4, 8, 16, 32 of its input."""
+    strided = [int(np.prod(b._depthwise_conv.stride)) > 1 for b in blocks]
+    return tuple(i for i in range(len(blocks)) if i == len(blocks) - 1 or strided[i + 1])
+
+
 def _conv(cin: int, cout: int) -> nn.Sequential:
     return nn.Sequential(nn.Conv2d(cin, cout, 3, 1, 1, bias=False), nn.BatchNorm2d(cout), nn.ReLU(inplace=True))
 
@@ -124,8 +131,7 @@ class EffWin(nn.Module):
         self.stem = nn.Sequential(net._conv_stem, net._bn0, net._swish)
         self.blocks = net._blocks
         # Tap the last block of each resolution (before the next stride-2 block, and the last one).
-        strided = [int(np.prod(b._depthwise_conv.stride)) > 1 for b in self.blocks]
-        self.taps = tuple(i for i in range(len(self.blocks)) if i == len(self.blocks) - 1 or strided[i + 1])
+        self.taps = resolution_taps(self.blocks)
         bb = [self.blocks[i]._bn2.num_features for i in self.taps]  # 16, 24, 40, 112, 320 (strides 4..64)
         if len(bb) != 5:
             raise ValueError(f"{config.backbone}: expected 5 resolutions, got {len(bb)}")

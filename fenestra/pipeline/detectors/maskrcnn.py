@@ -50,7 +50,7 @@ class LiteFPN(nn.Module):
     16, 32, 64) and 'pool' (stride 128), FPN_CHANNELS each.
 
     The encoder runs on the image downscaled 2x (average pooling), as EffWin's does: at full
-    resolution it costs about 4x more, in training and in every bench view. Its batch norms stay
+    resolution it costs several times as much, in training and in every bench view. Its batch norms stay
     frozen (eval mode, no gradient: detection batches are too small to estimate their statistics),
     and so do its stem and first two stages (as torchvision's detection backbones freeze their first
     stages)."""
@@ -60,14 +60,12 @@ class LiteFPN(nn.Module):
         from torchvision.ops import FeaturePyramidNetwork  # noqa: PLC0415
         from torchvision.ops.feature_pyramid_network import LastLevelMaxPool  # noqa: PLC0415
 
-        from fenestra.pipeline.detectors.effwin import efficientnet_lite  # noqa: PLC0415
+        from fenestra.pipeline.detectors.effwin import efficientnet_lite, resolution_taps  # noqa: PLC0415
 
         net = efficientnet_lite("efficientnet-lite0", pretrained)
         self.stem = nn.Sequential(net._conv_stem, net._bn0, net._swish)
         self.blocks = net._blocks
-        strided = [int(np.prod(b._depthwise_conv.stride)) > 1 for b in self.blocks]
-        taps = [i for i in range(len(self.blocks)) if i == len(self.blocks) - 1 or strided[i + 1]]
-        self.taps = tuple(taps[1:])  # strides 4, 8, 16, 32 of the encoder's input (its stride-2 tap left out)
+        self.taps = resolution_taps(self.blocks)[1:]  # strides 4, 8, 16, 32 of the encoder's input
         chans = [self.blocks[i]._bn2.num_features for i in self.taps]
         self.fpn = FeaturePyramidNetwork(chans, FPN_CHANNELS, extra_blocks=LastLevelMaxPool())
         self.out_channels = FPN_CHANNELS

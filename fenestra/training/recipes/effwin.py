@@ -75,6 +75,18 @@ def sample_quad_targets(ins: np.ndarray, parts: list[tuple[np.ndarray, np.ndarra
     return out
 
 
+def sample_pools(data) -> tuple[list[int], list[int]]:
+    """(indices of the real photos (corners None), indices of the rendered views) of the training data."""
+    return [i for i, d in enumerate(data) if d[2] is None], [i for i, d in enumerate(data) if d[2] is not None]
+
+
+def draw_pool(pools: tuple[list[int], list[int]], cfg: TrainConfig, rng: np.random.Generator) -> list[int]:
+    """The pool a sample is drawn from: the real photos with probability cfg.real_fraction (always
+    when there is no rendered view), else the rendered views."""
+    real, synth = pools
+    return real if real and (not synth or rng.random() < cfg.real_fraction) else synth
+
+
 def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     """One augmented batch: images (B, 3, h, w) normalised, targets (B, 6, h, w) [void, core, TL, TR,
     BR, BL heatmaps] and per-sample corner weights (B,) (0 for real photos: boxes, no corners);
@@ -84,11 +96,10 @@ def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     from fenestra.pipeline.detectors.effwin import to_tensor  # noqa: PLC0415
     from fenestra.pipeline.detectors.winnet import core_targets  # noqa: PLC0415
 
-    real = [i for i, d in enumerate(data) if d[2] is None]
-    synth = [i for i, d in enumerate(data) if d[2] is not None]
+    pools = sample_pools(data)
     imgs, tgts, wts, quads = [], [], [], []
     for _ in range(cfg.batch_size):
-        pool = real if real and (not synth or rng.random() < cfg.real_fraction) else synth
+        pool = draw_pool(pools, cfg, rng)
         item = data[pool[int(rng.integers(len(pool)))]]
         img, ins, heat, warp = effwin_sample(item, cfg, rng)
         parts = [(*warped_quads(item, warp), None)] if cfg.effwin_quad_head else []

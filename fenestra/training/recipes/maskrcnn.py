@@ -31,13 +31,12 @@ def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
         showing no window is drawn again.
     """
     from fenestra.pipeline.detectors.maskrcnn import maskrcnn_targets  # noqa: PLC0415
-    from fenestra.training.recipes.effwin import effwin_sample  # noqa: PLC0415
+    from fenestra.training.recipes.effwin import draw_pool, effwin_sample, sample_pools  # noqa: PLC0415
 
-    real = [i for i, d in enumerate(data) if d[2] is None]
-    synth = [i for i, d in enumerate(data) if d[2] is not None]
+    pools = sample_pools(data)
     imgs, tgts = [], []
     while len(imgs) < cfg.batch_size:
-        pool = real if real and (not synth or rng.random() < cfg.real_fraction) else synth
+        pool = draw_pool(pools, cfg, rng)
         img, ins, _, _ = effwin_sample(data[pool[int(rng.integers(len(pool)))]], cfg, rng)
         ids, counts = np.unique(ins[ins > 0], return_counts=True)
         ins = np.where(np.isin(ins, ids[counts >= MIN_WINDOW_PX]), ins, 0)
