@@ -25,7 +25,10 @@ setup: sysdeps  ## virtualenv in .venv with every dependency, pinned
 	# pyrender 0.1.45 pins PyOpenGL==3.1.0; we run it on the pinned PyOpenGL 3.1.10 (EGL works,
 	# NumPy 2 compatible), so it is installed without its dependency pins (they are in pyproject).
 	$(PIP) install -q --no-deps pyrender==0.1.45
-	$(PY) -c "import fenestra.compat, pyrender, torchvision.ops; print('setup ok')"
+	# the lab (lab/: training scripts, weight shipping, the docs writer) is importable from this
+	# checkout's venv, never installed with the package
+	$(PY) -c "import pathlib, site; pathlib.Path(site.getsitepackages()[0], 'fenestra-lab.pth').write_text(str(pathlib.Path.cwd()) + chr(10))"
+	$(PY) -c "import fenestra.compat, lab, pyrender, torchvision.ops; print('setup ok')"
 
 # pytest-xdist processes for `make test` (0: one process); each test file runs whole in one of them
 TEST_WORKERS ?= 2
@@ -74,41 +77,41 @@ report:  ## regenerate the report of the newest default run (photo column from o
 	$(PY) -m fenestra report $(LATEST_DEFAULT) $(REAL_RUN)
 
 docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real; without it the committed real-photo figures are kept, marked with their provenance)
-	$(PY) -m fenestra report $(LATEST_DEFAULT) --markdown docs/results.md $(REAL_RUN)
+	$(PY) -m lab.docs $(LATEST_DEFAULT) $(REAL_RUN)
 
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
-	$(PY) -m fenestra.reports.markdown --check
+	$(PY) -m lab.docs --check
 
 train:  ## render the detector data (make_data.sh, make_data_street.sh), train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the quad head on it (detector v8, `quadnet`), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it
-	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
-	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
+	PY=$(PY) bash lab/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash lab/scripts/make_data_street.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/default.toml
-	PY=$(PY) bash fenestra/training/scripts/verifier_data.sh out/verifier-renders
+	PY=$(PY) bash lab/scripts/verifier_data.sh out/verifier-renders
 	$(PY) -m fenestra train-verifier out/train/default.pt --yolo ../shared/real/spb_facades/train --renders out/verifier-renders --render-views 150
 	$(PY) -m fenestra ship-weights out/train/default.pt
 	$(PY) -m fenestra train --config fenestra/training/configs/quadnet.toml
 	$(PY) -m fenestra ship-weights out/train/quadnet.pt
-	PY=$(PY) bash fenestra/training/scripts/refine_data.sh out/refine-data
+	PY=$(PY) bash lab/scripts/refine_data.sh out/refine-data
 	$(PY) -m fenestra train-refine --data out/refine-data/train --ship
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
 	$(PY) -m fenestra evaluate-detector --yolo ../shared/real/spb_facades/train --part val --json out/eval/default-spb-val.json
 
 train-quadnet:  ## detector v8 alone: the quad head (window centres, each with its four corners) on the shipped default network, frozen (make_data*.sh renders; CPU), then ship-weights
-	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
-	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
+	PY=$(PY) bash lab/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash lab/scripts/make_data_street.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/quadnet.toml
 	$(PY) -m fenestra ship-weights out/train/quadnet.pt
 
 train-maskrcnn:  ## the paper's detector: Mask R-CNN on an ImageNet-pretrained EfficientNet-Lite0 FPN, on the default's renders and street photos (make_data*.sh; CPU, resumable: a run stopped midway continues from its last checkpoint), then ship-weights and its figures
-	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
-	PY=$(PY) bash fenestra/training/scripts/make_data_street.sh out/detector-data
+	PY=$(PY) bash lab/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash lab/scripts/make_data_street.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/maskrcnn.toml --resume
 	$(PY) -m fenestra ship-weights out/train/maskrcnn.pt
 	$(PY) -m fenestra evaluate-detector --detector maskrcnn --yolo ../shared/real/spb_facades/train --part val --json out/eval/maskrcnn-spb-val.json
 
 train-winnet:  ## the from-scratch WinNet (registered as `winnet`) on the same renders: out/train/winnet.pt, then ship-weights
-	PY=$(PY) bash fenestra/training/scripts/make_data.sh out/detector-data
+	PY=$(PY) bash lab/scripts/make_data.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/winnet.toml
 	$(PY) -m fenestra ship-weights out/train/winnet.pt
 

@@ -1,7 +1,7 @@
 """The docs say what the code and the committed results say.
 
 - README.md's generated blocks, docs/results.md and docs/DESIGN.md's defaults block are what
-  reports.markdown renders from the committed docs/results/summary.json (byte for byte);
+  lab.docs renders from the committed docs/results/summary.json (byte for byte);
 - the README carries no figure outside its generated blocks;
 - the defaults the README and DESIGN.md state are fenestra.conventions.DEFAULTS;
 - the generator's figures are the medians of the results table, computed here independently
@@ -19,10 +19,12 @@ import pytest
 from fenestra.bench import manifest, results
 from synthetic_results import synthetic_results
 from fenestra.conventions import DEFAULTS, PAPER
-from fenestra.reports import markdown as md
+from lab import docs
+from lab.docs import blocks, figures, roles
+from lab.docs import text as doc_text
 
 ROOT = Path(__file__).resolve().parents[1]
-PATHS = md.DocPaths.for_markdown(ROOT / "docs" / "results.md")
+PATHS = docs.DocPaths.for_markdown(ROOT / "docs" / "results.md")
 GENERATED = ("results", "defaults", "detector")
 # A figure: a number with a unit of a measurement, or any decimal number (outside code). Licence and
 # standard versions ("CC BY 4.0") are names, not figures.
@@ -35,7 +37,7 @@ NOT_FIGURES = ("CC BY 4.0",)
 
 def test_committed_docs_are_what_the_committed_summary_renders():
     assert PATHS.summary.is_file(), "docs/results/summary.json is missing: make docs"
-    assert md.stale(PATHS) == [], "regenerate with `python -m fenestra.reports.markdown` (or `make docs` after a bench run)"
+    assert docs.stale(PATHS) == [], "regenerate with `python -m lab.docs` (or `make docs` after a bench run)"
 
 
 def test_committed_summary_is_small_and_names_its_runs():
@@ -46,7 +48,7 @@ def test_committed_summary_is_small_and_names_its_runs():
     results_md = PATHS.markdown.read_text()
     for key in ("profile", "config_hash", "commit"):
         assert str(pv[key]) in results_md
-    assert "fenestra report RUN --markdown docs/results.md --real out/bench/real" in results_md
+    assert "python -m lab.docs RUN --real out/bench/real" in results_md
 
 
 def _outside_generated(text: str) -> str:
@@ -78,7 +80,7 @@ def test_readme_is_a_front_page():
     text = (ROOT / "README.md").read_text()
     assert len(text.splitlines()) <= 150
     assert text.count("<img ") == 1
-    answer = md.block(text, "results")
+    answer = blocks.block(text, "results")
     assert sum(1 for line in answer.splitlines() if line.startswith("|---")) == 1  # one table
     prose = [p for p in answer.split("\n\n") if p.strip() and not p.lstrip().startswith("|")]
     assert len(prose) == 1  # one paragraph
@@ -95,9 +97,9 @@ def _stated_defaults(text: str) -> dict[str, str]:
 @pytest.mark.parametrize("doc", ["README.md", "docs/DESIGN.md"])
 def test_stated_defaults_are_the_code_defaults(doc):
     text = (ROOT / doc).read_text()
-    stated = _stated_defaults(md.block(text, "defaults"))
+    stated = _stated_defaults(blocks.block(text, "defaults"))
     assert stated == {"detector": DEFAULTS.detector, "snapper": DEFAULTS.snapper, "pose": DEFAULTS.pose}
-    assert md.block(text, "defaults").strip() == md.defaults_text()
+    assert blocks.block(text, "defaults").strip() == doc_text.defaults_text()
 
 
 def test_design_states_no_other_default_pose():
@@ -107,10 +109,10 @@ def test_design_states_no_other_default_pose():
 
 
 def test_training_houses_are_make_data_s():
-    """TRAINED_ON is the bundled-house loop of fenestra/training/scripts/make_data.sh; samplehouse4 held out."""
-    script = (ROOT / "fenestra" / "training" / "scripts" / "make_data.sh").read_text()
+    """TRAINED_ON is the bundled-house loop of lab/scripts/make_data.sh; samplehouse4 held out."""
+    script = (ROOT / "lab" / "scripts" / "make_data.sh").read_text()
     houses = tuple(re.search(r"^for house in ([^;]+); do", script, re.M).group(1).split())
-    assert all(v == houses for v in md.TRAINED_ON.values())
+    assert all(v == houses for v in roles.TRAINED_ON.values())
     assert "samplehouse4" not in houses and "samplehouse4" in script
 
 
@@ -150,7 +152,7 @@ def _median(df, **where) -> float:
 
 def test_generated_figures_are_the_tables_medians(run, tmp_path):
     d, df = run
-    doc = md.collect(d)
+    doc = figures.collect(d)
     snap = doc["synthetic"]["snap"][DEFAULTS.detector]
     assert [r["snapper"] for r in snap] == ["good", "bad"]
     for r in snap:
@@ -166,7 +168,7 @@ def test_generated_figures_are_the_tables_medians(run, tmp_path):
         close = sum(1 for v in ev["corner_err_px_snap_max"] if v == v and v <= 5.0)  # NaN (no quad) is not close
         assert r["all_corners_close"] == pytest.approx(close / len(ev), abs=1e-3)
         assert r["quad_rate"] == pytest.approx(ev["corner_err_px_snap"].notna().mean(), abs=1e-3)
-    table = md.lead_table(doc["synthetic"])
+    table = doc_text.lead_table(doc["synthetic"])
     assert f"**{_median(df, snapper='good'):.2f} px" in table[2]  # the best is bold
     pv = doc["synthetic"]["provenance"]
     assert (pv["profile"], pv["config_hash"], pv["commit"], pv["commit_source"]) == ("synthetic", "abc123", "f" * 12, "run")
@@ -174,46 +176,43 @@ def test_generated_figures_are_the_tables_medians(run, tmp_path):
 
 def test_a_run_without_the_cli_default_method_says_so(run):
     d, _ = run
-    doc = md.collect(d)
+    doc = figures.collect(d)
     assert doc["synthetic"]["default_method"] == {"method": f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}",
                                                   "in_run": False}
-    text = md.answer(doc)
+    text = doc_text.answer(doc)
     assert f"`{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}`" in text and "is not part of" in text
     assert "--snapper good --pose lm" in text  # the recommendation: best snapper, best K-known pose
 
 
-def test_cli_writes_the_docs_and_they_render_again_identically(run, tmp_path):
-    from typer.testing import CliRunner
-
-    from fenestra.app.cli import app
+def test_lab_command_writes_the_docs_and_they_render_again_identically(run, tmp_path):
+    from lab.docs.__main__ import main
 
     d, _ = run
     (tmp_path / "docs").mkdir()
     readme = tmp_path / "README.md"
     readme.write_text("# x\n<!-- results:begin -->\n<!-- results:end -->\n<!-- defaults:begin -->\nold\n<!-- defaults:end -->\n")
-    r = CliRunner().invoke(app, ["report", str(d), "--markdown", str(tmp_path / "docs" / "results.md")])
-    assert r.exit_code == 0, r.output
-    paths = md.DocPaths.for_markdown(tmp_path / "docs" / "results.md")
+    assert main([str(d), "--markdown", str(tmp_path / "docs" / "results.md")]) == 0
+    paths = docs.DocPaths.for_markdown(tmp_path / "docs" / "results.md")
     assert paths.summary.is_file() and paths.markdown.is_file()
-    assert f"pose `{DEFAULTS.pose}`" in md.block(readme.read_text(), "defaults")
-    assert md.stale(paths) == []
+    assert f"pose `{DEFAULTS.pose}`" in blocks.block(readme.read_text(), "defaults")
+    assert docs.stale(paths) == []
     readme.write_text(readme.read_text().replace("**", ""))
-    assert md.stale(paths) == [readme]
+    assert docs.stale(paths) == [readme]
 
 
 def test_fill_block_needs_exactly_one_pair():
     with pytest.raises(ValueError, match="'results'"):
-        md.fill_block("no markers", "results", "x")
+        blocks.fill_block("no markers", "results", "x")
     one = "a\n<!-- results:begin -->\nold\n<!-- results:end -->\nb"
-    assert md.fill_block(one, "results", "new") == "a\n<!-- results:begin -->\nnew\n<!-- results:end -->\nb"
+    assert blocks.fill_block(one, "results", "new") == "a\n<!-- results:begin -->\nnew\n<!-- results:end -->\nb"
     with pytest.raises(ValueError, match="found 2"):
-        md.fill_block(one + one, "results", "x")
+        blocks.fill_block(one + one, "results", "x")
 
 
 def test_paper_snapper_is_marked():
     syn = {"snap": {"oracle": [{"snapper": PAPER.snapper, "median": 1.0, "p90": 2.0, "n": 3}]},
            "detection": {"oracle": {"learned": False, "detection_rate": 1.0}}}
-    assert f"`{PAPER.snapper}` (paper" in md.lead_table(syn)[0]
+    assert f"`{PAPER.snapper}` (paper" in doc_text.lead_table(syn)[0]
 
 
 @pytest.mark.parametrize("p_value, default_p90, says", [
@@ -225,18 +224,18 @@ def test_why_the_cli_keeps_its_default_follows_the_numbers(p_value, default_p90,
     d = {"rot_median": 0.26, "rot_p90": default_p90, "aspect_median": 0.032, "aspect_p90": 0.19 * default_p90 / 2}
     rec = {"rot_median": 0.25, "rot_p90": 2.5, "aspect_median": 0.034, "aspect_p90": 0.21}
     c = {"recommended": "default/lsd/building+lines", "n": 866, "median_diff": 0.007, "a_better": 0.46, "p_value": p_value}
-    text = md._why_default(c, rec, d)
+    text = doc_text._why_default(c, rec, d)
     assert says in text and "866 windows" in text and "default/lsd/building+lines" in text
-    assert md._why_default(None, rec, d) == ""
+    assert doc_text._why_default(None, rec, d) == ""
 
 
 def test_readme_detector_line_is_the_summary_s_held_out_families():
     """The README's detector block (tools/model_card_real.py --readme) quotes the committed
     summary's held-out-families row of the CLI default detector, and names the real-photo sets."""
-    text = md.block((ROOT / "README.md").read_text(), "detector")
+    text = blocks.block((ROOT / "README.md").read_text(), "detector")
     doc = json.loads(PATHS.summary.read_text())
     rows = {r["house"]: r for r in doc["synthetic"]["per_house"][DEFAULTS.detector]["rows"]}
-    unseen = rows[md.ROLE_GROUPS["held out"]]
+    unseen = rows[roles.ROLE_GROUPS["held out"]]
     assert f"corner error median {unseen['snap_median']:.2f} px" in text
     assert f"within 5 px for {100 * unseen['all_corners_close']:.0f} %" in text
     assert "validation photos" in text and "test photos" in text and "tools/model_card_real.py" in text
@@ -271,14 +270,14 @@ def test_bim_figures_are_the_tables_medians(tmp_path):
     """The BIM sentence (README and results.md) quotes the CLI method's metric errors: the
     medians of its evaluable reconstructed windows, computed here from the table."""
     d, df = _bim_run(tmp_path / "run")
-    doc = md.collect(d)
+    doc = figures.collect(d)
     b = doc["synthetic"]["default_method"]["bim"]
     ev = df[df.evaluable.astype(bool) & (df.status == "ok")]
     for c in ("width_err_m", "height_err_m", "width_err_m_storey"):
         assert b[c]["median"] == pytest.approx(float(np.median(ev[c])), rel=1e-3)
     assert b["exported_rate"] == pytest.approx(float(ev["exported"].mean()), abs=1e-3)
     assert b["assumed_rate_storey"] == pytest.approx(float((ev["scale_source_storey"] == "assumed").mean()), abs=1e-3)
-    text = md.answer(doc)
+    text = doc_text.answer(doc)
     assert f"width off by {np.median(ev['width_err_m']):.2f} m" in text and "`--known-storey`" in text
     assert "no window of known size" in text  # no real run: said, not left out
 
@@ -289,15 +288,15 @@ def test_bim_sentence_quotes_the_cli_method_s_export_precision(tmp_path):
     without the block says nothing of it."""
     d, _ = _bim_run(tmp_path / "run")
     cli = f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
-    assert "export precision" not in md.answer(md.collect(d))
+    assert "export precision" not in doc_text.answer(figures.collect(d))
     s = json.loads((d / "summary.json").read_text())
     s["results"][cli]["export"] = {"n_exported": 40, "n_matched": 37, "n_on_ignore": 2, "n_on_nothing": 1,
                                    "n_views": 10, "precision": 37 / 40}
     (d / "summary.json").write_text(json.dumps(s))
-    doc = md.collect(d)
+    doc = figures.collect(d)
     assert doc["synthetic"]["default_method"]["bim"]["export"] == {"precision": 0.925, "n_exported": 40, "n_matched": 37,
                                                                    "n_on_ignore": 2, "n_on_nothing": 1}
-    text = md.answer(doc)
+    text = doc_text.answer(doc)
     assert ("export precision on the renders is 92.5 %: of the 40 detections it exports, 37 are labelled windows, "
             "2 lie on a door or glazing") in text
 
@@ -306,12 +305,12 @@ def test_docs_without_a_real_run_keep_the_committed_real_figures(tmp_path):
     """`make docs` with no real run keeps the real-photo figures already in the summary, marked as
     kept with their own provenance (never deleted)."""
     d, _ = _bim_run(tmp_path / "run")
-    paths = md.DocPaths.for_markdown(tmp_path / "docs" / "results.md")
+    paths = docs.DocPaths.for_markdown(tmp_path / "docs" / "results.md")
     paths.summary.parent.mkdir(parents=True)
     committed = json.loads((ROOT / "docs" / "results" / "summary.json").read_text())
     assert committed["real"] is not None
     paths.summary.write_text(json.dumps({**committed, "synthetic": None}))
-    md.write_docs(d, paths.markdown)
+    docs.write_docs(d, paths.markdown)
     doc = json.loads(paths.summary.read_text())
     assert doc["real"]["kept"] and doc["real"]["provenance"] == committed["real"]["provenance"]
     text = paths.markdown.read_text()
@@ -327,7 +326,7 @@ def test_house_figures_count_thin_and_oblique_windows_by_hand():
     df["gt_aspect"] = np.where(np.arange(n) % 3 == 0, 4.0, np.where(np.arange(n) % 3 == 1, 0.2, 1.1))
     df["incidence_deg"] = np.where(np.arange(n) % 2 == 0, 70.0, 20.0)
     df.loc[df.index[::5], "corner_err_px_snap"] = np.nan  # every 5th row: no quad
-    figs = md._house_figures(df)
+    figs = figures.house_figures(df)
     ev = df[df["evaluable"].astype(bool)]
     thin = ev[(ev["gt_aspect"] >= 3) | (ev["gt_aspect"] <= 1 / 3)]
     obl = ev[(ev["incidence_deg"] >= 60) & (ev["incidence_deg"] < 80)]

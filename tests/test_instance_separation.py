@@ -274,7 +274,7 @@ def test_min_side_drops_a_strip_and_keeps_the_windows():
 
 def test_the_separation_tool_names_the_houses_the_detector_trained_on(monkeypatch):
     """tools/instance_separation.py marks a report row "trained on" from the data script's house loop
-    (fenestra/training/scripts/make_data.sh); it read a path from before the package move and
+    (lab/scripts/make_data.sh); it read a path from before the package move and
     crashed on every --data report. The four bundled houses of the model card's "Trained on" table."""
     import importlib
     from pathlib import Path

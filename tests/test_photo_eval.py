@@ -313,7 +313,8 @@ def test_kfree_table_of_the_real_profile():
 
 def test_bench_real_reaches_the_kfree_block(tmp_path):
     from fenestra.bench.runner import run_benchmark
-    from fenestra.reports.markdown import _kfree_section, collect_kfree
+    from lab.docs.figures import collect_kfree
+    from lab.docs.text import kfree_section
     from fenestra.reports.real import real_sections
 
     ds = tmp_path / "boxes"
@@ -348,7 +349,7 @@ def test_bench_real_reaches_the_kfree_block(tmp_path):
     assert ("h2", "K-free path: `fenestra reconstruct PHOTO` without intrinsics") in sections
     table = next(sec for sec in sections if sec[0] == "table" and sec[1][:2] == ["dataset", "figure"])
     assert ["boxes", "photos with an output", 1.0, ">= 1", "yes"] in table[2]
-    md = "\n".join(_kfree_section(collect_kfree(block)))
+    md = "\n".join(kfree_section(collect_kfree(block)))
     assert "crop 0.100, mirror 0.000" in md and "`boxes`" in md  # spread shown; no target: the prior observes nothing
     assert "focal_spread_observed_median" not in {t["key"] for t in d["targets"]}
     assert "labelled windows exported (partial windows included)" in md and "`--known-storey 3`" in md

@@ -122,7 +122,7 @@ def test_recall_and_perfect_ranking_against_hand_computed_ap():
     """3 windows in 2 images; exact masks for two (scores 0.8, 0.6), one missed, and a false
     positive scored 0.9. Ranked FP, TP, TP: precision envelope 2/3 up to recall 2/3, so COCO's
     101-point AP = 67 * (2/3) / 101 at every IoU; ranked by overlap: 67 * 1 / 101; R50 = 2/3."""
-    from fenestra.training.tune import instance_maps_to_coco
+    from lab.tune import instance_maps_to_coco
 
     def rect(r0, c0):
         m = np.zeros((60, 80), bool)

@@ -1,6 +1,6 @@
 """The learned corner refinement (snapper ``refine``, fenestra/pipeline/snappers/refine.py): on a fresh render
 of a house the detector and the refinement trained on (niedriha) (new cameras and look: seed 7777, not one of
-fenestra/training/scripts/refine_data.sh's), perturbed exact corners move closer to the render's exact
+lab/scripts/refine_data.sh's), perturbed exact corners move closer to the render's exact
 corners_px; patches are sampled where they say; and a weights file it cannot use is refused in one line."""
 import numpy as np
 import pytest

@@ -190,7 +190,7 @@ def test_express_rules_valid(name):  # ~8 s a house
 
 def test_no_training_script_renders_them():
     """Held out by family: neither house (name or file) appears in any training script or config."""
-    files = [p for d in ("scripts", "configs") for p in (ROOT / "fenestra" / "training" / d).glob("*")
+    files = [p for d in (ROOT / "lab" / "scripts", ROOT / "fenestra" / "training" / "configs") for p in d.glob("*")
              if p.is_file()]
     assert any(p.name == "make_data.sh" for p in files)
     for p in files:

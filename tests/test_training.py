@@ -224,7 +224,7 @@ def test_gpu_search_variants_are_the_default_config_with_their_overrides(tmp_pat
     import os
     import subprocess
 
-    script = "fenestra/training/scripts/gpu_winnet_search.sh"
+    script = "lab/scripts/gpu_winnet_search.sh"
     env = {**os.environ, "CONFIGS_ONLY": "1"}
     subprocess.run(["bash", script, str(tmp_path), "base", "seed1", "scalelo", "crop384", "c224"],
                    check=True, env=env)
@@ -261,7 +261,7 @@ def test_pack_data_keeps_every_nth_train_view_and_lists_only_those(tmp_path, mon
     monkeypatch.chdir(tmp_path)
     ds = write_toy_dataset("data/train/toy", n_views=5, seed=3)
     full = json.loads((ds / "coco.json").read_text())
-    script = Path(__file__).resolve().parents[1] / "fenestra/training/pack_data.py"
+    script = Path(__file__).resolve().parents[1] / "lab/pack_data.py"
     subprocess.run([sys.executable, str(script), "p.tar.xz", "--train-step", "2", "data/train"], check=True)
     with tarfile.open("p.tar.xz") as tf:
         tf.extractall("unpacked", filter="data")
@@ -343,7 +343,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
 
 
 def test_tune_command_writes_the_best_post_processing_into_the_weights(tmp_path):
-    """`python -m fenestra.training.tune --write` scores the 3 x 3 threshold grid, names the best segm AP
+    """`python -m lab.tune --write` scores the 3 x 3 threshold grid, names the best segm AP
     and stores that PostConfig in the weights file, where the default detector reads it."""
     import re
     import shutil
@@ -355,7 +355,7 @@ def test_tune_command_writes_the_best_post_processing_into_the_weights(tmp_path)
     ds = write_toy_dataset(tmp_path / "val", n_views=2, seed=6)
     weights = tmp_path / "w.pt"
     shutil.copy(DEFAULT_WEIGHTS, weights)
-    r = subprocess.run([sys.executable, "-m", "fenestra.training.tune", "--data", str(ds), "--weights", str(weights),
+    r = subprocess.run([sys.executable, "-m", "lab.tune", "--data", str(ds), "--weights", str(weights),
                         "--views-per-dataset", "0", "--write"], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     grid = [(float(v), float(c), float(ap)) for v, c, ap in
@@ -389,16 +389,16 @@ def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
 
     r = subprocess.run(["make", "-n", "train"], cwd=ROOT, capture_output=True, text=True, check=True)
     files = set(re.findall(r"[\w./-]+\.(?:sh|toml|py)\b", r.stdout))
-    assert {"fenestra/training/scripts/make_data.sh", "fenestra/training/configs/default.toml"} <= files
+    assert {"lab/scripts/make_data.sh", "fenestra/training/configs/default.toml"} <= files
     assert all((ROOT / f).is_file() for f in files), files
     assert "ship-weights out/train/default.pt" in r.stdout
-    assert "fenestra/training/scripts/verifier_data.sh" in files
+    assert "lab/scripts/verifier_data.sh" in files
     assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("ship-weights out/train/default.pt")
     # detector v8's quad head starts from the shipped default network, so it trains after that is shipped
     assert "fenestra/training/configs/quadnet.toml" in files
     assert r.stdout.index("ship-weights out/train/default.pt") < r.stdout.index("configs/quadnet.toml") \
         < r.stdout.index("ship-weights out/train/quadnet.pt")
-    assert "fenestra/training/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
+    assert "lab/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
     assert r.stdout.index("refine_data.sh") < r.stdout.index("train-refine") and "--ship" in r.stdout
 
 

@@ -55,7 +55,7 @@ def test_existing_files_are_kept(tmp_path):
 
 def test_data_scripts_write_the_houses_through_the_module():
     """One definition of each family: the scripts call the module, none embeds house specs."""
-    scripts = ROOT / "fenestra" / "training" / "scripts"
+    scripts = ROOT / "lab" / "scripts"
     for name, families in (("make_data.sh", ("varied", "facade")), ("make_data_street.sh", ("street",))):
         text = (scripts / name).read_text()
         assert "HouseSpec(" not in text, name

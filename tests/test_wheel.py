@@ -1,10 +1,12 @@
-"""The wheel installs one top-level package, ``fenestra``, and holds no lab script or test fixture.
+"""The wheel installs one top-level package, ``fenestra``, holding only what an allow-list names: no lab
+script, tool or test fixture.
 
 Built here from the checkout (``pip wheel --no-deps --no-build-isolation``, the setuptools of the
 venv), its file list read with zipfile: what ``pip install .`` would put into site-packages.
 """
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import zipfile
@@ -13,8 +15,23 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-LAB_OR_FIXTURE = ("benchmark", "timing", "synthetic", "quad_image", "wall_scenes", "photoreal_cost",
-                  "render_speed", "scene_load_speed", "conftest", "test_")
+# What the wheel may hold, and nothing else: the product's packages, the data they read, and the
+# distribution's metadata. The lab (lab/: training scripts, data packing, tuning, weight shipping,
+# the repository's docs writer), the tools and the tests stay in the checkout.
+PACKAGES = ("", "app", "bench", "bench/real", "bench/real/adapters", "pipeline", "pipeline/detectors",
+            "pipeline/export", "pipeline/intrinsics", "pipeline/snappers", "pipeline/walls", "renders", "reports",
+            "scenes", "training", "training/recipes")
+ALLOWED = (
+    re.compile(r"fenestra-[\w.]+\.dist-info/[\w.]+"),
+    re.compile(r"fenestra/(?:(?:%s)/)?[a-z_0-9]+\.py" % "|".join(p for p in PACKAGES if p)),
+    re.compile(r"fenestra/bench/gates\.toml"),
+    re.compile(r"fenestra/bench/profiles/[\w-]+\.toml"),
+    re.compile(r"fenestra/training/configs/[\w-]+\.toml"),
+    re.compile(r"fenestra/pipeline/models/(?:[\w-]+\.pt|README\.md)"),
+    re.compile(r"fenestra/scenes/ifc/(?:[\w.-]+\.ifc|SOURCES\.md)"),
+    re.compile(r"fenestra/pipeline/export/vendor/(?:three-viewer\.min\.js|three-viewer\.entry\.js|LICENSE|VERSION|README\.md)"),
+)
+LAB_NAMES = ("ship", "tune", "pack_data", "markdown", "make_data", "conftest", "timing", "synthetic")
 
 
 @pytest.fixture(scope="module")
@@ -36,11 +53,22 @@ def test_one_top_level_package(wheel_names):
     assert {t for t in tops if not t.endswith(".dist-info")} == {"fenestra"}, sorted(tops)
 
 
-def test_no_lab_scripts_or_fixtures(wheel_names):
-    stems = [Path(n).stem for n in wheel_names if n.endswith(".py")]
-    bad = sorted(n for n, s in zip([n for n in wheel_names if n.endswith(".py")], stems)
-                 if any(s == k or s.startswith(k) for k in LAB_OR_FIXTURE))
+def test_every_file_of_the_wheel_is_on_the_allow_list(wheel_names):
+    """A file the list does not name (a lab script, a fixture, a stray data file) fails here."""
+    bad = sorted(n for n in wheel_names if not any(a.fullmatch(n) for a in ALLOWED))
     assert not bad, bad
+
+
+def test_no_lab_module_in_the_wheel(wheel_names):
+    stems = sorted(n for n in wheel_names if n.endswith((".py", ".sh")) and Path(n).stem in LAB_NAMES)
+    assert not stems, stems
+
+
+def test_the_package_never_imports_the_lab():
+    """No module of fenestra/ names the lab: the installed package runs without the checkout."""
+    offenders = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "fenestra").rglob("*.py")
+                       if re.search(r"^\s*(?:from|import)\s+lab\b", p.read_text(), re.M))
+    assert not offenders, offenders
 
 
 def test_the_wheel_carries_the_data_the_package_reads(wheel_names):

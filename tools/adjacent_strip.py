@@ -138,7 +138,7 @@ def main() -> None:
 
         write_json(a.json, {"views": a.views, "results": {n: {str(s): t for s, t in p.items()} for n, p in res.items()}})
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
 

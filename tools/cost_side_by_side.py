@@ -85,7 +85,7 @@ def main() -> None:
     text = markdown(times, len(photos), a.threads, a.repeats, a.gate)
     print(text)
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
     raise SystemExit(1 if a.gate is not None and statistics.median(times[a.gate]) > TARGET_DETECT_MS else 0)

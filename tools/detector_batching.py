@@ -417,7 +417,7 @@ def report(doc: dict, a: argparse.Namespace) -> None:
 
         write_json(a.json, doc)
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
 

@@ -171,7 +171,7 @@ def main() -> None:
     text = markdown(result, command)
     print(text)
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
     ok = result["stages"]["detect"]["wall_ms"] <= TARGET_DETECT_MS and sum(result["weights_mb"].values()) <= TARGET_WEIGHTS_MB

@@ -7,7 +7,7 @@ Per detector of the run's K-withheld methods (``+noK``), one line per view (a vi
 one answer, shared by its windows): the share of views per focal source (``K_source``: vanishing
 points, prior, ...), and per source the relative focal error |f / f_true - 1| (median, p90), over
 all houses and over the houses held out from that detector's training
-(``fenestra.reports.markdown.house_role``). Views without an evaluable window with a focal estimate
+(``lab.docs.roles.house_role``). Views without an evaluable window with a focal estimate
 are left out (their count is printed).
 """
 from __future__ import annotations
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> list[str]:
     path = a.run / "results.parquet"
     if not path.is_file():
         raise SystemExit(f"error: {path} not found: give a finished bench run folder")
-    from fenestra.reports.markdown import house_role  # noqa: PLC0415
+    from lab.docs.roles import house_role  # noqa: PLC0415
 
     views = view_rows(pd.read_parquet(path, columns=COLUMNS))
     if views.empty:

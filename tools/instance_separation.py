@@ -100,7 +100,7 @@ def corner_cut_settings(name: str) -> dict:
 CANDIDATES.update({n: corner_cut_settings(n) for n in CUT_CANDIDATES})
 
 
-def training_houses(script: Path = Path(__file__).resolve().parent.parent / "fenestra" / "training" / "scripts" / "make_data.sh"
+def training_houses(script: Path = Path(__file__).resolve().parent.parent / "lab" / "scripts" / "make_data.sh"
                     ) -> tuple[str, ...]:
     """The bundled houses the shipped detectors trained on, read from the data script's
     ``for house in ...; do`` loop (procedural houses are named by seed there, not here)."""
@@ -411,7 +411,7 @@ def main() -> None:
     text = "\n".join(lines).rstrip() + "\n"
     print(text)
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
 

@@ -86,7 +86,7 @@ def table(results: list[tuple[str, dict]]) -> list[str]:
 def spread_text(spread: dict | None, detector: str) -> str:
     """The README's seed-spread clause: the held-out families' figures over the seeds of
     docs/results/seed_spread.json (tools/seed_spread.py --json), median [min–max]; "" without one."""
-    from fenestra.reports.markdown import ROLE_GROUPS  # noqa: PLC0415
+    from lab.docs.roles import ROLE_GROUPS  # noqa: PLC0415
 
     label = ROLE_GROUPS["held out"]
     group = ((spread or {}).get("houses") or {}).get(label)
@@ -114,7 +114,7 @@ def detector_line(results: list[tuple[str, dict]], summary: dict, detector: str,
     pose; with ``spread``, docs/results/seed_spread.json, the same over seeds with min–max), and
     the real photos. Same-generator and trained-on houses are not quoted (issue #36)."""
     ph = summary["synthetic"]["per_house"][detector]
-    from fenestra.reports.markdown import ROLE_GROUPS  # noqa: PLC0415
+    from lab.docs.roles import ROLE_GROUPS  # noqa: PLC0415
 
     rows = {r["house"]: r for r in ph["rows"]}
     held = rows[ROLE_GROUPS["held out"]]
@@ -191,14 +191,14 @@ def main() -> None:
     text = "\n".join(lines + table(results)) + "\n"
     print(text)
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
     if a.readme is not None:
         import json  # noqa: PLC0415
 
         from fenestra.conventions import DEFAULTS  # noqa: PLC0415
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         spread = json.loads(a.spread.read_text()) if a.spread.is_file() else None
         line = detector_line(results, json.loads(a.summary.read_text()), DEFAULTS.detector, spread)

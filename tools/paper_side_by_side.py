@@ -72,7 +72,7 @@ def main() -> None:
         lines += [photo_row(n, p) for n, p in photos] + [paper_row(photos[0][1])]
     text = "\n".join(lines) + "\n"
     print(text)
-    from fenestra.reports.markdown import write_block  # noqa: PLC0415
+    from lab.docs.blocks import write_block  # noqa: PLC0415
 
     weights = ROOT / "fenestra" / "pipeline" / "models" / "maskrcnn.pt"
     for doc in a.doc:

@@ -182,7 +182,7 @@ def main() -> None:
 
         write_json(a.json, {"command": command, "cpus": os.cpu_count(), "verdict": v, "rows": rows})
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
     sys.exit(0 if v["median_met"] and v["max_met"] and v["all_ran"] else 1)

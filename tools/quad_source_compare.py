@@ -72,7 +72,7 @@ def main() -> None:
     text = "\n".join(lines + table(results, methods)) + "\n"
     print(text)
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
 

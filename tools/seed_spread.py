@@ -7,11 +7,11 @@ Runs the bench profile (``fenestra bench --profile P``: renders and all) once pe
 replacing the profile's (it draws the cameras and, with ``look_per = "view"``, every view's look),
 ``--views`` replacing its views per house, each run in ``out/bench/seed-spread/<profile>-s<seed>-<hash>``
 (cached renders are reused; a cached run only when made at this commit with these weights). Per house and seed it takes the method's figures as the
-results docs do (fenestra.reports.markdown: evaluable windows, detection rate, quads, all four
+results docs do (lab.docs: evaluable windows, detection rate, quads, all four
 corners within 5 px, snapped corner median, rotation median, aspect-ratio error p90), and writes
 one Markdown table: each figure's median over the seeds and its min-max, then the seeds' values
 one by one, so a reader sees the spread instead of one lucky or unlucky draw (issue #36). The
-houses are labelled by what they are to the detector (fenestra.reports.markdown.house_role: held out,
+houses are labelled by what they are to the detector (lab.docs.roles.house_role: held out,
 same generator, trained on) and each role's houses are also pooled ("held-out families", ...). With
 ``--json`` the spread is also written as JSON (what the README's detector line quotes).
 """
@@ -25,7 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-# (key of fenestra.reports.markdown._house_figures, column title, scale, unit, decimals)
+# (key of lab.docs.figures.house_figures, column title, scale, unit, decimals)
 FIGURES = (("detection_rate", "detected", 100, " %", 0), ("quad_rate", "quads", 100, " %", 0),
            ("all_corners_close", "all corners within 5 px", 100, " %", 0),
            ("snap_median", "corner median", 1, " px", 2), ("rot_median", "rotation median", 1, "°", 2),
@@ -54,27 +54,28 @@ def cell(values: list, scale: float, unit: str, decimals: int) -> str:
 
 def house_figures(df, method: str) -> dict[str, dict]:
     """house -> the figures of ``method`` (detector/snapper/pose[/quad_source]) on that house's rows, then the
-    houses of each role together (fenestra.reports.markdown.ROLE_GROUPS: "held-out families",
+    houses of each role together (lab.docs.roles.ROLE_GROUPS: "held-out families",
     "same generator", "trained-on houses"; a group only where the run has such a house)."""
     from fenestra.methods import Method  # noqa: PLC0415
-    from fenestra.reports.markdown import ROLE_GROUPS, _house_figures, house_role  # noqa: PLC0415
+    from lab.docs.figures import house_figures
+    from lab.docs.roles import ROLE_GROUPS, house_role  # noqa: PLC0415
 
     m = Method.from_label(method)
     det = m.detector
     g = df[(df["detector"] == det) & (df["snapper"] == m.snapper) & (df["pose"] == m.pose_label)]
     if len(method.split("/")) == 4:  # a quad source named: that method's rows (its label as the bench writes it)
         g = g[g["method"] == m.label]
-    out = {house: _house_figures(rows) for house, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])}
+    out = {house: house_figures(rows) for house, rows in sorted(g.groupby("house"), key=lambda kv: kv[0])}
     roles = g["house"].map(lambda h: house_role(det, h))
     for role, label in ROLE_GROUPS.items():
         if (roles == role).any():
-            out[label] = _house_figures(g[roles == role])
+            out[label] = house_figures(g[roles == role])
     return out
 
 
 def role_of(detector: str, house: str) -> str:
-    """The role of a house row (fenestra.reports.markdown.ROLES), or of a group row by its label."""
-    from fenestra.reports.markdown import ROLE_GROUPS, house_role  # noqa: PLC0415
+    """The role of a house row (lab.docs.roles.ROLES), or of a group row by its label."""
+    from lab.docs.roles import ROLE_GROUPS, house_role  # noqa: PLC0415
 
     groups = {label: role for role, label in ROLE_GROUPS.items()}
     return groups.get(house) or house_role(detector, house)
@@ -83,7 +84,7 @@ def role_of(detector: str, house: str) -> str:
 def table(per_seed: dict[int, dict[str, dict]], detector: str) -> list[str]:
     """The Markdown table of {seed: {house: figures}}: per house, each figure's median over the
     seeds, [min-max], (the seeds' values in seed order); the role groups (bold) last."""
-    from fenestra.reports.markdown import ROLE_GROUPS  # noqa: PLC0415
+    from lab.docs.roles import ROLE_GROUPS  # noqa: PLC0415
 
     seeds = sorted(per_seed)
     names = {h for figs in per_seed.values() for h in figs}
@@ -191,7 +192,7 @@ def main() -> None:
 
         write_json(a.json, spread_json(per_seed, meta["method"].split("/")[0], meta))
     if a.doc is not None:
-        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+        from lab.docs.blocks import write_block  # noqa: PLC0415
 
         write_block(a.doc, a.block, text)
 

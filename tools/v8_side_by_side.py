@@ -70,7 +70,7 @@ def main() -> None:
                 lines.append(rows(title, a.results / name))
     text = "\n".join(lines) + "\n"
     print(text)
-    from fenestra.reports.markdown import write_block  # noqa: PLC0415
+    from lab.docs.blocks import write_block  # noqa: PLC0415
 
     for doc in a.doc:
         write_block(doc, a.block, text)

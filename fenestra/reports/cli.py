@@ -1,7 +1,6 @@
 """CLI command of reports/ (registered on the `fenestra` app by fenestra/app/cli.py).
 
     fenestra report RUN_DIR [--real REAL_RUN_DIR]
-    fenestra report RUN_DIR --markdown docs/results.md [--real REAL_RUN_DIR]   (the results docs, reports.markdown)
     fenestra compare RUN_A RUN_B [--method LABEL] [--html PATH]   (two runs of one profile, reports.compare)
 
 :func:`write_report` is also what fenestra/app/cli.py hands to bench.cli, so ``fenestra bench`` ends
@@ -23,19 +22,9 @@ def write_report(run_dir: Path, real_dir: Path | None = None) -> tuple[Path, Pat
 
 def report(run_dir: Path = typer.Argument(..., help="a run folder with results.parquet"),
            real: Path = typer.Option(None, "--real", help="a real-photo run folder (fenestra bench --profile real) "
-                                                          "for the photo column of a synthetic run's report"),
-           markdown: Path = typer.Option(None, "--markdown",
-                                         help="instead of report.html: write the results docs (e.g. docs/results.md, "
-                                              "its summary results/summary.json beside it, and the generated blocks "
-                                              "of README.md one folder up and DESIGN.md beside it)")) -> None:
-    """Regenerate report.html and report.md (+ figures/) of a run from its results, or (--markdown) the
-    results docs."""
-    if markdown is not None:
-        from fenestra.reports.markdown import write_docs  # noqa: PLC0415
-
-        for p in write_docs(run_dir, markdown, real_dir=real):
-            typer.echo(f"wrote {p}")
-        return
+                                                          "for the photo column of a synthetic run's report")) -> None:
+    """Regenerate report.html and report.md (+ figures/) of a run from its results (the repository's
+    results docs are the lab's: ``python -m lab.docs RUN``)."""
     html, md = write_report(run_dir, real_dir=real)
     typer.echo(f"report: {html}\nmarkdown: {md}")
 

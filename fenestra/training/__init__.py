@@ -7,8 +7,8 @@
     dataset.py     reading rendered dataset folders (views, instance maps, coco.json)
     evaluate.py    COCO bbox/segm AP of a detector on a dataset              `fenestra evaluate-detector`
     ship.py        checked copy of trained weights into fenestra/pipeline/models      `fenestra ship-weights`
-    tune.py        WinNet post-processing thresholds on validation views     `python -m fenestra.training.tune`
-    pack_data.py   rendered data packed small for a GPU machine              `python fenestra/training/pack_data.py`
+    tune.py        WinNet post-processing thresholds on validation views     `python -m lab.tune`
+    pack_data.py   rendered data packed small for a GPU machine              `python lab/pack_data.py`
     configs/       the detectors' training configs (default.toml: EffWin, the shipped default; quadnet.toml; winnet.toml;
                    maskrcnn.toml: the paper's Mask R-CNN on EfficientNet-Lite0, CPU; maskrcnn-r50-gpu.toml: its ResNet-50, GPU)
     scripts/       make_data.sh (the fenestra/training/validation/held-out renders), gpu_*.sh (GPU machine runs)

@@ -105,7 +105,7 @@ def register(app: typer.Typer) -> None:
     @app.command("train-refine")
     def train_refine_cmd(
         data: Optional[list[Path]] = typer.Option(None, help="rendered dataset folder(s) of the detector's training "
-                                                  "houses (default: out/refine-data/train, from fenestra/training/scripts/refine_data.sh)"),
+                                                  "houses (default: out/refine-data/train, from lab/scripts/refine_data.sh)"),
         out: Path = typer.Option(Path("out/train/refine.pt"), help="weights file to write"),
         epochs: Optional[int] = typer.Option(None, help="override the number of epochs"),
         ship: bool = typer.Option(False, help="then check that the `refine` snapper loads it and copy it to "

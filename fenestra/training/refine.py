@@ -1,6 +1,6 @@
 """Training the learned corner refinement (fenestra/pipeline/snappers/refine.py) on rendered views.
 
-    bash fenestra/training/scripts/refine_data.sh out/refine-data        # the detector's training houses only
+    bash lab/scripts/refine_data.sh out/refine-data        # the detector's training houses only
     fenestra train-refine --data out/refine-data/train [--ship]  # -> out/train/refine.pt (+ fenestra/pipeline/models)
 
 Samples: every corner of every window of the views that the render marks visible (corner_visible),

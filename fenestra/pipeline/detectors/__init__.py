@@ -188,7 +188,7 @@ def build_trainable(model: Checkpointed, any_arch: bool, weights: str | Path | N
 def load_map_predictor(weights: str | Path | None = None):
     """(predict, PostConfig) of a weights file with void/core maps (default: the shipped default):
     predict(image (H, W, 3) uint8 RGB) -> (void, core) probability maps (H, W) float32, the inputs
-    of winnet.instances_from_maps (post-processing tuning: fenestra/training/tune.py); the PostConfig is the
+    of winnet.instances_from_maps (post-processing tuning: lab/tune.py); the PostConfig is the
     file's (its architecture module's ``post_config``)."""
     mod, net, ckpt = load_model(DETECTORS["default"].model, weights, any_arch=True)
     if not hasattr(mod, "void_core_maps"):

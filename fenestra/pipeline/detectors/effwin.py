@@ -357,5 +357,5 @@ def detector_from_model(model: EffWin, ckpt: dict):
 
 def void_core_maps(model: EffWin, mirror: bool = False):
     """image -> (void, core) probability maps (H, W) float32 (post-processing tuning:
-    fenestra/training/tune.py); ``mirror``: :func:`predict_maps`'."""
+    lab/tune.py); ``mirror``: :func:`predict_maps`'."""
     return lambda image: tuple(predict_maps(model, image, mirror)[:2])

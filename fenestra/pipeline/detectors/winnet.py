@@ -474,5 +474,5 @@ def detector_from_model(model: WinNet, ckpt: dict):
 
 
 def void_core_maps(model: WinNet):
-    """image -> (void, core) probability maps (H, W) float32 (post-processing tuning: fenestra/training/tune.py)."""
+    """image -> (void, core) probability maps (H, W) float32 (post-processing tuning: lab/tune.py)."""
     return lambda image: predict_maps(model, image)

@@ -2,10 +2,10 @@
 # Render the views the box verifier sees beside the real photos (fenestra/training/verifier.py): six chunks
 # of make_data.sh's TRAIN renders (the same scenes, seeds and options: views the detector trained
 # on; never samplehouse4, never the validation houses), 150 views, about a minute on 2 cores.
-# Usage:  bash fenestra/training/scripts/verifier_data.sh [ROOT=out/verifier-renders]   (reruns reuse views)
+# Usage:  bash lab/scripts/verifier_data.sh [ROOT=out/verifier-renders]   (reruns reuse views)
 # Then:   fenestra train-verifier out/train/default.pt --renders ROOT --render-views 150
 set -euo pipefail
-cd "$(dirname "$0")/../../.."
+cd "$(dirname "$0")/../.."
 ROOT=${1:-out/verifier-renders}
 PY=${PY:-.venv/bin/python}
 export PYOPENGL_PLATFORM=egl

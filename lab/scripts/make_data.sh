@@ -11,12 +11,12 @@
 #        a path-traced (mitsuba) chunk per bundled house and per second varied house; far (<= 22 m)
 #        and grazing (<= 70 deg) cameras for the varied houses; facade-feature houses add roof
 #        overhangs with dark fascias, glazed doors and curtain walls (unlabelled glazing: negatives).
-# Usage:  bash fenestra/training/scripts/make_data.sh [ROOT=out/detector-data]   (about 30 min on 2 cores;
+# Usage:  bash lab/scripts/make_data.sh [ROOT=out/detector-data]   (about 30 min on 2 cores;
 #         reruns reuse rendered views)
 # Then:   make train      (= this and make_data_street.sh (the v3 town houses, ROOT/train-street),
 #         then fenestra train --config fenestra/training/configs/default.toml, ship-weights)
 set -euo pipefail
-cd "$(dirname "$0")/../../.."
+cd "$(dirname "$0")/../.."
 ROOT=${1:-out/detector-data}
 PY=${PY:-.venv/bin/python}
 export PYOPENGL_PLATFORM=egl

@@ -4,16 +4,16 @@
 # is taken out of the training data for this search (leave-one-house-out). Never on samplehouse4.
 # The record of the session-4 search (H100) is docs/experiments/winnet-search-h100.json.
 #
-# Here:  python fenestra/training/pack_data.py data.tar.xz --train-step 2 --jpeg-quality 70 \
+# Here:  python lab/pack_data.py data.tar.xz --train-step 2 --jpeg-quality 70 \
 #            out/detector-data/train out/detector-data/val          # ~31 MiB, 1204 + 288 views
-# There: tar -xJf data.tar.xz && bash fenestra/training/scripts/gpu_winnet_search.sh OUT_DIR [VARIANT ...]
+# There: tar -xJf data.tar.xz && bash lab/scripts/gpu_winnet_search.sh OUT_DIR [VARIANT ...]
 #
 # Each variant is winnet.toml with the keys below replaced (iterations and crop given
 # explicitly, so the variants do not move when winnet.toml does), device cuda, and its own batch-
 # making worker processes (the machine's 16 cores are shared among the variants run together).
 # CONFIGS_ONLY=1 writes the variants' configs to OUT_DIR and stops (tests/test_training.py).
 set -euo pipefail
-cd "$(dirname "$0")/../../.."
+cd "$(dirname "$0")/../.."
 OUTD=$1; shift
 mkdir -p "$OUTD"
 PY=${PY:-python3}

@@ -5,10 +5,10 @@
 # of the chunks with the sensor model (noise, blur, JPEG). Never samplehouse4, never the bench's
 # procedural seeds 0, 1, 2 (unseen houses), never the validation seeds 201..208.
 # About 3 minutes on 2 cores; reruns reuse rendered views.
-# Usage:  bash fenestra/training/scripts/refine_data.sh [ROOT=out/refine-data]
+# Usage:  bash lab/scripts/refine_data.sh [ROOT=out/refine-data]
 # Then:   fenestra train-refine --data ROOT
 set -euo pipefail
-cd "$(dirname "$0")/../../.."
+cd "$(dirname "$0")/../.."
 ROOT=${1:-out/refine-data}
 PY=${PY:-.venv/bin/python}
 export PYOPENGL_PLATFORM=egl

@@ -1,6 +1,6 @@
 """Choose the void/core post-processing thresholds (WinNet, EffWin) on VALIDATION views (never the held-out house).
 
-    python -m fenestra.training.tune --data out/detector-data/val --views-per-dataset 5 \
+    python -m lab.tune --data out/detector-data/val --views-per-dataset 5 \
         [--weights fenestra/pipeline/models/default.pt] [--write]      # --views-per-dataset 0: every view
 
 Runs the network once per view, then scores each PostConfig of a small grid with COCOeval (segm AP);

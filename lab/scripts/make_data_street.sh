@@ -8,9 +8,9 @@
 #
 # Split: seeds 151..170 TRAIN (ROOT/train-street), 213..216 VALIDATION (ROOT/val). Never samplehouse4
 # or the bench's procedural houses.
-# Usage:  bash fenestra/training/scripts/make_data_street.sh [ROOT=out/detector-data]   (reruns reuse views)
+# Usage:  bash lab/scripts/make_data_street.sh [ROOT=out/detector-data]   (reruns reuse views)
 set -euo pipefail
-cd "$(dirname "$0")/../../.."
+cd "$(dirname "$0")/../.."
 ROOT=${1:-out/detector-data}
 PY=${PY:-.venv/bin/python}
 export PYOPENGL_PLATFORM=egl

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # Train and evaluate Mask R-CNN (fenestra/training/configs/maskrcnn-r50-gpu.toml) on the GPU machine in one go.
-# Usage: bash fenestra/training/scripts/gpu_maskrcnn.sh DATA_ROOT OUT_DIR [TRAIN_SECONDS=330]
-#   DATA_ROOT holds train/, val/, heldout-pyrender/, heldout-mitsuba/ (fenestra/training/scripts/make_data.sh).
+# Usage: bash lab/scripts/gpu_maskrcnn.sh DATA_ROOT OUT_DIR [TRAIN_SECONDS=330]
+#   DATA_ROOT holds train/, val/, heldout-pyrender/, heldout-mitsuba/ (lab/scripts/make_data.sh).
 # A 30-iteration probe measures the speed; the run then gets as many iterations as fit in
 # TRAIN_SECONDS (printed, and recorded in the weights' train_config). Metrics: OUT_DIR/eval-*.json.
 set -euo pipefail
-cd "$(dirname "$0")/../../.."
+cd "$(dirname "$0")/../.."
 DATA=$1 OUTD=$2 BUDGET=${3:-330}
 PY=${PY:-python3}
 mkdir -p "$OUTD"
