@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 PACKAGE_DIR = Path(__file__).resolve().parent  # the installed `fenestra` package
-REPO_ROOT = PACKAGE_DIR.parent  # the checkout holding it (a source checkout; site-packages when installed)
+IMPORT_ROOT = PACKAGE_DIR.parent  # the folder `fenestra` is imported from: site-packages, or a source checkout
 
 
 def file_sha256(path: str | Path) -> str:

@@ -47,7 +47,7 @@ from fenestra.bench.results import SHARD_DIR
 from fenestra.bench.profiles import Profile
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
-from fenestra.files import PACKAGE_DIR, REPO_ROOT, write_bytes
+from fenestra.files import IMPORT_ROOT, PACKAGE_DIR, write_bytes
 
 THREADS_PER_WORKER = 1
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -466,7 +466,7 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
     todo = [s for s in shards if done[s.out] is None]
     t0 = time.perf_counter()
     if todo:
-        root = str(REPO_ROOT)
+        root = str(IMPORT_ROOT)  # the workers import this fenestra
         env = {**thread_env(), "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])),
                "PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}
         started = not ray.is_initialized()

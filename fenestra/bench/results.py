@@ -30,7 +30,7 @@ import pandas as pd
 
 from fenestra.bench.metrics import error_stats, recall_at
 from fenestra.errors import DatasetError, bounded
-from fenestra.files import REPO_ROOT, file_sha256, write_atomic, write_text
+from fenestra.files import IMPORT_ROOT, file_sha256, write_atomic, write_text
 from fenestra.pipeline.facade_model import MAX_WINDOW_M
 from fenestra.tolerances import TOL
 from fenestra.userfiles import read_json
@@ -429,9 +429,10 @@ def _git_dirs(root: Path) -> tuple[Path, Path]:
 
 
 def _commit() -> str | None:
-    """The current commit hash, read from .git files (no git process; worktrees too), or None."""
+    """The commit of the source checkout fenestra runs from, read from its .git files (no git
+    process; worktrees too); None when installed from a wheel."""
     try:
-        git, common = _git_dirs(REPO_ROOT / ".git")
+        git, common = _git_dirs(IMPORT_ROOT / ".git")
         head = (git / "HEAD").read_text().strip()
         if not head.startswith("ref:"):
             return head

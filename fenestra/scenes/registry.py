@@ -14,7 +14,6 @@ from pathlib import Path
 from fenestra.errors import SceneError
 
 IFC_DIR = Path(__file__).resolve().parent / "ifc"
-REPO_ROOT = Path(__file__).resolve().parents[2]
 # Public IFC models from the wild (../shared/ifc/wild: README.md and manifest.json give provenance and
 # licences; several are GPL or unlicensed, so they are read from there, never bundled). A name
 # "wild:<key>" resolves to WILD_HOUSES[key] in :func:`wild_dir`.
@@ -50,10 +49,10 @@ BUNDLED: dict[str, Path] = {
 
 
 def wild_dir() -> Path:
-    """The folder of the wild IFC models: ``$FENESTRA_WILD_IFC``, else ../shared/ifc/wild beside
-    the repository."""
+    """The folder of the wild IFC models: ``$FENESTRA_WILD_IFC``, else ../shared/ifc/wild from the
+    working directory (beside a checkout, run from its root)."""
     env = os.environ.get(WILD_ENV)
-    return Path(env) if env else REPO_ROOT.parent / "shared" / "ifc" / "wild"
+    return Path(env) if env else Path.cwd().parent / "shared" / "ifc" / "wild"
 
 
 def resolve_wild(name: str) -> Path:

@@ -35,7 +35,6 @@ from fenestra.bench.profiles import PROFILE_DIR, EvalSpec, MethodsSpec, ProfileE
 from fenestra.bench.real.adapters import ADAPTERS
 from fenestra.bench.views import LabelledView
 from fenestra.config import from_table, read_toml
-from fenestra.files import REPO_ROOT
 from fenestra.userfiles import resolved, utf8_name
 
 KIND = "real"
@@ -53,9 +52,9 @@ class DatasetSpec:
     kfree_only: bool = False  # measured only by [kfree] (bench.photo_eval), not by the method grid
 
     def folder(self) -> Path:
-        """The dataset folder: absolute, or relative to the repository root."""
-        p = Path(self.path).expanduser()
-        return p if p.is_absolute() else Path(os.path.normpath(REPO_ROOT / p))
+        """The dataset folder: absolute, or relative to the working directory (as every path a
+        command is given; the bundled profiles name folders of a checkout, run from its root)."""
+        return Path(os.path.normpath(Path(self.path).expanduser().absolute()))
 
     def views(self) -> Iterator[LabelledView]:
         """Its LabelledViews, read by its adapter (bench.real.adapters) with its options."""
