@@ -132,7 +132,7 @@ def _facade_photo(tmp_path, K):
 def test_reconstruct_without_K_uses_vanishing_points(tmp_path):
     K = make_K(700.0, 700.0, 319.5, 239.5)
     photo, masks = _facade_photo(tmp_path, K)
-    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", export=False)
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", export=False).to_json()
     assert doc["K_source"]["source"] == "vanishing points"
     assert doc["K"][0][0] == pytest.approx(700.0, rel=0.02)
     saved = json.loads((tmp_path / "out" / "windows.json").read_text())
@@ -140,7 +140,7 @@ def test_reconstruct_without_K_uses_vanishing_points(tmp_path):
     assert all(w["failure"] is None and w["uncertainty"] is not None for w in saved["windows"])
     # the default pose (wall+lines) lets the photo's façade segments into the focal fit; plain `wall` does not
     assert "line segments" in doc["K_source"]["detail"]
-    plain = run_reconstruct(photo, tmp_path / "out-wall", masks=masks, snapper="none", pose="wall", export=False)
+    plain = run_reconstruct(photo, tmp_path / "out-wall", masks=masks, snapper="none", pose="wall", export=False).to_json()
     assert "line segments" not in plain["K_source"]["detail"]
     assert plain["K"][0][0] == pytest.approx(700.0, rel=0.02)
 
@@ -160,7 +160,7 @@ def test_reconstruct_without_K_finds_the_photos_segments_once(tmp_path, monkeypa
 
     monkeypatch.setattr(segments_module, "detect_segments", counted)
     photo, masks = _facade_photo(tmp_path, make_K(700.0, 700.0, 319.5, 239.5))
-    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", pose="wall+lines", export=False)
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", pose="wall+lines", export=False).to_json()
     assert "line segments" in doc["K_source"]["detail"] and all(w["wall"] is not None for w in doc["windows"])
     assert calls == [(SIZE[1], SIZE[0])]
 
@@ -217,7 +217,7 @@ def test_exif_outranks_vanishing_points_and_a_disagreement_is_reported(tmp_path)
     ex = Image.Exif()
     ex[0x8769] = {TAG_FOCAL_35: (28, 1)}  # a rational stored as a (num, den) tuple
     Image.open(png).convert("RGB").save(photo, quality=98, exif=ex)
-    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", export=False)
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", export=False).to_json()
     ks = doc["K_source"]
     assert ks["source"] == "exif" and doc["K"][0][0] == pytest.approx(28 / 36 * 640)
     vp = next(c for c in ks["candidates"] if c["source"] == "vanishing points")

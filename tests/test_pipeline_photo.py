@@ -28,7 +28,7 @@ def test_blank_photo_without_K_is_written_with_its_failures(tmp_path):
     inst = np.zeros((240, 320), np.uint16)
     inst[100:102, 100:102] = 1  # a 2 x 2 px blob: no quad
     cv2.imwrite(str(masks), inst)
-    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none")
+    doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none").to_json()
     saved = json.loads((tmp_path / "out" / "windows.json").read_text())
     assert saved["K_source"]["source"] == "prior" and saved["K_source"] == doc["K_source"]
     lo, hi = saved["K_source"]["interval_px"]
@@ -40,7 +40,7 @@ def test_blank_photo_without_K_is_written_with_its_failures(tmp_path):
 @needs_spb
 def test_street_photo_without_K_always_gives_an_output(tmp_path):
     """img_185 stopped with "focal length unobservable" and wrote nothing (issue 24)."""
-    doc = run_reconstruct(SPB / "images" / "img_185.jpg", tmp_path / "out", export=False)
+    doc = run_reconstruct(SPB / "images" / "img_185.jpg", tmp_path / "out", export=False).to_json()
     saved = json.loads((tmp_path / "out" / "windows.json").read_text())
     assert saved["K_source"]["source"] in ("exif", "vanishing points", "prior")
     assert saved["K_source"]["interval_px"][0] <= doc["K"][0][0] <= saved["K_source"]["interval_px"][1]
@@ -57,7 +57,7 @@ def test_street_photo_without_K_always_gives_an_output(tmp_path):
 
 
 def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
-    from fenestra.pipeline.photo import aspect_interval  # noqa: PLC0415
+    from fenestra.pipeline.readout import aspect_interval  # noqa: PLC0415
 
     from dataclasses import replace  # noqa: PLC0415
 
@@ -66,8 +66,8 @@ def test_aspect_interval_joins_the_fit_and_the_focal_envelope():
     w = WindowResult(index=3, score=0.9, quad_mask=None, quad_snapped=None, aspect_ratio=0.70, aspect_case=None,
                      focal_estimate_px=None, R=None, t=None, height_m=1.0, quad_reprojected=None, failure=None,
                      uncertainty=Uncertainty(0.9, 0.5, 0.012, 0.68, 0.72, 1.0, 0.02, False))
-    assert aspect_interval(w, {}) == pytest.approx([0.68, 0.72])
-    assert aspect_interval(w, {3: (0.61, 0.71)}) == pytest.approx([0.61, 0.72])  # f at the interval's ends
+    assert aspect_interval(w, {}) == pytest.approx((0.68, 0.72))
+    assert aspect_interval(w, {3: (0.61, 0.71)}) == pytest.approx((0.61, 0.72))  # f at the interval's ends
     assert aspect_interval(replace(w, failure=Failure("quad", None, "x"), aspect_ratio=None), {}) is None
 
 
@@ -77,7 +77,7 @@ def test_focal_envelope_follows_the_closed_form_aspect_at_the_focal_interval_end
     values shifted onto the window's own aspect ratio, and empty for an exact K."""
     from fenestra.conventions import look_at, project  # noqa: PLC0415
     from fenestra.pipeline.aspect import aspect_ratio  # noqa: PLC0415
-    from fenestra.pipeline.photo import focal_envelope  # noqa: PLC0415
+    from fenestra.pipeline.session import focal_envelope  # noqa: PLC0415
     from fenestra.pipeline.types import WindowResult  # noqa: PLC0415
 
     K = np.array([[800.0, 0, 319.5], [0, 800.0, 239.5], [0, 0, 1]])
@@ -101,7 +101,7 @@ def test_quick_start_exports_its_panes_in_one_wall_with_property_sets(tmp_path):
 
     ex = ROOT / "examples" / "curtainwall"
     doc = run_reconstruct(ex / "img017.jpg", tmp_path / "out", K_json=ex / "K.json", masks=ex / "panes017.png",
-                          snapper="linefit", width=0.0932)
+                          snapper="linefit", width=0.0932).to_json()
     assert len(doc["windows"]) == 3 and all(w["exported"] for w in doc["windows"])
     f = ifcopenshell.open(str(tmp_path / "out" / "model.ifc"))
     walls, windows = f.by_type("IfcWall"), f.by_type("IfcWindow")
@@ -231,7 +231,7 @@ def test_an_implausible_sign_is_flagged_and_left_out_unless_export_all(tmp_path)
     cv2.imwrite(str(tmp_path / "m.png"), inst)
     for export_all in (False, True):
         out = tmp_path / f"out{export_all}"
-        doc = run_reconstruct(tmp_path / "p.png", out, masks=tmp_path / "m.png", snapper="none", export_all=export_all)
+        doc = run_reconstruct(tmp_path / "p.png", out, masks=tmp_path / "m.png", snapper="none", export_all=export_all).to_json()
         sign = doc["windows"][6]
         assert sign["aspect_ratio"] == pytest.approx(460 / 50, rel=0.02)
         assert not sign["plausible"] and any("outside 0.2-4" in f for f in sign["flags"])

@@ -55,7 +55,7 @@ def docs(tmp_path_factory) -> dict:
     """windows.json dicts through the Python API: {(photo, snapper): doc}, width fixed to 93.2 mm."""
     out = tmp_path_factory.mktemp("curtainwall")
     return {(n, s): run_reconstruct(_photo(n), out / f"{n}_{s}", K_json=EX / "K.json", masks=_masks(n),
-                                    snapper=s, pose="lm", width=PANE_W_M, export=False)
+                                    snapper=s, pose="lm", width=PANE_W_M, export=False).to_json()
             for n in PHOTOS for s in ("none", "linefit")}
 
 
@@ -151,7 +151,7 @@ def test_ignoring_distortion_is_measurably_worse(docs, tmp_path):
             cv2.imwrite(str(tmp_path / f"raw{n}.png"), _distort_instances(inst, cam.K, cam.distortion))
             naive = run_reconstruct(_photo(n), tmp_path / "out", K_json=tmp_path / "K.json",
                                     masks=tmp_path / f"raw{n}.png", snapper=snapper, pose="lm", width=PANE_W_M,
-                                    export=False)
+                                    export=False).to_json()
             assert naive["undistorted"] is False and len(naive["windows"]) == N_PANES[n]
             aware = docs[(n, snapper)]
             assert np.median(_normal_angles_deg(naive)) > 2.0 * np.median(_normal_angles_deg(aware)), n
@@ -229,7 +229,7 @@ def test_shared_plane_on_the_curtain_wall(tmp_path, docs):
     wall_errs, lm_errs, covered = [], [], []
     for n in PHOTOS:
         doc = run_reconstruct(_photo(n), tmp_path / n, K_json=EX / "K.json", masks=_masks(n), snapper="none",
-                              pose="wall", width=PANE_W_M, export=False)
+                              pose="wall", width=PANE_W_M, export=False).to_json()
         assert {w["wall"] for w in doc["windows"]} == {0}
         assert max(_normal_angles_deg(doc)) < 1e-6
         wall_errs.extend(_aspect_errors(doc))

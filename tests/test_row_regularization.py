@@ -137,7 +137,7 @@ def test_reconstruct_exports_each_row_of_agreeing_windows_at_one_height(tmp_path
     ex = Path(__file__).resolve().parents[1] / "examples" / "curtainwall"
     out = tmp_path / "out"
     doc = run_reconstruct(ex / "img086.jpg", out, K_json=ex / "K.json", masks=ex / "panes086.png", snapper="linefit",
-                          width=0.0932)
+                          width=0.0932).to_json()
     saved = json.loads((out / "windows.json").read_text())
     manifest = json.loads((out / "export.json").read_text())
     assert saved["windows"] == doc["windows"]

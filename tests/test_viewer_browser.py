@@ -67,16 +67,21 @@ CANVAS_STATE = """(() => {
 })()"""
 
 
-def reconstruct(out: Path, export: bool = True) -> dict:
+def reconstruct(out: Path, export: bool = True):
     options = fenestra.PhotoOptions(snapper="none", known=fenestra.Known(window_width_m=0.0932), export=export)
     return fenestra.reconstruct_photo(EX / "img017.jpg", out, K_json=EX / "K.json", masks=EX / "panes017.png",
-                                      options=options).to_json()
+                                      options=options)
 
 
 @pytest.fixture(scope="module")
-def folders(tmp_path_factory) -> dict[str, Path]:
+def results(tmp_path_factory) -> dict:
+    return {}
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory, results) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("viewer")
-    reconstruct(root / "model")
+    results["model"] = reconstruct(root / "model")
     reconstruct(root / "no-export", export=False)
     # a photo whose one detection (a 2 x 2 px blob) fails: export on, nothing exported, no model.glb
     photo, masks = root / "blank.png", root / "blank-masks.png"
@@ -181,13 +186,35 @@ def test_without_a_model_the_page_shows_the_overlay_and_says_why(folders, browse
     assert (out / "index.html").stat().st_size < 100_000
 
 
-def test_viewer_html_escapes_what_it_quotes():
-    doc = {"photo": "a<b>.jpg", "windows": [{"index": 0, "failure": "<script>x</script>", "exported": False}],
-           "K_source": {"source": "prior", "focal_px": 800.0, "interval_px": [500.0, 1400.0], "detail": "<i>"},
-           "scale": {"sources": [], "assumed": True}, "export": {"failure": "ValueError: <bad>"}}
-    page = viewer.viewer_html(doc, {"overlay": "overlay.png"})
+def test_viewer_html_escapes_what_it_quotes(folders, results):
+    """A real reconstruction's readout with hostile text put into its photo name, a failure, the
+    focal source's detail and the export's failure: the page quotes each one escaped."""
+    from dataclasses import replace
+
+    from fenestra.pipeline.photo import ExportReport
+
+    read = results["model"].readout()
+    w0 = replace(read.windows[0], failure="<script>x</script>")
+    chosen = replace(read.resolved.chosen, detail="<i>")
+    read = replace(read, photo="a<b>.jpg", windows=(w0, *read.windows[1:]),
+                   resolved=replace(read.resolved, chosen=chosen), export=ExportReport(failure="ValueError: <bad>"))
+    page = viewer.viewer_html(read, {"overlay": "overlay.png"})
     assert "<b>" not in page and "<script>x" not in page and "<i>" not in page and "&lt;bad&gt;" in page
-    assert viewer.no_model_reason(doc, {"overlay": "overlay.png"}).startswith("No 3D model: the export failed")
+    assert "&lt;script&gt;x&lt;/script&gt;" in page and "a&lt;b&gt;.jpg" in page
+    assert viewer.no_model_reason(read, {"overlay": "overlay.png"}).startswith("No 3D model: the export failed")
+
+
+def test_each_reason_is_said_once_and_a_partial_window_is_marked(folders, results):
+    """The table's "why" holds the failure, a flag and the export decision's reason once each, even
+    where the decision's reason repeats the flag; a window cut by the photo's edge says so."""
+    from dataclasses import replace
+
+    read = results["model"].readout()
+    w = replace(read.windows[0], flags=("too thin",), not_exported="implausible: too thin", failure=None,
+                partial=True, cut=("left",))
+    row = viewer.window_rows(replace(read, windows=(w,)))[0]
+    assert row[-1] == "implausible: too thin" and row[1].endswith(", partial")
+    assert "cut by the photo's left edge" in row[5]
 
 
 def test_the_vendored_three_js_is_the_pinned_one():
@@ -201,10 +228,10 @@ def test_the_vendored_three_js_is_the_pinned_one():
     assert "MIT License" in (vendor / "LICENSE").read_text() and "three.js authors" in (vendor / "LICENSE").read_text()
 
 
-def test_a_glb_over_the_limit_is_linked_not_embedded(folders, tmp_path):
+def test_a_glb_over_the_limit_is_linked_not_embedded(folders, results, tmp_path):
     for f in ("overlay.png", "model.glb", "windows.json"):
         shutil.copy(folders["model"] / f, tmp_path / f)
     doc = json.loads((tmp_path / "windows.json").read_text())
-    page = viewer.write_viewer(tmp_path, doc, doc["export"]["files"], max_glb_bytes=1000).read_text()
+    page = viewer.write_viewer(tmp_path, results["model"].readout(), doc["export"]["files"], max_glb_bytes=1000).read_text()
     assert "fenestra-glb" not in page and 'data-model="none"' in page
     assert "is larger than this page embeds" in page and '<a href="model.glb">' in page

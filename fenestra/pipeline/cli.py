@@ -30,7 +30,8 @@ from fenestra.conventions import DEFAULTS, LIMITS
 from fenestra.errors import FenestraError, PipelineError
 from fenestra.pipeline.facade_model import DEFAULT_WINDOW_HEIGHT_M, KNOWN_RANGE_M as FIELD_RANGE_M, Known
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
-from fenestra.pipeline.photo import WALL_THICKNESS_RANGE_M, OptionError, PhotoOptions, model_walls, reconstruct_photo
+from fenestra.pipeline.photo import WALL_THICKNESS_RANGE_M, OptionError, PhotoOptions, PhotoResult, reconstruct_photo
+from fenestra.pipeline.readout import PhotoReadout
 from fenestra.pipeline.quad import QUAD_SOURCES
 from fenestra.pipeline.reconstruct import POSES
 from fenestra.pipeline.snappers import SNAPPERS
@@ -43,9 +44,9 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                     substitute: Optional[str] = None, export: bool = True, force: bool = False,
                     quad_source: str = DEFAULTS.quad_source, storey: Optional[float] = None,
                     export_all: bool = False, max_pixels: Optional[int] = None,
-                    wall_thickness: float = WALL_THICKNESS_M, options: Optional[PhotoOptions] = None) -> dict:
+                    wall_thickness: float = WALL_THICKNESS_M, options: Optional[PhotoOptions] = None) -> PhotoResult:
     """The `reconstruct` command on one photo as a function: pipeline.photo.reconstruct_photo
-    writing into ``out``; returns the windows.json dict it wrote. height / width / storey: the
+    writing into ``out``; returns its PhotoResult (``.to_json()``: the windows.json it wrote). height / width / storey: the
     known window height / window width / storey height, m (at most one; none: assumed);
     max_pixels: the largest photo read (None: fenestra.conventions.LIMITS.max_image_pixels);
     wall_thickness: the exported walls' thickness, m (WALL_THICKNESS_RANGE_M). options: the
@@ -59,7 +60,7 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
                                 export_all=export_all, max_pixels=max_pixels, wall_thickness=wall_thickness)
     with held_out(out, force, (photo, K_json, masks)):  # one reconstruct at a time into a folder
         return reconstruct_photo(photo, out, K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, options=options,
-                                 force=force).to_json()
+                                 force=force)
 
 
 # the physical range of each --known-* size, m (pipeline.facade_model.KNOWN_RANGE_M, by option)
@@ -196,25 +197,22 @@ def output_names(photos: list[Path]) -> list[str]:
     return out
 
 
-def summary_row(photo: Path, doc: dict | None, error: str | None, seconds: float | None = None,
+def summary_row(photo: Path, read: PhotoReadout | None, error: str | None, seconds: float | None = None,
                 cpu_s: float | None = None, out_dir: Path | None = None) -> dict:
-    """One summary line of a batch: photo, its time (wall and CPU seconds), its size (pixels and
-    bytes) and its output folder's bytes, K source and f, walls, windows
-    detected/exported/flagged/failed."""
+    """One summary line of a batch (summary.json's, a dict at the file boundary): photo, its time
+    (wall and CPU seconds), its size (pixels and bytes) and its output folder's bytes, K source and
+    f, walls, windows detected/exported/flagged/failed, and the whole error message."""
     size = {"seconds": None if seconds is None else round(seconds, 2), "cpu_s": None if cpu_s is None else round(cpu_s, 2),
             "photo_bytes": photo.stat().st_size if photo.is_file() else None,
             "output_bytes": None if out_dir is None or not out_dir.is_dir() else
             sum(f.stat().st_size for f in out_dir.rglob("*") if f.is_file())}
-    if doc is None:
+    if read is None:
         return {"photo": str(photo), "error": error, **size}
-    ws = doc["windows"]
-    W, H = doc.get("image_size") or (None, None)
+    W, H = read.image_size
     return {"photo": str(photo), "error": None, **size, "width_px": W, "height_px": H,
-            "K_source": doc["K_source"]["source"],
-            "focal_px": round(doc["K_source"]["focal_px"], 1), "walls": model_walls(doc),
-            "detected": len(ws), "exported": sum(bool(w.get("exported")) for w in ws),
-            "flagged": sum(bool(w.get("flags")) for w in ws), "failed": sum(w["failure"] is not None for w in ws),
-            "scale_assumed": doc.get("scale", {}).get("assumed")}
+            "K_source": read.resolved.source, "focal_px": round(float(read.resolved.chosen.focal_px), 1),
+            "walls": read.walls, "detected": read.detected, "exported": read.exported, "flagged": read.flagged,
+            "failed": read.failed, "scale_assumed": read.scale_assumed}
 
 
 SUMMARY_CSV_COLUMNS = ("photo", "error", "seconds", "cpu_s", "width_px", "height_px", "photo_bytes", "output_bytes",
@@ -274,12 +272,12 @@ def _batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
         for photo, name in bar:
             t0, c0 = time.perf_counter(), time.process_time()
             try:
-                doc, error = run_reconstruct(photo, out / name, **kw), None
+                read, error = run_reconstruct(photo, out / name, **kw).readout(), None
             except (FenestraError, ValueError, OSError) as e:
-                doc, error = None, " ".join(str(e).split())
+                read, error = None, " ".join(str(e).split())
             except Exception as e:  # noqa: BLE001 -- a bug on one photo is recorded, the batch goes on
-                doc, error = None, f"internal error ({type(e).__name__}, please report it): " + " ".join(str(e).split())
-            rows.append(summary_row(photo, doc, error, time.perf_counter() - t0, time.process_time() - c0, out / name))
+                read, error = None, f"internal error ({type(e).__name__}, please report it): " + " ".join(str(e).split())
+            rows.append(summary_row(photo, read, error, time.perf_counter() - t0, time.process_time() - c0, out / name))
     write_summary(rows)
     return rows
 
@@ -293,7 +291,7 @@ def format_summary(rows: list[dict]) -> str:
         t = "-" if r.get("seconds") is None else f"{r['seconds']:.1f}"
         mb = "-" if r.get("output_bytes") is None else f"{r['output_bytes'] / 1e6:.1f}"
         if r["error"]:
-            lines.append(f"{name:<24} {t:>6} error: {r['error'][:80]}")
+            lines.append(f"{name:<24} {t:>6} error: {r['error']}")
             continue
         px = "-" if r.get("width_px") is None else f"{r['width_px']}x{r['height_px']}"
         lines.append(f"{name:<24} {t:>6} {px:>10} {mb:>6} {r['K_source']:<17} {r['focal_px']:>6.0f} {r['walls']:>5} "
@@ -305,49 +303,32 @@ def format_summary(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def empty_note(doc: dict) -> str | None:
-    """One line when the output holds no window (issue 35: img_552 wrote an empty model.ifc with
-    nothing said): how many were detected, flagged and failed; None when a window was exported or
-    no model was written."""
-    export = doc.get("export") or {}
-    if "exported" not in export or export["exported"] or not export.get("files", {}).get("ifc"):
-        return None
-    ws = doc["windows"]
-    if not ws:
-        return "empty output: no window detected; model.ifc and model.obj hold no window, no model.glb"
-    flagged = sum(bool(w.get("flags")) for w in ws)
-    failed = sum(w["failure"] is not None for w in ws)
-    return (f"empty output: none of the {len(ws)} detected windows exported ({flagged} flagged implausible, "
-            f"{failed} failed; --export-all exports the flagged); model.ifc and model.obj hold no window, no model.glb")
-
-
-def _echo_notes(doc: dict) -> None:
+def _echo_notes(read: PhotoReadout) -> None:
     """The single-photo command's notes: undistortion, intrinsics and their source, scale, warnings."""
-    if doc.get("undistorted"):
-        typer.echo(f"photo undistorted with distortion {doc['distortion']} (quads are in that frame)")
-    ks = doc["K_source"]
-    typer.echo(f"intrinsics: {ks['source']} f = {ks['focal_px']:.0f} px [{ks['interval_px'][0]:.0f}, "
-               f"{ks['interval_px'][1]:.0f}] ({ks['detail']})")
-    typer.echo("scale: " + "; ".join(doc["scale"]["sources"] or ["no wall"]))
-    for w in doc["warnings"]:
+    if read.distortion is not None:
+        typer.echo(f"photo undistorted with distortion {list(read.distortion)} (quads are in that frame)")
+    k = read.resolved.chosen
+    typer.echo(f"intrinsics: {k.source} f = {k.focal_px:.0f} px [{k.interval_px[0]:.0f}, "
+               f"{k.interval_px[1]:.0f}] ({k.detail})")
+    typer.echo("scale: " + "; ".join(read.scale_sources or ["no wall"]))
+    for w in read.warnings:
         typer.echo(f"warning: {w}", err=True)
-    if doc.get("geometry_failure"):
-        typer.echo(f"geometry failed (recorded in windows.json): {doc['geometry_failure']}", err=True)
+    if read.geometry_failure:
+        typer.echo(f"geometry failed (recorded in windows.json): {read.geometry_failure}", err=True)
 
 
-def format_table(doc: dict) -> str:
+def format_table(read: PhotoReadout) -> str:
     """A short plain-text table: one line per window, then the median per-stage timing."""
     lines = [f"{'#':>3} {'score':>5} {'aspect':>7} {'case':<17} {'dist_m':>7} {'wall':>4} {'exp':>3} failure / flags"]
-    for w in doc["windows"]:
-        ar = f"{w['aspect_ratio']:.4f}" if w["aspect_ratio"] is not None else "-"
-        dist = f"{np.linalg.norm(w['t']):.2f}" if w["t"] is not None else "-"
-        wall = "-" if w.get("wall") is None else str(w["wall"])
-        exp = {True: "yes", False: "no", None: "-"}[w.get("exported")]
-        lines.append(f"{w['index']:>3} {w['score']:>5.2f} {ar:>7} {w['aspect_case'] or '-':<17} {dist:>7} {wall:>4} "
-                     f"{exp:>3} {w['failure'] or '; '.join(w.get('flags') or [])}")
+    for w in read.windows:
+        ar = "-" if w.aspect_ratio is None else f"{w.aspect_ratio:.4f}"
+        dist = "-" if w.distance_m is None else f"{w.distance_m:.2f}"
+        wall = "-" if w.wall is None else str(w.wall)
+        exp = {True: "yes", False: "no", None: "-"}[w.exported]
+        lines.append(f"{w.index:>3} {w.score:>5.2f} {ar:>7} {w.aspect_case or '-':<17} {dist:>7} {wall:>4} "
+                     f"{exp:>3} {w.failure or '; '.join(w.flags)}")
     stages = ("quad", "snap", "aspect", "pose")
-    med = {s: np.median([w["timings_ms"][s] for w in doc["windows"] if s in w["timings_ms"]] or [np.nan])
-           for s in stages}
+    med = {s: np.median([w.timings_ms[s] for w in read.windows if s in w.timings_ms] or [np.nan]) for s in stages}
     lines.append("median ms/window: " + "  ".join(f"{s} {med[s]:.2f}" for s in stages))
     return "\n".join(lines)
 
@@ -427,10 +408,10 @@ def register(app: typer.Typer) -> None:
             raise PipelineError(f"--masks describes one photo; {len(paths)} photos given")
         kw = dict(K_json=K_json, fx=fx, fy=fy, cx=cx, cy=cy, masks=masks, force=force, options=options)
         if len(paths) == 1:
-            doc = run_reconstruct(paths[0], out, **kw)
-            typer.echo(format_table(doc))
-            _echo_notes(doc)
-            if (note := empty_note(doc)) is not None:
+            read = run_reconstruct(paths[0], out, **kw).readout()
+            typer.echo(format_table(read))
+            _echo_notes(read)
+            if (note := read.empty_note()) is not None:
                 typer.echo(note, err=True)
             typer.echo(f"wrote {out / 'windows.json'}")
             return

@@ -27,8 +27,9 @@ from fenestra.masks import mask_extent
 from fenestra.methods import Method
 from fenestra.pipeline.export.geometry import WALL_THICKNESS_M
 from fenestra.pipeline.facade_model import Known
+from fenestra.pipeline.readout import PhotoReadout, WindowLine, readout, window_lines
 from fenestra.pipeline.reconstruct import ReconstructConfig
-from fenestra.pipeline.session import Reconstruction, focal_envelope  # noqa: F401  (focal_envelope re-exported)
+from fenestra.pipeline.session import Reconstruction
 from fenestra.pipeline.types import Detection, WindowResult
 
 
@@ -147,6 +148,11 @@ class PhotoResult:
     distortion: list | None
     export_models: bool = True
     export: ExportReport | None = None
+
+    def readout(self) -> PhotoReadout:
+        """What a person reads of it, typed (pipeline.readout): the CLI, the batch summary, the
+        overlay's header and the viewer read this."""
+        return readout(self)
 
     def to_json(self) -> dict:
         """windows.json's data (a new dict): :func:`reconstruction_json` of the reconstruction, the
@@ -284,26 +290,6 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     return result
 
 
-def aspect_interval(w: WindowResult, envelope: dict[int, tuple[float, float]]) -> list[float] | None:
-    """A window's aspect interval: its fit's 90 % interval (widened when flagged) joined with its
-    aspect ratios at the ends of the focal interval (pipeline.session.focal_envelope); None for a
-    failed window and for a partial one (its visible extent's w/h is not the window's)."""
-    if w.failure is not None or w.aspect_ratio is None or w.partial is not None:
-        return None
-    unc = w.uncertainty
-    vals = [w.aspect_ratio, *(() if unc is None else (unc.aspect_lo, unc.aspect_hi)), *envelope.get(w.index, ())]
-    return [float(min(vals)), float(max(vals))]
-
-
-def confidence(w: WindowResult, flagged: bool) -> float:
-    """The detector score, halved when the wall fit calls the window ill-conditioned, quartered
-    when flagged; 0 for a failed window."""
-    if w.failure is not None:
-        return 0.0
-    ill = w.uncertainty is not None and w.uncertainty.ill_conditioned
-    return w.score * (0.5 if ill else 1.0) * (0.25 if flagged else 1.0)
-
-
 def row_fields(r: WindowResult, measured: WindowResult | None, fit) -> dict:
     """windows.json's row regularization fields of window ``r`` (pipeline.row_lines): ``regularized``
     (its sill and head are its row's consensus), ``row`` (the RowFit of the row it voted in, or
@@ -337,18 +323,12 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
                           walls={w.index: w.wall for w in rec.windows})
     assumed = [w.id for w in model.walls if w.assumed]
     windows = []
-    for win, w in zip(rec.windows, doc["windows"]):
-        r, k = win.result, win.index
-        wall = model.wall_of(k)
-        flags = model.flags.get(k, [])
-        exported = win.export.exported and (written is None or k in written)
-        windows.append({**w, "plausible": r.failure is None and not flags, "flags": flags,
-                        "confidence": confidence(r, bool(flags)), "K_source": rec.resolved.source,
-                        "exported": exported if export else None, "not_exported": win.export.reason,
-                        "aspect_interval": aspect_interval(r if win.regularized is None else win.measured, rec.envelope),
-                        "scale_source": None if wall is None else wall.scale_source,
-                        "scale_assumed": None if wall is None else wall.assumed,
-                        **row_fields(r, win.measured if win.regularized is not None else None, win.row)})
+    for win, w, line in zip(rec.windows, doc["windows"], window_lines(rec, export, written)):
+        windows.append({**w, "plausible": line.plausible, "flags": list(line.flags), "confidence": line.confidence,
+                        "K_source": line.K_source, "exported": line.exported, "not_exported": line.not_exported,
+                        "aspect_interval": None if line.aspect_interval is None else list(line.aspect_interval),
+                        "scale_source": line.scale_source, "scale_assumed": line.scale_assumed,
+                        **row_fields(win.result, win.measured if win.regularized is not None else None, win.row)})
     return {**doc, "windows": windows, "walls": [w.to_json() for w in model.walls],
             "scale": {"assumed": bool(assumed), "assumed_walls": assumed,
                       "sources": sorted({w.scale_source for w in model.walls})},
@@ -358,10 +338,8 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
 
 
 def model_walls(doc: dict) -> int:
-    """The walls of the façade model a user gets: distinct ``wall`` ids of the windows the model
-    exports (windows.json ``not_exported`` None and no failure; the export decision, made whether
-    or not files are written). A wall fitted to flagged windows only (a lone window whose plane is
-    nonsense, a shop sign) is no wall of the model (model.ifc holds none for it)."""
+    """:func:`pipeline.readout.model_walls` read back from windows.json's data (``wall`` of the
+    windows with ``not_exported`` None and no failure)."""
     return len({w["wall"] for w in doc.get("windows") or []
                 if w.get("wall") is not None and w.get("not_exported") is None and w.get("failure") is None})
 
@@ -377,14 +355,13 @@ def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoO
 
     rec = result.reconstruction
     model, results, decided = rec.model, rec.results(), rec.not_exported
-    doc = result.to_json()  # the windows.json data before writing: the IFC properties, the overlay's header
+    read = result.readout()  # before writing: the IFC properties, the overlay's header
     files, exported, skipped, failure = {}, (), (), None
     if options.export:
-        info = {w["index"]: w for w in doc["windows"]}
         try:
             paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=decided,
                                   walls={k: w.id for w in model.walls for k in w.windows},
-                                  properties={k: window_properties(info[k]) for k in info},
+                                  properties={w.index: window_properties(w) for w in read.windows},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False,
                                   gps=gps_tuple(result.gps), thickness_m=options.wall_thickness_m)
         except (PipelineError, ValueError, OSError) as e:
@@ -394,9 +371,9 @@ def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoO
             exported = tuple(w.index for w in rec.windows if w.export.exported)
             skipped = tuple((w.index, w.export.reason) for w in rec.windows if not w.export.exported)
     files["overlay"] = write_overlay(out, image, rec.K, results, decided, boxes=detection_boxes(list(rec.detections)),
-                                     header=overlay_header(doc)).name
+                                     header=read.header()).name
     report = ExportReport(files, exported, skipped, failure)
-    viewer = write_viewer(out, replace(result, export=report).to_json(), dict(files)).name  # index.html
+    viewer = write_viewer(out, replace(result, export=report).readout(), dict(files)).name  # index.html
     return replace(report, files={**files, "viewer": viewer})
 
 
@@ -420,29 +397,18 @@ def detection_boxes(detections: list[Detection]) -> dict[int, tuple[int, int, in
     return boxes
 
 
-def overlay_header(doc: dict) -> list[str]:
-    """The overlay panel's header: intrinsics and scale, one line each."""
-    ks = doc["K_source"]
-    lines = [f"K: {ks['source']}, f = {ks['focal_px']:.0f} px [{ks['interval_px'][0]:.0f}, {ks['interval_px'][1]:.0f}]",
-             "scale: " + ("; ".join(doc["scale"]["sources"]) or "none")]
-    if doc.get("geometry_failure"):
-        lines.append(f"geometry failed: {doc['geometry_failure']}")
-    return lines
-
-
 def wall_properties(w) -> dict:
     """The Fenestra property set of one fitted wall (IFC)."""
     return {"ScaleSource": w.scale_source, "ScaleAssumed": bool(w.assumed), "DistanceM": float(w.distance_m),
             "WindowCount": len(w.windows)}
 
 
-def window_properties(w: dict) -> dict:
+def window_properties(w: WindowLine) -> dict:
     """The Fenestra property set of one window (IFC): confidence, aspect interval, K and scale
     sources, and whether it is partial (cut by the photo's border: Partial, CutBy the edges, e.g.
     "left" or "top, left"; its size is then its visible extent)."""
-    lo, hi = w["aspect_interval"] or (None, None)
-    return {"Confidence": float(w["confidence"]), "DetectionScore": float(w["score"]),
-            "AspectRatio": w["aspect_ratio"], "AspectLow": lo, "AspectHigh": hi,
-            "KSource": w["K_source"], "ScaleSource": w["scale_source"], "ScaleAssumed": w["scale_assumed"],
-            "Plausible": bool(w["plausible"]), "Flags": "; ".join(w["flags"]) or None,
-            "Partial": bool(w["partial"]), "CutBy": ", ".join(w["cut"]) or None}
+    lo, hi = w.aspect_interval or (None, None)
+    return {"Confidence": w.confidence, "DetectionScore": w.score, "AspectRatio": w.aspect_ratio,
+            "AspectLow": lo, "AspectHigh": hi, "KSource": w.K_source, "ScaleSource": w.scale_source,
+            "ScaleAssumed": w.scale_assumed, "Plausible": w.plausible, "Flags": "; ".join(w.flags) or None,
+            "Partial": w.partial, "CutBy": ", ".join(w.cut) or None}

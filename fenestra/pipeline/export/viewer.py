@@ -1,8 +1,8 @@
 """index.html: one page per ``fenestra reconstruct`` output folder that shows what the folder holds.
 
     from fenestra.pipeline.export.viewer import viewer_html, write_viewer
-    html = viewer_html(doc, files, glb=glb_bytes)    # pure: the page (a str) from windows.json's data
-    write_viewer(out, doc, files)                    # out/index.html, written atomically
+    html = viewer_html(read, files, glb=glb_bytes)   # pure: the page (a str) of a pipeline.readout.PhotoReadout
+    write_viewer(out, read, files)                   # out/index.html, written atomically
 
 The page shows the photo with the overlay (``overlay.png``), the model (``model.glb``) in 3D with
 orbit controls (drag: turn, wheel: zoom, right-drag: pan), or, when there is no model, why not (the
@@ -35,6 +35,8 @@ import html
 from functools import lru_cache
 from pathlib import Path
 
+from fenestra.pipeline.readout import PhotoReadout
+
 VENDOR = Path(__file__).resolve().parent / "vendor"
 THREE_BUNDLE = VENDOR / "three-viewer.min.js"
 VIEWER_MAX_GLB_BYTES = 64 * 2**20  # a larger model.glb is linked from the page, not embedded in it
@@ -58,55 +60,36 @@ def _num(v, fmt: str = ".3f") -> str:
     return "-" if v is None else format(float(v), fmt)
 
 
-def no_model_reason(doc: dict, files: dict[str, str]) -> str | None:
+def no_model_reason(read: PhotoReadout, files: dict[str, str]) -> str | None:
     """Why the folder holds no model.glb (one sentence), or None when it holds one."""
-    export = doc.get("export") or {}
     if "glb" in files:
         return None
-    if export.get("failure"):
-        return f"No 3D model: the export failed ({export['failure']})."
+    if read.export is not None and read.export.failure:
+        return f"No 3D model: the export failed ({read.export.failure})."
     if "ifc" not in files:
         return "No 3D model: the model export was off (windows.json and the overlay only)."
-    ws = doc.get("windows") or []
-    if not ws:
+    if not read.windows:
         return "No 3D model: no window was detected in the photo."
-    flagged = sum(bool(w.get("flags")) for w in ws)
-    failed = sum(w.get("failure") is not None for w in ws)
-    return (f"No 3D model: none of the {len(ws)} detected windows was exported ({flagged} flagged implausible, "
-            f"{failed} failed; --export-all exports the flagged), and glTF holds no empty scene.")
+    return (f"No 3D model: none of the {read.detected} detected windows was exported ({read.flagged} flagged "
+            f"implausible, {read.failed} failed; --export-all exports the flagged), and glTF holds no empty scene.")
 
 
-def _status(w: dict) -> str:
-    if w.get("failure") is not None:
-        return "failed"
-    return {True: "in the model", False: "not in the model", None: "no model made"}[w.get("exported")]
-
-
-def _why(w: dict) -> str:
-    parts = [w.get("failure"), *(w.get("flags") or []), w.get("not_exported")]
-    seen = []
-    for p in parts:
-        if p and p not in seen:
-            seen.append(p)
-    return "; ".join(str(p) for p in seen)
-
-
-def window_rows(doc: dict) -> list[list[str]]:
-    """The window table's cells (plain text) per window of windows.json, in its order:
+def window_rows(read: PhotoReadout) -> list[list[str]]:
+    """The window table's cells (plain text) per window, in detection order:
     # | status | score | confidence | aspect ratio [interval] | width x height m | wall | K source |
-    scale source | why (failure, flags, why not exported)."""
+    scale source | why (failure, flags, why not exported: each reason once)."""
     rows = []
-    for w in doc.get("windows") or []:
-        iv = w.get("aspect_interval")
-        aspect = _num(w.get("aspect_ratio")) + ("" if not iv else f" [{iv[0]:.3f}, {iv[1]:.3f}]")
-        size = ("-" if w.get("width_m") is None or w.get("height_m") is None
-                else f"{w['width_m']:.3f} x {w['height_m']:.3f}")
-        scale = w.get("scale_source") or "-"
-        if w.get("scale_assumed"):
-            scale += " (assumed)"
-        rows.append([str(w.get("index")), _status(w), _num(w.get("score"), ".2f"), _num(w.get("confidence"), ".2f"),
-                     aspect, size, "-" if w.get("wall") is None else str(w["wall"]), w.get("K_source") or "-",
-                     scale, _why(w) or "-"])
+    for w in read.windows:
+        iv = w.aspect_interval
+        aspect = _num(w.aspect_ratio) + ("" if not iv else f" [{iv[0]:.3f}, {iv[1]:.3f}]")
+        size = "-" if w.width_m is None or w.height_m is None else f"{w.width_m:.3f} x {w.height_m:.3f}"
+        if w.partial:
+            size += " (visible part: cut by the photo's " + ", ".join(w.cut) + " edge)"
+        scale = (w.scale_source or "-") + (" (assumed)" if w.scale_assumed and "assumed" not in (w.scale_source or "")
+                                           else "")
+        rows.append([str(w.index), w.status + (", partial" if w.partial else ""), _num(w.score, ".2f"),
+                     _num(w.confidence, ".2f"), aspect, size, "-" if w.wall is None else str(w.wall), w.K_source or "-",
+                     scale, "; ".join(w.reasons) or "-"])
     return rows
 
 
@@ -208,37 +191,34 @@ SCRIPT = """
 """
 
 
-def viewer_html(doc: dict, files: dict[str, str], glb: bytes | None = None, glb_note: str | None = None) -> str:
-    """The page of one output folder (a str): ``doc`` windows.json's data (with its ``export``
-    block when written), ``files`` {kind: file name} of the folder (``overlay``, ``glb``, ``ifc``,
-    ...: windows.json's ``export.files``), ``glb`` the bytes of model.glb to embed (None: no 3D
-    view; ``glb_note`` then says why, else :func:`no_model_reason`). Pure: reads nothing but the
-    vendored three.js bundle (when a GLB is embedded)."""
-    before, data, after = viewer_parts(doc, files, glb, glb_note)
+def viewer_html(read: PhotoReadout, files: dict[str, str], glb: bytes | None = None,
+                glb_note: str | None = None) -> str:
+    """The page of one output folder (a str): ``read`` the photo's pipeline.readout.PhotoReadout,
+    ``files`` {kind: file name} of the folder (``overlay``, ``glb``, ``ifc``, ...: windows.json's
+    ``export.files``), ``glb`` the bytes of model.glb to embed (None: no 3D view; ``glb_note`` then
+    says why, else :func:`no_model_reason`). Pure: reads nothing but the vendored three.js bundle
+    (when a GLB is embedded)."""
+    before, data, after = viewer_parts(read, files, glb, glb_note)
     return before + data.decode("ascii") + after
 
 
-def viewer_parts(doc: dict, files: dict[str, str], glb: bytes | None = None,
+def viewer_parts(read: PhotoReadout, files: dict[str, str], glb: bytes | None = None,
                  glb_note: str | None = None) -> tuple[str, bytes, str]:
     """:func:`viewer_html` in three parts, (the page up to the GLB, the GLB in base64 (ASCII
     bytes; empty without a GLB), the rest), so that a writer holds one base64 copy of the GLB, not
     three (the bytes, a str of them, the page's str)."""
-    photo = Path(str(doc.get("photo") or "photo")).name
-    ks = doc.get("K_source") or {}
-    scale = doc.get("scale") or {}
-    meta = []
-    if ks:
-        lo, hi = ks.get("interval_px") or (None, None)
-        meta.append(f"K source: {_e(ks.get('source'))}" + (f" ({_e(ks['detail'])})" if ks.get("detail") else "")
-                    + f", f = {_num(ks.get('focal_px'), '.0f')} px [{_num(lo, '.0f')}, {_num(hi, '.0f')}]")
-    meta.append("scale source: " + (_e("; ".join(scale.get("sources") or [])) or "none")
-                + (" (assumed)" if scale.get("assumed") else ""))
-    size = doc.get("image_size")
-    if size:
-        meta.append(f"photo {int(size[0])} x {int(size[1])} px" + (", undistorted" if doc.get("undistorted") else ""))
-    warnings = [f'<li class="warn">warning: {_e(w)}</li>' for w in doc.get("warnings") or []]
-    if doc.get("geometry_failure"):
-        warnings.append(f'<li class="failed">geometry failed: {_e(doc["geometry_failure"])}</li>')
+    photo = Path(str(read.photo or "photo")).name
+    k = read.resolved.chosen
+    lo, hi = k.interval_px
+    meta = [f"K source: {_e(k.source)}" + (f" ({_e(k.detail)})" if k.detail else "")
+            + f", f = {_num(k.focal_px, '.0f')} px [{_num(lo, '.0f')}, {_num(hi, '.0f')}]",
+            "scale source: " + (_e("; ".join(read.scale_sources)) or "none")
+            + (" (assumed)" if read.scale_assumed and not any("assumed" in s for s in read.scale_sources) else "")]
+    W, H = read.image_size
+    meta.append(f"photo {int(W)} x {int(H)} px" + (", undistorted" if read.distortion is not None else ""))
+    warnings = [f'<li class="warn">warning: {_e(w)}</li>' for w in read.warnings]
+    if read.geometry_failure:
+        warnings.append(f'<li class="failed">geometry failed: {_e(read.geometry_failure)}</li>')
 
     overlay = files.get("overlay")
     left = (f'<figure><a href="{_e(overlay)}"><img id="overlay" src="{_e(overlay)}" alt="the photo with the '
@@ -251,15 +231,15 @@ def viewer_parts(doc: dict, files: dict[str, str], glb: bytes | None = None,
                  '(drag: turn, wheel: zoom, right-drag: pan)</figcaption></figure>')
         state = "loading"
     else:
-        why = glb_note or no_model_reason(doc, files) or "No 3D model embedded."
+        why = glb_note or no_model_reason(read, files) or "No 3D model embedded."
         right = f'<figure><p id="model-note" class="note">{_e(why)}</p></figure>'
         state = "none"
 
     rows = "".join("<tr" + (' class="failed"' if r[1] == "failed" else "") + ">"
                    + "".join(f'<td{" class=n" if i in (0, 2, 3) else ""}>{_e(c)}</td>' for i, c in enumerate(r))
-                   + "</tr>" for r in window_rows(doc))
+                   + "</tr>" for r in window_rows(read))
     head = "".join(f"<th>{_e(c)}</th>" for c in COLUMNS)
-    n = len(doc.get("windows") or [])
+    n = read.detected
     table = (f'<table id="windows"><caption>{n} window{"s" if n != 1 else ""} (windows.json)</caption>'
              f"<thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
     names = ["windows.json", *sorted({v for k, v in files.items() if v and v != PAGE})]
@@ -280,7 +260,8 @@ def viewer_parts(doc: dict, files: dict[str, str], glb: bytes | None = None,
     return before, data, f"{scripts}\n</body></html>\n"
 
 
-def write_viewer(out: str | Path, doc: dict, files: dict[str, str], max_glb_bytes: int = VIEWER_MAX_GLB_BYTES) -> Path:
+def write_viewer(out: str | Path, read: PhotoReadout, files: dict[str, str],
+                 max_glb_bytes: int = VIEWER_MAX_GLB_BYTES) -> Path:
     """Write ``out``/index.html (atomically: fenestra.files.write_atomic; the GLB's base64 held once) for the folder's files
     (``files``: {kind: name}, as :func:`viewer_html`); model.glb is read from ``out`` and embedded
     when it is at most ``max_glb_bytes``, else linked with a note. Returns the path."""
@@ -296,7 +277,7 @@ def write_viewer(out: str | Path, doc: dict, files: dict[str, str], max_glb_byte
         else:
             note = (f"{files['glb']} ({n / 2**20:.0f} MiB) is larger than this page embeds "
                     f"({max_glb_bytes / 2**20:.0f} MiB): open it in a glTF viewer.")
-    parts = viewer_parts(doc, files, glb, note)
+    parts = viewer_parts(read, files, glb, note)
     del glb
 
     def write(tmp: Path) -> None:
