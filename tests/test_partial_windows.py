@@ -110,10 +110,11 @@ def runs(scene, tmp_path_factory):
             "out": root / "cut" / "out"}
 
 
-def test_a_window_cut_by_the_left_border_is_exported_with_its_visible_width(scene, runs):
-    """Its visible width matches the scene's within one pixel's width at the window (the visible
-    quad is the mask fit, not snapped: its own side is quantised to the pixel grid) plus 1 % (the
-    scale, which the whole windows set from the known window height); its height within the same."""
+def test_a_window_cut_by_the_left_border_is_completed_to_its_row(scene, runs):
+    """Exported whole, never at its visible size: its width is its row's whole windows' (1.2 m,
+    within 1 % and the one-pixel quantisation of its right side), its true left edge off the
+    photo is recovered (where the scene puts it), and its visible fraction is the visible width
+    (where the ray of the image's left edge, u = -0.5, meets the wall) over the whole width."""
     R, t, windows = scene
     doc = by_id(runs["cut"])
     for k in CUT_IDS:
@@ -126,14 +127,23 @@ def test_a_window_cut_by_the_left_border_is_exported_with_its_visible_width(scen
         assert np.ptp(x_edge) < 1e-9  # an image column is a vertical line on this wall
         visible_w = P[1, 0] - x_edge[0]
         m_per_px = WIN_W / float(np.linalg.norm(q[1] - q[0]))  # along the window's top side, near enough
-        tol = m_per_px + 0.01 * visible_w
+        tol = m_per_px + 0.01 * WIN_W
         assert 0.3 < visible_w < WIN_W - 0.3
-        assert w["width_m"] == pytest.approx(visible_w, abs=tol), (k, w["width_m"], visible_w, tol)
+        assert w["width_m"] == pytest.approx(WIN_W, abs=0.01 * WIN_W), (k, w["width_m"])
         assert w["height_m"] == pytest.approx(WIN_H, abs=m_per_px + 0.01 * WIN_H)
+        assert w["visible_fraction"] == pytest.approx(visible_w / WIN_W, abs=tol / WIN_W)
+        # its left edge (BL corner) off the photo, where the scene puts it: the true offsets from
+        # its whole neighbour's BL corner, along and up the reconstructed wall (its axes)
+        n = doc[k + 1]
+        Rn, d = np.asarray(n["R"]), np.asarray(w["t"]) - np.asarray(n["t"])
+        truth = windows[k][3] - P[3]  # wall frame: the neighbour's BL minus this one's
+        assert d @ Rn[:, 0] == pytest.approx(-truth[0], abs=tol) and d @ Rn[:, 1] == pytest.approx(-truth[1], abs=tol)
         assert w["aspect_interval"] is None and w["plausible"]
-        # the visible quad: its left side on the image's left edge, its right side the window's
-        vq = np.asarray(w["quad_snapped"])
+        # the visible quad: its left side on the image's left edge, its right side the window's;
+        # the reprojected quad: the whole window, reaching past the photo's left edge
+        vq, rq = np.asarray(w["quad_snapped"]), np.asarray(w["quad_reprojected"])
         assert np.allclose(vq[[0, 3], 0], -0.5) and np.allclose(vq[[1, 2], 0], q[[1, 2], 0], atol=1.0)
+        assert np.abs(rq - q).max() < 2.0 and rq[:, 0].min() < -0.5
     assert all(not w["partial"] and w["cut"] == [] for k, w in doc.items() if k not in CUT_IDS)
     wall = runs["cut"]["walls"][0]
     assert sorted(wall["partial"]) == sorted(doc[k]["index"] for k in CUT_IDS)
@@ -225,8 +235,8 @@ def test_visible_extent_recovers_wall_points_on_the_true_plane(scene):
 def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():
     """bench.evaluate on a view whose third window hangs off the image's right edge
     (tests/test_bench_evaluate.py's): its row is not evaluable and keeps the quad stage's
-    touches_border failure and NaN sizes (the visible part is not the window), while its visible
-    part is exported (``exported`` 1) and matched in the export counts."""
+    touches_border failure and NaN sizes (the visible part is not the window), while it is exported
+    completed to its row's width (``exported`` 1) and matched in the export counts."""
     import math
 
     from test_bench_evaluate import _window, _write_view
@@ -238,7 +248,7 @@ def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
-        wins = [_window(0.5, 1.0, 1.2, 1.4), _window(2.6, 1.0, 0.9, 1.4), _window(6.0, 1.0, 1.6, 1.4)]
+        wins = [_window(0.5, 1.0, 1.2, 1.4), _window(2.6, 1.0, 1.2, 1.4), _window(6.4, 1.0, 1.2, 1.4)]
         view = read_rendered_view(_write_view(Path(tmp) / "000000", wins), "hand", "hand")
         method = Method("oracle", "none", "wall")
         out = evaluate_view(view, (method,), EvalOptions())
@@ -283,3 +293,16 @@ def test_the_visible_part_of_a_cut_mask_is_fitted_with_the_image_edge_as_a_side(
     assert qr.failure is None and qr.cut == ("top", "left")
     visible = np.array([[-0.5, -0.5], [60.3, -0.5], [60.3, 80.7], [-0.5, 80.7]])
     assert np.abs(qr.quad - visible).max() < 0.5, qr.quad
+
+
+def test_a_cut_window_with_no_whole_window_in_its_row_is_left_out_with_the_reason(scene, tmp_path):
+    """Only the upper row's whole windows are masked: the upper cut window is completed from them,
+    the lower one has no whole window in its row, so it is a recorded failure (code
+    ``not_completed``, the reason in words), never exported at its visible size."""
+    R, t, windows = scene
+    upper = [k for k in range(1, len(windows) + 1) if k > len(COLUMNS)]
+    doc = by_id(run(tmp_path / "one-row", windows, R, t, masked=[*upper, CUT_IDS[0]], export=True))
+    low, high = doc[CUT_IDS[0]], doc[CUT_IDS[1]]
+    assert high["failure"] is None and high["exported"] and high["width_m"] == pytest.approx(WIN_W, rel=0.01)
+    assert low["partial"] and not low["exported"] and low["failure"].startswith("wall: not_completed: ")
+    assert "no whole window in its row" in low["failure"] and low["not_exported"]

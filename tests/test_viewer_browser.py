@@ -211,10 +211,10 @@ def test_each_reason_is_said_once_and_a_partial_window_is_marked(folders, result
 
     read = results["model"].readout()
     w = replace(read.windows[0], flags=("too thin",), not_exported="implausible: too thin", failure=None,
-                partial=True, cut=("left",))
+                partial=True, cut=("left",), visible_fraction=0.6)
     row = viewer.window_rows(replace(read, windows=(w,)))[0]
     assert row[-1] == "implausible: too thin" and row[1].endswith(", partial")
-    assert "cut by the photo's left edge" in row[5]
+    assert "cut by the photo's left edge, 60 % of it seen" in row[5]
 
 
 def test_the_vendored_three_js_is_the_pinned_one():

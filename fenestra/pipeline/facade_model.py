@@ -35,8 +35,11 @@ intervals widen by FLAG_WIDEN.
 Partial windows (issue 35). A window cut by the photo's border takes no part in the above: after
 the walls are set, :func:`place_partials` puts its visible part on the wall whose vanishing points
 its own sides point at (PARTIAL_VP_DEG; the nearest such wall in the image), with that wall's pose
-and scale, as the rectangle around its visible part on the wall's plane (:func:`visible_extent`);
-it is flagged only by the absolute size limits, and without such a wall it stays a failure.
+and scale, as the rectangle around its visible part on the wall's plane (:func:`visible_extent`),
+then completed beyond the photo's edge to the size of the whole windows of its row or column
+(:func:`complete_partial`); it is flagged only by the absolute size limits. Without such a wall,
+or without a row or column to complete it from, it stays a failure: no window is ever exported at
+its visible size.
 
 Rows (issue 35). Last, pipeline.row_lines.regularize_rows gives the windows of each storey row of
 a wall that agree with the row's median sill and head lines exactly those lines (pipeline.session
@@ -468,14 +471,77 @@ def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall:
                    uncertainty=None, partial=part)
 
 
+COMPLETE_SLACK = 1.15  # a visible part may exceed its row's (column's) typical whole window by this factor
+ROW_OVERLAP = 0.5  # a whole window is in a partial one's row (column) when they overlap by this share of the smaller
+
+
+def _overlap(lo_a: float, hi_a: float, lo_b: float, hi_b: float) -> float:
+    """The share of the shorter of two intervals (m) that the other covers, 0-1."""
+    return max(0.0, min(hi_a, hi_b) - max(lo_a, lo_b)) / max(min(hi_a - lo_a, hi_b - lo_b), 1e-12)
+
+
+def _on_wall(r: WindowResult, R: np.ndarray) -> tuple[float, float, float, float]:
+    """(along m, up m, width m, height m) of a posed window in its wall's axes R (3, 3): its
+    bottom-left corner's coordinates and its size."""
+    t = np.asarray(r.t, dtype=np.float64).reshape(3)
+    h = float(r.height_m)
+    return float(t @ R[:, 0]), float(t @ R[:, 1]), float(r.aspect_ratio) * h, h
+
+
+def complete_partial(r: WindowResult, wall: WallModel, results: list[WindowResult], R: np.ndarray,
+                     K: np.ndarray) -> WindowResult | Unavailable:
+    """A placed partial window (its visible extent on ``wall``) completed to the size of the whole
+    windows it lines up with, extended beyond the photo's edges that cut it.
+
+    Cut by the left or right edge: its width becomes the median width of the whole windows of its
+    row (the wall's members whose vertical extent overlaps its own by ROW_OVERLAP), its side on the
+    photo kept; cut by the top or bottom edge: its height becomes the median height of its
+    column's (horizontal overlap). Args: r, the partial window (R, t, height_m, aspect_ratio: its
+    visible extent); wall, its wall; results, every window (the members' poses); R (3, 3), the
+    wall's axes; K (3, 3) px. Returns the completed WindowResult (pose, size and reprojected quad
+    of the whole window; ``partial.visible_fraction``: the share of its area in the photo), or why
+    it cannot be completed (Unavailable, one sentence): no whole window in its row or column, cut
+    on two opposite edges, or a visible part larger than the windows it would match.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    a, b, w, h = _on_wall(r, R)
+    cut = set(r.partial.cut)
+    edges = ", ".join(r.partial.cut)
+    members = [_on_wall(results[k], R) for k in wall.members]
+    if {"left", "right"} <= cut or {"top", "bottom"} <= cut:
+        return Unavailable(f"cut by the photo's {edges} edges: too little of it is seen to complete it")
+    a1, b1, w1, h1 = a, b, w, h
+    if cut & {"left", "right"}:
+        row = [m[2] for m in members if _overlap(m[1], m[1] + m[3], b, b + h) >= ROW_OVERLAP]
+        if not row:
+            return Unavailable(f"cut by the photo's {edges} edge, with no whole window in its row to complete it from")
+        w1 = float(np.median(row))
+        if w > COMPLETE_SLACK * w1:
+            return Unavailable(f"cut by the photo's {edges} edge, yet wider than the whole windows of its row")
+        w1 = max(w1, w)
+        a1 = a + w - w1 if "left" in cut else a
+    if cut & {"top", "bottom"}:
+        col = [m[3] for m in members if _overlap(m[0], m[0] + m[2], a1, a1 + w1) >= ROW_OVERLAP]
+        if not col:
+            return Unavailable(f"cut by the photo's {edges} edge, with no whole window in its column to complete it from")
+        h1 = float(np.median(col))
+        if h > COMPLETE_SLACK * h1:
+            return Unavailable(f"cut by the photo's {edges} edge, yet taller than the whole windows of its column")
+        h1 = max(h1, h)
+        b1 = b + h - h1 if "bottom" in cut else b
+    t = np.asarray(r.t, dtype=np.float64).reshape(3) + (a1 - a) * R[:, 0] + (b1 - b) * R[:, 1]
+    rect = np.array([[0.0, h1, 0.0], [w1, h1, 0.0], [w1, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    part = replace(r.partial, visible_fraction=float(min(1.0, (w * h) / (w1 * h1))))
+    return replace(r, t=t, height_m=h1, aspect_ratio=w1 / h1, quad_reprojected=project(K, R, t, rect), partial=part)
+
+
 def partial_flags(r: WindowResult, wall: WallModel, known: Known) -> list[str]:
-    """Why a placed partial window should not become a BIM window: only the absolute size limits
-    of its wall (:func:`size_limits`) on its visible extent (it is no window shape, and it is
-    compared with no median)."""
+    """Why a completed partial window should not become a BIM window: only the absolute size limits
+    of its wall (:func:`size_limits`) (its size is its row's or column's, compared with no median)."""
     max_h, max_w, why_max = size_limits(known, wall.assumed)
     h, w = float(r.height_m), float(r.aspect_ratio) * float(r.height_m)
-    return ([f"size: visible height {h:.3g} m above {max_h:.3g} m ({why_max})"] if h > max_h else []) + \
-           ([f"size: visible width {w:.3g} m above {max_w:.3g} m ({why_max})"] if w > max_w else [])
+    return ([f"size: height {h:.3g} m above {max_h:.3g} m ({why_max})"] if h > max_h else []) + \
+           ([f"size: width {w:.3g} m above {max_w:.3g} m ({why_max})"] if w > max_w else [])
 
 
 def place_partials(results: list[WindowResult], model: FacadeModel, visible: dict, K: np.ndarray,
@@ -508,6 +574,11 @@ def place_partials(results: list[WindowResult], model: FacadeModel, visible: dic
         R_wall = None if isinstance(wall, Unavailable) else out[wall.members[0]].R
         out[k] = place_partial(r, qr.quad, qr.cut, wall, R_wall, K)
         if out[k].failure is None:
+            done = complete_partial(out[k], wall, out, R_wall, K)
+            if isinstance(done, Unavailable):
+                out[k] = replace(out[k], failure=Failure("wall", "not_completed", done.reason))
+                continue
+            out[k] = done
             placed.setdefault(wall.id, []).append(k)
             why = partial_flags(out[k], wall, known)
             if why:

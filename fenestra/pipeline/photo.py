@@ -406,9 +406,10 @@ def wall_properties(w) -> dict:
 def window_properties(w: WindowLine) -> dict:
     """The Fenestra property set of one window (IFC): confidence, aspect interval, K and scale
     sources, and whether it is partial (cut by the photo's border: Partial, CutBy the edges, e.g.
-    "left" or "top, left"; its size is then its visible extent)."""
+    "left" or "top, left", VisibleFraction the share of its area in the photo; its size is its
+    row's or column's whole windows')."""
     lo, hi = w.aspect_interval or (None, None)
     return {"Confidence": w.confidence, "DetectionScore": w.score, "AspectRatio": w.aspect_ratio,
             "AspectLow": lo, "AspectHigh": hi, "KSource": w.K_source, "ScaleSource": w.scale_source,
             "ScaleAssumed": w.scale_assumed, "Plausible": w.plausible, "Flags": "; ".join(w.flags) or None,
-            "Partial": w.partial, "CutBy": ", ".join(w.cut) or None}
+            "Partial": w.partial, "CutBy": ", ".join(w.cut) or None, "VisibleFraction": w.visible_fraction}

@@ -31,7 +31,8 @@ class WindowLine:
     failure: why the pipeline failed on it (a sentence) or None; flags: why the façade model calls
     it implausible; not_exported: why the export decision keeps it out, None when kept; exported:
     its model was written (None: no model made); partial / cut: cut by the photo's edges (which
-    ones), its fields then its visible part's; timings_ms: {stage: ms}.
+    ones), completed to its row's or column's size; visible_fraction: the share of its area the
+    photo shows; timings_ms: {stage: ms}.
     """
 
     index: int
@@ -53,6 +54,7 @@ class WindowLine:
     exported: bool | None
     partial: bool
     cut: tuple[str, ...]
+    visible_fraction: float | None
     timings_ms: Mapping[str, float]
 
     @property
@@ -193,6 +195,7 @@ def window_lines(rec, export_models: bool = True, written: set[int] | None = Non
             failure=None if r.failure is None else str(r.failure), flags=flags, not_exported=win.export.reason,
             exported=(win.export.exported and (written is None or k in written)) if export_models else None,
             partial=r.partial is not None, cut=() if r.partial is None else tuple(r.partial.cut),
+            visible_fraction=None if r.partial is None else r.partial.visible_fraction,
             timings_ms=dict(r.timings_ms)))
     return tuple(lines)
 

@@ -367,6 +367,7 @@ def window_to_dict(r: WindowResult, wall: int | None = None) -> dict:
         "failure": None if r.failure is None else str(r.failure), "timings_ms": {k: round(v, 4) for k, v in r.timings_ms.items()},
         "wall": wall, "uncertainty": None if r.uncertainty is None else r.uncertainty.to_json(),
         "partial": r.partial is not None, "cut": [] if r.partial is None else list(r.partial.cut),
+        "visible_fraction": None if r.partial is None else r.partial.visible_fraction,
     }
 
 

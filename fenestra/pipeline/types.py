@@ -90,14 +90,18 @@ class Partial:
     window goes on beyond them, so its true corners and size there are unknown. whole_failure:
     why the window as a whole has no geometry (the quad stage's ``touches_border``): what the bench
     measures a window by, and what a partial window never feeds into its wall's pose, scale or
-    statistics (pipeline.facade_model.place_partials places it afterwards, its visible extent on
-    its wall's plane).
+    statistics (pipeline.facade_model.place_partials places it afterwards on its wall's plane,
+    completed to its row's or column's whole windows: visible_fraction is then the share of its
+    area the photo shows).
     """
 
     cut: tuple[str, ...]
     whole_failure: Failure
+    visible_fraction: float | None = None  # of the completed window's area in the photo, 0-1 (None: not completed)
 
     def __post_init__(self) -> None:
+        if self.visible_fraction is not None and not 0.0 < self.visible_fraction <= 1.0:
+            raise ValueError(f"Partial.visible_fraction must be in (0, 1], got {self.visible_fraction!r}")
         if not self.cut or any(c not in CUT_SIDES for c in self.cut) or len(set(self.cut)) != len(self.cut):
             raise ValueError(f"Partial.cut must be distinct sides of {CUT_SIDES}, at least one, got {self.cut!r}")
         if list(self.cut) != sorted(self.cut, key=CUT_SIDES.index):

@@ -84,7 +84,8 @@ def window_rows(read: PhotoReadout) -> list[list[str]]:
         aspect = _num(w.aspect_ratio) + ("" if not iv else f" [{iv[0]:.3f}, {iv[1]:.3f}]")
         size = "-" if w.width_m is None or w.height_m is None else f"{w.width_m:.3f} x {w.height_m:.3f}"
         if w.partial:
-            size += " (visible part: cut by the photo's " + ", ".join(w.cut) + " edge)"
+            seen = "" if w.visible_fraction is None else f", {100 * w.visible_fraction:.0f} % of it seen"
+            size += f" (cut by the photo's {', '.join(w.cut)} edge{seen})"
         scale = (w.scale_source or "-") + (" (assumed)" if w.scale_assumed and "assumed" not in (w.scale_source or "")
                                            else "")
         rows.append([str(w.index), w.status + (", partial" if w.partial else ""), _num(w.score, ".2f"),
