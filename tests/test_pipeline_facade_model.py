@@ -77,9 +77,9 @@ def test_implausible_windows_are_flagged_with_reasons_and_wider_error_bars():
     true = TRUE + [(-3.0, 0.2, 6.0, 0.8), (0.0, 7.0, 0.3, 9.0), (-4.0, 7.5, 1.2, 0.05)]  # sign, pole, sliver
     results, model = facade_model(_scrambled(true), Known(window_height_m=1.6))
     assert set(model.flags) == {6, 7, 8}
-    assert any("vs its wall's median" in f for f in model.flags[6])  # w/h 7.5 vs 0.75
-    assert any(f.startswith("shape: w/h") and "outside" in f for f in model.flags[8])  # w/h 24
-    assert any(f.startswith("size") or f.startswith("shape") for f in model.flags[7])
+    assert any("unlike its wall's other windows (width/height 7.50 against 0.75)" in f for f in model.flags[6])
+    assert any(f.startswith("its shape is no window's (width/height 24.00") for f in model.flags[8])  # w/h 24
+    assert any(f.startswith("its shape") or f.startswith("its height") or f.startswith("too ") for f in model.flags[7])
     for k in (6, 7, 8):
         u = results[k].uncertainty
         assert u.aspect_hi - u.aspect_lo == pytest.approx(FLAG_WIDEN * (UNC.aspect_hi - UNC.aspect_lo))
@@ -106,7 +106,7 @@ def test_a_lone_window_near_the_facade_joins_it_and_a_lone_one_off_plane_is_flag
     ws += [_window(6, -2.0, 7.0, 1.2, 1.6, 1.0, wall=1, R_F=tilt), _window(7, 1.0, 1.0, 1.2, 1.6, 1.0, wall=2, R_F=side)]
     results, model = facade_model(ws, Known(window_height_m=1.6))
     assert [w.members for w in model.walls] == [(0, 1, 2, 3, 4, 5, 6), (7,)]
-    assert list(model.flags) == [7] and "lone window at 90 deg" in model.flags[7][0]
+    assert list(model.flags) == [7] and model.flags[7][0] == "it stands alone in a plane at 90° to the façade"
 
 
 def test_bad_boxes_do_not_set_the_scale_nor_flag_the_clean_windows():
@@ -123,8 +123,8 @@ def test_bad_boxes_do_not_set_the_scale_nor_flag_the_clean_windows():
     k = DEFAULT_WINDOW_HEIGHT_M / 1.6  # the scale the clean windows set: true size x k
     for r, (_, _, w, h) in zip(results, true):
         assert r.height_m == pytest.approx(h * k) and r.aspect_ratio * r.height_m == pytest.approx(w * k)
-    assert any("vs its wall's median 0.75" in f for f in model.flags[2])
-    assert any(f.startswith("size: width 6.56 m above 4 m") for f in model.flags[4])  # 7.0 x 1.5 / 1.6
+    assert any("against 0.75)" in f for f in model.flags[2])
+    assert any(f.startswith("too wide for a window (6.6 m, more than 4.0 m") for f in model.flags[4])  # 7.0 x 1.5 / 1.6
 
 
 def test_a_window_taller_than_the_known_storey_is_flagged():
@@ -136,7 +136,7 @@ def test_a_window_taller_than_the_known_storey_is_flagged():
     for r, (_, _, _, h) in zip(results, true):
         assert r.height_m == pytest.approx(h)  # the true scale: pitch 3.2 m between the rows
     assert list(model.flags) == [6]
-    assert any(f == "size: height 3.5 m above 3.2 m (the known storey 3.2 m)" for f in model.flags[6])
+    assert "too tall for a window (3.5 m, more than 3.2 m: the known storey, 3.2 m)" in model.flags[6]
 
 
 def test_typical_members_is_the_largest_agreeing_set_of_plausible_shapes():

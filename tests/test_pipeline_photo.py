@@ -234,7 +234,7 @@ def test_an_implausible_sign_is_flagged_and_left_out_unless_export_all(tmp_path)
         doc = run_reconstruct(tmp_path / "p.png", out, masks=tmp_path / "m.png", snapper="none", export_all=export_all).to_json()
         sign = doc["windows"][6]
         assert sign["aspect_ratio"] == pytest.approx(460 / 50, rel=0.02)
-        assert not sign["plausible"] and any("outside 0.2-4" in f for f in sign["flags"])
+        assert not sign["plausible"] and any("windows are 0.2 to 4)" in f for f in sign["flags"])
         assert sign["exported"] is export_all and all(w["exported"] for w in doc["windows"][:6])
         assert len(ifcopenshell.open(str(out / "model.ifc")).by_type("IfcWindow")) == 6 + export_all
         assert doc["scale"]["assumed"] and len(doc["walls"]) == 1

@@ -205,15 +205,18 @@ def test_viewer_html_escapes_what_it_quotes(folders, results):
 
 
 def test_each_reason_is_said_once_and_a_partial_window_is_marked(folders, results):
-    """The table's "why" holds the failure, a flag and the export decision's reason once each, even
-    where the decision's reason repeats the flag; a window cut by the photo's edge says so."""
+    """The table's "why" says a flag once, though the export decision's reason repeats it; a
+    failed window's reason is its failure's sentence alone; a window cut by the photo's edge says so."""
     from dataclasses import replace
 
     read = results["model"].readout()
     w = replace(read.windows[0], flags=("too thin",), not_exported="implausible: too thin", failure=None,
                 partial=True, cut=("left",), visible_fraction=0.6)
     row = viewer.window_rows(replace(read, windows=(w,)))[0]
-    assert row[-1] == "implausible: too thin" and row[1].endswith(", partial")
+    assert row[-1] == "too thin" and row[1].endswith(", partial")
+    failed = replace(w, failure="quad: not_quadrilateral: four lines explain 56%", failure_message="the window's "
+                     "outline is not four-sided", not_exported="upstream failure: quad: not_quadrilateral")
+    assert viewer.window_rows(replace(read, windows=(failed,)))[0][-1] == "the window's outline is not four-sided"
     assert "cut by the photo's left edge, 60 % of it seen" in row[5]
 
 

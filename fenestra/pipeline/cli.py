@@ -319,14 +319,14 @@ def _echo_notes(read: PhotoReadout) -> None:
 
 def format_table(read: PhotoReadout) -> str:
     """A short plain-text table: one line per window, then the median per-stage timing."""
-    lines = [f"{'#':>3} {'score':>5} {'aspect':>7} {'case':<17} {'dist_m':>7} {'wall':>4} {'exp':>3} failure / flags"]
+    lines = [f"{'#':>3} {'score':>5} {'aspect':>7} {'case':<17} {'dist_m':>7} {'wall':>4} {'exp':>3} why not / flags"]
     for w in read.windows:
         ar = "-" if w.aspect_ratio is None else f"{w.aspect_ratio:.4f}"
         dist = "-" if w.distance_m is None else f"{w.distance_m:.2f}"
         wall = "-" if w.wall is None else str(w.wall)
         exp = {True: "yes", False: "no", None: "-"}[w.exported]
         lines.append(f"{w.index:>3} {w.score:>5.2f} {ar:>7} {w.aspect_case or '-':<17} {dist:>7} {wall:>4} "
-                     f"{exp:>3} {w.failure or '; '.join(w.flags)}")
+                     f"{exp:>3} {'; '.join(w.reasons)}")
     stages = ("quad", "snap", "aspect", "pose")
     med = {s: np.median([w.timings_ms[s] for w in read.windows if s in w.timings_ms] or [np.nan]) for s in stages}
     lines.append("median ms/window: " + "  ".join(f"{s} {med[s]:.2f}" for s in stages))

@@ -53,6 +53,7 @@ import numpy as np
 
 from fenestra.conventions import heading_difference_deg, project, rotation_error_deg, vote_axis
 from fenestra.errors import bounded
+from fenestra.pipeline.messages import degrees, edges_words, metres, ratio
 from fenestra.pipeline.types import Failure, Partial, Uncertainty, Unavailable, WindowResult
 
 DEFAULT_WINDOW_HEIGHT_M = 1.5  # a typical window's height, used (and flagged "assumed") without --known-*
@@ -282,14 +283,14 @@ def size_limits(known: Known, assumed: bool) -> tuple[float, float, str]:
     a known storey caps the height (a window is not taller than its storey)."""
     if not assumed and known.window_height_m is not None:
         m = max(MAX_WINDOW_M, WALL_RATIO * known.window_height_m)
-        return m, m, f"{WALL_RATIO:g} x the known window height"
+        return m, m, f"{WALL_RATIO:g} times the known window height"
     if not assumed and known.window_width_m is not None:
         m = max(MAX_WINDOW_M, WALL_RATIO * known.window_width_m)
-        return m, m, f"{WALL_RATIO:g} x the known window width"
+        return m, m, f"{WALL_RATIO:g} times the known window width"
     if known.storey_m is not None:
         return min(MAX_WINDOW_M, known.storey_m) if assumed else known.storey_m, MAX_WINDOW_M, \
-            f"the known storey {known.storey_m:g} m"
-    return MAX_WINDOW_M, MAX_WINDOW_M, "a window's plausible size"
+            f"the known storey, {metres(known.storey_m)}"
+    return MAX_WINDOW_M, MAX_WINDOW_M, "the largest plausible window"
 
 
 def plausibility(results: list[WindowResult], walls: list[WallModel], known: Known = Known()) -> dict[int, list[str]]:
@@ -306,19 +307,21 @@ def plausibility(results: list[WindowResult], walls: list[WallModel], known: Kno
         for k, ak, hk in zip(wall.members, a, h):
             why = []
             if not ASPECT_RANGE[0] <= ak <= ASPECT_RANGE[1]:
-                why.append(f"shape: w/h {ak:.3g} outside {ASPECT_RANGE[0]:g}-{ASPECT_RANGE[1]:g}")
+                why.append(f"its shape is no window's (width/height {ratio(ak)}; windows are "
+                           f"{ASPECT_RANGE[0]:g} to {ASPECT_RANGE[1]:g})")
             if len(wall.members) >= 3:
                 if max(ak / ma, ma / ak) > WALL_RATIO:
-                    why.append(f"shape: w/h {ak:.3g} vs its wall's median {ma:.3g}")
+                    why.append(f"its shape is unlike its wall's other windows (width/height {ratio(ak)} "
+                               f"against {ratio(ma)})")
                 if max(hk / mh, mh / hk) > WALL_RATIO:
-                    why.append(f"size: height {hk:.3g} m vs its wall's median {mh:.3g} m")
+                    why.append(f"its height is unlike its wall's other windows ({metres(hk)} against {metres(mh)})")
             if hk > max_h:
-                why.append(f"size: height {hk:.3g} m above {max_h:.3g} m ({why_max})")
+                why.append(f"too tall for a window ({metres(hk)}, more than {metres(max_h)}: {why_max})")
             if ak * hk > max_w:
-                why.append(f"size: width {ak * hk:.3g} m above {max_w:.3g} m ({why_max})")
+                why.append(f"too wide for a window ({metres(ak * hk)}, more than {metres(max_w)}: {why_max})")
             if len(wall.members) == 1 and main is not None and wall is not main and len(main.members) >= 2:
                 ang = float(np.degrees(np.arccos(np.clip(abs(wall.normal @ main.normal), 0.0, 1.0))))
-                why.append(f"plane: a lone window at {ang:.0f} deg to the facade (no other window in its plane)")
+                why.append(f"it stands alone in a plane at {degrees(ang)} to the façade")
             if why:
                 flags[k] = why
     return flags
@@ -346,7 +349,7 @@ def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[l
         R = np.asarray(out[wall.members[0]].R)
         for k in wall.members:
             if float(R[:, 2] @ _centre(out[k])) >= 0:
-                flags.setdefault(k, []).append("plane: behind the camera side of its wall")
+                flags.setdefault(k, []).append("it lies behind its wall, on the camera's side")
     for k in flags:
         out[k] = replace(out[k], uncertainty=_widened(out[k].uncertainty))
     return out, FacadeModel(walls, flags)
@@ -506,27 +509,27 @@ def complete_partial(r: WindowResult, wall: WallModel, results: list[WindowResul
     R = np.asarray(R, dtype=np.float64)
     a, b, w, h = _on_wall(r, R)
     cut = set(r.partial.cut)
-    edges = ", ".join(r.partial.cut)
+    edges = edges_words(r.partial.cut)
     members = [_on_wall(results[k], R) for k in wall.members]
     if {"left", "right"} <= cut or {"top", "bottom"} <= cut:
-        return Unavailable(f"cut by the photo's {edges} edges: too little of it is seen to complete it")
+        return Unavailable(f"cut by {edges}: too little of it is seen to complete it")
     a1, b1, w1, h1 = a, b, w, h
     if cut & {"left", "right"}:
         row = [m[2] for m in members if _overlap(m[1], m[1] + m[3], b, b + h) >= ROW_OVERLAP]
         if not row:
-            return Unavailable(f"cut by the photo's {edges} edge, with no whole window in its row to complete it from")
+            return Unavailable(f"cut by {edges}, with no whole window in its row to complete it from")
         w1 = float(np.median(row))
         if w > COMPLETE_SLACK * w1:
-            return Unavailable(f"cut by the photo's {edges} edge, yet wider than the whole windows of its row")
+            return Unavailable(f"cut by {edges}, yet wider than the whole windows of its row")
         w1 = max(w1, w)
         a1 = a + w - w1 if "left" in cut else a
     if cut & {"top", "bottom"}:
         col = [m[3] for m in members if _overlap(m[0], m[0] + m[2], a1, a1 + w1) >= ROW_OVERLAP]
         if not col:
-            return Unavailable(f"cut by the photo's {edges} edge, with no whole window in its column to complete it from")
+            return Unavailable(f"cut by {edges}, with no whole window in its column to complete it from")
         h1 = float(np.median(col))
         if h > COMPLETE_SLACK * h1:
-            return Unavailable(f"cut by the photo's {edges} edge, yet taller than the whole windows of its column")
+            return Unavailable(f"cut by {edges}, yet taller than the whole windows of its column")
         h1 = max(h1, h)
         b1 = b + h - h1 if "bottom" in cut else b
     t = np.asarray(r.t, dtype=np.float64).reshape(3) + (a1 - a) * R[:, 0] + (b1 - b) * R[:, 1]
@@ -540,8 +543,8 @@ def partial_flags(r: WindowResult, wall: WallModel, known: Known) -> list[str]:
     of its wall (:func:`size_limits`) (its size is its row's or column's, compared with no median)."""
     max_h, max_w, why_max = size_limits(known, wall.assumed)
     h, w = float(r.height_m), float(r.aspect_ratio) * float(r.height_m)
-    return ([f"size: height {h:.3g} m above {max_h:.3g} m ({why_max})"] if h > max_h else []) + \
-           ([f"size: width {w:.3g} m above {max_w:.3g} m ({why_max})"] if w > max_w else [])
+    return ([f"too tall for a window ({metres(h)}, more than {metres(max_h)}: {why_max})"] if h > max_h else []) + \
+           ([f"too wide for a window ({metres(w)}, more than {metres(max_w)}: {why_max})"] if w > max_w else [])
 
 
 def place_partials(results: list[WindowResult], model: FacadeModel, visible: dict, K: np.ndarray,

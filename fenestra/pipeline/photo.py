@@ -309,7 +309,8 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
                         written: set[int] | None = None) -> dict:
     """windows.json's data of a pipeline.session.Reconstruction (a new dict; pure): ``K``,
     ``K_source``, ``image_size``, ``config``, ``walls``, ``scale``, ``windows`` (per window its
-    stage results as the model holds it plus ``plausible``, ``flags``, ``scale_source``,
+    stage results as the model holds it plus ``failure_message`` (the failure in the user's
+    words: pipeline.messages), ``plausible``, ``flags``, ``scale_source``,
     ``scale_assumed``, ``K_source``, ``aspect_interval`` (of the measured window), ``confidence``,
     the row regularization's fields (:func:`row_fields`), ``exported``: the export decision (and,
     with ``written`` the indices whose model was written, only those), None when no model is made
@@ -324,7 +325,8 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
     assumed = [w.id for w in model.walls if w.assumed]
     windows = []
     for win, w, line in zip(rec.windows, doc["windows"], window_lines(rec, export, written)):
-        windows.append({**w, "plausible": line.plausible, "flags": list(line.flags), "confidence": line.confidence,
+        windows.append({**w, "failure_message": line.failure_message, "plausible": line.plausible,
+                        "flags": list(line.flags), "confidence": line.confidence,
                         "K_source": line.K_source, "exported": line.exported, "not_exported": line.not_exported,
                         "aspect_interval": None if line.aspect_interval is None else list(line.aspect_interval),
                         "scale_source": line.scale_source, "scale_assumed": line.scale_assumed,

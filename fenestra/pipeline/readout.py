@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fenestra.pipeline.messages import failure_message
 from fenestra.pipeline.types import WindowResult
 
 STATUS_WORDS = {True: "in the model", False: "not in the model", None: "no model made"}
@@ -49,6 +50,7 @@ class WindowLine:
     scale_source: str | None
     scale_assumed: bool | None
     failure: str | None
+    failure_message: str | None
     flags: tuple[str, ...]
     not_exported: str | None
     exported: bool | None
@@ -69,14 +71,14 @@ class WindowLine:
 
     @property
     def reasons(self) -> tuple[str, ...]:
-        """The failure, the flags and why it is not exported, in that order, each said once (a
-        reason another one already says, word for word, is not repeated)."""
-        out: list[str] = []
-        for p in (self.failure, *self.flags, self.not_exported):
-            if not p or any(p in q for q in out):
-                continue
-            out = [q for q in out if q not in p] + [p]
-        return tuple(out)
+        """Why it is not (or not plainly) in the model, in the user's words, each said once: the
+        failure's sentence; else the flags; else why the export decision keeps it out (which, for
+        a failed or flagged window, only repeats them)."""
+        if self.failure_message:
+            return (self.failure_message,)
+        if self.flags:
+            return self.flags
+        return (self.not_exported,) if self.not_exported else ()
 
 
 @dataclass(frozen=True)
@@ -192,7 +194,9 @@ def window_lines(rec, export_models: bool = True, written: set[int] | None = Non
             wall=win.wall, K_source=rec.resolved.source,
             scale_source=None if wall is None else wall.scale_source,
             scale_assumed=None if wall is None else bool(wall.assumed),
-            failure=None if r.failure is None else str(r.failure), flags=flags, not_exported=win.export.reason,
+            failure=None if r.failure is None else str(r.failure),
+            failure_message=None if r.failure is None else failure_message(r.failure, () if r.partial is None else r.partial.cut),
+            flags=flags, not_exported=win.export.reason,
             exported=(win.export.exported and (written is None or k in written)) if export_models else None,
             partial=r.partial is not None, cut=() if r.partial is None else tuple(r.partial.cut),
             visible_fraction=None if r.partial is None else r.partial.visible_fraction,
