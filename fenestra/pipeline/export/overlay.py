@@ -21,6 +21,7 @@ import numpy as np
 from fenestra.checks import check_image, check_K
 from fenestra.conventions import project
 from fenestra.pipeline.export.geometry import place
+from fenestra.pipeline.messages import edges_words, failure_message
 from fenestra.pipeline.types import Unavailable, WindowResult
 
 COLOURS = {"mask": (255, 220, 0), "snapped": (255, 0, 255), "reprojected": (0, 230, 0),
@@ -93,14 +94,15 @@ def _draw_3d(img, K, result, thick, depth_m: float = 0.07):
 def _status(r: WindowResult, exclude: dict[int, str]) -> tuple[str, str]:
     """("exported" | "flagged" | "failed", one line) for the panel and the colour."""
     if r.failure:
-        return "failed", str(r.failure)
+        return "failed", failure_message(r.failure, () if r.partial is None else r.partial.cut)
     if r.index in exclude:
         return "flagged", exclude[r.index]
     placed = place(r)
     if isinstance(placed, Unavailable):
         return "failed", placed.reason
     if r.partial is not None:
-        return "exported", (f"partial, cut by the {', '.join(r.partial.cut)} edge: visible "
+        seen = "" if r.partial.visible_fraction is None else f", {100 * r.partial.visible_fraction:.0f} % seen"
+        return "exported", (f"partial (cut by {edges_words(r.partial.cut)}{seen}): "
                             f"{placed.width_m:.2f} x {placed.height_m:.2f} m")
     return "exported", f"{placed.width_m:.2f} x {placed.height_m:.2f} m, w/h {r.aspect_ratio:.3f}"
 
