@@ -9,7 +9,9 @@
              tables); bench never imports reports (the CLI hands bench the report writer)
     app: the top floor, the composition root (fenestra/app/cli.py: the `fenestra` command line
          registers every stage's commands): it may import every floor, and no floor imports it
-    tools: lab scripts (tools/*.py, not installed): every floor but app; nothing imports them
+    lab: the repository's lab (lab/, not installed: data scripts, weight shipping, the results
+         docs): every floor but app; the package never imports it
+    tools: measuring scripts (tools/*.py, not installed): every floor but app, and lab; nothing imports them
 
 The ground floor is the modules directly in fenestra/ (conventions, tolerances, checks, the data
 contracts): they import nothing above it, with no exception but the package's ``__init__``, the
@@ -36,9 +38,11 @@ ALLOWED: dict[str, set[str]] = {
     "bench": {"fenestra", "scenes", "renders", "pipeline"},
     "reports": {"fenestra", "scenes", "renders", "pipeline", "bench"},
     "app": {"fenestra", "scenes", "renders", "pipeline", "training", "bench", "reports"},
-    "tools": {"fenestra", "scenes", "renders", "pipeline", "training", "bench", "reports"},
+    "lab": {"fenestra", "scenes", "renders", "pipeline", "training", "bench", "reports"},
+    "tools": {"fenestra", "scenes", "renders", "pipeline", "training", "bench", "reports", "lab"},
 }
-FLOORS = set(ALLOWED) - {"fenestra", "tools"}  # the subpackages of fenestra
+OUTSIDE = {"tools", "lab"}  # top-level folders of the checkout, not installed
+FLOORS = set(ALLOWED) - {"fenestra"} - OUTSIDE  # the subpackages of fenestra
 # the package's two doors: the public API (imported lazily) and `python -m fenestra` (the command line)
 FACADE = {"fenestra/__init__.py": {"pipeline"}, "fenestra/__main__.py": {"app"}}
 
@@ -49,7 +53,7 @@ def floor_of(module: str) -> str | None:
     outside fenestra."""
     parts = module.split(".")
     if parts[0] != "fenestra":
-        return "tools" if parts[0] == "tools" else None
+        return parts[0] if parts[0] in OUTSIDE else None
     return parts[1] if len(parts) > 1 and parts[1] in FLOORS else "fenestra"
 
 
@@ -77,8 +81,8 @@ def floor_files(floor: str) -> list[Path]:
     """The Python files of one floor."""
     if floor == "fenestra":
         return sorted(PACKAGE.glob("*.py"))
-    if floor == "tools":
-        return sorted((ROOT / "tools").glob("*.py"))
+    if floor in OUTSIDE:
+        return sorted((ROOT / floor).rglob("*.py"))
     return sorted((PACKAGE / floor).rglob("*.py"))
 
 
@@ -101,13 +105,13 @@ def test_one_installed_package():
 def test_app_is_the_top_floor():
     """app may import every floor, nothing may import app (tools/ included), and every folder of
     Python files in the package has a row."""
-    assert ALLOWED["app"] == set(ALLOWED) - {"app", "tools"}
+    assert ALLOWED["app"] == set(ALLOWED) - {"app"} - OUTSIDE
     assert not [p for p, deps in ALLOWED.items() if "app" in deps]
     assert [f for f, deps in FACADE.items() if "app" in deps] == ["fenestra/__main__.py"]
     folders = {d.name for d in PACKAGE.iterdir() if d.is_dir() and any(d.glob("*.py"))}
     assert folders <= FLOORS, sorted(folders - FLOORS)
     top = {d.name for d in ROOT.iterdir() if d.is_dir() and not d.name.startswith(".") and any(d.glob("*.py"))}
-    assert top <= {"fenestra", "tools", "tests", "examples"}, sorted(top)
+    assert top <= {"fenestra", "lab", "tools", "tests", "examples"}, sorted(top)
 
 
 def test_table_has_no_cycle():

@@ -476,6 +476,7 @@ def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall:
 
 COMPLETE_SLACK = 1.15  # a visible part may exceed its row's (column's) typical whole window by this factor
 ROW_OVERLAP = 0.5  # a whole window is in a partial one's row (column) when they overlap by this share of the smaller
+ALIGN_FRAC = 0.1  # a whole window is in a top- (bottom-) cut one's row when their sills (heads) agree within this share of its height
 
 
 def _overlap(lo_a: float, hi_a: float, lo_b: float, hi_b: float) -> float:
@@ -499,7 +500,8 @@ def complete_partial(r: WindowResult, wall: WallModel, results: list[WindowResul
     Cut by the left or right edge: its width becomes the median width of the whole windows of its
     row (the wall's members whose vertical extent overlaps its own by ROW_OVERLAP), its side on the
     photo kept; cut by the top or bottom edge: its height becomes the median height of its
-    column's (horizontal overlap). Args: r, the partial window (R, t, height_m, aspect_ratio: its
+    column's (horizontal overlap), else of its row's (the whole windows whose sill, for a top cut,
+    or head, for a bottom cut, is level with its own within ALIGN_FRAC of their height). Args: r, the partial window (R, t, height_m, aspect_ratio: its
     visible extent); wall, its wall; results, every window (the members' poses); R (3, 3), the
     wall's axes; K (3, 3) px. Returns the completed WindowResult (pose, size and reprojected quad
     of the whole window; ``partial.visible_fraction``: the share of its area in the photo), or why
@@ -525,8 +527,11 @@ def complete_partial(r: WindowResult, wall: WallModel, results: list[WindowResul
         a1 = a + w - w1 if "left" in cut else a
     if cut & {"top", "bottom"}:
         col = [m[3] for m in members if _overlap(m[0], m[0] + m[2], a1, a1 + w1) >= ROW_OVERLAP]
+        if not col:  # its row: the whole windows whose edge on its uncut side (sill or head) is level with its own
+            col = [m[3] for m in members if abs((m[1] if "top" in cut else m[1] + m[3]) - (b if "top" in cut else b + h))
+                   <= ALIGN_FRAC * m[3]]
         if not col:
-            return Unavailable(f"cut by {edges}, with no whole window in its column to complete it from")
+            return Unavailable(f"cut by {edges}, with no whole window in its column or row to complete it from")
         h1 = float(np.median(col))
         if h > COMPLETE_SLACK * h1:
             return Unavailable(f"cut by {edges}, yet taller than the whole windows of its column")
