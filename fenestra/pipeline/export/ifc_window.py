@@ -9,8 +9,8 @@ Types by size. A BIM modeller keeps one window type per window product: the wind
 that are one size (their measured width and height within TYPE_SIZE_REL of each other: the
 measurement's own spread, row_lines' agreement) are one type, its body built once at their median
 size (:func:`type_sizes`), and each window maps that body (IfcMappedItem) scaled to its own measured
-width and height (IfcCartesianTransformationOperator3DnonUniform; at most TYPE_SIZE_REL, so the
-lining's section changes by under that share): the type carries the geometry, every window fills
+width and height (IfcCartesianTransformationOperator3DnonUniform; by about TYPE_SIZE_REL at most,
+so the lining's section changes by about that share: 5 mm of 50 mm): the type carries the geometry, every window fills
 its opening exactly. Windows of another size get another type.
 
 The body (``ifcopenshell.api.geometry.add_window_representation``): IfcExtrudedAreaSolids for the
@@ -30,7 +30,7 @@ import numpy as np
 
 from fenestra.pipeline.export.geometry import COVERING_THICKNESS_M
 
-TYPE_SIZE_REL = 0.05  # windows whose widths and heights agree within this share are one window type
+TYPE_SIZE_REL = 0.10  # windows whose widths and heights agree within this share are one window type
 LINING_M = 0.05  # lining thickness and depth, frame thickness (a timber window's section)
 FRAME_DEPTH_M = 0.035
 LINING_SHARE = 0.08  # ... at most this share of the window's shorter side
@@ -52,16 +52,20 @@ class TypeSize:
 
 def type_sizes(placed, rel: float = TYPE_SIZE_REL) -> dict[int, TypeSize]:
     """{window index: TypeSize} of ``placed`` (objects with ``index``, ``width_m``, ``height_m``):
-    taken by descending area, a window joins the first type whose first window's width and height
-    are both within ``rel`` of its own, else starts a type; each type's size is its windows' median."""
+    repeatedly, the window with the most others within ``rel`` of its width and height (ties: the
+    lower index) makes a type of itself and those not yet typed; each type's size is its windows'
+    median; types are numbered by their first window's index."""
+    left = sorted(placed, key=lambda p: p.index)
+
+    def near(a, b) -> bool:
+        return abs(b.width_m / a.width_m - 1) <= rel and abs(b.height_m / a.height_m - 1) <= rel
+
     groups: list[list] = []
-    for pw in sorted(placed, key=lambda p: (-p.width_m * p.height_m, p.index)):
-        host = next((g for g in groups if abs(pw.width_m / g[0].width_m - 1) <= rel
-                     and abs(pw.height_m / g[0].height_m - 1) <= rel), None)
-        if host is None:
-            groups.append([pw])
-        else:
-            host.append(pw)
+    while left:
+        seed = max(left, key=lambda a: (sum(near(a, b) for b in left), -a.index))
+        group = [b for b in left if near(seed, b)]
+        groups.append(group)
+        left = [b for b in left if b not in group]
     groups.sort(key=lambda g: min(p.index for p in g))
     out = {}
     for key, g in enumerate(groups):
