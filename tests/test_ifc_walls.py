@@ -129,6 +129,9 @@ def test_two_walls_one_per_facade_plane_each_window_in_its_own(model):
         assert filled == [i for i, v in enumerate(VOIDS) if v[0] == side]
     psets = ifcopenshell.util.element.get_psets(walls["A"])["Fenestra_Wall"]
     assert psets["MergedWalls"] == "0, 2" and psets["CornerWith"] == walls["B"].Name
+    (joint,) = ifc.by_type("IfcRelConnectsPathElements")  # A starts at the corner (x from it), B ends there
+    ends = {joint.RelatingElement.id(): joint.RelatingConnectionType, joint.RelatedElement.id(): joint.RelatedConnectionType}
+    assert ends == {walls["A"].id(): "ATSTART", walls["B"].id(): "ATEND"}
 
 
 def test_the_walls_meet_at_the_corner_and_end_where_the_photo_does(model):

@@ -27,7 +27,8 @@ z = 0, the camera above the origin looking along +y). The file holds
                        IfcMaterialLayerSetUsage on the wall;
                        Qto_WallBaseQuantities (Length, Height, Width, GrossSideArea, NetSideArea =
                        gross - the openings' union, GrossVolume, NetVolume); Fenestra_Wall (the
-                       given properties, MergedWalls, CornerWith)
+                       given properties, MergedWalls, CornerWith); two walls meeting at a corner
+                       are joined by an IfcRelConnectsPathElements (the ends that meet there)
     IfcCovering        CLADDING "Photo façade <wall>", COVERING_THICKNESS_M thick in front of the
                        wall (its outer face is the photographed plane), related to its wall by
                        IfcRelCoversBldgElements, in the wall's storey: the closed, gridded
@@ -430,6 +431,7 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
     lib = _Library(f, contexts["body"], style, texture_file, thickness_m)
     ids: dict[int, dict] = {}
     sizes = type_sizes(placed)
+    built: dict[int, tuple] = {}  # wall id: (IfcWall, {the id of a wall it meets at a corner: its end there})
     for fw in facade_walls(placed, walls, K, (layout.photo_width, layout.photo_height), margin_m):
         storey = storeys[min(levels.row_of.get(pw.index, 0) for pw in fw.members)]
         wall = _wall(f, contexts, storey, fw.frame, list(fw.holes), f"Wall {fw.id}", lib.wall_type, fw.margin_m,
@@ -439,11 +441,19 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
         if not fw.own:
             _add_pset(f, wall, "Fenestra_Wall", {**(wall_properties or {}).get(fw.id, {}),
                                                  "MergedWalls": ", ".join(map(str, fw.merged_from)),
-                                                 "CornerWith": ", ".join(f"Wall {c}" for c in fw.corners) or None})
+                                                 "CornerWith": ", ".join(f"Wall {c}" for c, _ in fw.corners) or None})
+            built[fw.id] = (wall, dict(fw.corners))
         for pw in fw.members:
             ids[pw.index] = {"wall": wall.GlobalId, "covering": covering.GlobalId,
                              **_window_in_wall(f, contexts["body"], storeys[levels.row_of.get(pw.index, 0)], wall, pw,
                                                lib, sizes[pw.index], thickness_m, (properties or {}).get(pw.index))}
+    for a, (wall_a, ends_a) in built.items():  # each corner once, as IFC's path connection of two walls
+        for b, end_a in ends_a.items():
+            if a < b:
+                f.createIfcRelConnectsPathElements(
+                    GlobalId=ifcopenshell.guid.new(), Name="Corner", RelatingElement=wall_a, RelatedElement=built[b][0],
+                    RelatingPriorities=(), RelatedPriorities=(), RelatingConnectionType=end_a,
+                    RelatedConnectionType=built[b][1][a])
     stamp_provenance(f, Path(path).name)
     write_ifc_file(f, path)
     return ids

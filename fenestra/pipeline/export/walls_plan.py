@@ -51,7 +51,8 @@ class FacadeWall:
     photographed plane); members: its windows (in the wall's axes when ``own`` is False); holes:
     their voids in ``frame``'s coordinates, (x0, y0, x1, y1) m; margin_m: how far the wall's
     outline reaches beyond [0, w] x [0, h] (0 for a façade plane); own: a window's fragment;
-    merged_from: the wall ids it joins (one plane); corners: the ids of the walls it meets at a corner."""
+    merged_from: the wall ids it joins (one plane); corners: ((the id of a wall it meets at a corner,
+    which end of this wall is there: "ATSTART" x = 0 or "ATEND" x = width_m), ...)."""
 
     id: int
     frame: PlacedWindow
@@ -241,16 +242,15 @@ def facade_walls(placed: list[PlacedWindow], walls: dict[int, int] | None, K: np
     at the size the texture's photo region has."""
     planes, own = _planes(placed, walls)
     extents = [visible_extent(frame, members, K, image_size) for _, _, frame, members in planes]
-    corners: list[list[int]] = [[] for _ in planes]
+    corners: list[list[tuple[int, str]]] = [[] for _ in planes]
     for i in range(len(planes)):
         for j in range(i + 1, len(planes)):
             c = corner(planes[i][2], planes[i][3], planes[j][2], planes[j][3], K, image_size)
             if c is None:
                 continue
-            for k, x, side in ((i, c[0], c[1]), (j, c[2], c[3])):
+            for k, other, x, side in ((i, j, c[0], c[1]), (j, i, c[2], c[3])):
                 extents[k][2 if side < 0 else 0] = x  # the wall ends on the corner line
-            corners[i].append(planes[j][0])
-            corners[j].append(planes[i][0])
+                corners[k].append((planes[other][0], "ATEND" if side < 0 else "ATSTART"))
     out = []
     for (wid, merged, ref, members), (x0, y0, x1, y1), met in zip(planes, extents, corners):
         frame = replace(ref, index=wid, width_m=float(x1 - x0), height_m=float(y1 - y0),
