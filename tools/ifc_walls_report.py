@@ -63,8 +63,7 @@ def photo_row(folder: Path) -> dict:
 
     doc = json.loads((folder / "windows.json").read_text()) if (folder / "windows.json").is_file() else {}
     exported = {w["index"] for w in doc.get("windows", []) if w.get("exported")}
-    fit = sorted({g for w in doc.get("walls", []) if set(w["windows"] if "windows" in w else
-                                                           w["members"] + w.get("partial", [])) & exported
+    fit = sorted({g for w in doc.get("walls", []) if set(w["members"] + w.get("partial", [])) & exported
                   for g in w["merged_from"]})
     row = {"photo": folder.name, "fit": len(fit)}
     ifc_path = folder / "model.ifc"
