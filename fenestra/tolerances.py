@@ -47,6 +47,14 @@ class Tolerances:
     # lives beside it): the exported whole windows of one export.json storey row that agreed with
     # their row's sill and head lines have heights within this share of their median (the issue's target)
     row_height_spread_rel: float = 0.05
+    # model.ifc's walls (pipeline.export.walls_plan): two fitted walls are one façade plane, and one
+    # IfcWall, when their normals agree within facade_plane_deg and their planes' distances from the
+    # camera within facade_plane_offset_rel of the nearer one (a setback of a neighbouring building
+    # at 20 m is 0.6 m); otherwise each is a wall of its own, and two walls whose corner line the
+    # photo shows meet there within corner_meet_m (tests/test_ifc_walls.py, exact corner scene)
+    facade_plane_deg: float = 3.0
+    facade_plane_offset_rel: float = 0.03
+    corner_meet_m: float = 0.01
 
 
 TOL = Tolerances()

@@ -279,14 +279,31 @@ def test_the_photo_is_on_a_textured_cladding_covering(model):
         assert c.CoversElements[0].RelatingBuildingElement.is_a("IfcWall")
 
 
+def photo_on_facade() -> np.ndarray:
+    """Where the rays through the photo's four corners (pixel edges -0.5, W - 0.5, H - 0.5) meet the
+    façade plane z = 0, (4, 2) m in the façade frame: this file's own ray casting."""
+    corners = np.array([[-0.5, -0.5, 1], [IMG_W - 0.5, -0.5, 1], [IMG_W - 0.5, IMG_H - 0.5, 1], [-0.5, IMG_H - 0.5, 1]])
+    d = (np.linalg.inv(K) @ corners.T).T @ R_F  # ray directions in the façade frame
+    s = -EYE[2] / d[:, 2]
+    assert np.all(s > 0)  # every corner's ray meets the wall
+    return (EYE + s[:, None] * d)[:, :2]
+
+
 def _expected_wall_quantities() -> dict[str, dict]:
-    """Length, height and areas of both walls from VOIDS: the fitted wall spans its windows' voids
-    + 1 m (its margin: min(1 m, its tallest window)), the own fragment its void + 1 m."""
+    """Length, height and areas of both walls from VOIDS: the fitted wall spans the photo's view of
+    its plane (photo_on_facade's bounding box) from the ground (SILL_HEIGHT_M below row 0's median
+    sill) up; the own fragment its void + 1 m."""
     out = {}
+    row0 = np.median([VOIDS[i][1] for i in range(len(VOIDS)) if ROWS[i] == 0])
+    seen = photo_on_facade()
     for name, idx in (("Wall 7", range(9)), ("Wall 9", [9])):
         v = np.array([VOIDS[i] for i in idx])
-        length = (v[:, 0] + v[:, 2]).max() - v[:, 0].min() + 2.0
-        height = (v[:, 1] + v[:, 3]).max() - v[:, 1].min() + 2.0
+        if name == "Wall 7":
+            length = seen[:, 0].max() - seen[:, 0].min()
+            height = seen[:, 1].max() - (row0 - SILL_HEIGHT_M)
+        else:
+            length = (v[:, 0] + v[:, 2]).max() - v[:, 0].min() + 2.0
+            height = (v[:, 1] + v[:, 3]).max() - v[:, 1].min() + 2.0
         out[name] = {"Length": length, "Height": height, "Width": 0.30, "GrossSideArea": length * height,
                      "NetSideArea": length * height - (v[:, 2] * v[:, 3]).sum()}
     return out
@@ -303,20 +320,21 @@ def test_quantities_equal_the_hand_computed_ones(model):
         assert (q["Width"], q["Height"], q["Area"]) == pytest.approx((w, h, w * h), abs=1e-9)
 
 
-def test_window_types_by_size_class_with_glass_and_frame(model):
+def test_window_types_by_size_with_glass_and_frame(model):
+    """One IfcWindowType per window size (VOIDS has three: 1.2 x 1.5, 2.4 x 1.5, 0.8 x 1.0 m)."""
     _, manifest, ifc = model
-    classes = {}
+    types = {}
     for i, (_, _, w, h) in enumerate(VOIDS):
         wtype = ifcopenshell.util.element.get_type(_window(ifc, i))
-        expected = "small" if w * h < 1.0 else "medium" if w * h < 2.5 else "large"
-        assert wtype.is_a("IfcWindowType") and wtype.Name == f"casement-white {expected}", i
-        classes.setdefault(expected, set()).add(wtype.id())
+        assert wtype.is_a("IfcWindowType") and wtype.Name == f"casement-white {w:.2f} x {h:.2f} m", i
+        types.setdefault((w, h), set()).add(wtype.id())
         constituents = ifcopenshell.util.element.get_material(wtype)
         assert constituents.is_a("IfcMaterialConstituentSet")
         assert {(c.Name, c.Material.Name) for c in constituents.MaterialConstituents} == \
             {("Framing", "Frame"), ("Glazing", "Glass")}
-    assert {k: len(v) for k, v in classes.items()} == {"small": 1, "medium": 1, "large": 1}
-    assert {e["index"]: e["window_type"] for e in manifest["exported"]}[1] == "casement-white large"
+    assert {k: len(v) for k, v in types.items()} == {(1.2, 1.5): 1, (2.4, 1.5): 1, (0.8, 1.0): 1}
+    assert len(ifc.by_type("IfcWindowType")) == 3
+    assert {e["index"]: e["window_type"] for e in manifest["exported"]}[1] == "casement-white 2.40 x 1.50 m"
 
 
 def test_site_georeference_from_gps(model):
@@ -359,8 +377,8 @@ def test_the_wall_tessellates_with_its_holes(model):
 
 
 def test_ifc_obj_and_glb_share_one_world(model):
-    """A window's void corners (bottom-left: its IFC placement's origin; top-right: that placement
-    applied to (w, h, 0)) are vertices of its frame in model.obj and, y-up turned back, in model.glb."""
+    """A window's void corners (bottom-left: its IFC placement's origin; top-right: that placement,
+    x along the wall, y into it, z up, applied to (w, 0, h)) are vertices of its frame in model.obj and, y-up turned back, in model.glb."""
     paths, _, ifc = model
     obj, name = {}, None
     for line in paths["obj"].read_text().splitlines():
@@ -371,7 +389,7 @@ def test_ifc_obj_and_glb_share_one_world(model):
     glb = {m.metadata.get("name"): m for m in trimesh.load(str(paths["glb"]), force="scene").dump(concatenate=False)}
     for i, (_, _, w, h) in enumerate(VOIDS):
         M = _abs_placement(_window(ifc, i))
-        corners = (M @ np.array([[0, 0, 0, 1], [w, h, 0, 1]], dtype=np.float64).T).T[:, :3]
+        corners = (M @ np.array([[0, 0, 0, 1], [w, 0, h, 1]], dtype=np.float64).T).T[:, :3]
         V_obj = np.asarray(obj[f"frame_{i}"])
         V_glb = np.asarray(glb[f"frame_{i}"].vertices) @ Z_TO_Y_UP  # (x, z, -y) -> (x, y, z)
         for c in corners:

@@ -177,9 +177,11 @@ def test_ifc_is_schema_valid(ifc):
 
 
 def _window_corners_px(window, manifest: dict) -> np.ndarray:
+    """The window's void corners TL TR BR BL in the photo: its placement is IFC's window frame
+    (x along the wall, y into it, z up), the origin at the void's bottom-left."""
     M = ifcopenshell.util.placement.get_local_placement(window.ObjectPlacement)
     w, h = window.OverallWidth, window.OverallHeight
-    local = np.array([[0, h, 0, 1], [w, h, 0, 1], [w, 0, 0, 1], [0, 0, 0, 1]], dtype=np.float64)
+    local = np.array([[0, 0, h, 1], [w, 0, h, 1], [w, 0, 0, 1], [0, 0, 0, 1]], dtype=np.float64)
     world = (local @ M.T)[:, :3]
     return pinhole(camera_points(manifest, world))
 

@@ -22,12 +22,13 @@ from fenestra.errors import PipelineError
 from fenestra.files import write_image
 from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, window_mesh
 from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, camera_to_world, gravity_up, grounded, place,
-                                               storey_levels, texture_layout, union_layout, upright, wall_groups,
-                                               wall_margin_m, WALL_THICKNESS_M)
+                                               storey_levels, texture_layout, union_layout, upright,
+                                               WALL_THICKNESS_M)
 from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
 from fenestra.pipeline.export.mesh import model_parts, write_glb, write_obj
 from fenestra.pipeline.export.overlay import draw_overlay
+from fenestra.pipeline.export.walls_plan import facade_walls
 from fenestra.pipeline.types import Unavailable, WindowResult
 
 DEFAULT_STYLE = "casement-white"  # the IFC/OBJ window body when no substitution style is chosen
@@ -154,8 +155,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
 
     def layout_of(K_tex: np.ndarray, shape: tuple[int, ...]):
         layout = texture_layout(K_tex, shape, placed)
-        for wall_pw, members in wall_groups(placed, walls):  # the fitted walls' slabs need their texture too
-            layout = union_layout(layout, texture_layout(K_tex, shape, [wall_pw], wall_margin_m(members)))
+        for wall in facade_walls(placed, walls, K_tex, (shape[1], shape[0])):  # the walls' slabs need it too
+            layout = union_layout(layout, texture_layout(K_tex, shape, [wall.frame], wall.margin_m))
         return layout
 
     photo_size = (image.shape[1], image.shape[0])

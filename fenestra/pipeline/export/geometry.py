@@ -148,14 +148,6 @@ def void_hole(pw: PlacedWindow) -> tuple[float, float, float, float]:
     return (0.0, 0.0, pw.width_m, pw.height_m)
 
 
-def hole_in(frame: PlacedWindow, pw: PlacedWindow) -> tuple[float, float, float, float]:
-    """The void of window ``pw`` in the frame of ``frame`` (a fitted wall's placement): the (x0, y0,
-    x1, y1) m rectangle around its corners (its members lie on that plane up to the merge tolerance)."""
-    xy = ((pw.to_camera(pw.void_corners()) - frame.t) @ frame.R)[:, :2]
-    (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
-    return (float(x0), float(y0), float(x1), float(y1))
-
-
 def wall_cell_m(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> float:
     """Grid cell size (m) for the wall's facade: WALL_CELL_FRACTION of the nearest corner's depth.
 
@@ -177,7 +169,7 @@ def wall_mesh(pw: PlacedWindow, voids=(), cut: bool = True, margin_m: float = WA
 
     Exterior face at z = 0, interior face at z = -thickness_m, outline = [0, w] x [0, h] of ``pw``
     + margin_m on every side. ``voids``: rectangles (x0, y0, x1, y1) m in that frame (:func:`void_hole`
-    of a window, :func:`hole_in` of a wall's windows); their edges and [0, w] x [0, h]'s are grid
+    of a window, walls_plan.member_rect of a wall's windows); their edges and [0, w] x [0, h]'s are grid
     lines. ``cut=True`` leaves the voids out, with reveal faces (OBJ/GLB); ``cut=False`` gives a
     solid slab (IFC, where an IfcOpeningElement cuts each void: clean booleans on grid lines). Faces
     wind counter-clockwise seen from outside the solid; a side face stands wherever a solid grid
@@ -306,34 +298,6 @@ def texture_layout(K: np.ndarray, image_shape: tuple[int, ...], placed: list[Pla
     cap = np.array([W, H, W, H]) * MAX_PAD_FRACTION
     pads = np.ceil(np.clip(pads, 0.0, cap)).astype(int)
     return TextureLayout(W, H, *map(int, pads))
-
-
-def wall_placement(wall_id: int, members: list[PlacedWindow]) -> PlacedWindow:
-    """A fitted wall as a PlacedWindow (``index`` = wall id): the rectangle in the plane of its first
-    member's frame that spans every member's void (their corners' x, y in that frame; members are
-    on that plane up to the merge tolerance). wall_mesh / facade_pixels / texture_layout take it."""
-    ref = members[0]
-    pts = np.concatenate([(m.to_camera(m.void_corners()) - ref.t) @ ref.R for m in members])  # (4n, 3) ref frame
-    (x0, y0), (x1, y1) = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
-    return replace(ref, index=int(wall_id), width_m=float(x1 - x0), height_m=float(y1 - y0),
-                   t=ref.t + ref.R @ np.array([x0, y0, 0.0]))
-
-
-def wall_groups(placed: list[PlacedWindow], walls: dict[int, int] | None) -> list[tuple[PlacedWindow, list[PlacedWindow]]]:
-    """[(the wall's placement, its windows)] by ``walls`` ({window index: wall id}); a window without
-    a wall id (or walls None) is a wall of its own (a PlacedWindow equal to the window)."""
-    groups: dict = {}
-    for pw in placed:
-        wid = None if walls is None else walls.get(pw.index)
-        groups.setdefault(("wall", wid) if wid is not None else ("own", pw.index), []).append(pw)
-    return [(wall_placement(key[1], members) if key[0] == "wall" else members[0], members)
-            for key, members in groups.items()]
-
-
-def wall_margin_m(members: list[PlacedWindow], margin_m: float = WALL_MARGIN_M) -> float:
-    """A fitted wall's margin beyond its windows: margin_m, at most its tallest window's height (a
-    1:25 model's wall does not get a 1 m border)."""
-    return float(min(margin_m, max(m.height_m for m in members)))
 
 
 def union_layout(a: TextureLayout, b: TextureLayout) -> TextureLayout:

@@ -12,8 +12,11 @@ z = 0, the camera above the origin looking along +y). The file holds
     IfcBuildingStorey  one per row of windows ("Storey 0", "Storey 1", ... from the bottom;
                        geometry.storey_rows), Elevation = its row's sill - SillHeightAssumed, placed
                        at (0, 0, Elevation) in the building; Fenestra_Storey (its sill height, windows)
-    IfcWall            per fitted wall (``walls``; else per window), contained in the lowest storey
-                       its windows are in: a standard wall a BIM tool edits as one: placement on
+    IfcWall            per façade plane (walls_plan.facade_walls: the fitted walls of ``walls``
+                       merged only when one plane; each as far as the photo shows its plane, from
+                       the ground up, two walls meeting at their corner line where the photo shows
+                       it; a window without a wall: a fragment, its void + margin), contained in
+                       the lowest storey its windows are in: a standard wall a BIM tool edits as one: placement on
                        its bottom-left exterior corner (x along the wall, z its up axis), Axis
                        (IfcPolyline along x) and Body = IfcExtrudedAreaSolid of an
                        IfcRectangleProfileDef footprint (length x thickness) extruded up by its
@@ -23,7 +26,9 @@ z = 0, the camera above the origin looking along +y). The file holds
                        with an IfcMaterialLayerSet (one "Wall" layer, WALL_THICKNESS_M) ->
                        IfcMaterialLayerSetUsage on the wall;
                        Qto_WallBaseQuantities (Length, Height, Width, GrossSideArea, NetSideArea =
-                       gross - the openings' union, GrossVolume, NetVolume); Fenestra_Wall when given
+                       gross - the openings' union, GrossVolume, NetVolume); Fenestra_Wall (the
+                       given properties, MergedWalls, CornerWith); two walls meeting at a corner
+                       are joined by an IfcRelConnectsPathElements (the ends that meet there)
     IfcCovering        CLADDING "Photo façade <wall>", COVERING_THICKNESS_M thick in front of the
                        wall (its outer face is the photographed plane), related to its wall by
                        IfcRelCoversBldgElements, in the wall's storey: the closed, gridded
@@ -34,13 +39,18 @@ z = 0, the camera above the origin looking along +y). The file holds
                        photo is the façade's finish, which is what IFC's cladding covering is.
     IfcOpeningElement  per window: IfcExtrudedAreaSolid of the void's rectangle through covering and
                        wall (+ OPENING_OVERSHOOT_M each side), voiding the wall (IfcRelVoidsElement);
-                       placed relative to the wall, and not in a storey itself (IFC4: an opening is
+                       in the wall's axes (the window's measured size about its centre on the
+                       wall's plane: walls_plan.aligned), so square to the wall; placed relative to the wall, and not in a storey itself (IFC4: an opening is
                        never spatially contained; it belongs to its window's storey through the
                        window it holds)
-    IfcWindow          OverallWidth/OverallHeight = void size, frame + glass body from the
-                       catalogue (scaled down to fit a small void), filling the opening
-                       (IfcRelFillsElement), contained in its row's storey; typed by an
-                       IfcWindowType per (catalogue style, size class: :func:`size_class`) with an
+    IfcWindow          OverallWidth/OverallHeight = void size, PredefinedType WINDOW, placed in its
+                       wall's axes (x along, y into the wall, z up) at the void's bottom-left,
+                       filling the opening (IfcRelFillsElement), contained in its row's storey;
+                       Body: its type's parametric body (ifc_window: SweptSolid lining, frames and
+                       glass) mapped and scaled to its measured size; typed by an IfcWindowType per
+                       window size (ifc_window.type_sizes; PredefinedType WINDOW, PartitioningType
+                       from the catalogue style: :func:`partitioning`, RepresentationMaps its body,
+                       Fenestra_WindowType with :func:`size_class`) with an
                        IfcMaterialConstituentSet (Framing: IfcMaterial "Frame", Glazing:
                        IfcMaterial "Glass", each styled in the style's colours);
                        Qto_WindowBaseQuantities (Width, Height, Area, Perimeter); Pset_WindowCommon
@@ -73,10 +83,12 @@ import ifcopenshell.util.geolocation
 import numpy as np
 
 from fenestra.files import write_ifc_file
-from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
+from fenestra.pipeline.catalogue import WindowStyle, get_style
 from fenestra.pipeline.export.geometry import (COVERING_THICKNESS_M, WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow,
-                                               StoreyLevels, TextureLayout, facade_pixels, hole_in, storey_levels,
-                                               void_hole, wall_groups, wall_margin_m, wall_mesh, wall_outline)
+                                               StoreyLevels, TextureLayout, facade_pixels, storey_levels, wall_mesh,
+                                               wall_outline)
+from fenestra.pipeline.export.ifc_window import TypeSize, mapped_body, type_sizes, window_body
+from fenestra.pipeline.export.walls_plan import facade_walls
 
 OPENING_OVERSHOOT_M = 0.01  # the opening box pokes out of both faces (covering's and wall's: clean booleans)
 # Window types by void area (m², at the model's scale): (name, upper bound), the first bound above the area wins.
@@ -338,7 +350,7 @@ def _wall(f, contexts, storey, wall_pw: PlacedWindow, voids: list, name: str, wa
 
 class _Library:
     """The file's shared definitions: materials, styles, the wall type and the window types (made
-    on first use, one per (style, size class))."""
+    on first use, one per window size: ifc_window.type_sizes)."""
 
     def __init__(self, f, body, style: WindowStyle, texture_file: str, thickness_m: float):
         self.f, self.style = f, style
@@ -363,16 +375,20 @@ class _Library:
         mat.assign_material(f, products=[self.wall_type], type="IfcMaterialLayerSet", material=layers)
         self.window_types: dict[str, object] = {}
 
-    def window_type(self, area_m2: float):
-        """The IfcWindowType of this style for a void of ``area_m2`` (m²): "<style> <size class>"."""
-        cls = size_class(area_m2)
-        if cls not in self.window_types:
+    def window_type(self, size: TypeSize, context):
+        """The IfcWindowType of this style for windows of ``size`` (ifc_window.type_sizes): "<style>
+        <w> x <h> m", its body (ifc_window.window_body, in ``context``) as its RepresentationMap."""
+        if size.key not in self.window_types:
             f, mat = self.f, ifcopenshell.api.material
+            cls = size_class(size.width_m * size.height_m)
             wtype = ifcopenshell.api.root.create_entity(f, ifc_class="IfcWindowType", predefined_type="WINDOW",
-                                                        name=f"{self.style.name} {cls}")
+                                                        name=f"{self.style.name} {size.width_m:.2f} x "
+                                                             f"{size.height_m:.2f} m")
             wtype.PartitioningType, user_defined = partitioning(self.style)
             if user_defined is not None:
                 wtype.UserDefinedPartitioningType = user_defined
+            wtype.RepresentationMaps = (window_body(f, context, size, wtype.PartitioningType, self.frame_style,
+                                                    self.glass_style),)
             constituents = mat.add_material_set(f, name=f"Window {self.style.name}",
                                                 set_type="IfcMaterialConstituentSet")
             mat.add_constituent(f, constituent_set=constituents, material=self.frame, name="Framing")
@@ -381,10 +397,10 @@ class _Library:
             bounds = dict(WINDOW_SIZE_CLASSES)
             lower = max([0.0] + [b for _, b in WINDOW_SIZE_CLASSES if b < bounds[cls]])
             _add_pset(f, wtype, "Fenestra_WindowType", {
-                "Style": self.style.name, "SizeClass": cls,
+                "Style": self.style.name, "SizeClass": cls, "Width": size.width_m, "Height": size.height_m,
                 "AreaRange": f"{lower:g} to {bounds[cls]:g} m2 (void area at the model's scale)"})
-            self.window_types[cls] = wtype
-        return self.window_types[cls]
+            self.window_types[size.key] = wtype
+        return self.window_types[size.key]
 
 
 def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layout: TextureLayout,
@@ -398,9 +414,10 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
 
     ``placed`` in the export world the OBJ/GLB use (geometry.grounded: ground at z = 0).
     ``texture_file`` is the texture's path relative to the IFC file (written by the caller).
-    walls: {window index: wall id}: one IfcWall per wall id spanning its windows (margin: see
-    geometry.wall_margin_m), each window's opening voiding it; None (or a window without an id):
-    a wall fragment per window. properties: {window index: {name: value}}, written as the
+    walls: {window index: wall id}: one IfcWall per façade plane (walls_plan.facade_walls: wall ids
+    on one plane merged; the extent the photo shows, from the ground up; cut at a corner with
+    another wall), each window's opening voiding it; None (or a window without an id): a wall
+    fragment per window (its void + ``margin_m``). K (3, 3): the texture's photo region's. properties: {window index: {name: value}}, written as the
     window's property set "Fenestra_Window" (with Pset_WindowCommon IsExternal); wall_properties:
     {wall id: {name: value}} as "Fenestra_Wall". levels: the storey rows (default
     geometry.storey_levels of ``placed``). gps: (latitude deg, longitude deg[, elevation m]) of the
@@ -413,20 +430,30 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
     f, contexts, storeys = _new_file("Fenestra reconstruction", levels, gps)
     lib = _Library(f, contexts["body"], style, texture_file, thickness_m)
     ids: dict[int, dict] = {}
-    for wall_pw, members in wall_groups(placed, walls):
-        own = len(members) == 1 and wall_pw is members[0]
-        voids = [void_hole(wall_pw)] if own else [hole_in(wall_pw, pw) for pw in members]
-        margin = margin_m if own else wall_margin_m(members, margin_m)
-        storey = storeys[min(levels.row_of.get(pw.index, 0) for pw in members)]
-        wall = _wall(f, contexts, storey, wall_pw, voids, f"Wall {wall_pw.index}", lib.wall_type, margin, thickness_m)
-        covering = _photo_covering(f, contexts["body"], storey, K, wall, wall_pw, voids, layout, lib.texture,
-                                   lib.wall_style, margin)
-        if not own and wall_properties and wall_pw.index in wall_properties:
-            _add_pset(f, wall, "Fenestra_Wall", wall_properties[wall_pw.index])
-        for pw in members:
+    sizes = type_sizes(placed)
+    built: dict[int, tuple] = {}  # wall id: (IfcWall, {the id of a wall it meets at a corner: its end there})
+    for fw in facade_walls(placed, walls, K, (layout.photo_width, layout.photo_height), margin_m):
+        storey = storeys[min(levels.row_of.get(pw.index, 0) for pw in fw.members)]
+        wall = _wall(f, contexts, storey, fw.frame, list(fw.holes), f"Wall {fw.id}", lib.wall_type, fw.margin_m,
+                     thickness_m)
+        covering = _photo_covering(f, contexts["body"], storey, K, wall, fw.frame, list(fw.holes), layout,
+                                   lib.texture, lib.wall_style, fw.margin_m)
+        if not fw.own:
+            _add_pset(f, wall, "Fenestra_Wall", {**(wall_properties or {}).get(fw.id, {}),
+                                                 "MergedWalls": ", ".join(map(str, fw.merged_from)),
+                                                 "CornerWith": ", ".join(f"Wall {c}" for c, _ in fw.corners) or None})
+            built[fw.id] = (wall, dict(fw.corners))
+        for pw in fw.members:
             ids[pw.index] = {"wall": wall.GlobalId, "covering": covering.GlobalId,
                              **_window_in_wall(f, contexts["body"], storeys[levels.row_of.get(pw.index, 0)], wall, pw,
-                                               lib, thickness_m, (properties or {}).get(pw.index))}
+                                               lib, sizes[pw.index], thickness_m, (properties or {}).get(pw.index))}
+    for a, (wall_a, ends_a) in built.items():  # each corner once, as IFC's path connection of two walls
+        for b, end_a in ends_a.items():
+            if a < b:
+                f.createIfcRelConnectsPathElements(
+                    GlobalId=ifcopenshell.guid.new(), Name="Corner", RelatingElement=wall_a, RelatedElement=built[b][0],
+                    RelatingPriorities=(), RelatedPriorities=(), RelatingConnectionType=end_a,
+                    RelatedConnectionType=built[b][1][a])
     stamp_provenance(f, Path(path).name)
     write_ifc_file(f, path)
     return ids
@@ -446,11 +473,13 @@ def stamp_provenance(f: ifcopenshell.file, file_name: str) -> None:
     h.originating_system = f"Fenestra {fenestra.__version__}"
 
 
-def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, lib: _Library, thickness_m: float,
+def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, lib: _Library, size: TypeSize, thickness_m: float,
                     props: dict | None) -> dict:
     """The opening voiding ``wall`` (IfcRelVoidsElement) and the IfcWindow filling it
-    (IfcRelFillsElement) in ``storey``, catalogue frame + glass (scaled to fit a small void),
-    typed by size class, with its quantities and psets."""
+    (IfcRelFillsElement) in ``storey``: ``pw`` in its wall's axes (walls_plan.aligned), so the
+    opening's box runs square through the wall; the window placed in the wall's axes (x along,
+    y into the wall, z up) at the void's bottom-left, its Body its type's (``size``) mapped and
+    scaled to its measured width and height; with its quantities and psets."""
     T = pw.export_matrix()
     e = OPENING_OVERSHOOT_M
     opening = ifcopenshell.api.root.create_entity(f, ifc_class="IfcOpeningElement", name=f"Void {pw.index}")
@@ -460,22 +489,25 @@ def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, lib: _Library, thic
                            COVERING_THICKNESS_M + thickness_m + 2 * e)
     ifcopenshell.api.geometry.assign_representation(
         f, product=opening, representation=f.createIfcShapeRepresentation(body, "Body", "SweptSolid", [box]))
-    mesh = window_mesh(lib.style, pw.width_m, pw.height_m)
-    items = []
-    for part, part_style in (("frame", lib.frame_style), ("glass", lib.glass_style)):
-        item = _faceset(f, *mesh.select(part))
-        ifcopenshell.api.style.assign_item_style(f, item=item, style=part_style)
-        items.append(item)
     window = ifcopenshell.api.root.create_entity(f, ifc_class="IfcWindow", predefined_type="WINDOW",
                                                  name=f"Window {pw.index} ({lib.style.name})")
     window.OverallWidth, window.OverallHeight = float(pw.width_m), float(pw.height_m)
     ifcopenshell.api.feature.add_filling(f, opening=opening, element=window)
     ifcopenshell.api.spatial.assign_container(f, products=[window], relating_structure=storey)
-    ifcopenshell.api.geometry.edit_object_placement(f, product=window, matrix=T)
+    axes = np.eye(4)
+    axes[:3, :3] = _WALL_AXES
+    ifcopenshell.api.geometry.edit_object_placement(f, product=window, matrix=T @ axes)
+    wtype = lib.window_type(size, body)
+    window.PartitioningType = wtype.PartitioningType
+    if wtype.UserDefinedPartitioningType is not None:
+        window.UserDefinedPartitioningType = wtype.UserDefinedPartitioningType
+    if wtype.Types:  # one IfcRelDefinesByType per type (not assign_type: it would map the body unscaled)
+        wtype.Types[0].RelatedObjects += (window,)
+    else:
+        f.createIfcRelDefinesByType(ifcopenshell.guid.new(), None, None, None, [window], wtype)
     ifcopenshell.api.geometry.assign_representation(
-        f, product=window, representation=f.createIfcShapeRepresentation(body, "Body", "Tessellation", items))
-    wtype = lib.window_type(pw.width_m * pw.height_m)
-    ifcopenshell.api.type.assign_type(f, related_objects=[window], relating_type=wtype)
+        f, product=window, representation=mapped_body(f, body, wtype.RepresentationMaps[0], size, pw.width_m,
+                                                      pw.height_m))
     _add_qto(f, window, "Qto_WindowBaseQuantities",
              {"Width": pw.width_m, "Height": pw.height_m, "Area": pw.width_m * pw.height_m,
               "Perimeter": 2.0 * (pw.width_m + pw.height_m)})

@@ -20,8 +20,8 @@ import numpy as np
 from fenestra.conventions import LIMITS
 from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
 from fenestra.pipeline.export.geometry import (COVERING_THICKNESS_M, WALL_MARGIN_M, WALL_THICKNESS_M, Z_UP_TO_Y_UP,
-                                               PlacedWindow, TextureLayout, facade_pixels, hole_in, void_hole,
-                                               wall_groups, wall_margin_m, wall_mesh)
+                                               PlacedWindow, TextureLayout, facade_pixels, wall_mesh)
+from fenestra.pipeline.export.walls_plan import facade_walls
 
 
 # A GLB's texture is at most this many px along its longer side: glTF viewers (WebGL) commonly
@@ -44,21 +44,19 @@ class MeshPart:
 def model_parts(K: np.ndarray, placed: list[PlacedWindow], layout: TextureLayout,
                 style: str | WindowStyle = "casement-white", margin_m: float = WALL_MARGIN_M,
                 thickness_m: float = WALL_THICKNESS_M, walls: dict[int, int] | None = None) -> list[MeshPart]:
-    """Wall, frame and glass parts, in the export world: one wall per fitted wall of ``walls``
-    ({window index: wall id}, as model.ifc's IfcWalls: ``wall_w<id>``) with a hole per window, and a
-    wall fragment of its own (``wall_<index>``) for a window without one; each window's frame and glass.
+    """Wall, frame and glass parts, in the export world: one wall per façade plane of ``walls``
+    ({window index: wall id}; walls_plan.facade_walls, as model.ifc's IfcWalls: ``wall_w<id>``) with
+    a hole per window, and a wall fragment of its own (``wall_<index>``) for a window without one;
+    each window's frame and glass (in its wall's axes).
     A wall slab is thickness_m + COVERING_THICKNESS_M thick (model.ifc's wall and photo cladding)."""
     style = get_style(style)
     parts = []
-    for wall_pw, members in wall_groups(placed, walls):
-        own = len(members) == 1 and wall_pw is members[0]
-        holes = [void_hole(wall_pw)] if own else [hole_in(wall_pw, pw) for pw in members]
-        V, F = wall_mesh(wall_pw, holes, True, margin_m if own else wall_margin_m(members, margin_m),
-                         thickness_m + COVERING_THICKNESS_M)
-        uv = layout.uv(facade_pixels(K, wall_pw, V[:, :2]))
-        parts.append(MeshPart(f"wall_{wall_pw.index}" if own else f"wall_w{wall_pw.index}", "photo",
-                              wall_pw.to_export(V), F, uv))
-        for pw in members:
+    for wall in facade_walls(placed, walls, K, (layout.photo_width, layout.photo_height), margin_m):
+        V, F = wall_mesh(wall.frame, wall.holes, True, wall.margin_m, thickness_m + COVERING_THICKNESS_M)
+        uv = layout.uv(facade_pixels(K, wall.frame, V[:, :2]))
+        parts.append(MeshPart(f"wall_{wall.id}" if wall.own else f"wall_w{wall.id}", "photo",
+                              wall.frame.to_export(V), F, uv))
+        for pw in wall.members:
             mesh = window_mesh(style, pw.width_m, pw.height_m)
             for part in ("frame", "glass"):
                 v, f = mesh.select(part)
