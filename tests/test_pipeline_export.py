@@ -23,7 +23,7 @@ from fenestra.errors import PipelineError
 from fenestra.pipeline.catalogue import CATALOGUE, window_mesh
 from fenestra.pipeline.export import write_outputs
 from fenestra.pipeline.export.substitute import substitute
-from fenestra.pipeline.types import WindowResult
+from fenestra.pipeline.types import Failure, WindowResult
 
 IMG_W, IMG_H = 640, 480
 K = K_from_fov(IMG_W, IMG_H, 65.0)
@@ -111,7 +111,7 @@ def window_result(i: int, height_m: float) -> WindowResult:
 def all_results() -> list[WindowResult]:
     good = [window_result(0, 1.0), window_result(1, 1.3)]  # window 0 at the 1 m default scale
     failed = WindowResult(2, 0.8, gt_quad(2), gt_quad(2), None, None, None, None, None, 1.0, None,
-                          "pose: solvePnP did not converge")
+                          Failure("pose", None, "solvePnP did not converge"))
     bad_R = WindowResult(3, 0.5, None, None, 1.0, "general", None, 2.0 * np.eye(3), np.array([0, 0, 5.0]),
                          1.0, None, None)
     behind = WindowResult(4, 0.5, None, None, 1.0, "general", None, np.eye(3), np.array([0, 0, -5.0]),
@@ -809,13 +809,13 @@ def test_gravity_argument_and_fallbacks():
         export_gravity(placed, None, [0, 0, 0])
 
 
-def _grid_results(n: int, reason: str = "quad: too small a window here, a long reason to wrap") -> list[WindowResult]:
+def _grid_results(n: int, detail: str = "too small a window here, a long reason to wrap") -> list[WindowResult]:
     """n failed windows on a 640 x 480 photo, ten per row, the first row touching the top edge."""
     out = []
     for i in range(n):
         x, y = 20 + (i % 10) * 60, (i // 10) * 75
         q = np.array([[x, y], [x + 40, y], [x + 40, y + 60], [x, y + 60]], dtype=np.float64)
-        out.append(WindowResult(i, 0.9, q, q, None, None, None, None, None, 1.0, None, reason))
+        out.append(WindowResult(i, 0.9, q, q, None, None, None, None, None, 1.0, None, Failure("quad", "too_small", detail)))
     return out
 
 

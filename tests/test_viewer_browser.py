@@ -194,7 +194,7 @@ def test_viewer_html_escapes_what_it_quotes(folders, results):
     from fenestra.pipeline.photo import ExportReport
 
     read = results["model"].readout()
-    w0 = replace(read.windows[0], failure="<script>x</script>")
+    w0 = replace(read.windows[0], failure="quad: x", failure_message="<script>x</script>")
     chosen = replace(read.resolved.chosen, detail="<i>")
     read = replace(read, photo="a<b>.jpg", windows=(w0, *read.windows[1:]),
                    resolved=replace(read.resolved, chosen=chosen), export=ExportReport(failure="ValueError: <bad>"))
