@@ -74,7 +74,7 @@ def model(tmp_path_factory):
     out = tmp_path_factory.mktemp("bim")
     photo = np.random.default_rng(0).integers(60, 200, (IMG_H, IMG_W, 3), dtype=np.uint8)
     paths = write_outputs(out, photo, K, window_results(), walls=WALLS, gps=GPS,
-                          wall_properties={7: {"windows": 9}})
+                          wall_properties={7: {"windows": 9}}, source="IMG_0042 façade.jpg")
     return paths, json.loads(paths["manifest"].read_text()), ifcopenshell.open(str(paths["ifc"]))
 
 
@@ -202,6 +202,23 @@ def test_the_header_names_the_file_and_what_wrote_it(model):
     assert h.preprocessor_version == f"IfcOpenShell {ifcopenshell.version}" and h.authorization == ""
     text = model[0]["ifc"].read_text()
     assert "/dev/null" not in text.split("ENDSEC;")[0] and "Nobody" not in text.split("ENDSEC;")[0]
+
+
+def test_an_application_owns_the_model_and_the_photo_is_named(model):
+    """One IfcOwnerHistory, created within the last minute by the IfcApplication Fenestra (its
+    version), owns every rooted entity; the header's description and the project name the photo."""
+    import time
+
+    import fenestra
+
+    ifc = model[2]
+    (app,) = ifc.by_type("IfcApplication")
+    assert app.ApplicationDeveloper.Name == "Fenestra" and app.Version == str(fenestra.__version__)
+    (history,) = ifc.by_type("IfcOwnerHistory")
+    assert history.OwningApplication == app and 0 <= time.time() - history.CreationDate < 600
+    assert all(e.OwnerHistory == history for e in ifc.by_type("IfcRoot"))
+    said = "reconstructed by Fenestra from the photo IMG_0042 façade.jpg"
+    assert said in ifc.header.file_description.description and ifc.by_type("IfcProject")[0].Description == said
 
 
 def test_one_storey_per_row_at_its_elevation(model):

@@ -365,7 +365,8 @@ def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoO
                                   walls={k: w.id for w in model.walls for k in w.windows},
                                   properties={w.index: window_properties(w) for w in read.windows},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False,
-                                  gps=gps_tuple(result.gps), thickness_m=options.wall_thickness_m)
+                                  gps=gps_tuple(result.gps), thickness_m=options.wall_thickness_m,
+                                  source=Path(result.photo).name)
         except (PipelineError, ValueError, OSError) as e:
             failure = f"{type(e).__name__}: {e}"
         else:

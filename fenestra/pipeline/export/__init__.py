@@ -105,7 +105,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                   walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
                   wall_properties: dict[int, dict] | None = None, overlay: bool = True,
                   gravity: Gravity | np.ndarray | bool = True, max_px: int = EXPORT_MAX_PX,
-                  gps: tuple | None = None, thickness_m: float = WALL_THICKNESS_M) -> dict[str, Path]:
+                  gps: tuple | None = None, thickness_m: float = WALL_THICKNESS_M,
+                  source: str | None = None) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
     image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
@@ -125,7 +126,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     model.ifc, model.obj and model.glb; export.json's ``world_frame.offset`` and ``storeys`` say so.
     gps: (latitude deg, longitude deg[, elevation m]) of the camera: model.ifc's site reference and
     map conversion (pipeline.export.ifc.write_ifc). thickness_m: the walls' thickness, m (model.ifc's
-    layer and extrusion, the OBJ/GLB slabs; export.json ``wall_thickness_m``).
+    layer and extrusion, the OBJ/GLB slabs; export.json ``wall_thickness_m``). source: the photo's
+    file name, which model.ifc's provenance names.
     Bounded cost: when the padded texture would exceed ``max_px`` (EXPORT_MAX_PX) along its longer
     side, the photo is inpainted and textured at the reduced size that fits (inpaint.capped_size;
     export.json's ``texture``: ``photo_width``/``photo_height``, the size the texture's photo
@@ -174,7 +176,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
         paths["texture"] = write_image(out / "texture.png", texture)
     ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K_tex, placed, layout, "texture.png", style,
                  walls=walls, properties=properties, wall_properties=wall_properties, levels=levels, gps=gps,
-                 thickness_m=thickness_m)
+                 thickness_m=thickness_m, source=source)
     paths["ifc"] = out / "model.ifc"
     parts = model_parts(K_tex, placed, layout, style, walls=walls, thickness_m=thickness_m)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")

@@ -408,7 +408,7 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
               margin_m: float = WALL_MARGIN_M, thickness_m: float = WALL_THICKNESS_M,
               walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
               wall_properties: dict[int, dict] | None = None, levels: StoreyLevels | None = None,
-              gps: tuple | None = None) -> dict[int, dict]:
+              gps: tuple | None = None, source: str | None = None) -> dict[int, dict]:
     """Write model.ifc for the placed windows; return {window index: {"wall", "covering", "opening",
     "window": GlobalId, "storey": name, "window_type": name}}.
 
@@ -422,6 +422,7 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
     {wall id: {name: value}} as "Fenestra_Wall". levels: the storey rows (default
     geometry.storey_levels of ``placed``). gps: (latitude deg, longitude deg[, elevation m]) of the
     camera (the world's origin): the site's reference and an IfcMapConversion (see _georeference).
+    source: the photo's file name, which the file's provenance names (:func:`stamp_provenance`).
     """
     style = get_style(style)
     if gps is not None:
@@ -454,16 +455,24 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
                     GlobalId=ifcopenshell.guid.new(), Name="Corner", RelatingElement=wall_a, RelatedElement=built[b][0],
                     RelatingPriorities=(), RelatedPriorities=(), RelatingConnectionType=end_a,
                     RelatedConnectionType=built[b][1][a])
-    stamp_provenance(f, Path(path).name)
+    stamp_provenance(f, Path(path).name, source)
     write_ifc_file(f, path)
     return ids
 
 
-def stamp_provenance(f: ifcopenshell.file, file_name: str) -> None:
-    """The STEP header's FILE_NAME says what the file is and what wrote it: its own name (not
-    ``/dev/null``), Fenestra and its version as the originating system, IfcOpenShell's as the
-    preprocessor; author and organization stay empty (the photographer is not known) and the
-    authorization is empty, not ``Nobody``."""
+def stamp_provenance(f: ifcopenshell.file, file_name: str, source: str | None = None,
+                     when: float | None = None) -> None:
+    """Say what the file is, what wrote it, from what and when.
+
+    The STEP header: FILE_NAME with the file's own name (not ``/dev/null``), Fenestra and its
+    version as the originating system, IfcOpenShell's as the preprocessor, author and organization
+    empty (the photographer is not known), no ``Nobody``; FILE_DESCRIPTION adds the photo's name.
+    In the model: an IfcApplication (Fenestra, its version) owning every rooted entity through one
+    IfcOwnerHistory (created ``when``, seconds since the epoch, default now), and the project's
+    Description naming the photo. Args: f, the file; file_name, its name; source, the photo's
+    file name (None: not said); when, the creation time (s)."""
+    import time  # noqa: PLC0415
+
     import fenestra  # noqa: PLC0415  (the version, read from the package metadata on first use)
 
     h = f.header.file_name
@@ -471,6 +480,20 @@ def stamp_provenance(f: ifcopenshell.file, file_name: str) -> None:
     h.author, h.organization, h.authorization = ("",), ("",), ""
     h.preprocessor_version = f"IfcOpenShell {ifcopenshell.version}"
     h.originating_system = f"Fenestra {fenestra.__version__}"
+    org = f.createIfcOrganization(Name="Fenestra")
+    app = f.createIfcApplication(ApplicationDeveloper=org, Version=str(fenestra.__version__),
+                                 ApplicationFullName="Fenestra: single-photo façade reconstruction",
+                                 ApplicationIdentifier="fenestra")
+    user = f.createIfcPersonAndOrganization(ThePerson=f.createIfcPerson(Identification="fenestra"), TheOrganization=org)
+    history = f.createIfcOwnerHistory(OwningUser=user, OwningApplication=app,
+                                      CreationDate=int(time.time() if when is None else when))
+    for e in f.by_type("IfcRoot"):
+        e.OwnerHistory = history
+    if source:
+        words = f"reconstructed by Fenestra from the photo {source}"
+        f.header.file_description.description = (*f.header.file_description.description, words)
+        for project in f.by_type("IfcProject"):
+            project.Description = words
 
 
 def _window_in_wall(f, body, storey, wall, pw: PlacedWindow, lib: _Library, size: TypeSize, thickness_m: float,
