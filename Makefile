@@ -79,7 +79,7 @@ report:  ## regenerate the report of the newest default run (photo column from o
 docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real; without it the committed real-photo figures are kept, marked with their provenance)
 	$(PY) -m lab.docs $(LATEST_DEFAULT) $(REAL_RUN)
 
-docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
+docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/lab/test_docs.py checks the same)
 	$(PY) -m lab.docs --check
 
 train:  ## render the detector data (make_data.sh, make_data_street.sh), train the default detector (EffWin: pretrained backbone; renders + ../shared/real/spb_facades/train boxes) on the CPU into out/train/, fit its door/signboard box verifier on the train photos (minutes), ship it (reproduces the shipped weights), train and ship the quad head on it (detector v8, `quadnet`), train and ship the learned corner refinement (snapper `refine`, minutes), evaluate it

@@ -35,7 +35,7 @@ class Tolerances:
     compare_corner_px: float = 0.05  # corner_err_px_snap
     compare_aspect_rel: float = 0.002  # aspect_err_rel (0.2 percentage points)
     compare_rot_deg: float = 0.02  # rot_err_deg
-    # mask -> quad on thin windows (issue 36, tests/test_pipeline_quad.py): every corner of an exact
+    # mask -> quad on thin windows (issue 36, tests/pipeline/test_pipeline_quad.py): every corner of an exact
     # pixel-centre mask of a thin rectangle (10x60 .. 20x120 px, any rotation), and of a thin window
     # with corners rounded up to a third of its short side against its straight-sided truth
     thin_quad_exact_px: float = 0.5
@@ -51,7 +51,7 @@ class Tolerances:
     # IfcWall, when their normals agree within facade_plane_deg and their planes' distances from the
     # camera within facade_plane_offset_rel of the nearer one (a setback of a neighbouring building
     # at 20 m is 0.6 m); otherwise each is a wall of its own, and two walls whose corner line the
-    # photo shows meet there within corner_meet_m (tests/test_ifc_walls.py, exact corner scene)
+    # photo shows meet there within corner_meet_m (tests/pipeline/test_ifc_walls.py, exact corner scene)
     facade_plane_deg: float = 3.0
     facade_plane_offset_rel: float = 0.03
     corner_meet_m: float = 0.01

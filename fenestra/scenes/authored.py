@@ -7,7 +7,7 @@
 Why (issue 36; docs DESIGN.md, "held out means held out by family"): ``fenestra.scenes.generate``
 made the procedural training houses, so its outputs are "same generator", not unseen families.
 Every element of these two houses is placed here by hand (``ifcopenshell.api``), with construction
-the generator never makes, and no training script renders them (tests/test_scenes_authored.py
+the generator never makes, and no training script renders them (tests/scenes/test_scenes_authored.py
 reads the scripts). ``fenestra scenes author OUT_DIR`` writes both; the committed copies are
 ``fenestra/scenes/ifc/authored-*.ifc`` (registry names ``authored-terrace``, ``authored-studio``).
 

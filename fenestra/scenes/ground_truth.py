@@ -11,7 +11,7 @@ Then:
    has the most face area. A straight wall's two faces dwarf its reveals and end faces.
 2. The two face planes: the host wall's triangles with normal +n / -n that touch the opening's
    lateral extent; their outermost offsets along n are the two faces the opening passes through.
-3. Exterior side (the rule, tested in tests/test_scenes_ground_truth.py): from a point just off
+3. Exterior side (the rule, tested in tests/scenes/test_scenes_ground_truth.py): from a point just off
    each face, at the void's centre, cast a fixed fan of rays over the hemisphere on that side
    (upward-biased: never below -10 deg, so terrain/ground does not count) against every mesh of
    the building except the site. The side from which more rays escape to infinity is outside.

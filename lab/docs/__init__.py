@@ -10,7 +10,7 @@ defaults statements, all rendered from one small committed summary.
         step 2 alone, from the committed summary (``--check``: exit 1 where a doc differs).
 
 The docs are always rendered from the rounded summary (never from the run directly), so rendering
-the committed summary again gives the committed docs byte for byte (tests/test_docs.py).
+the committed summary again gives the committed docs byte for byte (tests/lab/test_docs.py).
 Which method is "the CLI default" and "the paper's" comes from ``fenestra.conventions`` at render
 time; a run that lacks the CLI default's method says so.
 """

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 # The houses each shipped learned detector was trained on (lab/scripts/make_data.sh: its bundled
 # training houses; its procedural houses use other seeds than the bench's). samplehouse4 is held
-# out. tests/test_docs.py checks this against make_data.sh.
+# out. tests/lab/test_docs.py checks this against make_data.sh.
 TRAINED_ON: dict[str, tuple[str, ...]] = {
     "default": ("fzk-haus", "duplex", "jasmin-sun", "niedriha"),
     "quadnet": ("fzk-haus", "duplex", "jasmin-sun", "niedriha"),

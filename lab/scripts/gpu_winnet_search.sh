@@ -11,7 +11,7 @@
 # Each variant is winnet.toml with the keys below replaced (iterations and crop given
 # explicitly, so the variants do not move when winnet.toml does), device cuda, and its own batch-
 # making worker processes (the machine's 16 cores are shared among the variants run together).
-# CONFIGS_ONLY=1 writes the variants' configs to OUT_DIR and stops (tests/test_training.py).
+# CONFIGS_ONLY=1 writes the variants' configs to OUT_DIR and stops (tests/training/test_training.py).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUTD=$1; shift

@@ -54,7 +54,7 @@ def test_large_photo_with_the_learned_detector(tmp_path):
     (tools/bench_memory.py measures the 6000x4000 case). The quad is the corner head's
     (``--quad-source corners``): this test is about memory and mapping back, and on this frameless
     flat void detector v6's mask grows a bump above the window that the mask fit refuses (the masks'
-    mapping back is tests/test_pipeline_detect.py's large-photo test)."""
+    mapping back is tests/pipeline/test_pipeline_detect.py's large-photo test)."""
     img = np.full((2000, 3000, 3), 180, np.uint8)
     img[500:800, 750:950] = 30  # a dark 200 x 300 px window void
     cv2.imwrite(str(tmp_path / "big.jpg"), img)

@@ -154,7 +154,7 @@ def wall_cell_m(pw: PlacedWindow, margin_m: float = WALL_MARGIN_M) -> float:
     Why a grid: texture coordinates are the photo projection of each vertex, which is not affine
     on a slanted plane; renderers interpolate them affinely in 3D, so one big triangle would smear
     the photo by pixels (measured: 1-4 px on a 20-degree slanted view). Cells of 5 % of the depth
-    keep it under ~0.05 px (measured with tests/test_pipeline_export.py, pyrender re-render).
+    keep it under ~0.05 px (measured with tests/pipeline/test_pipeline_export.py, pyrender re-render).
     """
     depth = pw.to_camera(np.column_stack([wall_outline(pw, margin_m), np.zeros(4)]))[:, 2]
     near = depth[depth > 1e-6].min() if np.any(depth > 1e-6) else pw.height_m

@@ -16,7 +16,7 @@ class Snapper:
     name: its registry key; snap(gray, quad, params) -> (quad (4, 2), info dict with ``moved``:
     4 bools); params: its frozen parameter dataclass (``params()``: the defaults); description:
     one line for CLI help and the docs; test_median_px: its bound on the median corner error (px)
-    on tests/test_pipeline_snappers.py's synthetic views (antialiased quads, noise sigma 2, from the
+    on tests/pipeline/test_pipeline_snappers.py's synthetic views (antialiased quads, noise sigma 2, from the
     mask-fit quad), which the generic snapper test holds every registered strategy to.
     """
 

@@ -230,7 +230,7 @@ def snap_refine(gray: np.ndarray, quad: np.ndarray, params: RefineParams = Refin
     return out, {"moved": moved, "spread_px": [round(float(s), 3) for s in spread]}
 
 
-# test_median_px: on tests/test_pipeline_snappers.py's synthetic quads (flat polygons, noise sigma 2)
+# test_median_px: on tests/pipeline/test_pipeline_snappers.py's synthetic quads (flat polygons, noise sigma 2)
 # it measures 0.79 px median (max 0.99) where the mask-fit start is already 0.02 px off: the net
 # learned the renders' voids (reveal, frame, exterior-face corner) and places a bare polygon's corner
 # ~0.4 px outwards. On renders of the training houses' new views it is unbiased (median offset

@@ -68,7 +68,7 @@ class FacadeSegments:
     base) the inlier thresholds (vanishing.side_thresholds_deg); per sigma the weights
     (vanishing.segment_weights); per wall (:func:`wall_segments`, by the exact bytes of its quads,
     K and parameters) its result. Every per-segment value is the one the per-wall functions compute
-    on a subset of the rows, bit for bit (they are row-wise: tests/test_pipeline_facade.py).
+    on a subset of the rows, bit for bit (they are row-wise: tests/pipeline/test_pipeline_facade.py).
     Arrays handed out are read-only.
     """
 
