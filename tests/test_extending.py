@@ -67,7 +67,7 @@ def test_named_tests_exist():
     from fenestra.pipeline.snappers.base import Snapper
 
     fields = {f.name for f in dataclasses.fields(Snapper)}  # e.g. test_median_px: a field, not a test
-    defined = {m for f in (ROOT / "tests").glob("test_*.py") for m in re.findall(r"^def (test_\w+)", f.read_text(), re.M)}
+    defined = {m for f in (ROOT / "tests").rglob("test_*.py") for m in re.findall(r"^def (test_\w+)", f.read_text(), re.M)}
     named = {t for t in TICKED if re.fullmatch(r"test_\w+", t)} - fields
     assert named and named <= defined, sorted(named - defined)
 

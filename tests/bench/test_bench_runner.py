@@ -52,7 +52,7 @@ def test_provenance_is_read_when_the_run_starts(run):
 
     meta = json.loads((run.run_dir / "summary.json").read_text())["metadata"]
     assert meta["commit"] == "a" * 40
-    models = Path(results.__file__).resolve().parents[2] / "pipeline" / "models"
+    models = Path(results.__file__).resolve().parents[1] / "pipeline" / "models"
     assert meta["models"] == {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(models.glob("*.pt"))}
 
 

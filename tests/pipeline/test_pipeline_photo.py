@@ -203,10 +203,11 @@ def test_version_comes_from_the_package_metadata():
 
 def test_overlay_draws_a_failed_detection_where_it_is_and_lists_it_in_the_panel():
     from fenestra.pipeline.export.overlay import COLOURS, draw_overlay  # noqa: PLC0415
-    from fenestra.pipeline.types import WindowResult  # noqa: PLC0415
+    from fenestra.pipeline.types import Failure, WindowResult  # noqa: PLC0415
 
     photo = np.full((240, 320, 3), 128, np.uint8)
-    failed = WindowResult(0, 0.7, None, None, None, None, None, None, None, 1.0, None, "quad: too_small")
+    failed = WindowResult(0, 0.7, None, None, None, None, None, None, None, 1.0, None,
+                          Failure("quad", "too_small", "12 px"))
     K = np.array([[300.0, 0, 159.5], [0, 300.0, 119.5], [0, 0, 1]])
     img = draw_overlay(photo, K, [failed], boxes={0: (50, 120, 150, 200)}, header=["K: prior"])
     assert img.shape[0] >= 240 and img.shape[1] > 320  # the photo, then the side panel

@@ -489,8 +489,8 @@ def stamp_provenance(f: ifcopenshell.file, file_name: str, source: str | None = 
                                       CreationDate=int(time.time() if when is None else when))
     for e in f.by_type("IfcRoot"):
         e.OwnerHistory = history
-    if source:
-        words = f"reconstructed by Fenestra from the photo {source}"
+    if source:  # a name that is not UTF-8 (surrogate-escaped bytes) is written with its bytes escaped
+        words = "reconstructed by Fenestra from the photo " + source.encode("utf-8", "backslashreplace").decode("utf-8")
         f.header.file_description.description = (*f.header.file_description.description, words)
         for project in f.by_type("IfcProject"):
             project.Description = words
