@@ -120,7 +120,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
             typer.echo("skipped detectors: " + "; ".join(f"{k}: {v}" for k, v in info.skipped_detectors.items()))
         print_headline(summary["results"])
         if summary.get("kfree"):
-            from fenestra.bench.photo_eval import format_kfree  # noqa: PLC0415
+            from fenestra.bench.kfree_summary import format_kfree  # noqa: PLC0415
 
             typer.echo("\n".join(format_kfree(summary["kfree"])))
         typer.echo(f"results: {info.run_dir / 'results.parquet'}")

@@ -183,6 +183,49 @@ def metric_errors(res, w: LabelledWindow, view: LabelledView, suffix: str) -> di
     return out
 
 
+# ---------------------------------------------------------------- the written model (pure, typed)
+
+def exported_windows(rec) -> list:
+    """The pipeline.session.Windows of ``rec`` (a Reconstruction) that go into the BIM model
+    (``Window.export``; partial windows among them), in detection order."""
+    return [w for w in rec.windows if w.export.exported]
+
+
+def _metres(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def window_size_m(res) -> tuple[float, float]:
+    """(width, height) m of a WindowResult as windows.json gives them (a partial window's visible
+    extent): width NaN without an aspect ratio or a pose, height NaN without one."""
+    width = NAN if res.aspect_ratio is None or res.R is None else res.aspect_ratio * res.height_m
+    return _metres(width), _metres(res.height_m)
+
+
+def wall_tilts_deg(rec, up) -> dict[int, float]:
+    """{wall id: the angle in degrees between its plane and ``up`` (3,) camera frame} for each
+    wall of the façade model holding an exported window: asin |normal . up|; 0 for a plumb wall."""
+    up = np.asarray(up, dtype=np.float64).reshape(3)
+    up = up / np.linalg.norm(up)
+    on = {w.wall for w in exported_windows(rec)}
+    return {wall.id: float(np.degrees(np.arcsin(min(1.0, abs(wall.normal @ up) / np.linalg.norm(wall.normal)))))
+            for wall in rec.model.walls if wall.id in on}
+
+
+def row_spreads(rec, rows: list[list[int]]) -> list[float]:
+    """Per row of windows of the written model (``rows``: each row's window indices,
+    pipeline.export.WrittenModel.rows) with at least two whole (not partial) exported windows:
+    (max - min) / median of their heights (m, Window.result); dimensionless, 0 when they agree."""
+    height = {w.index: window_size_m(w.result)[1] for w in exported_windows(rec) if w.result.partial is None}
+    out = []
+    for row in rows:
+        h = np.array([height[i] for i in row if i in height])
+        h = h[np.isfinite(h)]
+        if len(h) >= 2:
+            out.append(float((h.max() - h.min()) / np.median(h)))
+    return out
+
+
 # ---------------------------------------------------------------- the evaluators
 
 class MatchEvaluator:
