@@ -224,7 +224,7 @@ def labels_matched(rec, label_boxes: list[np.ndarray], match_iou: float) -> int:
 def oversized(rec, limit_m: float = MAX_WINDOW_M) -> int:
     """Exported windows whose width or height (m, bench.evaluators.window_size_m; a partial
     window's visible extent) exceeds ``limit_m``."""
-    return sum(max(window_size_m(w.result)) > limit_m for w in exported_windows(rec))
+    return sum(any(x > limit_m for x in window_size_m(w.result)) for w in exported_windows(rec))
 
 
 def taller_than(rec, storey_m: float) -> int:
