@@ -185,6 +185,24 @@ def metric_errors(res, w: LabelledWindow, view: LabelledView, suffix: str) -> di
 
 # ---------------------------------------------------------------- the written model (pure, typed)
 
+def house_elevations_m(view: LabelledView) -> tuple[float, ...] | None:
+    """The IfcBuildingStorey elevations (m) of the house a render shows
+    (fenestra.scenes.storeys.storey_elevations_m); None for a photo or a view folder made by hand
+    (it names no house)."""
+    if view.pose is None:
+        return None
+    from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
+    from fenestra.errors import SceneError  # noqa: PLC0415
+    from fenestra.scenes.registry import resolve  # noqa: PLC0415
+    from fenestra.scenes.storeys import storey_elevations_m  # noqa: PLC0415
+
+    try:
+        path = resolve(house_path(view.dataset))
+    except SceneError:  # a view folder made by hand names no house
+        return None
+    return storey_elevations_m(str(path))
+
+
 def exported_windows(rec) -> list:
     """The pipeline.session.Windows of ``rec`` (a Reconstruction) that go into the BIM model
     (``Window.export``; partial windows among them), in detection order."""
@@ -369,13 +387,76 @@ class BimEvaluator:
         return out
 
 
+MODEL_COLUMNS = ("model_up_err_deg", "model_wall_tilt_deg", "model_storey", "true_storey", "model_n_storeys",
+                 "true_n_storeys")
+
+
+def angle_deg(a, b) -> float:
+    """The angle (deg) between two (3,) directions."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return float(np.degrees(np.arccos(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))))
+
+
+def true_storeys(view: LabelledView) -> dict[int, int]:
+    """{labelled window index: the storey it stands on (0 = the ground floor)} of a render of a
+    known house: its sill (its world corners' lowest z, m) on the house's IFC storeys
+    (fenestra.scenes.storeys.storey_index); {} for a photo or a house of unknown storeys; a
+    window below the ground floor has none."""
+    from fenestra.scenes.storeys import storey_index  # noqa: PLC0415
+
+    elevations = house_elevations_m(view)
+    if not elevations:
+        return {}
+    out = {}
+    for g, w in enumerate(view.windows):
+        s = None if w.corners_world is None else storey_index(float(np.min(w.corners_world[:, 2])), list(elevations))
+        if s is not None:
+            out[g] = s
+    return out
+
+
+class ModelEvaluator:
+    """The written model (pipeline.photo.written_model: what model.ifc holds, nothing written)
+    against a render's truth, the exact pose and the house's IFC storeys: the model's vertical
+    against the true one (``model_up_err_deg``; the world's z in the camera frame), the tilt of
+    the window's wall from the true vertical (``model_wall_tilt_deg``, deg; a wall holding an
+    exported window), the storey row the window is written in (``model_storey``, 0 = the lowest
+    row the photo shows) and the storey it stands on (``true_storey``, 0 = the ground floor), and
+    per method the model's storey rows (``model_n_storeys``) against the distinct true storeys of
+    the labelled windows it writes (``true_n_storeys``). NaN where the window is not written or the
+    truth lacks the storeys; nothing for a photo (no true vertical)."""
+
+    columns = MODEL_COLUMNS
+
+    def reset(self, view: LabelledView) -> None:
+        self.storey = true_storeys(view)
+
+    def process(self, view: LabelledView, result: MethodResult) -> dict[int, dict]:
+        if view.pose is None:
+            return {}
+        from fenestra.pipeline.photo import written_model  # noqa: PLC0415
+
+        rec = result.rec
+        model = written_model(rec)
+        up = np.asarray(view.pose[0], dtype=np.float64) @ np.array([0.0, 0.0, 1.0])  # the world's z, camera frame
+        tilts, rows = wall_tilts_deg(rec, up), model.levels.row_of
+        written = {g: d for g, (d, _) in result.det_for_gt.items() if d in rows}
+        shown = {self.storey[g] for g in written if g in self.storey}
+        per_view = {"model_up_err_deg": angle_deg(model.up, up), "model_n_storeys": float(len(model.levels.sills_m)),
+                    "true_n_storeys": float(len(shown)) if self.storey else NAN}
+        return {g: {**per_view, "model_wall_tilt_deg": tilts.get(rec.windows[d].wall, NAN),
+                    "model_storey": float(rows[d]) if d in rows else NAN,
+                    "true_storey": float(self.storey[g]) if g in self.storey else NAN}
+                for g, (d, _) in result.det_for_gt.items()}
+
+
 def default_evaluators() -> list[Evaluator]:
     """A fresh set of the bench's evaluators, in the order their columns merge (a later one's
     column wins: BimEvaluator's focal_est_px over the per-wall fit's own where K was not given)."""
     return [CornerEvaluator(), AspectEvaluator(), PoseEvaluator(), ConsistencyEvaluator(), RelativeSizeEvaluator(),
-            MatchEvaluator(), BimEvaluator()]
+            MatchEvaluator(), BimEvaluator(), ModelEvaluator()]
 
 
 __all__ = ["AspectEvaluator", "BimEvaluator", "ConsistencyEvaluator", "CornerEvaluator", "Evaluator", "MatchEvaluator",
-           "MethodResult", "PoseEvaluator", "QuadIoUMemo", "RelativeSizeEvaluator", "default_evaluators",
+           "MethodResult", "ModelEvaluator", "PoseEvaluator", "QuadIoUMemo", "RelativeSizeEvaluator", "default_evaluators",
            "head_error", "metric_errors", "window_errors"]

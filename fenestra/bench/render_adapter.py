@@ -99,8 +99,8 @@ def labelled_view(view: View, house: str, name: str, renderer: str) -> LabelledV
     """The LabelledView of a rendered view (fenestra.rendered_view.View): every view.json window with its
     exact quad (corners_px, may lie outside the image), world corners, aspect and size, its mask
     from instances.png (View.window_masks: empty when hidden), the camera pose and K; the ignore
-    regions present in ignore.png as masks (View.ignore_masks)."""
-    ignore = tuple(LabelledWindow(id=str(r["id"]), mask=m, instance_id=int(r["instance_id"]))
+    regions present in ignore.png as masks (View.ignore_masks), with their kind."""
+    ignore = tuple(LabelledWindow(id=str(r["id"]), mask=m, instance_id=int(r["instance_id"]), kind=r.get("kind"))
                    for r, m in view.ignore_masks())
     meta = view.meta
     return LabelledView(dataset=house, name=name, image=view.image,

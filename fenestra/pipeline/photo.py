@@ -395,10 +395,11 @@ def wall_ids(rec: Reconstruction) -> dict[int, int]:
 def written_model(rec: Reconstruction, substitute: str | None = None):
     """The model :func:`write_all` writes for ``rec`` (pipeline.export.WrittenModel: the exported
     windows upright and grounded, the export world's vertical, the storey rows), as a value,
-    nothing written; substitute: the catalogue style (None: the default)."""
+    nothing written; substitute: the catalogue style ``rec``'s run was given (None: the default;
+    its export decision, Window.export, is the model's: not made again)."""
     from fenestra.pipeline.export import DEFAULT_STYLE, written_model as model_of  # noqa: PLC0415
 
-    return model_of(rec.results(), substitute or DEFAULT_STYLE, rec.not_exported, wall_ids(rec))
+    return model_of(rec.results(), substitute or DEFAULT_STYLE, rec.not_exported, wall_ids(rec), decided=True)
 
 
 def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoOptions) -> ExportReport:

@@ -133,10 +133,18 @@ class WrittenModel:
 
 def written_model(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE,
                   exclude: dict[int, str] | None = None, walls: dict[int, int] | None = None,
-                  gravity: Gravity | np.ndarray | bool = True) -> WrittenModel:
+                  gravity: Gravity | np.ndarray | bool = True, decided: bool = False) -> WrittenModel:
     """The model :func:`write_outputs` writes for ``results`` (its arguments of the same names), as
-    a value: which windows are placed, the export world's vertical, the storey rows. Pure."""
-    placed, skipped = split_results(list(results), style, exclude)
+    a value: which windows are placed, the export world's vertical, the storey rows. Pure.
+    decided: ``exclude`` is :func:`export_decision` of these results and ``style`` (what
+    pipeline.session's run decided), so every other window places and takes a mesh: the checks of
+    :func:`split_results` are not repeated (the same model)."""
+    if decided:
+        exclude = exclude or {}
+        skipped = [{"index": int(r.index), "reason": exclude[r.index]} for r in results if r.index in exclude]
+        placed = [place(r) for r in results if r.index not in exclude]
+    else:
+        placed, skipped = split_results(list(results), style, exclude)
     g = export_gravity(placed, walls, gravity)
     placed = upright(placed, g)
     levels = storey_levels(placed)
