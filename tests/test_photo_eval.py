@@ -367,9 +367,10 @@ def test_failed_run_counts_as_no_output():
 
 def test_kfree_table_of_the_real_profile():
     p = load_real_profile("real")
-    assert p.kfree is not None and "spb_facades" in p.kfree.transform_datasets
-    assert set(p.kfree.transforms) == {"gray", "jpeg", "exif_rot", "mirror", "crop"}
-    names = [d.name for d in p.available_datasets()[0]]
+    kfree = p.source.kfree
+    assert kfree is not None and "spb_facades" in kfree.transform_datasets
+    assert set(kfree.transforms) == {"gray", "jpeg", "exif_rot", "mirror", "crop"}
+    names = [d.name for d in p.source.available()[0]]
     assert "spb_val" not in names  # kfree_only: never in the method grid
     base = {"name": "u", "kind": "real", "data": "/x/y", "format": "yolo"}
     with pytest.raises(ProfileError, match="not datasets of the profile"):
