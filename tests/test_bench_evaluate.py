@@ -18,8 +18,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fenestra.bench.evaluate import (BIM_COLUMNS, MODEL_COLUMNS, PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask, evaluate_task,
-                            evaluate_view, render_conditions)
+from fenestra.bench.evaluate import (BIM_COLUMNS, MODEL_COLUMNS, PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask,
+                                     evaluate_task, evaluate_view, render_conditions)
 from fenestra.methods import Method
 from fenestra.bench.profiles import EvalSpec
 from fenestra.bench.render_adapter import RenderedViewRef, read_rendered_view
