@@ -487,3 +487,21 @@ def test_interval_coverage_against_a_calibration_by_hand():
                          "focal_lo_px": [950.0, 990.0, 1010.0, 900.0], "focal_hi_px": [1050.0, 1000.0, 1100.0, 1100.0]})
     assert ks.interval_coverage(rows) == {"focal_interval_coverage": pytest.approx(2 / 3), "focal_interval_n": 3}
     assert ks.interval_coverage(rows.iloc[3:]) == {"focal_interval_coverage": None, "focal_interval_n": 0}
+
+
+def test_each_kfree_evaluator_gives_its_own_columns_and_together_the_row():
+    """Every evaluator of the K-free block returns exactly the columns it declares, for an export
+    run, a transform run and a run that raised; the row is the run's identity, their columns in
+    order and what detected the windows."""
+    view = _view([[0, 0, 10, 10]])
+    rec = _rec([_win(0, [0, 0, 10, 10])], walls=[(0, PLUMB)])
+    runs = (_run(view, rec), _run(view, rec, "gray"), _run(view, None, error="ImageError: x"),
+            _run(view, rec, pe.KNOWN_STOREY, known_storey_m=3.0))
+    for run in runs:
+        cols = []
+        for e in pe.kfree_evaluators():
+            got = e.process(view, run)
+            assert tuple(got) == e.columns, type(e).__name__
+            cols += list(got)
+        row = pe.photo_row(run)
+        assert list(row) == ["dataset", "photo", "transform", "output", "error", "seconds", *cols, "detections"]

@@ -18,7 +18,10 @@ runs them and writes the rows; the table's column order is bench.evaluate's.
 What each window is measured as (pipeline.session.Window): the corner, aspect-ratio, pose and
 uncertainty errors on ``measured`` (the measurement's accuracy; a window cut by the photo's border:
 its whole-window failure), the BIM errors on ``shipped`` (what a BIM user gets: its row's
-regularized sill and head), the export decision on ``export``.
+regularized sill and head), the export decision on ``export``, the written model (its vertical, its
+walls' tilt, its storey rows: :class:`ModelEvaluator`) on pipeline.photo.written_model. The pure
+measures of the written model here (:func:`wall_tilts_deg`, :func:`row_spreads`) serve the K-free
+block's evaluators too (bench.photo_eval), which read the same typed values.
 """
 from __future__ import annotations
 

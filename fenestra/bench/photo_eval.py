@@ -59,6 +59,7 @@ import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 import pandas as pd
@@ -232,6 +233,16 @@ def taller_than(rec, storey_m: float) -> int:
     return sum(window_size_m(w.result)[1] > storey_m for w in exported_windows(rec))
 
 
+class RunEvaluator(Protocol):
+    """One kind of figure of a K-free run (bench.evaluators.Evaluator's shape for a table of one row
+    per run, not per labelled window): ``columns``, its schema; :meth:`process`, its columns of
+    one run on the view (NaN or None where the run has no such figure)."""
+
+    columns: tuple[str, ...]
+
+    def process(self, view: LabelledView, run: KfreeRun) -> dict: ...
+
+
 class FocalEvaluator:
     """The focal chain's answer (K_source, focal_px and its 90 % interval) and, with the view's
     calibration K, its relative error."""
@@ -297,12 +308,12 @@ class KfreeModelEvaluator:
                 "n_walls_fitted": NAN if rec is None else len(rec.model.walls)}
 
 
-def kfree_evaluators() -> list:
+def kfree_evaluators() -> list[RunEvaluator]:
     """The K-free block's evaluators, in kfree.parquet's column order."""
     return [FocalEvaluator(), DetectionCountEvaluator(), KfreeExportEvaluator(), KfreeModelEvaluator()]
 
 
-def photo_row(run: KfreeRun, evaluators: list | None = None) -> dict:
+def photo_row(run: KfreeRun, evaluators: list[RunEvaluator] | None = None) -> dict:
     """One row of kfree.parquet: the photo, the transform, whether the run gave a reconstruction
     (``output``), its error and seconds, every evaluator's columns, and what detected the windows."""
     view, task = run.task.view, run.task
