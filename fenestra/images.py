@@ -137,14 +137,30 @@ def decode_file(path: str | Path, flags: int, what: str = "image", max_pixels: i
         buf = np.fromfile(p, dtype=np.uint8)
     except OSError as e:
         raise DatasetError(f"cannot read {what} {p}: {' '.join(str(e).split())}") from e
+    img = decode_buffer(buf, flags)
+    if img is None:
+        raise DatasetError(f"cannot read {what} {p} (not an image cv2 can decode)")
+    return img
+
+
+def decode_buffer(buf: np.ndarray, flags: int) -> np.ndarray | None:
+    """``cv2.imdecode(buf, flags)`` of an image file's bytes (a (N,) uint8 array), the EXIF
+    orientation applied; None when they are not an image cv2 decodes (or decode empty)."""
     img = cv2.imdecode(buf, flags) if buf.size else None
     if img is None and buf[:2].tobytes() == JPEG_SOI:
         # a truncated JPEG: end it as libjpeg's file reader (cv2.imread) does, with an end-of-image
         # marker, so its missing part decodes grey as there (pipeline.io.photo_warnings tells)
         img = cv2.imdecode(np.concatenate([buf, np.frombuffer(JPEG_EOI, np.uint8)]), flags)
-    if img is None or img.size == 0:
-        raise DatasetError(f"cannot read {what} {p} (not an image cv2 can decode)")
-    return img
+    return None if img is None or img.size == 0 else img
+
+
+def image_from_bytes(data: bytes, what: str = "image") -> np.ndarray:
+    """(H, W, 3) uint8 **RGB** from an image file's bytes in memory, decoded as :func:`read_image`
+    decodes a file (EXIF orientation applied); DatasetError naming ``what`` when undecodable."""
+    bgr = decode_buffer(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise DatasetError(f"cannot read {what} (not an image cv2 can decode)")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
 def read_image(path: str | Path, what: str = "image", max_pixels: int | None = None) -> np.ndarray:

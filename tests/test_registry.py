@@ -170,7 +170,7 @@ def test_dummies_reach_cli_profiles_gates_and_report(dummies, tmp_path):
     toml = tmp_path / "real.toml"
     toml.write_text('name = "r"\nkind = "real"\n[methods]\ndetectors = ["oracle"]\n'
                     f'[[datasets]]\nname = "d"\nformat = "dummy-format"\npath = "{tmp_path}"\n')
-    assert load_real_profile(toml).datasets[0].format == "dummy-format"
+    assert load_real_profile(toml).source.datasets[0].format == "dummy-format"
 
     # one rendered view through the bench with the dummies, then its report and its gates
     chosen = (Method("dummy-det", "none", "dummy-pose"), Method("oracle", "none", "lm"))

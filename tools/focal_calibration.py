@@ -182,12 +182,12 @@ def summarize(df, level: float = 0.90) -> str:
 def kfree_focal_table(df) -> str:
     """The focal figures of a kfree.parquet table (fenestra.bench.photo_eval, rows of one dataset's
     photos as is and under image transforms): the as-is K sources, the spreads of
-    photo_eval.dataset_summary, the transform runs whose 90 % interval is disjoint from the as-is
+    kfree_summary.dataset_summary, the transform runs whose 90 % interval is disjoint from the as-is
     run's (a confident contradiction), and per photo its spread (the largest |f / f_as_is - 1| of its
     transform runs) and each run's focal length [interval] px and source (VP: vanishing points)."""
     import numpy as np  # noqa: PLC0415
 
-    from fenestra.bench.photo_eval import dataset_summary  # noqa: PLC0415
+    from fenestra.bench.kfree_summary import dataset_summary  # noqa: PLC0415
 
     df = df[df["transform"].isin(("as_is", "gray", "jpeg", "mirror", "crop"))]
     d = dataset_summary(df)

@@ -44,7 +44,7 @@ def profile_settings(profile=None) -> RenderSettings:
     from fenestra.bench.render_adapter import dataset_config
 
     p = load_profile(PROFILE) if profile is None else profile
-    return dataset_config(p, p.scenes.houses[0], "out/renders").settings
+    return dataset_config(p, p.source.scenes.houses[0], "out/renders").settings
 
 
 def sample(scene_name: str, n: int, width: int, height: int, seed: int = 0):
@@ -147,10 +147,11 @@ def bench(workers: int, reuse: bool = False) -> str:
     from fenestra.bench.runner import default_run_dir, run_benchmark
 
     new = load_profile(PROFILE)
-    opts = dict(new.render.options)
+    opts = dict(new.source.render.options)
     old_settings = {k: v for k, v in dataclasses.asdict(OLD).items() if k in ("spp", "denoise")}
-    old = dataclasses.replace(new, render=dataclasses.replace(
-        new.render, options=tuple(sorted({**opts, "settings": {**opts.get("settings", {}), **old_settings}}.items()))))
+    old_render = dataclasses.replace(
+        new.source.render, options=tuple(sorted({**opts, "settings": {**opts.get("settings", {}), **old_settings}}.items())))
+    old = dataclasses.replace(new, source=dataclasses.replace(new.source, render=old_render))
     dirs, s = {}, {}
     for label, prof in (("old", old), ("new", new)):
         dirs[label] = default_run_dir(prof)

@@ -138,7 +138,8 @@ def run_seed(profile, seed: int, views: int | None, out_root: Path, method: str 
 
     p = dataclasses.replace(profile, seed=seed)
     if views is not None:
-        p = dataclasses.replace(p, render=dataclasses.replace(p.render, views_per_house=views))
+        p = dataclasses.replace(p, source=dataclasses.replace(
+            p.source, render=dataclasses.replace(p.source.render, views_per_house=views)))
     methods = None if method is None else (Method.from_label(method),)
     suffix = "" if method is None else "-" + methods[0].quad_source.replace("+", "-")
     run_dir = out_root / f"{p.name}-s{seed}-{p.config_hash()}{suffix}"
@@ -207,12 +208,13 @@ def measure(ap, a, command: str) -> tuple[dict, dict[int, dict[str, dict]]]:
 
     method = a.method or f"{DEFAULTS.detector}/{DEFAULTS.snapper}/{DEFAULTS.pose}"
     profile = load_profile(a.profile)
-    look = dict(dict(profile.render.options).get("settings", {})).get("look_per", "set")
+    render = profile.source.render
+    look = dict(dict(render.options).get("settings", {})).get("look_per", "set")
     extra = method if len(method.split("/")) == 4 else None  # a quad source the profile cannot select
     per_seed = {s: house_figures(run_seed(profile, s, a.views, a.out, extra), method) for s in seeds}
     meta = {"command": command, "method": method, "profile": profile.name,
-            "views_per_house": a.views or profile.render.views_per_house, "look_per": look,
-            "size": [profile.render.width, profile.render.height], "renderer": profile.render.renderer,
+            "views_per_house": a.views or render.views_per_house, "look_per": look,
+            "size": [render.width, render.height], "renderer": render.renderer,
             "seeds": seeds}
     return meta, per_seed
 

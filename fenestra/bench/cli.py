@@ -72,7 +72,6 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         """Render (cached), reconstruct with every strategy, measure, summarise, report."""
         from fenestra.bench.executors import get_executor  # noqa: PLC0415
         from fenestra.bench.profiles import load_profile  # noqa: PLC0415
-        from fenestra.bench.real.profile import is_real_profile  # noqa: PLC0415
         from fenestra.bench.results import load_summary  # noqa: PLC0415
         from fenestra.bench.runner import report_apart, run_benchmark  # noqa: PLC0415
 
@@ -84,15 +83,15 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
         opts = {"address": ray_address, "shard_views": shard_views} if executor == "ray" else {}
         inputs = tuple(p for p in (data, real, Path(profile) if Path(profile).is_file() else None)
                        if p is not None and p.exists())  # what the run reads: never in --out
-        if is_real_profile(profile):
-            from fenestra.bench.real.profile import load_real_profile, with_user_data  # noqa: PLC0415
+        p = load_profile(profile)  # either kind: its source is renders or labelled datasets
+        if p.photos:
+            from fenestra.bench.real.profile import with_user_data  # noqa: PLC0415
 
             if seed is not None:
                 raise ValueError(f"--seed needs a synthetic profile (a real run has no cameras to draw), got profile {profile!r}")
             if real is not None:
                 raise ValueError(f"--real needs a synthetic profile (a real run's report takes its --sim run), "
                                  f"got profile {profile!r}")
-            p = load_real_profile(profile)
             if data is not None:
                 p = with_user_data(p, data, fmt)
             info = run_benchmark(p, out_dir=out, report=None if no_report else write_report, force=force, sim_dir=sim, csv=csv,
@@ -106,7 +105,6 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                 raise ValueError(f"--real {real}: not a real-photo run (fenestra bench --profile real makes one)")
             # the report in its own process: its memory and the evaluation's never add up (#26)
             report = None if no_report else functools.partial(report_apart, functools.partial(write_report, real_dir=real))
-            p = load_profile(profile)
             if seed is not None:
                 if seed < 0:
                     raise ValueError(f"--seed must be >= 0, got {seed}")
@@ -120,7 +118,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
             typer.echo("skipped detectors: " + "; ".join(f"{k}: {v}" for k, v in info.skipped_detectors.items()))
         print_headline(summary["results"])
         if summary.get("kfree"):
-            from fenestra.bench.photo_eval import format_kfree  # noqa: PLC0415
+            from fenestra.bench.kfree_summary import format_kfree  # noqa: PLC0415
 
             typer.echo("\n".join(format_kfree(summary["kfree"])))
         typer.echo(f"results: {info.run_dir / 'results.parquet'}")

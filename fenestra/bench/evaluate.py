@@ -46,7 +46,7 @@ from typing import Protocol
 import numpy as np
 
 from fenestra.bench import matching, metrics, uncertainty
-from fenestra.bench.evaluators import MethodResult, default_evaluators
+from fenestra.bench.evaluators import MODEL_COLUMNS, MethodResult, default_evaluators, house_elevations_m
 from fenestra.bench.profiles import EvalSpec
 from fenestra.bench.views import LabelledView, LabelledWindow
 from fenestra import coco, masks
@@ -166,10 +166,11 @@ ERROR_COLUMNS = (
     "iou_2d_reproj", "match_iou", "det_score", "corner_err_px_head",
 )
 PHOTO_ERRORS = ("reproj_consistency_px", "rel_size_err")
-# what a BIM user gets (bench.evaluators.BimEvaluator): every table, renders and photos
+# what a BIM user gets (bench.evaluators.BimEvaluator): every table, renders and photos; the written
+# model against the true vertical and storeys (bench.evaluators.ModelEvaluator, MODEL_COLUMNS): renders
 BIM_COLUMNS = ("K_source", "K_focal_px", "scale_source", "exported", "not_exported", "width_err_m", "height_err_m",
                "pos_err_m", "scale_source_storey", "width_err_m_storey", "height_err_m_storey", "pos_err_m_storey")
-RENDER_TAIL = (*ERROR_COLUMNS, *uncertainty.COLUMNS, *BIM_COLUMNS, "status", "reason", "aspect_case")
+RENDER_TAIL = (*ERROR_COLUMNS, *uncertainty.COLUMNS, *BIM_COLUMNS, *MODEL_COLUMNS, "status", "reason", "aspect_case")
 PHOTO_TAIL = (*ERROR_COLUMNS, *PHOTO_ERRORS, *BIM_COLUMNS, "aspect_case", "status", "reason")
 RENDER_COLUMNS = (*RENDER_BASE, *METHOD_COLUMNS, *RENDER_TAIL)
 PHOTO_COLUMNS = (*PHOTO_BASE, *METHOD_COLUMNS, *PHOTO_TAIL)
@@ -292,19 +293,11 @@ def true_storey_m(view: LabelledView) -> float | None:
     fenestra.scenes.storeys), what a user who knows it gives as ``--known-storey``; None for a
     photo, a house with fewer than two storeys, or one whose storey height lies outside the range
     a user may give (pipeline.facade_model.KNOWN_RANGE_M: a split level is no storey to know)."""
-    if view.pose is None:
-        return None
-    from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
-    from fenestra.errors import SceneError  # noqa: PLC0415
     from fenestra.pipeline.facade_model import KNOWN_RANGE_M  # noqa: PLC0415
-    from fenestra.scenes.registry import resolve  # noqa: PLC0415
-    from fenestra.scenes.storeys import storey_height_m  # noqa: PLC0415
+    from fenestra.scenes.storeys import storey_height_from_elevations  # noqa: PLC0415
 
-    try:
-        path = resolve(house_path(view.dataset))
-    except SceneError:  # a view folder made by hand names no house
-        return None
-    storey = storey_height_m(str(path))
+    elevations = house_elevations_m(view)
+    storey = None if elevations is None else storey_height_from_elevations(list(elevations))
     lo, hi = KNOWN_RANGE_M["storey_m"]
     return storey if storey is not None and lo <= storey <= hi else None
 
@@ -331,33 +324,39 @@ def _match_ious(view: LabelledView, det_masks: list[masks.SparseMask], dets: lis
     return metrics.box_iou_matrix([d.box for d in dets], [w.bbox() for w in view.windows])
 
 
-def on_ignore(view: LabelledView, det_masks: list[masks.SparseMask], dets: list) -> set[int]:
-    """The detections (indices into ``dets``) lying on one of the view's ignore regions (a glazed
-    door, curtain-wall glazing): at least TOL.match_iou of the detection inside one region (COCO's
-    test against an ``iscrowd`` region), by mask when every region has one, else by box."""
+def on_ignore(view: LabelledView, det_masks: list[masks.SparseMask], dets: list) -> dict[int, str | None]:
+    """{detection index into ``dets``: the kind of the ignore region it lies on most} for the
+    detections lying on one of the view's ignore regions (a glazed door, curtain-wall glazing:
+    LabelledWindow.kind, None when the labels do not say): at least TOL.match_iou of the detection
+    inside one region (COCO's test against an ``iscrowd`` region), by mask when every region has
+    one, else by box."""
     if not view.ignore or not dets:
-        return set()
+        return {}
     if all(r.mask is not None for r in view.ignore):
         cover = matching.cover_matrix(det_masks, [r.mask for r in view.ignore])
     else:
         cover = metrics.box_cover_matrix([d.box for d in dets], [r.bbox() for r in view.ignore])
-    return {int(d) for d in np.nonzero(cover.max(axis=1) >= TOL.match_iou)[0]}
+    return {int(d): view.ignore[int(cover[d].argmax())].kind for d in np.nonzero(cover.max(axis=1) >= TOL.match_iou)[0]}
 
 
 # what a method exports, counted per view (ViewOutcome.export_counts; summed by bench.results.export_precision)
-EXPORT_COUNTS = ("n_exported", "n_matched", "n_on_ignore", "n_on_nothing")
+EXPORT_COUNTS = ("n_exported", "n_matched", "n_on_ignore", "n_on_nothing", "n_on_door")
+DOOR_KIND = "glazed_door"  # an ignore region that is an IfcDoor (fenestra.renders.gt.IGNORE_KINDS)
 
 
-def export_counts(rec, matched: set[int], ignored: set[int]) -> dict[str, int]:
+def export_counts(rec, matched: set[int], ignored: dict[int, str | None]) -> dict[str, int]:
     """What one method's Reconstruction exports (``rec.exported``), as EXPORT_COUNTS: the exported
     detections; of them, those matched to a labelled window (``matched``: detection indices), those
-    matched to none but lying on an ignore region (``ignored``: a door or glazing exported as a
-    window) and those on neither. n_exported = n_matched + n_on_ignore + n_on_nothing."""
+    matched to none but lying on an ignore region (``ignored``: {detection: the region's kind}, a
+    door or glazing exported as a window) and those on neither. n_exported = n_matched +
+    n_on_ignore + n_on_nothing. n_on_door: of n_on_ignore, those on a glazed door (DOOR_KIND): an
+    IfcDoor of the truth that the model writes as an IfcWindow, the written model's class error."""
     out = dict.fromkeys(EXPORT_COUNTS, 0)
     for d, exported in rec.exported.items():
         if exported:
             out["n_exported"] += 1
             out["n_matched" if d in matched else "n_on_ignore" if d in ignored else "n_on_nothing"] += 1
+            out["n_on_door"] += d not in matched and ignored.get(d) == DOOR_KIND
     return out
 
 

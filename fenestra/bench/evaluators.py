@@ -18,7 +18,10 @@ runs them and writes the rows; the table's column order is bench.evaluate's.
 What each window is measured as (pipeline.session.Window): the corner, aspect-ratio, pose and
 uncertainty errors on ``measured`` (the measurement's accuracy; a window cut by the photo's border:
 its whole-window failure), the BIM errors on ``shipped`` (what a BIM user gets: its row's
-regularized sill and head), the export decision on ``export``.
+regularized sill and head), the export decision on ``export``, the written model (its vertical, its
+walls' tilt, its storey rows: :class:`ModelEvaluator`) on pipeline.photo.written_model. The pure
+measures of the written model here (:func:`wall_tilts_deg`, :func:`row_spreads`) serve the K-free
+block's evaluators too (bench.photo_eval), which read the same typed values.
 """
 from __future__ import annotations
 
@@ -183,6 +186,67 @@ def metric_errors(res, w: LabelledWindow, view: LabelledView, suffix: str) -> di
     return out
 
 
+# ---------------------------------------------------------------- the written model (pure, typed)
+
+def house_elevations_m(view: LabelledView) -> tuple[float, ...] | None:
+    """The IfcBuildingStorey elevations (m) of the house a render shows
+    (fenestra.scenes.storeys.storey_elevations_m); None for a photo or a view folder made by hand
+    (it names no house)."""
+    if view.pose is None:
+        return None
+    from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
+    from fenestra.errors import SceneError  # noqa: PLC0415
+    from fenestra.scenes.registry import resolve  # noqa: PLC0415
+    from fenestra.scenes.storeys import storey_elevations_m  # noqa: PLC0415
+
+    try:
+        path = resolve(house_path(view.dataset))
+    except SceneError:  # a view folder made by hand names no house
+        return None
+    return storey_elevations_m(str(path))
+
+
+def exported_windows(rec) -> list:
+    """The pipeline.session.Windows of ``rec`` (a Reconstruction) that go into the BIM model
+    (``Window.export``; partial windows among them), in detection order."""
+    return [w for w in rec.windows if w.export.exported]
+
+
+def _metres(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def window_size_m(res) -> tuple[float, float]:
+    """(width, height) m of a WindowResult as windows.json gives them (a partial window's visible
+    extent): width NaN without an aspect ratio or a pose, height NaN without one."""
+    width = NAN if res.aspect_ratio is None or res.R is None else res.aspect_ratio * res.height_m
+    return _metres(width), _metres(res.height_m)
+
+
+def wall_tilts_deg(rec, up) -> dict[int, float]:
+    """{wall id: the angle in degrees between its plane and ``up`` (3,) camera frame} for each
+    wall of the façade model holding an exported window: asin |normal . up|; 0 for a plumb wall."""
+    up = np.asarray(up, dtype=np.float64).reshape(3)
+    up = up / np.linalg.norm(up)
+    on = {w.wall for w in exported_windows(rec)}
+    return {wall.id: float(np.degrees(np.arcsin(min(1.0, abs(wall.normal @ up) / np.linalg.norm(wall.normal)))))
+            for wall in rec.model.walls if wall.id in on}
+
+
+def row_spreads(rec, rows: list[list[int]]) -> list[float]:
+    """Per row of windows of the written model (``rows``: each row's window indices,
+    pipeline.export.WrittenModel.rows) with at least two whole (not partial) exported windows:
+    (max - min) / median of their heights (m, Window.result); dimensionless, 0 when they agree."""
+    height = {w.index: window_size_m(w.result)[1] for w in exported_windows(rec) if w.result.partial is None}
+    out = []
+    for row in rows:
+        h = np.array([height[i] for i in row if i in height])
+        h = h[np.isfinite(h)]
+        if len(h) >= 2:
+            out.append(float((h.max() - h.min()) / np.median(h)))
+    return out
+
+
 # ---------------------------------------------------------------- the evaluators
 
 class MatchEvaluator:
@@ -326,13 +390,76 @@ class BimEvaluator:
         return out
 
 
+MODEL_COLUMNS = ("model_up_err_deg", "model_wall_tilt_deg", "model_storey", "true_storey", "model_n_storeys",
+                 "true_n_storeys")
+
+
+def angle_deg(a, b) -> float:
+    """The angle (deg) between two (3,) directions."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return float(np.degrees(np.arccos(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))))
+
+
+def true_storeys(view: LabelledView) -> dict[int, int]:
+    """{labelled window index: the storey it stands on (0 = the ground floor)} of a render of a
+    known house: its sill (its world corners' lowest z, m) on the house's IFC storeys
+    (fenestra.scenes.storeys.storey_index); {} for a photo or a house of unknown storeys; a
+    window below the ground floor has none."""
+    from fenestra.scenes.storeys import storey_index  # noqa: PLC0415
+
+    elevations = house_elevations_m(view)
+    if not elevations:
+        return {}
+    out = {}
+    for g, w in enumerate(view.windows):
+        s = None if w.corners_world is None else storey_index(float(np.min(w.corners_world[:, 2])), list(elevations))
+        if s is not None:
+            out[g] = s
+    return out
+
+
+class ModelEvaluator:
+    """The written model (pipeline.photo.written_model: what model.ifc holds, nothing written)
+    against a render's truth, the exact pose and the house's IFC storeys: the model's vertical
+    against the true one (``model_up_err_deg``; the world's z in the camera frame), the tilt of
+    the window's wall from the true vertical (``model_wall_tilt_deg``, deg; a wall holding an
+    exported window), the storey row the window is written in (``model_storey``, 0 = the lowest
+    row the photo shows) and the storey it stands on (``true_storey``, 0 = the ground floor), and
+    per method the model's storey rows (``model_n_storeys``) against the distinct true storeys of
+    the labelled windows it writes (``true_n_storeys``). NaN where the window is not written or the
+    truth lacks the storeys; nothing for a photo (no true vertical)."""
+
+    columns = MODEL_COLUMNS
+
+    def reset(self, view: LabelledView) -> None:
+        self.storey = true_storeys(view)
+
+    def process(self, view: LabelledView, result: MethodResult) -> dict[int, dict]:
+        if view.pose is None:
+            return {}
+        from fenestra.pipeline.photo import written_model  # noqa: PLC0415
+
+        rec = result.rec
+        model = written_model(rec)
+        up = np.asarray(view.pose[0], dtype=np.float64) @ np.array([0.0, 0.0, 1.0])  # the world's z, camera frame
+        tilts, rows = wall_tilts_deg(rec, up), model.levels.row_of
+        written = {g: d for g, (d, _) in result.det_for_gt.items() if d in rows}
+        shown = {self.storey[g] for g in written if g in self.storey}
+        per_view = {"model_up_err_deg": angle_deg(model.up, up), "model_n_storeys": float(len(model.levels.sills_m)),
+                    "true_n_storeys": float(len(shown)) if self.storey else NAN}
+        return {g: {**per_view, "model_wall_tilt_deg": tilts.get(rec.windows[d].wall, NAN),
+                    "model_storey": float(rows[d]) if d in rows else NAN,
+                    "true_storey": float(self.storey[g]) if g in self.storey else NAN}
+                for g, (d, _) in result.det_for_gt.items()}
+
+
 def default_evaluators() -> list[Evaluator]:
     """A fresh set of the bench's evaluators, in the order their columns merge (a later one's
     column wins: BimEvaluator's focal_est_px over the per-wall fit's own where K was not given)."""
     return [CornerEvaluator(), AspectEvaluator(), PoseEvaluator(), ConsistencyEvaluator(), RelativeSizeEvaluator(),
-            MatchEvaluator(), BimEvaluator()]
+            MatchEvaluator(), BimEvaluator(), ModelEvaluator()]
 
 
 __all__ = ["AspectEvaluator", "BimEvaluator", "ConsistencyEvaluator", "CornerEvaluator", "Evaluator", "MatchEvaluator",
-           "MethodResult", "PoseEvaluator", "QuadIoUMemo", "RelativeSizeEvaluator", "default_evaluators",
+           "MethodResult", "ModelEvaluator", "PoseEvaluator", "QuadIoUMemo", "RelativeSizeEvaluator", "default_evaluators",
            "head_error", "metric_errors", "window_errors"]

@@ -117,7 +117,7 @@ def view_tasks(plan: Plan, house: str, dataset_dir: Path, indices: range | None 
     views = sorted(p for p in (Path(dataset_dir) / "views").iterdir() if (p / "view.json").is_file())
     if indices is not None:
         views = [p for p in views if int(p.name) in indices]
-    return [ViewTask(RenderedViewRef(str(v), house, plan.profile.render.renderer), plan.methods, plan.options)
+    return [ViewTask(RenderedViewRef(str(v), house, plan.profile.source.render.renderer), plan.methods, plan.options)
             for v in views]
 
 

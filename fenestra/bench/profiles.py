@@ -28,12 +28,15 @@ import json
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fenestra.config import from_table, read_toml
 from fenestra.conventions import LIMITS
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
+
+if TYPE_CHECKING:
+    from fenestra.bench.real.profile import Datasets
 
 PROFILE_DIR = Path(__file__).parent / "profiles"
 ALL = "all"
@@ -110,8 +113,54 @@ class EvalSpec:
 
 
 @dataclass(frozen=True)
+class Renders:
+    """A profile's views when it renders them: which houses (``scenes``), how they are rendered
+    (``render``) and which of their windows are evaluable (``evaluation``); each view has exact
+    truth (pose, corners, sizes)."""
+
+    scenes: ScenesSpec = field(default_factory=ScenesSpec)
+    render: RenderSpec = field(default_factory=RenderSpec)
+    evaluation: EvalSpec = field(default_factory=EvalSpec)
+
+    def to_dict(self) -> dict:
+        """Its sections as plain JSON-able dicts (render options as a dict)."""
+        d = asdict(self)
+        d["render"]["options"] = dict(self.render.options)
+        return d
+
+
+@dataclass(frozen=True)
 class Profile:
-    """One benchmark profile (see the module docstring for the TOML layout)."""
+    """One benchmark profile: its name, what its views are (``source``: :class:`Renders`, or
+    bench.real.profile.Datasets, labelled photos read by the dataset adapters) and the methods run
+    on them. The same type for both kinds; the runner routes on the source (bench.runner).
+    See the module docstring for a rendering profile's TOML, bench.real.profile for a dataset one."""
+
+    name: str
+    source: Renders | Datasets = field(default_factory=Renders)
+    description: str = ""
+    seed: int = 0
+    methods: MethodsSpec = field(default_factory=MethodsSpec)
+
+    @property
+    def photos(self) -> bool:
+        """Whether its views are labelled photos (a Datasets source), not renders."""
+        return not isinstance(self.source, Renders)
+
+    def to_dict(self) -> dict:
+        """Plain JSON-able dict: name, description, seed, methods and the source's sections, at
+        the top level as in the profile's TOML."""
+        return {"name": self.name, "description": self.description, "seed": self.seed,
+                "methods": asdict(self.methods), **self.source.to_dict()}
+
+    def config_hash(self) -> str:
+        """8 hex digits identifying everything that changes results (not name/description)."""
+        return config_hash(self.to_dict())
+
+
+@dataclass(frozen=True)
+class _RenderProfileTable:
+    """A rendering profile's TOML as it reads (from_table's schema; :func:`profile_from_dict`)."""
 
     name: str
     description: str = ""
@@ -120,16 +169,6 @@ class Profile:
     render: RenderSpec = field(default_factory=RenderSpec)
     methods: MethodsSpec = field(default_factory=MethodsSpec)
     evaluation: EvalSpec = field(default_factory=EvalSpec)
-
-    def to_dict(self) -> dict:
-        """Plain JSON-able dict (options as a dict)."""
-        d = asdict(self)
-        d["render"]["options"] = dict(self.render.options)
-        return d
-
-    def config_hash(self) -> str:
-        """8 hex digits identifying everything that changes results (not name/description)."""
-        return config_hash(self.to_dict())
 
 
 def config_hash(config: dict) -> str:
@@ -221,7 +260,7 @@ def check_methods(methods: MethodsSpec, where: str) -> None:
         _check_withhold(g.withhold_K, at)
 
 
-def _validate(p: Profile, where: str) -> None:
+def _validate(p: _RenderProfileTable, where: str) -> None:
     """Range checks and registry names, each naming the key and the bad value."""
     from fenestra.renders.backends import RENDERERS  # noqa: PLC0415
 
@@ -253,7 +292,7 @@ def _validate(p: Profile, where: str) -> None:
     _check_counts(p, where)
 
 
-def _check_counts(p: Profile, where: str) -> None:
+def _check_counts(p: _RenderProfileTable, where: str) -> None:
     """The profile's counts within fenestra.conventions.LIMITS (procedural houses, views per house,
     views in all); ProfileError naming the key, its value and the bound."""
     from fenestra.scenes.registry import BUNDLED  # noqa: PLC0415
@@ -266,15 +305,16 @@ def _check_counts(p: Profile, where: str) -> None:
 
 
 def profile_from_dict(data: dict, where: str = "profile") -> Profile:
-    """Profile from a parsed TOML dict (top-level: name, description, seed and the sections)."""
+    """A rendering Profile from a parsed TOML dict (top-level: name, description, seed and the
+    sections); ProfileError naming the file, the key and the bad value."""
     m = data.get("methods")
     both = sorted(k for k in ("detectors", "snappers", "pose_solvers", "withhold_K") if k in m) \
         if isinstance(m, dict) and m.get("grids") else []
     if both:
         raise ProfileError(f"{where}: [methods] has [[methods.grids]] and also {both}: give the selectors in each grid")
-    p = from_table(Profile, data, where, ProfileError)
-    _validate(p, where)
-    return p
+    t = from_table(_RenderProfileTable, data, where, ProfileError)
+    _validate(t, where)
+    return Profile(t.name, Renders(t.scenes, t.render, t.evaluation), t.description, t.seed, t.methods)
 
 
 def available_profiles() -> list[str]:
@@ -283,10 +323,17 @@ def available_profiles() -> list[str]:
 
 
 def load_profile(name_or_path: str | Path) -> Profile:
-    """A bundled profile by name (``smoke``) or any TOML file by path."""
+    """A bundled profile by name (``smoke``, ``real``) or any TOML file by path, of either kind:
+    ``kind = "real"`` reads labelled datasets (bench.real.profile.real_profile_from_dict), else
+    it renders (:func:`profile_from_dict`)."""
     p = Path(name_or_path)
     if not p.suffix:
         p = PROFILE_DIR / f"{name_or_path}.toml"
         if not p.is_file():
             raise ProfileError(f"unknown profile {str(name_or_path)!r}; bundled: {available_profiles()}")
-    return profile_from_dict(read_toml(p, ProfileError, "profile file"), where=str(p))
+    data = read_toml(p, ProfileError, "profile file")
+    if data.get("kind") == "real":
+        from fenestra.bench.real.profile import real_profile_from_dict  # noqa: PLC0415 - it imports this module
+
+        return real_profile_from_dict(data, where=str(p))
+    return profile_from_dict(data, where=str(p))

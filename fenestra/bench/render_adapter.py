@@ -66,15 +66,16 @@ def dataset_config(profile: Profile, house: str, renders_dir: Path):
     from fenestra.renders.sampler import SamplerConfig  # noqa: PLC0415
     from fenestra.renders.sensor import SensorConfig  # noqa: PLC0415
 
-    opts = dict(profile.render.options)
+    render = profile.source.render
+    opts = dict(render.options)
     unknown = sorted(set(opts) - set(OPTION_SECTIONS))
     if unknown:
         raise ProfileError(f"profile {profile.name!r} [render.options]: unknown table(s) {unknown}; "
                            f"allowed: {list(OPTION_SECTIONS)}")
     where = f"profile {profile.name!r} [render.options.%s]"
-    sampler = {**opts.get("sampler", {}), "width": profile.render.width, "height": profile.render.height}
-    return DatasetConfig(scene=house_path(house), n_views=profile.render.views_per_house,
-                         seed=profile.seed, renderer=profile.render.renderer,
+    sampler = {**opts.get("sampler", {}), "width": render.width, "height": render.height}
+    return DatasetConfig(scene=house_path(house), n_views=render.views_per_house,
+                         seed=profile.seed, renderer=render.renderer,
                          sampler=_section(SamplerConfig, sampler, where % "sampler"),
                          settings=_section(RenderSettings, opts.get("settings", {}), where % "settings"),
                          sensor=_section(SensorConfig, opts.get("sensor", {}), where % "sensor"),
@@ -99,8 +100,8 @@ def labelled_view(view: View, house: str, name: str, renderer: str) -> LabelledV
     """The LabelledView of a rendered view (fenestra.rendered_view.View): every view.json window with its
     exact quad (corners_px, may lie outside the image), world corners, aspect and size, its mask
     from instances.png (View.window_masks: empty when hidden), the camera pose and K; the ignore
-    regions present in ignore.png as masks (View.ignore_masks)."""
-    ignore = tuple(LabelledWindow(id=str(r["id"]), mask=m, instance_id=int(r["instance_id"]))
+    regions present in ignore.png as masks (View.ignore_masks), with their kind."""
+    ignore = tuple(LabelledWindow(id=str(r["id"]), mask=m, instance_id=int(r["instance_id"]), kind=r.get("kind"))
                    for r, m in view.ignore_masks())
     meta = view.meta
     return LabelledView(dataset=house, name=name, image=view.image,

@@ -10,7 +10,7 @@ with their unit in the column name; ``results.csv``, the same table, only when a
                                                              fail_rate, recall: {"1": .., "2": ..}},
                           aspect_err_rel / rot_err_deg / normal_err_deg / trans_err_m / iou_2d: {...},
                           bim: {...}, export: {precision, n_exported, n_matched, n_on_ignore, n_on_nothing,
-                                               n_views}}},
+                                               n_on_door, n_views}}},
      "detection": {detector: {bbox_AP, bbox_AP50, segm_AP, segm_AP50, ...}}}
 
 Statistics are over *evaluable* rows (see bench.evaluate.window_base). Medians/p90 are
@@ -360,7 +360,7 @@ def export_precision(outcomes: list) -> dict[str, dict]:
         for m, c in o.export_counts.items():
             t = out.setdefault(m, {**dict.fromkeys(EXPORT_COUNTS, 0), "n_views": 0})
             for k in EXPORT_COUNTS:
-                t[k] += int(c[k])
+                t[k] += int(c.get(k, 0))  # a view spooled before a count existed: none
             t["n_views"] += 1
     for t in out.values():
         t["precision"] = t["n_matched"] / t["n_exported"] if t["n_exported"] else float("nan")

@@ -3,11 +3,12 @@ measure -> tables, summary, report.
 
     from fenestra.bench.runner import run_benchmark
     info = run_benchmark(load_profile("smoke"), workers=2)                       # renders
-    info = run_benchmark(load_real_profile("real"), sim_dir="out/bench/smoke")  # photos
+    info = run_benchmark(load_profile("real"), sim_dir="out/bench/smoke")       # photos
 
-A synthetic profile (bench.profiles.Profile) renders its houses (cached) and evaluates their views
-with an executor (bench.executors: a local process pool of ``workers`` processes, or a Ray
-cluster); a real profile (bench.real.profile.RealProfile) reads its labelled datasets with
+One bench.profiles.Profile type, routed on its source: a synthetic profile (source
+bench.profiles.Renders) renders its houses (cached) and evaluates their views with an executor
+(bench.executors: a local process pool of ``workers`` processes, or a Ray cluster); a real
+profile (source bench.real.profile.Datasets) reads its labelled datasets with
 bench.real.adapters (optional datasets whose folder is absent are skipped and listed in the
 metadata) and evaluates them in this process. Either way every view is a bench.views.LabelledView
 evaluated by the one bench.evaluate.evaluate_view, and every labelled window gets one row per
@@ -35,7 +36,6 @@ from fenestra.bench.detection_ap import detection_ap
 from fenestra.bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTask
 from fenestra.bench.executors import HousePlan, Keep, Plan, evaluate_local, get_executor
 from fenestra.bench.profiles import ALL, Profile, planned_methods, selected
-from fenestra.bench.real.profile import RealProfile
 from fenestra.bench.views import LabelledView
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
@@ -59,7 +59,7 @@ class RunInfo:
     n_rows: int
 
 
-def default_run_dir(profile: Profile | RealProfile) -> Path:
+def default_run_dir(profile: Profile) -> Path:
     """out/bench/<profile name>-<config hash>."""
     return OUT_ROOT / "bench" / f"{profile.name}-{profile.config_hash()}"
 
@@ -83,7 +83,7 @@ def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
     return ok, skipped
 
 
-def plan_methods(profile: Profile | RealProfile) -> tuple[tuple[Method, ...], dict[str, str]]:
+def plan_methods(profile: Profile) -> tuple[tuple[Method, ...], dict[str, str]]:
     """The methods the profile plans (bench.profiles.planned_methods: its cross product, or the
     union of its designed grids; K withheld only where the strategy fits the focal length) for
     the available detectors, and the skipped detectors."""
@@ -101,15 +101,16 @@ def house_list(profile: Profile) -> list[str]:
     """Bundled house names of the profile (["all"] expanded), then procedural ones."""
     from fenestra.scenes.registry import BUNDLED, WILD_PREFIX, is_known, resolve  # noqa: PLC0415
 
-    houses = list(BUNDLED) if profile.scenes.houses == (ALL,) else list(profile.scenes.houses)
+    scenes = profile.source.scenes
+    houses = list(BUNDLED) if scenes.houses == (ALL,) else list(scenes.houses)
     bad = [h for h in houses if not is_known(h)]
     if bad:
         raise FenestraError(f"unknown house(s) {bad}; bundled: {sorted(BUNDLED)}")
     for h in houses:  # a wild house whose folder is absent: say so plainly (SceneError, one line)
         if h.startswith(WILD_PREFIX):
             resolve(h)
-    seed = profile.scenes.procedural_seed
-    return houses + [f"procedural:{seed + i}" for i in range(profile.scenes.procedural)]
+    seed = scenes.procedural_seed
+    return houses + [f"procedural:{seed + i}" for i in range(scenes.procedural)]
 
 
 # ---------------------------------------------------------------- evaluation
@@ -125,7 +126,7 @@ def make_plan(profile: Profile, methods: tuple[Method, ...], renders_dir: str | 
     opts = tuple((d, tuple(LEARNED_DETECTOR_OPTIONS.items()))
                  for d in dict.fromkeys(m.detector for m in methods)
                  if not DETECTORS[d].needs_instances)
-    options = EvalOptions(evaluation=profile.evaluation, height_m=profile.methods.height_m, detector_options=opts)
+    options = EvalOptions(evaluation=profile.source.evaluation, height_m=profile.methods.height_m, detector_options=opts)
     houses = tuple(HousePlan(h, dataset_config(profile, h, root)) for h in house_list(profile))
     return Plan(houses=houses, profile=profile, methods=methods, options=options, run_dir=str(run_dir))
 
@@ -171,14 +172,14 @@ def _utf8_view(view: LabelledView, folder: Path) -> LabelledView:
     return view
 
 
-def evaluate_photos(profile: RealProfile, methods: tuple[Method, ...], progress: bool,
+def evaluate_photos(profile: Profile, methods: tuple[Method, ...], progress: bool,
                     keep: Keep | None = None) -> Evaluated:
     """Evaluate every view of a real profile's datasets, in order, in this process (the real
     datasets are a few photos, read one at a time; the learned detectors use one thread); the
     expected rows are every labelled window x method."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    datasets, skipped = profile.available_datasets()
-    options = profile.eval_options()
+    datasets, skipped = profile.source.available()
+    options = profile.source.eval_options(profile.methods.height_m)
     tasks = (ViewTask(LoadedView(_utf8_view(v, ds.folder())), methods, options) for ds in datasets for v in ds.views())
     t0 = time.perf_counter()
     outcomes = evaluate_local(tasks, workers=1, progress=progress, keep=keep)
@@ -270,17 +271,17 @@ def per_unit_timings(stage_s: dict[str, float], n_views: int, n_windows: int) ->
             "stage_ms_per_window": {k: 1000.0 * v / max(1, n_windows) for k, v in cpu.items()}}
 
 
-def run_inputs(profile: Profile | RealProfile, renders_dir: str | Path | None) -> list[Path]:
+def run_inputs(profile: Profile, renders_dir: str | Path | None) -> list[Path]:
     """What a run reads and its folder must neither hold nor lie inside (fenestra.outputs): a
     real profile's dataset folders; a synthetic profile's IFC files given as paths and the
     render cache."""
-    if isinstance(profile, RealProfile):
-        return [Path(d.folder()) for d in profile.available_datasets(kfree=True)[0]]
-    ifcs = [Path(h) for h in profile.scenes.houses if Path(h).is_file()]
+    if profile.photos:
+        return [Path(d.folder()) for d in profile.source.available(kfree=True)[0]]
+    ifcs = [Path(h) for h in profile.source.scenes.houses if Path(h).is_file()]
     return [*ifcs, Path(renders_dir) if renders_dir is not None else OUT_ROOT / "renders"]
 
 
-def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = None, workers: int | None = None,
+def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: int | None = None,
                   progress: bool = True, report: ReportWriter | None = None,
                   methods: tuple[Method, ...] | None = None,
                   renders_dir: str | Path | None = None, executor: str = "local",
@@ -303,7 +304,7 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
     t_start = time.perf_counter()
     load_before = os.getloadavg()
     provenance = {"commit": res._commit(), "models": res.model_digests()}  # what the run starts with, not ends with
-    photos = isinstance(profile, RealProfile)
+    photos = profile.photos
     if sim_dir is not None and not photos:
         raise ValueError(f"sim_dir needs a real profile, got profile {profile.name!r}")
     if sim_dir is not None and not (Path(sim_dir) / res.SUMMARY_JSON).is_file():
@@ -322,10 +323,10 @@ def run_benchmark(profile: Profile | RealProfile, out_dir: str | Path | None = N
         outcomes, stage_s = ev.outcomes, dict(ev.stage_s)
         stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
         blocks = {}
-        if photos and profile.kfree is not None:  # the K-free single-photo path (bench.photo_eval)
+        if photos and profile.source.kfree is not None:  # the K-free single-photo path (bench.photo_eval)
             from fenestra.bench.photo_eval import run_kfree  # noqa: PLC0415
 
-            blocks["kfree"] = run_kfree(profile.kfree, profile.kfree_views(), run_dir, progress, workers)
+            blocks["kfree"] = run_kfree(profile.source.kfree, profile.source.kfree_views(), run_dir, progress, workers)
             stage_s["kfree"] = blocks["kfree"]["wall_time_s"]
 
         t0 = time.perf_counter()

@@ -39,7 +39,8 @@ class LabelledWindow:
 
     Renders only (None / NaN for photos): instance_id, its value in LabelledView.instances;
     corners_world (4, 3) m TL TR BR BL; incidence_deg, distance_m, visible_fraction (view.json);
-    corner_visible (4 bools).
+    corner_visible (4 bools); kind, an ignore region's (view.json ``ignore[*].kind``:
+    "curtain_wall", or "glazed_door": an IfcDoor), None for a window.
     """
 
     id: str
@@ -55,6 +56,7 @@ class LabelledWindow:
     distance_m: float = NAN
     visible_fraction: float = NAN
     corner_visible: tuple[bool, ...] = (True, True, True, True)
+    kind: str | None = None
 
     def __post_init__(self) -> None:
         if self.quad is None and self.box is None and self.mask is None:

@@ -279,10 +279,16 @@ def user_focal(K: np.ndarray, how: str) -> FocalEstimate:
 
 
 def exif_focal(photo: str | Path, image_size: tuple[int, int]) -> FocalEstimate | Unavailable | None:
-    """The photo's EXIF focal length (:func:`focal_from_exif`) +- EXIF_REL_INTERVAL, None without
-    one, or why it is refused (Unavailable: outside EXIF_FOV_RANGE_DEG; the chain records it as unavailable)."""
+    """The photo file's EXIF focal length (:func:`exif_focal_of_tags` of its :func:`read_exif_tags`)."""
+    return exif_focal_of_tags(read_exif_tags(photo), image_size)
+
+
+def exif_focal_of_tags(tags: dict, image_size: tuple[int, int]) -> FocalEstimate | Unavailable | None:
+    """The EXIF focal length of tags {tag id: value} (:func:`focal_from_exif_tags`; image_size (W,
+    H) px) +- EXIF_REL_INTERVAL, None without one, or why it is refused (Unavailable: outside
+    EXIF_FOV_RANGE_DEG; the chain records it as unavailable)."""
     try:
-        found = focal_from_exif(photo, image_size)
+        found = focal_from_exif_tags(tags, image_size)
     except PipelineError as e:
         return Unavailable(str(e))
     if found is None:
@@ -463,6 +469,13 @@ def resolve_K(photo: str | Path | None, quads: np.ndarray, image_size: tuple[int
     the focal fit, which needs segment_cache, the photo's pipeline.segments.SegmentCache).
     """
     exif = None if photo is None else exif_focal(photo, image_size)  # None: an image without a file (a render)
+    return resolve_K_with(exif, quads, image_size, wall, segment_cache)
+
+
+def resolve_K_with(exif: FocalEstimate | Unavailable | None, quads: np.ndarray, image_size: tuple[int, int],
+                   wall: WallParams | None = None, segment_cache: SegmentCache | None = None) -> ResolvedK:
+    """:func:`resolve_K` with the photo's EXIF focal length already read (:func:`exif_focal_of_tags`;
+    None: the photo has none)."""
     vp = vanishing_focal(quads, image_size, wall, segment_cache)
     return choose_focal([exif if exif is not None else Unavailable("no EXIF focal length"), vp], ["exif", "vanishing points"],
                         image_size)

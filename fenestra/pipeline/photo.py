@@ -189,6 +189,24 @@ def method_of(options: PhotoOptions, masks: bool) -> Method:
                   quad_source=options.quad_source)
 
 
+def photo_session(image: np.ndarray, exif: dict, camera=None, instances: np.ndarray | None = None):
+    """The pipeline.session.PhotoSession :func:`reconstruct_photo` runs on a photo read: image (H,
+    W, 3) uint8 RGB, its EXIF tags (pipeline.intrinsics.read_exif_tags), the user's camera
+    (pipeline.session.UserCamera) or None, an (H, W) instance map (``--masks``: the ``oracle``
+    detector reads its crops) or None."""
+    from fenestra.pipeline.session import PhotoSession  # noqa: PLC0415
+
+    return PhotoSession(image, camera=camera, exif=exif, instances=instances,
+                        detector_options={"oracle": {"sparse": True}})  # --masks: crops
+
+
+def run_options(session, options: PhotoOptions) -> Reconstruction:
+    """The user's method (:func:`method_of`: the oracle when the session holds an instance map)
+    run on ``session`` with the options' known sizes, export_all and substitute style."""
+    return session.run(method_of(options, session.instances is not None), options.known, options.export_all,
+                       options.substitute)
+
+
 def _is_path(v) -> bool:
     import os  # noqa: PLC0415
 
@@ -258,7 +276,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     from fenestra.images import read_image, read_instances  # noqa: PLC0415
     from fenestra.pipeline.io import intrinsics_warnings, photo_warnings, undistort_photo  # noqa: PLC0415
     from fenestra.pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
-    from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415
+    from fenestra.pipeline.session import UserCamera  # noqa: PLC0415
 
     options = PhotoOptions() if options is None else options
     check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force)  # PipelineError naming the argument
@@ -273,9 +291,11 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     if camera is not None:
         image = undistort_photo(image, camera)  # masks are taken to be in this frame
     instances = None if masks is None else read_instances(Path(masks), size, "--masks instance map")
-    session = PhotoSession(image, camera=None if camera is None else UserCamera(camera.K, how), photo=photo,
-                           instances=instances, detector_options={"oracle": {"sparse": True}})  # --masks: crops
-    rec = session.run(method_of(options, masks is not None), options.known, options.export_all, options.substitute)
+    from fenestra.pipeline.intrinsics import read_exif_tags  # noqa: PLC0415
+
+    session = photo_session(image, read_exif_tags(photo), None if camera is None else UserCamera(camera.K, how),
+                            instances)
+    rec = run_options(session, options)
     del session, instances  # export needs neither the gray copies nor the instance map (a 100 Mpx photo: 0.5 GB each)
     from fenestra.pipeline.intrinsics import gps_from_exif  # noqa: PLC0415
 
@@ -339,11 +359,20 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
             "warnings": [*warnings, *rec.resolved.warnings]}
 
 
-def model_walls(doc: dict) -> int:
-    """:func:`pipeline.readout.model_walls` read back from windows.json's data (``wall`` of the
-    windows with ``not_exported`` None and no failure)."""
-    return len({w["wall"] for w in doc.get("windows") or []
-                if w.get("wall") is not None and w.get("not_exported") is None and w.get("failure") is None})
+def wall_ids(rec: Reconstruction) -> dict[int, int]:
+    """{window index: the id of the façade model's wall it is on} (members and partial windows):
+    the writers' ``walls``, one IfcWall per wall."""
+    return {k: w.id for w in rec.model.walls for k in w.windows}
+
+
+def written_model(rec: Reconstruction, substitute: str | None = None):
+    """The model :func:`write_all` writes for ``rec`` (pipeline.export.WrittenModel: the exported
+    windows upright and grounded, the export world's vertical, the storey rows), as a value,
+    nothing written; substitute: the catalogue style ``rec``'s run was given (None: the default;
+    its export decision, Window.export, is the model's: not made again)."""
+    from fenestra.pipeline.export import DEFAULT_STYLE, written_model as model_of  # noqa: PLC0415
+
+    return model_of(rec.results(), substitute or DEFAULT_STYLE, rec.not_exported, wall_ids(rec), decided=True)
 
 
 def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoOptions) -> ExportReport:
@@ -362,7 +391,7 @@ def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoO
     if options.export:
         try:
             paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=decided,
-                                  walls={k: w.id for w in model.walls for k in w.windows},
+                                  walls=wall_ids(rec),
                                   properties={w.index: window_properties(w) for w in read.windows},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False,
                                   gps=gps_tuple(result.gps), thickness_m=options.wall_thickness_m,

@@ -204,14 +204,6 @@ def window_lines(rec, export_models: bool = True, written: set[int] | None = Non
     return tuple(lines)
 
 
-def model_walls(rec) -> int:
-    """The walls of the façade model a user gets: distinct walls of the windows the export decision
-    keeps (and that did not fail). A wall fitted to flagged windows only (a lone window whose plane
-    is nonsense, a shop sign) is no wall of the model (model.ifc holds none for it)."""
-    return len({w.wall for w in rec.windows
-                if w.wall is not None and w.export.exported and w.result.failure is None})
-
-
 def readout(result) -> PhotoReadout:
     """The PhotoReadout of a pipeline.photo.PhotoResult (pure)."""
     rec = result.reconstruction
@@ -221,6 +213,6 @@ def readout(result) -> PhotoReadout:
         photo=result.photo, image_size=tuple(result.image_size),
         windows=window_lines(rec, result.export_models, written), resolved=rec.resolved,
         scale_sources=tuple(sorted({w.scale_source for w in walls})), scale_assumed=any(w.assumed for w in walls),
-        walls=model_walls(rec), warnings=(*result.warnings, *rec.resolved.warnings),
+        walls=len(rec.model_wall_ids()), warnings=(*result.warnings, *rec.resolved.warnings),
         geometry_failure=None if rec.geometry_failure is None else rec.geometry_failure.reason,
         distortion=None if not result.undistorted else tuple(result.distortion or ()), export=result.export)

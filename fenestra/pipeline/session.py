@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -173,6 +172,12 @@ class Reconstruction:
         """{detection index: whether the window goes into the model}."""
         return {w.index: w.export.exported for w in self.windows}
 
+    def model_wall_ids(self) -> set[int]:
+        """The walls of the façade model a user gets: the walls holding a window that goes into the
+        BIM model and has no failure (a wall fitted to flagged windows only, a lone window whose
+        plane is nonsense or a shop sign, is no wall of the model: model.ifc holds none for it)."""
+        return {w.wall for w in self.windows if w.wall is not None and w.export.exported and w.result.failure is None}
+
     def scale_source(self, index: int) -> str | None:
         """How window ``index``'s wall got its scale: "assumed" (the default window height), or
         the Known field that set it ("storey_m", "window_height_m", "window_width_m"); None for a
@@ -192,7 +197,9 @@ class PhotoSession:
 
     image: (H, W, 3) uint8 RGB, in the frame of ``camera`` and ``instances`` (undistorted where
     the camera has distortion). camera: the user's intrinsics, or None (a method then resolves K
-    through the focal chain). photo: the photo's file (its EXIF focal length), or None.
+    through the focal chain). exif: the photo's EXIF tags {tag id: value}
+    (pipeline.intrinsics.read_exif_tags: its focal length joins the chain), {} for an image
+    without (a render).
     instances: an (H, W) instance map (a user's ``--masks``, or a render's truth) for the
     detectors that read one (capability ``needs_instances``: ``oracle``). detector_options:
     {detector: {build option: value}}. max_side: learned detectors see the photo with its long
@@ -201,7 +208,7 @@ class PhotoSession:
 
     image: np.ndarray
     camera: UserCamera | None = None
-    photo: Path | None = None
+    exif: dict = field(default_factory=dict)
     instances: np.ndarray | None = None
     detector_options: dict = field(default_factory=dict)
     max_side: int | None = None
@@ -296,10 +303,10 @@ class PhotoSession:
         """The method's intrinsics: the user's K (compared with EXIF) unless the method withholds
         it; else the focal chain (EXIF, the façade's vanishing points with the method's per-wall
         strategy and its snapped quads, the prior). Cached per (detector, snapper, pose, quad)."""
-        from fenestra.pipeline.intrinsics import choose_focal, exif_focal, resolve_K, user_focal  # noqa: PLC0415
+        from fenestra.pipeline.intrinsics import choose_focal, exif_focal_of_tags, resolve_K_with, user_focal  # noqa: PLC0415
 
+        exif = exif_focal_of_tags(self.exif, self.size)
         if self.camera is not None and not method.withhold_K:
-            exif = None if self.photo is None else exif_focal(self.photo, self.size)
             K = np.asarray(self.camera.K, dtype=np.float64)
             r = choose_focal([user_focal(K, self.camera.how), exif if exif is not None else Unavailable("no EXIF focal length")],
                              ["K", "exif"], self.size, principal_point=(float(K[0, 2]), float(K[1, 2])))
@@ -308,7 +315,7 @@ class PhotoSession:
         if k not in self._resolved:
             t0 = time.process_time()
             quads = self.kfree_quads(method)
-            self._resolved[k] = resolve_K(self.photo, quads, self.size, POSES[method.pose].wall, self.segments)
+            self._resolved[k] = resolve_K_with(exif, quads, self.size, POSES[method.pose].wall, self.segments)
             self._tick("focal", t0)
         return self._resolved[k]
 

@@ -18,8 +18,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fenestra.bench.evaluate import (BIM_COLUMNS, PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask, evaluate_task,
-                            evaluate_view, render_conditions)
+from fenestra.bench.evaluate import (BIM_COLUMNS, MODEL_COLUMNS, PHOTO_COLUMNS, RENDER_COLUMNS, EvalOptions, ViewTask,
+                                     evaluate_task, evaluate_view, render_conditions)
 from fenestra.methods import Method
 from fenestra.bench.profiles import EvalSpec
 from fenestra.bench.render_adapter import RenderedViewRef, read_rendered_view
@@ -169,7 +169,7 @@ def test_rows_equal_those_of_the_former_render_evaluator(view_dir):
     rows = _run(view_dir, methods).rows
     assert len(rows) == len(golden["rows"]) == 20
     for r, g in zip(rows, golden["rows"]):
-        assert list(r) == list(RENDER_COLUMNS) and set(r) == set(g) | set(BIM_COLUMNS), set(r) ^ set(g)
+        assert list(r) == list(RENDER_COLUMNS) and set(r) == set(g) | set(BIM_COLUMNS) | set(MODEL_COLUMNS), set(r) ^ set(g)
         bad = {k: (r[k], g[k]) for k in g if not _same(r[k], g[k])}
         if r["status"] == "missed":
             assert not bad and all(_same(r[k], float("nan")) for k in BIM_COLUMNS), (r["method"], r["window_id"], bad)
@@ -229,7 +229,8 @@ def test_render_and_photo_tables_share_columns_and_dtypes(view_dir, tmp_path):
            "pos_err_m", "scale_source_storey", "width_err_m_storey", "height_err_m_storey", "pos_err_m_storey"]
     assert list(render.columns) == list(RENDER_COLUMNS) == before_render + method + errors + [
         "focal_est_px", "focal_err_rel", "aspect_in90", "rot_in90", "trans_in90", "aspect_ci90_rel", "rot_ci90_deg",
-        "wall_id", *bim, "status", "reason", "aspect_case"]
+        "wall_id", *bim, "model_up_err_deg", "model_wall_tilt_deg", "model_storey", "true_storey", "model_n_storeys",
+        "true_n_storeys", "status", "reason", "aspect_case"]
     assert list(photo.columns) == list(PHOTO_COLUMNS) == before_photo + method + errors + [
         "reproj_consistency_px", "rel_size_err", *bim, "aspect_case", "status", "reason"]
     common = [c for c in render.columns if c in photo.columns]
@@ -380,18 +381,21 @@ def test_export_counts_know_the_door_and_the_panel(door_view_dir):
     for m in methods:
         rec = session.run(m)
         assert [d.instance_id for d in rec.detections] == [1, 2, 3, 4]
-        want = {"n_exported": 0, "n_matched": 0, "n_on_ignore": 0, "n_on_nothing": 0}
+        want = {"n_exported": 0, "n_matched": 0, "n_on_ignore": 0, "n_on_nothing": 0, "n_on_door": 0}
         for d, exported in rec.exported.items():
             if exported:
                 want["n_exported"] += 1
                 want[WHAT[rec.detections[d].instance_id]] += 1
+                want["n_on_door"] += rec.detections[d].instance_id == 3  # the glazed door: written as an IfcWindow
         assert out.export_counts[m.name] == want
     # every void is a plausible window here: the door and the panel are exported, and counted as false
-    assert out.export_counts["oracle/none/lm"] == {"n_exported": 4, "n_matched": 2, "n_on_ignore": 1, "n_on_nothing": 1}
+    assert out.export_counts["oracle/none/lm"] == {"n_exported": 4, "n_matched": 2, "n_on_ignore": 1, "n_on_nothing": 1,
+                                                   "n_on_door": 1}
+    assert [r.kind for r in view.ignore] == ["glazed_door"]
     assert out.n_false_positives["oracle"] == 2
     prec = export_precision([out, out])
     assert prec["oracle/none/lm"] == {"n_exported": 8, "n_matched": 4, "n_on_ignore": 2, "n_on_nothing": 2,
-                                      "n_views": 2, "precision": 0.5}
+                                      "n_on_door": 2, "n_views": 2, "precision": 0.5}
     summary = add_export_precision({"oracle/none/lm": {"n_gt": 2}}, [out])
     assert summary["oracle/none/lm"]["export"]["precision"] == 0.5 and "oracle/linefit/ippe" not in summary
 
@@ -408,9 +412,9 @@ def test_a_detection_on_a_door_box_is_on_the_ignore_region(door_view_dir):
     inst = cv2.imread(str(door_view_dir / "instances.png"), cv2.IMREAD_UNCHANGED)
     masks = [SparseMask.from_dense(inst == k) for k in (1, 2, 3, 4)]
     dets = [dataclasses.make_dataclass("D", ["box"])(m.box()) for m in masks]
-    assert on_ignore(view, masks, dets) == {2}  # by mask: the door is detection 2
+    assert on_ignore(view, masks, dets) == {2: "glazed_door"}  # by mask: the door is detection 2
     b = masks[2].box()
-    for shift, want in ((0.0, {2}), (0.6, set()), (0.4, {2})):
+    for shift, want in ((0.0, {2: None}), (0.6, {}), (0.4, {2: None})):  # a box label says no kind
         box = b + np.array([1, 0, 1, 0]) * shift * (b[2] - b[0])
         boxed = dataclasses.replace(view, ignore=(LabelledWindow("D3", box=box),))
         assert on_ignore(boxed, masks, dets) == want, shift
@@ -497,3 +501,39 @@ def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():
         assert win.wall == rec.model.wall_of(k).id
     assert all(rows[w]["evaluable"] and rows[w]["status"] == "ok" for w in ("W1", "W2"))
     assert out.export_counts[method.name] == {"n_exported": 3, "n_matched": 3, "n_on_ignore": 0, "n_on_nothing": 0}
+
+
+def _leaned(C: np.ndarray, deg: float) -> np.ndarray:
+    """World corners C (N, 3) turned by ``deg`` about the world x axis: the wall y = 0 leaning."""
+    a = math.radians(deg)
+    return C @ np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]]).T
+
+
+@pytest.mark.parametrize("lean_deg", [0.0, 4.0])
+def test_the_written_model_against_the_true_vertical_and_the_houses_storeys(tmp_path, lean_deg):
+    """bench.evaluators.ModelEvaluator on a hand-made render read as a view of the FZK-Haus (its
+    IFC's storeys: the ground floor at 0 m, the next at 2.7 m): two rows of three windows, sills at
+    0.5 m and 2.9 m, are the model's two storey rows, each window in its own storey; on a plumb
+    wall the written model's vertical and the wall's tilt are within half a degree of the truth
+    (the world's z); the same windows on a wall leaning 4 deg: the wall's tilt is 4 deg, and so is
+    the model's vertical, the walls' own up axis (the written model has no other)."""
+    from fenestra.scenes.storeys import facade_levels, storey_index
+
+    wins = [_leaned(_window(x, z, 0.9, h), lean_deg) for z, h in ((0.5, 1.0), (2.9, 0.7)) for x in (0.5, 2.0, 3.5)]
+    view = read_rendered_view(_write_view(tmp_path / "000000", wins), "fzk-haus", "hand")
+    methods = (Method("oracle", "linefit", "lm"), Method("oracle", "none", "wall"))
+    rows = evaluate_view(view, methods, EvalOptions()).rows
+    assert len(rows) == 12 and all(r["status"] == "ok" and r["exported"] == 1.0 for r in rows)
+    for r in rows:
+        k = int(r["window_id"][1:])
+        assert r["true_storey"] == (0 if k <= 3 else 1) == r["model_storey"], r["window_id"]
+        assert r["model_n_storeys"] == r["true_n_storeys"] == 2
+        assert r["model_wall_tilt_deg"] == pytest.approx(lean_deg, abs=0.5), r["method"]
+        assert r["model_up_err_deg"] == pytest.approx(lean_deg, abs=0.5), r["method"]
+    assert facade_levels([2.7, 0.0, -1.2, 2.7]) == [0.0, 2.7]  # a basement is no façade storey
+    assert [storey_index(z, [0.0, 2.7]) for z in (-0.1, 0.0, 2.69, 2.7, 9.0)] == [None, 0, 0, 1, 1]
+    assert storey_index(1.0, []) is None
+    photo = dataclasses.replace(view, pose=None)
+    from fenestra.bench.evaluators import ModelEvaluator, true_storeys
+    assert true_storeys(photo) == {} and true_storeys(view) == {0: 0, 1: 0, 2: 0, 3: 1, 4: 1, 5: 1}
+    assert ModelEvaluator().process(photo, None) == {}  # a photo has no true vertical

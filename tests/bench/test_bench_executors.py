@@ -31,7 +31,8 @@ METHODS = (Method("oracle", "none", "lm"), Method("oracle-degraded", "hough", "i
 
 def _profile():
     p = load_profile("smoke")
-    return dataclasses.replace(p, render=dataclasses.replace(p.render, views_per_house=6))
+    return dataclasses.replace(p, source=dataclasses.replace(p.source, render=dataclasses.replace(p.source.render,
+                                                                                                 views_per_house=6)))
 
 
 def _free_port() -> int:

@@ -110,8 +110,8 @@ def test_profiles_load_and_validate():
     for name in ("smoke", "default", "photoreal"):
         p = load_profile(name)
         assert p.name == name and len(p.config_hash()) == 8
-    assert load_profile("smoke").render.renderer == "pyrender"
-    assert load_profile("photoreal").render.renderer == "mitsuba"
+    assert load_profile("smoke").source.render.renderer == "pyrender"
+    assert load_profile("photoreal").source.render.renderer == "mitsuba"
     with pytest.raises(ProfileError, match="unknown key\\(s\\) \\['view'\\]"):
         profile_from_dict({"name": "x", "render": {"view": 3}})
     with pytest.raises(ProfileError, match="'views_per_house' has bad value 'many'"):

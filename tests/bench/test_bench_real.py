@@ -273,16 +273,17 @@ def test_every_labelled_window_one_row_per_method(tmp_path, yolo_dir):
 
 def test_real_profile_loads_and_resolves_paths():
     p = load_real_profile("real")
-    assert p.datasets[0].folder() == ROOT / "data" / "real" / "curtainwall"
-    assert p.datasets[1].folder() == (ROOT.parent / "shared" / "real" / "spb_facades")
-    assert p.datasets[1].optional
+    datasets = p.source.datasets
+    assert datasets[0].folder() == ROOT / "data" / "real" / "curtainwall"
+    assert datasets[1].folder() == (ROOT.parent / "shared" / "real" / "spb_facades")
+    assert datasets[1].optional
     q = real_profile_from_dict({"name": "u", "kind": "real", "data": "/x/y", "format": "yolo"})
-    assert q.datasets[0].format == "yolo" and q.datasets[0].name == "y"
+    assert q.source.datasets[0].format == "yolo" and q.source.datasets[0].name == "y"
     with pytest.raises(ProfileError, match="format 'voc' unknown"):
         real_profile_from_dict({"name": "u", "kind": "real", "data": "/x", "format": "voc"})
     q = real_profile_from_dict({"name": "u", "kind": "real", "data": "/x/y",
                                 "detector_options": {"default": {"weights": "w.pt"}}})
-    assert q.detector_options == (("default", (("weights", "w.pt"),)),) and q.datasets[0].format == "coco"
+    assert q.source.detector_options == (("default", (("weights", "w.pt"),)),) and q.source.datasets[0].format == "coco"
     with pytest.raises(ProfileError, match="no datasets"):
         real_profile_from_dict({"name": "u", "kind": "real"})
 
@@ -416,7 +417,28 @@ def test_real_val_profile_never_reads_the_test_photos():
     """real-val, the profile changes are chosen on, reads the validation part of the train folder
     (every 5th photo, kfree only) and the bundled curtain wall, never the 10 test photos."""
     p = load_real_profile("real-val")
-    assert {d.name for d in p.datasets} == {"curtainwall", "spb_val"}
-    val = next(d for d in p.datasets if d.name == "spb_val")
+    assert {d.name for d in p.source.datasets} == {"curtainwall", "spb_val"}
+    val = next(d for d in p.source.datasets if d.name == "spb_val")
     assert val.folder() == ROOT.parent / "shared" / "real" / "spb_facades" / "train"
-    assert p.kfree.datasets == p.kfree.transform_datasets == ("spb_val",) and p.kfree.max_photos == 30
+    assert p.source.kfree.datasets == p.source.kfree.transform_datasets == ("spb_val",) and p.source.kfree.max_photos == 30
+
+
+def test_every_bundled_profile_is_one_profile_type_keyed_as_its_toml():
+    """bench.profiles.load_profile reads both kinds into one Profile: a rendering one's source is
+    Renders (scenes, render, evaluation), a real one's Datasets; its to_dict (what the config hash
+    hashes) has exactly the TOML file's top-level keys, less kind, so the hash names what the file says."""
+    import tomllib
+
+    from fenestra.bench.profiles import PROFILE_DIR, Profile, Renders, available_profiles, load_profile
+    from fenestra.bench.real.profile import Datasets
+
+    for name in available_profiles():
+        p = load_profile(name)
+        toml = tomllib.loads((PROFILE_DIR / f"{name}.toml").read_text())
+        real = toml.get("kind") == "real"
+        assert type(p) is Profile and isinstance(p.source, Datasets if real else Renders) and p.photos is real, name
+        keys = set(toml) - {"kind", "data", "format", "options"} | ({"datasets"} if real else set())
+        assert keys <= set(p.to_dict()), (name, keys - set(p.to_dict()))
+        assert set(p.to_dict()) - keys <= {"description", "seed", "methods", "scenes", "render", "evaluation",
+                                           "detector_long_side", "min_window_px", "detector_options", "kfree"}, name
+    assert load_profile("real") == load_real_profile("real")

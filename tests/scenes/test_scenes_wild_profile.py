@@ -13,9 +13,10 @@ from fenestra.scenes.registry import WILD_ENV, WILD_HOUSES, resolve, scene_name,
 
 def test_wild_profile_names_wild_houses_only():
     p = load_profile("wild")
-    assert p.scenes.procedural == 0 and p.scenes.houses
-    keys = [h.removeprefix("wild:") for h in p.scenes.houses]
-    assert all(h.startswith("wild:") for h in p.scenes.houses) and set(keys) <= set(WILD_HOUSES)
+    scenes = p.source.scenes
+    assert scenes.procedural == 0 and scenes.houses
+    keys = [h.removeprefix("wild:") for h in scenes.houses]
+    assert all(h.startswith("wild:") for h in scenes.houses) and set(keys) <= set(WILD_HOUSES)
     # every wild model but the roof-window-only one and the IFC2X_FINAL one
     assert set(WILD_HOUSES) - set(keys) == {"roof-bricscad", "allplan-smiley"}
 

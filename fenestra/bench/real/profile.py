@@ -1,4 +1,5 @@
-"""The real-photo profile: which labelled datasets, which methods (``fenestra/bench/profiles/real.toml``).
+"""A profile of labelled photos: which datasets, which methods (``fenestra/bench/profiles/real.toml``); a
+bench.profiles.Profile whose ``source`` is :class:`Datasets`.
 
     name = "real"
     kind = "real"                       # marks a real-photo profile (fenestra bench routes on it)
@@ -25,13 +26,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from fenestra.bench.evaluate import EvalOptions
 from fenestra.bench.photo_eval import KfreeSpec
-from fenestra.bench.profiles import PROFILE_DIR, EvalSpec, MethodsSpec, ProfileError, check_methods, config_hash
+from fenestra.bench.profiles import PROFILE_DIR, EvalSpec, MethodsSpec, Profile, ProfileError, check_methods
 from fenestra.bench.real.adapters import ADAPTERS
 from fenestra.bench.views import LabelledView
 from fenestra.config import from_table, read_toml
@@ -62,42 +63,39 @@ class DatasetSpec:
 
 
 @dataclass(frozen=True)
-class RealProfile:
-    """A real-photo benchmark profile (see the module docstring)."""
+class Datasets:
+    """A profile's views when they are labelled photos (bench.profiles.Profile's ``source``; see
+    the module docstring): the datasets, the resolution learned detectors see them at
+    (detector_long_side, px; 0: the CLI's), the smallest evaluable window (min_window_px), the
+    detectors' build options, and the K-free block ([kfree], bench.photo_eval) or None."""
 
-    name: str
     datasets: tuple[DatasetSpec, ...]
-    description: str = ""
-    seed: int = 0
-    methods: MethodsSpec = field(default_factory=MethodsSpec)
     detector_long_side: int = 640
     min_window_px: float = 12.0
     detector_options: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
     kfree: KfreeSpec | None = None  # [kfree]: the K-free single-photo path measured (bench.photo_eval)
 
     def to_dict(self) -> dict:
+        """Its keys as plain JSON-able values (options as dicts), as in the profile's TOML."""
         d = asdict(self)
         for ds in d["datasets"]:
             ds["options"] = dict(ds["options"])
         d["detector_options"] = {k: dict(v) for k, v in self.detector_options}
         return d
 
-    def config_hash(self) -> str:
-        """8 hex digits identifying everything that changes results (bench.profiles.config_hash)."""
-        return config_hash(self.to_dict())
-
-    def eval_options(self) -> EvalOptions:
+    def eval_options(self, height_m: float) -> EvalOptions:
         """How its views are evaluated (bench.evaluate.EvalOptions): windows below min_window_px
-        are not evaluable; learned detectors see photos at detector_long_side."""
-        return EvalOptions(evaluation=EvalSpec(min_window_px=self.min_window_px), height_m=self.methods.height_m,
+        are not evaluable; learned detectors see photos at detector_long_side; height_m: the
+        pose's scale parameter (the profile's methods.height_m)."""
+        return EvalOptions(evaluation=EvalSpec(min_window_px=self.min_window_px), height_m=height_m,
                            detector_long_side=self.detector_long_side, detector_options=self.detector_options)
 
     def kfree_views(self) -> Iterator[LabelledView]:
         """The views of the available datasets [kfree] names (none without [kfree])."""
         names = set(self.kfree.datasets) if self.kfree is not None else set()
-        return (v for ds in self.available_datasets(kfree=True)[0] if ds.name in names for v in ds.views())
+        return (v for ds in self.available(kfree=True)[0] if ds.name in names for v in ds.views())
 
-    def available_datasets(self, kfree: bool = False) -> tuple[list[DatasetSpec], dict[str, str]]:
+    def available(self, kfree: bool = False) -> tuple[list[DatasetSpec], dict[str, str]]:
         """(datasets whose folder exists, {skipped optional dataset: reason}); FileNotFoundError
         naming a required dataset's missing folder. kfree: include the kfree_only datasets."""
         ok, skipped = [], {}
@@ -122,8 +120,9 @@ def _dataset(t: dict, where: str) -> DatasetSpec:
     return from_table(DatasetSpec, {**t, "name": str(t.get("name") or Path(t["path"]).name)}, where, ProfileError)
 
 
-def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
-    """RealProfile from a parsed TOML dict; ProfileError naming the file, key and value."""
+def real_profile_from_dict(data: dict, where: str = "profile") -> Profile:
+    """A Profile of labelled datasets (source :class:`Datasets`) from a parsed TOML dict;
+    ProfileError naming the file, key and value."""
     top = {"name", "kind", "description", "seed", "methods", "datasets", "data", "format",
            "options", "detector_long_side", "min_window_px", "detector_options", "kfree"}
     unknown = sorted(set(data) - top)
@@ -146,10 +145,10 @@ def real_profile_from_dict(data: dict, where: str = "profile") -> RealProfile:
     methods = from_table(MethodsSpec, data.get("methods", {}), f"{where} [methods]", ProfileError)
     check_methods(methods, where)
     kfree = _kfree(data.get("kfree"), datasets, where)
-    return RealProfile(kfree=kfree, name=str(data.get("name") or "real"), datasets=datasets,
-                       detector_options=tuple(sorted((k, tuple(sorted(v.items()))) for k, v in dopts.items())),
-                       description=str(data.get("description", "")), seed=int(data.get("seed", 0)),
-                       methods=methods, detector_long_side=long_side, min_window_px=float(min_px))
+    source = Datasets(datasets, long_side, float(min_px),
+                      tuple(sorted((k, tuple(sorted(v.items()))) for k, v in dopts.items())), kfree)
+    return Profile(str(data.get("name") or "real"), source, str(data.get("description", "")), int(data.get("seed", 0)),
+                   methods)
 
 
 def _kfree(t, datasets: tuple[DatasetSpec, ...], where: str) -> KfreeSpec | None:
@@ -176,13 +175,13 @@ def is_real_profile(name_or_path: str | Path) -> bool:
     return p.is_file() and read_toml(p, ProfileError, "profile file").get("kind") == KIND
 
 
-def load_real_profile(name_or_path: str | Path) -> RealProfile:
+def load_real_profile(name_or_path: str | Path) -> Profile:
     """A real profile by bundled name (``real``) or TOML path."""
     p = _profile_path(name_or_path)
     return real_profile_from_dict(read_toml(p, ProfileError, "profile file"), where=str(p))
 
 
-def with_user_data(profile: RealProfile, data: str | Path, fmt: str, options: dict | None = None) -> RealProfile:
+def with_user_data(profile: Profile, data: str | Path, fmt: str, options: dict | None = None) -> Profile:
     """The profile's methods on one user dataset instead of its own (``--data DIR --format F``);
     the path is made absolute against the current directory. Its [kfree] block, which names the
     profile's own datasets, is dropped."""
@@ -191,4 +190,5 @@ def with_user_data(profile: RealProfile, data: str | Path, fmt: str, options: di
     p = resolved(Path(data).expanduser(), f"--data {str(data)!r}")
     utf8_name(p.name, "--data folder")
     ds = DatasetSpec(name=p.name, format=fmt, path=str(p), options=tuple(sorted((options or {}).items())))
-    return replace(profile, name=f"{profile.name}-{p.name}", datasets=(ds,), kfree=None)  # [kfree] names its own datasets
+    source = replace(profile.source, datasets=(ds,), kfree=None)  # [kfree] names its own datasets
+    return replace(profile, name=f"{profile.name}-{p.name}", source=source)

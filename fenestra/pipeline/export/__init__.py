@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,8 +22,8 @@ from fenestra.checks import check_image, check_K
 from fenestra.errors import PipelineError
 from fenestra.files import write_image
 from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, window_mesh
-from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, camera_to_world, gravity_up, grounded, place,
-                                               storey_levels, texture_layout, union_layout, upright,
+from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, StoreyLevels, camera_to_world, gravity_up,
+                                               grounded, place, storey_levels, texture_layout, union_layout, upright,
                                                WALL_THICKNESS_M)
 from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
@@ -100,6 +101,59 @@ def export_gravity(placed: list[PlacedWindow], walls: dict[int, int] | None,
     return Gravity(up / np.linalg.norm(up), "given")
 
 
+@dataclass(frozen=True)
+class WrittenModel:
+    """What the model files hold, before any is written (:func:`written_model`): placed, the
+    exported windows turned upright and grounded (export world); skipped [{"index", "reason"}] the
+    others; gravity the export world's vertical (``up`` (3,) camera frame, None: camera level);
+    levels the storey rows (grounded: storey 0 at z = 0); ground_z_m the ground plane's height
+    before grounding (m, upright world; export.json ``world_frame.offset`` is -ground_z_m)."""
+
+    placed: tuple[PlacedWindow, ...]
+    skipped: tuple[dict, ...]
+    gravity: Gravity
+    levels: StoreyLevels
+    ground_z_m: float
+
+    @property
+    def camera_to_export(self) -> np.ndarray:
+        """(3, 3) camera frame -> export world rotation (export.json ``world_frame.camera_to_export``)."""
+        return camera_to_world(self.gravity.up)
+
+    @property
+    def up(self) -> np.ndarray:
+        """The model's vertical (3,) unit, camera frame: the z row of :attr:`camera_to_export`
+        (gravity's up, or the camera's -y for the camera-level frame)."""
+        z = self.camera_to_export[2]
+        return z / np.linalg.norm(z)
+
+    def rows(self) -> list[list[int]]:
+        """Each storey row's window indices, lowest first (export.json ``storeys.rows[*].windows``)."""
+        return [sorted(i for i, row in self.levels.row_of.items() if row == r) for r in range(len(self.levels.sills_m))]
+
+
+def written_model(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE,
+                  exclude: dict[int, str] | None = None, walls: dict[int, int] | None = None,
+                  gravity: Gravity | np.ndarray | bool = True, decided: bool = False) -> WrittenModel:
+    """The model :func:`write_outputs` writes for ``results`` (its arguments of the same names), as
+    a value: which windows are placed, the export world's vertical, the storey rows. Pure.
+    decided: ``exclude`` is :func:`export_decision` of these results and ``style`` (what
+    pipeline.session's run decided), so every other window places and takes a mesh: the checks of
+    :func:`split_results` are not repeated (the same model)."""
+    if decided:
+        exclude = exclude or {}
+        skipped = [{"index": int(r.index), "reason": exclude[r.index]} for r in results if r.index in exclude]
+        placed = [place(r) for r in results if r.index not in exclude]
+    else:
+        placed, skipped = split_results(list(results), style, exclude)
+    g = export_gravity(placed, walls, gravity)
+    placed = upright(placed, g)
+    levels = storey_levels(placed)
+    ground_z = levels.ground_z_m
+    placed, levels = grounded(placed, levels)  # storey 0 at z = 0
+    return WrittenModel(tuple(placed), tuple(skipped), g, levels, ground_z)
+
+
 def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
                   substitute: str | WindowStyle | None = None, exclude: dict[int, str] | None = None,
                   walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
@@ -141,12 +195,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     style = get_style(substitute if substitute is not None else DEFAULT_STYLE)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    placed, skipped = split_results(list(results), style, exclude)
-    gravity = export_gravity(placed, walls, gravity)
-    placed = upright(placed, gravity)
-    levels = storey_levels(placed)
-    ground_z = levels.ground_z_m
-    placed, levels = grounded(placed, levels)  # storey 0 at z = 0
+    model = written_model(list(results), style, exclude, walls, gravity)
+    placed, skipped, gravity, levels = list(model.placed), list(model.skipped), model.gravity, model.levels
     timings: dict[str, float] = {}
 
     def _timed(name, fn, *args, **kw):
@@ -194,16 +244,16 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     manifest = {
         "style": style.name,
         "wall_thickness_m": float(thickness_m),
-        "world_frame": {"camera_to_export": camera_to_world(gravity.up).tolist(), "gravity": gravity.to_json(),
-                        "offset_m": [0.0, 0.0, -ground_z],
+        "world_frame": {"camera_to_export": model.camera_to_export.tolist(), "gravity": gravity.to_json(),
+                        "offset_m": [0.0, 0.0, -model.ground_z_m],
                         "glb_root": "model.glb's root node turns this z-up world y-up (x, y, z) -> (x, z, -y)",
                         "note": "export world X_E = camera_to_export @ X_C + offset_m: the OpenCV camera frame "
                                 "turned upright (z = gravity's up), the ground plane at z = 0, the camera above "
                                 "the origin, its heading along +y; the same in model.ifc, model.obj and model.glb"},
         "storeys": {"sill_height_m": levels.sill_height_m, "row_tolerance_m": levels.tol_m,
                     "rows": [{"name": f"Storey {r}", "elevation_m": e, "sill_m": s,
-                              "windows": sorted(i for i, row in levels.row_of.items() if row == r)}
-                             for r, (e, s) in enumerate(zip(levels.elevations_m, levels.sills_m))]},
+                              "windows": w} for r, (e, s, w) in enumerate(zip(levels.elevations_m, levels.sills_m,
+                                                                              model.rows()))]},
         "texture": {"file": "texture.png", "pad_left": layout.pad_left, "pad_top": layout.pad_top,
                     "pad_right": layout.pad_right, "pad_bottom": layout.pad_bottom,
                     "width": layout.width, "height": layout.height, "photo_width": size[0], "photo_height": size[1],
@@ -219,4 +269,4 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     return paths
 
 
-__all__ = ["write_outputs", "write_overlay", "split_results", "export_decision", "export_gravity", "DEFAULT_STYLE", "EXPORT_MAX_PX"]
+__all__ = ["WrittenModel", "written_model", "write_outputs", "write_overlay", "split_results", "export_decision", "export_gravity", "DEFAULT_STYLE", "EXPORT_MAX_PX"]
