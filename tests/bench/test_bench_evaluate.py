@@ -500,7 +500,8 @@ def test_bench_rows_measure_a_cut_window_as_whole_and_count_its_export():
         assert win.result is (win.regularized or win.measured) and win.shipped is win.result
         assert win.wall == rec.model.wall_of(k).id
     assert all(rows[w]["evaluable"] and rows[w]["status"] == "ok" for w in ("W1", "W2"))
-    assert out.export_counts[method.name] == {"n_exported": 3, "n_matched": 3, "n_on_ignore": 0, "n_on_nothing": 0}
+    assert out.export_counts[method.name] == {"n_exported": 3, "n_matched": 3, "n_on_ignore": 0, "n_on_nothing": 0,
+                                                 "n_on_door": 0}
 
 
 def _leaned(C: np.ndarray, deg: float) -> np.ndarray:
