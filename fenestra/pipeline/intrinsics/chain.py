@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fenestra.pipeline.intrinsics.exif import exif_focal
-from fenestra.pipeline.intrinsics.focal import FocalEstimate, centred_K, prior_focal
+from fenestra.pipeline.intrinsics.focal import FocalEstimate, centred_K, fov_from_focal, prior_focal
 from fenestra.pipeline.intrinsics.vanishing import vanishing_focal
 from fenestra.pipeline.types import Unavailable
 
@@ -24,7 +24,7 @@ class ResolvedK:
 
     K: (3, 3) px from the first usable focal source; chosen: that source's :class:`FocalEstimate`;
     estimates: every source that gave a value, in rank order; unavailable: {source: why} for the
-    sources that gave none; warnings: where two sources' intervals do not overlap.
+    sources that gave none; warnings: where two sources disagree (:func:`disagree`), in the user's words.
     """
 
     K: np.ndarray
@@ -49,12 +49,44 @@ class ResolvedK:
                 "unavailable": dict(self.unavailable)}
 
 
-def disagreements(estimates: list[FocalEstimate]) -> list[str]:
-    """A warning for each pair of measured sources (not the prior) whose intervals do not overlap."""
-    measured = [e for e in estimates if e.source != "prior"]
-    return [f"focal sources disagree: {a.source} {a.focal_px:.0f} px [{a.interval_px[0]:.0f}, {a.interval_px[1]:.0f}] "
-            f"vs {b.source} {b.focal_px:.0f} px [{b.interval_px[0]:.0f}, {b.interval_px[1]:.0f}]; using {measured[0].source}"
-            for i, a in enumerate(measured) for b in measured[i + 1:] if not a.overlaps(b)]
+SOURCE_WORDS = {"K": "your K", "exif": "the photo's EXIF", "vanishing points": "the façade's vanishing points",
+                "prior": "a typical phone camera"}  # each source in a sentence
+STATED = ("K", "exif")  # sources that state the camera's focal length (the prior's range is no test of them)
+
+
+def disagree(a: FocalEstimate, b: FocalEstimate) -> bool:
+    """Whether two sources disagree: neither's interval holds the other's focal length. A stated
+    source (STATED: the user's K, the EXIF) never disagrees with the prior, which is only what a
+    typical camera has."""
+    if "prior" in (a.source, b.source) and {a.source, b.source} & set(STATED):
+        return False
+    return not (a.interval_px[0] <= b.focal_px <= a.interval_px[1]) and not (b.interval_px[0] <= a.focal_px <= b.interval_px[1])
+
+
+def disagreement_words(a: FocalEstimate, b: FocalEstimate, chosen: FocalEstimate, image_size: tuple[int, int]) -> str:
+    """A warning, in the user's words, that sources ``a`` and ``b`` disagree (values and intervals
+    in px, the field of view in degrees along the long side of the (W, H) px photo), naming the
+    one used and what the user can do."""
+    def value(e: FocalEstimate) -> str:
+        fov = "-".join(f"{fov_from_focal(f, image_size):.0f}" for f in e.interval_px[::-1])
+        return f"{e.focal_px:.0f} px ({e.interval_px[0]:.0f}-{e.interval_px[1]:.0f} px, a {fov} deg view)"
+
+    used = SOURCE_WORDS.get(chosen.source, chosen.source)
+    if "prior" in (a.source, b.source):
+        measured, prior = (b, a) if a.source == "prior" else (a, b)
+        p_lo, p_hi = prior.interval_px
+        return (f"the focal length sources disagree: {SOURCE_WORDS[measured.source]} give {value(measured)}, outside "
+                f"the {p_lo:.0f}-{p_hi:.0f} px of {SOURCE_WORDS['prior']}; the photo may be cropped or zoomed, or "
+                f"the vanishing points misled; using {used}; give --fx if you know the focal length")
+    return (f"the focal length sources disagree: {SOURCE_WORDS.get(a.source, a.source)} gives {value(a)}, "
+            f"{SOURCE_WORDS.get(b.source, b.source)} {value(b)}; using {used}")
+
+
+def disagreements(estimates: list[FocalEstimate], image_size: tuple[int, int]) -> list[str]:
+    """A warning (:func:`disagreement_words`) for each pair of estimates (in rank order, the first
+    the one used) that :func:`disagree`; image_size: (W, H) px."""
+    return [disagreement_words(a, b, estimates[0], image_size)
+            for i, a in enumerate(estimates) for b in estimates[i + 1:] if disagree(a, b)]
 
 
 def choose_focal(ranked: list[FocalEstimate | Unavailable | None], names: list[str], image_size: tuple[int, int],
@@ -76,7 +108,7 @@ def choose_focal(ranked: list[FocalEstimate | Unavailable | None], names: list[s
     K = centred_K(chosen.focal_px, image_size)
     if principal_point is not None:
         K[0, 2], K[1, 2] = principal_point
-    return ResolvedK(K, chosen, tuple(estimates), unavailable, tuple(disagreements(estimates)))
+    return ResolvedK(K, chosen, tuple(estimates), unavailable, tuple(disagreements(estimates, image_size)))
 
 
 def resolve_K(photo: str | Path | None, quads: np.ndarray, image_size: tuple[int, int],

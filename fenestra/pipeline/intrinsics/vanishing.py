@@ -14,7 +14,10 @@ vaguer than that bound (pipeline.walls.fit_walls_focal). Nor when it is unstable
 (:func:`vanishing_stability`): with at least 2 x VP_SPLIT_MIN_QUADS windows, the two halves of the
 windows (by position) are fitted alone, and halves whose 90 % intervals are disjoint, or a half
 without an answer, send the chain to the prior; ``unavailable`` then says "unstable: halves give A px
-and B px ...".
+and B px ...". Nor when it is not steady (:func:`vanishing_steadiness`): the fit repeated on the
+photo at half its size must land inside the interval, and repeated with the window corners moved by
+about a pixel must keep an answer (its interval then widened to hold those repeats); ``unavailable``
+then says "the vanishing points are not steady: ...".
 """
 from __future__ import annotations
 
@@ -51,6 +54,17 @@ VP_SPLIT_PARTS = 2
 # (its focal error 15.9 %, the prior's 45.3 %); with 4 it changes no render answer there
 VP_SPLIT_MIN_QUADS = 4
 VP_STABILITY_CHECK = True  # the check in the CLI's chain (vanishing_focal's default; False: the chain without it)
+# Steadiness check (:func:`vanishing_steadiness`): the fit repeated on the photo at half its size, and
+# VP_JITTER_FITS times with every window corner moved by a normal VP_JITTER_PX px (sd per coordinate; a
+# re-saved JPEG or a resized copy moves the detector's corners by about that on street photos). An
+# answer is used only when the half-size fit gives a focal length inside its 90 % interval and at most
+# VP_JITTER_MISSES of the moved ones give none; its interval then holds every moved repeat's focal
+# length. Measured by tools/focal_invariance.py (docs/experiments.md, "The vanishing points under
+# re-encoding, resizing and mirroring").
+VP_JITTER_PX = 1.0
+VP_JITTER_FITS = 4
+VP_JITTER_MISSES = 1
+VP_JITTER_SEED = 0
 
 
 def vanishing_fit(quads: np.ndarray, image_size: tuple[int, int], wall: WallParams | None = None,
@@ -166,8 +180,82 @@ def vanishing_stability(quads: np.ndarray, image_size: tuple[int, int], fit: tup
     if disjoint or len(answered) < len(fits):
         why = "90 % intervals disjoint" if disjoint else "a half has no answer"
         return False, (f"unstable: {words}, f = {fit[0]:.0f} +- {fit[1]:.1f} px from all {len(quads)} windows "
-                       f"({why}; split by position, issue 35); using the prior")
+                       f"({why}; split by position); using the prior")
     return True, words
+
+
+def jittered_quads(quads: np.ndarray, sd_px: float, copies: int, seed: int = VP_JITTER_SEED) -> list[np.ndarray]:
+    """Copies of window quads with every corner moved at random, the same for the same windows.
+
+    Args:
+        quads: (N, 4, 2) px window quads.
+        sd_px: sd (px) of the normal move of each corner coordinate.
+        copies: how many copies.
+        seed: the moves' random seed.
+    Returns:
+        ``copies`` arrays (N, 4, 2) px, the windows in :func:`evidence_halves`' order (centroid x,
+        then y), so that the same quads in any order get the same moves.
+    """
+    q = np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
+    c = q.mean(axis=1)
+    q = q[np.lexsort((c[:, 1], c[:, 0]))]
+    rng = np.random.default_rng(seed)
+    return [q + rng.normal(0.0, sd_px, q.shape) for _ in range(copies)]
+
+
+def vanishing_steadiness(quads: np.ndarray, image_size: tuple[int, int], est: FocalEstimate,
+                         wall: WallParams | None = None, segment_cache: SegmentCache | None = None,
+                         sd_px: float = VP_JITTER_PX, fits: int = VP_JITTER_FITS,
+                         misses: int = VP_JITTER_MISSES) -> FocalEstimate | Unavailable:
+    """A vanishing-point focal length tried against what a re-saved or resized copy changes.
+
+    The fit (:func:`vanishing_fit`, the same early give-up) is repeated on the photo at half its
+    size (:func:`halved_fit`) and on :func:`jittered_quads` with the same façade segments. Refused
+    when the half-size repeat gives no focal length or one outside ``est``'s interval, or when
+    more than ``misses`` of the moved repeats give none; else the estimate, its interval widened
+    to hold every moved repeat's focal length, refused when that is no narrower than the prior's.
+
+    Args:
+        quads: (N, 4, 2) px window quads; image_size: (W, H) px.
+        est: the answer of all the windows as they are (:func:`vanishing_estimate`).
+        wall, segment_cache: as for :func:`vanishing_fit`.
+        sd_px: sd (px) of the corner moves; fits: how many moved repeats; misses: how many of them
+            may give no focal length.
+    Returns:
+        The estimate with the widened interval (px) and the repeats in its detail, or why it is
+        refused (Unavailable, naming the repeats' focal lengths).
+    """
+    give_up = vp_max_sd(image_size) / prior_focal(image_size).focal_px
+    lo, hi = est.interval_px
+    moved = [vanishing_fit(q, image_size, wall, segment_cache, give_up_rel_sd=give_up)
+             for q in jittered_quads(quads, sd_px, fits)]
+    half = halved_fit(quads, image_size, wall, segment_cache, give_up)
+    said = ["none" if isinstance(f, Unavailable) else f"{f[0]:.0f} px" for f in moved]
+    words = (f"at half the size {'none' if isinstance(half, Unavailable) else f'{half[0]:.0f} px'}; with the "
+             f"window corners moved by about {sd_px:g} px "
+             + (", ".join(said[:-1]) + " and " + said[-1] if len(said) > 1 else "".join(said)))
+    found = [f[0] for f in moved if not isinstance(f, Unavailable)]
+    wide = (min([lo, *found]), max([hi, *found]))
+    p_lo, p_hi = prior_focal(image_size).interval_px
+    if isinstance(half, Unavailable) or not lo <= half[0] <= hi or len(moved) - len(found) > misses \
+            or wide[1] - wide[0] >= p_hi - p_lo:
+        return Unavailable(f"the vanishing points are not steady: {est.focal_px:.0f} px ({lo:.0f}-{hi:.0f} px) as "
+                           f"the photo is, {words}; using the prior")
+    return replace(est, interval_px=wide, detail=est.detail + f", widened to {wide[0]:.0f}-{wide[1]:.0f} px by the "
+                   f"repeats ({words})")
+
+
+def halved_fit(quads: np.ndarray, image_size: tuple[int, int], wall: WallParams | None = None,
+               segment_cache: SegmentCache | None = None,
+               give_up_rel_sd: float | None = None) -> tuple[float, float] | Unavailable:
+    """:func:`vanishing_fit` of the photo at half its size (the quads and, with façade lines, the
+    segments of the half-size image: SegmentCache.halved), its (f, sd) scaled back to the photo's
+    px; (N, 4, 2) px quads of a (W, H) px image."""
+    W, H = image_size
+    q = (np.asarray(quads, dtype=np.float64) + 0.5) / 2.0 - 0.5  # pixel centres at integers
+    fit = vanishing_fit(q, ((W + 1) // 2, (H + 1) // 2), wall, None if segment_cache is None else segment_cache.halved(),
+                        give_up_rel_sd=give_up_rel_sd)
+    return fit if isinstance(fit, Unavailable) else (2.0 * fit[0], 2.0 * fit[1])
 
 
 def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallParams | None = None,
@@ -195,4 +283,5 @@ def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallPa
     stable, words = vanishing_stability(quads, image_size, fit, wall, segment_cache)
     if not stable:
         return Unavailable(words)
-    return replace(est, detail=est.detail + (f"; stable: {words}" if words else ""))
+    return vanishing_steadiness(quads, image_size, replace(est, detail=est.detail + (f"; stable: {words}" if words else "")),
+                                wall, segment_cache)
