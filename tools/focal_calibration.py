@@ -28,7 +28,10 @@ narrower than the prior's, fenestra.pipeline.intrinsics.vanishing_estimate; and 
 stability check, intrinsics.vanishing_stability: the halves of the windows fitted alone agree) how
 many views take the vanishing points and the focal errors of what they take. Each row also records
 the stability check's verdict (``stable``; empty without a fit), the halves' answers (``halves``;
-empty when a half has fewer than VP_SPLIT_MIN_QUADS windows: not tested) and its CPU seconds.
+empty when a half has fewer than VP_SPLIT_MIN_QUADS windows: not tested) and its CPU seconds, and
+the steadiness check's (intrinsics.vanishing_steadiness, on the views whose calibrated interval is
+narrower than the prior's): ``steady``, the repeats' answers in words (``moved``) and
+``steady_seconds``. ``--doc FILE --block NAME`` also writes the summary into that Markdown block.
 """
 from __future__ import annotations
 

@@ -266,11 +266,11 @@ def vanishing_focal(quads: np.ndarray, image_size: tuple[int, int], wall: WallPa
     Args:
         quads: (N, 4, 2) px snapped window quads; image_size: (W, H) px.
         wall, segment_cache: as for :func:`vanishing_fit`.
-        check_stability: test the halves (:func:`vanishing_stability`); None: the module's
-            VP_STABILITY_CHECK, read at the call.
+        check_stability: test the halves (:func:`vanishing_stability`) and then the steadiness
+            (:func:`vanishing_steadiness`); None: the module's VP_STABILITY_CHECK, read at the call.
     Returns:
-        The estimate (:func:`vanishing_fit` accepted by :func:`vanishing_estimate`, stable), or why
-        there is none (Unavailable).
+        The estimate (:func:`vanishing_fit` accepted by :func:`vanishing_estimate`, stable and
+        steady, its interval widened by the steadiness repeats), or why there is none (Unavailable).
     """
     fit = vanishing_fit(quads, image_size, wall, segment_cache,
                         give_up_rel_sd=vp_max_sd(image_size) / prior_focal(image_size).focal_px)
