@@ -160,8 +160,8 @@ def test_the_cli_shows_the_disagreement_and_windows_json_keeps_it(tmp_path):
     # a batch's summary (summary.json and the printed table) keeps the photo's warnings whole
     from fenestra.pipeline.readout import readout  # noqa: PLC0415
 
-    row = pipeline_cli.summary_row(photo, readout(run_reconstruct(photo, None, masks=masks, snapper="none",
-                                                                  export=False)), None)
+    again = run_reconstruct(photo, tmp_path / "again", masks=masks, snapper="none", export=False)
+    row = pipeline_cli.summary_row(photo, readout(again), None)
     assert row["warnings"] == doc["warnings"]
     assert f"facade.png: warning: {said[0]}" in pipeline_cli.format_summary([row]).splitlines()
 
