@@ -28,7 +28,10 @@ narrower than the prior's, fenestra.pipeline.intrinsics.vanishing_estimate; and 
 stability check, intrinsics.vanishing_stability: the halves of the windows fitted alone agree) how
 many views take the vanishing points and the focal errors of what they take. Each row also records
 the stability check's verdict (``stable``; empty without a fit), the halves' answers (``halves``;
-empty when a half has fewer than VP_SPLIT_MIN_QUADS windows: not tested) and its CPU seconds.
+empty when a half has fewer than VP_SPLIT_MIN_QUADS windows: not tested) and its CPU seconds, and
+the steadiness check's (intrinsics.vanishing_steadiness, on the views whose calibrated interval is
+narrower than the prior's): ``steady``, the repeats' answers in words (``moved``) and
+``steady_seconds``. ``--doc FILE --block NAME`` also writes the summary into that Markdown block.
 """
 from __future__ import annotations
 
@@ -62,7 +65,8 @@ def calibration_rows(seeds: list[int], views: int, hfov: tuple[float, float], da
     from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
     from fenestra.conventions import DEFAULTS  # noqa: PLC0415
     from fenestra.pipeline.intrinsics import (VP_SPLIT_MIN_QUADS, fov_from_focal, prior_focal,  # noqa: PLC0415
-                                              vanishing_fit, vanishing_stability)
+                                              vanishing_estimate, vanishing_fit, vanishing_stability,
+                                              vanishing_steadiness)
     from fenestra.pipeline.poses import POSES  # noqa: PLC0415
     from fenestra.pipeline.session import PhotoSession  # noqa: PLC0415
     from fenestra.pipeline.types import Unavailable  # noqa: PLC0415
@@ -90,12 +94,19 @@ def calibration_rows(seeds: list[int], views: int, hfov: tuple[float, float], da
                                                  VP_SPLIT_MIN_QUADS if min_quads is None else min_quads) \
                 if not isinstance(fit, Unavailable) else (None, "")
             check_s = time.process_time() - t1
+            est = None if isinstance(fit, Unavailable) else vanishing_estimate(fit[0], fit[1], session.size)
+            t2 = time.process_time()
+            tried = vanishing_steadiness(quads, session.size, est, wall, session.segments) \
+                if est is not None and not isinstance(est, Unavailable) else None
+            steady = None if tried is None else not isinstance(tried, Unavailable)
+            moved = "" if tried is None else tried.reason if isinstance(tried, Unavailable) else tried.detail
+            steady_s = time.process_time() - t2
             rows.append({"house": f"procedural:{seed}", "view": i, "mode": view.meta.get("mode"),
                          "f_true": f_true, "fov_true_deg": fov_from_focal(f_true, session.size),
                          "n_quads": int(len(quads)), "f": float(f), "sd": float(sd), "reason": reason,
                          "f_prior": prior_focal(session.size).focal_px, "width": session.size[0],
                          "height": session.size[1], "seconds": seconds, "stable": stable, "halves": halves,
-                         "check_seconds": check_s})
+                         "check_seconds": check_s, "steady": steady, "moved": moved, "steady_seconds": steady_s})
             if progress:
                 r = rows[-1]
                 print(f"  {r['house']} view {i:2d}: fov {r['fov_true_deg']:5.1f} deg, {r['n_quads']:2d} quads, "
@@ -163,6 +174,17 @@ def summarize(df, level: float = 0.90) -> str:
                      f" its CPU s per tested view median "
                      f"{tested['check_seconds'].median() if len(tested) else float('nan'):.2f}, max "
                      f"{tested['check_seconds'].max() if len(tested) else float('nan'):.2f}")
+    if "steady" in fit:  # tables from before the steadiness check lack it
+        stable_rule = list(rules.values())[-1]
+        rules["with the steadiness check too (half size inside the interval, corners moved by about 1 px: "
+              "an answer; intrinsics.vanishing_steadiness)"] = lambda r: stable_rule(r) and str(r["steady"]) == "True"
+        tried = fit[fit["steady"].astype(str).isin(("True", "False"))]
+        unsteady = tried[tried["steady"].astype(str) == "False"]
+        lines.append(f"steadiness check on the {len(tried)} views the calibrated interval takes: unsteady "
+                     f"{len(unsteady)} (their focal error median {100 * unsteady['err'].median():.1f} %, the prior's "
+                     f"{100 * df.loc[unsteady.index, 'prior_err'].median():.1f} %; inside f +- "
+                     f"{I.VP_SD_MULTIPLIER:g} sd: {int((unsteady['z'] <= I.VP_SD_MULTIPLIER).sum())}); its CPU s "
+                     f"per view median {tried['steady_seconds'].median() if len(tried) else float('nan'):.2f}")
     for name, rule in rules.items():
         take = fit[fit.apply(rule, axis=1)] if len(fit) else fit
         chosen = np.concatenate([take["err"].to_numpy(),
@@ -230,6 +252,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--summary", metavar="FILE", help="only summarize an existing table")
     ap.add_argument("--min-quads", type=int, default=None,
                     help="the stability check's windows per half (default: intrinsics.VP_SPLIT_MIN_QUADS)")
+    ap.add_argument("--doc", type=Path, default=None, help="also write the summary into this Markdown file's block")
+    ap.add_argument("--block", default="focal-calibration",
+                    help="the block's name (<!-- NAME:begin --> ... <!-- NAME:end -->; default focal-calibration)")
     ap.add_argument("--kfree", metavar="PARQUET", nargs="+",
                     help="only print the focal figures of kfree.parquet tables (one dataset's photos as is and "
                          "under transforms; e.g. out/bench/real/kfree.parquet, spb_facades rows): the stability "
@@ -254,7 +279,13 @@ def main(argv: list[str] | None = None) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
         df.to_parquet(out) if out.suffix == ".parquet" else df.to_csv(out, index=False)
         print(f"wrote {out} ({len(df)} views)")
-    print(summarize(df, a.level))
+    text = summarize(df, a.level)
+    print(text)
+    if a.doc is not None:
+        from fenestra.reports.markdown import write_block  # noqa: PLC0415
+
+        command = " ".join(["python tools/focal_calibration.py", *(sys.argv[1:] if argv is None else argv)])
+        write_block(a.doc, a.block, f"`{command}`\n\n" + "\n".join(f"- {line.strip()}" for line in text.splitlines()))
     return 0
 
 

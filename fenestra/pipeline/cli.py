@@ -201,7 +201,8 @@ def summary_row(photo: Path, read: PhotoReadout | None, error: str | None, secon
                 cpu_s: float | None = None, out_dir: Path | None = None) -> dict:
     """One summary line of a batch (summary.json's, a dict at the file boundary): photo, its time
     (wall and CPU seconds), its size (pixels and bytes) and its output folder's bytes, K source and
-    f, walls, windows detected/exported/flagged/failed, and the whole error message."""
+    f, walls, windows detected/exported/flagged/failed, the whole error message, and the photo's
+    warnings (windows.json's, whole)."""
     size = {"seconds": None if seconds is None else round(seconds, 2), "cpu_s": None if cpu_s is None else round(cpu_s, 2),
             "photo_bytes": photo.stat().st_size if photo.is_file() else None,
             "output_bytes": None if out_dir is None or not out_dir.is_dir() else
@@ -212,7 +213,7 @@ def summary_row(photo: Path, read: PhotoReadout | None, error: str | None, secon
     return {"photo": str(photo), "error": None, **size, "width_px": W, "height_px": H,
             "K_source": read.resolved.source, "focal_px": round(float(read.resolved.chosen.focal_px), 1),
             "walls": read.walls, "detected": read.detected, "exported": read.exported, "flagged": read.flagged,
-            "failed": read.failed, "scale_assumed": read.scale_assumed}
+            "failed": read.failed, "scale_assumed": read.scale_assumed, "warnings": list(read.warnings)}
 
 
 SUMMARY_CSV_COLUMNS = ("photo", "error", "seconds", "cpu_s", "width_px", "height_px", "photo_bytes", "output_bytes",
@@ -283,7 +284,8 @@ def _batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
 
 
 def format_summary(rows: list[dict]) -> str:
-    """The batch's summary table: one line per photo (with its time, size and output size), then the totals."""
+    """The batch's summary table: one line per photo (with its time, size and output size), then the
+    totals, then each photo's warnings in full."""
     lines = [f"{'photo':<24} {'time_s':>6} {'size_px':>10} {'out_MB':>6} {'K':<17} {'f_px':>6} {'walls':>5} "
              f"{'det':>4} {'exp':>4} {'flag':>4} {'fail':>4}"]
     for r in rows:
@@ -300,6 +302,7 @@ def format_summary(rows: list[dict]) -> str:
     total = sum(r.get("seconds") or 0.0 for r in rows)
     lines.append(f"{len(ok)} of {len(rows)} photos reconstructed in {total:.1f} s; {sum(r['exported'] for r in ok)} "
                  f"windows exported, {sum(r['flagged'] for r in ok)} flagged, {sum(r['failed'] for r in ok)} failed")
+    lines += [f"{Path(r['photo']).name}: warning: {w}" for r in ok for w in r.get("warnings", [])]
     return "\n".join(lines)
 
 

@@ -123,6 +123,14 @@ class SegmentCache:
         s = self._found[key]
         return s[np.linalg.norm(s[:, 1] - s[:, 0], axis=1) >= min_length_px]
 
+    def halved(self) -> "SegmentCache":
+        """The cache of this photo at half its size in each dimension (area averaging, OpenCV
+        INTER_AREA; (H + 1) // 2 x (W + 1) // 2 px), made on the first request and kept: what a
+        half-size copy of the photo would give."""
+        H, W = self.shape
+        return self.derived(("halved",), lambda: SegmentCache(cv2.resize(
+            to_uint8(self._gray), ((W + 1) // 2, (H + 1) // 2), interpolation=cv2.INTER_AREA)))
+
     def derived(self, key: Hashable, make: Callable[[], T]) -> T:
         """What ``make()`` derives from this photo's segments, made on the first request for
         ``key`` and kept with them (pipeline.walls.lines.photo_segments keeps the photo's

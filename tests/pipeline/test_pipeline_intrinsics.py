@@ -93,14 +93,77 @@ def test_resolve_K_chain_exif_then_prior_never_fails(tmp_path):
 
 
 def test_disagreeing_sources_are_reported():
+    """Two sources disagree when neither's interval holds the other's focal length: overlapping
+    intervals that each exclude the other's value warn too; one that holds the other's value does
+    not."""
     from fenestra.pipeline.intrinsics import FocalEstimate, choose_focal  # noqa: PLC0415
 
-    a = FocalEstimate("exif", 1000.0, (950.0, 1050.0), "")
-    b = FocalEstimate("vanishing points", 1500.0, (1400.0, 1600.0), "")
+    def view(f):  # degrees along the 640 px side
+        return f"{np.degrees(2 * np.arctan(320.0 / f)):.0f}"
+
+    a = FocalEstimate("exif", 500.0, (475.0, 525.0), "")  # both inside the prior's 320-879 px
+    b = FocalEstimate("vanishing points", 700.0, (670.0, 730.0), "")
     r = choose_focal([a, b], ["exif", "vanishing points"], SIZE)
-    assert r.source == "exif" and len(r.warnings) == 1 and "1000" in r.warnings[0] and "1500" in r.warnings[0]
-    c = FocalEstimate("vanishing points", 1040.0, (1000.0, 1080.0), "")
+    assert r.source == "exif" and r.warnings == (
+        f"the focal length sources disagree: the photo's EXIF gives 500 px (475-525 px, a {view(525)}-{view(475)} deg "
+        f"view), the façade's vanishing points 700 px (670-730 px, a {view(730)}-{view(670)} deg view); using the "
+        "photo's EXIF",)
+    c = FocalEstimate("vanishing points", 520.0, (500.0, 540.0), "")  # inside EXIF's interval
     assert choose_focal([a, c], ["exif", "vanishing points"], SIZE).warnings == ()
+    d = FocalEstimate("vanishing points", 550.0, (520.0, 580.0), "")  # overlapping, each value outside the other
+    assert len(choose_focal([a, d], ["exif", "vanishing points"], SIZE).warnings) == 1
+
+
+def test_vanishing_points_outside_the_priors_range_warn_and_a_stated_source_does_not():
+    """The example of the issue: on a 1024 px photo the prior is 804 px (65 deg), its interval
+    512-1407 px (90-40 deg); vanishing points of 1815 px [1657, 1974] (a 29-34 deg view) hold none
+    of it, so the answer carries a warning in words, with the values and what to do. Vanishing
+    points inside the prior's interval do not warn, nor does an EXIF focal length outside it (EXIF
+    states the lens: a 3x tele is no disagreement)."""
+    from fenestra.pipeline.intrinsics import FocalEstimate, choose_focal  # noqa: PLC0415
+
+    size = (1024, 768)
+    prior = 512.0 / np.tan(np.radians(32.5))
+    assert round(prior) == 804 and round(512.0 / np.tan(np.radians(20.0))) == 1407
+    vp = FocalEstimate("vanishing points", 1815.0, (1657.0, 1974.0), "")
+    r = choose_focal([vp], ["vanishing points"], size)
+    assert r.source == "vanishing points" and r.warnings == (
+        "the focal length sources disagree: the façade's vanishing points give 1815 px (1657-1974 px, a 29-34 deg "
+        "view), outside the 512-1407 px of a typical phone camera; the photo may be cropped or zoomed, or the "
+        "vanishing points misled; using the façade's vanishing points; give --fx if you know the focal length",)
+    near = FocalEstimate("vanishing points", 1000.0, (950.0, 1050.0), "")  # excludes 804 px, inside 512-1407 px
+    assert choose_focal([near], ["vanishing points"], size).warnings == ()
+    tele = FocalEstimate("exif", 2200.0, (2090.0, 2310.0), "")
+    assert choose_focal([tele], ["exif"], size).warnings == ()
+
+
+def test_the_cli_shows_the_disagreement_and_windows_json_keeps_it(tmp_path):
+    """A façade photographed with f = 1000 px on 640 px (a 35.5 deg view, narrower than the prior's
+    40-90 deg): the vanishing points find it, and `fenestra reconstruct` prints the warning and
+    writes it into windows.json; a batch's summary keeps it."""
+    import typer  # noqa: PLC0415
+    from typer.testing import CliRunner  # noqa: PLC0415
+
+    from fenestra.pipeline import cli as pipeline_cli  # noqa: PLC0415
+
+    photo, masks = _facade_photo(tmp_path, make_K(1000.0, 1000.0, 319.5, 239.5))
+    app = typer.Typer()
+    pipeline_cli.register(app)
+    res = CliRunner().invoke(app, ["reconstruct", str(photo), "--masks", str(masks), "--snapper", "none",
+                                   "--out", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "out" / "windows.json").read_text())
+    assert doc["K_source"]["source"] == "vanishing points" and doc["K"][0][0] == pytest.approx(1000.0, rel=0.02)
+    said = [w for w in doc["warnings"] if w.startswith("the focal length sources disagree")]
+    assert len(said) == 1 and "outside the 320-879 px of a typical phone camera" in said[0]
+    assert f"warning: {said[0]}" in res.output
+    # a batch's summary (summary.json and the printed table) keeps the photo's warnings whole
+    from fenestra.pipeline.readout import readout  # noqa: PLC0415
+
+    again = run_reconstruct(photo, tmp_path / "again", masks=masks, snapper="none", export=False)
+    row = pipeline_cli.summary_row(photo, readout(again), None)
+    assert row["warnings"] == doc["warnings"]
+    assert f"facade.png: warning: {said[0]}" in pipeline_cli.format_summary([row]).splitlines()
 
 
 def _facade_photo(tmp_path, K):
@@ -147,8 +210,8 @@ def test_reconstruct_without_K_uses_vanishing_points(tmp_path):
 
 def test_reconstruct_without_K_finds_the_photos_segments_once(tmp_path, monkeypatch):
     """Without K and with façade lines, the focal fit and then the wall fit both use the photo's
-    segments: one SegmentCache per photo runs LSD on the whole photo once. The counter wraps the
-    real detector."""
+    segments: one SegmentCache per photo runs LSD on the whole photo once, and once on the photo at
+    half its size (the steadiness check's repeat). The counter wraps the real detector."""
     import fenestra.pipeline.segments as segments_module  # noqa: PLC0415
 
     calls, real = [], segments_module.detect_segments
@@ -162,7 +225,7 @@ def test_reconstruct_without_K_finds_the_photos_segments_once(tmp_path, monkeypa
     photo, masks = _facade_photo(tmp_path, make_K(700.0, 700.0, 319.5, 239.5))
     doc = run_reconstruct(photo, tmp_path / "out", masks=masks, snapper="none", pose="wall+lines", export=False).to_json()
     assert "line segments" in doc["K_source"]["detail"] and all(w["wall"] is not None for w in doc["windows"])
-    assert calls == [(SIZE[1], SIZE[0])]
+    assert calls == [(SIZE[1], SIZE[0]), (SIZE[1] // 2, SIZE[0] // 2)]
 
 
 def _chessboard_views(K, n=6, squares=(10, 7), square_px=40, seed=0):
@@ -319,3 +382,31 @@ def test_unstable_vanishing_points_fall_back_to_the_prior_and_say_so():
     # too few windows to split: not tested
     few = mixed[: 2 * VP_SPLIT_MIN_QUADS - 1]
     assert vanishing_stability(few, SIZE, (700.0, 10.0)) == (True, "")
+
+
+def test_a_vanishing_point_answer_must_be_steady_at_half_size_and_under_moved_corners():
+    """The steadiness check repeats the fit at half the photo's size and with the corners moved by
+    about 1 px: on exact windows of one camera (f = 700 px) the half-size repeat is 700 px, so the
+    answer stands, its interval widened to hold every moved repeat's focal length (each computed
+    here by vanishing_fit); an interval that excludes the half-size repeat is refused, naming it.
+    The moves are the same for the same windows in any order."""
+    from dataclasses import replace  # noqa: PLC0415
+
+    from fenestra.pipeline.intrinsics import (VP_JITTER_FITS, VP_JITTER_PX, halved_fit, jittered_quads,  # noqa: PLC0415
+                                              vanishing_estimate, vanishing_fit, vanishing_focal, vanishing_steadiness)
+
+    q = _corner_quads(700.0)
+    perm = np.random.default_rng(1).permutation(len(q))
+    assert all(np.array_equal(a, b) for a, b in zip(jittered_quads(q, 1.0, 3), jittered_quads(q[perm], 1.0, 3)))
+    half = halved_fit(q, SIZE)
+    assert half[0] == pytest.approx(700.0, rel=1e-3)
+    moved = [vanishing_fit(m, SIZE)[0] for m in jittered_quads(q, VP_JITTER_PX, VP_JITTER_FITS)]
+    plain = vanishing_estimate(*vanishing_fit(q, SIZE), SIZE)
+    e = vanishing_focal(q, SIZE)
+    assert e.source == "vanishing points" and e.focal_px == pytest.approx(700.0, rel=1e-3)
+    assert e.interval_px == pytest.approx((min(plain.interval_px[0], *moved), max(plain.interval_px[1], *moved)))
+    assert "widened to" in e.detail and f"at half the size {half[0]:.0f} px" in e.detail
+    refused = vanishing_steadiness(q, SIZE, replace(plain, interval_px=(690.0, 695.0)))
+    assert isinstance(refused, Unavailable)
+    assert refused.reason.startswith("the vanishing points are not steady: 700 px (690-695 px) as the photo is, "
+                                     "at half the size 700 px")
