@@ -336,16 +336,26 @@ def glass_faces(vertices: np.ndarray, faces: np.ndarray, normal: np.ndarray, max
     return out
 
 
-def group_scene(scene: Scene, look: Look, rng: np.random.Generator, ground_size_m: float = 400.0
-                ) -> list[MaterialGroup]:
-    """Merge the scene's meshes by material; window meshes stay per window element (is_window)."""
-    buckets: dict[str, list[ElementMesh]] = {}
+def glass_split(scene: Scene) -> dict[str, np.ndarray]:
+    """{GlobalId: (M,) bool :func:`glass_faces`} of every window mesh of the scene (an IfcWindow
+    with a window's ground truth): which of its faces are glass. Look-free: computed once per scene
+    and shared by the renderers of its looks (:func:`group_scene`'s ``glass``)."""
     normals = {w.id: w.normal for w in scene.windows}
+    return {m.global_id: glass_faces(m.vertices, m.faces, normals[m.global_id])
+            for m in scene.meshes if m.kind == "IfcWindow" and m.global_id in normals}
+
+
+def group_scene(scene: Scene, look: Look, rng: np.random.Generator, glass: dict[str, np.ndarray] | None = None,
+                ground_size_m: float = 400.0) -> list[MaterialGroup]:
+    """Merge the scene's meshes by material; window meshes stay per window element (is_window),
+    split into glass and frame (``glass``: :func:`glass_split` of the scene, computed when None)."""
+    buckets: dict[str, list[ElementMesh]] = {}
+    glass_of = glass_split(scene) if glass is None else glass
     for m in scene.meshes:
         key = material_key(m)
-        if m.kind == "IfcWindow" and m.global_id in normals:
-            glass = glass_faces(m.vertices, m.faces, normals[m.global_id])
-            for k, sel in (("glass", glass), ("frame", ~glass)):
+        if m.kind == "IfcWindow" and m.global_id in glass_of:
+            pane = glass_of[m.global_id]
+            for k, sel in (("glass", pane), ("frame", ~pane)):
                 if sel.any():
                     buckets.setdefault(k, []).append(
                         ElementMesh(m.global_id, m.ifc_class, m.name, m.vertices, m.faces[sel], m.rgba,
