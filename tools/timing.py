@@ -224,8 +224,17 @@ def markdown(doc: dict, command: str) -> str:
         lines += [f"| {k} | {v['methods']} | {v['cpu_s_per_view']:.2f} |" for k, v in fam.items()]
     r = doc.get("render")
     if r:
+        cpu = f", {r['cpu_s_per_view']:.3f} CPU-s per view" if "cpu_s_per_view" in r else ""
         lines += ["", f"`fenestra render --scene {r['scene']}` at the margin ({' minus '.join(reversed(list(r['wall_s'])))} "
-                  f"views): **{r['views_per_s']:.1f} views/s**."]
+                  f"views): **{r['views_per_s']:.1f} views/s**{cpu}."]
+    fl = floor(doc, doc.get("floor_run", "cached_renders"))
+    if fl:
+        det = doc["detector_cost"]["cpu_s_per_view"]
+        lines += ["", f"The floor ({fl['views']} views; `{fl['run']}` run): each learned detector's forward pass per view "
+                  f"({', '.join(f'{k} {v:.3f}' for k, v in det.items())} CPU-s, on {doc['detector_cost']['views']} "
+                  f"views) and rendering at the margin: detect {fl['floor_cpu_s']['detect']:.0f} + render "
+                  f"{fl['floor_cpu_s']['render']:.0f} = **{fl['floor_total_cpu_s']:.0f} CPU-s**; the run's stages took "
+                  f"{fl['bench_cpu_s']:.0f} CPU-s: **{fl['ratio']:.2f} x the floor**."]
     return "\n".join([*lines, END])
 
 
@@ -294,17 +303,76 @@ def pose_costs(renders: Path, views_per_house: int = 6, profile: str = "default"
     return out
 
 
+def _children_cpu_s() -> float:
+    """User + system CPU seconds of this process's finished children (resource.getrusage)."""
+    import resource  # noqa: PLC0415
+
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def render_margin(cwd: Path, scene: str = "fzk-haus", few: int = 10, many: int = 60) -> dict:
     """Views per second of ``fenestra render`` at the margin (many - few views, fresh folders),
     after one uncounted warm-up render (the first render of a machine fills the driver's shader and
-    the scene caches, which would otherwise be charged to the few-view run). NaN if the margin is
-    not positive (a measurement drowned in noise, never an infinite rate)."""
+    the scene caches, which would otherwise be charged to the few-view run), and its CPU seconds
+    per view at the margin (the render process's, its GL driver's threads included). NaN if the
+    margin is not positive (a measurement drowned in noise, never an infinite rate)."""
     _fenestra(["render", "--scene", scene, "--views", "2", "--out", str(cwd / "render-warmup")], cwd)
-    t = {n: _fenestra(["render", "--scene", scene, "--views", str(n), "--out", str(cwd / f"render-{n}")], cwd)
-         for n in (few, many)}
+    t, cpu = {}, {}
+    for n in (few, many):
+        c0 = _children_cpu_s()
+        t[n] = _fenestra(["render", "--scene", scene, "--views", str(n), "--out", str(cwd / f"render-{n}")], cwd)
+        cpu[n] = _children_cpu_s() - c0
     per_view = (t[many] - t[few]) / (many - few)
     return {"scene": scene, "wall_s": {str(k): v for k, v in t.items()}, "s_per_view": per_view,
-            "views_per_s": 1.0 / per_view if per_view > 0 else float("nan")}
+            "views_per_s": 1.0 / per_view if per_view > 0 else float("nan"),
+            "cpu_s": {str(k): v for k, v in cpu.items()}, "cpu_s_per_view": (cpu[many] - cpu[few]) / (many - few)}
+
+
+def detector_costs(datasets: list[Path], views_per_house: int = 4, profile: str = "default") -> dict:
+    """CPU seconds per view of each learned detector of ``profile`` (what the bench's session runs
+    once per view: pipeline.detectors.detect at the CLI's resolution, down to the candidates' score,
+    one torch thread), on the first views of each rendered house (``datasets``: their folders), in
+    this process, after one uncounted warm-up call per detector (its weights load)."""
+    from fenestra.bench.evaluate import view_session  # noqa: PLC0415
+    from fenestra.bench.executors import init_worker, view_tasks  # noqa: PLC0415
+    from fenestra.bench.profiles import load_profile  # noqa: PLC0415
+    from fenestra.bench.runner import make_plan, plan_methods  # noqa: PLC0415
+    from fenestra.pipeline.detectors import detector_entry  # noqa: PLC0415
+
+    init_worker()
+    p = load_profile(profile)
+    methods, _ = plan_methods(p)
+    plan = make_plan(p, methods, None, Path("unused"))
+    learned = [d for d in dict.fromkeys(m.detector for m in methods) if not detector_entry(d).needs_instances]
+    views = [t.source.load() for d in datasets for t in view_tasks(plan, d.name, d)[:views_per_house]]
+    out = {}
+    for det in learned:
+        view_session(views[0], plan.options, (det,)).candidates(det)  # warm-up: weights
+        t0 = time.process_time()
+        for v in views:
+            view_session(v, plan.options, (det,)).candidates(det)
+        out[det] = (time.process_time() - t0) / len(views)
+    return {"views": len(views), "cpu_s_per_view": out}
+
+
+def floor(doc: dict, run_key: str = "cached_renders") -> dict | None:
+    """The bench's floor in CPU seconds: every learned detector's forward pass on every view
+    (:func:`detector_costs`) plus rendering every view at the margin (:func:`render_margin`'s CPU
+    seconds per view), against the CPU seconds the run's stages took (``cpu.*`` of its summary,
+    its renders' included: of the cold run, whose views were rendered); None without the figures."""
+    det, ren, run = doc.get("detector_cost"), doc.get("render"), doc.get(run_key)
+    if not det or not ren or not run or "cpu_s_per_view" not in ren:
+        return None
+    n = run["n_views"]
+    parts = {"detect": n * sum(det["cpu_s_per_view"].values()), "render": n * ren["cpu_s_per_view"]}
+    bench = dict(run["cpu_s"])
+    cold = doc.get("cold") or {}
+    if "render" not in bench and "render" in cold.get("cpu_s", {}):
+        bench["render"] = cold["cpu_s"]["render"]
+    total = sum(parts.values())
+    return {"views": n, "floor_cpu_s": parts, "floor_total_cpu_s": total, "bench_cpu_s": sum(bench.values()),
+            "ratio": sum(bench.values()) / total if total > 0 else float("nan"), "run": run_key}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -321,6 +389,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--from-json", type=Path, default=None, help="take the figures of this earlier --json output")
     ap.add_argument("--from-run", type=Path, default=None, help="take the figures of this finished bench run folder")
     ap.add_argument("--time-log", type=Path, default=None, help="with --from-run: that run's /usr/bin/time -v output")
+    ap.add_argument("--floor", action="store_true",
+                    help="with --from-run: also measure the floor (the detectors on that run's renders, "
+                         "rendering at the margin) and the run's ratio to it")
     ap.add_argument("--fresh-clone", type=Path, default=None,
                     help="also run `/usr/bin/time -v make bench` in this clean `git clone` of HEAD (after `make setup`)")
     a = ap.parse_args(argv)
@@ -330,6 +401,8 @@ def main(argv: list[str] | None = None) -> dict:
         out = json.loads(a.from_json.read_text())
     elif a.from_run is not None:
         out = from_run(a.from_run, a.time_log)
+        if a.floor:
+            out.update(run_floor(a.from_run, a.profile if a.profile != "default" else None))
     else:
         out = measure(a)
     if a.fresh_clone is not None:
@@ -345,6 +418,18 @@ def main(argv: list[str] | None = None) -> dict:
         command = "python tools/timing.py " + " ".join(str(x) for x in (argv if argv is not None else sys.argv[1:]))
         write_markdown(a.markdown, markdown(out, command))
     return out
+
+
+def run_floor(run: Path, profile: str | None = None) -> dict:
+    """The floor's figures for one finished run folder (:func:`floor`): its learned detectors on
+    its renders (summary.json ``datasets``) and ``fenestra render`` at the margin, in a temporary
+    folder. profile: the run's profile (name or TOML path; default: the name its summary gives)."""
+    meta = json.loads((Path(run) / "summary.json").read_text())["metadata"]
+    datasets = [Path(d) for d in meta["datasets"].values()]
+    with tempfile.TemporaryDirectory(prefix="fenestra-floor-") as tmp:
+        ren = render_margin(Path(tmp))
+    return {"detector_cost": detector_costs(datasets, profile=profile or meta["profile"]), "render": ren,
+            "floor_run": "run"}
 
 
 def from_run(run: Path, time_log: Path | None = None) -> dict:
@@ -373,6 +458,9 @@ def measure(a: argparse.Namespace) -> dict:
             out["ray_cached_renders"] = bench_run(a.profile, "ray", cwd, "ray")
             out["ray_over_local_wall"] = out["ray_cached_renders"]["wall_s"] / out["cached_renders"]["wall_s"]
         out["pose_family_cost"] = pose_costs(cwd / "out" / "renders", profile=a.profile)
+        renders = cwd / "out" / "renders"
+        out["detector_cost"] = detector_costs(sorted(d for d in renders.iterdir() if (d / "views").is_dir()),
+                                              profile=a.profile)
         if not a.skip_render:
             out["render"] = render_margin(cwd)
     out["load_after"] = os.getloadavg()

@@ -209,10 +209,8 @@ class OccluderPass:
         fb = self._draw(P @ np.linalg.inv(pose), size, size)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
         d = read_depth(size, size)
-        out = np.zeros((size, size), np.float32)
-        hit = d < 1.0
-        out[hit] = ((2.0 * d[hit] - 1.0) * (f - n) + (f + n)) / 2
-        return out
+        # whole-array float32 arithmetic, then 0 where nothing was drawn (the same values as masked)
+        return np.where(d < 1.0, ((2.0 * d - 1.0) * (f - n) + (f + n)) / 2, np.float32(0.0))
 
     def share(self, positions: np.ndarray) -> "OccluderPass | None":
         """This pass for another renderer of the same scene whose occluder triangles are
