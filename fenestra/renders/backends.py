@@ -88,8 +88,8 @@ def make_renderer(name: str, scene: Scene, settings: RenderSettings = RenderSett
                   like: Renderer | None = None) -> Renderer:
     """Build the renderer ``name`` (a key of RENDERERS) for a scene; close() it when done. like: a
     renderer ``name`` of the same scene (another look): a backend that ``shares`` takes its look-free
-    parts (the window meshes' glass panes, the occluder pass where the triangles match), the images
-    are the same; another backend ignores it."""
+    parts (materials.SceneGeometry: glass panes, planar coordinates; the occluder pass where the
+    triangles match), the images are the same; another backend ignores it."""
     entry = renderer_entry(name)
     return entry.build(scene, settings, like) if like is not None and entry.shares else entry.build(scene, settings)
 

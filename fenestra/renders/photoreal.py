@@ -19,7 +19,7 @@ import numpy as np
 
 from fenestra.renders.base import RenderOutput, RenderSettings
 from fenestra.renders.camera import Camera, distort_image
-from fenestra.renders.materials import Look, glass_split, group_scene, sample_look, sky_colour, sun_direction
+from fenestra.renders.materials import Look, SceneGeometry, group_scene, sample_look, sky_colour, sun_direction
 from fenestra.renders.raster import OccluderPass
 from fenestra.scenes.model import Scene
 
@@ -119,7 +119,7 @@ def glass_diffuse(look: Look) -> list[float]:
 
 class PhotorealRenderer:
     """mitsuba backend: ``render(camera) -> RenderOutput``; the scene is built once. like: another
-    renderer of the same scene (another look) whose glass panes and occluder pass this one shares
+    renderer of the same scene (another look) whose materials.SceneGeometry and occluder pass this one shares
     (as renders.raster.RasterRenderer's ``like``)."""
 
     name = "mitsuba"
@@ -130,8 +130,8 @@ class PhotorealRenderer:
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
         self.look = look = sample_look(rng, settings.look)  # same draws as the raster backend: same palette
-        self.glass = glass_split(scene) if like is None else like.glass
-        groups = group_scene(scene, look, rng, self.glass)
+        self.geometry = SceneGeometry(scene) if like is None else like.geometry
+        groups = group_scene(scene, look, rng, self.geometry)
         objs = {}
         for i, g in enumerate(groups):
             m = g.material

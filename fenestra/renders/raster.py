@@ -32,7 +32,7 @@ from fenestra.renders.gl import (GLContext, Geometry, begin, encode, end_prepass
                         texture_rgb, texture_u16, uniform)
 from fenestra.renders.gt import (IgnoreRegion, WindowView, ignore_entries, ignore_map, ignore_regions, void_instances,
                         window_views)
-from fenestra.renders.materials import (face_normals, glass_split, group_scene, ground_z, lighting, sample_look,
+from fenestra.renders.materials import (SceneGeometry, face_normals, group_scene, ground_z, lighting, sample_look,
                                         sun_direction)
 from fenestra.scenes.model import Scene
 
@@ -209,8 +209,14 @@ class OccluderPass:
         fb = self._draw(P @ np.linalg.inv(pose), size, size)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
         d = read_depth(size, size)
-        # whole-array float32 arithmetic, then 0 where nothing was drawn (the same values as masked)
-        return np.where(d < 1.0, ((2.0 * d - 1.0) * (f - n) + (f + n)) / 2, np.float32(0.0))
+        # ((2 d - 1) (f - n) + (f + n)) / 2 in float32, in place; 0 where nothing was drawn
+        out = np.multiply(d, 2.0, dtype=np.float32)
+        out -= 1.0
+        out *= f - n
+        out += f + n
+        out /= 2
+        out[d >= 1.0] = 0.0
+        return out
 
     def share(self, positions: np.ndarray) -> "OccluderPass | None":
         """This pass for another renderer of the same scene whose occluder triangles are
@@ -295,7 +301,11 @@ class SunShadow:
     def map_u16(self) -> np.ndarray:
         """The map quantised for the GPU: uint16 levels of ``far / 65535`` m (0 = nothing),
         rounded up so that a surface never shadows itself; ~1 mm steps, far below the bias."""
-        return np.minimum(np.ceil(self.map / self.far * 65535.0), 65535).astype(np.uint16)
+        q = np.divide(self.map, self.far, dtype=np.float32)
+        q *= 65535.0
+        np.ceil(q, out=q)
+        np.minimum(q, 65535, out=q)
+        return q.astype(np.uint16)
 
     def in_shadow(self, cam: Camera, depth: np.ndarray) -> np.ndarray:
         """(H, W) bool for a pinhole camera's exact depth map (m, 0 = sky)."""
@@ -344,7 +354,7 @@ class RasterRenderer:
     shadow (shadow map test per fragment) keeps its quantised shadow ratio of the light, tinted blue.
 
     like: another renderer of the same scene (another look) whose look-free parts this one takes
-    instead of computing them again: the window meshes' glass panes (materials.glass_split) and,
+    instead of computing them again: its materials.SceneGeometry (glass panes, planar coordinates) and,
     when its triangles come out in the same draw order, its occluder pass (:meth:`OccluderPass.share`:
     one ground-truth pass per view, the sampler's). The images are those of a renderer built alone.
     """
@@ -357,8 +367,8 @@ class RasterRenderer:
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
         self.look = look = sample_look(rng, settings.look)
-        self.glass = glass_split(scene) if like is None else like.glass
-        self.groups = group_scene(scene, look, rng, self.glass)
+        self.geometry = SceneGeometry(scene) if like is None else like.geometry
+        self.groups = group_scene(scene, look, rng, self.geometry)
         self._gl = GLContext.acquire()
         self._gl.make_current()
         codes, _ = element_codes(scene)

@@ -155,7 +155,7 @@ def test_a_view_with_its_seed_is_bit_identical_and_the_look_changes_the_folder(t
 
 
 def test_a_renderer_like_another_shares_its_occluder_pass_and_draws_the_same_bytes(tmp_path):
-    """A renderer built ``like`` another of the same scene in another look takes its glass panes and,
+    """A renderer built ``like`` another of the same scene in another look takes its SceneGeometry and,
     when its triangles come out in the same draw order (two plaster or brick looks), its occluder
     pass: the sampler's ground truth of a view is then drawn once, and the image, instance map and
     depth are byte for byte those of a renderer built alone. A stone wall draws its groups in
@@ -181,7 +181,7 @@ def test_a_renderer_like_another_shares_its_occluder_pass_and_draws_the_same_byt
                 want = alone.render(cam)
             base.occluders.truth(cam, keep=True)  # the sampler's visibility test, on the base renderer
             with RasterRenderer(scene, RenderSettings(seed=seed, look="wide"), like=base) as r:
-                assert (r.occluders is base.occluders) == shared and r.glass is base.glass
+                assert (r.occluders is base.occluders) == shared and r.geometry is base.geometry
                 got = r.render(cam)
             for a, b in ((got.rgb, want.rgb), (got.instances, want.instances), (got.depth, want.depth)):
                 np.testing.assert_array_equal(a, b)
