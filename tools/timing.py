@@ -19,9 +19,15 @@ checkout's HEAD on which ``make setup`` ran (the tool refuses another commit or 
 checkout fresh in a temporary folder,
 and the block compares its wall time with the cold run's (agreement within FRESH_CLONE_AGREEMENT).
 
+The floor (:func:`floor`): each learned detector's CPU seconds per view on the cold run's renders
+(:func:`detector_costs`) and the render's at the margin, times the views, against the CPU seconds
+of the cold run's stages (its renders' included): the ratio of the bench to what it cannot skip.
+``--from-run RUN --floor [--profile PROFILE]`` measures it for one finished run instead.
+
 ``--markdown docs/performance.md`` writes the figures as a Markdown block between the markers
 ``<!-- timing:begin -->`` and ``<!-- timing:end -->`` of that file (the docs' speed figures come
-from this command, never typed). ``--from-json out/timing.json`` takes the figures of an earlier
+from this command, never typed), and the floor between ``<!-- floor:begin -->`` and ``<!-- floor:end -->``
+(with ``--from-run RUN --floor``, that block only). ``--from-json out/timing.json`` takes the figures of an earlier
 measurement instead of measuring; ``--from-run RUN`` those of one finished bench run folder
 (its summary.json; ``--time-log`` the ``/usr/bin/time -v`` output of that run, for its peak RSS
 over every process).
