@@ -169,37 +169,42 @@ def evaluate_local(tasks: Iterable[ViewTask], workers: int, progress: bool = Tru
     return outcomes
 
 
-def _render_house(house: HousePlan) -> str:
-    """Render (or reuse) one house's dataset; its folder (a process-pool task)."""
+def _render_house(house: HousePlan, progress: bool = False) -> tuple[str, float]:
+    """Render (or reuse) one house's dataset: its folder and the CPU seconds it took (this process's,
+    its GL driver's threads included; a process-pool task)."""
     from fenestra.renders.dataset import render_dataset  # noqa: PLC0415  (pyrender: inside the worker)
 
-    return str(render_dataset(house.dataset, progress=False))
+    t0 = time.process_time()
+    folder = str(render_dataset(house.dataset, progress=progress))
+    return folder, time.process_time() - t0
 
 
-def render_local(houses: tuple[HousePlan, ...], workers: int, progress: bool = True) -> list[Path]:
-    """Every house's dataset folder, rendering houses in parallel (one renderer per process)."""
+def render_local(houses: tuple[HousePlan, ...], workers: int, progress: bool = True) -> tuple[list[Path], float]:
+    """Every house's dataset folder, rendering houses in parallel (one renderer per process), and
+    the CPU seconds the renders took (summed over the processes)."""
     if workers <= 1 or len(houses) <= 1:
-        from fenestra.renders.dataset import render_dataset  # noqa: PLC0415
-
-        return [Path(render_dataset(h.dataset, progress=progress)) for h in houses]
-    out = []
-    with _progress(progress) as bar:
-        job = bar.add_task("rendering houses", total=len(houses))
-        ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(min(workers, len(houses)), mp_context=ctx) as pool:
-            for d in pool.map(_render_house, houses, chunksize=1):
-                out.append(Path(d))
-                bar.advance(job)
-    return out
+        done = [_render_house(h, progress) for h in houses]
+    else:
+        done = []
+        with _progress(progress) as bar:
+            job = bar.add_task("rendering houses", total=len(houses))
+            ctx = mp.get_context("spawn")
+            with ProcessPoolExecutor(min(workers, len(houses)), mp_context=ctx) as pool:
+                for d in pool.map(_render_house, houses, chunksize=1):
+                    done.append(d)
+                    bar.advance(job)
+    return [Path(d) for d, _ in done], sum(s for _, s in done)
 
 
 def run_local(plan: Plan, workers: int, progress: bool = True, keep: Keep | None = None, **_: object
               ) -> tuple[list[ViewOutcome], dict[str, float], list[tuple[str, Path]]]:
     """Render the houses in a process pool, then evaluate the views in one; (outcomes, each
-    passed through ``keep`` in canonical order (evaluate_local), stage seconds, datasets)."""
+    passed through ``keep`` in canonical order (evaluate_local), stage seconds (wall; the renders'
+    CPU seconds as ``cpu.render``), datasets)."""
     t0 = time.perf_counter()
-    datasets = list(zip((h.house for h in plan.houses), render_local(plan.houses, workers, progress)))
-    stage_s = {"render": time.perf_counter() - t0}
+    folders, render_cpu = render_local(plan.houses, workers, progress)
+    datasets = list(zip((h.house for h in plan.houses), folders))
+    stage_s = {"render": time.perf_counter() - t0, "cpu.render": render_cpu}
     tasks = [t for house, ds in datasets for t in view_tasks(plan, house, ds)]
     if not tasks:
         raise FenestraError(f"profile {plan.profile.name!r} rendered no views")

@@ -33,26 +33,29 @@ Visibility = Callable[[Renderer, Camera], tuple[WindowView, ...]]
 
 @dataclass(frozen=True)
 class RendererEntry:
-    """A registered backend. build(scene, settings) -> Renderer; description: one line for CLI help;
+    """A registered backend. build(scene, settings) -> Renderer; with ``shares``, also
+    build(scene, settings, like): a renderer that shares the look-free parts of ``like`` (one of the
+    same scene and backend in another look: :func:`make_renderer`); description: one line for CLI help;
     visibility(renderer, camera) -> per-window ground truth (``WindowView.visible_fraction`` is what
     the sampler reads) of a renderer this entry built, or None when the backend has no visibility test."""
 
     name: str
-    build: Callable[[Scene, RenderSettings], Renderer]
+    build: Callable[..., Renderer]
     description: str
     visibility: Visibility | None
+    shares: bool = False
 
 
-def _pyrender(scene: Scene, settings: RenderSettings) -> Renderer:
+def _pyrender(scene: Scene, settings: RenderSettings, like: Renderer | None = None) -> Renderer:
     from fenestra.renders.raster import RasterRenderer
 
-    return RasterRenderer(scene, settings)
+    return RasterRenderer(scene, settings, like)
 
 
-def _mitsuba(scene: Scene, settings: RenderSettings) -> Renderer:
+def _mitsuba(scene: Scene, settings: RenderSettings, like: Renderer | None = None) -> Renderer:
     from fenestra.renders.photoreal import PhotorealRenderer
 
-    return PhotorealRenderer(scene, settings)
+    return PhotorealRenderer(scene, settings, like)
 
 
 def occluder_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView, ...]:
@@ -70,9 +73,9 @@ def raster_visibility(renderer: Renderer, camera: Camera) -> tuple[WindowView, .
 
 
 RENDERERS: Registry[RendererEntry] = Registry("renderer", [
-    RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", raster_visibility),
+    RendererEntry("pyrender", _pyrender, "OpenGL raster, fast (FXAA, sun shadows)", raster_visibility, shares=True),
     RendererEntry("mitsuba", _mitsuba, "mitsuba path tracing, photoreal (optional OIDN denoising)",
-                  occluder_visibility),
+                  occluder_visibility, shares=True),
 ])
 
 
@@ -81,9 +84,14 @@ def renderer_entry(name: str) -> RendererEntry:
     return RENDERERS[name]
 
 
-def make_renderer(name: str, scene: Scene, settings: RenderSettings = RenderSettings()) -> Renderer:
-    """Build the renderer ``name`` (a key of RENDERERS) for a scene; close() it when done."""
-    return renderer_entry(name).build(scene, settings)
+def make_renderer(name: str, scene: Scene, settings: RenderSettings = RenderSettings(),
+                  like: Renderer | None = None) -> Renderer:
+    """Build the renderer ``name`` (a key of RENDERERS) for a scene; close() it when done. like: a
+    renderer ``name`` of the same scene (another look): a backend that ``shares`` takes its look-free
+    parts (materials.SceneGeometry: glass panes, planar coordinates; the occluder pass where the
+    triangles match), the images are the same; another backend ignores it."""
+    entry = renderer_entry(name)
+    return entry.build(scene, settings, like) if like is not None and entry.shares else entry.build(scene, settings)
 
 
 def visibility_function(name: str, renderer: Renderer) -> Callable[[Camera], tuple[WindowView, ...]]:

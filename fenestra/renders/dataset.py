@@ -179,7 +179,7 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
                     if last.index in todo:
                         writer.submit(last.index, root / "views" / f"{last.index:06d}",
                                       render_view(renderer, config, scene, last.index, last.view) if not per_view
-                                      else render_own_look(config, scene, last.index, last.view))
+                                      else render_own_look(config, scene, last.index, last.view, renderer))
                 known = writer.results()
             files.write_text(root / "sampling.json", json.dumps({"rejected": last.rejected, "tries": last.tries,
                                                             "accepted": config.n_views}, indent=1))
@@ -208,11 +208,13 @@ def render_view(renderer, config: DatasetConfig, scene: Scene, i: int, spec: Vie
     return View(out.rgb, out.instances.astype(INSTANCE_DTYPE), meta, ignore)
 
 
-def render_own_look(config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> View:
+def render_own_look(config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec, like=None) -> View:
     """View ``i`` rendered in its own look (``look_per = "view"``): a renderer built for
     :func:`view_settings` of the view (the look is baked into its geometry, textures and shadow
-    map), closed after it; the look drawn goes to view.json (``look``)."""
-    renderer = make_renderer(config.renderer, scene, view_settings(config, i))
+    map), closed after it; the look drawn goes to view.json (``look``). like: the dataset's renderer
+    (the sampler's), whose look-free parts it shares (renders.backends.make_renderer): its occluder
+    pass, whose ground truth of the view the sampler's visibility test drew, is then not drawn again."""
+    renderer = make_renderer(config.renderer, scene, view_settings(config, i), like)
     try:
         view = render_view(renderer, config, scene, i, spec)
         view.meta["look"] = {"seed": renderer.settings.seed, **dataclasses.asdict(renderer.look)}

@@ -289,18 +289,17 @@ def make_material(key: str, look: Look, rng: np.random.Generator) -> MaterialSpe
     return MaterialSpec(key, "diffuse", rgb, None, roughness=0.8)
 
 
-def planar_uvs(vertices: np.ndarray, faces: np.ndarray, tile_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unshare vertices and give each face planar UVs along its dominant axis (z is always v).
+def planar_metres(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unshare vertices and give each face planar coordinates along its dominant axis (z is always v).
 
-    vertices (N, 3) m, faces (M, 3) -> (3M, 3) vertices, (M, 3) faces, (3M, 2) uvs in repeats.
+    vertices (N, 3) m, faces (M, 3) -> (3M, 3) vertices, (M, 3) faces, (3M, 2) (u, v) in metres.
     """
     tri = vertices[faces]  # (M, 3, 3)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     axis = np.argmax(np.abs(n), axis=1)
     u = np.where(axis[:, None] == 0, tri[..., 1], tri[..., 0])  # x-facing: u = y
     v = np.where(axis[:, None] == 2, tri[..., 1], tri[..., 2])  # z-facing: v = y
-    uv = np.stack([u, -v], axis=-1).reshape(-1, 2) / tile_m
-    return tri.reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3), uv
+    return tri.reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3), np.stack([u, -v], axis=-1).reshape(-1, 2)
 
 
 def ground_z(scene: Scene) -> float:
@@ -336,36 +335,71 @@ def glass_faces(vertices: np.ndarray, faces: np.ndarray, normal: np.ndarray, max
     return out
 
 
-def group_scene(scene: Scene, look: Look, rng: np.random.Generator, ground_size_m: float = 400.0
-                ) -> list[MaterialGroup]:
-    """Merge the scene's meshes by material; window meshes stay per window element (is_window)."""
-    buckets: dict[str, list[ElementMesh]] = {}
+def glass_split(scene: Scene) -> dict[str, np.ndarray]:
+    """{GlobalId: (M,) bool :func:`glass_faces`} of every window mesh of the scene (an IfcWindow
+    with a window's ground truth): which of its faces are glass."""
     normals = {w.id: w.normal for w in scene.windows}
-    for m in scene.meshes:
+    return {m.global_id: glass_faces(m.vertices, m.faces, normals[m.global_id])
+            for m in scene.meshes if m.kind == "IfcWindow" and m.global_id in normals}
+
+
+class SceneGeometry:
+    """The look-free part of :func:`group_scene` for one scene, computed once and shared by the
+    renderers of its looks (renders.backends.make_renderer's ``like``): the window meshes' glass
+    faces (:func:`glass_split`), each mesh part's unshared vertices and planar coordinates in metres
+    (:func:`planar_metres`, kept as first asked for, read-only), the scene's bounds and ground height.
+    An explicit cache, one per scene; not thread-safe."""
+
+    def __init__(self, scene: Scene):
+        self.scene = scene
+        self.glass = glass_split(scene)
+        self.bounds = scene.bounds()
+        self.ground_z = ground_z(scene)
+        self._planar: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def planar_uvs(self, part: tuple, mesh: ElementMesh, tile_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`planar_metres` of ``mesh``, the scene's mesh part ``part`` (its index in
+        ``scene.meshes`` and which faces: "all", "glass", "frame"), the coordinates in texture
+        repeats of ``tile_m`` metres: (3M, 3) vertices, (M, 3) faces, (3M, 2) uvs (the metres kept)."""
+        if part not in self._planar:
+            out = planar_metres(mesh.vertices, mesh.faces)
+            for a in out:
+                a.flags.writeable = False
+            self._planar[part] = out
+        tri, faces, uv_m = self._planar[part]
+        return tri, faces, uv_m / tile_m
+
+
+def group_scene(scene: Scene, look: Look, rng: np.random.Generator, geometry: SceneGeometry | None = None,
+                ground_size_m: float = 400.0) -> list[MaterialGroup]:
+    """Merge the scene's meshes by material; window meshes stay per window element (is_window),
+    split into glass and frame. geometry: the scene's :class:`SceneGeometry` (made when None)."""
+    geometry = SceneGeometry(scene) if geometry is None else geometry
+    buckets: dict[str, list[tuple[tuple, ElementMesh]]] = {}
+    for i, m in enumerate(scene.meshes):
         key = material_key(m)
-        if m.kind == "IfcWindow" and m.global_id in normals:
-            glass = glass_faces(m.vertices, m.faces, normals[m.global_id])
-            for k, sel in (("glass", glass), ("frame", ~glass)):
+        if m.kind == "IfcWindow" and m.global_id in geometry.glass:
+            pane = geometry.glass[m.global_id]
+            for k, sel in (("glass", pane), ("frame", ~pane)):
                 if sel.any():
-                    buckets.setdefault(k, []).append(
-                        ElementMesh(m.global_id, m.ifc_class, m.name, m.vertices, m.faces[sel], m.rgba,
-                                    base_class=m.base_class))
+                    buckets.setdefault(k, []).append(((i, k), ElementMesh(
+                        m.global_id, m.ifc_class, m.name, m.vertices, m.faces[sel], m.rgba, base_class=m.base_class)))
             continue
-        buckets.setdefault(key, []).append(m)
+        buckets.setdefault(key, []).append(((i, "all"), m))
     groups = []
     for key in sorted(buckets):
         mat = make_material(key, look, rng)
         V, F, UV, ids, FE = [], [], [], [], []
         off = 0
-        for m in buckets[key]:
-            v, f, uv = planar_uvs(m.vertices, m.faces, mat.tile_m)
+        for part, m in buckets[key]:
+            v, f, uv = geometry.planar_uvs(part, m, mat.tile_m)
             V.append(v); F.append(f + off); UV.append(uv); FE.append(np.full(len(f), len(ids)))  # noqa: E702
             ids.append(m.global_id)
             off += len(v)
         groups.append(MaterialGroup(mat, np.concatenate(V), np.concatenate(F), np.concatenate(UV), tuple(ids),
                                     is_window=key in ("frame", "glass"), face_element=np.concatenate(FE)))
-    c = scene.bounds().mean(axis=0)
-    z, h = ground_z(scene) - 0.002, ground_size_m / 2
+    c = geometry.bounds.mean(axis=0)
+    z, h = geometry.ground_z - 0.002, ground_size_m / 2
     gv = np.array([[c[0] - h, c[1] - h, z], [c[0] + h, c[1] - h, z], [c[0] + h, c[1] + h, z], [c[0] - h, c[1] + h, z]])
     gmat = make_material("ground", look, rng)
     groups.append(MaterialGroup(gmat, gv, np.array([[0, 1, 2], [0, 2, 3]]), gv[:, :2] / gmat.tile_m, ("ground",), False,

@@ -19,7 +19,7 @@ import numpy as np
 
 from fenestra.renders.base import RenderOutput, RenderSettings
 from fenestra.renders.camera import Camera, distort_image
-from fenestra.renders.materials import Look, group_scene, sample_look, sky_colour, sun_direction
+from fenestra.renders.materials import Look, SceneGeometry, group_scene, sample_look, sky_colour, sun_direction
 from fenestra.renders.raster import OccluderPass
 from fenestra.scenes.model import Scene
 
@@ -118,16 +118,20 @@ def glass_diffuse(look: Look) -> list[float]:
 
 
 class PhotorealRenderer:
-    """mitsuba backend: ``render(camera) -> RenderOutput``; the scene is built once."""
+    """mitsuba backend: ``render(camera) -> RenderOutput``; the scene is built once. like: another
+    renderer of the same scene (another look) whose materials.SceneGeometry and occluder pass this one shares
+    (as renders.raster.RasterRenderer's ``like``)."""
 
     name = "mitsuba"
 
-    def __init__(self, scene: Scene, settings: RenderSettings = RenderSettings()):
+    def __init__(self, scene: Scene, settings: RenderSettings = RenderSettings(),
+                 like: "PhotorealRenderer | None" = None):
         self.mi = mi = import_mitsuba(settings.variant)
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
         self.look = look = sample_look(rng, settings.look)  # same draws as the raster backend: same palette
-        groups = group_scene(scene, look, rng)
+        self.geometry = SceneGeometry(scene) if like is None else like.geometry
+        groups = group_scene(scene, look, rng, self.geometry)
         objs = {}
         for i, g in enumerate(groups):
             m = g.material
@@ -162,7 +166,8 @@ class PhotorealRenderer:
         self._scene = mi.load_dict(objs)
         self._aov = None if settings.denoise != "oidn-aov" else mi.load_dict(
             {"type": "aov", "aovs": AOVS, "inner": objs["integrator"]})
-        self.occluders = OccluderPass(scene)
+        shared = None if like is None else like.occluders.share(like.occluders.positions)  # the scene's own order
+        self.occluders = shared or OccluderPass(scene)
 
     def render_linear(self, canvas: Camera, spp: int | None = None, seed: int | None = None,
                       denoise: bool = True) -> np.ndarray:

@@ -32,7 +32,8 @@ from fenestra.renders.gl import (GLContext, Geometry, begin, encode, end_prepass
                         texture_rgb, texture_u16, uniform)
 from fenestra.renders.gt import (IgnoreRegion, WindowView, ignore_entries, ignore_map, ignore_regions, void_instances,
                         window_views)
-from fenestra.renders.materials import face_normals, group_scene, ground_z, lighting, sample_look, sun_direction
+from fenestra.renders.materials import (SceneGeometry, face_normals, group_scene, ground_z, lighting, sample_look,
+                                        sun_direction)
 from fenestra.scenes.model import Scene
 
 ZNEAR, ZFAR = 0.1, 2000.0
@@ -103,6 +104,7 @@ class OccluderPass:
         from OpenGL import GL
 
         self.scene = scene
+        self.users = 1  # the renderers drawing with this pass (:meth:`share`); the last close() frees it
         self._kept = None  # (camera, ground truth) of the last view the visibility test kept (truth())
         self._token = object()  # marks the framebuffers this pass drew (Framebuffers.mark)
         self.codes, self.window_codes = element_codes(scene)
@@ -110,6 +112,7 @@ class OccluderPass:
         self.first_ignore_code = len(scene.windows) + 1
         self.face_codes = ignore_face_codes(scene, self.ignore_regions)
         P, C = self._triangles() if triangles is None else triangles
+        self.positions = P  # (3M, 3) float32, in draw order: what another look's renderer may share (:meth:`share`)
         self._gl = GLContext.acquire()
         self._gl.make_current()
         self._geom = Geometry(P, np.zeros((len(P), 2), np.float32), C,
@@ -206,13 +209,29 @@ class OccluderPass:
         fb = self._draw(P @ np.linalg.inv(pose), size, size)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
         d = read_depth(size, size)
-        out = np.zeros((size, size), np.float32)
-        hit = d < 1.0
-        out[hit] = ((2.0 * d[hit] - 1.0) * (f - n) + (f + n)) / 2
+        # ((2 d - 1) (f - n) + (f + n)) / 2 in float32, in place; 0 where nothing was drawn
+        out = np.multiply(d, 2.0, dtype=np.float32)
+        out -= 1.0
+        out *= f - n
+        out += f + n
+        out /= 2
+        out[d >= 1.0] = 0.0
         return out
 
+    def share(self, positions: np.ndarray) -> "OccluderPass | None":
+        """This pass for another renderer of the same scene whose occluder triangles are
+        ``positions`` (3M, 3) float32 in its draw order (another look: the element codes and depth
+        do not depend on it), or None when they differ (a look that draws its groups in another
+        order: coplanar faces may then resolve otherwise). A shared pass is closed by its last user;
+        the ground truth the sampler kept (:meth:`truth`) is the sharer's too: one pass per view."""
+        if self._geom is None or not np.array_equal(self.positions, positions):
+            return None
+        self.users += 1
+        return self
+
     def close(self) -> None:
-        if self._geom is not None:
+        self.users -= 1
+        if self._geom is not None and self.users <= 0:
             self._gl.make_current()
             self._geom.delete()
             self._geom = None
@@ -282,7 +301,11 @@ class SunShadow:
     def map_u16(self) -> np.ndarray:
         """The map quantised for the GPU: uint16 levels of ``far / 65535`` m (0 = nothing),
         rounded up so that a surface never shadows itself; ~1 mm steps, far below the bias."""
-        return np.minimum(np.ceil(self.map / self.far * 65535.0), 65535).astype(np.uint16)
+        q = np.divide(self.map, self.far, dtype=np.float32)
+        q *= 65535.0
+        np.ceil(q, out=q)
+        np.minimum(q, 65535, out=q)
+        return q.astype(np.uint16)
 
     def in_shadow(self, cam: Camera, depth: np.ndarray) -> np.ndarray:
         """(H, W) bool for a pinhole camera's exact depth map (m, 0 = sky)."""
@@ -329,17 +352,23 @@ class RasterRenderer:
     RGB: textured material groups with baked daylight (sky ambient + sun, per face) drawn unlit
     over a per-pixel sky gradient, antialiased as ``settings.antialias`` says; a face in the sun's
     shadow (shadow map test per fragment) keeps its quantised shadow ratio of the light, tinted blue.
+
+    like: another renderer of the same scene (another look) whose look-free parts this one takes
+    instead of computing them again: its materials.SceneGeometry (glass panes, planar coordinates) and,
+    when its triangles come out in the same draw order, its occluder pass (:meth:`OccluderPass.share`:
+    one ground-truth pass per view, the sampler's). The images are those of a renderer built alone.
     """
 
     name = "pyrender"
 
-    def __init__(self, scene: Scene, settings: RenderSettings = RenderSettings()):
+    def __init__(self, scene: Scene, settings: RenderSettings = RenderSettings(), like: "RasterRenderer | None" = None):
         from OpenGL import GL
 
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
         self.look = look = sample_look(rng, settings.look)
-        self.groups = group_scene(scene, look, rng)
+        self.geometry = SceneGeometry(scene) if like is None else like.geometry
+        self.groups = group_scene(scene, look, rng, self.geometry)
         self._gl = GLContext.acquire()
         self._gl.make_current()
         codes, _ = element_codes(scene)
@@ -373,7 +402,9 @@ class RasterRenderer:
         self._geom = Geometry(P, np.concatenate(UV), np.concatenate(C), I, ranges)
         self._geom.textures = textures
         # the occluder pass draws these very triangles in this order: coplanar faces resolve alike
-        self.occluders = OccluderPass(scene, triangles=(P[I], np.repeat(np.concatenate(occ_colours), 3, axis=0)))
+        tris = P[I]
+        shared = None if like is None else like.occluders.share(tris)
+        self.occluders = shared or OccluderPass(scene, triangles=(tris, np.repeat(np.concatenate(occ_colours), 3, axis=0)))
         self.shadow = SunShadow(self.occluders, sun_direction(look)) if settings.shadows else None
         self._shadow_tex = texture_u16(self.shadow.map_u16()) if self.shadow is not None else 0
         self._empty_vao = GL.glGenVertexArrays(1)

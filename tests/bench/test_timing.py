@@ -55,6 +55,32 @@ def test_fresh_clone_row_and_agreement_with_the_cold_run(tmp_path):
     assert timing.agreement({"cold": fig}) is None
 
 
+def test_floor_is_the_detectors_and_the_marginal_render_of_every_view_and_the_ratio_its_multiple(tmp_path):
+    """The floor of a run: every learned detector's CPU seconds per view plus the marginal render's,
+    times the run's views; the ratio: the CPU seconds of the cold run's stages (its renders'
+    included) over it. By hand: 480 views x (0.2 + 0.05 + 0.05) = 144 CPU-s; the cold run's 30 + 90
+    + render 24 = 144 CPU-s: 1.00. Its block has its own markers: the timing block stays."""
+    fig = timing.from_run(_run(tmp_path))["run"]
+    cold = {**fig, **timing.stage_split({"metadata": {"stage_time_s": {**fig["stage_time_s"], "cpu.render": 24.0}}})}
+    doc = {"profile": "default", "cpus": 2, "cached_renders": fig, "cold": cold,
+           "detector_cost": {"views": 12, "cpu_s_per_view": {"default": 0.2, "maskrcnn": 0.05}},
+           "render": {"scene": "fzk-haus", "wall_s": {"10": 1.0, "60": 2.0}, "s_per_view": 0.02, "views_per_s": 50.0,
+                      "cpu_s_per_view": 0.05}}
+    fl = timing.floor(doc)
+    assert fl["floor_cpu_s"] == {"detect": 480 * 0.25, "render": 480 * 0.05}
+    assert abs(fl["floor_total_cpu_s"] - 144.0) < 1e-9 and fl["bench_cpu_s"] == 144.0 and abs(fl["ratio"] - 1.0) < 1e-9
+    block = timing.floor_markdown(doc, "python tools/timing.py")
+    assert block.startswith(timing.FLOOR_BEGIN) and block.endswith(timing.FLOOR_END)
+    assert "| detector `default`, per view (12 views) | 0.200 |" in block and "| **floor**: detect 120 + render 24 | **144** |" in block
+    assert "(reconstruct 90, detect 30, render 24) | 144 |" in block and "| **ratio** of the run to its floor | **1.00** |" in block
+    assert "0.050 CPU-s per view" in timing.markdown(doc, "c")
+    assert timing.floor({**doc, "detector_cost": None}) is None and timing.floor_markdown({**doc, "render": None}, "c") is None
+    md = tmp_path / "perf.md"
+    md.write_text(f"a\n{timing.BEGIN}\nrun figures\n{timing.END}\nb\n{timing.FLOOR_BEGIN}\nold\n{timing.FLOOR_END}\nc\n")
+    timing.write_markdown(md, block, timing.FLOOR_BEGIN, timing.FLOOR_END)
+    assert md.read_text() == f"a\n{timing.BEGIN}\nrun figures\n{timing.END}\nb\n{block}\nc\n"
+
+
 def test_fresh_clone_must_be_a_clean_clone_of_head(tmp_path):
     import subprocess
 

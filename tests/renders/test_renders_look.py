@@ -152,3 +152,58 @@ def test_a_view_with_its_seed_is_bit_identical_and_the_look_changes_the_folder(t
     assert len({a.name, other.name}) == 2
     with pytest.raises(ValueError, match="look_per.*'house'"):
         RenderSettings(look_per="house")
+
+
+def test_a_renderer_like_another_shares_its_occluder_pass_and_draws_the_same_bytes(tmp_path):
+    """A renderer built ``like`` another of the same scene in another look takes its SceneGeometry and,
+    when its triangles come out in the same draw order (two plaster or brick looks), its occluder
+    pass: the sampler's ground truth of a view is then drawn once, and the image, instance map and
+    depth are byte for byte those of a renderer built alone. A stone wall draws its groups in
+    another order (renders.raster.draw_priority): its own pass. A per-view dataset draws one occluder
+    pass per view."""
+    from dataclasses import replace
+
+    from fenestra.conventions import look_at
+    from fenestra.renders import dataset
+    from fenestra.renders.camera import Camera
+    from fenestra.renders.dataset import render_dataset
+    from fenestra.renders.raster import OccluderPass, RasterRenderer
+
+    scene = wall_scene(sill_top=1.2)
+    styles = {s: sample_look(np.random.default_rng(s), "wide").wall_style for s in range(40)}
+    plain = [s for s, st in styles.items() if st != "stone"][:2]
+    stone = next(s for s, st in styles.items() if st == "stone")
+    R, t = look_at([0.5, -5, 2.2], [2.5, 0, 1.5], roll_deg=3)
+    cam = Camera.from_fov(160, 120, 60, R, t)
+    with RasterRenderer(scene, RenderSettings(seed=plain[0], look="wide")) as base:
+        for seed, shared in ((plain[1], True), (stone, False)):
+            with RasterRenderer(scene, RenderSettings(seed=seed, look="wide")) as alone:
+                want = alone.render(cam)
+            base.occluders.truth(cam, keep=True)  # the sampler's visibility test, on the base renderer
+            with RasterRenderer(scene, RenderSettings(seed=seed, look="wide"), like=base) as r:
+                assert (r.occluders is base.occluders) == shared and r.geometry is base.geometry
+                got = r.render(cam)
+            for a, b in ((got.rgb, want.rgb), (got.instances, want.instances), (got.depth, want.depth)):
+                np.testing.assert_array_equal(a, b)
+        assert base.occluders._geom is not None  # the sharers' close() left the base's pass alive
+
+    draws, tests = [], []
+    real_draw, real_test = OccluderPass._draw, dataset.occluder_visibility
+
+    def counted(self, PV, width, height):
+        draws.append((width, height))
+        return real_draw(self, PV, width, height)
+
+    def test(renderer, camera):
+        tests.append(camera)
+        return real_test(renderer, camera)
+
+    config = _per_view_config(tmp_path, "view", n_views=3)
+    config = replace(config, settings=replace(config.settings, look="classic"))  # no stone wall: always shared
+    OccluderPass._draw, dataset.occluder_visibility = counted, test
+    try:
+        render_dataset(config, scene, progress=False)
+    finally:
+        OccluderPass._draw, dataset.occluder_visibility = real_draw, real_test
+    assert len(tests) >= 3 and draws.count((96, 72)) == len(tests)  # none again for an accepted view
+    assert len(draws) - len(tests) == 4  # shadow maps: the sampler's renderer's and one per view's own look
