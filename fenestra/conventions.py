@@ -64,6 +64,13 @@ PAPER = Method(detector="maskrcnn", snapper="harris", pose="lm")
 # normal, degrees) in OBLIQUE_INCIDENCE_DEG = [low, high).
 THIN_ASPECT = 3.0
 OBLIQUE_INCIDENCE_DEG = (60.0, 80.0)
+# Floors of an exported building (pipeline.export.floors): two floors are at least MIN_STOREY_M
+# apart (a lower clear height is no storey: a mezzanine row, a sign, a door's transom); a storey
+# height is measured from the main wall's row spacings up to MAX_STOREY_M (a St Petersburg shop
+# floor's 5 m; a wider spacing is a missing row, several storeys), else ASSUMED_STOREY_M.
+MIN_STOREY_M = 2.2
+MAX_STOREY_M = 5.0
+ASSUMED_STOREY_M = 3.0
 
 
 def make_K(fx: float, fy: float | None = None, cx: float = 0.0, cy: float = 0.0) -> np.ndarray:

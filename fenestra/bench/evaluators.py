@@ -423,9 +423,9 @@ class ModelEvaluator:
     against a render's truth, the exact pose and the house's IFC storeys: the model's vertical
     against the true one (``model_up_err_deg``; the world's z in the camera frame), the tilt of
     the window's wall from the true vertical (``model_wall_tilt_deg``, deg; a wall holding an
-    exported window), the storey row the window is written in (``model_storey``, 0 = the lowest
-    row the photo shows) and the storey it stands on (``true_storey``, 0 = the ground floor), and
-    per method the model's storey rows (``model_n_storeys``) against the distinct true storeys of
+    exported window), the storey (floor, pipeline.export.floors) the window is written in
+    (``model_storey``, 0 = the model's ground floor) and the storey it stands on (``true_storey``,
+    0 = the ground floor), and per method the model's storeys (``model_n_storeys``) against the distinct true storeys of
     the labelled windows it writes (``true_n_storeys``). NaN where the window is not written or the
     truth lacks the storeys; nothing for a photo (no true vertical)."""
 
@@ -442,10 +442,10 @@ class ModelEvaluator:
         rec = result.rec
         model = written_model(rec)
         up = np.asarray(view.pose[0], dtype=np.float64) @ np.array([0.0, 0.0, 1.0])  # the world's z, camera frame
-        tilts, rows = wall_tilts_deg(rec, up), model.levels.row_of
+        tilts, rows = wall_tilts_deg(rec, up), model.floors.floor_of
         written = {g: d for g, (d, _) in result.det_for_gt.items() if d in rows}
         shown = {self.storey[g] for g in written if g in self.storey}
-        per_view = {"model_up_err_deg": angle_deg(model.up, up), "model_n_storeys": float(len(model.levels.sills_m)),
+        per_view = {"model_up_err_deg": angle_deg(model.up, up), "model_n_storeys": float(len(model.floors.elevations_m)),
                     "true_n_storeys": float(len(shown)) if self.storey else NAN}
         return {g: {**per_view, "model_wall_tilt_deg": tilts.get(rec.windows[d].wall, NAN),
                     "model_storey": float(rows[d]) if d in rows else NAN,

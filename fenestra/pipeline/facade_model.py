@@ -461,17 +461,27 @@ def place_partial(r: WindowResult, quad: np.ndarray, cut: tuple[str, ...], wall:
     ``wall`` with that reason."""
     q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
     part = Partial(tuple(cut), r.failure)
-    extent = None if isinstance(wall, Unavailable) else visible_extent(q, K, R_wall, wall.distance_m)
-    if extent is None:
+    on = None if isinstance(wall, Unavailable) else on_wall(r, q, wall, R_wall, K)
+    if on is None:
         why = wall.reason if isinstance(wall, Unavailable) else f"a corner's ray misses wall {wall.id}'s plane"
         return replace(r, quad_mask=q, quad_snapped=q, partial=part,
                        failure=Failure("wall", None, f"partial window (cut by the photo's {', '.join(cut)} edge): {why}"))
+    return replace(on, partial=part)
+
+
+def on_wall(r: WindowResult, quad: np.ndarray, wall: WallModel, R_wall: np.ndarray, K: np.ndarray) -> WindowResult | None:
+    """``r`` with the extent of quad (4, 2) px on ``wall``'s plane (axes R_wall (3, 3), camera
+    frame; :func:`visible_extent`) as its pose and size, its quads ``quad``, its reprojected quad
+    that rectangle's, no failure; None when a corner's ray misses the plane."""
+    q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
+    extent = visible_extent(q, K, R_wall, wall.distance_m)
+    if extent is None:
+        return None
     t, w, h = extent
     R = np.asarray(R_wall, dtype=np.float64)
     rect = np.array([[0.0, h, 0.0], [w, h, 0.0], [w, 0.0, 0.0], [0.0, 0.0, 0.0]])  # TL TR BR BL, window frame
     return replace(r, quad_mask=q, quad_snapped=q, aspect_ratio=w / h, aspect_case=None, focal_estimate_px=None,
-                   R=R, t=t, height_m=h, quad_reprojected=project(K, R, t, rect), failure=None,
-                   uncertainty=None, partial=part)
+                   R=R, t=t, height_m=h, quad_reprojected=project(K, R, t, rect), failure=None, uncertainty=None)
 
 
 COMPLETE_SLACK = 1.15  # a visible part may exceed its row's (column's) typical whole window by this factor

@@ -114,16 +114,19 @@ class ExportReport:
     viewer, and with the models ifc, obj, mtl, glb, texture, inpainted, manifest[, substituted]);
     exported: the detection indices whose model was written; skipped: (index, reason) of the windows
     left out, in detection order; failure: None, or why writing the models failed ("Type: message",
-    recorded, not raised: windows.json is still written). :meth:`to_json` is windows.json's ``export``."""
+    recorded, not raised: windows.json is still written); doors: the openings written as IfcDoor.
+    :meth:`to_json` is windows.json's ``export``."""
 
     files: dict = field(default_factory=dict)
     exported: tuple[int, ...] = ()
     skipped: tuple[tuple[int, str], ...] = ()
     failure: str | None = None
+    doors: tuple[int, ...] = ()  # the openings (Reconstruction.openings indices) written as IfcDoor
 
     def to_json(self) -> dict:
         return {"files": dict(self.files), "exported": list(self.exported),
-                "skipped": [{"index": i, "reason": r} for i, r in self.skipped], "failure": self.failure}
+                "skipped": [{"index": i, "reason": r} for i, r in self.skipped], "failure": self.failure,
+                "doors": list(self.doors)}
 
 
 @dataclass(frozen=True)
@@ -335,7 +338,9 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
     the row regularization's fields (:func:`row_fields`), ``exported``: the export decision (and,
     with ``written`` the indices whose model was written, only those), None when no model is made
     (``export`` False), ``not_exported``: why not; ``partial`` and ``cut``: a window cut by the
-    photo's edges, its fields those of its visible part), ``warnings`` (the photo's, the focal
+    photo's edges, its fields those of its visible part), ``openings`` (the detections the box
+    verifier calls no window, each with its ``kind``, door or signboard: pipeline.doors.Opening),
+    ``warnings`` (the photo's, the focal
     chain's), ``geometry_failure``."""
     from fenestra.pipeline.reconstruct import windows_to_json  # noqa: PLC0415
 
@@ -351,7 +356,8 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
                         "aspect_interval": None if line.aspect_interval is None else list(line.aspect_interval),
                         "scale_source": line.scale_source, "scale_assumed": line.scale_assumed,
                         **row_fields(win.result, win.measured if win.regularized is not None else None, win.row)})
-    return {**doc, "windows": windows, "walls": [w.to_json() for w in model.walls],
+    return {**doc, "windows": windows, "openings": [o.to_json() for o in rec.openings],
+            "walls": [w.to_json() for w in model.walls],
             "scale": {"assumed": bool(assumed), "assumed_walls": assumed,
                       "sources": sorted({w.scale_source for w in model.walls})},
             "K_source": rec.resolved.to_json(),
@@ -367,12 +373,13 @@ def wall_ids(rec: Reconstruction) -> dict[int, int]:
 
 def written_model(rec: Reconstruction, substitute: str | None = None):
     """The model :func:`write_all` writes for ``rec`` (pipeline.export.WrittenModel: the exported
-    windows upright and grounded, the export world's vertical, the storey rows), as a value,
+    windows and doors upright and grounded, the export world's vertical, the rows and the floors), as a value,
     nothing written; substitute: the catalogue style ``rec``'s run was given (None: the default;
     its export decision, Window.export, is the model's: not made again)."""
     from fenestra.pipeline.export import DEFAULT_STYLE, written_model as model_of  # noqa: PLC0415
 
-    return model_of(rec.results(), substitute or DEFAULT_STYLE, rec.not_exported, wall_ids(rec), decided=True)
+    return model_of(rec.results(), substitute or DEFAULT_STYLE, rec.not_exported, wall_ids(rec), decided=True,
+                    doors=[o.placed for o in rec.openings if o.exported])
 
 
 def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoOptions) -> ExportReport:
@@ -387,24 +394,28 @@ def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoO
     rec = result.reconstruction
     model, results, decided = rec.model, rec.results(), rec.not_exported
     read = result.readout()  # before writing: the IFC properties, the overlay's header
-    files, exported, skipped, failure = {}, (), (), None
+    files, exported, skipped, failure, doors = {}, (), (), None, ()
     if options.export:
+        placed_doors = [o for o in rec.openings if o.exported]
         try:
             paths = write_outputs(out, image, rec.K, results, substitute=options.substitute, exclude=decided,
                                   walls=wall_ids(rec),
                                   properties={w.index: window_properties(w) for w in read.windows},
                                   wall_properties={w.id: wall_properties(w) for w in model.walls}, overlay=False,
                                   gps=gps_tuple(result.gps), thickness_m=options.wall_thickness_m,
-                                  source=Path(result.photo).name)
+                                  source=Path(result.photo).name, doors=[o.placed for o in placed_doors],
+                                  door_walls={o.index: o.wall for o in placed_doors},
+                                  door_properties={o.index: door_properties(o, rec) for o in placed_doors})
         except (PipelineError, ValueError, OSError) as e:
             failure = f"{type(e).__name__}: {e}"
         else:
             files = {k: p.name for k, p in paths.items()}
             exported = tuple(w.index for w in rec.windows if w.export.exported)
             skipped = tuple((w.index, w.export.reason) for w in rec.windows if not w.export.exported)
+            doors = tuple(o.index for o in placed_doors)
     files["overlay"] = write_overlay(out, image, rec.K, results, decided, boxes=detection_boxes(list(rec.detections)),
                                      header=read.header()).name
-    report = ExportReport(files, exported, skipped, failure)
+    report = ExportReport(files, exported, skipped, failure, doors)
     viewer = write_viewer(out, replace(result, export=report).readout(), dict(files)).name  # index.html
     return replace(report, files={**files, "viewer": viewer})
 
@@ -433,6 +444,16 @@ def wall_properties(w) -> dict:
     """The Fenestra property set of one fitted wall (IFC)."""
     return {"ScaleSource": w.scale_source, "ScaleAssumed": bool(w.assumed), "DistanceM": float(w.distance_m),
             "WindowCount": len(w.windows)}
+
+
+def door_properties(o, rec: Reconstruction) -> dict:
+    """The Fenestra property set of one door (IFC): the detection's score, the verifier's class,
+    the wall it is on and its scale source, and whether the photo's bottom edge cuts it (its foot
+    then put on its floor)."""
+    wall = next(w for w in rec.model.walls if w.id == o.wall)
+    return {"DetectionScore": float(o.score), "Class": "door (box verifier)", "Wall": int(o.wall),
+            "ScaleSource": wall.scale_source, "ScaleAssumed": bool(wall.assumed),
+            "CutByBottomEdge": o.placed.partial is not None}
 
 
 def window_properties(w: WindowLine) -> dict:

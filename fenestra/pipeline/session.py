@@ -141,7 +141,9 @@ class Reconstruction:
     ``detections[i]``'s); windows: one :class:`Window` per detection, every stage's value kept;
     resolved: pipeline.intrinsics.ResolvedK (``K``: the K used); model:
     pipeline.facade_model.FacadeModel; known: what set the scale; envelope: {index: (lo, hi)}
-    aspect ratio at the ends of the focal interval; geometry_failure: Failure or None.
+    aspect ratio at the ends of the focal interval; geometry_failure: Failure or None; openings:
+    the detections the box verifier calls no window (score >= SCORE_MIN), each a
+    pipeline.doors.Opening: a door placed on its wall (an IfcDoor), a signboard left out.
     """
 
     method: Method
@@ -152,6 +154,7 @@ class Reconstruction:
     known: Known
     envelope: dict
     geometry_failure: Failure | None
+    openings: tuple = ()
 
     @property
     def K(self) -> np.ndarray:
@@ -228,27 +231,54 @@ class PhotoSession:
     # ------------------------------------------------------------ detection
 
     def candidates(self, detector: str) -> list[Detection]:
-        """Every detection of ``detector`` down to CANDIDATE_SCORE_MIN, best first (cached)."""
+        """Every window detection of ``detector`` down to CANDIDATE_SCORE_MIN, best first (cached)."""
+        return [d for d in self._all_candidates(detector) if d.kind == "window"]
+
+    def _all_candidates(self, detector: str) -> list[Detection]:
+        """Every detection of ``detector``, of every kind (pipeline.types.DETECTION_KINDS), down to
+        CANDIDATE_SCORE_MIN, best first (cached)."""
         if detector not in self._candidates:
             from fenestra.pipeline.detectors import detect, detector_entry  # noqa: PLC0415
+            from fenestra.pipeline.types import DETECTION_KINDS  # noqa: PLC0415
 
             t0 = time.process_time()
             opts = dict(self.detector_options.get(detector, {}))
             if detector_entry(detector).needs_instances:
                 if self.instances is None:
                     raise PipelineError(f"detector {detector!r} needs an instance map (--masks); none was given")
-                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, instances=self.instances, **opts)
+                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, instances=self.instances,
+                              kinds=DETECTION_KINDS, **opts)
             else:
                 if self.max_side:
                     opts["max_side"] = self.max_side
-                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, **opts)
+                dets = detect(detector, self.image, CANDIDATE_SCORE_MIN, kinds=DETECTION_KINDS, **opts)
             self._tick("detect", t0)
             self._candidates[detector] = dets
         return self._candidates[detector]
 
     def detections(self, detector: str) -> list[Detection]:
-        """The detections a user gets (score >= SCORE_MIN), best first."""
+        """The window detections a user gets (score >= SCORE_MIN), best first."""
         return [d for d in self.candidates(detector) if d.score >= SCORE_MIN]
+
+    def non_windows(self, detector: str) -> list[Detection]:
+        """The detections a user gets (score >= SCORE_MIN) that the detector's box verifier calls a
+        door or a signboard, best first."""
+        return [d for d in self._all_candidates(detector) if d.kind != "window" and d.score >= SCORE_MIN]
+
+    def openings(self, method: Method, final: list[WindowResult], model: FacadeModel, exported: set,
+                 K: np.ndarray) -> tuple:
+        """pipeline.doors.place_openings of the method's non-window detections: doors on the walls
+        of the windows ``exported`` (detection indices), ``final`` the windows as the model holds
+        them."""
+        from fenestra.pipeline.doors import place_openings  # noqa: PLC0415
+
+        dets = self.non_windows(method.detector)
+        if not dets:
+            return ()
+        params = self.config(method).quad
+        fits = fit_quads(dets, params, self.gray.shape)
+        return place_openings(dets, fits, visible_quads(dets, fits, params, self.gray.shape), final, model, exported,
+                              K, self.size)
 
     # ------------------------------------------------------------ geometry
 
@@ -353,7 +383,8 @@ class PhotoSession:
         with ``known``, the partial windows placed on its walls (pipeline.facade_model.place_partials),
         the rows' sill and head lines regularized (pipeline.row_lines.regularize_rows; not with
         ``regularize`` False) and the export decision (flagged windows stay out unless export_all;
-        style: the catalogue window, None for the default)."""
+        style: the catalogue window, None for the default), then the doors and signboards
+        (:meth:`openings`)."""
         from fenestra.pipeline.export import DEFAULT_STYLE, export_decision  # noqa: PLC0415
 
         g = self.geometry(method, height_m)
@@ -366,8 +397,9 @@ class PhotoSession:
                                rows.get(k), final[k] if k in rows and rows[k].regularized else None,
                                ExportDecision(k not in out, out.get(k)), _wall_id(model, k))
                         for k in range(len(final)))
+        openings = self.openings(method, final, model, {w.index for w in windows if w.export.exported}, g.resolved.K)
         return Reconstruction(method, tuple(self.detections(method.detector)), windows, g.resolved, model, known,
-                              g.envelope, g.failure)
+                              g.envelope, g.failure, openings)
 
     def _tick(self, stage: str, t0: float) -> None:
         self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.process_time() - t0

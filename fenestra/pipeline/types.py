@@ -79,6 +79,8 @@ class Failure:
         return f"{self.stage}: {self.reason}"
 
 
+DETECTION_KINDS = ("window", "door", "signboard")  # what a detection is (Detection.kind)
+
 CUT_SIDES = ("top", "bottom", "left", "right")  # the photo's edges that can cut a window
 
 
@@ -117,6 +119,8 @@ class Detection:
     mask. instance_id: the input instance map's id (``--masks``), None for a detector's output.
     corners: (4, 2) px, TL TR BR BL in image order, full-image coordinates: the void's corners as a
     detector with a corner head predicts them (pipeline.quad.corners_to_quad), else None.
+    kind: what the detector's box verifier calls it, one of :data:`DETECTION_KINDS` ("window" for
+    a detector without one): a door becomes an IfcDoor, a signboard is left out with its reason.
     """
 
     mask: np.ndarray
@@ -126,6 +130,11 @@ class Detection:
     origin: tuple[int, int] = (0, 0)
     instance_id: int | None = None
     corners: np.ndarray | None = None
+    kind: str = "window"
+
+    def __post_init__(self) -> None:
+        if self.kind not in DETECTION_KINDS:
+            raise ValueError(f"Detection.kind must be one of {DETECTION_KINDS}, got {self.kind!r}")
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from fenestra.errors import DatasetError
 from fenestra.images import read_image
 from fenestra.methods import Method
 from fenestra.pipeline.export import WrittenModel
+from fenestra.pipeline.export.floors import floor_levels
 from fenestra.pipeline.export.geometry import Gravity, StoreyLevels
 from fenestra.pipeline.facade_model import FacadeModel, Known, WallModel
 from fenestra.pipeline.intrinsics import FocalEstimate, ResolvedK
@@ -154,7 +155,8 @@ def _model(up=None, rows=()) -> WrittenModel:
     """The written model's vertical ``up`` (None: camera level) and storey rows (window indices)."""
     row_of = {i: r for r, row in enumerate(rows) for i in row}
     return WrittenModel((), (), Gravity(None if up is None else np.asarray(up, float), "given"),
-                        StoreyLevels(row_of, tuple(float(r) for r in range(len(rows))), 0.9, 0.5), 0.0)
+                        StoreyLevels(row_of, tuple(float(r) for r in range(len(rows))), 0.9, 0.5), 0.0,
+                        floor_levels([]))
 
 
 def _run(view, rec, transform=pe.AS_IS, model="auto", known_storey_m=math.nan, error=None) -> pe.KfreeRun:

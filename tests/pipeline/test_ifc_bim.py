@@ -1,4 +1,4 @@
-"""model.ifc as BIM a user can edit (issue 35): storeys by window row, the ground at z = 0, extruded
+"""model.ifc as BIM a user can edit (issue 35): storeys by floor, the ground at z = 0, extruded
 walls voided by their openings, the photo on a cladding covering, window types, materials, base
 quantities, a georeference -- read back with ifcopenshell and checked against this file's own numbers.
 
@@ -56,9 +56,10 @@ def window_results() -> list[WindowResult]:
 
 
 def row_elevations() -> list[float]:
-    """Storey r's elevation: its row's median sill minus the lowest row's (the ground is
-    SILL_HEIGHT_M below row 0's sill, each floor SILL_HEIGHT_M below its row's sill)."""
-    sills = [np.median([VOIDS[i][1] for i in range(len(VOIDS)) if ROWS[i] == r]) for r in range(3)]
+    """Floor r's elevation: the main wall's (wall 7's) row r's median sill minus its lowest row's
+    (the ground is SILL_HEIGHT_M below row 0's sill, each floor SILL_HEIGHT_M below its row's sill;
+    the rows are 3 m apart, above the 2.2 m a storey needs)."""
+    sills = [np.median([VOIDS[i][1] for i in WALLS if ROWS[i] == r]) for r in range(3)]
     return [s - sills[0] for s in sills]
 
 
@@ -221,16 +222,17 @@ def test_an_application_owns_the_model_and_the_photo_is_named(model):
     assert said in ifc.header.file_description.description and ifc.by_type("IfcProject")[0].Description == said
 
 
-def test_one_storey_per_row_at_its_elevation(model):
+def test_one_storey_per_floor_at_its_elevation(model):
     _, manifest, ifc = model
-    storeys = sorted(ifc.by_type("IfcBuildingStorey"), key=lambda s: s.Name)
-    assert [s.Name for s in storeys] == ["Storey 0", "Storey 1", "Storey 2"]
+    storeys = sorted(ifc.by_type("IfcBuildingStorey"), key=lambda s: s.Elevation)
+    assert [s.Name for s in storeys] == ["Ground floor", "Floor 1", "Floor 2"]
     for storey, elevation in zip(storeys, row_elevations()):
         assert storey.Elevation == pytest.approx(elevation, abs=1e-9)
         M = _abs_placement(storey)
         assert np.allclose(M[:3, :3], np.eye(3)) and np.allclose(M[:3, 3], [0, 0, elevation], atol=1e-9)
         assert storey.Decomposes[0].RelatingObject.is_a("IfcBuilding")
-    assert [r["elevation_m"] for r in manifest["storeys"]["rows"]] == pytest.approx(row_elevations(), abs=1e-9)
+    assert [r["elevation_m"] for r in manifest["storeys"]["floors"]] == pytest.approx(row_elevations(), abs=1e-9)
+    assert manifest["storeys"]["storey_source"] == "measured" and manifest["storeys"]["main_wall"] == 7
     ground = ifcopenshell.util.element.get_psets(ifc.by_type("IfcBuilding")[0])["Fenestra_Ground"]
     assert ground["SillHeightAssumed"] == pytest.approx(SILL_HEIGHT_M)
 
@@ -248,14 +250,15 @@ def test_ground_is_z0_sill_height_below_the_lowest_row_and_the_camera_above_the_
 
 def test_every_window_is_in_its_rows_storey_and_walls_in_their_lowest(model):
     _, _, ifc = model
+    names = ["Ground floor", "Floor 1", "Floor 2"]
     for i, row in enumerate(ROWS):
         window = _window(ifc, i)
-        assert _storey_of(window) == f"Storey {row}", i
+        assert _storey_of(window) == names[row], i
         opening = window.FillsVoids[0].RelatingOpeningElement
         assert not getattr(opening, "ContainedInStructure", None)  # IFC4: openings are never contained
     walls = {w.Name: w for w in ifc.by_type("IfcWall")}
     assert set(walls) == {"Wall 7", "Wall 9"}
-    assert _storey_of(walls["Wall 7"]) == "Storey 0" and _storey_of(walls["Wall 9"]) == "Storey 2"
+    assert _storey_of(walls["Wall 7"]) == "Ground floor" and _storey_of(walls["Wall 9"]) == "Floor 2"
     for wall in walls.values():
         coverings = [c for rel in wall.HasCoverings for c in rel.RelatedCoverings]
         assert len(coverings) == 1 and _storey_of(coverings[0]) == _storey_of(wall)

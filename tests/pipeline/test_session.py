@@ -94,3 +94,58 @@ def test_reconstruct_photo_gives_the_bench_rows_of_the_cli_method(view_dirs, tmp
     assert compared >= N_VIEWS  # the test compared windows (28 with K given at seed 5), not nothing
     assert regularized > 0  # some rows measured a window whose exported height differs from its measured one
     assert sources == {"K"} if not withhold_K else "K" not in sources
+
+
+def test_model_storeys_are_the_houses_floors(view_dirs, tmp_path, monkeypatch):
+    """Every view through `fenestra reconstruct` with K and the house's storey height given: model.ifc's
+    storeys are named Ground floor, Floor 1, ... at least MIN_STOREY_M apart, every IfcWindow and IfcDoor is
+    contained in one, and every exported whole window of the main wall (the one with most) is in floor k
+    where k is the FZK-Haus storey its sill stands in (its IFC's IfcBuildingStorey elevations, read here:
+    the ground floor's windows on the ground floor; the roof storey's are dormers and roof windows, on
+    other planes)."""
+    import ifcopenshell  # noqa: PLC0415
+
+    from fenestra import PhotoOptions, reconstruct_photo
+    from fenestra.conventions import MIN_STOREY_M
+    from fenestra.pipeline.detectors import set_cpu_threads
+    from fenestra.pipeline.facade_model import Known
+
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    set_cpu_threads(1)
+    house = ifcopenshell.open(str(Path(__file__).resolve().parents[2] / "fenestra" / "scenes" / "ifc" / "AC20-FZK-Haus.ifc"))
+    levels = sorted(float(s.Elevation) for s in house.by_type("IfcBuildingStorey"))
+    storey_m = levels[1] - levels[0]
+    compared = 0
+    for vd in view_dirs:
+        meta = json.loads((vd / "view.json").read_text())
+        K_json = tmp_path / f"{vd.name}-K.json"
+        K_json.write_text(json.dumps({"K": meta["K"], "width": meta["width"], "height": meta["height"]}))
+        out = tmp_path / vd.name
+        doc = reconstruct_photo(vd / "image.png", out, K_json=K_json,
+                                options=PhotoOptions(known=Known(storey_m=storey_m))).to_json()
+        storeys = json.loads((out / "export.json").read_text())["storeys"]
+        floors = storeys["floors"]
+        assert [f["name"] for f in floors] == ["Ground floor"] + [f"Floor {k}" for k in range(1, len(floors))]
+        assert all(b["elevation_m"] - a["elevation_m"] >= MIN_STOREY_M for a, b in zip(floors, floors[1:]))
+        ifc = ifcopenshell.open(str(out / "model.ifc"))
+        assert len(ifc.by_type("IfcBuildingStorey")) == len(floors)
+        for e in list(ifc.by_type("IfcWindow")) + list(ifc.by_type("IfcDoor")):
+            assert len(e.ContainedInStructure) == 1 and e.ContainedInStructure[0].RelatingStructure.is_a("IfcBuildingStorey")
+        floor_of = {i: k for k, f in enumerate(floors) for i in f["windows"]}
+        true_storey = {}
+        for w in meta["windows"]:  # the house's storey each labelled window's sill stands in
+            sill = min(np.asarray(w["corners_world"], dtype=np.float64)[:, 2])
+            true_storey[w["id"]] = max(k for k, e in enumerate(levels) if e <= sill + 0.01)
+        gt = truth(vd)
+        main = storeys["main_wall"]
+        pairs = []
+        for w in doc["windows"]:
+            if not w["exported"] or w["partial"] or w["wall"] != main or w["quad_snapped"] is None:
+                continue
+            err = {k: np.mean(np.linalg.norm(np.asarray(w["quad_snapped"]) - q, axis=1)) for k, (q, _, _) in gt.items()}
+            k = min(err, key=err.get)
+            if err[k] < 5.0:
+                pairs.append((true_storey[k], floor_of[w["index"]]))
+        assert all(storey == floor for storey, floor in pairs), (vd.name, pairs)
+        compared += len(pairs)
+    assert compared >= N_VIEWS  # windows were compared (26 at seed 5), not none

@@ -37,7 +37,7 @@ from fenestra.registry import Registry
 from fenestra.pipeline.detectors.checkpoint import check_device, read_checkpoint
 from fenestra.pipeline.detectors.oracle import (DegradeConfig, degraded_detections, detections_from_instance_map,
                                                 oracle_detections)
-from fenestra.pipeline.types import Detection
+from fenestra.pipeline.types import DETECTION_KINDS, Detection
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_WEIGHTS = MODELS_DIR / "default.pt"  # DETECTORS["default"].model.weights
@@ -237,15 +237,19 @@ def get_detector(name: str, **options: object) -> Detector:
 
 def detect(name: str, image: np.ndarray, score_threshold: float = 0.5,
            instances: np.ndarray | None = None, max_side: int = LIMITS.detector_max_side_px,
-           **options: object) -> list[Detection]:
+           kinds: tuple[str, ...] = ("window",), **options: object) -> list[Detection]:
     """Detect window voids in one RGB photo (H, W, 3) uint8; Detections best first.
 
+    kinds: the Detection.kind values returned (pipeline.types.DETECTION_KINDS; a detector with a
+    box verifier also finds doors and signboards: ``kinds=DETECTION_KINDS`` returns them too).
     instances: (H, W) int instance map, required by the oracles only. max_side: a learned
     detector sees the photo with its long side at most this (px; :func:`input_scale`), its masks,
     boxes and corners mapped back (:func:`full_resolution`). options: the detector's build options
     (e.g. weights=PATH, config=DegradeConfig(...), threads=N).
     """
     image = check_image(image)
+    if not set(kinds) <= set(DETECTION_KINDS):
+        raise ValueError(f"kinds must be among {DETECTION_KINDS}, got {kinds!r}")
     if not 0.0 <= score_threshold <= 1.0:
         raise ValueError(f"score_threshold must be in [0, 1], got {score_threshold}")
     per_image = {} if instances is None else {"instances": instances}
@@ -260,7 +264,7 @@ def detect(name: str, image: np.ndarray, score_threshold: float = 0.5,
         dets = run(image, **per_image)
     else:  # bounded memory and time: the network sees a smaller copy, masks come back sparse
         dets = [full_resolution(d, scale, image.shape[:2]) for d in run(downscale(image, scale), **per_image)]
-    return [d for d in dets if d.score >= score_threshold]
+    return [d for d in dets if d.score >= score_threshold and d.kind in kinds]
 
 
 def input_scale(shape: tuple[int, int], max_side: int = LIMITS.detector_max_side_px) -> float:

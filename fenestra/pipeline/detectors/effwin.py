@@ -18,7 +18,7 @@ Each instance's corners are the sub-pixel peaks of the four heatmaps near its ma
 
 A weights file may carry a **box verifier** (key ``"verifier"``; fenestra/pipeline/detectors/verifier.py,
 fitted by ``fenestra train-verifier``): a logistic head on the backbone's features pooled in each
-detection's box that drops detections it takes for doors or signboards (issue #23, item 5).
+detection's box that tells doors and signboards from windows (``Detection.kind``).
 
 Input normalisation: (RGB - 127) / 128, the TensorFlow EfficientNet-Lite preprocessing the weights
 were trained with. Checked, not assumed: on 24 street photos the ImageNet classifier is most
@@ -40,7 +40,7 @@ from fenestra.pipeline.detectors.winnet import (PostConfig, _block, instances_fr
                                        post_from_checkpoint)
 from fenestra.pipeline.detectors.quadhead import (QUAD_STRIDE, QuadDecode, QuadHead, quad_detections, quad_mirror_mean,
                                                   subpixel_peak)
-from fenestra.pipeline.detectors.verifier import VerifierHead, head_from_dict, network_fingerprint, verified
+from fenestra.pipeline.detectors.verifier import VerifierHead, head_from_dict, network_fingerprint, classified
 from fenestra.pipeline.types import Detection
 
 MEAN, STD = 127.0, 128.0  # TF EfficientNet-Lite preprocessing (see the module docstring)
@@ -340,8 +340,8 @@ def verifier_from_checkpoint(model: EffWin, ckpt: dict) -> VerifierHead | None:
 def detector_from_model(model: EffWin, ckpt: dict):
     """image (H, W, 3) uint8 RGB -> Detections with corners: with a quad head, one per window
     centre, its corners the network's quad (:func:`quads_from_maps`); else the void/core maps'
-    instances with the checkpoint's PostConfig. When the file has a box verifier, the detections
-    it calls doors or signboards are dropped (fenestra/pipeline/detectors/verifier.py)."""
+    instances with the checkpoint's PostConfig. When the file has a box verifier, each detection
+    has the kind it calls it: window, door or signboard (fenestra/pipeline/detectors/verifier.py)."""
     post = post_config(ckpt)
     head = verifier_from_checkpoint(model, ckpt)
     decode = quad_decode(ckpt) if model.quad is not None else None
@@ -351,7 +351,7 @@ def detector_from_model(model: EffWin, ckpt: dict):
     def run(image: np.ndarray, **_) -> list[Detection]:
         maps, feats = predict_maps_features(model, image, post.mirror)
         dets = detections_from_maps(maps, post) if decode is None else quads_from_maps(maps, feats, decode)
-        return dets if head is None else verified(dets, maps[0], feats, head)
+        return dets if head is None else classified(dets, maps[0], feats, head)
     return run
 
 

@@ -6,7 +6,8 @@ grown by ``context`` (:func:`roi_align`: torchvision's RoIAlign in pure torch), 
 numbers about the box (aspect, position and size in the image, score, void/core evidence:
 :func:`geometry_features`). A logistic regression on these (``VerifierHead``; fitted by
 fenestra/training/verifier.py on the real train photos' doors and signboards) gives p(window); a detection
-below the head's ``threshold`` is dropped.
+below the head's ``threshold`` is no window: a door when its box stands upright, else a signboard
+(:func:`classified` sets ``Detection.kind``; pipeline.detectors.detect returns the kinds asked for).
 
 The head ships inside the weights file (key ``"verifier"``, :func:`head_to_dict`), checked on
 load (:func:`head_from_dict`: FenestraError naming what is wrong). It records the fingerprint of
@@ -20,7 +21,7 @@ runs without a verifier.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -28,6 +29,7 @@ from fenestra.errors import FenestraError
 
 N_GEOMETRY = 10  # columns of geometry_features
 VERSION = 1
+DOOR_MIN_ASPECT = 1.0  # a no-window box at least as tall as wide is a door (not_window_kind; from spb train labels)
 
 
 @dataclass(frozen=True)
@@ -174,14 +176,23 @@ def detection_extras(dets: list, void_p: np.ndarray) -> np.ndarray:
     return np.array([[d.score, mean_void(d)] for d in dets], np.float64).reshape(-1, 2)
 
 
-def verified(dets: list, void_p: np.ndarray, feats: dict, head: VerifierHead) -> list:
-    """The detections (full masks on the image of ``void_p``, (H, W)) that ``head`` keeps: p(window)
-    >= its threshold; order kept."""
+def not_window_kind(box: np.ndarray, min_aspect: float = DOOR_MIN_ASPECT) -> str:
+    """What a detection the verifier calls no window is, from its box (4,) x0 y0 x1 y1 px: a door
+    when it stands at least ``min_aspect`` times as tall as it is wide, else a signboard (the
+    labelled doors of the train photos stand upright, their signboards lie flat)."""
+    x0, y0, x1, y1 = np.asarray(box, np.float64).reshape(4)
+    return "door" if (y1 - y0) >= min_aspect * max(x1 - x0, 1.0) else "signboard"
+
+
+def classified(dets: list, void_p: np.ndarray, feats: dict, head: VerifierHead) -> list:
+    """The detections (full masks on the image of ``void_p``, (H, W)), each with its ``kind``: a
+    window where ``head``'s p(window) reaches its threshold, else a door or a signboard
+    (:func:`not_window_kind`); order kept, none dropped."""
     if not dets:
         return dets
     boxes = np.stack([np.asarray(d.box, np.float64) for d in dets])
     p = head.window_probability(box_features(feats, boxes, void_p.shape, detection_extras(dets, void_p), head.spec))
-    return [d for d, q in zip(dets, p) if q >= head.threshold]
+    return [d if q >= head.threshold else replace(d, kind=not_window_kind(d.box)) for d, q in zip(dets, p)]
 
 
 # ---------------------------------------------------------------- in a weights file

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,8 +22,9 @@ from fenestra.checks import check_image, check_K
 from fenestra.errors import PipelineError
 from fenestra.files import write_image
 from fenestra.pipeline.catalogue import WindowStyle, fitted_style, get_style, window_mesh
+from fenestra.pipeline.export.floors import Floors, floor_levels, grounded_floors
 from fenestra.pipeline.export.geometry import (Gravity, PlacedWindow, StoreyLevels, camera_to_world, gravity_up,
-                                               grounded, place, storey_levels, texture_layout, union_layout, upright,
+                                               place, storey_levels, texture_layout, union_layout, upright,
                                                WALL_THICKNESS_M)
 from fenestra.pipeline.export.ifc import write_ifc
 from fenestra.pipeline.export.inpaint import capped_size, inpaint_voids, scaled_K
@@ -106,14 +107,20 @@ class WrittenModel:
     """What the model files hold, before any is written (:func:`written_model`): placed, the
     exported windows turned upright and grounded (export world); skipped [{"index", "reason"}] the
     others; gravity the export world's vertical (``up`` (3,) camera frame, None: camera level);
-    levels the storey rows (grounded: storey 0 at z = 0); ground_z_m the ground plane's height
-    before grounding (m, upright world; export.json ``world_frame.offset`` is -ground_z_m)."""
+    levels the rows of windows (geometry.storey_rows, in the grounded world); ground_z_m the
+    ground floor's level before grounding (m, upright world; export.json ``world_frame.offset`` is
+    -ground_z_m); floors model.ifc's storeys (pipeline.export.floors.Floors, grounded: the ground
+    floor at z = 0); doors the placed doors (indices of their own, on their floors) and
+    doors_skipped [{"index", "reason"}] those that could not be placed."""
 
     placed: tuple[PlacedWindow, ...]
     skipped: tuple[dict, ...]
     gravity: Gravity
     levels: StoreyLevels
     ground_z_m: float
+    floors: Floors
+    doors: tuple[PlacedWindow, ...] = ()
+    doors_skipped: tuple[dict, ...] = ()
 
     @property
     def camera_to_export(self) -> np.ndarray:
@@ -134,9 +141,11 @@ class WrittenModel:
 
 def written_model(results: list[WindowResult], style: str | WindowStyle = DEFAULT_STYLE,
                   exclude: dict[int, str] | None = None, walls: dict[int, int] | None = None,
-                  gravity: Gravity | np.ndarray | bool = True, decided: bool = False) -> WrittenModel:
+                  gravity: Gravity | np.ndarray | bool = True, decided: bool = False,
+                  doors: list[WindowResult] = ()) -> WrittenModel:
     """The model :func:`write_outputs` writes for ``results`` (its arguments of the same names), as
-    a value: which windows are placed, the export world's vertical, the storey rows. Pure.
+    a value: which windows and ``doors`` are placed, the export world's vertical, the rows of
+    windows and the floors (pipeline.export.floors). Pure.
     decided: ``exclude`` is :func:`export_decision` of these results and ``style`` (what
     pipeline.session's run decided), so every other window places and takes a mesh: the checks of
     :func:`split_results` are not repeated (the same model)."""
@@ -148,10 +157,14 @@ def written_model(results: list[WindowResult], style: str | WindowStyle = DEFAUL
         placed, skipped = split_results(list(results), style, exclude)
     g = export_gravity(placed, walls, gravity)
     placed = upright(placed, g)
-    levels = storey_levels(placed)
-    ground_z = levels.ground_z_m
-    placed, levels = grounded(placed, levels)  # storey 0 at z = 0
-    return WrittenModel(tuple(placed), tuple(skipped), g, levels, ground_z)
+    door_pw, doors_skipped = split_results(list(doors), style)  # a door is placed as a window is
+    door_pw = upright(door_pw, g)
+    rows = storey_levels(placed)
+    floors = floor_levels(placed, walls, door_pw)
+    ground_z = floors.ground_z_m
+    placed, door_pw, floors = grounded_floors(placed, door_pw, floors)  # the ground floor at z = 0
+    rows = replace(rows, sills_m=tuple(s - ground_z for s in rows.sills_m))
+    return WrittenModel(tuple(placed), tuple(skipped), g, rows, ground_z, floors, tuple(door_pw), tuple(doors_skipped))
 
 
 def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results: list[WindowResult],
@@ -160,7 +173,8 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                   wall_properties: dict[int, dict] | None = None, overlay: bool = True,
                   gravity: Gravity | np.ndarray | bool = True, max_px: int = EXPORT_MAX_PX,
                   gps: tuple | None = None, thickness_m: float = WALL_THICKNESS_M,
-                  source: str | None = None) -> dict[str, Path]:
+                  source: str | None = None, doors: list[WindowResult] = (), door_walls: dict[int, int] | None = None,
+                  door_properties: dict[int, dict] | None = None) -> dict[str, Path]:
     """Write every output for one photo into ``out_dir``; return {kind: path}.
 
     image (H, W, 3) uint8 RGB; K (3, 3); results from the reconstruction. Written: model.ifc,
@@ -175,9 +189,14 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     vertical (pipeline.export.geometry): True estimates it from the exported windows' wall up axes
     (:func:`~pipeline.export.geometry.gravity_up`, with ``walls``), a (3,) up vector in the camera
     frame or a Gravity gives it, False keeps the camera-level frame (CAMERA_TO_EXPORT). The world's
-    origin is then moved down to the ground (geometry.storey_levels / grounded: z = 0 lies
-    SILL_HEIGHT_M below the lowest row of sills; model.ifc's storeys are the rows), the same for
-    model.ifc, model.obj and model.glb; export.json's ``world_frame.offset`` and ``storeys`` say so.
+    origin is then moved down to the ground floor's level (pipeline.export.floors: the floors come
+    from the main wall's rows of windows, the ground floor's level from the doors standing below
+    them or SILL_HEIGHT_M below its lowest row's sills; model.ifc's storeys are the floors), the
+    same for model.ifc, model.obj and model.glb; export.json's ``world_frame.offset`` and
+    ``storeys`` say so (``storeys.rows``: the rows of windows, geometry.storey_rows).
+    doors: the doors' results (indices of their own: pipeline.session.Opening), each placed like a
+    window and written as an IfcDoor in its wall (``door_walls`` {door index: wall id}; model.ifc
+    only), ``door_properties`` their Fenestra_Door property sets; export.json's ``doors``.
     gps: (latitude deg, longitude deg[, elevation m]) of the camera: model.ifc's site reference and
     map conversion (pipeline.export.ifc.write_ifc). thickness_m: the walls' thickness, m (model.ifc's
     layer and extrusion, the OBJ/GLB slabs; export.json ``wall_thickness_m``). source: the photo's
@@ -195,8 +214,9 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
     style = get_style(substitute if substitute is not None else DEFAULT_STYLE)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    model = written_model(list(results), style, exclude, walls, gravity)
+    model = written_model(list(results), style, exclude, walls, gravity, doors=list(doors))
     placed, skipped, gravity, levels = list(model.placed), list(model.skipped), model.gravity, model.levels
+    floors, door_pw, ground_z = model.floors, list(model.doors), model.ground_z_m
     timings: dict[str, float] = {}
 
     def _timed(name, fn, *args, **kw):
@@ -224,9 +244,10 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
         paths["texture"] = Path(shutil.copyfile(paths["inpainted"], out / "texture.png"))
     else:
         paths["texture"] = write_image(out / "texture.png", texture)
-    ids = _timed("ifc_ms", write_ifc, out / "model.ifc", K_tex, placed, layout, "texture.png", style,
-                 walls=walls, properties=properties, wall_properties=wall_properties, levels=levels, gps=gps,
-                 thickness_m=thickness_m, source=source)
+    ids, door_ids, doors_unwalled = _timed(
+        "ifc_ms", write_ifc, out / "model.ifc", K_tex, placed, layout, "texture.png", style, walls=walls,
+        properties=properties, wall_properties=wall_properties, levels=floors, gps=gps, thickness_m=thickness_m,
+        source=source, doors=door_pw, door_walls=door_walls, door_properties=door_properties)
     paths["ifc"] = out / "model.ifc"
     parts = model_parts(K_tex, placed, layout, style, walls=walls, thickness_m=thickness_m)
     paths["obj"], paths["mtl"] = _timed("obj_ms", write_obj, out / "model.obj", parts, style, "texture.png")
@@ -250,10 +271,9 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                         "note": "export world X_E = camera_to_export @ X_C + offset_m: the OpenCV camera frame "
                                 "turned upright (z = gravity's up), the ground plane at z = 0, the camera above "
                                 "the origin, its heading along +y; the same in model.ifc, model.obj and model.glb"},
-        "storeys": {"sill_height_m": levels.sill_height_m, "row_tolerance_m": levels.tol_m,
-                    "rows": [{"name": f"Storey {r}", "elevation_m": e, "sill_m": s,
-                              "windows": w} for r, (e, s, w) in enumerate(zip(levels.elevations_m, levels.sills_m,
-                                                                              model.rows()))]},
+        "storeys": {**floors.to_json(), "row_tolerance_m": levels.tol_m,
+                    "rows": [{"row": r, "sill_m": s, "windows": w}
+                             for r, (s, w) in enumerate(zip(levels.sills_m, model.rows()))]},
         "texture": {"file": "texture.png", "pad_left": layout.pad_left, "pad_top": layout.pad_top,
                     "pad_right": layout.pad_right, "pad_bottom": layout.pad_bottom,
                     "width": layout.width, "height": layout.height, "photo_width": size[0], "photo_height": size[1],
@@ -262,6 +282,9 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
                       "style_scaled": fitted_style(style, pw.width_m, pw.height_m) != style}
                      for pw in placed],
         "skipped": skipped,
+        "doors": {"exported": [{"index": d.index, "width_m": d.width_m, "height_m": d.height_m, **door_ids[d.index]}
+                               for d in door_pw if d.index in door_ids],
+                  "skipped": list(model.doors_skipped) + doors_unwalled},
         "timings_ms": timings,
     }
     paths["manifest"] = out / "export.json"

@@ -19,10 +19,10 @@ Frames
                        ``height_m`` tall). model.glb holds the same coordinates under a root node
                        that turns them y-up, as glTF requires (:data:`Z_UP_TO_Y_UP`).
 
-Storeys
+Rows
     Windows are grouped into rows by their sill height in the export world (:func:`storey_rows`):
-    sills within STOREY_TOL_FRACTION of the typical (median) window height are one row. Each row
-    is one storey of model.ifc; a storey's elevation is its row's sill minus the sill offset.
+    sills within STOREY_TOL_FRACTION of the typical (median) window height are one row. model.ifc's
+    storeys are floors made from one wall's rows (pipeline.export.floors), not every row.
 
 Texture
     The texture is the inpainted photo, padded by replication so that every wall vertex projects

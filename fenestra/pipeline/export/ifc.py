@@ -9,14 +9,15 @@ z = 0, the camera above the origin looking along +y). The file holds
                        with ``gps`` the site's RefLatitude/RefLongitude/RefElevation (the camera's
                        position, which is the world's origin on the ground) and an IfcMapConversion
                        to the UTM zone's IfcProjectedCRS (EPSG 326xx / 327xx)
-    IfcBuildingStorey  one per row of windows ("Storey 0", "Storey 1", ... from the bottom;
-                       geometry.storey_rows), Elevation = its row's sill - SillHeightAssumed, placed
-                       at (0, 0, Elevation) in the building; Fenestra_Storey (its sill height, windows)
+    IfcBuildingStorey  one per floor ("Ground floor", "Floor 1", ... from the bottom; floors.py: the
+                       main wall's rows a storey apart, the doors on the ground floor), Elevation its
+                       level, placed at (0, 0, Elevation) in the building; Fenestra_Storey (its
+                       windows and doors)
     IfcWall            per façade plane (walls_plan.facade_walls: the fitted walls of ``walls``
                        merged only when one plane; each as far as the photo shows its plane, from
                        the ground up, two walls meeting at their corner line where the photo shows
                        it; a window without a wall: a fragment, its void + margin), contained in
-                       the lowest storey its windows are in: a standard wall a BIM tool edits as one: placement on
+                       the lowest floor its windows are in: a standard wall a BIM tool edits as one: placement on
                        its bottom-left exterior corner (x along the wall, z its up axis), Axis
                        (IfcPolyline along x) and Body = IfcExtrudedAreaSolid of an
                        IfcRectangleProfileDef footprint (length x thickness) extruded up by its
@@ -45,7 +46,7 @@ z = 0, the camera above the origin looking along +y). The file holds
                        window it holds)
     IfcWindow          OverallWidth/OverallHeight = void size, PredefinedType WINDOW, placed in its
                        wall's axes (x along, y into the wall, z up) at the void's bottom-left,
-                       filling the opening (IfcRelFillsElement), contained in its row's storey;
+                       filling the opening (IfcRelFillsElement), contained in its floor's storey;
                        Body: its type's parametric body (ifc_window: SweptSolid lining, frames and
                        glass) mapped and scaled to its measured size; typed by an IfcWindowType per
                        window size (ifc_window.type_sizes; PredefinedType WINDOW, PartitioningType
@@ -56,6 +57,7 @@ z = 0, the camera above the origin looking along +y). The file holds
                        Qto_WindowBaseQuantities (Width, Height, Area, Perimeter); Pset_WindowCommon
                        (IsExternal) and Fenestra_Window (confidence, aspect interval, K source,
                        scale source, ...) when given
+    IfcDoor            per door, in its own opening in its wall, in its floor (ifc_door.py)
 
 Every element is placed by the window-frame -> world matrix (geometry.PlacedWindow.export_matrix),
 relative to its container (storey, wall or opening), so moving a storey moves its contents.
@@ -84,9 +86,9 @@ import numpy as np
 
 from fenestra.files import write_ifc_file
 from fenestra.pipeline.catalogue import WindowStyle, get_style
+from fenestra.pipeline.export.floors import Floors, floor_levels
 from fenestra.pipeline.export.geometry import (COVERING_THICKNESS_M, WALL_MARGIN_M, WALL_THICKNESS_M, PlacedWindow,
-                                               StoreyLevels, TextureLayout, facade_pixels, storey_levels, wall_mesh,
-                                               wall_outline)
+                                               TextureLayout, facade_pixels, wall_mesh, wall_outline)
 from fenestra.pipeline.export.ifc_window import TypeSize, mapped_body, type_sizes, window_body
 from fenestra.pipeline.export.walls_plan import facade_walls
 
@@ -176,28 +178,29 @@ def _add_qto(f: ifcopenshell.file, product, name: str, values: dict) -> None:
     ifcopenshell.api.pset.edit_qto(f, qto=qto, properties={k: float(v) for k, v in values.items()})
 
 
-def _storeys(f, building, levels: StoreyLevels) -> list:
-    """One IfcBuildingStorey per row of ``levels`` (one at 0 m when there is none), bottom-up."""
-    elevations = levels.elevations_m or (0.0,)
+def _storeys(f, building, floors: Floors) -> list:
+    """One IfcBuildingStorey per floor of ``floors`` ("Ground floor", "Floor 1", ...; one at 0 m
+    when there is none), bottom-up, with Fenestra_Storey (the windows and doors it holds)."""
+    elevations = floors.elevations_m or (0.0,)
     storeys = []
-    for r, elevation in enumerate(elevations):
-        storey = ifcopenshell.api.root.create_entity(f, ifc_class="IfcBuildingStorey", name=f"Storey {r}")
+    for r, (name, elevation) in enumerate(zip(floors.names, elevations)):
+        storey = ifcopenshell.api.root.create_entity(f, ifc_class="IfcBuildingStorey", name=name)
         storey.Elevation = float(elevation)
         ifcopenshell.api.aggregate.assign_object(f, products=[storey], relating_object=building)
         T = np.eye(4)
         T[2, 3] = elevation
         ifcopenshell.api.geometry.edit_object_placement(f, product=storey, matrix=T)
-        if levels.sills_m:
+        if floors.elevations_m:
             _add_pset(f, storey, "Fenestra_Storey", {
-                "SillHeight": levels.sills_m[r],
-                "Windows": sum(row == r for row in levels.row_of.values())})
+                "Windows": sum(k == r for k in floors.floor_of.values()),
+                "Doors": sum(k == r for k in floors.door_floor_of.values())})
         storeys.append(storey)
     return storeys
 
 
-def _new_file(name: str, levels: StoreyLevels, gps=None):
-    """An IFC4 file with project (metres), site, building and the storeys of ``levels``; returns
-    (file, {"body", "axis"} contexts, [storey per row])."""
+def _new_file(name: str, levels: Floors, gps=None):
+    """An IFC4 file with project (metres), site, building and the storeys of ``levels`` (its
+    floors); returns (file, {"body", "axis"} contexts, [storey per floor])."""
     f = ifcopenshell.api.project.create_file(version="IFC4")
     project = ifcopenshell.api.root.create_entity(f, ifc_class="IfcProject", name=name)
     units = [ifcopenshell.api.unit.add_si_unit(f, unit_type=u) for u in ("LENGTHUNIT", "AREAUNIT", "VOLUMEUNIT")]
@@ -217,7 +220,9 @@ def _new_file(name: str, levels: StoreyLevels, gps=None):
         ifcopenshell.api.geometry.edit_object_placement(f, product=spatial, matrix=np.eye(4))
     _add_pset(f, building, "Fenestra_Ground", {
         "SillHeightAssumed": levels.sill_height_m, "StoreyRowTolerance": levels.tol_m,
-        "GroundPlane": "z = 0 lies SillHeightAssumed below the lowest row of window sills; each storey's "
+        "StoreyHeight": levels.storey_m, "StoreyHeightSource": "measured" if levels.storey_measured else "assumed",
+        "GroundPlane": "z = 0 is the ground floor's level: the doors' bottom where doors stand below the main "
+                       "wall's lowest row of windows, else SillHeightAssumed below that row's sill; each floor's "
                        "Elevation is its row's sill minus SillHeightAssumed"})
     if gps is not None:
         _georeference(f, site, model, gps)
@@ -407,10 +412,13 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
               texture_file: str = "texture.png", style: str | WindowStyle = "casement-white",
               margin_m: float = WALL_MARGIN_M, thickness_m: float = WALL_THICKNESS_M,
               walls: dict[int, int] | None = None, properties: dict[int, dict] | None = None,
-              wall_properties: dict[int, dict] | None = None, levels: StoreyLevels | None = None,
-              gps: tuple | None = None, source: str | None = None) -> dict[int, dict]:
-    """Write model.ifc for the placed windows; return {window index: {"wall", "covering", "opening",
-    "window": GlobalId, "storey": name, "window_type": name}}.
+              wall_properties: dict[int, dict] | None = None, levels: Floors | None = None,
+              gps: tuple | None = None, source: str | None = None, doors: list[PlacedWindow] = (),
+              door_walls: dict[int, int] | None = None,
+              door_properties: dict[int, dict] | None = None) -> tuple[dict[int, dict], dict[int, dict], list[dict]]:
+    """Write model.ifc for the placed windows and doors; return ({window index: {"wall", "covering",
+    "opening", "window": GlobalId, "storey": name, "window_type": name}}, {door index: {"opening",
+    "door", "storey", "door_type"}}, doors skipped [{"index", "reason"}]).
 
     ``placed`` in the export world the OBJ/GLB use (geometry.grounded: ground at z = 0).
     ``texture_file`` is the texture's path relative to the IFC file (written by the caller).
@@ -419,22 +427,28 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
     another wall), each window's opening voiding it; None (or a window without an id): a wall
     fragment per window (its void + ``margin_m``). K (3, 3): the texture's photo region's. properties: {window index: {name: value}}, written as the
     window's property set "Fenestra_Window" (with Pset_WindowCommon IsExternal); wall_properties:
-    {wall id: {name: value}} as "Fenestra_Wall". levels: the storey rows (default
-    geometry.storey_levels of ``placed``). gps: (latitude deg, longitude deg[, elevation m]) of the
+    {wall id: {name: value}} as "Fenestra_Wall". levels: the floors, one IfcBuildingStorey each
+    (pipeline.export.floors.Floors; default floors.floor_levels of ``placed``, ``walls`` and ``doors``):
+    every window, door, wall (its lowest window's) and covering is contained in one. doors: placed
+    doors (indices of their own), each in the IfcWall of its wall id ``door_walls`` (ifc_door.py),
+    ``door_properties`` {door index: {name: value}} their Fenestra_Door property sets. gps: (latitude deg, longitude deg[, elevation m]) of the
     camera (the world's origin): the site's reference and an IfcMapConversion (see _georeference).
     source: the photo's file name, which the file's provenance names (:func:`stamp_provenance`).
     """
     style = get_style(style)
     if gps is not None:
         _check_gps(gps)
-    levels = storey_levels(placed) if levels is None else levels
+    from fenestra.pipeline.export.ifc_door import write_doors  # noqa: PLC0415  (it reads this module's helpers)
+
+    levels = floor_levels(placed, walls, list(doors)) if levels is None else levels
     f, contexts, storeys = _new_file("Fenestra reconstruction", levels, gps)
     lib = _Library(f, contexts["body"], style, texture_file, thickness_m)
     ids: dict[int, dict] = {}
     sizes = type_sizes(placed)
     built: dict[int, tuple] = {}  # wall id: (IfcWall, {the id of a wall it meets at a corner: its end there})
+    wall_of: dict = {}  # façade model wall id (merged ones included) -> its IfcWall (the doors' walls)
     for fw in facade_walls(placed, walls, K, (layout.photo_width, layout.photo_height), margin_m):
-        storey = storeys[min(levels.row_of.get(pw.index, 0) for pw in fw.members)]
+        storey = storeys[min(levels.floor_of.get(pw.index, 0) for pw in fw.members)]
         wall = _wall(f, contexts, storey, fw.frame, list(fw.holes), f"Wall {fw.id}", lib.wall_type, fw.margin_m,
                      thickness_m)
         covering = _photo_covering(f, contexts["body"], storey, K, wall, fw.frame, list(fw.holes), layout,
@@ -444,9 +458,10 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
                                                  "MergedWalls": ", ".join(map(str, fw.merged_from)),
                                                  "CornerWith": ", ".join(f"Wall {c}" for c, _ in fw.corners) or None})
             built[fw.id] = (wall, dict(fw.corners))
+            wall_of.update({w: wall for w in (fw.id, *fw.merged_from)})
         for pw in fw.members:
             ids[pw.index] = {"wall": wall.GlobalId, "covering": covering.GlobalId,
-                             **_window_in_wall(f, contexts["body"], storeys[levels.row_of.get(pw.index, 0)], wall, pw,
+                             **_window_in_wall(f, contexts["body"], storeys[levels.floor_of.get(pw.index, 0)], wall, pw,
                                                lib, sizes[pw.index], thickness_m, (properties or {}).get(pw.index))}
     for a, (wall_a, ends_a) in built.items():  # each corner once, as IFC's path connection of two walls
         for b, end_a in ends_a.items():
@@ -455,9 +470,11 @@ def write_ifc(path: str | Path, K: np.ndarray, placed: list[PlacedWindow], layou
                     GlobalId=ifcopenshell.guid.new(), Name="Corner", RelatingElement=wall_a, RelatedElement=built[b][0],
                     RelatingPriorities=(), RelatedPriorities=(), RelatingConnectionType=end_a,
                     RelatedConnectionType=built[b][1][a])
+    door_ids, doors_skipped = write_doors(f, contexts["body"], storeys, wall_of, list(doors), door_walls or {},
+                                          levels.door_floor_of, thickness_m, door_properties, OPENING_OVERSHOOT_M)
     stamp_provenance(f, Path(path).name, source)
     write_ifc_file(f, path)
-    return ids
+    return ids, door_ids, doors_skipped
 
 
 def stamp_provenance(f: ifcopenshell.file, file_name: str, source: str | None = None,
