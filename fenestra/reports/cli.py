@@ -27,13 +27,15 @@ def report(run_dir: Path = typer.Argument(..., help="a run folder with results.p
            markdown: Path = typer.Option(None, "--markdown",
                                          help="instead of report.html: write the results docs (e.g. docs/results.md, "
                                               "its summary results/summary.json beside it, and the generated blocks "
-                                              "of README.md one folder up and DESIGN.md beside it)")) -> None:
+                                              "of README.md one folder up and DESIGN.md beside it)"),
+           force: bool = typer.Option(False, "--force", help="--markdown may replace a results page or summary that "
+                                                             "no Fenestra manifest lists (never another file)")) -> None:
     """Regenerate report.html and report.md (+ figures/) of a run from its results, or (--markdown) the
     results docs."""
     if markdown is not None:
         from fenestra.reports.markdown import write_docs  # noqa: PLC0415
 
-        for p in write_docs(run_dir, markdown, real_dir=real):
+        for p in write_docs(run_dir, markdown, real_dir=real, force=force):
             typer.echo(f"wrote {p}")
         return
     html, md = write_report(run_dir, real_dir=real)

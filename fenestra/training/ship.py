@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from fenestra.errors import FenestraError
-from fenestra.files import write_bytes
 from fenestra.pipeline.detectors import DETECTORS, read_weights
+from fenestra.training import weights_file
 
 CHECK_IMAGE_HW = (64, 96)  # the blank image the shipped detector must run on
 
@@ -39,24 +39,25 @@ def shipping_detector(src: Path, ckpt: dict) -> str:
     return next((n for n in names if DETECTORS[n].model.weights.name == src.name), names[0])
 
 
-def ship_weights(src: str | Path, dest: str | Path | None = None) -> Shipped:
+def ship_weights(src: str | Path, dest: str | Path | None = None, force: bool = False) -> Shipped:
     """Check ``src`` (its architecture's detector builds from it and runs on a blank
     CHECK_IMAGE_HW image), then copy it atomically to ``dest`` (default: the file that detector
-    loads: the registered trainable detector of its arch, ``DETECTORS[name].model.weights``).
-    FenestraError naming the problem; nothing is written then."""
+    loads: the registered trainable detector of its arch, ``DETECTORS[name].model.weights``,
+    listed in fenestra/pipeline/models' manifest) under fenestra.outputs' rule
+    (training.weights_file): never over ``src`` itself nor a file Fenestra did not write
+    (``force``: also over a weights file no manifest lists). FenestraError naming the problem
+    (checked before the detector runs); nothing is written then."""
     src = Path(src)
     if not src.is_file():
         raise FenestraError(f"no weights file at {src}")
     ckpt = read_weights(src)  # FenestraError unless it is a trainable detector's weights file
     detector = shipping_detector(src, ckpt)
     dest = Path(dest) if dest is not None else DETECTORS[detector].model.weights
-    if dest.resolve() == src.resolve():
-        raise FenestraError(f"{src} is already the destination")
+    weights_file.check(dest, (src,), force, option="--to")
     run = DETECTORS[detector].build(weights=src)
     dets = run(np.zeros((*CHECK_IMAGE_HW, 3), np.uint8))
     if not isinstance(dets, list):
         raise FenestraError(f"detector {detector!r} with {src} returned {type(dets).__name__}, not a list")
     data = src.read_bytes()
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    write_bytes(dest, data)
+    weights_file.copy(dest, data, (src,), force)
     return Shipped(dest, detector, hashlib.sha256(data).hexdigest(), ckpt.get("meta", {}))
