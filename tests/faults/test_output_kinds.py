@@ -396,22 +396,37 @@ def test_gate_fails_a_run_whose_listed_run_json_is_gone(tmp_path):
 
 def test_a_second_reconstruct_into_a_folder_is_refused_up_front(tmp_path):
     """While a process holds the folder, a reconstruct into it stops at once (before its pipeline),
-    naming that process, and changes nothing."""
+    naming the command and the process that hold it, and changes nothing. The holder is a process
+    whose command line reads as the CLI's (`fenestra reconstruct ...`), holding the lock as
+    reconstruct does."""
     assert reconstruct("o", cwd=tmp_path).returncode == 0
     holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from fenestra import outputs\n"
-                               "with outputs.locked(sys.argv[1], 'reconstruct'):\n print('held', flush=True); time.sleep(60)",
+                               "out = sys.argv[1]; sys.argv = ['/usr/bin/fenestra', 'reconstruct', 'p.jpg', '--out', out]\n"
+                               "with outputs.locked(out, 'reconstruct'):\n print('held', flush=True); time.sleep(60)",
                                str(tmp_path / "o")], stdout=subprocess.PIPE, text=True,
                               env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
     try:
         assert holder.stdout.readline().strip() == "held"
         before = snapshot(tmp_path)
         r = reconstruct("o", cwd=tmp_path)
-        one_line_error(r, f"o is in use by process {holder.pid}")
+        one_line_error(r, f"o is in use by `fenestra reconstruct` (process {holder.pid})")
         assert "intrinsics:" not in r.stdout  # refused before the pipeline ran
         assert snapshot(tmp_path) == before
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_a_lock_names_its_holder_in_one_bounded_line():
+    """What a lock file records, as the refusal names it: the CLI's command, another program's
+    name, an older Fenestra's bare process id; a long or multi-line command stays one short line."""
+    assert outputs.running_command(["/venv/bin/fenestra", "bench", "--out", "x"]) == "fenestra bench"
+    assert outputs.running_command([".../fenestra/__main__.py", "reconstruct", "a.jpg"]) == "fenestra reconstruct"
+    assert outputs.running_command(["/usr/bin/my-script", "--out", "o"]) == "my-script"
+    assert outputs.lock_holder("1234 fenestra batch\n") == "`fenestra batch` (process 1234)"
+    assert outputs.lock_holder("1234\n") == "process 1234"
+    long = outputs.lock_holder("7 " + "x\n`y" * 5000)
+    assert "\n" not in long and len(long) < 200 and long.count("`") == 2
 
 
 def test_staging_folders_of_dead_processes_are_cleaned(tmp_path):
