@@ -323,6 +323,7 @@ def test_ship_weights_checks_then_copies(tmp_path):
     import torch
     from typer.testing import CliRunner
 
+    from fenestra import outputs
     from fenestra.app.cli import app
     from fenestra.errors import FenestraError
 
@@ -332,7 +333,8 @@ def test_ship_weights_checks_then_copies(tmp_path):
     assert r.exit_code == 0, r.output
     assert dest.read_bytes() == src.read_bytes()
     assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'winnet'" in r.output
-    assert [p.name for p in dest.parent.iterdir()] == ["default.pt"]  # no temporary file left
+    assert sorted(p.name for p in dest.parent.iterdir()) == [outputs.MANIFEST, "default.pt"]  # no temporary file left
+    assert outputs.read_manifest(dest.parent) == {"default.pt": hashlib.sha256(src.read_bytes()).hexdigest()}
     (tmp_path / "junk.pt").write_bytes(b"not a model")
     torch.save({"arch": "yolo", "state_dict": {}}, tmp_path / "yolo.pt")
     for bad, message in (("junk.pt", "is not a model checkpoint"), ("yolo.pt", "holds a 'yolo' model"),

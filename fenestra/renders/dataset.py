@@ -227,8 +227,9 @@ def claim_dataset(config: DatasetConfig, scene: Scene, root: Path, option: str =
     if not root.is_dir():
         return
     outputs.check_kind(root, KIND, option)
-    if outputs.read_manifest(root) is not None:
-        outputs.check_names(root, DATASET_FILES, option)
+    if outputs.read_manifest(root) is not None:  # config.json names out_root: this config's under another spelling is ours
+        same = _same_config(root, config, scene)
+        outputs.check_names(root, [n for n in DATASET_FILES if not (same and n == "config.json")], option)
     elif outputs.files_in(root) and not _same_config(root, config, scene):
         raise outputs.OwnershipError(f"{option} {out_root}: {root.name} holds files Fenestra did not render for this "
                                      "config; move them away or choose another folder")
