@@ -5,6 +5,10 @@
     fenestra ship-weights W.pt [--to PATH]    # check, then copy to where the detector loads them
     fenestra train-verifier W.pt [--yolo DIR] [--out W2.pt]   # EffWin's door/signboard box verifier into W.pt
     fenestra train-refine [--data out/refine-data/train] [--out out/train/refine.pt] [--ship]  # corner refinement
+
+Every file is written under fenestra.outputs' rule (training.weights_file): never over a file
+Fenestra did not write nor over an input; ``--force`` replaces only a file of the command's own
+kind (weights, a training state, a loss log, a metrics JSON) that no manifest lists.
 """
 from __future__ import annotations
 
