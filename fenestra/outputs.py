@@ -82,7 +82,7 @@ class OwnershipError(FenestraError):
 class Recognised:
     """A single-file writer's own kind of file, recognised by its content where no manifest lists
     it: what ``--force`` may replace (:func:`check_file`). words: how an error names such a file
-    ("a Fenestra weights file"); test(path) -> True for one (never raises)."""
+    ("a weights file"); test(path) -> True for one (never raises)."""
 
     words: str
     test: Callable[[Path], bool]

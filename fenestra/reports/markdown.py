@@ -57,8 +57,8 @@ def _results_page(path: Path) -> bool:
 
 
 # what --markdown writes, recognised where no manifest lists it (its --force)
-RESULTS_PAGE = outputs.Recognised("a results page Fenestra generated", _results_page)
-RESULTS_SUMMARY = outputs.Recognised("a results summary Fenestra wrote", outputs.json_with(("format", "synthetic")))
+RESULTS_PAGE = outputs.Recognised("a generated results page", _results_page)
+RESULTS_SUMMARY = outputs.Recognised("a results summary", outputs.json_with(("format", "synthetic")))
 SIG_DIGITS = 4
 # The houses each shipped learned detector was trained on (fenestra/training/scripts/make_data.sh: its
 # bundled training houses; its procedural houses use other seeds than the bench's). samplehouse4 is

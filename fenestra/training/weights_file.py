@@ -49,7 +49,7 @@ def _loss_log(path: Path) -> bool:
         return False
 
 
-WEIGHTS_FILE = outputs.Recognised("a Fenestra weights file", torch_dict_with(("arch",)))
+WEIGHTS_FILE = outputs.Recognised("a weights file", torch_dict_with(("arch",)))
 TRAINING_STATE = outputs.Recognised("a training state", torch_dict_with(("model", "opt", "iteration")))
 LOSS_LOG = outputs.Recognised("a training loss log", _loss_log)
 

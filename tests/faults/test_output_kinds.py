@@ -239,7 +239,7 @@ WRITER_CASES += [
      ["--to w.pt is an input of this command"]),
     ("ship-weights --to weights no manifest lists", _case((), (_copied(WEIGHTS, "w.pt"), _copied(WEIGHTS, "old.pt")),
                                                           ["ship-weights", "w.pt", "--to", "old.pt"]),
-     ["--to old.pt is a Fenestra weights file that Fenestra did not list", "pass --force"]),
+     ["--to old.pt is a weights file that Fenestra did not list", "pass --force"]),
     ("train --out over a user's file", _then_call(_train("mine.pt"), _user_file("mine.pt")),
      ["--out .: would replace mine.pt, which Fenestra did not write"]),
     ("train --out over its --init-weights", _then_call(_train("init.pt", "configs/init.toml"), _init_config),
@@ -345,7 +345,7 @@ def test_report_markdown_lists_its_pages_and_force_replaces_only_generated_ones(
     assert _listed(docs, "results.md") and _listed(docs / "results", "summary.json")
     (docs / outputs.MANIFEST).unlink()
     one_line_error(fenestra("report", "run", "--markdown", "docs/results.md", cwd=tmp_path),
-                   "docs/results.md is a results page Fenestra generated that Fenestra did not list", "--force")
+                   "docs/results.md is a generated results page that Fenestra did not list", "--force")
     r = fenestra("report", "run", "--markdown", "docs/results.md", "--force", cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
     assert _listed(docs, "results.md")
