@@ -73,8 +73,8 @@ compare:  ## compare two bench runs of one profile window by window: make compar
 report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present)
 	$(PY) -m fenestra report $(LATEST_DEFAULT) $(REAL_RUN)
 
-docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real; without it the committed real-photo figures are kept, marked with their provenance)
-	$(PY) -m fenestra report $(LATEST_DEFAULT) --markdown docs/results.md $(REAL_RUN)
+docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real; without it the committed real-photo figures are kept, marked with their provenance); --force: a generated page a merge left unlisted is still replaced (never another file)
+	$(PY) -m fenestra report $(LATEST_DEFAULT) --markdown docs/results.md --force $(REAL_RUN)
 
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/test_docs.py checks the same)
 	$(PY) -m fenestra.reports.markdown --check
