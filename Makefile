@@ -76,8 +76,8 @@ compare:  ## compare two bench runs of one profile window by window: make compar
 report:  ## regenerate the report of the newest default run (photo column from out/bench/real when present)
 	$(PY) -m fenestra report $(LATEST_DEFAULT) $(REAL_RUN)
 
-docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real; without it the committed real-photo figures are kept, marked with their provenance)
-	$(PY) -m lab.docs $(LATEST_DEFAULT) $(REAL_RUN)
+docs:  ## docs/results.md, docs/results/summary.json and the README's answer from the newest default run (+ out/bench/real; without it the committed real-photo figures are kept, marked with their provenance); --force: a generated page a merge left unlisted is still replaced (never another file)
+	$(PY) -m lab.docs $(LATEST_DEFAULT) --force $(REAL_RUN)
 
 docs-check:  ## do the generated docs match docs/results/summary.json? (no run needed; tests/lab/test_docs.py checks the same)
 	$(PY) -m lab.docs --check
@@ -88,11 +88,12 @@ train:  ## render the detector data (make_data.sh, make_data_street.sh), train t
 	$(PY) -m fenestra train --config fenestra/training/configs/default.toml
 	PY=$(PY) bash lab/scripts/verifier_data.sh out/verifier-renders
 	$(PY) -m fenestra train-verifier out/train/default.pt --yolo ../shared/real/spb_facades/train --renders out/verifier-renders --render-views 150
-	$(PY) -m fenestra ship-weights out/train/default.pt
+	$(PY) -m lab.ship out/train/default.pt
 	$(PY) -m fenestra train --config fenestra/training/configs/quadnet.toml
-	$(PY) -m fenestra ship-weights out/train/quadnet.pt
+	$(PY) -m lab.ship out/train/quadnet.pt
 	PY=$(PY) bash lab/scripts/refine_data.sh out/refine-data
-	$(PY) -m fenestra train-refine --data out/refine-data/train --ship
+	$(PY) -m fenestra train-refine --data out/refine-data/train
+	$(PY) -m lab.ship out/train/refine.pt
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-pyrender --json out/eval/default-heldout-pyrender.json
 	$(PY) -m fenestra evaluate-detector --data out/detector-data/heldout-mitsuba --json out/eval/default-heldout-mitsuba.json
 	$(PY) -m fenestra evaluate-detector --yolo ../shared/real/spb_facades/train --part val --json out/eval/default-spb-val.json
@@ -101,19 +102,19 @@ train-quadnet:  ## detector v8 alone: the quad head (window centres, each with i
 	PY=$(PY) bash lab/scripts/make_data.sh out/detector-data
 	PY=$(PY) bash lab/scripts/make_data_street.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/quadnet.toml
-	$(PY) -m fenestra ship-weights out/train/quadnet.pt
+	$(PY) -m lab.ship out/train/quadnet.pt
 
 train-maskrcnn:  ## the paper's detector: Mask R-CNN on an ImageNet-pretrained EfficientNet-Lite0 FPN, on the default's renders and street photos (make_data*.sh; CPU, resumable: a run stopped midway continues from its last checkpoint), then ship-weights and its figures
 	PY=$(PY) bash lab/scripts/make_data.sh out/detector-data
 	PY=$(PY) bash lab/scripts/make_data_street.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/maskrcnn.toml --resume
-	$(PY) -m fenestra ship-weights out/train/maskrcnn.pt
+	$(PY) -m lab.ship out/train/maskrcnn.pt
 	$(PY) -m fenestra evaluate-detector --detector maskrcnn --yolo ../shared/real/spb_facades/train --part val --json out/eval/maskrcnn-spb-val.json
 
 train-winnet:  ## the from-scratch WinNet (registered as `winnet`) on the same renders: out/train/winnet.pt, then ship-weights
 	PY=$(PY) bash lab/scripts/make_data.sh out/detector-data
 	$(PY) -m fenestra train --config fenestra/training/configs/winnet.toml
-	$(PY) -m fenestra ship-weights out/train/winnet.pt
+	$(PY) -m lab.ship out/train/winnet.pt
 
 clean:
 	rm -rf out .pytest_cache

@@ -9,6 +9,7 @@ page, calibrate, ``scenes make`` and ``scenes author``).
     # are removed: a failure at any point before leaves the previous result whole
     check_file(path, kind, hosts, inputs)        # before the work that makes one file
     write_file(path, write, kind, hosts, inputs) # one file, replacing only an owned one
+    write_file(..., force=True, own=Recognised(...))  # also one of this writer's kind no manifest lists
     write_owned(out, "summary.json", data)       # the same, from bytes
     record(out, ["results.parquet", ...])        # add files written in place to the manifest
     remove_owned(out)                            # delete what the manifest lists, refuse the rest
@@ -26,6 +27,9 @@ and the files Fenestra wrote there with their digests.
 - Fenestra deletes or replaces a file only when the manifest lists it and its bytes still have
   the listed digest. A file it did not write, or one edited since, is refused with its name:
   never overwritten, never deleted, ``--force`` or not.
+- ``--force`` of a single-file writer (``own``: :class:`Recognised`) also replaces a file of
+  that writer's own kind that no manifest lists, recognised by its content (a weights file, a
+  generated doc committed without its folder's manifest), never any other file.
 - A folder that contains, or lies inside, an input (a photo, ``--data``, ``--K``, ``--masks``, a
   profile) is refused, ``--force`` or not.
 - ``rmtree`` is used only on the hidden staging folder this module made (``.fenestra-stage-*``);
@@ -45,11 +49,12 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
-from fenestra.errors import FenestraError
+from fenestra.errors import FenestraError, bounded
 from fenestra.files import file_sha256, write_json
 
 MANIFEST = ".fenestra-output.json"
@@ -63,6 +68,7 @@ KINDS = {  # what an output folder holds -> how an error names it
     "reconstruction": "one photo's reconstruction",
     "batch": "a batch of reconstructions",
     "files": "files Fenestra wrote one by one (a comparison page, K.json, IFC houses)",
+    "dataset": "a rendered dataset",
 }
 FILES_KIND = "files"
 LEGACY_KIND = (("run.json", "bench"), ("windows.json", "reconstruction"), ("summary.json", "batch"))
@@ -70,6 +76,32 @@ LEGACY_KIND = (("run.json", "bench"), ("windows.json", "reconstruction"), ("summ
 
 class OwnershipError(FenestraError):
     """A folder or file Fenestra may not write (an input, a file it did not write); names it."""
+
+
+@dataclass(frozen=True)
+class Recognised:
+    """A single-file writer's own kind of file, recognised by its content where no manifest lists
+    it: what ``--force`` may replace (:func:`check_file`). words: how an error names such a file
+    ("a weights file"); test(path) -> True for one (never raises)."""
+
+    words: str
+    test: Callable[[Path], bool]
+
+
+def json_with(keys: Iterable[str], max_bytes: int = 1 << 26) -> Callable[[Path], bool]:
+    """A :class:`Recognised` test: the file is a JSON object of at most ``max_bytes`` holding
+    every one of ``keys``."""
+    want = frozenset(keys)
+
+    def test(path: Path) -> bool:
+        try:
+            if path.stat().st_size > max_bytes:
+                return False
+            doc = json.loads(path.read_bytes())
+        except (OSError, ValueError, RecursionError):
+            return False
+        return isinstance(doc, dict) and want <= doc.keys()
+    return test
 
 
 # ---------------------------------------------------------------- reading the rule
@@ -378,37 +410,51 @@ def write_owned(out: str | Path, name: str, data: bytes, kind: str | None = None
 
 
 def write_file(path: str | Path, write, kind: str | None = FILES_KIND, hosts: Iterable[str] = (),
-               inputs: Iterable[str | Path | None] = (), option: str = "--out") -> Path:
+               inputs: Iterable[str | Path | None] = (), option: str = "--out", force: bool = False,
+               own: Recognised | None = None) -> Path:
     """Call ``write(tmp)`` on a temporary name beside ``path`` (fenestra.files.write_atomic, same
     suffix), rename it to ``path`` and list it with its digest in its folder's manifest.
     OwnershipError, before ``write`` runs, when ``path`` is one of ``inputs`` (files the command
-    reads: never replaced, not even when Fenestra wrote them), when a file of that name exists
-    that Fenestra did not write, or when its folder holds another kind of output than ``kind``
-    or ``hosts`` (:func:`check_kind`; a folder new to Fenestra records ``kind``)."""
+    reads: never replaced, not even when Fenestra wrote them) or lies inside an input folder, when
+    a file of that name exists that Fenestra did not write (``force``: unless ``own`` recognises
+    it), or when its folder holds another kind of output than ``kind`` or ``hosts``
+    (:func:`check_kind`; a folder new to Fenestra records ``kind``)."""
     from fenestra.files import write_atomic  # noqa: PLC0415
 
     path = Path(path)
-    check_file(path, kind, hosts, inputs, option)
+    check_file(path, kind, hosts, inputs, option, force, own)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with listing(path.parent):  # listed before it takes its name: a kill leaves no unlisted file of ours
+    with listing(path.parent, kind):  # listed before it takes its name: a kill leaves no unlisted file of ours
         write_atomic(path, write)
     _write_manifest(path.parent, {**(read_manifest(path.parent) or {}), path.name: file_sha256(path)}, kind=kind)
     return path
 
 
 def check_file(path: str | Path, kind: str | None = FILES_KIND, hosts: Iterable[str] = (),
-               inputs: Iterable[str | Path | None] = (), option: str = "--out") -> None:
+               inputs: Iterable[str | Path | None] = (), option: str = "--out", force: bool = False,
+               own: Recognised | None = None) -> None:
     """OwnershipError (one line) when :func:`write_file` would refuse ``path``: call it before the
-    work that makes the file."""
+    work that makes the file. own: this writer's kind of file; an existing one that no manifest
+    lists is replaced with ``force`` (else refused, saying so), any other such file never."""
     path = Path(path)
     target = path.resolve()
-    if any(p is not None and Path(p).resolve() == target for p in inputs):
-        raise OwnershipError(f"{option} {path} is an input of this command; write to another file")
+    for p in (Path(p) for p in inputs if p is not None):
+        if p.resolve() == target:
+            raise OwnershipError(f"{option} {path} is an input of this command; write to another file")
+        if p.is_dir() and p.resolve() in target.parents:
+            raise OwnershipError(f"{option} {path} lies inside the input folder {p}; write to another folder")
     if path.is_dir():
         raise OwnershipError(f"{option} {path} is a folder, not a file")
     if kind is not None:
         check_kind(path.parent, kind, option, hosts)
-    _refuse_foreign(path.parent, [path.name], read_manifest(path.parent) or {}, option)
+    owned = read_manifest(path.parent) or {}
+    if own is not None and path.is_file() and not path.is_symlink() and not _ours(path.parent, path.name, owned) \
+            and own.test(path):
+        if force:
+            return
+        raise OwnershipError(f"{option} {path} is {own.words} that Fenestra did not list (or that changed since); "
+                             "pass --force to replace it")
+    _refuse_foreign(path.parent, [path.name], owned, option)
 
 
 def record(out: str | Path, names: Iterable[str] | None = None, kind: str | None = None) -> dict[str, str]:
@@ -453,11 +499,13 @@ def remove_owned(out: str | Path, names: Iterable[str] | None = None) -> None:
 
 
 @contextmanager
-def listing(out: str | Path) -> Iterator[Path]:
+def listing(out: str | Path, kind: str | None = None) -> Iterator[Path]:
     """While the block runs, every file that fenestra.files writes atomically under ``out`` (this
     process) is listed in ``out``'s manifest with its new digest beside its old one (as during a
     swap) before it takes its name: a run killed at any moment leaves no file of its own unlisted
-    (a half-written one keeps its temporary name: :func:`remove_dead_temp_files`)."""
+    (a half-written one keeps its temporary name: :func:`remove_dead_temp_files`). kind: the
+    folder's kind when it has none recorded yet (so a first file named like another kind's,
+    LEGACY_KIND, does not decide it)."""
     from fenestra.files import TEMP_NAME, before_rename  # noqa: PLC0415
 
     root = Path(out).resolve()
@@ -470,19 +518,44 @@ def listing(out: str | Path) -> Iterator[Path]:
         if rel in NOT_LISTED or TEMP_NAME.fullmatch(p.name):  # a write into another writer's temporary file
             return
         owned = read_manifest(root) or {}
-        _write_manifest(root, {rel: file_sha256(tmp)}, owned)
+        _write_manifest(root, {rel: file_sha256(tmp)}, owned, kind)
 
     with before_rename(hook):
         yield Path(out)
 
 
+def running_command(argv: list[str] | None = None) -> str:
+    """How this process was started, in a user's words: ``fenestra <command>`` for the CLI
+    (``fenestra`` or ``python -m fenestra``), else the program's name (``argv``: sys.argv)."""
+    import sys  # noqa: PLC0415
+
+    argv = sys.argv if argv is None else argv
+    prog = Path(argv[0]).name if argv else "python"
+    if prog in ("fenestra", "__main__.py"):
+        sub = next((a for a in argv[1:] if not a.startswith("-")), None)
+        return "fenestra" + (f" {sub}" if sub else "")
+    return prog
+
+
+MAX_LOCK_BYTES = 512  # what a lock file's reader reads of it: the holder's pid and command
+
+
+def lock_holder(text: str) -> str:
+    """How an error names the holder a lock file records (``<pid> <command>``, or an older
+    Fenestra's ``<pid>``): "`fenestra reconstruct` (process 1234)" or "process 1234"."""
+    pid, _, command = " ".join(text.split()).partition(" ")
+    command = bounded(command, 80).replace("`", "'")
+    return f"`{command}` (process {pid or '?'})" if command else f"process {pid or '?'}"
+
+
 @contextmanager
-def locked(folder: str | Path, what: str = "run", keep: bool = True) -> Iterator[Path]:
+def locked(folder: str | Path, what: str = "run", keep: bool = True, command: str | None = None) -> Iterator[Path]:
     """Hold an exclusive lock on ``folder`` (flock on ``folder/LOCK``, which records the holder's
-    process id; released when the process ends however it ends) for the block; OwnershipError at
-    once, naming the process, when another process holds it: concurrent runs into one folder are
-    refused up front, not detected at the end. keep=False: the lock file is removed at the end
-    (while still held) unless it was there before."""
+    process id and command, :func:`running_command` by default; released when the process ends
+    however it ends) for the block; OwnershipError at once, naming that command and process,
+    when another process holds it: concurrent runs into one folder are refused up front, not
+    detected at the end. keep=False: the lock file is removed at the end (while still held)
+    unless it was there before."""
     import fcntl  # noqa: PLC0415
 
     folder = Path(folder)
@@ -493,12 +566,13 @@ def locked(folder: str | Path, what: str = "run", keep: bool = True) -> Iterator
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            pid = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
-            raise OwnershipError(f"{folder} is in use by process {pid}: another {what} is writing into this folder "
+            holder = lock_holder(os.pread(fd, MAX_LOCK_BYTES, 0).decode(errors="replace"))
+            raise OwnershipError(f"{folder} is in use by {holder}: another {what} is writing into this folder "
                                  f"(it holds {LOCK}); wait for it to end or choose another --out") from None
         held = True
         os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        line = " ".join((running_command() if command is None else command).split())
+        os.write(fd, f"{os.getpid()} {line}\n".encode(errors="backslashreplace")[:MAX_LOCK_BYTES])
         yield folder
     finally:
         if held and not keep and not existed:

@@ -33,7 +33,18 @@ def kept_coco(coco: dict, file_names: set[str]) -> dict:
 
 
 def pack(out: Path, roots: list[Path], train_step: int = 1, jpeg_quality: int = 88) -> int:
-    """Write the tar.xz; return the number of views packed."""
+    """Write the tar.xz (atomically, under fenestra.outputs' rule: never over a file Fenestra did
+    not write, nor into the data it packs); return the number of views packed."""
+    from fenestra import outputs  # noqa: PLC0415
+
+    packed = []
+    outputs.write_file(Path(out), lambda p: packed.append(_pack(p, roots, train_step, jpeg_quality)),
+                       inputs=roots, option="OUT")
+    return packed[0]
+
+
+def _pack(out: Path, roots: list[Path], train_step: int, jpeg_quality: int) -> int:
+    """pack's body: the tar.xz written to ``out``."""
     n = 0
     with tarfile.open(out, "w:xz", preset=3) as tf:
         for root in roots:

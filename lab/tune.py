@@ -22,6 +22,7 @@ from fenestra.rendered_view import read_view
 from fenestra.pipeline.detectors import DEFAULT_WEIGHTS, load_map_predictor
 from fenestra.pipeline.detectors.winnet import PostConfig, instances_from_maps
 from fenestra.training.dataset import find_datasets, list_views
+from fenestra.training import weights_file
 from fenestra.training.evaluate import detection_to_coco
 
 
@@ -70,7 +71,7 @@ def main() -> None:
     if a.write:
         ckpt = torch.load(a.weights, map_location="cpu", weights_only=False)
         ckpt["post"] = dataclasses.asdict(best)
-        torch.save(ckpt, a.weights)
+        weights_file.save(a.weights, ckpt, force=True)  # in place, atomically: the weights file it read (recognised)
         print(f"wrote post-processing config into {a.weights}")
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fenestra import files
+from fenestra import files, outputs
 from fenestra.coco import coco_ground_truth
 from fenestra.rendered_view import View, check_view, read_meta, read_view, view_annotations, write_ignore, write_view
 from fenestra.checks import INSTANCE_DTYPE
@@ -148,10 +148,11 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     """
     scene = _load_scene(config) if scene is None else scene
     root = dataset_dir(config, scene)
-    root.mkdir(parents=True, exist_ok=True)
     indices = range(config.n_views) if only is None else only
     if indices.start < 0 or indices.stop > config.n_views:
         raise ValueError(f"only={indices} is outside the dataset's views 0..{config.n_views - 1}")
+    claim_dataset(config, scene, root)
+    root.mkdir(parents=True, exist_ok=True)
     files.write_text(root / "config.json", json.dumps({"config": dataclasses.asdict(config), "scene": scene.name,
                                                   "scene_sha256": scene.sha256}, indent=1, default=list))
     missing = [i for i in indices if not _reusable(root / "views" / f"{i:06d}")]
@@ -190,7 +191,58 @@ def render_dataset(config: DatasetConfig, scene: Scene | None = None, progress: 
     if only is None:
         files.write_text(root / "coco.json", json.dumps(coco_from_views(root, config.n_views, known)))
         files.write_text(root / "stats.json", json.dumps(stats))
+        record_dataset(root, [*missing, *stale])
     return root
+
+
+KIND = "dataset"  # the kind of output a dataset folder is (fenestra.outputs.KINDS)
+DATASET_FILES = ("config.json", "sampling.json", "coco.json", "stats.json")  # rewritten whole by a render
+
+
+def _same_config(root: Path, config: DatasetConfig, scene: Scene) -> bool:
+    """True if ``root/config.json`` says this config and scene rendered it (out_root aside): a
+    dataset an older Fenestra rendered, before dataset folders listed their files."""
+    want = json.loads(json.dumps(dataclasses.asdict(config), default=list))
+    try:
+        doc = json.loads((root / "config.json").read_bytes())
+        have = dict(doc["config"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    want.pop("out_root")
+    have.pop("out_root", None)
+    return have == want and doc.get("scene_sha256") == scene.sha256
+
+
+def claim_dataset(config: DatasetConfig, scene: Scene, root: Path, option: str = "--out") -> None:
+    """OwnershipError (one line) unless ``root`` (the config's dataset folder) may receive this
+    render (fenestra.outputs' rule): ``config.out_root`` is a folder (or none yet) that neither
+    holds nor lies inside another kind of output (a bench run, a reconstruction; a folder of loose
+    files may hold datasets); ``root`` is new, or a dataset whose manifest lists its top-level
+    files (DATASET_FILES) as they are, or (an older Fenestra's, no manifest) one whose config.json
+    is this config's. A view's files are recognised by their names in a dataset of this config."""
+    out_root = Path(config.out_root)
+    if out_root.exists() and not out_root.is_dir():
+        raise outputs.OwnershipError(f"{option} {out_root} is an existing file, not a folder")
+    outputs.check_kind(out_root, KIND, option, hosts=(outputs.FILES_KIND,))
+    if not root.is_dir():
+        return
+    outputs.check_kind(root, KIND, option)
+    if outputs.read_manifest(root) is not None:  # config.json names out_root: this config's under another spelling is ours
+        same = _same_config(root, config, scene)
+        outputs.check_names(root, [n for n in DATASET_FILES if not (same and n == "config.json")], option)
+    elif outputs.files_in(root) and not _same_config(root, config, scene):
+        raise outputs.OwnershipError(f"{option} {out_root}: {root.name} holds files Fenestra did not render for this "
+                                     "config; move them away or choose another folder")
+
+
+def record_dataset(root: Path, touched: list[int]) -> None:
+    """List in ``root``'s manifest (kind KIND) its top-level files, the files of the views
+    ``touched`` (rendered or completed now) and any file not listed yet: the next render checks
+    them (:func:`claim_dataset`)."""
+    owned = outputs.read_manifest(root) or {}
+    views = {f"views/{i:06d}/" for i in touched}
+    names = [f for f in outputs.files_in(root) if f not in owned or f in DATASET_FILES or f[:13] in views]
+    outputs.record(root, names, kind=KIND)
 
 
 def render_view(renderer, config: DatasetConfig, scene: Scene, i: int, spec: ViewSpec) -> View:

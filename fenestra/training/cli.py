@@ -2,9 +2,12 @@
 
     fenestra train [--config fenestra/training/configs/default.toml] [--data DIR ...] [--out W.pt]   # -> out/train/
     fenestra evaluate-detector --data DIR [--detector NAME] [--weights W.pt] [--json OUT]
-    fenestra ship-weights W.pt [--to PATH]    # check, then copy to where the detector loads them
     fenestra train-verifier W.pt [--yolo DIR] [--out W2.pt]   # EffWin's door/signboard box verifier into W.pt
-    fenestra train-refine [--data out/refine-data/train] [--out out/train/refine.pt] [--ship]  # corner refinement
+    fenestra train-refine [--data out/refine-data/train] [--out out/train/refine.pt]  # corner refinement (python -m lab.ship ships it)
+
+Every file is written under fenestra.outputs' rule (training.weights_file): never over a file
+Fenestra did not write nor over an input; ``--force`` replaces only a file of the command's own
+kind (weights, a training state, a loss log, a metrics JSON) that no manifest lists.
 """
 from __future__ import annotations
 
@@ -18,7 +21,8 @@ from fenestra.pipeline.detectors import DETECTORS
 
 
 def register(app: typer.Typer) -> None:
-    """Add `train`, `evaluate-detector`, `ship-weights`, `train-verifier` and `train-refine` to the top-level app."""
+    """Add `train`, `evaluate-detector`, `train-verifier` and `train-refine` to the top-level app
+    (shipping weights into the package is the lab's: ``python -m lab.ship``)."""
 
     @app.command("train")
     def train_cmd(
@@ -29,6 +33,8 @@ def register(app: typer.Typer) -> None:
         resume: bool = typer.Option(False, help="continue from out/train/<name>.state.pt if present"),
         device: Optional[str] = typer.Option(None, help="cpu or cuda (default: the config's `device`)"),
         workers: Optional[int] = typer.Option(None, help="processes making batches ahead (default: the config's)"),
+        force: bool = typer.Option(False, help="replace weights, a training state or a loss log that no Fenestra "
+                                   "manifest lists (never another file, never --init-weights)"),
     ) -> None:
         """Train a window-void detector (EffWin, WinNet or Mask R-CNN) on rendered dataset folders (EffWin: plus real box photos)."""
         from fenestra.training.train import load_config, train  # noqa: PLC0415
@@ -36,7 +42,7 @@ def register(app: typer.Typer) -> None:
         cfg = load_config(config, data=tuple(str(d) for d in data) if data else None,
                           out=str(out) if out else None, iterations=iterations, resume=resume or None,
                           device=device, workers=workers)
-        path = train(cfg, log=typer.echo)
+        path = train(cfg, log=typer.echo, force=force)
         typer.echo(f"weights: {path}  losses: {path.with_suffix('.loss.csv')}")
 
     @app.command("evaluate-detector")
@@ -51,14 +57,20 @@ def register(app: typer.Typer) -> None:
                                        "and glazed-door glazing as false positives (drop the ignore regions)"),
         weights: Optional[Path] = typer.Option(None, help="weights file (default: the shipped one)"),
         max_images: Optional[int] = typer.Option(None, help="evaluate only the first N images"),
-        json_out: Optional[Path] = typer.Option(None, "--json", help="also write the metrics as JSON"),
+        json_out: Optional[Path] = typer.Option(None, "--json", help="also write the metrics as JSON (never over a "
+                                                "file Fenestra did not write, nor into the dataset)"),
         device: str = typer.Option("cpu", help="cpu or cuda (learned detectors)"),
+        force: bool = typer.Option(False, help="--json may replace a metrics file that no Fenestra manifest lists"),
     ) -> None:
         """COCO bbox/segm AP of a detector on a dataset, beside the paper's Table 2."""
-        from fenestra.training.evaluate import evaluate, evaluate_boxes, format_table  # noqa: PLC0415
+        from fenestra import outputs  # noqa: PLC0415
+        from fenestra.training.evaluate import METRICS_FILE, evaluate, evaluate_boxes, format_table  # noqa: PLC0415
 
         if (data is None) == (yolo is None):
             raise typer.BadParameter("give exactly one of --data (rendered dataset) and --yolo (real photos)")
+        rule = {"inputs": (data, yolo, weights), "option": "--json", "force": force, "own": METRICS_FILE}
+        if json_out is not None:
+            outputs.check_file(json_out, **rule)  # before the evaluation
         opts = {"weights": weights} if weights is not None else {}
         if device != "cpu":
             opts["device"] = device
@@ -66,21 +78,7 @@ def register(app: typer.Typer) -> None:
                   evaluate_boxes(detector, yolo, part, holdout_every, max_images=max_images, **opts))
         typer.echo(format_table(result))
         if json_out is not None:
-            json_out.parent.mkdir(parents=True, exist_ok=True)
-            json_out.write_text(json.dumps(result, indent=2))
-
-    @app.command("ship-weights")
-    def ship_cmd(
-        src: Path = typer.Argument(..., help="trained weights (what `fenestra train` wrote)"),
-        to: Optional[Path] = typer.Option(None, help="destination (default: the file the architecture's "
-                                          "detector loads, e.g. fenestra/pipeline/models/default.pt for EffWin, winnet.pt for WinNet)"),
-    ) -> None:
-        """Ship trained weights: check that the detector loads and runs them, then copy them into place."""
-        from fenestra.training.ship import ship_weights  # noqa: PLC0415
-
-        shipped = ship_weights(src, to)
-        typer.echo(f"shipped {src} -> {shipped.path} (detector {shipped.detector!r}, sha256 {shipped.sha256[:16]}, "
-                   f"{shipped.meta.get('iterations_done', '?')} iterations, {shipped.meta.get('train_seconds', '?')} s)")
+            outputs.write_file(json_out, lambda p: p.write_text(json.dumps(result, indent=2)), **rule)
 
     @app.command("train-verifier")
     def train_verifier_cmd(
@@ -92,11 +90,13 @@ def register(app: typer.Typer) -> None:
                                                      "training houses: their windows join the positives"),
         render_views: int = typer.Option(150, help="with --renders: views read, spread evenly over the datasets"),
         out: Optional[Path] = typer.Option(None, help="write here instead of into WEIGHTS"),
+        force: bool = typer.Option(False, help="write over a weights file that no Fenestra manifest lists"),
     ) -> None:
         """Fit EffWin's box verifier (window vs door or signboard) on the train photos; store it in the weights file."""
         from fenestra.training.verifier import add_verifier  # noqa: PLC0415
 
-        f = add_verifier(weights, yolo, out, holdout_every, tuple(renders or ()), render_views, log=typer.echo)
+        f = add_verifier(weights, yolo, out, holdout_every, tuple(renders or ()), render_views, log=typer.echo,
+                         force=force)
         typer.echo(f"verifier: {f.n_windows} windows, {f.n_negatives} doors/signboards/glazing from {f.n_photos} "
                    f"train photos and views; threshold {f.head.threshold:.3f}; out of fold at score >= 0.5: keeps "
                    f"{100 * f.oof_windows_kept:.1f} % of windows, drops {100 * f.oof_negatives_dropped:.1f} % of "
@@ -108,14 +108,10 @@ def register(app: typer.Typer) -> None:
                                                   "houses (default: out/refine-data/train, from lab/scripts/refine_data.sh)"),
         out: Path = typer.Option(Path("out/train/refine.pt"), help="weights file to write"),
         epochs: Optional[int] = typer.Option(None, help="override the number of epochs"),
-        ship: bool = typer.Option(False, help="then check that the `refine` snapper loads it and copy it to "
-                                  "fenestra/pipeline/models/refine.pt"),
     ) -> None:
         """Train the learned corner refinement (snapper `refine`): a small CNN on corner patches of rendered views."""
         import dataclasses  # noqa: PLC0415
 
-        from fenestra.files import write_bytes  # noqa: PLC0415
-        from fenestra.pipeline.snappers.refine import SHIPPED, load_refiner  # noqa: PLC0415
         from fenestra.training.refine import RefineTrainConfig, train_refine  # noqa: PLC0415
 
         cfg = RefineTrainConfig() if epochs is None else dataclasses.replace(RefineTrainConfig(), epochs=epochs)
@@ -123,7 +119,3 @@ def register(app: typer.Typer) -> None:
         v = meta["validation"]
         typer.echo(f"weights: {out} ({meta['train_seconds']} s); validation corners: error median "
                    f"{v['before_median_px']:.2f} -> {v['gated_median_px']:.3f} px after refinement")
-        if ship:
-            load_refiner(str(out))  # refuses a file the snapper cannot use
-            write_bytes(SHIPPED, Path(out).read_bytes())  # atomically: a half-written file never ships
-            typer.echo(f"shipped {out} -> {SHIPPED}")

@@ -14,6 +14,7 @@ import numpy as np
 from fenestra.coco import coco_ground_truth, coco_result, coco_scores, complete_coco, gt_annotation
 from fenestra.masks import mask_box, rle_from_crop, rle_iou, segmentation_to_rle
 from fenestra.yolo import yolo_boxes
+from fenestra import outputs
 from fenestra.errors import DatasetError
 from fenestra.images import read_image, read_instances
 from fenestra.pipeline.detectors import DETECTORS, get_detector
@@ -26,6 +27,9 @@ TABLE_STATS = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large")  # the
 # synthetic renders, printed for orientation; percent).
 PAPER_TABLE2 = {"bbox": {"AP": 61.9, "AP50": 92.8, "AP75": 81.1},
                 "segm": {"AP": 72.5, "AP50": 92.8, "AP75": 88.7}}
+# what `evaluate-detector --json` writes, recognised where no manifest lists it (its --force)
+METRICS_FILE = outputs.Recognised("a detector evaluation's metrics file",
+                                  outputs.json_with(("detector", "dataset", "n_images")))
 
 
 def detection_to_coco(det: Detection, image_id: int, shape: tuple[int, int] | None = None) -> dict:

@@ -30,9 +30,9 @@ from typing import Callable
 import numpy as np
 
 from fenestra.errors import DatasetError
-from fenestra.files import write_atomic
 from fenestra.images import read_image
 from fenestra.pipeline.reconstruct import to_gray
+from fenestra.training import weights_file
 from fenestra.pipeline.snappers.refine import (ARCH, FLIPS, PATCH, WIDTHS, build_net, heatmap, normalise, sample_patches,
                                       soft_argmax, to_patch)
 
@@ -164,9 +164,11 @@ def errors(net, cs: CornerSet, idx: np.ndarray, cfg: RefineTrainConfig, seed: in
 def train_refine(roots: tuple[Path, ...], out: Path, cfg: RefineTrainConfig = RefineTrainConfig(),
                  log: Callable[[str], None] = print) -> dict:
     """Train the refinement net on the views under ``roots``; write its weights file to ``out``
-    (arch, patch, widths, fp32 state_dict, meta with the config and validation figures); returns meta."""
+    (arch, patch, widths, fp32 state_dict, meta with the config and validation figures); returns meta.
+    ``out`` follows training.weights_file's rule, checked before any view is read."""
     import torch  # noqa: PLC0415
 
+    weights_file.check(out, roots)
     t0 = time.perf_counter()
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(cfg.threads)
@@ -206,6 +208,5 @@ def train_refine(roots: tuple[Path, ...], out: Path, cfg: RefineTrainConfig = Re
     net.eval()
     ckpt = {"arch": ARCH, "patch": PATCH, "widths": list(WIDTHS),
             "state_dict": {k: v.detach().clone() for k, v in net.state_dict().items()}, "meta": meta}
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(out, lambda p: torch.save(ckpt, p))
+    weights_file.save(out, ckpt, roots)
     return meta

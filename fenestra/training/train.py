@@ -33,9 +33,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from fenestra import outputs
 from fenestra.config import from_table, read_toml
 from fenestra.rendered_view import read_view
 from fenestra.training.augment import AugmentConfig
+from fenestra.training import weights_file
 from fenestra.training.recipes import recipe
 from fenestra.training.dataset import (box_photo_quads, find_datasets, list_views, read_box_photo, real_box_photos,
                                        view_corners, view_quads)
@@ -316,14 +318,22 @@ def _device_name(device: str) -> str:
     return torch.cuda.get_device_name(0) if device == "cuda" else "cpu"
 
 
-def train(cfg: TrainConfig, log=print) -> Path:
-    """Run training; write weights to cfg.out, losses to <out>.loss.csv; return the weights path."""
+def train(cfg: TrainConfig, log=print, force: bool = False) -> Path:
+    """Run training; write weights to cfg.out, losses to <out>.loss.csv; return the weights path.
+    Each file is written under fenestra.outputs' rule (training.weights_file), checked before
+    any data is read: never over a file Fenestra did not write (``force``: also over one that
+    is recognised as a weights file, training state or loss log), never over the weights it
+    starts from (init_weights) nor into its datasets; the weights and the state atomically."""
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     out = Path(cfg.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     csv_path = out.with_suffix(".loss.csv")
     state_path = Path(cfg.state_dir) / f"{out.stem}.state.pt"
+    inputs = (cfg.init_weights, *cfg.data, cfg.real_data)
+    for path, own in ((out, weights_file.WEIGHTS_FILE), (state_path, weights_file.TRAINING_STATE),
+                      (csv_path, weights_file.LOSS_LOG)):
+        weights_file.check(path, inputs, force, own=own)
+    out.parent.mkdir(parents=True, exist_ok=True)
     state_path.parent.mkdir(parents=True, exist_ok=True)
     data = load_training_data(cfg, log) if cfg.workers == 0 else []  # workers read their own copies
     real_photos = real_photo_records(cfg)
@@ -350,6 +360,7 @@ def train(cfg: TrainConfig, log=print) -> Path:
     t0 = time.perf_counter()
     new_csv = not csv_path.exists()
     with open(csv_path, "a", newline="") as fh:
+        outputs.record(csv_path.parent, [csv_path.name])  # listed as it is written: a killed run's log is Fenestra's
         writer = csv.writer(fh)
         for it, batch in batches(data, cfg, start):
             lr = _lr_at(it, cfg)
@@ -368,17 +379,19 @@ def train(cfg: TrainConfig, log=print) -> Path:
             if it % cfg.log_every == 0 or it == cfg.iterations - 1:
                 writer.writerow([it, f"{elapsed:.1f}", f"{lr:.6g}", *(f"{float(v.detach()):.5f}" for v in parts.values())])
                 fh.flush()
+                outputs.record(csv_path.parent, [csv_path.name])
                 log(f"it {it:5d}/{cfg.iterations} {elapsed:7.0f}s lr {lr:.2e} " +
                     " ".join(f"{k} {float(v.detach()):.4f}" for k, v in parts.items()))
             if (it + 1) % cfg.save_every == 0 or it == cfg.iterations - 1:
-                torch.save({"model": model.state_dict(), "opt": opt.state_dict(), "iteration": it + 1,
-                            "elapsed_s": elapsed, "torch_rng": torch.get_rng_state(), "run": run_id}, state_path)
+                weights_file.save(state_path, {"model": model.state_dict(), "opt": opt.state_dict(), "iteration": it + 1,
+                                               "elapsed_s": elapsed, "torch_rng": torch.get_rng_state(), "run": run_id},
+                                  inputs, force, own=weights_file.TRAINING_STATE)
                 meta = {"iterations_done": it + 1, "train_seconds": round(elapsed, 1),
                         "torch": torch.__version__, "threads": cfg.threads, "device": _device_name(cfg.device),
                         "n_train_views": sum(d[2] is not None for d in data) if data else None,
                         "n_train_real_photos": sum(d[2] is None for d in data) if data else None,
                         "python": sys.version.split()[0], "real_photos": real_photos}
-                torch.save(checkpoint(model, cfg, meta), out)
+                weights_file.save(out, checkpoint(model, cfg, meta), inputs, force)
     return out
 
 

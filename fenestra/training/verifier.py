@@ -227,21 +227,25 @@ def train_head(samples: Samples, spec: FeatureSpec = SPEC, l2: float = 100.0, ke
 
 def add_verifier(weights: str | Path, yolo_dir: str | Path, out: str | Path | None = None, holdout_every: int = 5,
                  renders: tuple = (), render_views: int = 0, l2: float = 100.0, keep_windows: float = 0.99,
-                 log: Callable[[str], None] = print) -> Fitted:
+                 log: Callable[[str], None] = print, force: bool = False) -> Fitted:
     """Fit the verifier of the EffWin weights file ``weights`` on ``yolo_dir``'s train photos (and
     ``render_views`` views of the rendered datasets under ``renders``) and write the file with its
-    ``"verifier"`` key to ``out`` (default: in place, atomically)."""
+    ``"verifier"`` key to ``out`` (default: in place, atomically), under training.weights_file's
+    rule (``force``: also over a weights file no manifest lists)."""
     import io  # noqa: PLC0415
 
     import torch  # noqa: PLC0415
 
-    from fenestra.files import write_bytes  # noqa: PLC0415
     from fenestra.pipeline.detectors import read_weights  # noqa: PLC0415
+    from fenestra.training import weights_file  # noqa: PLC0415
 
     weights = Path(weights)
     if not weights.is_file():
         raise FenestraError(f"no weights file at {weights}")
     ckpt = read_weights(weights, ("effwin",))
+    # in place: a weights file Fenestra wrote; --out: never over WEIGHTS, nor into the photos or renders
+    inputs = () if out is None else (weights, yolo_dir, *renders)
+    weights_file.check(weights if out is None else out, inputs, force)
     samples = collect(weights, yolo_dir, holdout_every, renders=tuple(renders), render_views=render_views, log=log)
     fitted = train_head(samples, SPEC, l2, keep_windows)
     ckpt["verifier"] = head_to_dict(fitted.head, network_fingerprint(ckpt["state_dict"]), {
@@ -252,5 +256,5 @@ def add_verifier(weights: str | Path, yolo_dir: str | Path, out: str | Path | No
         "oof_doors_signboards_dropped": fitted.oof_negatives_dropped})
     buf = io.BytesIO()
     torch.save(ckpt, buf)
-    write_bytes(Path(out) if out is not None else weights, buf.getvalue())
+    weights_file.copy(Path(out) if out is not None else weights, buf.getvalue(), inputs, force, option="--out")
     return fitted

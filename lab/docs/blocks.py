@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from fenestra.files import write_text
+
 
 
 def fill_block(text: str, name: str, content: str) -> str:
@@ -18,9 +20,10 @@ def fill_block(text: str, name: str, content: str) -> str:
 
 
 def write_block(path: Path, name: str, content: str) -> None:
-    """Replace block ``name`` of the Markdown file ``path`` by ``content`` (:func:`fill_block`) and say so."""
+    """Replace block ``name`` of the Markdown file ``path`` by ``content`` (:func:`fill_block`,
+    atomically) and say so."""
     path = Path(path)
-    path.write_text(fill_block(path.read_text(), name, content))
+    write_text(path, fill_block(path.read_text(), name, content))
     print(f"wrote block {name!r} of {path}")
 
 

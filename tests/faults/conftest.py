@@ -14,7 +14,8 @@ say), one file per subject:
 - test_user_error_faults.py: more user errors as one bounded line (summary.json, K.json, names);
 - test_output_kinds.py: no command crosses kinds of output or replaces a file it did not write or
   read; bench, report, compare, bench again; a killed run runs again; one reconstruct per folder;
-- test_batch_faults.py: a batch's photo folders, whatever the photos are named.
+- test_batch_faults.py: a batch's photo folders, whatever the photos are named;
+- test_ray_shards.py: a run on a live local Ray cluster lists its shards, and recognises an unlisted one.
 
 fault_helpers.py holds what they share. Disk full is a real failing write: the child runs under
 RLIMIT_FSIZE (a file-size limit the kernel enforces with EFBIG, SIGXFSZ ignored), so cv2.imwrite

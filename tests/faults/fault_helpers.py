@@ -50,14 +50,17 @@ def env() -> dict:
 
 def fenestra(*args, cwd: Path, limit_bytes: int | None = None, timeout: float = 300,
              pythonpath: tuple = ()) -> subprocess.CompletedProcess:
-    """Run the CLI in ``cwd`` (its out/ holds renders); limit_bytes: the largest file it may write;
-    pythonpath: folders put after the checkout on PYTHONPATH (a plug-in's distribution)."""
+    """Run the CLI in ``cwd`` (its out/ holds renders); a first argument ``lab.NAME`` runs that lab
+    command of the checkout instead (``python -m lab.ship``, ``python -m lab.docs``); limit_bytes:
+    the largest file it may write; pythonpath: folders put after the checkout on PYTHONPATH (a
+    plug-in's distribution)."""
     def limit():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
     e = env()
     e["PYTHONPATH"] = os.pathsep.join([e["PYTHONPATH"], *map(str, pythonpath)])
-    return subprocess.run([sys.executable, "-m", "fenestra", *map(str, args)], cwd=cwd, env=e,
+    module = ["fenestra"] if not args or not str(args[0]).startswith("lab.") else []
+    return subprocess.run([sys.executable, "-m", *module, *map(str, args)], cwd=cwd, env=e,
                           capture_output=True, text=True, timeout=timeout,
                           preexec_fn=limit if limit_bytes is not None else None)
 

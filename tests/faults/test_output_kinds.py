@@ -7,6 +7,7 @@ Part of the fault suite (tests/faults/, README of the suite: tests/faults/confte
 every case runs the CLI as a user meets the fault."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -18,8 +19,8 @@ import pytest
 
 from fenestra import outputs
 
-from fault_helpers import (EXAMPLE, TINY_PROFILE, _photo, _reconstruct, fenestra, one_line_error, reconstruct,
-                           run_with_status)
+from fault_helpers import (EXAMPLE, RENDER_ARGS, TINY_PROFILE, _photo, _reconstruct, fenestra, one_line_error,
+                           reconstruct, run_with_status)
 from test_ownership import snapshot
 
 
@@ -166,6 +167,105 @@ WRITER_CASES = [
 ]
 
 
+ROOT = Path(__file__).resolve().parents[2]
+WEIGHTS = ROOT / "fenestra" / "pipeline" / "models" / "winnet.pt"  # a real weights file, shipped
+CONFIGS = ROOT / "fenestra" / "training" / "configs"
+METRICS = json.dumps({"detector": "oracle", "dataset": "ds", "n_images": 3})  # what evaluate-detector --json writes
+
+
+def _dataset(d: Path) -> str:
+    """The render cache's one dataset folder (the tiny bench run's renders, copied from `made`)."""
+    return str(next((d / "out" / "renders").iterdir()).relative_to(d))
+
+
+def _copied(src: Path, rel: str):
+    def make(d: Path) -> None:
+        shutil.copy(src, d / rel)
+    return make
+
+
+def _on_renders(*args: str):
+    """A builder: `made`'s render cache copied; the command line ``args`` ({ds}: its dataset)."""
+    def build(made: Path, d: Path) -> list:
+        _copy(made, d, "out")
+        return [a.format(ds=_dataset(d)) for a in args]
+    return build
+
+
+def _evaluate(json_out: str):
+    return _on_renders("evaluate-detector", "--data", "{ds}", "--detector", "oracle", "--json", json_out)
+
+
+def _train(out: str, config: str = str(CONFIGS / "winnet.toml")):
+    return _on_renders("train", "--config", config, "--data", "{ds}", "--iterations", "1", "--out", out)
+
+
+def _init_config(d: Path) -> None:
+    """configs/init.toml: WinNet starting from init.pt (a copy of the shipped weights)."""
+    shutil.copytree(CONFIGS, d / "configs")
+    (d / "configs" / "init.toml").write_text('based_on = "winnet.toml"\n[train]\ninit_weights = "init.pt"\n')
+    shutil.copy(WEIGHTS, d / "init.pt")
+
+
+def _rendered(d: Path) -> None:
+    """A dataset rendered by `fenestra render` into renders/, its coco.json then edited by the user."""
+    r = fenestra(*RENDER_ARGS, "--out", "renders", cwd=d)
+    assert r.returncode == 0, r.stderr[-2000:]
+    next((d / "renders").iterdir()).joinpath("coco.json").write_text("the user's")
+
+
+def _then_call(build, *makers):
+    def b(made: Path, d: Path) -> list:
+        args = build(made, d)
+        for m in makers:
+            m(d)
+        return args
+    return b
+
+
+# (case, builder, needles): the writers that once bypassed fenestra.outputs (evaluate-detector
+# --json, ship-weights --to, train --out, report --markdown, render --out)
+WRITER_CASES += [
+    ("evaluate-detector --json over a user's file", _then_call(_evaluate("mine.json"), _user_file("mine.json")),
+     ["--json .: would replace mine.json, which Fenestra did not write"]),
+    ("evaluate-detector --json into its dataset", _evaluate("{ds}/metrics.json"),
+     ["--json", "metrics.json lies inside the input folder"]),
+    ("evaluate-detector --json over a metrics file no manifest lists", _then_call(_evaluate("m.json"), _user_file("m.json", METRICS.encode())),
+     ["--json m.json is a detector evaluation's metrics file that Fenestra did not list", "pass --force"]),
+    ("ship-weights --to over a user's file", _case((), (_copied(WEIGHTS, "w.pt"), _user_file("mine.pt")),
+                                                   ["lab.ship", "w.pt", "--to", "mine.pt"]),
+     ["--to .: would replace mine.pt, which Fenestra did not write"]),
+    ("ship-weights --to the weights it reads", _case((), (_copied(WEIGHTS, "w.pt"),), ["lab.ship", "w.pt", "--to", "w.pt"]),
+     ["--to w.pt is an input of this command"]),
+    ("ship-weights --to weights no manifest lists", _case((), (_copied(WEIGHTS, "w.pt"), _copied(WEIGHTS, "old.pt")),
+                                                          ["lab.ship", "w.pt", "--to", "old.pt"]),
+     ["--to old.pt is a weights file that Fenestra did not list", "pass --force"]),
+    ("train --out over a user's file", _then_call(_train("mine.pt"), _user_file("mine.pt")),
+     ["--out .: would replace mine.pt, which Fenestra did not write"]),
+    ("train --out over its --init-weights", _then_call(_train("init.pt", "configs/init.toml"), _init_config),
+     ["--out init.pt is an input of this command"]),
+    ("train --out into its dataset", _train("{ds}/w.pt"),
+     ["lies inside the input folder"]),
+    ("report --markdown over a user's page", _case(("run",), (_user_file("mine.md"),), ["lab.docs", "run", "--markdown", "mine.md"]),
+     ["--markdown .: would replace mine.md, which Fenestra did not write"]),
+    ("report --markdown over a user's summary", _case(("run",), (_user_file("docs/results/summary.json"),),
+                                                      ["lab.docs", "run", "--markdown", "docs/results.md"]),
+     ["would replace summary.json, which Fenestra did not write"]),
+    ("report --markdown into the run", _case(("run",), (), ["lab.docs", "run", "--markdown", "run/results.md"]),
+     ["--markdown run/results.md lies inside the input folder run"]),
+    ("report --markdown over the run's results", _case(("run",), (), ["lab.docs", "run", "--markdown", "run/results.parquet"]),
+     ["--markdown run/results.parquet", "a .md file"]),
+    ("render --out into a bench run", _case(("run",), (), [*RENDER_ARGS, "--out", "run"]),
+     ["--out run holds a benchmark run, not a rendered dataset"]),
+    ("render --out into a reconstruction's folder", _case(("rec",), (), [*RENDER_ARGS, "--out", "rec/renders"]),
+     ["--out rec/renders lies inside", "one photo's reconstruction"]),
+    ("render --out a file", _case((), (_user_file("renders"),), [*RENDER_ARGS, "--out", "renders"]),
+     ["--out renders is an existing file"]),
+    ("render over a dataset's file the user changed", _case((), (_rendered,), [*RENDER_ARGS, "--out", "renders"]),
+     ["would replace coco.json, which Fenestra did not write (or which changed since)"]),
+]
+
+
 @pytest.mark.parametrize("case, build, needles", WRITER_CASES, ids=[c[0] for c in WRITER_CASES])
 def test_no_writer_replaces_what_is_not_its_own(case, build, needles, made, tmp_path):
     args = build(made, tmp_path)
@@ -189,6 +289,101 @@ def test_single_file_writers_replace_their_own_file(tmp_path):
     assert sorted(outputs.read_manifest(tmp_path / "houses")) == ["authored-studio.ifc", "authored-terrace.ifc"]
 
 
+def _listed(folder: Path, *names: str) -> bool:
+    """True if ``folder``'s manifest lists each of ``names`` with the file's current digest."""
+    owned = outputs.read_manifest(folder) or {}
+    return all(owned.get(n) == outputs.file_sha256(folder / n) for n in names)
+
+
+def test_ship_weights_lists_what_it_ships_and_force_replaces_only_weights(tmp_path):
+    """ship-weights lists its copy; shipping again replaces it; --force replaces a weights file
+    no manifest lists (refused without it, above), never a user's file; the checkout's shipped
+    weights are listed, so `python -m lab.ship out/train/default.pt` replaces them."""
+    shutil.copy(WEIGHTS, tmp_path / "w.pt")
+    shutil.copy(WEIGHTS.with_name("refine.pt"), tmp_path / "old.pt")
+    (tmp_path / "mine.pt").write_text("the user's")
+    r = fenestra("lab.ship", "w.pt", "--to", "old.pt", "--force", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert (tmp_path / "old.pt").read_bytes() == WEIGHTS.read_bytes() and _listed(tmp_path, "old.pt")
+    assert fenestra("lab.ship", "w.pt", "--to", "old.pt", cwd=tmp_path).returncode == 0  # its own file now
+    one_line_error(fenestra("lab.ship", "w.pt", "--to", "mine.pt", "--force", cwd=tmp_path), "would replace mine.pt")
+    assert (tmp_path / "mine.pt").read_text() == "the user's"
+    shipped = sorted(p.name for p in WEIGHTS.parent.glob("*.pt"))
+    assert _listed(WEIGHTS.parent, *shipped) and len(shipped) == 5
+
+
+def test_train_writes_its_files_atomically_and_lists_them(tmp_path):
+    """A tiny WinNet run: the weights, the training state and the loss log are listed with their
+    digests (no temporary file left); the run again replaces them; a weights file the user
+    changed since is refused before any data is read."""
+    from fenestra.files import TEMP_NAME
+    from fenestra.training.train import load_config, train
+    from toy_data import write_toy_dataset
+
+    ds = write_toy_dataset(tmp_path / "toy", n_views=3, seed=4)
+    out = tmp_path / "train"
+    cfg = load_config(CONFIGS / "winnet.toml", data=(str(ds),), out=str(out / "w.pt"), state_dir=str(out),
+                      iterations=2, batch_size=2, crop_hw=(64, 64), log_every=1, save_every=1, warmup=1, threads=1)
+    for _ in range(2):
+        assert train(cfg, log=lambda *_: None) == out / "w.pt"
+        assert _listed(out, "w.pt", "w.state.pt", "w.loss.csv")
+        assert not [p for p in out.iterdir() if TEMP_NAME.fullmatch(p.name)]
+    (out / "w.pt").write_bytes(b"the user's")
+    with pytest.raises(outputs.OwnershipError, match="would replace w.pt, which Fenestra did not write"):
+        train(dataclasses.replace(cfg, data=(str(tmp_path / "missing"),)), log=lambda *_: None)
+    assert (out / "w.pt").read_bytes() == b"the user's"
+
+
+def test_report_markdown_lists_its_pages_and_force_replaces_only_generated_ones(made, tmp_path):
+    """lab.docs (the results docs) lists the results page and its summary; a second run replaces them; a
+    generated page that no manifest lists (a checkout's committed docs) needs --force."""
+    _copy(made, tmp_path, "run")
+    docs = tmp_path / "docs"
+    for _ in range(2):
+        r = fenestra("lab.docs", "run", "--markdown", "docs/results.md", cwd=tmp_path)
+        assert r.returncode == 0, r.stderr[-2000:]
+    assert _listed(docs, "results.md") and _listed(docs / "results", "summary.json")
+    (docs / outputs.MANIFEST).unlink()
+    one_line_error(fenestra("lab.docs", "run", "--markdown", "docs/results.md", cwd=tmp_path),
+                   "docs/results.md is a generated results page that Fenestra did not list", "--force")
+    r = fenestra("lab.docs", "run", "--markdown", "docs/results.md", "--force", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert _listed(docs, "results.md")
+
+
+def test_render_lists_its_dataset_and_recognises_an_older_one(tmp_path):
+    """render lists every file of the dataset it writes (kind: a rendered dataset); rendering it
+    again reuses it; a dataset without manifest (an older Fenestra's) whose config.json is this
+    config's is recognised and listed; one whose config.json is another's is refused."""
+    for _ in range(2):
+        r = fenestra(*RENDER_ARGS, "--out", "renders", cwd=tmp_path)
+        assert r.returncode == 0, r.stderr[-2000:]
+    ds = next((tmp_path / "renders").iterdir())
+    assert outputs.read_kind(ds) == "dataset" and outputs.foreign_files(ds) == []
+    assert "views/000002/image.png" in outputs.read_manifest(ds)
+    (ds / outputs.MANIFEST).unlink()
+    assert fenestra(*RENDER_ARGS, "--out", "renders", cwd=tmp_path).returncode == 0
+    assert outputs.foreign_files(ds) == [] and outputs.read_kind(ds) == "dataset"
+    (ds / outputs.MANIFEST).unlink()
+    doc = json.loads((ds / "config.json").read_text())
+    (ds / "config.json").write_text(json.dumps({**doc, "scene_sha256": "0" * 64}))
+    before = snapshot(tmp_path)
+    one_line_error(fenestra(*RENDER_ARGS, "--out", "renders", cwd=tmp_path),
+                   f"{ds.name} holds files Fenestra did not render for this config")
+    assert snapshot(tmp_path) == before
+
+
+def test_evaluate_detector_json_replaces_its_own_metrics(made, tmp_path):
+    """evaluate-detector --json lists its metrics file; a second run replaces it; --force replaces
+    a metrics file no manifest lists (refused without it, above)."""
+    args = _evaluate("m.json")(made, tmp_path)
+    (tmp_path / "m.json").write_text(METRICS)
+    for extra in (["--force"], []):
+        r = fenestra(*args, *extra, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr[-2000:]
+        assert _listed(tmp_path, "m.json") and json.loads((tmp_path / "m.json").read_text())["n_images"] == 3
+
+
 def test_gate_fails_a_run_whose_listed_run_json_is_gone(tmp_path):
     args = run_with_status("complete")(tmp_path)
     assert fenestra(*args, cwd=tmp_path).returncode == 0  # the sealed run passes as it is
@@ -201,22 +396,37 @@ def test_gate_fails_a_run_whose_listed_run_json_is_gone(tmp_path):
 
 def test_a_second_reconstruct_into_a_folder_is_refused_up_front(tmp_path):
     """While a process holds the folder, a reconstruct into it stops at once (before its pipeline),
-    naming that process, and changes nothing."""
+    naming the command and the process that hold it, and changes nothing. The holder is a process
+    whose command line reads as the CLI's (`fenestra reconstruct ...`), holding the lock as
+    reconstruct does."""
     assert reconstruct("o", cwd=tmp_path).returncode == 0
     holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from fenestra import outputs\n"
-                               "with outputs.locked(sys.argv[1], 'reconstruct'):\n print('held', flush=True); time.sleep(60)",
+                               "out = sys.argv[1]; sys.argv = ['/usr/bin/fenestra', 'reconstruct', 'p.jpg', '--out', out]\n"
+                               "with outputs.locked(out, 'reconstruct'):\n print('held', flush=True); time.sleep(60)",
                                str(tmp_path / "o")], stdout=subprocess.PIPE, text=True,
                               env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
     try:
         assert holder.stdout.readline().strip() == "held"
         before = snapshot(tmp_path)
         r = reconstruct("o", cwd=tmp_path)
-        one_line_error(r, f"o is in use by process {holder.pid}")
+        one_line_error(r, f"o is in use by `fenestra reconstruct` (process {holder.pid})")
         assert "intrinsics:" not in r.stdout  # refused before the pipeline ran
         assert snapshot(tmp_path) == before
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_a_lock_names_its_holder_in_one_bounded_line():
+    """What a lock file records, as the refusal names it: the CLI's command, another program's
+    name, an older Fenestra's bare process id; a long or multi-line command stays one short line."""
+    assert outputs.running_command(["/venv/bin/fenestra", "bench", "--out", "x"]) == "fenestra bench"
+    assert outputs.running_command([".../fenestra/__main__.py", "reconstruct", "a.jpg"]) == "fenestra reconstruct"
+    assert outputs.running_command(["/usr/bin/my-script", "--out", "o"]) == "my-script"
+    assert outputs.lock_holder("1234 fenestra batch\n") == "`fenestra batch` (process 1234)"
+    assert outputs.lock_holder("1234\n") == "process 1234"
+    long = outputs.lock_holder("7 " + "x\n`y" * 5000)
+    assert "\n" not in long and len(long) < 200 and long.count("`") == 2
 
 
 def test_staging_folders_of_dead_processes_are_cleaned(tmp_path):

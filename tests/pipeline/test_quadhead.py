@@ -153,7 +153,7 @@ def test_training_the_head_alone_keeps_the_network_bit_for_bit(tmp_path):
 def test_ship_weights_sends_each_effwin_file_to_its_own_detector():
     from pathlib import Path
 
-    from fenestra.training.ship import shipping_detector
+    from lab.ship import shipping_detector
 
     assert shipping_detector(Path("out/train/quadnet.pt"), {"arch": "effwin"}) == "quadnet"
     assert shipping_detector(Path("out/train/default.pt"), {"arch": "effwin"}) == "default"

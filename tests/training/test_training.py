@@ -315,30 +315,32 @@ def test_training_writes_under_out_not_into_the_shipped_weights():
         assert Path(cfg.out).parts[0] == "out" and Path(cfg.state_dir).parts[0] == "out", cfg.out
 
 
-def test_ship_weights_checks_then_copies(tmp_path):
-    """`fenestra ship-weights` copies a weights file its detector runs, byte for byte; it refuses a
-    file that is not weights, or of an architecture nothing trains, and then writes nothing."""
+def test_ship_weights_checks_then_copies(tmp_path, capsys):
+    """`python -m lab.ship` copies a weights file its detector runs, byte for byte; it refuses a
+    file that is not weights, or of an architecture nothing trains, in one line (exit 2), and then
+    writes nothing."""
     import hashlib
 
     import torch
-    from typer.testing import CliRunner
 
-    from fenestra.app.cli import app
-    from fenestra.errors import FenestraError
+    from fenestra import outputs
+    from lab.ship import main
 
     src = _untrained_weights(tmp_path / "w.pt", "winnet")
     dest = tmp_path / "shipped" / "default.pt"
-    r = CliRunner().invoke(app, ["ship-weights", str(src), "--to", str(dest)])
-    assert r.exit_code == 0, r.output
+    assert main([str(src), "--to", str(dest)]) == 0
+    out = capsys.readouterr().out
     assert dest.read_bytes() == src.read_bytes()
-    assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in r.output and "'winnet'" in r.output
-    assert [p.name for p in dest.parent.iterdir()] == ["default.pt"]  # no temporary file left
+    assert hashlib.sha256(src.read_bytes()).hexdigest()[:16] in out and "'winnet'" in out
+    assert sorted(p.name for p in dest.parent.iterdir()) == [outputs.MANIFEST, "default.pt"]  # no temporary file left
+    assert outputs.read_manifest(dest.parent) == {"default.pt": hashlib.sha256(src.read_bytes()).hexdigest()}
     (tmp_path / "junk.pt").write_bytes(b"not a model")
     torch.save({"arch": "yolo", "state_dict": {}}, tmp_path / "yolo.pt")
     for bad, message in (("junk.pt", "is not a model checkpoint"), ("yolo.pt", "holds a 'yolo' model"),
                          ("missing.pt", "no weights file")):
-        r = CliRunner().invoke(app, ["ship-weights", str(tmp_path / bad), "--to", str(tmp_path / "x" / "d.pt")])
-        assert isinstance(r.exception, FenestraError) and message in str(r.exception), (bad, r.exception)
+        assert main([str(tmp_path / bad), "--to", str(tmp_path / "x" / "d.pt")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1 and message in err, (bad, err)
     assert not (tmp_path / "x").exists()
 
 
@@ -391,15 +393,15 @@ def test_make_train_runs_the_scripts_and_configs_of_training(tmp_path):
     files = set(re.findall(r"[\w./-]+\.(?:sh|toml|py)\b", r.stdout))
     assert {"lab/scripts/make_data.sh", "fenestra/training/configs/default.toml"} <= files
     assert all((ROOT / f).is_file() for f in files), files
-    assert "ship-weights out/train/default.pt" in r.stdout
+    assert "lab.ship out/train/default.pt" in r.stdout
     assert "lab/scripts/verifier_data.sh" in files
-    assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("ship-weights out/train/default.pt")
+    assert r.stdout.index("train-verifier out/train/default.pt") < r.stdout.index("lab.ship out/train/default.pt")
     # detector v8's quad head starts from the shipped default network, so it trains after that is shipped
     assert "fenestra/training/configs/quadnet.toml" in files
-    assert r.stdout.index("ship-weights out/train/default.pt") < r.stdout.index("configs/quadnet.toml") \
-        < r.stdout.index("ship-weights out/train/quadnet.pt")
+    assert r.stdout.index("lab.ship out/train/default.pt") < r.stdout.index("configs/quadnet.toml") \
+        < r.stdout.index("lab.ship out/train/quadnet.pt")
     assert "lab/scripts/refine_data.sh" in files  # the corner refinement: its renders, then train and ship
-    assert r.stdout.index("refine_data.sh") < r.stdout.index("train-refine") and "--ship" in r.stdout
+    assert r.stdout.index("refine_data.sh") < r.stdout.index("train-refine") < r.stdout.index("lab.ship out/train/refine.pt")
 
 
 def test_weights_list_the_real_photos_they_train_on(tmp_path):

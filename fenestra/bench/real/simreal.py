@@ -25,6 +25,7 @@ from scipy.stats import kendalltau, rankdata, spearmanr
 from fenestra.bench.paired import paired_comparison
 from fenestra.bench.results import TRUTH_FLAGS, _jsonable, load_results
 from fenestra.conventions import PAPER
+from fenestra.files import write_text
 from fenestra.methods import read_methods
 
 METRICS = ("aspect_err_rel", "corner_err_px_mask", "corner_err_px_snap", "corner_err_px_reproj", "iou_2d")
@@ -148,5 +149,4 @@ def write_simreal(sim_dir: Path, real_dir: Path) -> Path:
     doc = simreal_table(load_results(sim_dir), load_results(real_dir))
     doc["sim_run"], doc["real_run"] = str(sim_dir), str(real_dir)
     p = Path(real_dir) / SIMREAL_JSON
-    p.write_text(json.dumps(_jsonable(doc), indent=2))  # NaN written as null
-    return p
+    return write_text(p, json.dumps(_jsonable(doc), indent=2))  # NaN written as null; atomically: listed by the run's listing
