@@ -141,7 +141,7 @@ def split_detector(name: str) -> Split | None:
         return x.contiguous(memory_format=torch.channels_last), H, W
 
     if arch == "effwin":
-        from fenestra.pipeline.detectors.verifier import verified  # noqa: PLC0415
+        from fenestra.pipeline.detectors.verifier import classified  # noqa: PLC0415
 
         head = mod.verifier_from_checkpoint(net, ckpt)
 
@@ -155,7 +155,7 @@ def split_detector(name: str) -> Split | None:
 
         def finish(maps, feats):
             dets = mod.detections_from_maps(maps, post)
-            return dets if head is None else verified(dets, maps[0], feats, head)
+            return dets if head is None else [d for d in classified(dets, maps[0], feats, head) if d.kind == "window"]
     elif arch == "winnet":
         def forward(x):
             return net(x), {}

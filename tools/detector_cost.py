@@ -60,7 +60,7 @@ def stage_times(image, model, post, head) -> tuple[dict[str, tuple[float, float]
     detections, ``detect("default", image)``'s detections): the two lists must be the same."""
     from fenestra.pipeline.detectors import detect  # noqa: PLC0415
     from fenestra.pipeline.detectors.effwin import instance_corners, predict_maps_features  # noqa: PLC0415
-    from fenestra.pipeline.detectors.verifier import verified  # noqa: PLC0415
+    from fenestra.pipeline.detectors.verifier import classified  # noqa: PLC0415
     from fenestra.pipeline.detectors.winnet import instances_from_maps  # noqa: PLC0415
     from fenestra.pipeline.types import Detection  # noqa: PLC0415
 
@@ -69,7 +69,7 @@ def stage_times(image, model, post, head) -> tuple[dict[str, tuple[float, float]
     dets, *t["instances"] = timed(instances_from_maps, maps[0], maps[1], post, maps[2:])
     corners, *t["corners"] = timed(lambda: [instance_corners(maps[2:], d.mask) for d in dets])
     dets = [Detection(d.mask, d.box, d.score, d.label, corners=c) for d, c in zip(dets, corners)]
-    staged, *t["verifier"] = timed(verified, dets, maps[0], feats, head)
+    staged, *t["verifier"] = timed(lambda: [d for d in classified(dets, maps[0], feats, head) if d.kind == "window"])
     whole, *t["detect"] = timed(detect, "default", image)
     return {k: tuple(v) for k, v in t.items()}, staged, whole
 

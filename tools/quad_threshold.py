@@ -31,7 +31,7 @@ def candidates(weights: Path):
     from fenestra.pipeline.detectors import DETECTORS, load_model  # noqa: PLC0415
     from fenestra.pipeline.detectors.effwin import (predict_maps_features, quad_decode, quads_from_maps,  # noqa: PLC0415
                                                     verifier_from_checkpoint, post_config)
-    from fenestra.pipeline.detectors.verifier import verified  # noqa: PLC0415
+    from fenestra.pipeline.detectors.verifier import classified  # noqa: PLC0415
 
     _, net, ckpt = load_model(DETECTORS["quadnet"].model, weights)
     decode = dataclasses.replace(quad_decode(ckpt), centre_threshold=0.05, score_scale=1.0)
@@ -40,7 +40,7 @@ def candidates(weights: Path):
     def run(image):
         maps, feats = predict_maps_features(net, image, post.mirror)
         dets = quads_from_maps(maps, feats, decode)
-        return dets if head is None else verified(dets, maps[0], feats, head)
+        return dets if head is None else [d for d in classified(dets, maps[0], feats, head) if d.kind == "window"]
     return run
 
 
