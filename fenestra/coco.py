@@ -19,6 +19,8 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from fenestra.masks import box_to_coco, rle_area, rle_box, segmentation_to_rle
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
 
 CATEGORIES = [{"id": 1, "name": "window"}]
 COCO_STATS = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large",
@@ -120,8 +122,6 @@ def coco_scores(gt: dict, results: Sequence[dict], iou_types: Sequence[str] = IO
     (box-only labels). 0.0 for every key when there are windows but no detections. Ignore regions
     (``iscrowd = 1``) follow COCO: a detection matched to one counts neither way.
     """
-    from pycocotools.coco import COCO  # noqa: PLC0415
-    from pycocotools.cocoeval import COCOeval  # noqa: PLC0415
 
     bad = [t for t in iou_types if t not in IOU_TYPES]
     if bad:

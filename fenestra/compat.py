@@ -17,7 +17,7 @@ def import_pyrender():
     _preload_triton()
     if not hasattr(np, "infty"):
         np.infty = np.inf  # pyrender.Scene.bounds and others
-    import pyrender  # noqa: PLC0415
+    import pyrender  # noqa: PLC0415 (after triton and the NumPy 2 shim above)
 
     return pyrender
 
@@ -30,4 +30,4 @@ def _preload_triton() -> None:
     on Mesa 22, e.g. training a detector in a process that rendered). Loading it first is safe.
     """
     if importlib.util.find_spec("triton") is not None:
-        import triton  # noqa: F401, PLC0415
+        import triton  # noqa: F401, PLC0415 (loaded first, so that its LLVM wins over Mesa's)

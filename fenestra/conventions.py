@@ -59,7 +59,7 @@ PYRENDER_PIXEL_OFFSET = 0.5
 DEFAULTS = Method(detector="default", snapper="refine", pose="wall+lines")
 # The paper's method (Mask R-CNN, Harris snapping, per-window iterative PnP): the reference in comparisons.
 PAPER = Method(detector="maskrcnn", snapper="harris", pose="lm")
-# Window classes the figures single out (issue #36): thin, aspect (width / height) >= THIN_ASPECT or
+# Window classes the figures single out: thin, aspect (width / height) >= THIN_ASPECT or
 # <= 1 / THIN_ASPECT; oblique, seen at an incidence (angle between the view ray and the window's
 # normal, degrees) in OBLIQUE_INCIDENCE_DEG = [low, high).
 THIN_ASPECT = 3.0
@@ -176,7 +176,7 @@ def heading_difference_deg(n_a: np.ndarray, n_b: np.ndarray, up: np.ndarray) -> 
 
 @dataclass(frozen=True)
 class InputLimits:
-    """Bounds on one photo's input, so memory and time stay bounded (pipeline/, issue 16).
+    """Bounds on one photo's input, so memory and time stay bounded (pipeline/).
 
     max_windows_per_photo: instance ids (or detections) per photo; beyond it reconstruct stops with
         an error naming the count (each window costs ~10 ms and its share of the IFC export).
@@ -185,18 +185,18 @@ class InputLimits:
     lsd_max_pixels: a photo's whole-image line segments (pipeline.segments.whole_image_segments)
         are found on a copy of at most this many pixels (INTER_AREA), mapped back to full
         resolution (LSD on 12 Mpx: ~1 CPU-s; on 4 Mpx: ~0.3; every bundled photo and render is
-        smaller, so theirs are unchanged; issue 35).
+        smaller, so theirs are unchanged).
     max_facade_segments: the walls' façade lines (pipeline.walls.lines.photo_segments) keep at
         most this many of the photo's segments, the longest (their vanishing-point consensus costs
         segments x hypotheses: 3000 segments of a 12 Mpx photo took 5.6 CPU-s; the real test photos
-        and the street photos of spb_facades/train have at most ~1000 at least 20 px long, issue 35).
+        and the street photos of spb_facades/train have at most ~1000 at least 20 px long).
     inpaint_max_side_px: the export's void inpainting (Telea, pipeline.export.inpaint) works on a
         copy of the texture with its long side at most this; the fill, upsampled, replaces only the
         void pixels of the full-size texture (Telea's cost grows with the void pixels: 7 CPU-s at
-        3851 x 3116 px; issue 35).
+        3851 x 3116 px).
     glb_png_compress_level: zlib level of model.glb's PNG texture (pipeline.export.mesh.png_image:
         lossless either way; 1 encodes a 12 Mpx texture in ~0.6 CPU-s, the default 6 in ~2.4 s, for
-        a ~25 % larger file; issue 35).
+        a ~25 % larger file).
     fov_min_deg / fov_max_deg: a horizontal or vertical field of view outside this range
         (from K and the photo size) is reported as a warning: the focal length is probably wrong.
     max_json_bytes: a JSON input (annotations.json, K.json) larger than this is refused before it

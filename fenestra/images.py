@@ -24,6 +24,7 @@ FenestraError and a ValueError) naming the file.
 """
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import cv2
@@ -32,6 +33,7 @@ import numpy as np
 from fenestra.checks import INSTANCE_DTYPE
 from fenestra.conventions import LIMITS
 from fenestra.errors import DatasetError
+from PIL import Image
 
 JPEG_SOI, JPEG_EOI = b"\xff\xd8", b"\xff\xd9"  # a JPEG's start- and end-of-image markers
 
@@ -40,9 +42,7 @@ def header_size(path: str | Path) -> tuple[int, int] | None:
     """(W, H) px an image file's header states, read without decoding its pixels (PIL's format
     plugins, opened directly so that a huge size is reported, not refused as PIL's open does);
     None when no PIL plugin parses the header (cv2 may still decode the file)."""
-    import struct  # noqa: PLC0415
 
-    from PIL import Image  # noqa: PLC0415
 
     Image.init()
     bound, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # a plugin (WebP) checks PIL's own bound as it opens

@@ -18,6 +18,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from pycocotools import mask as mask_utils
 
 # ---------------------------------------------------------------- boxes
 
@@ -129,7 +130,7 @@ def instance_masks(instances: np.ndarray, ids: Iterable[int]) -> list[SparseMask
     One pass over the map finds every id's box (scipy.ndimage.find_objects); each mask is then
     compared within its box only. An id absent from the map gives an empty mask.
     """
-    from scipy.ndimage import find_objects  # noqa: PLC0415
+    from scipy.ndimage import find_objects  # noqa: PLC0415 (SciPy: imported when first used, not at the package's import)
 
     inst = np.asarray(instances)
     if inst.ndim != 2 or not np.issubdtype(inst.dtype, np.integer):
@@ -159,7 +160,6 @@ def rle_from_crop(crop: np.ndarray, origin: tuple[int, int], shape: tuple[int, i
     crop's pixels without allocating the full image; identical to pycocotools' ``encode`` of the
     full mask. ValueError when a pixel of the mask falls outside the image.
     """
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
 
     H, W = (int(v) for v in shape)
     c = np.asarray(crop)
@@ -200,7 +200,6 @@ def _api(rle: dict) -> dict:
 def segmentation_to_rle(seg, height: int, width: int) -> dict:
     """Any COCO segmentation of an (height, width) image (polygons, uncompressed RLE with a list
     of counts, compressed RLE with str or bytes counts) -> compressed RLE with str counts."""
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
 
     if isinstance(seg, list):
         r = mask_utils.merge(mask_utils.frPyObjects(seg, height, width))
@@ -216,21 +215,18 @@ def segmentation_to_rle(seg, height: int, width: int) -> dict:
 
 def rle_to_mask(rle: dict) -> np.ndarray:
     """(H, W) bool mask of a compressed RLE (str or bytes counts)."""
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
 
     return mask_utils.decode(_api(rle)).astype(bool)
 
 
 def rle_area(rle: dict) -> int:
     """Pixels inside a compressed RLE."""
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
 
     return int(mask_utils.area(_api(rle)))
 
 
 def rle_iou(a: Sequence[dict], b: Sequence[dict]) -> np.ndarray:
     """(len(a), len(b)) mask IoU of compressed RLEs (pycocotools ``iou``, no crowd)."""
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
 
     if not a or not b:
         return np.zeros((len(a), len(b)))
@@ -239,7 +235,6 @@ def rle_iou(a: Sequence[dict], b: Sequence[dict]) -> np.ndarray:
 
 def rle_box(rle: dict) -> np.ndarray:
     """(4,) x0 y0 x1 y1 px (pixel-edge outline) of a non-empty compressed RLE; ValueError if empty."""
-    from pycocotools import mask as mask_utils  # noqa: PLC0415
 
     if rle_area(rle) == 0:
         raise ValueError("ground-truth mask is empty")

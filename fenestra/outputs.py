@@ -44,10 +44,12 @@ Errors are :class:`OwnershipError` (a FenestraError): one line naming the folder
 """
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import re
 import shutil
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -55,7 +57,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fenestra.errors import FenestraError, bounded
-from fenestra.files import file_sha256, write_json
+from fenestra.files import before_rename, file_sha256, TEMP_NAME, write_atomic, write_json
 
 MANIFEST = ".fenestra-output.json"
 STAGE_PREFIX = ".fenestra-stage-"
@@ -336,7 +338,6 @@ def remove_dead_temp_files(out: str | Path) -> list[str]:
     ``out`` of a process that no longer runs: half-written files of a run killed while writing,
     never listed, never a result; returns their relative paths. Call it only on a folder that
     holds Fenestra's output (its manifest checked)."""
-    from fenestra.files import TEMP_NAME  # noqa: PLC0415
 
     out = Path(out)
     gone = []
@@ -419,7 +420,6 @@ def write_file(path: str | Path, write, kind: str | None = FILES_KIND, hosts: It
     a file of that name exists that Fenestra did not write (``force``: unless ``own`` recognises
     it), or when its folder holds another kind of output than ``kind`` or ``hosts``
     (:func:`check_kind`; a folder new to Fenestra records ``kind``)."""
-    from fenestra.files import write_atomic  # noqa: PLC0415
 
     path = Path(path)
     check_file(path, kind, hosts, inputs, option, force, own)
@@ -506,7 +506,6 @@ def listing(out: str | Path, kind: str | None = None) -> Iterator[Path]:
     (a half-written one keeps its temporary name: :func:`remove_dead_temp_files`). kind: the
     folder's kind when it has none recorded yet (so a first file named like another kind's,
     LEGACY_KIND, does not decide it)."""
-    from fenestra.files import TEMP_NAME, before_rename  # noqa: PLC0415
 
     root = Path(out).resolve()
 
@@ -527,7 +526,6 @@ def listing(out: str | Path, kind: str | None = None) -> Iterator[Path]:
 def running_command(argv: list[str] | None = None) -> str:
     """How this process was started, in a user's words: ``fenestra <command>`` for the CLI
     (``fenestra`` or ``python -m fenestra``), else the program's name (``argv``: sys.argv)."""
-    import sys  # noqa: PLC0415
 
     argv = sys.argv if argv is None else argv
     prog = Path(argv[0]).name if argv else "python"
@@ -556,7 +554,6 @@ def locked(folder: str | Path, what: str = "run", keep: bool = True, command: st
     when another process holds it: concurrent runs into one folder are refused up front, not
     detected at the end. keep=False: the lock file is removed at the end (while still held)
     unless it was there before."""
-    import fcntl  # noqa: PLC0415
 
     folder = Path(folder)
     existed = (folder / LOCK).exists()

@@ -24,8 +24,10 @@ undone and named in one warning line; Fenestra goes on without it.
 """
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterable, Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field
+from importlib.metadata import entry_points
 from typing import Any, Generic, Protocol, TypeVar, runtime_checkable
 
 from fenestra.errors import FenestraError, bounded
@@ -92,7 +94,6 @@ def _warn(line: str) -> None:
 
 def _caller() -> str:
     """The module that called the Registry method that calls this."""
-    import sys  # noqa: PLC0415
 
     return str(sys._getframe(2).f_globals.get("__name__", ""))
 
@@ -106,7 +107,6 @@ def load_plugins() -> list[str]:
     if _PLUGINS.loaded:
         return list(_PLUGINS.names)
     _PLUGINS.loaded = True  # before loading: a plug-in reads and registers into the registries
-    from importlib.metadata import entry_points  # noqa: PLC0415
 
     for ep in entry_points(group=PLUGIN_GROUP):
         _PLUGINS.current, _PLUGINS.undo = ep.name, []

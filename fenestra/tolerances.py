@@ -26,7 +26,7 @@ class Tolerances:
     parallel_sides_deg: float = 0.05  # opposite image sides closer than this count as parallel
     match_iou: float = 0.5  # detection <-> ground truth matching
     recall_thresholds_px: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0)
-    all_corners_px: float = 5.0  # a window's quad is usable when all four corners are this close (issue 23)
+    all_corners_px: float = 5.0  # a window's quad is usable when all four corners are this close
     # `fenestra compare RUN_A RUN_B` (fenestra/reports/compare.py): a method regresses when a metric's
     # median over the windows paired in both runs gets worse by more than its tolerance AND the
     # paired Wilcoxon test gives p < compare_p_value. The tolerances are about 5-10 % of the CLI
@@ -35,7 +35,7 @@ class Tolerances:
     compare_corner_px: float = 0.05  # corner_err_px_snap
     compare_aspect_rel: float = 0.002  # aspect_err_rel (0.2 percentage points)
     compare_rot_deg: float = 0.02  # rot_err_deg
-    # mask -> quad on thin windows (issue 36, tests/pipeline/test_pipeline_quad.py): every corner of an exact
+    # mask -> quad on thin windows (tests/pipeline/test_pipeline_quad.py): every corner of an exact
     # pixel-centre mask of a thin rectangle (10x60 .. 20x120 px, any rotation), and of a thin window
     # with corners rounded up to a third of its short side against its straight-sided truth
     thin_quad_exact_px: float = 0.5
@@ -43,7 +43,7 @@ class Tolerances:
     # quad source mask+lines (pipeline.quad.best_subset_quad): every corner of a window whose mask has
     # one corner notched off (30 % of both sides meeting there), against the whole window's truth
     notched_quad_px: float = 1.5
-    # row regularization (issue 35, pipeline.row_lines; its own agreement threshold, ROW_AGREE_FRACTION,
+    # row regularization (pipeline.row_lines; its own agreement threshold, ROW_AGREE_FRACTION,
     # lives beside it): the exported whole windows of one export.json storey row that agreed with
     # their row's sill and head lines have heights within this share of their median (the issue's target)
     row_height_spread_rel: float = 0.05

@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
         if a.runs is None:
             export_recall.run_cli(photos, runs / name)
         figs[name] = set_figures(a.spb if name == "test" else a.spb / "train", photos, runs / name)
-    command = "python tools/bim_photos.py" + (f" --doc {a.doc}" if a.doc else "")
+    command = "python tools/bim_photos.py" + (f" --doc {a.doc}" if a.doc else "")  # --runs only rereads its runs
     text = markdown(figs, command)
     print(text)
     if a.json:

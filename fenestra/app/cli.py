@@ -11,6 +11,7 @@ nothing imports it.
 """
 from __future__ import annotations
 
+import ctypes
 import datetime
 import os
 import signal
@@ -23,6 +24,10 @@ import typer
 
 import fenestra
 from fenestra.errors import FenestraError, one_line
+from fenestra.renders import cli as renders_cli
+from fenestra.reports import cli as reports_cli
+from fenestra.scenes import cli as scenes_cli
+from fenestra.training import cli as training_cli
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Fenestra: single-photo facade window reconstruction, measured against exact IFC ground truth.")
@@ -41,12 +46,8 @@ def _root(version: bool = typer.Option(False, "--version", is_eager=True, callba
 
 
 def _register() -> None:
-    from fenestra.bench import cli as bench_cli
-    from fenestra.pipeline import cli as pipeline_cli
-    from fenestra.renders import cli as renders_cli
-    from fenestra.reports import cli as reports_cli
-    from fenestra.scenes import cli as scenes_cli
-    from fenestra.training import cli as training_cli
+    from fenestra.bench import cli as bench_cli  # noqa: PLC0415 (fenestra.bench.cli loads SciPy: imported when first used)
+    from fenestra.pipeline import cli as pipeline_cli  # noqa: PLC0415 (fenestra.pipeline.cli loads IfcOpenShell, SciPy: imported when first used)
 
     for module in (scenes_cli, renders_cli, pipeline_cli, training_cli):
         module.register(app)
@@ -102,7 +103,6 @@ def was_interrupted(e: BaseException) -> bool:
     __context__), or ctypes' ArgumentError for an interrupt that landed while a foreign call
     (pyrender's EGL, OpenGL) converted its arguments, which ctypes reports unchained as
     "argument N: KeyboardInterrupt: "."""
-    import ctypes  # noqa: PLC0415
 
     seen = set()
     while e is not None and id(e) not in seen:

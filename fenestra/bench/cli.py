@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -20,6 +21,9 @@ import typer
 
 from fenestra.bench.real.adapters import ADAPTERS
 from fenestra.config import choices
+from rich.console import Console
+from rich.table import Table
+from fenestra.errors import DatasetError
 
 
 def _fmt(x, d: int = 2) -> str:
@@ -28,10 +32,8 @@ def _fmt(x, d: int = 2) -> str:
 
 def print_headline(results: dict) -> None:
     """The headline table of a summary's results, with rich."""
-    from rich.console import Console  # noqa: PLC0415
-    from rich.table import Table  # noqa: PLC0415
 
-    from fenestra.bench.results import headline_table  # noqa: PLC0415
+    from fenestra.bench.results import headline_table  # noqa: PLC0415 (fenestra.bench.results loads pandas, shapely: imported when first used)
 
     t = Table(title="per method (evaluable windows)")
     rows = headline_table(results)
@@ -70,10 +72,10 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
               seed: int = typer.Option(None, "--seed", help="synthetic profiles: replace the profile's seed (cameras, "
                                                             "looks, sensor noise; another run folder)")) -> None:
         """Render (cached), reconstruct with every strategy, measure, summarise, report."""
-        from fenestra.bench.executors import get_executor  # noqa: PLC0415
+        from fenestra.bench.executors import get_executor  # noqa: PLC0415 (fenestra.bench.executors loads SciPy, pandas, shapely: imported when first used)
         from fenestra.bench.profiles import load_profile  # noqa: PLC0415
-        from fenestra.bench.results import load_summary  # noqa: PLC0415
-        from fenestra.bench.runner import report_apart, run_benchmark  # noqa: PLC0415
+        from fenestra.bench.results import load_summary  # noqa: PLC0415 (fenestra.bench.results loads pandas, shapely: imported when first used)
+        from fenestra.bench.runner import report_apart, run_benchmark  # noqa: PLC0415 (fenestra.bench.runner loads SciPy, pandas, shapely: imported when first used)
 
         if workers < 0:
             raise ValueError(f"--workers must be >= 0, got {workers}")
@@ -85,7 +87,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                        if p is not None and p.exists())  # what the run reads: never in --out
         p = load_profile(profile)  # either kind: its source is renders or labelled datasets
         if p.photos:
-            from fenestra.bench.real.profile import with_user_data  # noqa: PLC0415
+            from fenestra.bench.real.profile import with_user_data  # noqa: PLC0415 (fenestra.bench.real.profile loads SciPy, pandas, shapely: imported when first used)
 
             if seed is not None:
                 raise ValueError(f"--seed needs a synthetic profile (a real run has no cameras to draw), got profile {profile!r}")
@@ -103,7 +105,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                 raise FileNotFoundError(f"--real {real}: not a benchmark run folder (no summary.json)")
             if real is not None and load_summary(real)["metadata"].get("kind") != "real":
                 raise ValueError(f"--real {real}: not a real-photo run (fenestra bench --profile real makes one)")
-            # the report in its own process: its memory and the evaluation's never add up (#26)
+            # the report in its own process: its memory and the evaluation's never add up
             report = None if no_report else functools.partial(report_apart, functools.partial(write_report, real_dir=real))
             if seed is not None:
                 if seed < 0:
@@ -118,7 +120,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
             typer.echo("skipped detectors: " + "; ".join(f"{k}: {v}" for k, v in info.skipped_detectors.items()))
         print_headline(summary["results"])
         if summary.get("kfree"):
-            from fenestra.bench.kfree_summary import format_kfree  # noqa: PLC0415
+            from fenestra.bench.kfree_summary import format_kfree  # noqa: PLC0415 (fenestra.bench.kfree_summary loads pandas, shapely: imported when first used)
 
             typer.echo("\n".join(format_kfree(summary["kfree"])))
         typer.echo(f"results: {info.run_dir / 'results.parquet'}")
@@ -137,9 +139,9 @@ def gate(run_dirs: list[Path] = typer.Argument(..., help="run folders (results.p
     """Check runs against accuracy gates; exit 1 naming each violated metric, value and bound. With
     several runs (one profile, e.g. seeds 0, 1, 2: ``fenestra bench --seed``) every run must pass:
     the worst run decides, and --suggest bounds from the worst."""
-    from fenestra.bench.gates import DEFAULT_GATES, check, load_gates, run_profile, suggest_gates  # noqa: PLC0415
-    from fenestra.bench.manifest import load_verified_results, require_complete  # noqa: PLC0415
-    from fenestra.bench.results import summarize  # noqa: PLC0415
+    from fenestra.bench.gates import DEFAULT_GATES, check, load_gates, run_profile, suggest_gates  # noqa: PLC0415 (fenestra.bench.gates loads pandas, shapely: imported when first used)
+    from fenestra.bench.manifest import load_verified_results, require_complete  # noqa: PLC0415 (fenestra.bench.manifest loads pandas, shapely: imported when first used)
+    from fenestra.bench.results import summarize  # noqa: PLC0415 (fenestra.bench.results loads pandas, shapely: imported when first used)
 
     def one_profile() -> str | None:
         """The runs' profile (refusing runs of several), or --profile."""
@@ -172,7 +174,6 @@ def gate(run_dirs: list[Path] = typer.Argument(..., help="run folders (results.p
 
 def _options(items: list[str]) -> dict:
     """``--option KEY=JSON`` values as adapter keyword options (a value that is not JSON: a string)."""
-    import json  # noqa: PLC0415
 
     out = {}
     for it in items:
@@ -192,8 +193,7 @@ def check_data(folder: Path = typer.Argument(..., help="a labelled photo folder"
                                                 help="adapter option KEY=JSON, e.g. classes=[0,4] (repeatable)")) -> None:
     """Read a dataset as `fenestra bench --data` would: print each photo's windows, what was
     refused and why; exit 2 with the first problem when the dataset cannot be used."""
-    from fenestra.bench.real.adapters.check import check_dataset  # noqa: PLC0415
-    from fenestra.errors import DatasetError  # noqa: PLC0415
+    from fenestra.bench.real.adapters.check import check_dataset  # noqa: PLC0415 (fenestra.bench.real.adapters.check loads SciPy: imported when first used)
 
     c = check_dataset(folder, fmt, **_options(option))
     typer.echo(f"{c.format} dataset {c.folder}: {len(c.views)} photo(s), {c.n_windows} window(s), "

@@ -16,7 +16,7 @@ height, and once with the house's true storey height, columns ``*_storey``) and 
 decision (``exported``, ``not_exported``; per view and method, ViewOutcome.export_counts: the
 exported detections matched to a labelled window, on an ignore region such as a glazed door, or
 on nothing, the export precision's counts). A window cut by the image border is exported as its
-visible part (a partial window, issue 35) but measured as the whole window it is not: its row keeps
+visible part (a partial window) but measured as the whole window it is not: its row keeps
 the quad stage's ``touches_border`` failure (pipeline.session.Window.measured), its labelled
 window is not evaluable (corners out of frame, or ``partial``), and its export counts like any
 other (matched, on an ignore region, or on nothing). The session shares what methods have in common (each
@@ -54,6 +54,9 @@ from fenestra.conventions import camera_depths
 from fenestra.tolerances import TOL
 from fenestra.methods import Method
 from fenestra.pipeline.types import Status
+from fenestra.pipeline.facade_model import Known, KNOWN_RANGE_M
+from fenestra.scenes.storeys import storey_height_from_elevations
+from fenestra.pipeline.detectors import detector_entry
 
 NAN = float("nan")
 
@@ -132,7 +135,7 @@ class ViewOutcome:
 
     def to_frame(self) -> "ViewOutcome":
         """This outcome with its rows moved into ``frame`` (a DataFrame, columns in row order)."""
-        import pandas as pd  # noqa: PLC0415
+        import pandas as pd  # noqa: PLC0415 (pandas: imported when first used, not at the package's import)
 
         if self.frame is not None:
             return self
@@ -140,7 +143,7 @@ class ViewOutcome:
 
     def table(self):
         """The view's rows as a DataFrame (``frame``, else built from ``rows``)."""
-        import pandas as pd  # noqa: PLC0415
+        import pandas as pd  # noqa: PLC0415 (pandas: imported when first used, not at the package's import)
 
         return self.frame if self.frame is not None else pd.DataFrame(self.rows)
 
@@ -293,8 +296,6 @@ def true_storey_m(view: LabelledView) -> float | None:
     fenestra.scenes.storeys), what a user who knows it gives as ``--known-storey``; None for a
     photo, a house with fewer than two storeys, or one whose storey height lies outside the range
     a user may give (pipeline.facade_model.KNOWN_RANGE_M: a split level is no storey to know)."""
-    from fenestra.pipeline.facade_model import KNOWN_RANGE_M  # noqa: PLC0415
-    from fenestra.scenes.storeys import storey_height_from_elevations  # noqa: PLC0415
 
     elevations = house_elevations_m(view)
     storey = None if elevations is None else storey_height_from_elevations(list(elevations))
@@ -309,7 +310,7 @@ def view_session(view: LabelledView, options: EvalOptions, detectors: tuple[str,
     view: the image, the view's K as the user's (if known), the instance map for the oracles, each
     of ``detectors`` with its profile options (torch threads: the worker's, bench.executors), at
     the profile's resolution (``detector_long_side``; 0: the CLI's)."""
-    from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415
+    from fenestra.pipeline.session import PhotoSession, UserCamera  # noqa: PLC0415 (fenestra.pipeline.session loads SciPy: imported when first used)
 
     opts = {name: options.options_of(name) for name in detectors}
     return PhotoSession(view.image, camera=None if view.K is None else UserCamera(view.K, "the view's K"),
@@ -406,9 +407,7 @@ def evaluate_view(view: LabelledView, methods: tuple[Method, ...], options: Eval
     matched to the labels through its detector's detections (score >= SCORE_MIN, the CLI's);
     every candidate down to CANDIDATE_SCORE_MIN feeds detection AP.
     """
-    from fenestra.pipeline.detectors import detector_entry  # noqa: PLC0415
-    from fenestra.pipeline.facade_model import Known  # noqa: PLC0415
-    from fenestra.pipeline.session import SCORE_MIN  # noqa: PLC0415
+    from fenestra.pipeline.session import SCORE_MIN  # noqa: PLC0415 (fenestra.pipeline.session loads SciPy: imported when first used)
 
     stage_s: dict[str, float] = {}
 

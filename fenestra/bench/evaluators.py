@@ -33,6 +33,11 @@ import numpy as np
 
 from fenestra.bench import metrics, uncertainty
 from fenestra.bench.views import LabelledView, LabelledWindow
+from fenestra.pipeline.quad import corners_to_quad
+from fenestra.bench.render_adapter import house_path
+from fenestra.errors import SceneError
+from fenestra.scenes.registry import resolve
+from fenestra.scenes.storeys import storey_elevations_m, storey_index
 
 NAN = float("nan")
 
@@ -163,7 +168,6 @@ def window_errors(res, w: LabelledWindow, gt_pose: tuple[np.ndarray, np.ndarray]
 def head_error(det, w: LabelledWindow) -> float:
     """Mean corner error (px) of a detection's predicted corners (a corner head's; pipeline.quad.
     corners_to_quad) against the labelled quad; NaN without either, or when they are not a quad."""
-    from fenestra.pipeline.quad import corners_to_quad  # noqa: PLC0415
 
     if w.quad is None:
         return NAN
@@ -194,10 +198,6 @@ def house_elevations_m(view: LabelledView) -> tuple[float, ...] | None:
     (it names no house)."""
     if view.pose is None:
         return None
-    from fenestra.bench.render_adapter import house_path  # noqa: PLC0415
-    from fenestra.errors import SceneError  # noqa: PLC0415
-    from fenestra.scenes.registry import resolve  # noqa: PLC0415
-    from fenestra.scenes.storeys import storey_elevations_m  # noqa: PLC0415
 
     try:
         path = resolve(house_path(view.dataset))
@@ -405,7 +405,6 @@ def true_storeys(view: LabelledView) -> dict[int, int]:
     known house: its sill (its world corners' lowest z, m) on the house's IFC storeys
     (fenestra.scenes.storeys.storey_index); {} for a photo or a house of unknown storeys; a
     window below the ground floor has none."""
-    from fenestra.scenes.storeys import storey_index  # noqa: PLC0415
 
     elevations = house_elevations_m(view)
     if not elevations:
@@ -437,7 +436,7 @@ class ModelEvaluator:
     def process(self, view: LabelledView, result: MethodResult) -> dict[int, dict]:
         if view.pose is None:
             return {}
-        from fenestra.pipeline.photo import written_model  # noqa: PLC0415
+        from fenestra.pipeline.photo import written_model  # noqa: PLC0415 (fenestra.pipeline.photo loads IfcOpenShell, SciPy: imported when first used)
 
         rec = result.rec
         model = written_model(rec)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import io
 import json
 import multiprocessing as mp
 import os
@@ -48,6 +49,11 @@ from fenestra.bench.profiles import Profile
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
 from fenestra.files import IMPORT_ROOT, PACKAGE_DIR, write_bytes
+from fenestra.bench.render_adapter import RenderedViewRef
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn, TimeRemainingColumn
+import numpy as np
+from fenestra import outputs
+from fenestra.renders.dataset import render_dataset
 
 THREADS_PER_WORKER = 1
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -112,7 +118,6 @@ def init_worker(threads: int = THREADS_PER_WORKER) -> None:
 
 def view_tasks(plan: Plan, house: str, dataset_dir: Path, indices: range | None = None) -> list[ViewTask]:
     """ViewTasks of one rendered house (all its views, or the given view indices), in index order."""
-    from fenestra.bench.render_adapter import RenderedViewRef  # noqa: PLC0415
 
     views = sorted(p for p in (Path(dataset_dir) / "views").iterdir() if (p / "view.json").is_file())
     if indices is not None:
@@ -123,7 +128,6 @@ def view_tasks(plan: Plan, house: str, dataset_dir: Path, indices: range | None 
 
 def _progress(enabled: bool):
     """A rich progress bar (a context manager; disabled: prints nothing)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn, TimeRemainingColumn  # noqa: PLC0415
 
     return Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
                     TimeElapsedColumn(), TimeRemainingColumn(), disable=not enabled, transient=False)
@@ -268,7 +272,6 @@ def _index_digest(index: dict) -> str:
 
 def _jsonable(x):
     """numpy scalars and arrays as JSON values (json.dumps default)."""
-    import numpy as np  # noqa: PLC0415
 
     if isinstance(x, np.generic):
         return x.item()
@@ -281,9 +284,8 @@ def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome
     """Write a shard: its rows as Parquet beside the JSON index (sha256 of the Parquet bytes, row
     counts, each view's stage seconds, COCO lists, false-positive and export counts); the index last,
     so it names a complete file."""
-    import io  # noqa: PLC0415
 
-    import pandas as pd  # noqa: PLC0415
+    import pandas as pd  # noqa: PLC0415 (pandas: imported when first used, not at the package's import)
 
     index_path = Path(index_path)
     index_path.parent.mkdir(parents=True, exist_ok=True)
@@ -306,9 +308,8 @@ def write_shard(index_path: str | Path, dataset: str, outcomes: list[ViewOutcome
 def read_shard(index_path: str | Path) -> dict:
     """{"dataset", "outcomes", "render_s"} of a shard written by :func:`write_shard`; ValueError
     naming what does not match (index unreadable, Parquet digest, row counts) or OSError."""
-    import io  # noqa: PLC0415
 
-    import pandas as pd  # noqa: PLC0415
+    import pandas as pd  # noqa: PLC0415 (pandas: imported when first used, not at the package's import)
 
     index_path = Path(index_path)
     try:
@@ -357,7 +358,7 @@ def recognised_shards(run_dir: str | Path, listed: Iterable[str] = ()) -> list[s
     named index whose own digest and rows file's digest check (both files), and a rows file whose
     index was never written (a worker killed between the two) when it is a Parquet file with the
     ``_view`` column. Nothing is unpickled or trusted: a shard is still checked when read."""
-    import pyarrow.parquet as pq  # noqa: PLC0415
+    import pyarrow.parquet as pq  # noqa: PLC0415 (pyarrow: imported when first used, not at the package's import)
 
     folder = Path(run_dir) / SHARD_DIR
     names = {p.name for p in folder.iterdir() if p.is_file() and not p.is_symlink() and SHARD_NAME.fullmatch(p.name)}
@@ -376,7 +377,6 @@ def recognised_shards(run_dir: str | Path, listed: Iterable[str] = ()) -> list[s
 
 def _record_shard(run_dir: str, path: str) -> None:
     """List a finished shard's two files in the run folder's manifest (fenestra.outputs)."""
-    from fenestra import outputs  # noqa: PLC0415
 
     index = Path(path)
     outputs.record(run_dir, [p.relative_to(run_dir).as_posix() for p in (index, index.with_suffix(".parquet"))
@@ -415,7 +415,7 @@ def _ray_map(ray, plan: Plan, shards: list[Shard], n_actors: int) -> Iterator[st
     A shard whose actor dies (killed, out of memory, its node lost) is retried RAY_RETRIES times on
     a fresh actor, with a warning; then FenestraError names the shard. An exception raised by the
     shard's own code propagates as it is."""
-    from ray.exceptions import RayActorError, WorkerCrashedError  # noqa: PLC0415
+    from ray.exceptions import RayActorError, WorkerCrashedError  # noqa: PLC0415 (Ray: imported when first used, not at the package's import)
 
     make = ray.remote(num_cpus=1)(_ShardWorker).remote
     actors = [make() for _ in range(n_actors)]
@@ -461,7 +461,7 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
     """Render and evaluate shards on Ray actors, merge in canonical order (see the module docstring),
     one shard in memory at a time, each outcome passed through ``keep`` (evaluate_local)."""
     try:
-        import ray  # noqa: PLC0415
+        import ray  # noqa: PLC0415 (Ray: imported when first used, not at the package's import)
     except ImportError as e:  # pragma: no cover - ray is a pinned dependency
         raise FenestraError("the ray executor needs the `ray` package (make setup installs it)") from e
 
@@ -495,7 +495,6 @@ def run_ray(plan: Plan, workers: int, progress: bool = True, address: str | None
         raise FenestraError(f"{len(missing)} shard(s) produced no readable result, e.g. {missing[0]}")
     stage_s["cpu.render"] = sum(done[s.out] for s in todo)
     # the dataset-wide files (coco.json) once every shard of a house is there: no view is re-rendered
-    from fenestra.renders.dataset import render_dataset  # noqa: PLC0415
 
     datasets = [(h.house, Path(render_dataset(h.dataset, progress=False))) for h in plan.houses]
     outcomes = []

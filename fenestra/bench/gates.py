@@ -27,6 +27,8 @@ from fenestra.config import read_toml
 from fenestra.errors import FenestraError
 from fenestra.methods import Method, read_methods
 from fenestra.registry import CAPABILITIES
+from fenestra.pipeline.detectors import DETECTORS
+from fenestra.pipeline.snappers import SNAPPERS
 
 DEFAULT_GATES = Path(__file__).parent / "gates.toml"
 
@@ -66,9 +68,7 @@ CAPABILITY_KEYS = ("detector", "snapper", "pose")
 
 def stage_registries() -> tuple:
     """The registries whose capabilities a gate's ``detector``, ``snapper`` and ``pose`` tables test."""
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
-    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
+    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415 (fenestra.pipeline.reconstruct loads SciPy: imported when first used)
 
     return DETECTORS, SNAPPERS, POSES
 

@@ -217,7 +217,7 @@ def adopt_shards(run_dir: Path) -> list[str]:
     (bench.executors.recognised_shards: recognised by name and digest); returns them."""
     if not (run_dir / SHARD_DIR).is_dir():
         return []
-    from fenestra.bench.executors import recognised_shards  # noqa: PLC0415
+    from fenestra.bench.executors import recognised_shards  # noqa: PLC0415 (fenestra.bench.executors loads SciPy, pandas, shapely: imported when first used)
 
     owned = outputs.read_manifest(run_dir) or {}
     found = [f for f in recognised_shards(run_dir, listed=owned) if f not in owned]

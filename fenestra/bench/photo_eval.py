@@ -1,4 +1,4 @@
-"""The K-free single-photo path measured on labelled photos (issue 24 item 7): what a user gets from
+"""The K-free single-photo path measured on labelled photos: what a user gets from
 ``fenestra reconstruct PHOTO`` with no intrinsics, judged against the photo's labels.
 
     from fenestra.bench.photo_eval import KfreeSpec, run_kfree
@@ -7,7 +7,7 @@
 Each LabelledView runs through the session ``fenestra reconstruct`` runs (pipeline.photo.photo_session
 and run_options: the user's method without K, the focal chain with the photo's EXIF), once as it is
 (with the export decision and the model the writer would write: pipeline.photo.written_model) and
-once per transform of issue 24 item 2 (no export: the focal length, detections and walls). A
+once per photo transform (no export: the focal length, detections and walls). A
 transform is a view transform: the image becomes the bytes of a file (bench.photo_transforms.TRANSFORMS),
 which are decoded in memory as the CLI decodes a file, EXIF orientation applied, and whose EXIF
 tags enter the session (bench.photo_transforms.decode); nothing is written. The photos of
@@ -175,7 +175,7 @@ def run_task(task: KfreeTask) -> KfreeRun:
     (bench.photo_transforms.transformed), through ``fenestra reconstruct``'s session without K
     (pipeline.photo.photo_session, run_options); the written model when the run exports. An
     exception is recorded (``error``), not raised."""
-    from fenestra.pipeline.photo import PhotoOptions, photo_session, run_options, written_model  # noqa: PLC0415
+    from fenestra.pipeline.photo import PhotoOptions, photo_session, run_options, written_model  # noqa: PLC0415 (fenestra.pipeline.photo loads IfcOpenShell, SciPy: imported when first used)
 
     storey = task.transform == KNOWN_STOREY
     opts = PhotoOptions(export=task.exports, **({"detector": task.detector} if task.detector else {}),
@@ -362,7 +362,7 @@ def _rows(tasks: list[KfreeTask], workers: int) -> Iterator[dict]:
             except Exception as e:  # noqa: BLE001 - a failed run is a row
                 yield failed_row(t, e)
         return
-    from fenestra.bench.executors import worker_pool  # noqa: PLC0415
+    from fenestra.bench.executors import worker_pool  # noqa: PLC0415 (fenestra.bench.executors loads SciPy, pandas, shapely: imported when first used)
 
     with worker_pool(min(workers, len(tasks))) as pool:
         futures = [pool.submit(task_row, t) for t in tasks]

@@ -19,6 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from fenestra.bench.results import AS_IS
+from PIL import Image
+from fenestra.images import image_from_bytes
+from fenestra.pipeline.intrinsics import read_exif_tags
 
 CROP_PER_SIDE = 0.05  # 10 % of each dimension, centred (the principal point stays at the centre)
 JPEG_QUALITY = 80  # the "re-saved JPEG" transform
@@ -43,7 +46,6 @@ class Photo:
 
 
 def _pil(image: np.ndarray):
-    from PIL import Image  # noqa: PLC0415
 
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -90,7 +92,6 @@ def jpeg(image: np.ndarray, quality: int = JPEG_QUALITY) -> Encoded:
 def exif_rotated(image: np.ndarray) -> Encoded:
     """The pixels turned 90 deg counter-clockwise and stored (lossless PNG) with EXIF orientation
     6, which tells a reader to turn them back: a reader that honours EXIF gets ``image``."""
-    from PIL import Image  # noqa: PLC0415
 
     exif = Image.Exif()
     exif[EXIF_ORIENTATION_TAG] = 6
@@ -111,8 +112,6 @@ def decode(enc: Encoded, what: str = "photo") -> Photo:
     """The :class:`Photo` a user's file of these bytes gives the session: its pixels decoded as
     ``fenestra reconstruct`` decodes a file (fenestra.images.image_from_bytes) and its EXIF tags
     (pipeline.intrinsics.read_exif_tags of the bytes); DatasetError naming ``what`` when undecodable."""
-    from fenestra.images import image_from_bytes  # noqa: PLC0415
-    from fenestra.pipeline.intrinsics import read_exif_tags  # noqa: PLC0415
 
     return Photo(image_from_bytes(enc.data, what), read_exif_tags(io.BytesIO(enc.data)))
 

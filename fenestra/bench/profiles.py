@@ -31,9 +31,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fenestra.config import from_table, read_toml
-from fenestra.conventions import LIMITS
+from fenestra.conventions import DEFAULTS, LIMITS, PAPER
 from fenestra.errors import FenestraError
 from fenestra.methods import Method
+from fenestra.pipeline.detectors import DETECTORS
+from fenestra.pipeline.snappers import SNAPPERS
+from fenestra.renders.backends import RENDERERS
+from fenestra.scenes.registry import BUNDLED
 
 if TYPE_CHECKING:
     from fenestra.bench.real.profile import Datasets
@@ -182,9 +186,7 @@ def config_hash(config: dict) -> str:
 
 def method_registries() -> dict[str, Any]:
     """The registry each ``[methods]`` selector chooses entries of."""
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
-    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
+    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415 (fenestra.pipeline.reconstruct loads SciPy: imported when first used)
 
     return {"detectors": DETECTORS, "snappers": SNAPPERS, "pose_solvers": POSES}
 
@@ -193,7 +195,6 @@ def _resolve(selector: Selector, key: str) -> Selector:
     """A selector with "@cli" / "@paper" replaced by DEFAULTS' / PAPER's entry for ``key``."""
     if isinstance(selector, dict):
         return selector
-    from fenestra.conventions import DEFAULTS, PAPER  # noqa: PLC0415
 
     method = {CLI_TOKEN: DEFAULTS, PAPER_TOKEN: PAPER}
     names = (selector,) if isinstance(selector, str) else tuple(selector)
@@ -220,7 +221,7 @@ def selected(methods: MethodsSpec | Grid, key: str) -> list[str]:
 
 def _conditions(poses: list[str], withhold_K: tuple[bool, ...]) -> list[tuple[str, bool]]:
     """(pose, withhold_K) pairs: K withheld only from the strategies that fit the focal length."""
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
+    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415 (fenestra.pipeline.reconstruct loads SciPy: imported when first used)
 
     return [(p, wk) for wk in withhold_K for p in poses if not wk or POSES[p].fits_focal]
 
@@ -262,7 +263,6 @@ def check_methods(methods: MethodsSpec, where: str) -> None:
 
 def _validate(p: _RenderProfileTable, where: str) -> None:
     """Range checks and registry names, each naming the key and the bad value."""
-    from fenestra.renders.backends import RENDERERS  # noqa: PLC0415
 
     if not p.name:
         raise ProfileError(f"{where}: 'name' must be a non-empty string, got {p.name!r}")
@@ -295,7 +295,6 @@ def _validate(p: _RenderProfileTable, where: str) -> None:
 def _check_counts(p: _RenderProfileTable, where: str) -> None:
     """The profile's counts within fenestra.conventions.LIMITS (procedural houses, views per house,
     views in all); ProfileError naming the key, its value and the bound."""
-    from fenestra.scenes.registry import BUNDLED  # noqa: PLC0415
 
     LIMITS.check("max_procedural_houses", p.scenes.procedural, f"{where}: scenes.procedural", ProfileError)
     LIMITS.check("max_views_per_dataset", p.render.views_per_house, f"{where}: render.views_per_house", ProfileError)

@@ -15,15 +15,19 @@ from fenestra.bench.profiles import Profile, ProfileError
 from fenestra.bench.views import NAN, LabelledView, LabelledWindow
 from fenestra.masks import SparseMask
 from fenestra.rendered_view import View, read_view
+from fenestra.scenes.generate import HouseSpec, make_house
+from fenestra.config import from_table
+from fenestra.renders.base import RenderSettings
+from fenestra.renders.dataset import DatasetConfig
+from fenestra.renders.sampler import SamplerConfig
+from fenestra.renders.sensor import SensorConfig
 
 PROCEDURAL_DIR = Path("out") / "scenes"
 
 
 def procedural_spec(seed: int):
     """A varied procedural house for seed (storeys, windows per wall, rotation drawn from it)."""
-    import numpy as np  # noqa: PLC0415
 
-    from fenestra.scenes.generate import HouseSpec  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
     return HouseSpec(seed=seed, storeys=int(rng.integers(1, 3)), windows_per_wall=int(rng.integers(1, 4)),
@@ -35,7 +39,6 @@ def house_path(house: str) -> str:
     if not house.startswith("procedural:"):
         return house
     seed = int(house.split(":", 1)[1])
-    from fenestra.scenes.generate import make_house  # noqa: PLC0415
 
     p = PROCEDURAL_DIR / f"procedural-{seed}.ifc"
     if not p.is_file():
@@ -50,7 +53,6 @@ OPTION_SECTIONS = ("sampler", "settings", "sensor")
 def _section(cls, opts: dict, where: str):
     """cls from a ``[render.options.*]`` table (fenestra.config.from_table): unknown keys and bad
     values are reported as ProfileError naming them."""
-    from fenestra.config import from_table  # noqa: PLC0415
 
     return from_table(cls, opts, where, ProfileError)
 
@@ -61,10 +63,6 @@ def dataset_config(profile: Profile, house: str, renders_dir: Path):
     ``[render.options.sampler|settings|sensor]`` tables of the profile go to SamplerConfig,
     RenderSettings and SensorConfig; width/height always come from ``[render]``.
     """
-    from fenestra.renders.base import RenderSettings  # noqa: PLC0415
-    from fenestra.renders.dataset import DatasetConfig  # noqa: PLC0415
-    from fenestra.renders.sampler import SamplerConfig  # noqa: PLC0415
-    from fenestra.renders.sensor import SensorConfig  # noqa: PLC0415
 
     render = profile.source.render
     opts = dict(render.options)

@@ -194,8 +194,8 @@ class RowSpool:
         self._flush()
         if not self._shards:
             raise ValueError("no view has a row: no results table to write")
-        import pyarrow as pa  # noqa: PLC0415
-        import pyarrow.parquet as pq  # noqa: PLC0415
+        import pyarrow as pa  # noqa: PLC0415 (pyarrow: imported when first used, not at the package's import)
+        import pyarrow.parquet as pq  # noqa: PLC0415 (pyarrow: imported when first used, not at the package's import)
 
         run_dir = Path(run_dir)
         template = self._template(profile)
@@ -223,7 +223,7 @@ class RowSpool:
 
 def parquet_columns(path: str | Path) -> list[str]:
     """The column names of a Parquet table (its schema; no rows read)."""
-    import pyarrow.parquet as pq  # noqa: PLC0415
+    import pyarrow.parquet as pq  # noqa: PLC0415 (pyarrow: imported when first used, not at the package's import)
 
     return list(pq.read_schema(path).names)
 
@@ -353,7 +353,7 @@ def export_precision(outcomes: list) -> dict[str, dict]:
     detection on an ignore region, a glazed door or curtain-wall glazing, counts as a false export;
     NaN when nothing was exported). Not in the results table: the counts are per detection, and a
     detection on no labelled window has no row."""
-    from fenestra.bench.evaluate import EXPORT_COUNTS  # noqa: PLC0415
+    from fenestra.bench.evaluate import EXPORT_COUNTS  # noqa: PLC0415 (fenestra.bench.evaluate loads SciPy, shapely: imported when first used)
 
     out: dict[str, dict] = {}
     for o in outcomes:
@@ -529,7 +529,7 @@ AS_IS = "as_is"  # the transform name of the photo as given
 KNOWN_STOREY = "known_storey"
 
 
-# issue 35's targets of the K-free block: (summary key, comparison, value, words)
+# the K-free block's targets: (summary key, comparison, value, words)
 KFREE_TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("output_share", ">=", 1.0, "photos with an output"),
     ("export_precision", ">=", 0.95, "exported windows that are labelled windows"),

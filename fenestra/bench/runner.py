@@ -22,7 +22,9 @@ reports/ (reports read bench's tables): the CLI (fenestra/app/cli.py) passes the
 from __future__ import annotations
 
 import gc
+import multiprocessing as mp
 import os
+import resource
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -37,10 +39,14 @@ from fenestra.bench.evaluate import EvalOptions, LoadedView, ViewOutcome, ViewTa
 from fenestra.bench.executors import HousePlan, Keep, Plan, evaluate_local, get_executor
 from fenestra.bench.profiles import ALL, Profile, planned_methods, selected
 from fenestra.bench.views import LabelledView
-from fenestra.errors import FenestraError
+from fenestra.errors import FenestraError, one_line
 from fenestra.methods import Method
 from fenestra.registry import plugin_metadata
 from fenestra.userfiles import utf8_name
+from fenestra.pipeline.detectors import DETECTORS
+from fenestra.scenes.registry import BUNDLED, WILD_PREFIX, is_known, resolve
+from fenestra.bench.render_adapter import dataset_config
+from fenestra import outputs
 
 OUT_ROOT = Path("out")
 LEARNED_DETECTOR_OPTIONS = {"threads": 1}  # one torch thread per worker process
@@ -70,7 +76,6 @@ def available_detectors(names: list[str]) -> tuple[list[str], dict[str, str]]:
     """Detectors that can be built here (learned ones need weights); {skipped: reason}. Each
     learned one is built once and dropped (not kept in the detectors' cache): the workers build
     their own, and the parent process stays small while it gathers the results table."""
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
 
     ok, skipped = [], {}
     for n in names:
@@ -99,7 +104,6 @@ def plan_methods(profile: Profile) -> tuple[tuple[Method, ...], dict[str, str]]:
 
 def house_list(profile: Profile) -> list[str]:
     """Bundled house names of the profile (["all"] expanded), then procedural ones."""
-    from fenestra.scenes.registry import BUNDLED, WILD_PREFIX, is_known, resolve  # noqa: PLC0415
 
     scenes = profile.source.scenes
     houses = list(BUNDLED) if scenes.houses == (ALL,) else list(scenes.houses)
@@ -119,8 +123,6 @@ def make_plan(profile: Profile, methods: tuple[Method, ...], renders_dir: str | 
               run_dir: Path) -> Plan:
     """The executor's plan: each house's dataset config (procedural IFCs generated here), methods,
     evaluation options (learned detectors: one torch thread, full-size images)."""
-    from fenestra.bench.render_adapter import dataset_config  # noqa: PLC0415
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
 
     root = Path(renders_dir) if renders_dir is not None else OUT_ROOT / "renders"
     opts = tuple((d, tuple(LEARNED_DETECTOR_OPTIONS.items()))
@@ -202,7 +204,6 @@ def _sum_stages(outcomes: list[ViewOutcome]) -> dict[str, float]:
 def peak_rss_mb() -> dict[str, float]:
     """Peak resident memory (MB) so far of this process and of its largest finished child (a
     worker of the evaluation's process pool, or the report's process): what bounds a run's memory."""
-    import resource  # noqa: PLC0415
 
     return {who: resource.getrusage(r).ru_maxrss / 1024.0
             for who, r in (("main", resource.RUSAGE_SELF), ("largest_worker", resource.RUSAGE_CHILDREN))}
@@ -211,8 +212,6 @@ def peak_rss_mb() -> dict[str, float]:
 def _report_child(report: ReportWriter, run_dir: Path, conn) -> None:
     """Child side of :func:`report_apart`: run the report (each file listed in the run folder's
     manifest as it is written, fenestra.outputs.listing), send back None or its error's one line."""
-    from fenestra import outputs  # noqa: PLC0415
-    from fenestra.errors import one_line  # noqa: PLC0415
 
     try:
         with outputs.listing(run_dir):
@@ -229,7 +228,6 @@ def report_apart(report: ReportWriter, run_dir: Path) -> None:
     functools.partial of one). The evaluation's memory, which this process's allocator keeps, and
     the report's reading of the results table then never add up in one process (peak RSS bounded
     by the larger of the two). Its failure is raised here as a FenestraError of one line."""
-    import multiprocessing as mp  # noqa: PLC0415
 
     ctx = mp.get_context("spawn")
     recv, send = ctx.Pipe(duplex=False)
@@ -324,7 +322,7 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
         stage_s.update({f"cpu.{k}": v for k, v in _sum_stages(outcomes).items()})
         blocks = {}
         if photos and profile.source.kfree is not None:  # the K-free single-photo path (bench.photo_eval)
-            from fenestra.bench.photo_eval import run_kfree  # noqa: PLC0415
+            from fenestra.bench.photo_eval import run_kfree  # noqa: PLC0415 (fenestra.bench.photo_eval loads pandas, shapely: imported when first used)
 
             blocks["kfree"] = run_kfree(profile.source.kfree, profile.source.kfree_views(), run_dir, progress, workers)
             stage_s["kfree"] = blocks["kfree"]["wall_time_s"]
@@ -333,7 +331,7 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
         if spool.n_rows == 0:
             raise FenestraError(f"profile {profile.name!r}: no labelled window in its views")
         n_rows = spool.n_rows
-        lap = Laps(stage_s, "summarize.")  # the summarize stage's parts (issue 34: summarize + report <= 10 s)
+        lap = Laps(stage_s, "summarize.")  # the summarize stage's parts (summarize + report: a target of 10 s)
         spool.finish(run_dir, profile.name, csv=csv)
         lap("table")
         manifest.write_manifest(run_dir, ev.expected, profile.name, profile.config_hash())
@@ -357,7 +355,7 @@ def run_benchmark(profile: Profile, out_dir: str | Path | None = None, workers: 
         del ev, outcomes  # the views' COCO material: freed before the report reads the table (peak RSS)
         gc.collect()
         if sim_dir is not None:
-            from fenestra.bench.real.simreal import write_simreal  # noqa: PLC0415
+            from fenestra.bench.real.simreal import write_simreal  # noqa: PLC0415 (fenestra.bench.real.simreal loads SciPy, pandas, shapely: imported when first used)
 
             write_simreal(Path(sim_dir), run_dir)
         if report:

@@ -32,15 +32,15 @@ __all__ = ["Known", "PhotoOptions", "PhotoSession", "UserCamera", "reconstruct_p
 
 def __getattr__(name: str):
     if name in ("PhotoOptions", "reconstruct_photo"):
-        import fenestra.pipeline.photo as photo  # noqa: PLC0415
+        import fenestra.pipeline.photo as photo  # noqa: PLC0415 (a cycle: fenestra.pipeline.photo imports this module)
 
         return getattr(photo, name)
     if name in ("PhotoSession", "UserCamera"):
-        import fenestra.pipeline.session as session  # noqa: PLC0415
+        import fenestra.pipeline.session as session  # noqa: PLC0415 (a cycle: fenestra.pipeline.session imports this module)
 
         return getattr(session, name)
     if name == "Known":
-        from fenestra.pipeline.facade_model import Known  # noqa: PLC0415
+        from fenestra.pipeline.facade_model import Known  # noqa: PLC0415 (a cycle: fenestra.pipeline.facade_model imports this module)
 
         return Known
     raise AttributeError(f"module 'fenestra.pipeline' has no attribute {name!r}")

@@ -16,8 +16,12 @@ overlay and the texture) lives in that undistorted image; windows.json says ``"u
 """
 from __future__ import annotations
 
+import csv
+import glob
+import io
 import json
 import re
+import sys
 import time
 from pathlib import Path
 from typing import Optional
@@ -35,6 +39,12 @@ from fenestra.pipeline.readout import PhotoReadout
 from fenestra.pipeline.quad import QUAD_SOURCES
 from fenestra.pipeline.reconstruct import POSES
 from fenestra.pipeline.snappers import SNAPPERS
+from fenestra.pipeline.outdir import held_out
+from fenestra.pipeline.catalogue import get_style
+from fenestra import outputs
+from fenestra.pipeline.intrinsics import calibrate_chessboard, calibration_json
+from fenestra.images import read_image
+from fenestra.pipeline.detectors import DETECTORS
 
 
 def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: Optional[float] = None,
@@ -52,7 +62,6 @@ def run_reconstruct(photo: Path, out: Path, K_json: Optional[Path] = None, fx: O
     wall_thickness: the exported walls' thickness, m (WALL_THICKNESS_RANGE_M). options: the
     PhotoOptions already built from the flags (:func:`photo_options`; the batch builds them once),
     else built here from the option arguments."""
-    from fenestra.pipeline.outdir import held_out  # noqa: PLC0415
 
     if options is None:
         options = photo_options(detector=detector, snapper=snapper, pose=pose, quad_source=quad_source, width=width,
@@ -107,7 +116,6 @@ def option_message(e: OptionError) -> str:
     """A refused PhotoOptions field in the command line's words: its flag (OPTION_FLAGS), what it
     must be and the value given (--wall-thickness: the physical range; --substitute: the
     catalogue's styles)."""
-    from fenestra.pipeline.catalogue import get_style  # noqa: PLC0415
 
     flag = OPTION_FLAGS.get(e.field, e.field)
     if e.field == "wall_thickness_m":
@@ -125,9 +133,6 @@ def run_calibrate(photos: list[Path], pattern: str, square: float, out: Path) ->
     """The `calibrate` command as a function: returns the K.json dict it wrote. ``out`` follows
     fenestra.outputs' rule (checked before any photo is read): never one of the photos, never a
     file Fenestra did not write, never into a folder holding another kind of output."""
-    from fenestra import outputs  # noqa: PLC0415
-    from fenestra.pipeline.intrinsics import calibrate_chessboard, calibration_json  # noqa: PLC0415
-    from fenestra.images import read_image  # noqa: PLC0415
 
     try:
         cols, rows = (int(v) for v in pattern.lower().split("x"))
@@ -150,7 +155,6 @@ def expand_photos(args: list[str]) -> list[Path]:
     """The photos named by command-line arguments, in order, each once: a file as it is, a folder's
     image files (IMAGE_SUFFIXES, sorted), a glob pattern's matches (sorted). PipelineError naming an
     argument that names nothing."""
-    import glob  # noqa: PLC0415
 
     found: list[Path] = []
     for a in args:
@@ -222,8 +226,6 @@ SUMMARY_CSV_COLUMNS = ("photo", "error", "seconds", "cpu_s", "width_px", "height
 
 def summary_csv(rows: list[dict]) -> str:
     """summary.csv: one row per photo, the columns SUMMARY_CSV_COLUMNS (empty where not known)."""
-    import csv  # noqa: PLC0415
-    import io  # noqa: PLC0415
 
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=SUMMARY_CSV_COLUMNS, extrasaction="ignore", lineterminator="\n")
@@ -240,7 +242,6 @@ def run_batch(photos: list[Path], out: Path, kw: dict, inputs: tuple = ()) -> li
     inside the photos, ``inputs`` (the folders named) or K/masks, nor one holding another kind of
     output (a bench run, one photo's reconstruction); summary.json replaces only a summary
     Fenestra wrote. ``out`` is locked while the batch runs."""
-    from fenestra import outputs  # noqa: PLC0415
 
     try:
         outputs.check_out(out, (*inputs, *photos, kw.get("K_json"), kw.get("masks")), kw.get("force", False),
@@ -258,9 +259,7 @@ BATCH_KIND = "batch"  # the kind of output a batch folder is (fenestra.outputs.K
 def _batch(photos: list[Path], out: Path, kw: dict) -> list[dict]:
     """run_batch's body, in a checked and locked ``out``: summary.json and summary.csv claimed up
     front (refused before any photo runs), then each photo into its folder, then the summary."""
-    import sys  # noqa: PLC0415
 
-    from fenestra import outputs  # noqa: PLC0415
 
     def write_summary(rows: list[dict]) -> None:
         outputs.write_owned(out, "summary.json", json.dumps(rows, indent=2).encode(), kind=BATCH_KIND)
@@ -348,7 +347,6 @@ class PlainHelp(TyperCommand):
 
 def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app (choices in the help: from the registries)."""
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
 
     @app.command("reconstruct", cls=PlainHelp)
     def reconstruct_cmd(

@@ -98,7 +98,7 @@ def door_wall(quad: np.ndarray, cut: tuple[str, ...], image_size: tuple[int, int
     """The wall a door's quad (4, 2) px belongs on: the one whose vanishing points its sides point
     at (pipeline.facade_model.partial_wall), else the one whose windows' snapped quads lie nearest
     it in the photo; Unavailable without a wall."""
-    from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415
+    from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415 (fenestra.pipeline.walls.lines loads SciPy: imported when first used)
 
     if not walls:
         return Unavailable("no wall with an exported window to put the door in")

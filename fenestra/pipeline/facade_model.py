@@ -1,5 +1,5 @@
 """From per-window results to a façade model: one wall per façade plane, one scale per wall, and
-the windows a BIM should not get (issue 24 items 3 and 4).
+the windows a BIM should not get.
 
     results, model = facade_model(results, Known(window_height_m=1.4))
     model.walls      # WallModel per wall: members, normal, scale and where it came from
@@ -18,7 +18,7 @@ UPRIGHT_DEG of the façade's vertical (the up axis most walls agree with) and wh
 it agree within those tolerances: walls are vertical, and a wall's own vertical vanishing point is
 noisy (on street photos two fits of one façade differ by 5-13 deg of tilt, under 2 deg of heading).
 
-Robust statistics (issue 35). A wall's scale and the medians its windows are compared with come
+Robust statistics. A wall's scale and the medians its windows are compared with come
 from its *typical* windows (:func:`typical_members`): those of a plausible window shape
 (TYPICAL_ASPECT) that agree with each other in height and shape (within AGREE_RATIO, the largest
 such set), so boxes over shop fronts or two windows at once cannot set the scale and flag the
@@ -32,7 +32,7 @@ wall's plane, or when it stands alone in a plane of its own while the façade ha
 windows (a right-angled side wall shows several). Flagged windows keep their geometry; their
 intervals widen by FLAG_WIDEN.
 
-Partial windows (issue 35). A window cut by the photo's border takes no part in the above: after
+Partial windows. A window cut by the photo's border takes no part in the above: after
 the walls are set, :func:`place_partials` puts its visible part on the wall whose vanishing points
 its own sides point at (PARTIAL_VP_DEG; the nearest such wall in the image), with that wall's pose
 and scale, as the rectangle around its visible part on the wall's plane (:func:`visible_extent`),
@@ -41,7 +41,7 @@ then completed beyond the photo's edge to the size of the whole windows of its r
 or without a row or column to complete it from, it stays a failure: no window is ever exported at
 its visible size.
 
-Rows (issue 35). Last, pipeline.row_lines.regularize_rows gives the windows of each storey row of
+Rows. Last, pipeline.row_lines.regularize_rows gives the windows of each storey row of
 a wall that agree with the row's median sill and head lines exactly those lines (pipeline.session
 runs it after :func:`place_partials`; partial and flagged windows keep their own).
 """
@@ -355,7 +355,7 @@ def facade_model(results: list[WindowResult], known: Known = Known()) -> tuple[l
     return out, FacadeModel(walls, flags)
 
 
-# ---------------------------------------------------------------- windows cut by the photo's border (issue 35)
+# ---------------------------------------------------------------- windows cut by the photo's border
 #
 # A window whose mask reaches the photo's edge has no corners of its own there: its quad, pose and
 # size as a whole window are unknown (the quad stage's ``touches_border``). Its visible part is
@@ -387,8 +387,8 @@ def side_misfit_deg(quad: np.ndarray, sides: tuple[int, ...], R: np.ndarray, K: 
     vanishing points of a wall with axes R (3, 3) (camera frame: the top and bottom sides run along
     R[:, 0], the left and right ones along R[:, 1]) beyond the angle ``noise_px`` (default: the
     wall fit's corner noise) makes on each side's length: the largest over the sides, -inf for none."""
-    from fenestra.pipeline.walls.settings import WALL_FIT  # noqa: PLC0415
-    from fenestra.pipeline.walls.vanishing import side_angles_to_vp  # noqa: PLC0415
+    from fenestra.pipeline.walls.settings import WALL_FIT  # noqa: PLC0415 (fenestra.pipeline.walls.settings loads SciPy: imported when first used)
+    from fenestra.pipeline.walls.vanishing import side_angles_to_vp  # noqa: PLC0415 (fenestra.pipeline.walls.vanishing loads SciPy: imported when first used)
 
     noise = WALL_FIT.corner_noise_px if noise_px is None else noise_px
     q = np.asarray(quad, dtype=np.float64).reshape(4, 2)
@@ -434,7 +434,7 @@ def partial_wall(quad: np.ndarray, cut: tuple[str, ...], image_size: tuple[int, 
     (Unavailable, one line): of the walls whose vanishing points its own sides (:func:`own_sides`) point at
     within PARTIAL_VP_DEG (:func:`side_misfit_deg`; a wall's axes: its first member's R), the
     nearest in the image (to the convex hull of its members' snapped quads)."""
-    from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415
+    from fenestra.pipeline.walls.lines import hull_distance  # noqa: PLC0415 (fenestra.pipeline.walls.lines loads SciPy: imported when first used)
 
     if not walls:
         return Unavailable("no wall of whole windows in the photo to place it on")

@@ -22,6 +22,7 @@ import numpy as np
 from fenestra.checks import check_K
 from fenestra.conventions import LIMITS, make_K
 from fenestra.errors import PipelineError, bounded
+from PIL import Image
 
 
 def K_from_values(fx: float, fy: float | None, cx: float | None, cy: float | None,
@@ -120,7 +121,6 @@ SWAPS_AXES = (5, 6, 7, 8)  # EXIF orientations that rotate by 90 degrees (width 
 def pil_open(path: str | Path):
     """PIL's Image.open without its DecompressionBombWarning (the photo's size was checked before
     decoding: fenestra.images.check_size)."""
-    from PIL import Image  # noqa: PLC0415
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", Image.DecompressionBombWarning)
@@ -130,7 +130,6 @@ def pil_open(path: str | Path):
 
 def photo_orientation(path: str | Path) -> int:
     """EXIF orientation tag (1-8) of an image file; 1 when absent or unreadable."""
-    from PIL import Image  # noqa: PLC0415
 
     try:
         with pil_open(path) as im:
@@ -142,7 +141,6 @@ def photo_orientation(path: str | Path) -> int:
 
 def photo_warnings(path: str | Path) -> list[str]:
     """Problems cv2 decodes through silently: a truncated file (the rest comes out grey)."""
-    from PIL import Image  # noqa: PLC0415
 
     try:
         with pil_open(path) as im:

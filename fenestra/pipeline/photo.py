@@ -16,6 +16,8 @@ both --K and --fx, a K file that does not fit the photo).
 from __future__ import annotations
 
 import json
+import numbers
+import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -31,6 +33,15 @@ from fenestra.pipeline.readout import PhotoReadout, WindowLine, readout, window_
 from fenestra.pipeline.reconstruct import ReconstructConfig
 from fenestra.pipeline.session import Reconstruction
 from fenestra.pipeline.types import Detection, WindowResult
+from fenestra.pipeline.catalogue import CATALOGUE
+from fenestra.pipeline.detectors import DETECTORS
+from fenestra.pipeline.quad import QUAD_SOURCES
+from fenestra.pipeline.snappers import SNAPPERS
+from fenestra.pipeline.io import Camera, K_from_values, fit_camera_to_photo, photo_orientation, read_camera
+from fenestra.images import read_image, read_instances
+from fenestra.pipeline.io import intrinsics_warnings, photo_warnings, undistort_photo
+from fenestra.pipeline.outdir import check_out, staged_dir
+from fenestra.pipeline.intrinsics import gps_from_exif, read_exif_tags
 
 
 WALL_THICKNESS_RANGE_M = (0.01, 2.0)  # a curtain wall's 1 cm to a 2 m fortress wall: outside, a typo or a unit mistake
@@ -78,13 +89,8 @@ def check_options(options: PhotoOptions) -> None:
     detector, snapper, pose, quad_source (registry names), substitute (a catalogue style or
     None), known (a Known), export_all and export (bool), max_pixels (a positive int or None),
     wall_thickness_m (metres in WALL_THICKNESS_RANGE_M)."""
-    import numbers  # noqa: PLC0415
 
-    from fenestra.pipeline.catalogue import CATALOGUE  # noqa: PLC0415
-    from fenestra.pipeline.detectors import DETECTORS  # noqa: PLC0415
-    from fenestra.pipeline.poses import POSES  # noqa: PLC0415
-    from fenestra.pipeline.quad import QUAD_SOURCES  # noqa: PLC0415
-    from fenestra.pipeline.snappers import SNAPPERS  # noqa: PLC0415
+    from fenestra.pipeline.poses import POSES  # noqa: PLC0415 (fenestra.pipeline.poses loads SciPy: imported when first used)
 
     for field, registry in (("detector", DETECTORS), ("snapper", SNAPPERS), ("pose", POSES)):
         v = getattr(options, field)
@@ -173,7 +179,6 @@ class PhotoResult:
 def user_camera(photo: Path, size: tuple[int, int], K_json: Path | None, fx: float | None, fy: float | None,
                 cx: float | None, cy: float | None):
     """(Camera or None, how it was given, warnings) from --K / --fx; PipelineError for both."""
-    from fenestra.pipeline.io import Camera, K_from_values, fit_camera_to_photo, photo_orientation, read_camera  # noqa: PLC0415
 
     if K_json is not None and fx is not None:
         raise PipelineError("give either --K or --fx, not both")
@@ -197,7 +202,7 @@ def photo_session(image: np.ndarray, exif: dict, camera=None, instances: np.ndar
     W, 3) uint8 RGB, its EXIF tags (pipeline.intrinsics.read_exif_tags), the user's camera
     (pipeline.session.UserCamera) or None, an (H, W) instance map (``--masks``: the ``oracle``
     detector reads its crops) or None."""
-    from fenestra.pipeline.session import PhotoSession  # noqa: PLC0415
+    from fenestra.pipeline.session import PhotoSession  # noqa: PLC0415 (fenestra.pipeline.session loads SciPy: imported when first used)
 
     return PhotoSession(image, camera=camera, exif=exif, instances=instances,
                         detector_options={"oracle": {"sparse": True}})  # --masks: crops
@@ -211,7 +216,6 @@ def run_options(session, options: PhotoOptions) -> Reconstruction:
 
 
 def _is_path(v) -> bool:
-    import os  # noqa: PLC0415
 
     return isinstance(v, (str, os.PathLike)) and str(v) != ""
 
@@ -222,7 +226,6 @@ def check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force) -
     values and principal point that are not finite real numbers (fx, fy > 0), options that are not
     a PhotoOptions (whose fields were checked when it was built: :func:`check_options`), a force
     that is not bool. Checked before anything is read or written."""
-    import numbers  # noqa: PLC0415
 
     def bad(name: str, why: str, v) -> PipelineError:
         return PipelineError(f"reconstruct_photo: {name} {why}, got {v!r} ({type(v).__name__})")
@@ -276,10 +279,7 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     a photo or instance map that cannot be decoded is a fenestra.errors.DatasetError (the file
     named). Both are FenestraError.
     """
-    from fenestra.images import read_image, read_instances  # noqa: PLC0415
-    from fenestra.pipeline.io import intrinsics_warnings, photo_warnings, undistort_photo  # noqa: PLC0415
-    from fenestra.pipeline.outdir import check_out, staged_dir  # noqa: PLC0415
-    from fenestra.pipeline.session import UserCamera  # noqa: PLC0415
+    from fenestra.pipeline.session import UserCamera  # noqa: PLC0415 (fenestra.pipeline.session loads SciPy: imported when first used)
 
     options = PhotoOptions() if options is None else options
     check_arguments(photo, out, K_json, fx, fy, cx, cy, masks, options, force)  # PipelineError naming the argument
@@ -294,13 +294,11 @@ def reconstruct_photo(photo: str | Path, out: str | Path | None = None, *, K_jso
     if camera is not None:
         image = undistort_photo(image, camera)  # masks are taken to be in this frame
     instances = None if masks is None else read_instances(Path(masks), size, "--masks instance map")
-    from fenestra.pipeline.intrinsics import read_exif_tags  # noqa: PLC0415
 
     session = photo_session(image, read_exif_tags(photo), None if camera is None else UserCamera(camera.K, how),
                             instances)
     rec = run_options(session, options)
     del session, instances  # export needs neither the gray copies nor the instance map (a 100 Mpx photo: 0.5 GB each)
-    from fenestra.pipeline.intrinsics import gps_from_exif  # noqa: PLC0415
 
     result = PhotoResult(rec, size, tuple(warnings + intrinsics_warnings(rec.K, size)), str(photo), gps_from_exif(photo),
                          bool(camera is not None and camera.has_distortion),
@@ -342,7 +340,7 @@ def reconstruction_json(rec: Reconstruction, image_size: tuple[int, int], warnin
     verifier calls no window, each with its ``kind``, door or signboard: pipeline.doors.Opening),
     ``warnings`` (the photo's, the focal
     chain's), ``geometry_failure``."""
-    from fenestra.pipeline.reconstruct import windows_to_json  # noqa: PLC0415
+    from fenestra.pipeline.reconstruct import windows_to_json  # noqa: PLC0415 (fenestra.pipeline.reconstruct loads SciPy: imported when first used)
 
     model = rec.model
     doc = windows_to_json(rec.results(), K=rec.K, image_size=image_size, config=ReconstructConfig.of(rec.method),
@@ -376,7 +374,7 @@ def written_model(rec: Reconstruction, substitute: str | None = None):
     windows and doors upright and grounded, the export world's vertical, the rows and the floors), as a value,
     nothing written; substitute: the catalogue style ``rec``'s run was given (None: the default;
     its export decision, Window.export, is the model's: not made again)."""
-    from fenestra.pipeline.export import DEFAULT_STYLE, written_model as model_of  # noqa: PLC0415
+    from fenestra.pipeline.export import DEFAULT_STYLE, written_model as model_of  # noqa: PLC0415 (fenestra.pipeline.export loads IfcOpenShell: imported when first used)
 
     return model_of(rec.results(), substitute or DEFAULT_STYLE, rec.not_exported, wall_ids(rec), decided=True,
                     doors=[o.placed for o in rec.openings if o.exported])
@@ -388,8 +386,8 @@ def write_all(out: Path, image: np.ndarray, result: PhotoResult, options: PhotoO
     table); returns the :class:`ExportReport`: an export that fails is recorded, not raised
     (windows.json is still written by the caller). The writers follow the reconstruction's export
     decision (``Window.export``): the windows it keeps out are the writers' ``exclude``."""
-    from fenestra.pipeline.export import write_outputs, write_overlay  # noqa: PLC0415
-    from fenestra.pipeline.export.viewer import write_viewer  # noqa: PLC0415
+    from fenestra.pipeline.export import write_outputs, write_overlay  # noqa: PLC0415 (fenestra.pipeline.export loads IfcOpenShell: imported when first used)
+    from fenestra.pipeline.export.viewer import write_viewer  # noqa: PLC0415 (fenestra.pipeline.export.viewer loads IfcOpenShell: imported when first used)
 
     rec = result.reconstruction
     model, results, decided = rec.model, rec.results(), rec.not_exported

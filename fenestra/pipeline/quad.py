@@ -79,7 +79,7 @@ class QuadParams:
     min_side_own, min_opposite_ratio: a side below ``min_side_frac`` is still accepted when the
         outline points it explains are at least ``min_side_own`` x its expected outline points
         (the side's Chebyshev length: the contour has one point per pixel step) and its length is
-        at least ``min_opposite_ratio`` x the opposite side's (issue 36: thin tall windows, whose
+        at least ``min_opposite_ratio`` x the opposite side's (thin tall windows, whose
         short sides are a few per cent of the outline, more so with rounded corners).
     side_trim: a side shorter than the local fit is refitted to the outline points near it whose
         projection lies between ``side_trim`` and ``1 - side_trim`` of the way between its corners

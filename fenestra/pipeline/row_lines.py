@@ -1,4 +1,4 @@
-"""Row regularization (issue 35): the windows of one storey row of one wall share their sill and
+"""Row regularization: the windows of one storey row of one wall share their sill and
 head lines, as façade models have them.
 
     results, fits = regularize_rows(results, model, K)

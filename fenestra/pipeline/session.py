@@ -17,7 +17,7 @@ plane and one scale per wall: pipeline.facade_model), the windows cut by the pho
 on those walls afterwards (their visible part: pipeline.facade_model.place_partials) and the export
 decision (pipeline.export.export_decision), each stage's value kept in a :class:`Window`.
 
-Partial windows (issue 35). A detection whose mask reaches the photo's edge fails the quad stage
+Partial windows. A detection whose mask reaches the photo's edge fails the quad stage
 (``touches_border``: its corners there are not in the photo), so it takes no part in the geometry,
 the focal chain or the façade model's walls, scales and statistics. Its visible part is then
 fitted with the image edge allowed as a side (pipeline.reconstruct.visible_quads: the mask fit with
@@ -41,7 +41,7 @@ import numpy as np
 from fenestra.errors import PipelineError
 from fenestra.methods import Method
 from fenestra.pipeline.facade_model import FacadeModel, Known, facade_model, place_partials
-from fenestra.pipeline.intrinsics import ResolvedK
+from fenestra.pipeline.intrinsics import choose_focal, exif_focal_of_tags, resolve_K_with, ResolvedK, user_focal
 from fenestra.pipeline.memo import StepMemo
 from fenestra.pipeline.poses import POSES
 from fenestra.pipeline.quad import QuadParams
@@ -50,6 +50,8 @@ from fenestra.pipeline.reconstruct import (ReconstructConfig, failed_results, fi
 from fenestra.pipeline.row_lines import RowFit, regularize_rows
 from fenestra.pipeline.segments import SegmentCache, to_uint8
 from fenestra.pipeline.types import Detection, Failure, Unavailable, WindowResult
+from fenestra.pipeline.aspect import AspectError, aspect_ratio
+from fenestra.pipeline.doors import place_openings
 
 SCORE_MIN = 0.5  # detections a user gets (the detectors' default threshold): reconstructed and exported
 CANDIDATE_SCORE_MIN = 0.05  # detections kept for detection AP (the bench), a superset of the above
@@ -270,7 +272,6 @@ class PhotoSession:
         """pipeline.doors.place_openings of the method's non-window detections: doors on the walls
         of the windows ``exported`` (detection indices), ``final`` the windows as the model holds
         them."""
-        from fenestra.pipeline.doors import place_openings  # noqa: PLC0415
 
         dets = self.non_windows(method.detector)
         if not dets:
@@ -333,7 +334,6 @@ class PhotoSession:
         """The method's intrinsics: the user's K (compared with EXIF) unless the method withholds
         it; else the focal chain (EXIF, the façade's vanishing points with the method's per-wall
         strategy and its snapped quads, the prior). Cached per (detector, snapper, pose, quad)."""
-        from fenestra.pipeline.intrinsics import choose_focal, exif_focal_of_tags, resolve_K_with, user_focal  # noqa: PLC0415
 
         exif = exif_focal_of_tags(self.exif, self.size)
         if self.camera is not None and not method.withhold_K:
@@ -385,7 +385,7 @@ class PhotoSession:
         ``regularize`` False) and the export decision (flagged windows stay out unless export_all;
         style: the catalogue window, None for the default), then the doors and signboards
         (:meth:`openings`)."""
-        from fenestra.pipeline.export import DEFAULT_STYLE, export_decision  # noqa: PLC0415
+        from fenestra.pipeline.export import DEFAULT_STYLE, export_decision  # noqa: PLC0415 (fenestra.pipeline.export loads IfcOpenShell: imported when first used)
 
         g = self.geometry(method, height_m)
         measured, model = facade_model(list(g.results), known)
@@ -421,7 +421,6 @@ def focal_envelope(results: list, K: np.ndarray, interval_px: tuple[float, float
     interval: each posed window's aspect ratio plus the change of its quad's closed-form aspect
     ratio (pipeline.aspect.aspect_ratio, Zhang & He with K) from K's focal length to each end (ms
     per window, no refit). {} when the interval is a single value (the user's K)."""
-    from fenestra.pipeline.aspect import AspectError, aspect_ratio  # noqa: PLC0415
 
     lo, hi = interval_px
     if not hi > lo:

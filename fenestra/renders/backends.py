@@ -18,6 +18,8 @@ from fenestra.renders.base import RenderOutput, RenderSettings
 from fenestra.renders.camera import Camera
 from fenestra.renders.gt import WindowView
 from fenestra.scenes.model import Scene
+from fenestra.renders.raster import RasterRenderer
+from fenestra.renders.photoreal import PhotorealRenderer
 
 
 class Renderer(Protocol):
@@ -47,13 +49,11 @@ class RendererEntry:
 
 
 def _pyrender(scene: Scene, settings: RenderSettings, like: Renderer | None = None) -> Renderer:
-    from fenestra.renders.raster import RasterRenderer
 
     return RasterRenderer(scene, settings, like)
 
 
 def _mitsuba(scene: Scene, settings: RenderSettings, like: Renderer | None = None) -> Renderer:
-    from fenestra.renders.photoreal import PhotorealRenderer
 
     return PhotorealRenderer(scene, settings, like)
 

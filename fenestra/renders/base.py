@@ -30,7 +30,7 @@ class RenderSettings:
     antialias: str = "fxaa"  # raster: "fxaa" (post filter, fast), "msaa4" (4x multisampling, ~2.5x slower), "none"
     # "set": one look (palette, textures, sun, sky) drawn from the seed for every view of a render set (as
     # always; folders unchanged); "view": each view of a dataset draws its own look from its own random
-    # stream (renders.dataset.view_settings), so no figure rests on one random look per house (issue #36)
+    # stream (renders.dataset.view_settings), so no figure rests on one random look per house
     look_per: str = "set"
 
     def __post_init__(self) -> None:

@@ -10,17 +10,17 @@ from __future__ import annotations
 import json
 
 import typer
+from fenestra.config import choices
+from fenestra.conventions import LIMITS
+from fenestra.renders.backends import RENDERERS
+from fenestra.renders.base import DENOISERS, LOOK_PER, LOOKS, RenderSettings
+from fenestra.renders.dataset import DatasetConfig
+from fenestra.renders.sampler import SamplerConfig
 
 
 def register(app: typer.Typer) -> None:
     """Add this stage's commands to the top-level app (defaults from the config dataclasses, choices
     from the registries)."""
-    from fenestra.config import choices  # noqa: PLC0415
-    from fenestra.conventions import LIMITS  # noqa: PLC0415
-    from fenestra.renders.backends import RENDERERS  # noqa: PLC0415
-    from fenestra.renders.base import DENOISERS, LOOK_PER, LOOKS, RenderSettings  # noqa: PLC0415
-    from fenestra.renders.dataset import DatasetConfig  # noqa: PLC0415
-    from fenestra.renders.sampler import SamplerConfig  # noqa: PLC0415
 
     D, S, R = DatasetConfig("-"), SamplerConfig(), RenderSettings()
 

@@ -12,7 +12,7 @@ backend draws must bump FORMAT_VERSION (or the cached views are reused as they a
 regions (renders.gt: curtain-wall glazing, glazed doors) came later without a bump: every view.json
 now lists ``ignore`` (maybe empty); a cached view without the key gets them from the occluder pass
 alone (ignore.png and view.json added, image and instances untouched: they are the same).
-Looks (issue #36): ``settings.look_per = "set"`` draws one look from the seed for every view (as
+Looks: ``settings.look_per = "set"`` draws one look from the seed for every view (as
 always); ``"view"`` gives each view its own look, drawn from its own stream (:func:`view_settings`),
 rendered by a renderer built for that look, and recorded in its view.json (``look``). Python API:
 :func:`render_dataset`; read a view with fenestra.rendered_view.read_view.
@@ -25,6 +25,7 @@ import hashlib
 import json
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +41,9 @@ from fenestra.renders.base import RenderSettings
 from fenestra.renders.sampler import SamplerConfig, ViewSpec, iter_views
 from fenestra.renders.sensor import SensorConfig, apply_sensor
 from fenestra.scenes.model import Scene
+from fenestra.scenes import load_scene
+from fenestra.renders.camera import Camera
+from rich.progress import track
 
 FORMAT_VERSION = 2  # 2: GL raster backend rewrite (shader shadows, per-pixel sky, FXAA default)
 LOOK_STREAM = 0x6C6F6F6B  # "look": a per-view look's stream, [seed, view, LOOK_STREAM] (the sensor's is [seed, view])
@@ -128,7 +132,6 @@ def view_coco(i: int, view: View) -> tuple[tuple[str, int, int], list[dict]]:
 
 
 def _load_scene(config: DatasetConfig) -> Scene:
-    from fenestra.scenes import load_scene
 
     return load_scene(config.scene)
 
@@ -282,7 +285,6 @@ class ViewWriter:
     (leaving it waits for the pending writes)."""
 
     def __init__(self, depth: int = 2):
-        from concurrent.futures import ThreadPoolExecutor  # noqa: PLC0415
 
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="view-writer")
         self._pending: list = []
@@ -319,7 +321,6 @@ def _write_view(i: int, view_dir: Path, view: View) -> tuple[tuple, list[dict]]:
 def add_ignore_regions(scene: Scene, view_dirs: list[Path]) -> None:
     """Give views rendered before the renderers drew ignore regions their ignore.png and view.json
     ``ignore`` list, from the exact occluder pass of each view's camera (no RGB rendering)."""
-    from fenestra.renders.camera import Camera  # noqa: PLC0415
     from fenestra.renders.raster import OccluderPass, ground_truth  # noqa: PLC0415 - GL
 
     occ = OccluderPass(scene)
@@ -345,6 +346,5 @@ def _progress(items, enabled: bool, label: str, total: int | None = None):
     if not enabled:
         yield from items
         return
-    from rich.progress import track
 
     yield from track(items, description=label, total=total)

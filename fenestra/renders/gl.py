@@ -43,8 +43,8 @@ class GLContext:
         self.osr._platform.make_current()
 
     def program(self, name: str) -> int:
-        from OpenGL.GL import GL_FRAGMENT_SHADER, GL_VERTEX_SHADER
-        from OpenGL.GL.shaders import compileProgram, compileShader
+        from OpenGL.GL import GL_FRAGMENT_SHADER, GL_VERTEX_SHADER  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
+        from OpenGL.GL.shaders import compileProgram, compileShader  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         if name not in self._programs:
             vs, fs = {"mesh": (MESH_VS, MESH_FS), "code": (CODE_VS, CODE_FS), "sky": (SKY_VS, SKY_FS),
@@ -71,7 +71,7 @@ def _close_shared_context() -> None:
 
 def uniform(prog: int, name: str):
     """Location of a uniform in a program."""
-    from OpenGL.GL import glGetUniformLocation
+    from OpenGL.GL import glGetUniformLocation  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     return glGetUniformLocation(prog, name)
 
@@ -82,7 +82,7 @@ class Geometry:
     base rgb)`` in list order."""
 
     def __init__(self, positions, uvs, colours, indices, ranges):
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         self.vao = GL.glGenVertexArrays(1)
         GL.glBindVertexArray(self.vao)
@@ -102,7 +102,7 @@ class Geometry:
         self.textures: list[int] = []
 
     def draw(self, prog: int | None = None) -> None:
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         GL.glBindVertexArray(self.vao)
         for first, count, tex, base in self.ranges:
@@ -115,7 +115,7 @@ class Geometry:
         GL.glBindVertexArray(0)
 
     def delete(self) -> None:
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         GL.glDeleteBuffers(len(self.buffers), self.buffers)
         GL.glDeleteVertexArrays(1, [self.vao])
@@ -126,7 +126,7 @@ class Geometry:
 def texture_rgb(img: np.ndarray) -> int:
     """Upload an (H, W, 3) uint8 texture, mipmapped and repeating (pyrender's orientation: row 0 of
     the image at v = 1)."""
-    from OpenGL import GL
+    from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     tex = GL.glGenTextures(1)
     GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
@@ -144,7 +144,7 @@ def texture_rgb(img: np.ndarray) -> int:
 
 def texture_u16(img: np.ndarray) -> int:
     """Upload an (H, W) uint16 map as a nearest-sampled R16 texture (texel (x, y) = img[y, x])."""
-    from OpenGL import GL
+    from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     tex = GL.glGenTextures(1)
     GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
@@ -179,7 +179,7 @@ class Framebuffers:
     def bind(self, width: int, height: int, samples: int = 0, target=None, texture: bool = False,
              tag: str = "") -> int:
         """Bind (creating it if needed) the framebuffer of this size, kind and user tag; return it."""
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         key = (width, height, samples, texture, tag)
         if key not in self._fbs:
@@ -216,7 +216,7 @@ class Framebuffers:
     def copy_depth(self, src: int, dst: int, width: int, height: int) -> None:
         """Copy the depth-stencil buffer of framebuffer ``src`` into ``dst`` (both single-sampled,
         this size) bit for bit (glCopyImageSubData: a blit would convert the depth values)."""
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         rb = {fb: rbs[1] for fb, rbs, _ in self._fbs.values()}
         GL.glCopyImageSubData(rb[src], GL.GL_RENDERBUFFER, 0, 0, 0, 0, rb[dst], GL.GL_RENDERBUFFER, 0, 0, 0, 0,
@@ -228,7 +228,7 @@ class Framebuffers:
 
     def delete(self, keep: tuple[int, int] | None = None) -> None:
         """Delete the framebuffers (but those of size ``keep``)."""
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         for key in [k for k in self._fbs if k[:2] != keep]:
             fb, rbs, tex = self._fbs.pop(key)
@@ -248,7 +248,7 @@ def begin(width: int, height: int, prepass: bool = False) -> None:
     GL_EQUAL without depth writes, and the stencil lets only the first fragment that passes it
     colour a pixel, as GL_LESS does where coplanar faces tie. Each pixel is then shaded once
     (:func:`end_prepass` after the triangles)."""
-    from OpenGL import GL
+    from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     GL.glViewport(0, 0, width, height)
     GL.glEnable(GL.GL_DEPTH_TEST)
@@ -273,7 +273,7 @@ def begin(width: int, height: int, prepass: bool = False) -> None:
 
 def end_prepass() -> None:
     """Back to begin()'s plain state after triangles drawn against a copied depth (depth_from)."""
-    from OpenGL import GL
+    from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     GL.glDisable(GL.GL_STENCIL_TEST)
     GL.glDepthFunc(GL.GL_LESS)
@@ -282,7 +282,7 @@ def end_prepass() -> None:
 
 def read_rgba(width: int, height: int, channels: int = 4) -> np.ndarray:
     """(H, W, channels) uint8 of the bound read framebuffer, top row first."""
-    from OpenGL import GL
+    from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
     fmt = GL.GL_RGBA if channels == 4 else GL.GL_RGB
@@ -292,7 +292,7 @@ def read_rgba(width: int, height: int, channels: int = 4) -> np.ndarray:
 
 def read_depth(width: int, height: int) -> np.ndarray:
     """(H, W) float32 window depth in [0, 1] of the bound read framebuffer, top row first."""
-    from OpenGL import GL
+    from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 4)
     buf = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)

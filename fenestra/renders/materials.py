@@ -317,7 +317,7 @@ def glass_faces(vertices: np.ndarray, faces: np.ndarray, normal: np.ndarray, max
     A pane is a connected component thinner than ``max_thickness_m`` along the window normal
     with at least ``min_area_m2`` of faces facing along it; everything else is frame.
     """
-    import trimesh
+    import trimesh  # noqa: PLC0415 (trimesh: imported when first used, not at the package's import)
 
     tm = trimesh.Trimesh(vertices, faces, process=False)
     tm.merge_vertices()

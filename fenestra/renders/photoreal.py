@@ -35,7 +35,7 @@ def import_mitsuba(variant: str = "auto"):
             if Path(p).exists():
                 os.environ["DRJIT_LIBLLVM_PATH"] = p
                 break
-    import mitsuba as mi  # noqa: PLC0415
+    import mitsuba as mi  # noqa: PLC0415 (mitsuba: imported when first used, not at the package's import)
 
     if variant != "auto":
         if variant not in mi.variants():
@@ -103,7 +103,7 @@ def oidn_denoise(color: np.ndarray, albedo: np.ndarray | None = None,
                  normal: np.ndarray | None = None) -> np.ndarray:
     """Open Image Denoise (RT filter, hdr, quality "high") of linear radiance (H, W, 3), optionally
     guided by albedo (H, W, 3) in [0, 1] and normals (H, W, 3) in [-1, 1] (noisy: OIDN prefilters them)."""
-    import pyoidn  # noqa: PLC0415
+    import pyoidn  # noqa: PLC0415 (pyoidn: imported when first used)
 
     f32 = lambda a, lo, hi: None if a is None else np.ascontiguousarray(np.clip(a, lo, hi), np.float32)  # noqa: E731
     return pyoidn.denoise(f32(color, 0.0, None), f32(albedo, 0.0, 1.0), f32(normal, -1.0, 1.0),

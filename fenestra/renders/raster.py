@@ -101,7 +101,7 @@ class OccluderPass:
     """
 
     def __init__(self, scene: Scene, triangles: tuple[np.ndarray, np.ndarray] | None = None):
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         self.scene = scene
         self.users = 1  # the renderers drawing with this pass (:meth:`share`); the last close() frees it
@@ -144,7 +144,7 @@ class OccluderPass:
 
     def _draw(self, PV: np.ndarray, width: int, height: int) -> int:
         """Issue the pass (GL renders it asynchronously); return its framebuffer."""
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         gl = self._gl
         gl.make_current()
@@ -200,7 +200,7 @@ class OccluderPass:
 
         pose: 4x4 OpenGL camera-to-world (looks along its -z); covers +-half_extent m.
         """
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         n, f = 0.01, far
         P = np.zeros((4, 4))
@@ -241,7 +241,7 @@ class OccluderPass:
 def read_occluder_pass(fb: int, W: int, H: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read a finished occluder pass (colour + depth of ``fb``): depth (H, W) float32 m
     (0 = nothing), element codes (H, W) int32 (-1 = nothing), B channel uint8."""
-    from OpenGL import GL
+    from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
     GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb)
     col = read_rgba(W, H)
@@ -362,7 +362,7 @@ class RasterRenderer:
     name = "pyrender"
 
     def __init__(self, scene: Scene, settings: RenderSettings = RenderSettings(), like: "RasterRenderer | None" = None):
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         self.scene, self.settings = scene, settings
         rng = np.random.default_rng(settings.seed)
@@ -418,7 +418,7 @@ class RasterRenderer:
         return self._read_rgb(camera, self._draw_rgb(camera, prepass))
 
     def _read_rgb(self, camera: Camera, fb: int) -> np.ndarray:
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         canvas = camera.canvas()
         self._gl.make_current()
@@ -439,7 +439,7 @@ class RasterRenderer:
         """Issue the triangles and the sky of ``camera.canvas()``'s RGB pass (GL draws them
         asynchronously); return their framebuffer. Single-sampled, the occluder pass's depth (the
         same triangles in the same order) is its depth pre-pass unless ``prepass`` is False."""
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         gl, look, sh, aa = self._gl, self.look, self.shadow, self.settings.antialias
         canvas = camera.canvas()
@@ -494,7 +494,7 @@ class RasterRenderer:
     def _antialias(self, camera: Camera, fb: int) -> int:
         """Resolve (msaa4) or post-filter (fxaa) the issued RGB pass in ``fb``; return the
         framebuffer to read the image from."""
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         gl, aa = self._gl, self.settings.antialias
         canvas = camera.canvas()
@@ -541,7 +541,7 @@ class RasterRenderer:
                             ign if regions else None, regions)
 
     def close(self) -> None:
-        from OpenGL import GL
+        from OpenGL import GL  # noqa: PLC0415 (PyOpenGL: imported when first used, not at the package's import)
 
         if self._geom is not None:
             self._gl.make_current()

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import hashlib
 import html as html_lib
 import json
 import math
@@ -209,7 +210,6 @@ FIGURE_COLUMNS = {  # what each figure reads: its digest hashes these columns on
 def _digest(*parts) -> str:
     """sha256 of the plotting code (fenestra/reports/plots.py) and the figure's inputs (tables hashed by
     their values, index and column names; anything else by repr)."""
-    import hashlib  # noqa: PLC0415
 
     h = hashlib.sha256(Path(plots.__file__).read_bytes())
     for x in parts:

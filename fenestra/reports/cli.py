@@ -15,7 +15,7 @@ import typer
 
 def write_report(run_dir: Path, real_dir: Path | None = None) -> tuple[Path, Path]:
     """reports.build.build_report, imported when called (matplotlib stays out of CLI start-up)."""
-    from fenestra.reports.build import build_report  # noqa: PLC0415
+    from fenestra.reports.build import build_report  # noqa: PLC0415 (fenestra.reports.build loads SciPy, matplotlib, pandas, shapely: imported when first used)
 
     return build_report(run_dir, real_dir=real_dir)
 
@@ -39,7 +39,7 @@ def compare(run_a: Path = typer.Argument(..., help="the baseline run folder"),
     of corner, aspect and rotation error, the paired Wilcoxon test, the share of windows better and
     worse, the windows that changed most; exit 1 on a significant regression of the gated method
     (median worse by more than fenestra/tolerances.py's compare_* tolerance, p < 0.01)."""
-    from fenestra.reports import compare as cmp  # noqa: PLC0415
+    from fenestra.reports import compare as cmp  # noqa: PLC0415 (fenestra.reports.compare loads SciPy, pandas, shapely: imported when first used)
 
     if top < 0:
         raise ValueError(f"--top must be >= 0, got {top}")

@@ -287,7 +287,7 @@ def text(c: Comparison) -> str:
 
 def _scatter(c: Comparison, path: Path) -> Path | None:
     """Corner error in A against B for the focus method's paired windows (log axes, diagonal)."""
-    import matplotlib.pyplot as plt  # noqa: PLC0415
+    import matplotlib.pyplot as plt  # noqa: PLC0415 (matplotlib: imported when first used, not at the package's import)
 
     col = METRICS[0].column
     a, b = c.pairs[col + "_a"].to_numpy(float), c.pairs[col + "_b"].to_numpy(float)
@@ -311,7 +311,7 @@ def _scatter(c: Comparison, path: Path) -> Path | None:
 def write_html(c: Comparison, path: str | Path) -> Path:
     """A self-contained page like report.html: the verdict and the figure first, then the tables
     (folded)."""
-    from fenestra.reports.build import to_html  # noqa: PLC0415
+    from fenestra.reports.build import to_html  # noqa: PLC0415 (fenestra.reports.build loads SciPy, matplotlib, pandas, shapely: imported when first used)
 
     path = Path(path)
     with tempfile.TemporaryDirectory() as tmp:

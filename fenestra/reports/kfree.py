@@ -86,7 +86,7 @@ def photo_rows(df: pd.DataFrame) -> tuple[list[str], list[list]]:
     return header, rows
 
 
-# what the figures added by issue 35 measure (also markdown's K-free paragraph)
+# what the K-free figures measure (also markdown's K-free paragraph)
 KFREE_NOTES = ("Export recall: labelled windows whose box matches an exported window's (partial windows, cut by the "
                "photo's border, included). Over {m:g} m: exported windows wider or taller than {m:g} m "
                "(facade_model.MAX_WINDOW_M) on the runs without --known-*. Wall count under the transforms: a photo "

@@ -38,7 +38,7 @@ LINESTYLES = ("-", "--", ":", "-.")
 
 def main_pose(df: pd.DataFrame) -> str:
     """The pose column the curves and snapper rankings show: the pose with the most (detector,
-    snapper) pairs (a designed profile compares snappers under the CLI's pose: issue 34); among
+    snapper) pairs (a designed profile compares snappers under the CLI's pose); among
     equals the paper's solver (fenestra.conventions.PAPER), then the CLI's (DEFAULTS), then by
     name. PAPER's pose for a table with no row (nothing to show)."""
     if df.empty:

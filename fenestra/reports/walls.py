@@ -17,7 +17,7 @@ PER_WINDOW = PAPER.pose  # the reference of the comparisons: the paper's per-win
 def wall_poses(df: pd.DataFrame) -> list[str]:
     """The per-wall strategies (capability ``per_wall`` of pipeline.reconstruct.POSES) present, with
     K given, in a results table."""
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
+    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415 (fenestra.pipeline.reconstruct loads SciPy: imported when first used)
 
     return [p for p in POSES.where(per_wall=True) if (df["pose"] == p).any()]
 
@@ -26,7 +26,7 @@ def without_lines(pose: str, poses: list[str]) -> str | None:
     """The per-wall strategy of ``poses`` that is ``pose`` without the façade's line segments (its
     WallParams with ``lines`` and ``snap_sigma`` off), or None (``pose`` uses no lines, or that
     strategy is not there)."""
-    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415
+    from fenestra.pipeline.reconstruct import POSES  # noqa: PLC0415 (fenestra.pipeline.reconstruct loads SciPy: imported when first used)
 
     w = POSES[pose].wall
     if w is None or not w.lines:

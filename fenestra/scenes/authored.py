@@ -4,7 +4,7 @@
     >>> windows = terrace_house("out/authored-terrace.ifc")   # tuple of generate.ExpectedOpening
     >>> windows[0].corners_world                              # (4, 3) m, TL TR BR BL from outside
 
-Why (issue 36; docs DESIGN.md, "held out means held out by family"): ``fenestra.scenes.generate``
+Why (docs DESIGN.md, "held out means held out by family"): ``fenestra.scenes.generate``
 made the procedural training houses, so its outputs are "same generator", not unseen families.
 Every element of these two houses is placed here by hand (``ifcopenshell.api``), with construction
 the generator never makes, and no training script renders them (tests/scenes/test_scenes_authored.py
@@ -274,14 +274,14 @@ class _Ifc:
 
 
 def _api(*args, **kwargs):
-    import ifcopenshell.api
+    import ifcopenshell.api  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     return ifcopenshell.api.run(*args, **kwargs)
 
 
 def _new_file(plan: Plan) -> _Ifc:
     """Project, units, contexts, site/building, the plan's storeys and styles."""
-    import ifcopenshell
+    import ifcopenshell  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     f = ifcopenshell.file(schema="IFC4")
     project = _api("root.create_entity", f, ifc_class="IfcProject", name=plan.name)

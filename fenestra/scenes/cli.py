@@ -8,13 +8,19 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 import typer
 
 from fenestra import outputs
-from fenestra.scenes.generate import HouseSpec
+from fenestra.scenes.generate import HouseSpec, make_house
+from fenestra.scenes.loader import load_scene
+from fenestra.scenes.registry import BUNDLED
+from rich.console import Console
+from rich.table import Table
+from fenestra.scenes.authored import AUTHORED
 
 scenes_app = typer.Typer(no_args_is_help=True, help="IFC houses and their window ground truth.")
 
@@ -49,8 +55,6 @@ def census_line(census: dict) -> str:
 @scenes_app.command("list")
 def list_cmd(json_out: bool = typer.Option(False, "--json", help="print JSON")) -> None:
     """Bundled houses with schema, window and skipped-window counts (loads each, cached)."""
-    from fenestra.scenes.loader import load_scene
-    from fenestra.scenes.registry import BUNDLED
 
     rows = []
     for name, path in BUNDLED.items():
@@ -61,8 +65,6 @@ def list_cmd(json_out: bool = typer.Option(False, "--json", help="print JSON")) 
     if json_out:
         typer.echo(json.dumps(rows, indent=1))
         return
-    from rich.console import Console
-    from rich.table import Table
 
     t = Table(title="Bundled houses (fenestra/scenes/ifc, see SOURCES.md)")
     for col in ("name", "file", "schema", "windows", "skipped", "meshes"):
@@ -79,14 +81,11 @@ def show_cmd(scene: str = typer.Argument(..., help="bundled name or path to an .
                                          "measured instead of skipping it")) -> None:
     """The census (windows present, extracted by source, skipped by cause), every window's void
     rectangle (id, host, width, height, normal, corners) and each skipped window's reason."""
-    from fenestra.scenes.loader import load_scene
 
     summary = scene_summary(load_scene(scene, strict=strict))
     if json_out:
         typer.echo(json.dumps(summary, indent=1))
         return
-    from rich.console import Console
-    from rich.table import Table
 
     t = Table(title=f"{summary['name']} ({summary['schema']}): {len(summary['windows'])} windows")
     for col in ("id", "host", "w (m)", "h (m)", "shape", "source", "normal", "TL corner (m)"):
@@ -138,7 +137,6 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
              json_out: bool = typer.Option(False, "--json", help="print the expected GT as JSON"),
              ) -> None:
     """Write a procedural IFC4 house with known window voids; print its expected ground truth."""
-    from fenestra.scenes.generate import make_house
 
     kw = {} if footprint is None else {"footprint": tuple(parse_footprint(footprint))}
     spec = HouseSpec(seed=seed, storeys=storeys, rotation_deg=rotation_deg,
@@ -161,7 +159,6 @@ def make_cmd(out: Path = typer.Argument(..., help="output .ifc path"),
 def author_cmd(out_dir: Path = typer.Argument(..., help="folder for the .ifc files (created)")) -> None:
     """Write the hand-authored held-out houses (authored-terrace, authored-studio) into OUT_DIR;
     `fenestra scenes author fenestra/scenes/ifc` regenerates the bundled copies."""
-    from fenestra.scenes.authored import AUTHORED
 
     for file, _ in AUTHORED.values():  # every file checked before any is written
         outputs.check_file(out_dir / file)
@@ -174,7 +171,6 @@ def write_scene(path: Path, write):
     """``write(tmp)``'s result, the IFC file it wrote at a temporary name moved to ``path`` under
     fenestra.outputs' rule (never over a file Fenestra did not write; listed in the folder's
     manifest), with ``path`` in place of the temporary name where the result records it."""
-    import dataclasses  # noqa: PLC0415
 
     made = []
     outputs.write_file(path, lambda tmp: made.append(write(tmp)))

@@ -46,6 +46,7 @@ above the storey's floor. Doors and curtain-wall voids are recorded the same way
 from __future__ import annotations
 
 import contextlib
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
@@ -579,9 +580,8 @@ IFC_TIMESTAMP = "2000-01-01T00:00:00"  # the header's time stamp: not the time o
 def _seeded_guids(seed: int) -> Iterator[None]:
     """Within the block, ifcopenshell.guid.new draws GlobalIds from a generator seeded by ``seed``,
     so a spec always gives the same window ids (results tables comparable across clones)."""
-    import uuid
 
-    import ifcopenshell.guid
+    import ifcopenshell.guid  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     rng = np.random.default_rng([seed, 11])
     original = ifcopenshell.guid.new
@@ -605,8 +605,8 @@ def make_house(spec: HouseSpec, out_path: str | Path, schema: str = "IFC4") -> G
 
 
 def _make_house(spec: HouseSpec, out_path: str | Path, schema: str = "IFC4") -> GeneratedHouse:
-    import ifcopenshell
-    import ifcopenshell.api
+    import ifcopenshell  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
+    import ifcopenshell.api  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     if spec.storeys < 1 or spec.windows_per_wall < 0:
         raise ValueError(f"storeys must be >= 1 and windows_per_wall >= 0, got "

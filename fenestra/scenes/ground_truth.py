@@ -280,10 +280,10 @@ def section_outline(op_vertices: np.ndarray, op_faces: np.ndarray, normal: np.nd
     Sections the opening mesh at the face (or CAP_INSET_M inside it when the opening's cap lies on
     the face) and returns the largest polygon, collinear vertices removed, counter-clockwise.
     """
-    import shapely
-    import trimesh
-    from shapely.geometry import MultiLineString
-    from shapely.ops import polygonize
+    import shapely  # noqa: PLC0415 (shapely: imported when first used, not at the package's import)
+    import trimesh  # noqa: PLC0415 (trimesh: imported when first used, not at the package's import)
+    from shapely.geometry import MultiLineString  # noqa: PLC0415 (shapely: imported when first used, not at the package's import)
+    from shapely.ops import polygonize  # noqa: PLC0415 (shapely: imported when first used, not at the package's import)
 
     depth = op_vertices @ normal
     if depth.max() < d_face - SHORT_SLACK_M:
@@ -396,7 +396,7 @@ def void_on_wall(op_vertices: np.ndarray, op_faces: np.ndarray, wall_vertices: n
 
 def _opening_vertices(opening, settings, cache: dict[str, np.ndarray]) -> np.ndarray | None:
     """World vertices (N, 3) of an opening's body (cached by GlobalId); None without geometry."""
-    import ifcopenshell.geom
+    import ifcopenshell.geom  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     if opening.GlobalId not in cache:
         try:
@@ -444,7 +444,7 @@ def _fill_source(win, meshes: dict[str, ElementMesh], settings) -> VoidSource:
     """Source ``fill``: the window's IfcRelFillsElement opening and the wall it voids.
 
     Raises NotInWall (final: a roof window) or SourceError (try the geometric sources)."""
-    import ifcopenshell.geom
+    import ifcopenshell.geom  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     if not win.FillsVoids:
         raise SourceError("fills no opening (no IfcRelFillsElement)")
@@ -473,7 +473,7 @@ class NotInWall(Exception):
 
 def placement_origin(win, scale: float) -> np.ndarray:
     """World position (3,) m of a product's ObjectPlacement origin (zeros when it has none)."""
-    import ifcopenshell.util.placement
+    import ifcopenshell.util.placement  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     if win.ObjectPlacement is None:
         return np.zeros(3)
@@ -542,7 +542,7 @@ def windows_ground_truth(ifc_file, meshes: dict[str, ElementMesh], label: str, g
     meshes: GlobalId -> ElementMesh (hosts already cut). label names the file in messages. Every
     window is either in the first list or in the second with a one-line reason naming it.
     """
-    import ifcopenshell.util.unit
+    import ifcopenshell.util.unit  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     scale = ifcopenshell.util.unit.calculate_unit_scale(ifc_file)
     tris = TriangleCones.of(scene_triangles(meshes))

@@ -64,7 +64,7 @@ def open_ifc(path: Path):
     SceneError (one line, naming the file) for a non-IFC, truncated, unreadable file or a schema
     other than SUPPORTED_SCHEMAS (IFC2X_FINAL and older).
     """
-    import ifcopenshell
+    import ifcopenshell  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     path = Path(path)
     _check_envelope(path)
@@ -106,7 +106,7 @@ def repair_derived(ifc_file, data: bytes) -> int:
     data: the file's bytes (only instances with a ``*`` argument are looked at, so this costs
     milliseconds on files that have none).
     """
-    import ifcopenshell.ifcopenshell_wrapper as wrapper
+    import ifcopenshell.ifcopenshell_wrapper as wrapper  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     schema = wrapper.schema_by_name(getattr(ifc_file, "schema_identifier", ifc_file.schema))
     n = 0

@@ -25,6 +25,7 @@ import json
 import multiprocessing
 import os
 import time
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
@@ -104,7 +105,7 @@ def _element_mesh(shape, base: str = "") -> ElementMesh | None:
 
 def geom_settings():
     """ifcopenshell geometry settings used everywhere: world coordinates, openings cut."""
-    import ifcopenshell.geom
+    import ifcopenshell.geom  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     s = ifcopenshell.geom.settings()
     s.set("use-world-coords", True)
@@ -114,7 +115,7 @@ def geom_settings():
 def iterate_meshes(ifc_file, label: str) -> dict[str, ElementMesh]:
     """GlobalId -> ElementMesh for every element with a body (multi-core geometry iterator), none
     of SKIP_CLASSES; the parts of a window or door merged into it (:func:`merge_parts`)."""
-    import ifcopenshell.geom
+    import ifcopenshell.geom  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     exclude = by_types(ifc_file, SKIP_CLASSES)
     it = ifcopenshell.geom.iterator(geom_settings(), ifc_file, multiprocessing.cpu_count(),
@@ -184,7 +185,6 @@ def _aggregate_parent(ifc_file, global_id: str) -> str:
 @functools.cache
 def cache_version() -> str:
     """12 hex digits of the CACHE_SOURCES' bytes and the ifcopenshell version (the cache key's code part)."""
-    from importlib.metadata import version  # noqa: PLC0415
 
     here = Path(__file__).resolve().parent
     return source_digest([here / f for f in CACHE_SOURCES], f"ifcopenshell {version('ifcopenshell')}")
@@ -282,7 +282,7 @@ def load_scene(name_or_path: str | Path, cache_dir: str | Path | None = None,
 
 def build_scene(path: Path, name: str, sha: str) -> Scene:
     """Read the IFC and compute meshes and ground truth (no cache)."""
-    from fenestra.scenes.ground_truth import windows_ground_truth
+    from fenestra.scenes.ground_truth import windows_ground_truth  # noqa: PLC0415 (a cycle: fenestra.scenes.ground_truth imports this module)
 
     f = open_ifc(path)
     if not f.by_type("IfcWindow"):

@@ -49,8 +49,8 @@ def storey_height_m(ifc_path: str | Path) -> float | None:
 def storey_elevations_m(ifc_path: str | Path) -> tuple[float, ...]:
     """The IfcBuildingStorey elevations of an IFC house (the model's length unit converted to m),
     in file order. DatasetError naming the file if it cannot be read."""
-    import ifcopenshell  # noqa: PLC0415
-    import ifcopenshell.util.unit  # noqa: PLC0415
+    import ifcopenshell  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
+    import ifcopenshell.util.unit  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     try:
         model = ifcopenshell.open(str(ifc_path))

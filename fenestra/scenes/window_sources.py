@@ -150,9 +150,9 @@ def hole_outline(wall: ElementMesh, body: np.ndarray, others: np.ndarray) -> np.
     """The hole ring (K, 2) m, face coordinates, of the wall's section half-way through its
     thickness that contains the window body's (N, 3) centre; SourceError when there is none or
     when it also holds one of the other windows' centres (M, 3) (one hole, several windows)."""
-    import trimesh
-    from shapely.geometry import MultiLineString, Point, Polygon
-    from shapely.ops import polygonize
+    import trimesh  # noqa: PLC0415 (trimesh: imported when first used, not at the package's import)
+    from shapely.geometry import MultiLineString, Point, Polygon  # noqa: PLC0415 (shapely: imported when first used, not at the package's import)
+    from shapely.ops import polygonize  # noqa: PLC0415 (shapely: imported when first used, not at the package's import)
 
     lo, hi = body.min(axis=0), body.max(axis=0)
     axis, d0, d1 = wall_span(wall, lo, hi)
@@ -208,8 +208,8 @@ class OpeningIndex:
         """[(opening, host wall, vertices (N, 3), faces (M, 3), scipy Delaunay)] of every opening
         that voids a wall and has a body."""
         if self._items is None:
-            import ifcopenshell.geom
-            from scipy.spatial import Delaunay
+            import ifcopenshell.geom  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
+            from scipy.spatial import Delaunay  # noqa: PLC0415 (SciPy: imported when first used, not at the package's import)
 
             from fenestra.scenes.ifc_read import is_any
 

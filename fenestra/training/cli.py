@@ -37,7 +37,7 @@ def register(app: typer.Typer) -> None:
                                    "manifest lists (never another file, never --init-weights)"),
     ) -> None:
         """Train a window-void detector (EffWin, WinNet or Mask R-CNN) on rendered dataset folders (EffWin: plus real box photos)."""
-        from fenestra.training.train import load_config, train  # noqa: PLC0415
+        from fenestra.training.train import load_config, train  # noqa: PLC0415 (fenestra.training.train loads torch: imported when first used)
 
         cfg = load_config(config, data=tuple(str(d) for d in data) if data else None,
                           out=str(out) if out else None, iterations=iterations, resume=resume or None,
@@ -112,7 +112,7 @@ def register(app: typer.Typer) -> None:
         """Train the learned corner refinement (snapper `refine`): a small CNN on corner patches of rendered views."""
         import dataclasses  # noqa: PLC0415
 
-        from fenestra.training.refine import RefineTrainConfig, train_refine  # noqa: PLC0415
+        from fenestra.training.refine import RefineTrainConfig, train_refine  # noqa: PLC0415 (fenestra.training.refine loads SciPy: imported when first used)
 
         cfg = RefineTrainConfig() if epochs is None else dataclasses.replace(RefineTrainConfig(), epochs=epochs)
         meta = train_refine(tuple(data or (Path("out/refine-data/train"),)), out, cfg, log=typer.echo)

@@ -17,6 +17,7 @@ from fenestra.rendered_view import ViewFiles
 from fenestra.yolo import read_label_file, yolo_boxes
 from fenestra.errors import DatasetError
 from fenestra.images import read_image
+from fenestra.pipeline.quad import order_corners
 
 
 def list_views(dataset_dir: str | Path) -> list[ViewFiles]:
@@ -76,7 +77,6 @@ def view_corners(meta: dict) -> np.ndarray:
     TL TR BR BL in the image (pipeline.quad.order_corners); a corner the renderer marks unseen
     (occluded or outside the image: ``corner_visible``) is NaN. (0, 4, 2) without windows. A view
     without ``visible_fraction`` / ``corner_visible`` (hand-made data) counts every corner seen."""
-    from fenestra.pipeline.quad import order_corners  # noqa: PLC0415
 
     out = []
     for w in meta.get("windows", []):
@@ -109,7 +109,6 @@ class WindowQuads:
 def view_quads(meta: dict) -> WindowQuads:
     """The WindowQuads of a view.json dict: every window with a visible fraction above 0 (or none
     stated) and finite corners, its ``instance_id`` and ``corners_px`` ordered."""
-    from fenestra.pipeline.quad import order_corners  # noqa: PLC0415
 
     ids, quads = [], []
     for w in meta.get("windows", []):

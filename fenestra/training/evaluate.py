@@ -17,9 +17,10 @@ from fenestra.yolo import yolo_boxes
 from fenestra import outputs
 from fenestra.errors import DatasetError
 from fenestra.images import read_image, read_instances
-from fenestra.pipeline.detectors import DETECTORS, get_detector
+from fenestra.pipeline.detectors import detect, DETECTORS, get_detector
 from fenestra.pipeline.types import Detection
 from fenestra.training.dataset import coco_image_path, find_datasets, load_coco
+from fenestra.training.dataset import photo_labels, read_box_photo, real_box_photos
 
 TABLE_STATS = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large")  # the columns of format_table
 
@@ -149,8 +150,6 @@ def evaluate_boxes(detector_name: str, yolo_dir: str | Path, part: str = "val", 
     "hard_negatives" (:func:`hard_negative_share` of the detections at ``shipped_threshold``, the
     score pipeline.detectors.detect keeps by default, on the labels' doors and signboards).
     """
-    from fenestra.pipeline.detectors import detect  # noqa: PLC0415
-    from fenestra.training.dataset import photo_labels, read_box_photo, real_box_photos  # noqa: PLC0415
 
     if DETECTORS[detector_name].needs_instances:
         raise ValueError(f"detector {detector_name!r} needs instance maps; real photos have boxes only")

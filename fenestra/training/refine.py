@@ -144,7 +144,7 @@ def make_batch(cs: CornerSet, idx: np.ndarray, rng: np.random.Generator, cfg: Re
 def errors(net, cs: CornerSet, idx: np.ndarray, cfg: RefineTrainConfig, seed: int) -> dict:
     """Validation figures of ``net`` on samples idx, inputs perturbed with a fixed seed: corner error
     (px) before and after one pass, the spread, and the median after gating at spread <= 2 px."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     rng = np.random.default_rng(seed)
     x, t = make_batch(cs, idx, rng, cfg, augment=False)
@@ -166,7 +166,7 @@ def train_refine(roots: tuple[Path, ...], out: Path, cfg: RefineTrainConfig = Re
     """Train the refinement net on the views under ``roots``; write its weights file to ``out``
     (arch, patch, widths, fp32 state_dict, meta with the config and validation figures); returns meta.
     ``out`` follows training.weights_file's rule, checked before any view is read."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     weights_file.check(out, roots)
     t0 = time.perf_counter()

@@ -23,6 +23,7 @@ from __future__ import annotations
 import collections
 import csv
 import dataclasses
+import hashlib
 import math
 import multiprocessing
 import sys
@@ -41,6 +42,7 @@ from fenestra.training import weights_file
 from fenestra.training.recipes import recipe
 from fenestra.training.dataset import (box_photo_quads, find_datasets, list_views, read_box_photo, real_box_photos,
                                        view_corners, view_quads)
+import cv2
 
 DEVICES = ("cpu", "cuda")
 
@@ -224,7 +226,6 @@ def real_photo_records(cfg: TrainConfig) -> list[str] | None:
     can be checked to be held out from them (tools/model_card_real.py); None without real photos."""
     if cfg.real_fraction <= 0:
         return None
-    import hashlib  # noqa: PLC0415
 
     return [f"{p.name} {hashlib.sha256(p.read_bytes()).hexdigest()}"
             for p in real_box_photos(cfg.real_data, "train", cfg.real_holdout_every)]
@@ -240,7 +241,6 @@ _WORKER_DATA: list = []  # the training views, loaded once per worker process
 
 
 def _worker_init(cfg: TrainConfig) -> None:
-    import cv2  # noqa: PLC0415
 
     torch.set_num_threads(1)
     cv2.setNumThreads(1)

@@ -18,6 +18,7 @@ its own training boxes.
 """
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -29,13 +30,18 @@ from fenestra.yolo import yolo_boxes
 from fenestra.errors import DatasetError, FenestraError
 from fenestra.pipeline.detectors.verifier import (FeatureSpec, VerifierHead, box_features, detection_extras, head_to_dict,
                                          network_fingerprint)
+from fenestra.training.evaluate import box_overlaps, HARD_NEGATIVE_CLASSES, HARD_NEGATIVE_OVERLAP, merged_coco
+from fenestra.pipeline.detectors import DETECTORS, downscale, input_scale, load_model, read_weights
+from fenestra.training.dataset import find_datasets, photo_labels, read_box_photo, real_box_photos
+from fenestra.images import read_image
+from fenestra.training import weights_file
 
 MIN_SCORE = 0.05  # detections scored like training.evaluate.evaluate_boxes' (COCO AP) ones
 SHIPPED_THRESHOLD = 0.5  # pipeline.detectors.detect's default score threshold
 WINDOW_IOU = 0.5
 FOLDS = 5
 # The backbone at strides 32 and 64, inside the box and its context (the box grown by its size on
-# every side): of the layer sets tried, the best on the validation photos (issue #23, item 5).
+# every side): of the layer sets tried, the best on the validation photos.
 SPEC = FeatureSpec(layers=("bb32", "bb64"), strides=(32, 64), context=1.0)
 
 
@@ -54,7 +60,6 @@ class Samples:
 def label_detections(boxes: np.ndarray, windows: list, negatives: list) -> np.ndarray:
     """(N,) per detection box: 1 on a window (IoU >= WINDOW_IOU), 0 on a door or signboard and no
     window (training.evaluate.HARD_NEGATIVE_OVERLAP rule), -1 otherwise (not a sample)."""
-    from fenestra.training.evaluate import HARD_NEGATIVE_OVERLAP, box_overlaps  # noqa: PLC0415
 
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     win = box_overlaps(b, np.asarray(windows))[0].max(axis=1) >= WINDOW_IOU if len(windows) else np.zeros(len(b), bool)
@@ -69,8 +74,7 @@ def image_samples(net, post, image: np.ndarray, windows: list, negatives: list, 
     """(X, y, score) of the labelled detections (:func:`label_detections`) of EffWin ``net`` on one
     RGB image, through the detector's input size (pipeline.detectors.input_scale) and
     post-processing; windows / negatives: boxes (4,) px of the full image. None without any."""
-    from fenestra.pipeline.detectors import downscale, input_scale  # noqa: PLC0415
-    from fenestra.pipeline.detectors import effwin  # noqa: PLC0415
+    from fenestra.pipeline.detectors import effwin  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
 
     scale = input_scale(image.shape[:2])
     small = image if scale == 1.0 else downscale(image, scale)
@@ -90,8 +94,6 @@ def image_samples(net, post, image: np.ndarray, windows: list, negatives: list, 
 
 def photo_items(yolo_dir: str | Path, holdout_every: int, max_photos: int | None):
     """(image, window boxes, door and signboard boxes) of the TRAIN part of a YOLO photo folder."""
-    from fenestra.training.dataset import photo_labels, read_box_photo, real_box_photos  # noqa: PLC0415
-    from fenestra.training.evaluate import HARD_NEGATIVE_CLASSES  # noqa: PLC0415
 
     for p in real_box_photos(yolo_dir, "train", holdout_every)[:max_photos]:
         image, inst, _ = read_box_photo(p)
@@ -102,9 +104,6 @@ def photo_items(yolo_dir: str | Path, holdout_every: int, max_photos: int | None
 def render_items(roots: list, n_views: int):
     """(image, window boxes, ignore-region boxes: glazed doors and curtain walls) of ``n_views``
     rendered views spread evenly over the dataset folders under ``roots`` (their coco.json)."""
-    from fenestra.images import read_image  # noqa: PLC0415
-    from fenestra.training.dataset import find_datasets  # noqa: PLC0415
-    from fenestra.training.evaluate import merged_coco  # noqa: PLC0415
 
     coco, paths = merged_coco(find_datasets(roots))
     ids = [im["id"] for im in coco["images"]]
@@ -123,8 +122,7 @@ def collect(weights: str | Path, yolo_dir: str | Path, holdout_every: int = 5, s
     """Samples of the detector in ``weights`` (EffWin) on the train part of a YOLO photo folder and
     on ``render_views`` views of the rendered datasets under ``renders`` (windows against glazed
     doors and curtain walls); each photo or view is one group (``Samples.photo``)."""
-    from fenestra.pipeline.detectors import DETECTORS, load_model  # noqa: PLC0415
-    from fenestra.pipeline.detectors import effwin  # noqa: PLC0415
+    from fenestra.pipeline.detectors import effwin  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
 
     _, net, ckpt = load_model(DETECTORS["default"].model, weights, any_arch=False)
     post = effwin.post_config(ckpt)
@@ -232,12 +230,9 @@ def add_verifier(weights: str | Path, yolo_dir: str | Path, out: str | Path | No
     ``render_views`` views of the rendered datasets under ``renders``) and write the file with its
     ``"verifier"`` key to ``out`` (default: in place, atomically), under training.weights_file's
     rule (``force``: also over a weights file no manifest lists)."""
-    import io  # noqa: PLC0415
 
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
-    from fenestra.pipeline.detectors import read_weights  # noqa: PLC0415
-    from fenestra.training import weights_file  # noqa: PLC0415
 
     weights = Path(weights)
     if not weights.is_file():

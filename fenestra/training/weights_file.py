@@ -27,8 +27,8 @@ def torch_dict_with(keys: Iterable[str]) -> Callable[[Path], bool]:
     want = frozenset(keys)
 
     def test(path: Path) -> bool:
-        import torch  # noqa: PLC0415
-        from torch.torch_version import TorchVersion  # noqa: PLC0415
+        import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
+        from torch.torch_version import TorchVersion  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
         try:
             if path.stat().st_size > MAX_RECOGNISED_BYTES:
@@ -65,7 +65,7 @@ def save(path: str | Path, obj: object, inputs: Iterable[str | Path | None] = ()
          option: str = "--out", own: outputs.Recognised = WEIGHTS_FILE) -> Path:
     """``torch.save(obj)`` to ``path`` atomically (a kill leaves the previous file or none), listed
     with its digest in its folder's manifest; the rule of :func:`check`."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     return outputs.write_file(Path(path), lambda p: torch.save(obj, p), inputs=inputs, option=option, force=force,
                               own=own)

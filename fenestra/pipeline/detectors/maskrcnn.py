@@ -57,10 +57,10 @@ class LiteFPN(nn.Module):
 
     def __init__(self, pretrained: bool = False):
         super().__init__()
-        from torchvision.ops import FeaturePyramidNetwork  # noqa: PLC0415
-        from torchvision.ops.feature_pyramid_network import LastLevelMaxPool  # noqa: PLC0415
+        from torchvision.ops import FeaturePyramidNetwork  # noqa: PLC0415 (torchvision: imported when first used, not at the package's import)
+        from torchvision.ops.feature_pyramid_network import LastLevelMaxPool  # noqa: PLC0415 (torchvision: imported when first used, not at the package's import)
 
-        from fenestra.pipeline.detectors.effwin import efficientnet_lite, resolution_taps  # noqa: PLC0415
+        from fenestra.pipeline.detectors.effwin import efficientnet_lite, resolution_taps  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
 
         net = efficientnet_lite("efficientnet-lite0", pretrained)
         self.stem = nn.Sequential(net._conv_stem, net._bn0, net._swish)
@@ -109,17 +109,17 @@ def build_maskrcnn(backbone: str = "efficientnet-lite0", min_size: int = 480, ma
         min_size, max_size: torchvision's resize, px (resnet50 only).
         pretrained: load the EfficientNet-Lite0 ImageNet weights (training's starting point).
     """
-    from torchvision.models.detection import MaskRCNN, maskrcnn_resnet50_fpn  # noqa: PLC0415
+    from torchvision.models.detection import MaskRCNN, maskrcnn_resnet50_fpn  # noqa: PLC0415 (torchvision: imported when first used, not at the package's import)
 
     if backbone not in BACKBONES:
         raise ValueError(f"maskrcnn backbone must be one of {list(BACKBONES)}, got {backbone!r}")
     if backbone == "resnet50":
         return maskrcnn_resnet50_fpn(weights=None, weights_backbone=None, num_classes=2,
                                      min_size=min_size, max_size=max_size)
-    from torchvision.models.detection.anchor_utils import AnchorGenerator  # noqa: PLC0415
-    from torchvision.models.detection.faster_rcnn import FastRCNNPredictor, TwoMLPHead  # noqa: PLC0415
-    from torchvision.models.detection.mask_rcnn import MaskRCNNHeads, MaskRCNNPredictor  # noqa: PLC0415
-    from torchvision.models.detection.rpn import RPNHead  # noqa: PLC0415
+    from torchvision.models.detection.anchor_utils import AnchorGenerator  # noqa: PLC0415 (torchvision: imported when first used, not at the package's import)
+    from torchvision.models.detection.faster_rcnn import FastRCNNPredictor, TwoMLPHead  # noqa: PLC0415 (torchvision: imported when first used, not at the package's import)
+    from torchvision.models.detection.mask_rcnn import MaskRCNNHeads, MaskRCNNPredictor  # noqa: PLC0415 (torchvision: imported when first used, not at the package's import)
+    from torchvision.models.detection.rpn import RPNHead  # noqa: PLC0415 (torchvision: imported when first used, not at the package's import)
 
     anchors = AnchorGenerator(ANCHOR_SIZES, (ANCHOR_RATIOS,) * len(ANCHOR_SIZES))
     model = MaskRCNN(

@@ -35,7 +35,7 @@ def detections_from_instance_map(instances: np.ndarray, max_windows: int = LIMIT
     Detection (mask_to_quad then reports ``multiple_blobs``). Negative ids: ValueError; more than
     ``max_windows`` ids: PipelineError.
     """
-    from scipy import ndimage  # noqa: PLC0415
+    from scipy import ndimage  # noqa: PLC0415 (SciPy: imported when first used, not at the package's import)
 
     inst = np.asarray(instances)
     if inst.ndim != 2 or not np.issubdtype(inst.dtype, np.integer):

@@ -1,5 +1,5 @@
 """The box verifier: a logistic head on the detector's own features that tells a window from a
-door or a signboard (issue #23, item 5), applied in EffWin's post-processing.
+door or a signboard, applied in EffWin's post-processing.
 
 For each detection, the network's feature maps are averaged inside its box and inside the box
 grown by ``context`` (:func:`roi_align`: torchvision's RoIAlign in pure torch), beside a few
@@ -90,7 +90,7 @@ def _axis_taps(t, size: int):
     """Bilinear taps along one axis of length ``size`` at sample coordinates ``t`` (any shape):
     (low index, high index, low weight, high weight), both weights 0 where t < -1 or t > size
     (RoIAlign's out-of-map samples); t is clamped to 0 below and to the last index above."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     inside = (t >= -1.0) & (t <= size)
     t = t.clamp(min=0.0)
@@ -113,7 +113,7 @@ def roi_align(f, boxes: np.ndarray, scale: float, bins: int = 2, samples: int = 
     pixel; samples more than one pixel off the map count as 0, the others are clamped to it.
     One sparse-as-dense pooling matrix times the map: memory N * bins**2 * h * w (the verifier's
     stride-32 and -64 maps are small); about as fast as torchvision's kernel there."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     _, C, H, W = f.shape
     dt, dev = f.dtype, f.device
@@ -210,7 +210,7 @@ def network_fingerprint(state_dict: dict) -> str:
 
 def _tensor_bytes(t) -> bytes:
     """The raw bytes of a contiguous CPU tensor of any dtype (bfloat16 included)."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     return t.reshape(-1).view(torch.uint8).numpy().tobytes()
 

@@ -96,7 +96,7 @@ class PostConfig:
 
     separation: how void pixels join the seeds: ``nearest`` seed (Euclidean; a void blob without
     a seed of its own joins a neighbouring blob's seed: one instance of disconnected pieces, the
-    behaviour before issue #23), ``nearest-blob`` (the nearest seed inside the pixel's own void
+    former behaviour), ``nearest-blob`` (the nearest seed inside the pixel's own void
     blob; seedless blobs become their own instances), or ``watershed``: flooded from the seeds over
     1 - void probability, so two touching voids part where the void map dips (the frame or mullion
     between them), each within its own void blob.
@@ -105,7 +105,7 @@ class PostConfig:
     (a component tree of the core map: neighbours whose cores merged at the base threshold);
     split_map: the map whose levels split (``core`` or ``void``); split_min_px: the least size of
     a sub-blob that counts.
-    Empty: no splitting (the detector before issue #23).
+    Empty: no splitting (the former detector).
     min_area_px, min_side_px: an instance with fewer pixels, or whose box is narrower or lower
     (network px), is dropped (0: no side limit; EffWin ships 4: a mullion strip left between two
     corner cuts is no window).
@@ -302,7 +302,7 @@ def separator_cuts(corner_p: np.ndarray, post: PostConfig, void_p: np.ndarray | 
     lower one's TL) and a right pair (BR, TR). The line joins the two pairs' midpoints, extended by
     ``extend_px`` at both ends so that it crosses the void blob's outline. On real photos the corner
     head also fires at a window's own transoms and mullions (it was trained on renders only); the
-    gates of :func:`_separator_holds` keep those whole (real validation AP, issue #23).
+    gates of :func:`_separator_holds` keep those whole (real validation AP).
     """
     tl, tr, br, bl = corner_peaks(corner_p, post.cut_min_peak)
     g, a = post.cut_max_gap_px, post.cut_align_px

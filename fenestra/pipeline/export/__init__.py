@@ -257,7 +257,7 @@ def write_outputs(out_dir: str | Path, image: np.ndarray, K: np.ndarray, results
         paths["overlay"] = write_image(out / "overlay.png", _timed("overlay_ms", draw_overlay, image, K, list(results),
                                                                   {e["index"]: e["reason"] for e in skipped}))
     if substitute is not None:
-        from fenestra.pipeline.export.substitute import composite  # noqa: PLC0415
+        from fenestra.pipeline.export.substitute import composite  # noqa: PLC0415 (a cycle: fenestra.pipeline.export.substitute imports this module)
 
         paths["substituted"] = write_image(out / "substituted.png",
                                           _timed("substitute_ms", composite, inpainted, K_tex, placed, style))

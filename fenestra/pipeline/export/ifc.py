@@ -65,6 +65,7 @@ relative to its container (storey, wall or opening), so moving a storey moves it
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import ifcopenshell
@@ -488,7 +489,6 @@ def stamp_provenance(f: ifcopenshell.file, file_name: str, source: str | None = 
     IfcOwnerHistory (created ``when``, seconds since the epoch, default now), and the project's
     Description naming the photo. Args: f, the file; file_name, its name; source, the photo's
     file name (None: not said); when, the creation time (s)."""
-    import time  # noqa: PLC0415
 
     import fenestra  # noqa: PLC0415  (the version, read from the package metadata on first use)
 

@@ -56,7 +56,7 @@ def write_door(f: ifcopenshell.file, body, storey, wall, door: PlacedWindow, thi
                props: dict | None, overshoot_m: float) -> dict:
     """The opening voiding ``wall`` and the IfcDoor filling it, in ``storey`` (see the module
     docstring); {"opening", "door": GlobalId, "storey": name, "door_type": name}."""
-    from fenestra.pipeline.export.ifc import _add_pset, _add_qto, _rectangle_solid  # noqa: PLC0415
+    from fenestra.pipeline.export.ifc import _add_pset, _add_qto, _rectangle_solid  # noqa: PLC0415 (fenestra.pipeline.export.ifc loads IfcOpenShell: imported when first used)
 
     T, e = door.export_matrix(), overshoot_m
     w, h = float(door.width_m), float(door.height_m)

@@ -92,8 +92,8 @@ def window_body(f, context, size: TypeSize, partitioning: str, frame_style, glas
     (add_window_representation, SweptSolid) split as ``partitioning`` (IfcWindowType's; one that
     PANELS lacks is built as one panel), its Lining and Framing styled ``frame_style``, its
     Glazing ``glass_style`` (IfcSurfaceStyles), shape aspects on the map."""
-    import ifcopenshell.api.geometry  # noqa: PLC0415
-    import ifcopenshell.api.style  # noqa: PLC0415
+    import ifcopenshell.api.geometry  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
+    import ifcopenshell.api.style  # noqa: PLC0415 (IfcOpenShell: imported when first used, not at the package's import)
 
     partition = partitioning if partitioning in PANELS else "SINGLE_PANEL"
     lining, panels = lining_properties(size.width_m, size.height_m, partition)

@@ -22,6 +22,7 @@ from fenestra.pipeline.catalogue import WindowStyle, get_style, window_mesh
 from fenestra.pipeline.export.geometry import (COVERING_THICKNESS_M, WALL_MARGIN_M, WALL_THICKNESS_M, Z_UP_TO_Y_UP,
                                                PlacedWindow, TextureLayout, facade_pixels, wall_mesh)
 from fenestra.pipeline.export.walls_plan import facade_walls
+from PIL import Image
 
 
 # A GLB's texture is at most this many px along its longer side: glTF viewers (WebGL) commonly
@@ -116,7 +117,7 @@ def write_glb(glb_path: str | Path, parts: list[MeshPart], texture_rgb: np.ndarr
     GLB holds :func:`glb_texture` of it). The parts' vertices (export world, z up) are stored as they
     are, under one root node (GLB_ROOT_NODE) whose matrix is Z_UP_TO_Y_UP: a glTF viewer (y up)
     shows the model upright."""
-    import trimesh  # noqa: PLC0415
+    import trimesh  # noqa: PLC0415 (trimesh: imported when first used, not at the package's import)
 
     style = get_style(style)
     image = png_image(np.ascontiguousarray(glb_texture(texture_rgb)), LIMITS.glb_png_compress_level)
@@ -154,7 +155,6 @@ def png_image(rgb: np.ndarray, compress_level: int):
     trimesh's glTF exporter calls) uses zlib ``compress_level`` (0-9) unless the caller states one:
     the same pixels, lossless; level 1 encodes a 12 Mpx photo in ~0.6 CPU-s instead of level 6's
     ~2.4 s, for a ~25 % larger file."""
-    from PIL import Image  # noqa: PLC0415
 
     class LevelledPng(Image.Image):
         def save(self, fp, format=None, **params):  # noqa: A002 (PIL's signature)

@@ -36,6 +36,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from fenestra.pipeline.readout import PhotoReadout
+from fenestra.files import write_atomic
 
 VENDOR = Path(__file__).resolve().parent / "vendor"
 THREE_BUNDLE = VENDOR / "three-viewer.min.js"
@@ -266,7 +267,6 @@ def write_viewer(out: str | Path, read: PhotoReadout, files: dict[str, str],
     """Write ``out``/index.html (atomically: fenestra.files.write_atomic; the GLB's base64 held once) for the folder's files
     (``files``: {kind: name}, as :func:`viewer_html`); model.glb is read from ``out`` and embedded
     when it is at most ``max_glb_bytes``, else linked with a note. Returns the path."""
-    from fenestra.files import write_atomic  # noqa: PLC0415
 
     out = Path(out)
     glb, note = None, None

@@ -1,6 +1,6 @@
 """``refine``: a small CNN moves each corner to the window void's corner it sees in a patch around it.
 
-Learned corner refinement (issue #23, item 2). For each corner of the incoming quad (the mask-fit
+Learned corner refinement. For each corner of the incoming quad (the mask-fit
 quad of a detection) a PATCH x PATCH gray patch is sampled around it (bilinear, sub-pixel:
 ``cv2.remap``), mirrored so that every corner looks like a TL corner (window interior towards +x,
 +y): TR flips x, BR both, BL y. The four patches go through :class:`RefineNet` in one forward pass:
@@ -33,6 +33,7 @@ import numpy as np
 
 from fenestra.errors import FenestraError
 from fenestra.pipeline.snappers.base import Snapper, check_inputs, keep_if_far
+from fenestra.pipeline.detectors.checkpoint import read_checkpoint
 
 ARCH = "corner-refine"
 PATCH = 40  # patch side (px at the working resolution); the heatmap is PATCH // 2
@@ -62,8 +63,8 @@ def build_net(widths: tuple[int, int, int] = WIDTHS):
     """The refinement CNN (untrained): (N, 1, PATCH, PATCH) normalised patches -> heatmap logits
     (N, PATCH/2, PATCH/2). A stride-2 and a stride-4 stage, a dilated convolution, the stride-4
     features upsampled and joined with the stride-2 ones (receptive field ~33 px)."""
-    import torch  # noqa: PLC0415
-    from torch import nn  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
+    from torch import nn  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     a, b, c = widths
 
@@ -91,7 +92,7 @@ def build_net(widths: tuple[int, int, int] = WIDTHS):
 def heatmap(logits):
     """(N, h, w) heatmap logits -> (probabilities (N, h, w), cell centres x (w,), y (h,)) in patch
     pixels (heatmap cell i covers patch pixels 2i, 2i+1: its centre is 2i + 0.5)."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     n, h, w = logits.shape
     p = torch.softmax(logits.reshape(n, -1), 1).reshape(n, h, w)
@@ -101,7 +102,7 @@ def heatmap(logits):
 def soft_argmax(logits):
     """(N, h, w) heatmap logits -> (N, 2) expected (x, y) and (N,) spread (px), in patch pixels
     (:func:`heatmap`)."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     p, xs, ys = heatmap(logits)
     px, py = p.sum(1), p.sum(2)  # marginals over x and y
@@ -143,7 +144,7 @@ def to_patch(centres: np.ndarray, flips: np.ndarray, xy: np.ndarray, step: float
 
 def predict(net, patches: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Patch coordinates (N, 2) and spreads (N,) px of the corner in each TL-mirrored patch (N, P, P)."""
-    import torch  # noqa: PLC0415
+    import torch  # noqa: PLC0415 (torch: imported when first used, not at the package's import)
 
     with torch.inference_mode():
         uv, spread = soft_argmax(net(torch.from_numpy(normalise(patches))[:, None]))
@@ -172,7 +173,6 @@ def check_checkpoint(ckpt: dict, path: Path) -> dict:
 @functools.lru_cache(maxsize=4)
 def load_refiner(path: str = ""):
     """The net of a weights file ("" = the shipped one), in eval mode on the CPU (cached: loads once)."""
-    from fenestra.pipeline.detectors.checkpoint import read_checkpoint  # noqa: PLC0415
 
     p = Path(path) if path else SHIPPED
     if not p.is_file():

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from fenestra.pipeline.detectors import trainable_archs as archs
 
 
 @dataclass(frozen=True)
@@ -31,7 +32,6 @@ class Recipe:
 
 def trainable_archs() -> list[str]:
     """The archs of the registered trainable detectors (pipeline.detectors.DETECTORS)."""
-    from fenestra.pipeline.detectors import trainable_archs as archs  # noqa: PLC0415
 
     return archs()
 

@@ -14,6 +14,8 @@ import torch.nn.functional as F
 from fenestra.training.augment import AugmentConfig, neighbour_strip, occluders, photometric, random_scale_crop, shadow_band
 from fenestra.training.recipes import Recipe
 from fenestra.training.recipes.winnet import winnet_loss
+from fenestra.errors import FenestraError
+from fenestra.pipeline.detectors import read_weights
 
 if TYPE_CHECKING:
     from fenestra.training.train import TrainConfig
@@ -29,7 +31,7 @@ def effwin_sample(item, cfg: TrainConfig, rng: np.random.Generator, street: bool
     """One augmented crop of a (image, instances, corners or None) item: image (h, w, 3) uint8,
     instances (h, w) int, corner heatmaps (4, h, w) float32 (zeros for a real photo: boxes, no
     corners). street: also draw occluders and an eave shadow. Augmented as sample_augment says."""
-    from fenestra.pipeline.detectors.effwin import corner_heatmaps  # noqa: PLC0415
+    from fenestra.pipeline.detectors.effwin import corner_heatmaps  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
 
     image, inst, corners = item[:3]
     aug = sample_augment(item, cfg)
@@ -59,7 +61,7 @@ def sample_quad_targets(ins: np.ndarray, parts: list[tuple[np.ndarray, np.ndarra
     (ids, quads, region) per source crop, region (H, W) bool where that source's pixels are
     (None: everywhere; a pasted neighbour strip has its own), so each cell takes its own source's
     targets."""
-    from fenestra.pipeline.detectors.quadhead import QUAD_STRIDE, quad_targets  # noqa: PLC0415
+    from fenestra.pipeline.detectors.quadhead import QUAD_STRIDE, quad_targets  # noqa: PLC0415 (fenestra.pipeline.detectors.quadhead loads torch: imported when first used)
 
     seen = np.bincount(ins.ravel().astype(np.int64), minlength=1)
     out = None
@@ -93,8 +95,8 @@ def effwin_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     with cfg.effwin_quad_head also the quad head's targets (B, 11, h / 4, w / 4) (sample_quad_targets).
     A sample is a real photo with probability cfg.real_fraction; with cfg.augment.neighbour_prob a
     strip of another sample of the same pool (a neighbouring facade) is pasted beside it."""
-    from fenestra.pipeline.detectors.effwin import to_tensor  # noqa: PLC0415
-    from fenestra.pipeline.detectors.winnet import core_targets  # noqa: PLC0415
+    from fenestra.pipeline.detectors.effwin import to_tensor  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
+    from fenestra.pipeline.detectors.winnet import core_targets  # noqa: PLC0415 (fenestra.pipeline.detectors.winnet loads SciPy, torch: imported when first used)
 
     pools = sample_pools(data)
     imgs, tgts, wts, quads = [], [], [], []
@@ -196,7 +198,7 @@ def effwin_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, 
 def effwin_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
     """EffWin (backbone from its ImageNet weights if cfg.pretrained) and AdamW; the pretrained
     backbone learns at a tenth of cfg.lr."""
-    from fenestra.pipeline.detectors.effwin import EffWin  # noqa: PLC0415
+    from fenestra.pipeline.detectors.effwin import EffWin  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
 
     model = EffWin(effwin_config(cfg), pretrained=cfg.pretrained and not cfg.init_weights)
     if cfg.init_weights:
@@ -216,8 +218,6 @@ def load_init_weights(model: torch.nn.Module, path: str) -> None:
     """Load an EffWin weights file into ``model``: every tensor of the file must fit, and only a
     quad head (``quad.*``) may be missing from it (it is then trained from its initialisation).
     FenestraError naming the file otherwise."""
-    from fenestra.errors import FenestraError  # noqa: PLC0415
-    from fenestra.pipeline.detectors import read_weights  # noqa: PLC0415
 
     ckpt = read_weights(path, ("effwin",))
     state = {k: v.float() if v.is_floating_point() else v for k, v in ckpt["state_dict"].items()}
@@ -232,7 +232,7 @@ def load_init_weights(model: torch.nn.Module, path: str) -> None:
 
 def effwin_config(cfg: TrainConfig):
     """The EffWinConfig of a TrainConfig."""
-    from fenestra.pipeline.detectors.effwin import EffWinConfig  # noqa: PLC0415
+    from fenestra.pipeline.detectors.effwin import EffWinConfig  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
 
     return EffWinConfig(cfg.effwin_backbone, tuple(cfg.effwin_fine), tuple(cfg.effwin_decoder), cfg.effwin_quad_head)
 
@@ -241,8 +241,8 @@ def effwin_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
     """arch, EffWinConfig, fp16 weights and EffWin's post-processing defaults (PostConfig over
     effwin.POST_DEFAULTS); a quad head trained alone (cfg.train_only) keeps init_weights' box
     verifier and post-processing, the frozen network being bit for bit that file's."""
-    from fenestra.pipeline.detectors.effwin import POST_DEFAULTS  # noqa: PLC0415
-    from fenestra.pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
+    from fenestra.pipeline.detectors.effwin import POST_DEFAULTS  # noqa: PLC0415 (fenestra.pipeline.detectors.effwin loads SciPy, torch: imported when first used)
+    from fenestra.pipeline.detectors.winnet import PostConfig  # noqa: PLC0415 (fenestra.pipeline.detectors.winnet loads SciPy, torch: imported when first used)
 
     sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
     out = {"arch": "effwin", "config": dataclasses.asdict(effwin_config(cfg)), "state_dict": sd,

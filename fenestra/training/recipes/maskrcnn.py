@@ -30,8 +30,8 @@ def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
         and their torchvision targets (boxes (N, 4) px, labels (N,), masks (N, h, w) uint8). A crop
         showing no window is drawn again.
     """
-    from fenestra.pipeline.detectors.maskrcnn import maskrcnn_targets  # noqa: PLC0415
-    from fenestra.training.recipes.effwin import draw_pool, effwin_sample, sample_pools  # noqa: PLC0415
+    from fenestra.pipeline.detectors.maskrcnn import maskrcnn_targets  # noqa: PLC0415 (fenestra.pipeline.detectors.maskrcnn loads torch: imported when first used)
+    from fenestra.training.recipes.effwin import draw_pool, effwin_sample, sample_pools  # noqa: PLC0415 (fenestra.training.recipes.effwin loads torch: imported when first used)
 
     pools = sample_pools(data)
     imgs, tgts = [], []
@@ -50,7 +50,7 @@ def maskrcnn_batch(data, cfg: TrainConfig, rng: np.random.Generator):
 def maskrcnn_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
     """torchvision Mask R-CNN on cfg.maskrcnn_backbone (the EfficientNet-Lite0 from its ImageNet
     weights when cfg.pretrained) and SGD with momentum over the trainable parameters."""
-    from fenestra.pipeline.detectors.maskrcnn import build_maskrcnn  # noqa: PLC0415
+    from fenestra.pipeline.detectors.maskrcnn import build_maskrcnn  # noqa: PLC0415 (fenestra.pipeline.detectors.maskrcnn loads torch: imported when first used)
 
     model = build_maskrcnn(cfg.maskrcnn_backbone, cfg.maskrcnn_min_size, cfg.maskrcnn_max_size,
                            pretrained=cfg.pretrained and cfg.maskrcnn_backbone != "resnet50")
@@ -76,7 +76,7 @@ def maskrcnn_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
 
 def maskrcnn_check(cfg: TrainConfig) -> None:
     """A backbone of maskrcnn.BACKBONES."""
-    from fenestra.pipeline.detectors.maskrcnn import BACKBONES  # noqa: PLC0415
+    from fenestra.pipeline.detectors.maskrcnn import BACKBONES  # noqa: PLC0415 (fenestra.pipeline.detectors.maskrcnn loads torch: imported when first used)
 
     if cfg.maskrcnn_backbone not in BACKBONES:
         raise ValueError(f"maskrcnn_backbone must be one of {list(BACKBONES)}, got {cfg.maskrcnn_backbone!r}")

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 def winnet_batch(data, cfg: TrainConfig, rng: np.random.Generator):
     """One augmented batch: images (B, 3, h, w) normalised, targets (B, 2, h, w) {0, 1} [void, core]."""
-    from fenestra.pipeline.detectors.winnet import core_targets, to_tensor  # noqa: PLC0415
+    from fenestra.pipeline.detectors.winnet import core_targets, to_tensor  # noqa: PLC0415 (fenestra.pipeline.detectors.winnet loads SciPy, torch: imported when first used)
 
     imgs, tgts = [], []
     for _ in range(cfg.batch_size):
@@ -47,7 +47,7 @@ def winnet_loss(logits: torch.Tensor, target: torch.Tensor,
 
 def winnet_build(cfg: TrainConfig) -> tuple[torch.nn.Module, torch.optim.Optimizer]:
     """WinNet of cfg.winnet_widths and AdamW."""
-    from fenestra.pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415
+    from fenestra.pipeline.detectors.winnet import WinNet, WinNetConfig  # noqa: PLC0415 (fenestra.pipeline.detectors.winnet loads SciPy, torch: imported when first used)
 
     model = WinNet(WinNetConfig(cfg.winnet_widths))
     return model, torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -63,7 +63,7 @@ def winnet_losses(model: torch.nn.Module, batch, cfg: TrainConfig) -> dict[str, 
 
 def winnet_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
     """arch, widths, fp16 weights and the post-processing defaults (PostConfig)."""
-    from fenestra.pipeline.detectors.winnet import PostConfig  # noqa: PLC0415
+    from fenestra.pipeline.detectors.winnet import PostConfig  # noqa: PLC0415 (fenestra.pipeline.detectors.winnet loads SciPy, torch: imported when first used)
 
     sd = {k: (v.half() if v.is_floating_point() else v).cpu() for k, v in model.state_dict().items()}
     return {"arch": "winnet", "widths": list(cfg.winnet_widths), "state_dict": sd,
