@@ -73,7 +73,7 @@ def bench_command(write_report: WriteReport) -> Callable[..., None]:
                                                             "looks, sensor noise; another run folder)")) -> None:
         """Render (cached), reconstruct with every strategy, measure, summarise, report."""
         from fenestra.bench.executors import get_executor  # noqa: PLC0415 (fenestra.bench.executors loads SciPy, pandas, shapely: imported when first used)
-        from fenestra.bench.profiles import load_profile  # noqa: PLC0415
+        from fenestra.bench.profiles import load_profile  # noqa: PLC0415 (a command's own: loaded when the command runs)
         from fenestra.bench.results import load_summary  # noqa: PLC0415 (fenestra.bench.results loads pandas, shapely: imported when first used)
         from fenestra.bench.runner import report_apart, run_benchmark  # noqa: PLC0415 (fenestra.bench.runner loads SciPy, pandas, shapely: imported when first used)
 

@@ -240,8 +240,8 @@ class PhotoSession:
         """Every detection of ``detector``, of every kind (pipeline.types.DETECTION_KINDS), down to
         CANDIDATE_SCORE_MIN, best first (cached)."""
         if detector not in self._candidates:
-            from fenestra.pipeline.detectors import detect, detector_entry  # noqa: PLC0415
-            from fenestra.pipeline.types import DETECTION_KINDS  # noqa: PLC0415
+            from fenestra.pipeline.detectors import detect, detector_entry  # noqa: PLC0415 (pipeline.detectors loads torch: imported when first used)
+            from fenestra.pipeline.types import DETECTION_KINDS  # noqa: PLC0415 (beside the detectors, which it names)
 
             t0 = time.process_time()
             opts = dict(self.detector_options.get(detector, {}))

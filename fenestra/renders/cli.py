@@ -47,8 +47,8 @@ def register(app: typer.Typer) -> None:
                no_shadows: bool = typer.Option(not R.shadows, help="raster: no sun shadows"),
                sensor: bool = typer.Option(False, help="apply realistic sensor noise/blur/JPEG to images")) -> None:
         """Render a dataset of views (images, 16-bit instance maps, view.json, coco.json)."""
-        from fenestra.renders.dataset import render_dataset  # noqa: PLC0415
-        from fenestra.renders.sensor import REALISTIC, SensorConfig  # noqa: PLC0415
+        from fenestra.renders.dataset import render_dataset  # noqa: PLC0415 (a command's own: loaded when the command runs)
+        from fenestra.renders.sensor import REALISTIC, SensorConfig  # noqa: PLC0415 (a command's own: loaded when the command runs)
 
         LIMITS.check("max_views_per_dataset", views, "--views")
         cfg = DatasetConfig(

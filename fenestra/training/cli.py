@@ -63,8 +63,8 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="--json may replace a metrics file that no Fenestra manifest lists"),
     ) -> None:
         """COCO bbox/segm AP of a detector on a dataset, beside the paper's Table 2."""
-        from fenestra import outputs  # noqa: PLC0415
-        from fenestra.training.evaluate import METRICS_FILE, evaluate, evaluate_boxes, format_table  # noqa: PLC0415
+        from fenestra import outputs  # noqa: PLC0415 (a command's own: loaded when the command runs)
+        from fenestra.training.evaluate import METRICS_FILE, evaluate, evaluate_boxes, format_table  # noqa: PLC0415 (fenestra.training.evaluate loads torch: imported when the command runs)
 
         if (data is None) == (yolo is None):
             raise typer.BadParameter("give exactly one of --data (rendered dataset) and --yolo (real photos)")
@@ -93,7 +93,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="write over a weights file that no Fenestra manifest lists"),
     ) -> None:
         """Fit EffWin's box verifier (window vs door or signboard) on the train photos; store it in the weights file."""
-        from fenestra.training.verifier import add_verifier  # noqa: PLC0415
+        from fenestra.training.verifier import add_verifier  # noqa: PLC0415 (fenestra.training.verifier loads torch: imported when the command runs)
 
         f = add_verifier(weights, yolo, out, holdout_every, tuple(renders or ()), render_views, log=typer.echo,
                          force=force)
@@ -110,7 +110,7 @@ def register(app: typer.Typer) -> None:
         epochs: Optional[int] = typer.Option(None, help="override the number of epochs"),
     ) -> None:
         """Train the learned corner refinement (snapper `refine`): a small CNN on corner patches of rendered views."""
-        import dataclasses  # noqa: PLC0415
+        import dataclasses  # noqa: PLC0415 (a command's own: loaded when the command runs)
 
         from fenestra.training.refine import RefineTrainConfig, train_refine  # noqa: PLC0415 (fenestra.training.refine loads SciPy: imported when first used)
 

@@ -248,7 +248,7 @@ def effwin_checkpoint(model: torch.nn.Module, cfg: TrainConfig) -> dict:
     out = {"arch": "effwin", "config": dataclasses.asdict(effwin_config(cfg)), "state_dict": sd,
            "post": dataclasses.asdict(PostConfig(**POST_DEFAULTS))}
     if cfg.train_only == "quad":  # the frozen network is init_weights' own: so is its box verifier
-        from fenestra.pipeline.detectors import read_weights  # noqa: PLC0415
+        from fenestra.pipeline.detectors import read_weights  # noqa: PLC0415 (pipeline.detectors loads torch: imported when first used)
 
         init = read_weights(cfg.init_weights, ("effwin",))
         out.update({k: init[k] for k in ("verifier", "post") if k in init})
