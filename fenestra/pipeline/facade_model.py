@@ -502,6 +502,18 @@ def _on_wall(r: WindowResult, R: np.ndarray) -> tuple[float, float, float, float
     return float(t @ R[:, 0]), float(t @ R[:, 1]), float(r.aspect_ratio) * h, h
 
 
+def _completed(visible_m: float, whole_m: list[float], cut_words: str, where: str, more: str) -> float | Unavailable:
+    """A cut window's size along one axis, m: the median of the whole windows' sizes ``whole_m``
+    it lines up with (at least its visible size ``visible_m``), or why not (no such window, or a
+    visible part more than COMPLETE_SLACK larger: ``more`` than them)."""
+    if not whole_m:
+        return Unavailable(f"{cut_words}, with no whole window in its {where} to complete it from")
+    typical = float(np.median(whole_m))
+    if visible_m > COMPLETE_SLACK * typical:
+        return Unavailable(f"{cut_words}, yet {more} than the whole windows of its {where}")
+    return max(typical, visible_m)
+
+
 def complete_partial(r: WindowResult, wall: WallModel, results: list[WindowResult], R: np.ndarray,
                      K: np.ndarray) -> WindowResult | Unavailable:
     """A placed partial window (its visible extent on ``wall``) completed to the size of the whole
@@ -528,24 +540,18 @@ def complete_partial(r: WindowResult, wall: WallModel, results: list[WindowResul
     a1, b1, w1, h1 = a, b, w, h
     if cut & {"left", "right"}:
         row = [m[2] for m in members if _overlap(m[1], m[1] + m[3], b, b + h) >= ROW_OVERLAP]
-        if not row:
-            return Unavailable(f"cut by {edges}, with no whole window in its row to complete it from")
-        w1 = float(np.median(row))
-        if w > COMPLETE_SLACK * w1:
-            return Unavailable(f"cut by {edges}, yet wider than the whole windows of its row")
-        w1 = max(w1, w)
+        w1 = _completed(w, row, f"cut by {edges}", "row", "wider")
+        if isinstance(w1, Unavailable):
+            return w1
         a1 = a + w - w1 if "left" in cut else a
     if cut & {"top", "bottom"}:
         col = [m[3] for m in members if _overlap(m[0], m[0] + m[2], a1, a1 + w1) >= ROW_OVERLAP]
         if not col:  # its row: the whole windows whose edge on its uncut side (sill or head) is level with its own
             col = [m[3] for m in members if abs((m[1] if "top" in cut else m[1] + m[3]) - (b if "top" in cut else b + h))
                    <= ALIGN_FRAC * m[3]]
-        if not col:
-            return Unavailable(f"cut by {edges}, with no whole window in its column or row to complete it from")
-        h1 = float(np.median(col))
-        if h > COMPLETE_SLACK * h1:
-            return Unavailable(f"cut by {edges}, yet taller than the whole windows of its column")
-        h1 = max(h1, h)
+        h1 = _completed(h, col, f"cut by {edges}", "column or row", "taller")
+        if isinstance(h1, Unavailable):
+            return h1
         b1 = b + h - h1 if "bottom" in cut else b
     t = np.asarray(r.t, dtype=np.float64).reshape(3) + (a1 - a) * R[:, 0] + (b1 - b) * R[:, 1]
     rect = np.array([[0.0, h1, 0.0], [w1, h1, 0.0], [w1, 0.0, 0.0], [0.0, 0.0, 0.0]])
