@@ -35,7 +35,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from tools.export_recall import SPB, exported_boxes, label_boxes, photos_of, run_cli  # noqa: E402
+from tools.export_recall import (exported_boxes, label_boxes, labelled_photo_arguments, photos_of,  # noqa: E402
+                                 run_cli)
 
 DOOR, SIGNBOARD, WINDOW_CLASSES = 5, 3, (0, 4)
 WINDOW_IOU = 0.3  # an exported window on a labelled window at this box IoU is a window, whatever else it touches
@@ -102,13 +103,7 @@ def measure(spb: Path, photos: list[Path], runs: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--spb", type=Path, default=SPB,
-                    help="a YOLO folder (images/, labels/); default: the spb_facades test photos")
-    ap.add_argument("--part", choices=("all", "val"), default="all",
-                    help="every photo, or the validation part (every 5th by name) of a train folder")
-    ap.add_argument("--out", type=Path, default=ROOT / "out" / "door-recall", help="where the run goes")
-    ap.add_argument("--runs", type=Path, default=None, help="an earlier run's --out folder: read, not run")
+    ap = labelled_photo_arguments(argparse.ArgumentParser(description=__doc__.split("\n\n")[0]), "door-recall")
     ap.add_argument("--json", action="store_true", help="print the counts as JSON")
     a = ap.parse_args(argv)
     if not (a.spb / "images").is_dir() or not (a.spb / "labels").is_dir():

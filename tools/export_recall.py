@@ -96,14 +96,9 @@ def photos_of(spb: Path, part: str) -> list[Path]:
 
 
 def run_cli(photos: list[Path], out: Path) -> None:
-    """``fenestra reconstruct PHOTOS... --out OUT`` (replacing an earlier output folder of this tool)."""
-    cmd = [sys.executable, "-m", "fenestra", "reconstruct", *map(str, photos), "--out", str(out)]
-    if out.exists():
-        import shutil  # noqa: PLC0415
-
-        if not (out / "summary.json").is_file():
-            raise SystemExit(f"error: {out} exists and holds no fenestra reconstruct run; give another --out")
-        shutil.rmtree(out)
+    """``fenestra reconstruct PHOTOS... --out OUT --force``: an earlier batch there is replaced
+    under the command's own rule (only what that batch wrote; any other folder is refused)."""
+    cmd = [sys.executable, "-m", "fenestra", "reconstruct", *map(str, photos), "--out", str(out), "--force"]
     print("$", " ".join(cmd[:4]), f"<{len(photos)} photos>" if len(photos) > 3 else " ".join(cmd[4:-2]),
           *cmd[-2:], flush=True)
     subprocess.run(cmd, check=True, cwd=ROOT)
@@ -121,14 +116,19 @@ def measure(spb: Path, photos: list[Path], runs: Path, min_iou: float, classes: 
     return {"photos": out, "total": total}
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def labelled_photo_arguments(ap: argparse.ArgumentParser, out_name: str) -> argparse.ArgumentParser:
+    """The labelled-photo tools' common options: --spb, --part, --out (out/<out_name>), --runs."""
     ap.add_argument("--spb", type=Path, default=SPB,
                     help="a YOLO folder (images/, labels/); default: the spb_facades test photos")
     ap.add_argument("--part", choices=("all", "val"), default="all",
                     help="every photo, or the validation part (every 5th by name) of a train folder")
-    ap.add_argument("--out", type=Path, default=ROOT / "out" / "export-recall", help="where the run goes")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / out_name, help="where the run goes")
     ap.add_argument("--runs", type=Path, default=None, help="an earlier run's --out folder: read, not run")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = labelled_photo_arguments(argparse.ArgumentParser(description=__doc__.split("\n\n")[0]), "export-recall")
     ap.add_argument("--iou", type=float, default=0.3, help="box IoU of a match")
     ap.add_argument("--classes", default="0", help="label classes counted, comma-separated (window = 0)")
     ap.add_argument("--json", action="store_true", help="print the counts as JSON")
